@@ -1,0 +1,1 @@
+"""Robot and prop models shipped as package data (MJCF)."""

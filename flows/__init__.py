@@ -1,0 +1,1 @@
+"""Prefect flows (imported as newton_lab.flows)."""

@@ -1,0 +1,154 @@
+"""The per-step view of the simulation that task terms read, and accessors on it.
+
+Every task predicate, reward, observation and reset event is a ``@wp.func`` taking
+``(ctx: TaskContext, w: int, ...)`` where ``w`` is the env row (world index). Worlds are laid out
+contiguously, so a world-local index ``i`` maps to the flat index ``w * per_world + i``.
+Entities (named rigid objects of the scene) are addressed by their slot ``k`` in the task's entity list.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+
+@wp.struct
+class TaskContext:
+    body_q: wp.array(dtype=wp.transform)
+    """Body poses, world frame (flat over worlds)."""
+    body_qd: wp.array(dtype=wp.spatial_vector)
+    joint_q: wp.array(dtype=float)
+    """Joint coordinates (flat over worlds) [m | rad]."""
+    joint_qd: wp.array(dtype=float)
+    joint_target_q: wp.array(dtype=float)
+    joint_target_qd: wp.array(dtype=float)
+    bodies_per_world: int
+    coords_per_world: int
+    dofs_per_world: int
+    entity_body: wp.array(dtype=int)
+    """World-local body index of each entity, -1 for a static entity."""
+    entity_coord: wp.array(dtype=int)
+    """World-local coordinate start of each dynamic entity's free joint, -1 if static."""
+    entity_dof: wp.array(dtype=int)
+    entity_static_pose: wp.array(dtype=wp.transform)
+    """Pose of static entities (identical in every world)."""
+    entity_half_extents: wp.array(dtype=wp.vec3)
+    """Half sizes of each entity's box (or bounding box) [m]."""
+    tcp_body: int
+    tcp_offset: wp.transform
+    gripper_coord: int
+    arm_coords: wp.array(dtype=int)
+    """World-local coordinate indices of the controlled arm (7)."""
+    arm_home: wp.array(dtype=float)
+    """Reference arm posture used by carry / retract predicates [rad] (7)."""
+    command: wp.array2d(dtype=float)
+    """Per-row task command (e.g. a Reach goal) (num_envs, command_dim)."""
+    actions: wp.array2d(dtype=float)
+    prev_actions: wp.array2d(dtype=float)
+    episode_step: wp.array(dtype=int)
+    """Control steps taken in the current episode."""
+    phase: wp.array(dtype=int)
+    hold: wp.array2d(dtype=int)
+    """Per-row counters for predicates that must hold for several consecutive steps."""
+
+
+@wp.func
+def entity_pose(ctx: TaskContext, w: int, k: int) -> wp.transform:
+    """World pose of entity ``k`` in row ``w``."""
+    b = ctx.entity_body[k]
+    if b < 0:
+        return ctx.entity_static_pose[k]
+    return ctx.body_q[w * ctx.bodies_per_world + b]
+
+
+@wp.func
+def entity_pos(ctx: TaskContext, w: int, k: int) -> wp.vec3:
+    return wp.transform_get_translation(entity_pose(ctx, w, k))
+
+
+@wp.func
+def entity_up_dot(ctx: TaskContext, w: int, k: int) -> float:
+    """|local z . world z| of entity ``k`` (1 = upright)."""
+    q = wp.transform_get_rotation(entity_pose(ctx, w, k))
+    return wp.abs(wp.quat_rotate(q, wp.vec3(0.0, 0.0, 1.0))[2])
+
+
+@wp.func
+def tcp_pose(ctx: TaskContext, w: int) -> wp.transform:
+    """World pose of the controlled arm's TCP."""
+    return wp.transform_multiply(ctx.body_q[w * ctx.bodies_per_world + ctx.tcp_body], ctx.tcp_offset)
+
+
+@wp.func
+def tcp_pos(ctx: TaskContext, w: int) -> wp.vec3:
+    return wp.transform_get_translation(tcp_pose(ctx, w))
+
+
+@wp.func
+def gripper_q(ctx: TaskContext, w: int) -> float:
+    """Gripper master joint position [rad] (0 open .. 1.2 closed)."""
+    return ctx.joint_q[w * ctx.coords_per_world + ctx.gripper_coord]
+
+
+@wp.func
+def arm_near_home(ctx: TaskContext, w: int, tol: float) -> bool:
+    """Every arm joint within ``tol`` [rad] of ``ctx.arm_home``."""
+    ok = bool(True)
+    for j in range(7):
+        if wp.abs(ctx.joint_q[w * ctx.coords_per_world + ctx.arm_coords[j]] - ctx.arm_home[j]) > tol:
+            ok = False
+    return ok
+
+
+@wp.func
+def held_for(ctx: TaskContext, w: int, slot: int, cond: bool, steps: int) -> bool:
+    """True once ``cond`` has held for ``steps`` consecutive calls (counter in ``ctx.hold[w, slot]``)."""
+    if cond:
+        ctx.hold[w, slot] = ctx.hold[w, slot] + 1
+    else:
+        ctx.hold[w, slot] = 0
+    return ctx.hold[w, slot] >= steps
+
+
+@wp.func
+def write_vec3(out: wp.array2d(dtype=float), w: int, col: int, v: wp.vec3):
+    for i in range(3):
+        out[w, col + i] = v[i]
+
+
+@wp.func
+def write_transform(out: wp.array2d(dtype=float), w: int, col: int, t: wp.transform):
+    """Write a pose as (x, y, z, qx, qy, qz, qw)."""
+    p = wp.transform_get_translation(t)
+    q = wp.transform_get_rotation(t)
+    for i in range(3):
+        out[w, col + i] = p[i]
+    for i in range(4):
+        out[w, col + 3 + i] = q[i]
+
+
+@wp.kernel
+def record_poses(ctx: TaskContext, tcp_out: wp.array2d(dtype=float), entity_out: wp.array3d(dtype=float)):
+    """Per row: TCP pose (7) and every entity's pose (E, 7), world frame, xyzw."""
+    w = wp.tid()
+    write_transform(tcp_out, w, 0, tcp_pose(ctx, w))
+    for k in range(entity_out.shape[1]):
+        t = entity_pose(ctx, w, k)
+        p = wp.transform_get_translation(t)
+        q = wp.transform_get_rotation(t)
+        for i in range(3):
+            entity_out[w, k, i] = p[i]
+        for i in range(4):
+            entity_out[w, k, 3 + i] = q[i]
+
+
+@wp.func
+def set_entity_pose(ctx: TaskContext, w: int, k: int, p: wp.vec3, q: wp.quat):
+    """Write a dynamic entity's free-joint coordinates (reset events); static entities are ignored."""
+    c = ctx.entity_coord[k]
+    if c < 0:
+        return
+    base = w * ctx.coords_per_world + c
+    for i in range(3):
+        ctx.joint_q[base + i] = p[i]
+    for i in range(4):
+        ctx.joint_q[base + 3 + i] = q[i]

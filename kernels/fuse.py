@@ -1,0 +1,182 @@
+"""Fuse a task's declared terms into single Warp kernels.
+
+A task declares its logic as ``@wp.func`` terms (see ``newton_lab.envs.cfg``); this module turns them
+into exactly three kernels per task id, each launched once per env step / reset:
+
+* ``task_step``: phase advance, latched success, failure terminations, time-out, reward, subtask signals;
+* ``observe``: every observation term written into one (num_envs, obs_dim) buffer;
+* ``reset``: masked reset of the selected rows to their defaults, then the task's reset events
+  (seeded per row and episode).
+
+The term lists are unrolled at code-generation time with ``wp.static``, so there is no Python loop and
+no per-term launch at run time.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .context import TaskContext
+
+REASON_NONE = 0
+REASON_SUCCESS = 1
+REASON_TIME_OUT = 2
+FIRST_FAILURE_REASON = 3
+
+
+def build_task_kernel(*, phase_success, terminations, rewards, signals, terminate_on_success=True):
+    """Return the fused per-step task kernel.
+
+    Args:
+        phase_success: one ``func(ctx, w) -> bool`` per phase; a phase's success advances that row to
+            the next phase, the last phase's success is episode success.
+        terminations: ``func(ctx, w) -> bool`` failure terms; term ``i`` reports reason
+            ``FIRST_FAILURE_REASON + i``.
+        rewards: ``(func(ctx, w) -> float, weight)`` pairs, summed.
+        signals: ``func(ctx, w) -> bool`` subtask signals written per row (e.g. grasped).
+        terminate_on_success: end the episode when the last phase succeeds.
+    """
+    phase_fns = tuple(phase_success)
+    n_phase = len(phase_fns)
+    term_fns = tuple(terminations)
+    n_term = len(term_fns)
+    reward_fns = tuple(f for f, _ in rewards)
+    reward_w = tuple(float(w) for _, w in rewards)
+    n_reward = len(reward_fns)
+    signal_fns = tuple(signals)
+    n_signal = len(signal_fns)
+    end_on_success = bool(terminate_on_success)
+
+    @wp.kernel(module="unique")
+    def task_step(
+        ctx: TaskContext,
+        max_episode_steps: int,
+        reward: wp.array(dtype=float),
+        terminated: wp.array(dtype=bool),
+        truncated: wp.array(dtype=bool),
+        done: wp.array(dtype=bool),
+        success: wp.array(dtype=bool),
+        success_latched: wp.array(dtype=bool),
+        reason: wp.array(dtype=int),
+        episode_length: wp.array(dtype=int),
+        signal_out: wp.array2d(dtype=float),
+    ):
+        w = wp.tid()
+        step = ctx.episode_step[w] + 1
+        ctx.episode_step[w] = step
+        ph = ctx.phase[w]
+        succ = bool(False)
+        for p in range(wp.static(n_phase)):
+            if ph == p:
+                if wp.static(phase_fns[p])(ctx, w):
+                    if p == wp.static(n_phase - 1):
+                        succ = True
+                    else:
+                        ctx.phase[w] = p + 1
+        if succ:
+            success_latched[w] = True
+        code = int(REASON_NONE)
+        for k in range(wp.static(n_term)):
+            if wp.static(term_fns[k])(ctx, w):
+                if code == REASON_NONE:
+                    code = FIRST_FAILURE_REASON + k
+        term = code != REASON_NONE
+        if succ and wp.static(end_on_success):
+            term = True
+            code = REASON_SUCCESS
+        trunc = bool(False)
+        if not term and step >= max_episode_steps:
+            trunc = True
+            code = REASON_TIME_OUT
+        r = float(0.0)
+        for k in range(wp.static(n_reward)):
+            r += wp.static(reward_w[k]) * wp.static(reward_fns[k])(ctx, w)
+        for k in range(wp.static(n_signal)):
+            signal_out[w, k] = wp.where(wp.static(signal_fns[k])(ctx, w), 1.0, 0.0)
+        for j in range(ctx.actions.shape[1]):
+            ctx.prev_actions[w, j] = ctx.actions[w, j]
+        reward[w] = r
+        terminated[w] = term
+        truncated[w] = trunc
+        done[w] = term or trunc
+        success[w] = succ
+        reason[w] = code
+        episode_length[w] = step
+
+    return task_step
+
+
+def build_observation_kernel(terms):
+    """Return the fused observation kernel; ``terms`` are ``(func(ctx, w, out, col), col)`` pairs."""
+    fns = tuple(f for f, _ in terms)
+    cols = tuple(int(c) for _, c in terms)
+    n = len(fns)
+
+    @wp.kernel(module="unique")
+    def observe(ctx: TaskContext, out: wp.array2d(dtype=float)):
+        w = wp.tid()
+        for k in range(wp.static(n)):
+            wp.static(fns[k])(ctx, w, out, wp.static(cols[k]))
+
+    return observe
+
+
+def build_reset_kernel(events):
+    """Return the fused masked reset kernel.
+
+    ``events`` are ``func(ctx, w, seed, stream, randomize)`` reset events; each gets its own random
+    stream derived from (seed, row, episode counter, event index), so a seed reproduces every episode.
+    """
+    fns = tuple(events)
+    n = len(fns)
+
+    @wp.kernel(module="unique")
+    def reset(
+        ctx: TaskContext,
+        mask: wp.array(dtype=bool),
+        default_q: wp.array(dtype=float),
+        default_target_q: wp.array(dtype=float),
+        seed: int,
+        randomize: int,
+        episode_count: wp.array(dtype=int),
+        success_latched: wp.array(dtype=bool),
+    ):
+        w = wp.tid()
+        if not mask[w]:
+            return
+        cpw = ctx.coords_per_world
+        dpw = ctx.dofs_per_world
+        for i in range(cpw):
+            ctx.joint_q[w * cpw + i] = default_q[i]
+            ctx.joint_target_q[w * cpw + i] = default_target_q[i]
+        for i in range(dpw):
+            ctx.joint_qd[w * dpw + i] = 0.0
+            ctx.joint_target_qd[w * dpw + i] = 0.0
+        for j in range(ctx.actions.shape[1]):
+            ctx.prev_actions[w, j] = 0.0
+        for j in range(ctx.hold.shape[1]):
+            ctx.hold[w, j] = 0
+        for j in range(ctx.command.shape[1]):
+            ctx.command[w, j] = 0.0
+        ctx.episode_step[w] = 0
+        ctx.phase[w] = 0
+        success_latched[w] = False
+        count = episode_count[w] + 1
+        episode_count[w] = count
+        stream = (w * 1000003 + count) * 16
+        for k in range(wp.static(n)):
+            wp.static(fns[k])(ctx, w, seed, stream + k, randomize != 0)
+
+    return reset
+
+
+@wp.kernel
+def world_to_articulation_mask(
+    world_mask: wp.array(dtype=bool),
+    articulation_world: wp.array(dtype=int),
+    articulation_mask: wp.array(dtype=bool),
+):
+    """Select the articulations of the masked worlds (for a masked forward-kinematics pass)."""
+    a = wp.tid()
+    aw = articulation_world[a]
+    articulation_mask[a] = aw >= 0 and world_mask[aw]

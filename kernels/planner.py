@@ -1,0 +1,46 @@
+"""Planner trajectory gather: joint-space waypoints in device buffers -> per-row action rows."""
+
+from __future__ import annotations
+
+import warp as wp
+
+
+@wp.kernel
+def gather_plan_actions(
+    waypoints: wp.array3d(dtype=float),
+    start_q: wp.array2d(dtype=float),
+    seg_start: wp.array2d(dtype=int),
+    seg_interp: wp.array2d(dtype=int),
+    num_segments: wp.array(dtype=int),
+    cursor: wp.array(dtype=int),
+    arm_cols: wp.array(dtype=int),
+    gripper_col: int,
+    actions: wp.array2d(dtype=float),
+):
+    """Write row ``w``'s commanded arm joints and gripper at its cursor, then advance the cursor.
+
+    Segment ``k`` starts at frame ``seg_start[w, k]``, moves linearly from the previous waypoint (or
+    ``start_q`` for ``k = 0``) to ``waypoints[w, k, :7]`` over ``seg_interp[w, k]`` frames, then holds;
+    ``waypoints[w, k, 7]`` is the gripper command for the whole segment. Past the end the last
+    waypoint is held.
+    """
+    w = wp.tid()
+    t = cursor[w]
+    n = num_segments[w]
+    if n == 0:
+        return
+    k = int(0)
+    for s in range(n):
+        if seg_start[w, s] <= t:
+            k = s
+    alpha = float(1.0)
+    m = seg_interp[w, k]
+    if m > 0:
+        alpha = wp.min(1.0, float(t - seg_start[w, k] + 1) / float(m))
+    for j in range(7):
+        a = start_q[w, j]
+        if k > 0:
+            a = waypoints[w, k - 1, j]
+        actions[w, arm_cols[j]] = a + alpha * (waypoints[w, k, j] - a)
+    actions[w, gripper_col] = waypoints[w, k, 7]
+    cursor[w] = t + 1

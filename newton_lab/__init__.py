@@ -1,0 +1,1 @@
+"""newton_lab: robot learning on NVIDIA Warp and Newton."""

@@ -1,0 +1,1 @@
+"""Batched motion-plan execution: plans (``plan``) and the agent that runs them (``agent``)."""

@@ -1,0 +1,253 @@
+"""PlannerAgent: resolves a motion plan per row from live poses, solves every TCP target with batched
+``newton.ik`` for all rows at once, and stores the joint-space trajectory in device buffers; ``act`` is a
+single gather kernel. Rows whose episode restarted are re-planned alone."""
+
+from __future__ import annotations
+
+import math
+
+import newton
+import newton.ik as ik
+import numpy as np
+import torch
+import warp as wp
+
+from ...kernels.planner import gather_plan_actions
+from ...robots.g1 import spec
+from ...robots.g1.model import JointIndex, add_g1
+from ..base import BaseAgent
+from .plan import MotionPlan, load_motion_plan, yaw_of
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (R, 4) xyzw quaternions."""
+    ax, ay, az, aw = a.T
+    bx, by, bz, bw = b.T
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=1,
+    )
+
+
+class PlannerAgent(BaseAgent):
+    """Executes ``plan`` for every row; see ``newton_lab.agents.planner.plan`` for the step format."""
+
+    def __init__(self, plan: MotionPlan, *, ik_iterations: int = 48):
+        self.plan = plan
+        self.ik_iterations = ik_iterations
+        self._env = None
+        self.plan_failures = 0
+        """Rows whose IK missed a target by more than the plan's tolerances (cumulative)."""
+
+    @classmethod
+    def from_task(cls, task_id: str, **kwargs) -> PlannerAgent:
+        """The expert for ``task_id`` (its registered motion plan)."""
+        from ...registry import lookup
+
+        ref = lookup(task_id).get("motion_plan")
+        if not ref:
+            raise ValueError(f"task {task_id!r} has no motion plan; use another agent (e.g. a policy or nav agent)")
+        return cls(load_motion_plan(ref), **kwargs)
+
+    # ------------------------------------------------------------------ binding to an env
+    def _bind(self, env) -> None:
+        self._env = env
+        n, dev = env.num_envs, env.device
+        arm = self.plan.arm
+        arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
+        names = list(env.action_joint_names)
+        missing = [j for j in (*arm_joints, f"{arm}_gripper_joint") if j not in names]
+        if missing:
+            raise ValueError(f"env {env.task_id} has no action columns for {missing}; the plan drives the {arm} arm")
+        self._arm_cols = wp.array([names.index(j) for j in arm_joints], dtype=int, device=dev)
+        self._gripper_col = names.index(f"{arm}_gripper_joint")
+        self._arm_coords = [env.layout.joints.coord[j] for j in arm_joints]
+        self._robot_coords = env.layout.robot_coords
+
+        with wp.ScopedDevice(dev):
+            b = newton.ModelBuilder()
+            newton.solvers.SolverMuJoCo.register_custom_attributes(b)
+            add_g1(b)
+            self._ik_model = b.finalize(device=dev)
+            joints = JointIndex.from_builder(b)
+            link = joints.body[spec.END_EFFECTOR_LINK[arm]]
+            self._ik_pos = ik.IKObjectivePosition(
+                link_index=link,
+                link_offset=wp.vec3(*spec.TCP_OFFSET_POS),
+                target_positions=wp.zeros(n, dtype=wp.vec3),
+            )
+            self._ik_rot = ik.IKObjectiveRotation(
+                link_index=link,
+                link_offset_rotation=wp.quat(*spec.TCP_OFFSET_QUAT),
+                target_rotations=wp.array(np.tile(spec.TOP_DOWN_TCP_QUAT, (n, 1)), dtype=wp.vec4),
+            )
+            lim = ik.IKObjectiveJointLimit(
+                joint_limit_lower=self._ik_model.joint_limit_lower,
+                joint_limit_upper=self._ik_model.joint_limit_upper,
+                weight=10.0,
+            )
+            mask = np.zeros(self._ik_model.joint_dof_count, dtype=bool)
+            mask[[joints.dof[j] for j in arm_joints]] = True
+            self._ik = ik.IKSolver(
+                model=self._ik_model,
+                n_problems=n,
+                objectives=[self._ik_pos, self._ik_rot, lim],
+                lambda_initial=0.1,
+                jacobian_mode=ik.IKJacobianType.ANALYTIC,
+                joint_dof_mask=wp.array(mask, dtype=wp.bool),
+            )
+            self._ik_q = wp.zeros((n, self._robot_coords), dtype=wp.float32)
+            self._fk_state = self._ik_model.state()
+            self._tcp_link = link
+            k = max(len(self.plan.steps), 1)
+            self._waypoints = wp.zeros((n, k, 8), dtype=float)
+            self._start_q = wp.zeros((n, 7), dtype=float)
+            self._seg_start = wp.zeros((n, k), dtype=int)
+            self._seg_interp = wp.zeros((n, k), dtype=int)
+            self._num_segments = wp.zeros(n, dtype=int)
+            self._cursor = wp.zeros(n, dtype=int)
+            self._plan_length = np.zeros(n, dtype=np.int64)
+            self._actions = wp.from_torch(env.current_action().contiguous())
+        self._seen_episode = np.full(n, -1, dtype=np.int64)
+
+    # ------------------------------------------------------------------ planning
+    def _poses(self, env, rows: np.ndarray) -> dict[str, np.ndarray]:
+        ent = env.entity_poses.detach().cpu().numpy()[rows].astype(np.float64)
+        poses = {name: ent[:, e.slot] for name, e in env.entities.items()}
+        poses["tcp"] = env.tcp_pose.detach().cpu().numpy()[rows].astype(np.float64)
+        q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1).cpu().numpy()[rows]
+        coord = env.layout.joints.coord
+        yaw = q[:, coord["base_yaw"]]
+        poses["base"] = np.stack(
+            [q[:, coord["base_x"]], q[:, coord["base_y"]], np.zeros_like(yaw),
+             np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
+        return poses
+
+    def _target_quat(self, step, poses: dict[str, np.ndarray], r: int) -> np.ndarray:
+        if step.quat is not None:
+            return np.tile(np.asarray(step.quat, dtype=np.float64), (r, 1))
+        top = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float64), (r, 1))
+        if step.align_yaw is None:
+            return top
+        yaw = yaw_of(poses[step.align_yaw][:, 3:7])
+        yaw = (yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4  # a cube looks the same every 90 deg
+        turn = np.stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
+        return _quat_mul(turn, top)
+
+    def _solve(self, q_seed: np.ndarray, rows: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """IK for the given rows (others ride along unchanged); returns arm joints (R, 7) and TCP error [m]."""
+        n = self._env.num_envs
+        p_all = np.zeros((n, 3), dtype=np.float32)
+        q_all = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float32), (n, 1))
+        p_all[rows], q_all[rows] = pos, quat
+        self._ik_pos.set_target_positions(wp.array(p_all, dtype=wp.vec3, device=self._env.device))
+        self._ik_rot.set_target_rotations(wp.array(q_all, dtype=wp.vec4, device=self._env.device))
+        self._ik_q.assign(q_seed.astype(np.float32))
+        self._ik.step(self._ik_q, self._ik_q, iterations=self.ik_iterations)
+        q = self._ik_q.numpy()
+        # TCP error of the solution, from forward kinematics of the IK model (one problem at a time is
+        # cheap: the IK model is a single robot)
+        err = np.zeros(len(rows))
+        for i, r in enumerate(rows):
+            self._fk_state.joint_q.assign(q[r])
+            newton.eval_fk(self._ik_model, self._fk_state.joint_q, self._fk_state.joint_qd, self._fk_state)
+            bq = self._fk_state.body_q.numpy()[self._tcp_link]
+            t = wp.transform_multiply(
+                wp.transform(wp.vec3(*bq[:3]), wp.quat(*bq[3:])),
+                wp.transform(wp.vec3(*spec.TCP_OFFSET_POS), wp.quat(*spec.TCP_OFFSET_QUAT)),
+            )
+            err[i] = float(np.linalg.norm(np.asarray(t.p) - pos[i]))
+        return q, err
+
+    def _plan_rows(self, env, rows: np.ndarray) -> None:
+        plan, r = self.plan, len(rows)
+        poses = self._poses(env, rows)
+        q_env = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, : self._robot_coords].cpu().numpy()
+        q_seed = q_env.copy()
+        prev = q_env[rows][:, self._arm_coords].astype(np.float64)
+        start = prev.copy()
+        k = len(plan.steps)
+        way = np.zeros((r, k, 8))
+        seg_start = np.zeros((r, k), dtype=np.int64)
+        seg_interp = np.zeros((r, k), dtype=np.int64)
+        frame = np.zeros(r, dtype=np.int64)
+        failed = np.zeros(r, dtype=bool)
+        for i, step in enumerate(plan.steps):
+            if step.joints is not None:
+                q_k = np.tile(np.asarray(step.joints, dtype=np.float64), (r, 1))
+            elif step.target is not None:
+                target = step.target.resolve(poses) if hasattr(step.target, "resolve") else step.target(poses)
+                q_all, err = self._solve(q_seed, rows, target, self._target_quat(step, poses, r))
+                q_k = q_all[rows][:, self._arm_coords].astype(np.float64)
+                q_seed = q_all
+                failed |= err > plan.position_tolerance
+            else:
+                q_k = prev
+            moves = step.target is not None or step.joints is not None
+            n_interp = np.ceil(np.abs(q_k - prev).max(axis=1) / plan.max_joint_step).astype(np.int64)
+            n_interp = np.maximum(n_interp, 1 if moves else 0)
+            way[:, i, :7] = q_k
+            way[:, i, 7] = spec.GRIPPER_OPEN if step.gripper_open else spec.GRIPPER_CLOSED
+            seg_start[:, i] = frame
+            seg_interp[:, i] = n_interp
+            frame = frame + n_interp + max(step.hold - 1, 0) + (plan.settle_steps if moves else 0)
+            frame = np.maximum(frame, seg_start[:, i] + 1)
+            prev = q_k
+        self.plan_failures += int(failed.sum())
+        self._plan_length[rows] = frame
+        idx = torch.as_tensor(rows, device=env.torch_device)
+        t = wp.to_torch
+        t(self._waypoints)[idx] = torch.as_tensor(way, dtype=torch.float32, device=env.torch_device)
+        t(self._start_q)[idx] = torch.as_tensor(start, dtype=torch.float32, device=env.torch_device)
+        t(self._seg_start)[idx] = torch.as_tensor(seg_start, dtype=torch.int32, device=env.torch_device)
+        t(self._seg_interp)[idx] = torch.as_tensor(seg_interp, dtype=torch.int32, device=env.torch_device)
+        t(self._num_segments)[idx] = k
+        t(self._cursor)[idx] = 0
+
+    # ------------------------------------------------------------------ the agent contract
+    def reset(self, env_ids=None) -> None:
+        """Forces a re-plan of ``env_ids`` (all rows when ``None``) at the next ``act``."""
+        if self._env is None:
+            return
+        if env_ids is None:
+            self._seen_episode[:] = -1
+        else:
+            self._seen_episode[np.asarray(env_ids, dtype=np.int64)] = -1
+
+    def act(self, env, env_ids=None) -> torch.Tensor:
+        if self._env is not env:
+            self._bind(env)
+        episode = env._episode_count.numpy()
+        rows = np.nonzero(episode != self._seen_episode)[0]
+        if env_ids is not None:
+            rows = np.intersect1d(rows, np.asarray(env_ids, dtype=np.int64))
+        if rows.size:
+            self._plan_rows(env, rows)
+            self._seen_episode[rows] = episode[rows]
+        wp.launch(
+            gather_plan_actions,
+            dim=env.num_envs,
+            inputs=[
+                self._waypoints,
+                self._start_q,
+                self._seg_start,
+                self._seg_interp,
+                self._num_segments,
+                self._cursor,
+                self._arm_cols,
+                self._gripper_col,
+                self._actions,
+            ],
+            device=env.device,
+        )
+        return wp.to_torch(self._actions)
+
+    def done(self, env) -> torch.Tensor:
+        """Rows whose plan has played to its last frame."""
+        cursor = wp.to_torch(self._cursor).cpu().numpy()
+        return torch.as_tensor(cursor >= self._plan_length, device=env.torch_device)

@@ -1,0 +1,129 @@
+"""Motion plans: ordered TCP / joint / gripper steps, declared in YAML or Python by each task.
+
+A target resolves per row at reset from live poses: ``AssetTarget`` (an entity's position + offset),
+``WorldTarget`` (env-frame or base-frame point) or any callable ``(poses) -> (R, 3)`` where ``poses``
+maps entity names and ``"tcp"`` / ``"base"`` to (R, 7) arrays. No quaternion means the top-down TCP.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any, Callable
+
+import numpy as np
+import yaml
+
+
+@dataclass(frozen=True)
+class AssetTarget:
+    asset: str
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Added to the asset's position (env frame) [m]."""
+
+    def resolve(self, poses: dict[str, np.ndarray]) -> np.ndarray:
+        return poses[self.asset][:, :3] + np.asarray(self.offset, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class WorldTarget:
+    pos: tuple[float, float, float]
+    frame: str = "world"
+    """``world`` (env frame) or ``base`` (relative to the robot base pose)."""
+
+    def resolve(self, poses: dict[str, np.ndarray]) -> np.ndarray:
+        p = np.broadcast_to(np.asarray(self.pos, dtype=np.float64), poses["base"][:, :3].shape).copy()
+        if self.frame == "base":
+            base = poses["base"]
+            yaw = _yaw(base[:, 3:7])
+            c, s = np.cos(yaw), np.sin(yaw)
+            x, y = p[:, 0].copy(), p[:, 1].copy()
+            p[:, 0] = base[:, 0] + c * x - s * y
+            p[:, 1] = base[:, 1] + s * x + c * y
+            p[:, 2] = base[:, 2] + p[:, 2]
+        return p
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionStep:
+    name: str
+    target: AssetTarget | WorldTarget | Callable[[dict], np.ndarray] | None = None
+    quat: tuple[float, float, float, float] | None = None
+    """TCP orientation, xyzw; ``None`` = top-down."""
+    align_yaw: str | None = None
+    """Turn the top-down TCP about z to match this asset's yaw (modulo 90 deg)."""
+    joints: tuple[float, ...] | None = None
+    """Joint-space target of the arm (7) [rad]; bypasses IK."""
+    gripper_open: bool = True
+    hold: int = 1
+    """Frames the command is repeated (gripper steps use e.g. 25)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionPlan:
+    steps: tuple[MotionStep, ...]
+    max_joint_step: float = 0.03
+    """Largest joint move per control step [rad]."""
+    settle_steps: int = 12
+    """Extra frames each named target is held."""
+    position_tolerance: float = 0.035
+    """IK solutions farther than this from the target mark the row's plan as failed [m]."""
+    orientation_tolerance: float = 0.15
+    arm: str = "left"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _yaw(quat_xyzw: np.ndarray) -> np.ndarray:
+    x, y, z, w = (quat_xyzw[:, i] for i in range(4))
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def yaw_of(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Yaw [rad] of (R, 4) xyzw quaternions."""
+    return _yaw(np.asarray(quat_xyzw, dtype=np.float64))
+
+
+def _step_from_dict(d: dict) -> MotionStep:
+    known = {"name", "target", "quat", "align_yaw", "joints", "gripper", "hold"}
+    unknown = set(d) - known
+    if unknown:
+        raise ValueError(f"motion step {d.get('name')!r} has unknown keys {sorted(unknown)}; valid: {sorted(known)}")
+    target = None
+    t = d.get("target")
+    if t is not None:
+        if "asset" in t:
+            target = AssetTarget(t["asset"], tuple(t.get("offset", (0.0, 0.0, 0.0))))
+        elif "pos" in t:
+            target = WorldTarget(tuple(t["pos"]), t.get("frame", "world"))
+        else:
+            raise ValueError(f"motion step {d.get('name')!r}: target needs 'asset' or 'pos'")
+    gripper = d.get("gripper", "open")
+    if gripper not in ("open", "closed"):
+        raise ValueError(f"motion step {d.get('name')!r}: gripper must be 'open' or 'closed', got {gripper!r}")
+    return MotionStep(
+        name=d["name"],
+        target=target,
+        quat=tuple(d["quat"]) if d.get("quat") else None,
+        align_yaw=d.get("align_yaw"),
+        joints=tuple(d["joints"]) if d.get("joints") else None,
+        gripper_open=gripper == "open",
+        hold=int(d.get("hold", 1)),
+    )
+
+
+def plan_from_yaml(text: str) -> MotionPlan:
+    """Parse a YAML motion plan (keys: max_joint_step, settle_steps, position_tolerance,
+    orientation_tolerance, arm, steps: [{name, target: {asset, offset} | {pos, frame}, quat, joints,
+    gripper: open|closed, hold}])."""
+    data = yaml.safe_load(text)
+    steps = tuple(_step_from_dict(s) for s in data.pop("steps"))
+    return MotionPlan(steps=steps, **data)
+
+
+def load_motion_plan(ref: str) -> MotionPlan:
+    """Load ``package:file.yaml`` (a YAML resource) or ``module:function`` (a Python plan factory)."""
+    module, _, name = ref.partition(":")
+    if name.endswith((".yaml", ".yml")):
+        return plan_from_yaml(resources.files(module).joinpath(name).read_text())
+    return getattr(importlib.import_module(module), name)()

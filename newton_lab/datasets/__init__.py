@@ -1,0 +1,7 @@
+"""Episode datasets: robomimic-layout HDF5 / zarr v3 storage."""
+
+from .storage import (FORMAT_VERSION, SUFFIXES, EpisodeWriter, delete_demos, list_demos, open_writer,
+                      read_dataset_info, read_episode)
+
+__all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
+           "delete_demos", "SUFFIXES", "FORMAT_VERSION"]

@@ -1,0 +1,154 @@
+"""robomimic-layout HDF5 backend (one short-lived file handle per operation)."""
+
+from __future__ import annotations
+
+import os
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ._common import PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path, time_chunks
+
+# Superblock v0 (no "file open for write" flag, so a SIGKILLed writer leaves a file that reopens)
+# and objects readable by HDF5 >= 1.10 (robomimic & co).
+LIBVER = ("earliest", "v110")
+LOCK_WAIT_S = 10.0
+
+
+def _open(path: Path, mode: str) -> h5py.File:
+    """Open ``path``; waits while another process holds the HDF5 lock, maps damage to ValueError."""
+    deadline = time.monotonic() + LOCK_WAIT_S
+    while True:
+        try:
+            if mode == "r":
+                return h5py.File(path, "r")
+            return h5py.File(path, mode, libver=LIBVER)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"dataset {path} does not exist; check the path") from None
+        except OSError as e:
+            if "unable to lock file" not in str(e).lower():
+                raise damaged(path, e) from None
+            if time.monotonic() > deadline:
+                raise BlockingIOError(
+                    f"{path} is locked by another process (a writer appending?); retry when it is done") from None
+            time.sleep(0.05)
+
+
+def _data(f: h5py.File, path: Path) -> h5py.Group:
+    g = f.get("data")
+    if not isinstance(g, h5py.Group):
+        raise damaged(path, "no 'data' group")
+    return g
+
+
+def _committed(data: h5py.Group) -> dict[int, h5py.Group]:
+    out = {}
+    for name, g in data.items():
+        i = demo_id_of(name)
+        if i is not None and isinstance(g, h5py.Group) and "num_samples" in g.attrs:
+            out[i] = g
+    return out
+
+
+def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            _write_tree(g.create_group(key), value)
+        elif value.ndim == 0 or value.size == 0:
+            g.create_dataset(key, data=value)
+        else:
+            g.create_dataset(key, data=value, chunks=time_chunks(value.shape, value.itemsize),
+                             compression="gzip", compression_opts=4)
+
+
+def _read_tree(g: h5py.Group) -> dict[str, Any]:
+    return {k: _read_tree(v) if isinstance(v, h5py.Group) else np.asarray(v[()]) for k, v in g.items()}
+
+
+def _attrs(obj: h5py.HLObject) -> dict[str, Any]:
+    return {k: from_stored(v) for k, v in obj.attrs.items()}
+
+
+def create(path: Path, root_attrs: dict[str, Any], fsync: bool) -> None:
+    """Create an empty dataset atomically (temp file, then link into place; never overwrites)."""
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.partial")
+    try:
+        with h5py.File(tmp, "w-", libver=LIBVER) as f:
+            f.create_group("data").attrs.update(root_attrs)
+        if fsync:
+            fsync_path(tmp)
+        try:
+            os.link(tmp, path)  # FileExistsError if someone else created it meanwhile
+        except FileExistsError:
+            raise
+        except OSError:  # filesystem without hard links
+            if path.exists():
+                raise FileExistsError(path) from None
+            os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    if fsync:
+        fsync_path(path.parent)
+
+
+def read_root(path: Path) -> dict[str, Any]:
+    with _open(path, "r") as f:
+        return _attrs(_data(f, path))
+
+
+def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples: int, fsync: bool) -> int:
+    """Write under ``data/_partial_demo_<i>``, rename to ``data/demo_<i>``, refresh totals, close."""
+    with _open(path, "r+") as f:
+        data = _data(f, path)
+        for name in [n for n in data if n.startswith(PARTIAL_PREFIX)]:
+            del data[name]  # leftovers of a killed append
+        demos = _committed(data)
+        demo_id = max(demos, default=-1) + 1
+        tmp = f"{PARTIAL_PREFIX}{demo_name(demo_id)}"
+        g = data.create_group(tmp)
+        _write_tree(g, tree)
+        g.attrs.update(attrs)
+        g.attrs["num_samples"] = int(num_samples)
+        data.move(tmp, demo_name(demo_id))
+        total = sum(int(d.attrs["num_samples"]) for d in demos.values()) + int(num_samples)
+        data.attrs.update({"total": total, "num_demos": len(demos) + 1})
+        f.flush()
+    if fsync:
+        fsync_path(path)
+    return demo_id
+
+
+def info(path: Path) -> dict[str, Any]:
+    with _open(path, "r") as f:
+        data = _data(f, path)
+        demos = {i: {"num_samples": int(g.attrs["num_samples"]), "success": bool(g.attrs.get("success", False))}
+                 for i, g in _committed(data).items()}
+        return {"root": _attrs(data), "demos": demos}
+
+
+def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    with _open(path, "r") as f:
+        g = _committed(_data(f, path)).get(demo_id)
+        if g is None:
+            raise KeyError(demo_id)
+        try:
+            return _read_tree(g), _attrs(g)
+        except (OSError, RuntimeError) as e:
+            raise damaged(path, f"{demo_name(demo_id)}: {e}") from None
+
+
+def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
+    """Delete demos and refresh totals (space is reclaimed only by h5repack)."""
+    with _open(path, "r+") as f:
+        data = _data(f, path)
+        for i in ids:
+            del data[demo_name(i)]
+        demos = _committed(data)
+        data.attrs.update({"total": sum(int(d.attrs["num_samples"]) for d in demos.values()),
+                           "num_demos": len(demos)})
+    if fsync:
+        fsync_path(path)

@@ -1,0 +1,251 @@
+"""Episode storage: robomimic-layout datasets in HDF5 (``.hdf5``/``.h5``) or zarr v3 (``.zarr``).
+
+Layout (both formats)::
+
+    data/            attrs: env_args (JSON), total, num_demos, task_id, format_version
+    data/demo_<i>/   attrs: num_samples, success, extra scalars
+        actions (T, A) float32, obs/<term>, states/<...>, initial_state/<...>, any nested key
+
+Every ``append_episode`` is durable and crash safe before it returns: a writer killed at any
+time leaves a dataset holding every episode whose append returned (half-written demos are
+invisible to readers and removed by the next append). One writer per dataset at a time.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from ._common import FORMAT_VERSION, RESERVED_DEMO_ATTRS, damaged, demo_id_of, dumps_env_args, py_scalar
+
+SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
+TIME_ALIGNED = ("obs", "states")  # every array under these has T rows
+
+__all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
+           "delete_demos", "SUFFIXES", "FORMAT_VERSION"]
+
+
+# ----------------------------------------------------------------------------- dispatch / checks
+def _backend(path: str | Path) -> tuple[Path, ModuleType, str]:
+    p = Path(path).expanduser()
+    fmt = SUFFIXES.get(p.suffix.lower())
+    if fmt is None:
+        raise ValueError(f"unknown dataset suffix {p.suffix or '(none)'!r} for {p}: "
+                         f"use one of {', '.join(SUFFIXES)}")
+    return p, importlib.import_module(f".{fmt}_store", __package__), fmt
+
+
+def _existing(path: str | Path) -> tuple[Path, ModuleType, str]:
+    p, backend, fmt = _backend(path)
+    if not p.exists():
+        raise FileNotFoundError(f"dataset {p} does not exist; check the path")
+    return p, backend, fmt
+
+
+def _root_meta(p: Path, root: dict[str, Any]) -> dict[str, Any]:
+    """Validate ``data`` attrs; returns them with env_args decoded and task_id resolved."""
+    try:
+        env_args = json.loads(root.get("env_args", "{}"))
+        assert isinstance(env_args, dict)
+    except (TypeError, ValueError, AssertionError):
+        raise damaged(p, "data.attrs['env_args'] is not a JSON object") from None
+    task_id = root.get("task_id") or env_args.get("env_name")
+    if not isinstance(task_id, str) or not task_id:
+        raise damaged(p, "data has no task_id")
+    version = int(root.get("format_version", FORMAT_VERSION))
+    if version > FORMAT_VERSION:
+        raise ValueError(f"{p} has format_version {version}, newer than this newton_lab "
+                         f"({FORMAT_VERSION}); upgrade newton_lab to read it")
+    return {**root, "env_args": env_args, "task_id": task_id, "format_version": version}
+
+
+def _describe_ids(ids: list[int]) -> str:
+    if not ids:
+        return "none (the dataset is empty)"
+    runs, start = [], ids[0]
+    for a, b in zip(ids, ids[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"{start}..{a}" if a != start else f"{a}")
+            start = b
+    return ", ".join(runs[:8]) + (", ..." if len(runs) > 8 else "")
+
+
+def _as_id(demo_id: int | str) -> int:
+    if isinstance(demo_id, str):
+        parsed = demo_id_of(demo_id) if not demo_id.isdigit() else int(demo_id)
+        if parsed is None:
+            raise KeyError(f"bad demo id {demo_id!r}: use an int or 'demo_<i>'")
+        return parsed
+    return int(demo_id)
+
+
+def _missing_id(p: Path, demo_id: Any, ids: list[int]) -> KeyError:
+    return KeyError(f"demo {demo_id} not in {p}; available ids: {_describe_ids(ids)}")
+
+
+# ----------------------------------------------------------------------------- episode validation
+def _to_tree(node: Mapping, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in node.items():
+        if not isinstance(key, str) or not key or "/" in key or key.startswith("."):
+            raise ValueError(f"episode key {prefix + str(key)!r} must be a non-empty str without '/'")
+        if isinstance(value, Mapping):
+            out[key] = _to_tree(value, f"{prefix}{key}/")
+            continue
+        arr = np.asarray(value)
+        if arr.dtype.kind not in "biufc":
+            raise TypeError(f"episode array {prefix + key!r} has unsupported dtype {arr.dtype} "
+                            "(use bool/int/uint/float/complex)")
+        out[key] = arr if arr.flags.c_contiguous else np.array(arr, order="C")
+    return out
+
+
+def _normalize_episode(episode: Mapping) -> tuple[dict[str, Any], int]:
+    if not isinstance(episode, Mapping):
+        raise TypeError(f"episode must be a (nested) dict of arrays, got {type(episode).__name__}")
+    if "actions" not in episode or isinstance(episode["actions"], Mapping):
+        raise ValueError("episode must contain an 'actions' array of shape (T, A)")
+    if "attrs" in episode:
+        raise ValueError("episode key 'attrs' is reserved; pass demo attributes via attrs=")
+    tree = _to_tree(episode)
+    actions = tree["actions"]
+    if actions.ndim != 2 or actions.dtype.kind not in "iuf":
+        raise ValueError(f"'actions' must be a real (T, A) array, got shape {actions.shape} dtype {actions.dtype}")
+    tree["actions"] = actions.astype(np.float32, copy=False)
+    steps = actions.shape[0]
+
+    def check(node: Any, name: str) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                check(v, f"{name}/{k}")
+        elif node.ndim == 0 or node.shape[0] != steps:
+            raise ValueError(f"episode array {name!r} has shape {node.shape}; expected {steps} rows like 'actions'")
+
+    for key in TIME_ALIGNED:
+        if key in tree:
+            check(tree[key], key)
+    return tree, steps
+
+
+def _demo_attrs(success: bool, attrs: Mapping | None) -> dict[str, Any]:
+    out = {}
+    for key, value in (attrs or {}).items():
+        if key in RESERVED_DEMO_ATTRS:
+            raise ValueError(f"attr {key!r} is set by the writer; pass success= instead" if key == "success"
+                             else f"attr {key!r} is set by the writer")
+        out[str(key)] = py_scalar(value, key)
+    out["success"] = bool(py_scalar(success, "success"))
+    return out
+
+
+# ----------------------------------------------------------------------------- writer
+class EpisodeWriter:
+    """Appends episodes to one dataset; nothing is held open between appends."""
+
+    def __init__(self, path: Path, backend: ModuleType, fmt: str, task_id: str, fsync: bool) -> None:
+        self.path, self.format, self.task_id = path, fmt, task_id
+        self._backend, self._fsync, self._closed = backend, fsync, False
+
+    @classmethod
+    def open(cls, path: str | Path, *, task_id: str, env_args: Mapping[str, Any],
+             fsync: bool = True) -> EpisodeWriter:
+        """Create ``path`` or append to it if it holds a dataset of the same task."""
+        if not isinstance(task_id, str) or not task_id:
+            raise ValueError("task_id must be a non-empty str")
+        p, backend, fmt = _backend(path)
+        if not p.parent.is_dir():
+            raise FileNotFoundError(f"parent directory {p.parent} of {p} does not exist; "
+                                    f"create it first (mkdir -p {p.parent}) or choose another path")
+        env = dict(env_args)
+        if env.setdefault("env_name", task_id) != task_id:
+            raise ValueError(f"env_args['env_name']={env['env_name']!r} differs from task_id={task_id!r}")
+        env.setdefault("type", 2)
+        env.setdefault("env_kwargs", {})
+        root = {"env_args": dumps_env_args(env), "total": 0, "num_demos": 0,
+                "task_id": task_id, "format_version": FORMAT_VERSION}
+        if not p.exists():
+            try:
+                backend.create(p, root, fsync)
+                return cls(p, backend, fmt, task_id, fsync)
+            except FileExistsError:
+                pass  # created concurrently: validate it like any existing dataset
+        existing = _root_meta(p, backend.read_root(p))["task_id"]
+        if existing != task_id:
+            raise ValueError(f"{p} holds a dataset of task {existing!r}, not {task_id!r}; "
+                             f"choose another path for {task_id!r}")
+        return cls(p, backend, fmt, task_id, fsync)
+
+    def append_episode(self, episode: Mapping[str, Any], *, success: bool,
+                       attrs: Mapping[str, Any] | None = None) -> int:
+        """Write one episode; returns its demo id once it is durable on disk."""
+        if self._closed:
+            raise RuntimeError(f"EpisodeWriter for {self.path} is closed")
+        tree, steps = _normalize_episode(episode)
+        return self._backend.append(self.path, tree, _demo_attrs(success, attrs), steps, self._fsync)
+
+    def close(self) -> None:
+        """Mark the writer closed (every append is already on disk)."""
+        self._closed = True
+
+    def __enter__(self) -> EpisodeWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"EpisodeWriter({str(self.path)!r}, task_id={self.task_id!r}, format={self.format!r})"
+
+
+def open_writer(path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True) -> EpisodeWriter:
+    """Alias of :meth:`EpisodeWriter.open`."""
+    return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync)
+
+
+# ----------------------------------------------------------------------------- readers
+def read_dataset_info(path: str | Path) -> dict[str, Any]:
+    """Task, env_args, totals and per-demo ``num_samples``/``success`` (committed demos only)."""
+    p, backend, fmt = _existing(path)
+    raw = backend.info(p)
+    meta = _root_meta(p, raw["root"])
+    demos = dict(sorted(raw["demos"].items()))
+    return {"path": str(p), "format": fmt, "format_version": meta["format_version"],
+            "task_id": meta["task_id"], "env_args": meta["env_args"],
+            "num_demos": len(demos), "total": sum(d["num_samples"] for d in demos.values()),
+            "demo_ids": list(demos), "demos": demos}
+
+
+def list_demos(path: str | Path) -> list[int]:
+    """Sorted ids of the committed demos."""
+    p, backend, _ = _existing(path)
+    return sorted(backend.info(p)["demos"])
+
+
+def read_episode(path: str | Path, demo_id: int | str) -> dict[str, Any]:
+    """Nested dict of numpy arrays for one demo, plus its attrs under ``"attrs"``."""
+    p, backend, _ = _existing(path)
+    i = _as_id(demo_id)
+    try:
+        tree, attrs = backend.read(p, i)
+    except KeyError:
+        raise _missing_id(p, demo_id, sorted(backend.info(p)["demos"])) from None
+    return {**tree, "attrs": attrs}
+
+
+def delete_demos(path: str | Path, ids: Iterable[int | str]) -> list[int]:
+    """Remove demos (all ids checked first) and refresh num_demos/total; returns the remaining ids."""
+    p, backend, _ = _existing(path)
+    wanted = sorted({_as_id(i) for i in ids})
+    present = sorted(backend.info(p)["demos"])
+    for i in wanted:
+        if i not in present:
+            raise _missing_id(p, i, present)
+    if wanted:
+        backend.delete(p, wanted)
+    return [i for i in present if i not in wanted]

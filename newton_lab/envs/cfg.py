@@ -1,0 +1,97 @@
+"""Task configuration: what a task declares; ``newton_lab.kernels.fuse`` turns it into kernels."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+
+@dataclass(kw_only=True)
+class EntityCfg:
+    """A named rigid object of the scene (a box or cylinder)."""
+
+    name: str
+    shape: str = "box"
+    """``box`` or ``cylinder`` (axis z)."""
+    size: tuple[float, float, float]
+    """Full extents (x, y, z) [m]; a cylinder's radius is size[0] / 2."""
+    pos: tuple[float, float, float]
+    """Initial position, env frame [m]."""
+    quat: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+    mass: float = 0.0
+    """[kg]; used when ``dynamic``."""
+    dynamic: bool = True
+    """Dynamic bodies get a free joint; others are static colliders (kinematic, gravity off)."""
+    color: tuple[float, float, float] = (0.7, 0.7, 0.7)
+    friction: float = 1.0
+
+
+@dataclass(kw_only=True)
+class ActionTermCfg:
+    """One action term: a joint group driven by position or velocity targets."""
+
+    name: str
+    group: str
+    """Joint group of ``newton_lab.robots.g1.spec.JOINT_GROUPS``."""
+    type: str = "absolute"
+    """``absolute`` (position targets), ``velocity`` (velocity targets) or ``binary`` (gripper)."""
+    clip: tuple[float, float] | None = None
+
+
+@dataclass(kw_only=True)
+class ObsTermCfg:
+    """One observation term: ``func(ctx, w, out, col)`` writes ``dim`` values from column ``col``."""
+
+    name: str
+    func: Callable
+    dim: int
+
+
+@dataclass(kw_only=True)
+class TaskCfg:
+    """Everything a task declares. Thresholds live as constants inside its ``@wp.func`` terms."""
+
+    task_id: str
+    entities: list[EntityCfg]
+    actions: list[ActionTermCfg]
+    observations: list[ObsTermCfg]
+    phase_success: list[Callable]
+    """One success predicate per phase (single-phase tasks list one)."""
+    terminations: dict[str, Callable] = field(default_factory=dict)
+    """Failure terms ``name -> func(ctx, w) -> bool``."""
+    rewards: dict[str, tuple[Callable, float]] = field(default_factory=dict)
+    signals: dict[str, Callable] = field(default_factory=dict)
+    """Subtask signals recorded every step (Mimic segments on them)."""
+    events: list[Callable] = field(default_factory=list)
+    """Reset events ``func(ctx, w, seed, stream, randomize)``."""
+    posture: dict[str, float] = field(default_factory=dict)
+    """Initial joint values by name; unnamed joints start at 0 [rad | m]."""
+    root_pos: tuple[float, float, float] = (-1.0, 0.0, 0.0)
+    root_yaw: float = 0.0
+    fixed_base: bool = True
+    """Base velocity targets held at zero (manipulation tasks)."""
+    arm: str = "left"
+    arm_home: tuple[float, ...] = (0.0,) * 7
+    command_dim: int = 0
+    hold_slots: int = 1
+    episode_length_s: float = 3600.0
+    sim_dt: float = 0.01
+    """Physics step [s]."""
+    decimation: int = 5
+    """Physics steps per control step (control at 1 / (sim_dt * decimation) Hz)."""
+    terminate_on_success: bool = True
+    options: dict[str, Any] = field(default_factory=dict)
+    """The task options this cfg was built with (recorded in dataset env_args)."""
+
+    @property
+    def control_dt(self) -> float:
+        return self.sim_dt * self.decimation
+
+    @property
+    def max_episode_steps(self) -> int:
+        return int(round(self.episode_length_s / self.control_dt))
+
+    @property
+    def termination_reasons(self) -> list[str]:
+        """Reason names indexed by the codes the task kernel writes."""
+        return ["none", "success", "time_out", *self.terminations]

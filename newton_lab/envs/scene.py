@@ -1,0 +1,106 @@
+"""Build a task's batched Newton model: one G1 plus the task's entities per world, replicated."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import newton
+import numpy as np
+import warp as wp
+
+from ..robots.g1 import spec
+from ..robots.g1.model import JointIndex, add_g1
+from .cfg import EntityCfg, TaskCfg
+
+
+@dataclass
+class SceneLayout:
+    """The finalized model and the world-local indices every kernel needs."""
+
+    model: newton.Model
+    joints: JointIndex
+    """World-local coord / dof / body indices of the robot's joints and bodies."""
+    robot_coords: int
+    robot_dofs: int
+    coords_per_world: int
+    dofs_per_world: int
+    bodies_per_world: int
+    entity_names: list[str]
+    entity_body: list[int]
+    entity_coord: list[int]
+    entity_dof: list[int]
+    entity_static_pose: list[tuple]
+    entity_half_extents: list[tuple]
+    default_q: np.ndarray
+    """Initial coordinates of one world (robot posture + entity poses)."""
+
+
+def _add_entity(builder: newton.ModelBuilder, e: EntityCfg) -> int:
+    """Add ``e``; returns its body index, or -1 for a static collider."""
+    hx, hy, hz = (0.5 * s for s in e.size)
+    volume = (8.0 * hx * hy * hz) if e.shape == "box" else (math.pi * hx * hx * 2.0 * hz)
+    cfg = newton.ModelBuilder.ShapeConfig(mu=e.friction, density=(e.mass / volume) if e.dynamic else 0.0)
+    pose = wp.transform(wp.vec3(*e.pos), wp.quat(*e.quat))
+    body = builder.add_body(xform=pose, label=e.name) if e.dynamic else -1
+    local = wp.transform_identity() if e.dynamic else pose
+    if e.shape == "box":
+        builder.add_shape_box(body, xform=local, hx=hx, hy=hy, hz=hz, cfg=cfg, color=e.color, label=e.name)
+    elif e.shape == "cylinder":
+        builder.add_shape_cylinder(body, xform=local, radius=hx, half_height=hz, cfg=cfg, color=e.color, label=e.name)
+    else:
+        raise ValueError(f"entity {e.name!r} has unknown shape {e.shape!r}; use 'box' or 'cylinder'")
+    return body
+
+
+def build_scene(cfg: TaskCfg, num_envs: int, device: str) -> SceneLayout:
+    """Build, replicate ``num_envs`` times and finalize the task's scene on ``device``."""
+    world = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(world)
+    add_g1(world)
+    joints = JointIndex.from_builder(world)
+    robot_coords, robot_dofs = world.joint_coord_count, world.joint_dof_count
+
+    posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
+    for name, value in posture.items():
+        if name not in joints.coord:
+            raise ValueError(f"task {cfg.task_id!r} posture names unknown joint {name!r}; valid: {sorted(joints.coord)}")
+        world.joint_q[joints.coord[name]] = value
+        if name not in spec.BASE_PLANAR_JOINTS:
+            world.joint_target_q[joints.coord[name]] = value
+
+    entity_body, entity_coord, entity_dof, static_pose, half = [], [], [], [], []
+    for e in cfg.entities:
+        n_joints = world.joint_count
+        b = _add_entity(world, e)
+        entity_body.append(b)
+        if b >= 0:
+            entity_coord.append(world.joint_q_start[n_joints])
+            entity_dof.append(world.joint_qd_start[n_joints])
+        else:
+            entity_coord.append(-1)
+            entity_dof.append(-1)
+        static_pose.append((*e.pos, *e.quat))
+        half.append(tuple(0.5 * s for s in e.size))
+
+    scene = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
+    scene.replicate(world, num_envs)
+    scene.add_ground_plane()
+    model = scene.finalize(device=device)
+    return SceneLayout(
+        model=model,
+        joints=joints,
+        robot_coords=robot_coords,
+        robot_dofs=robot_dofs,
+        coords_per_world=world.joint_coord_count,
+        dofs_per_world=world.joint_dof_count,
+        bodies_per_world=world.body_count,
+        entity_names=[e.name for e in cfg.entities],
+        entity_body=entity_body,
+        entity_coord=entity_coord,
+        entity_dof=entity_dof,
+        entity_static_pose=static_pose,
+        entity_half_extents=half,
+        default_q=np.asarray(world.joint_q, dtype=np.float32),
+    )

@@ -1,0 +1,1 @@
+"""Robot descriptions: pure-data specs, model building and action packers."""

@@ -1,0 +1,1 @@
+"""Galbot G1: spec (pure data), model building, action packers."""

@@ -1,0 +1,45 @@
+"""Build the authored G1 into a Newton ``ModelBuilder`` and index its joints by name."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+
+import newton
+import warp as wp
+
+from . import spec
+
+
+def mjcf_path() -> str:
+    """Path of the packaged G1 MJCF."""
+    return str(resources.files("newton_lab.assets").joinpath(spec.MJCF_FILE))
+
+
+def add_g1(builder: newton.ModelBuilder) -> None:
+    """Add one G1 at the origin; its planar base coordinates (base_x, base_y, base_yaw) are its pose."""
+    builder.add_mjcf(mjcf_path(), enable_self_collisions=False, xform=wp.transform_identity())
+
+
+@dataclass(frozen=True)
+class JointIndex:
+    """World-local coordinate / DOF indices of named joints of one world's builder."""
+
+    coord: dict[str, int]
+    dof: dict[str, int]
+    body: dict[str, int]
+
+    @classmethod
+    def from_builder(cls, builder: newton.ModelBuilder) -> JointIndex:
+        coord: dict[str, int] = {}
+        dof: dict[str, int] = {}
+        for j, label in enumerate(builder.joint_label):
+            name = label.rsplit("/", 1)[-1]
+            q0, qd0 = builder.joint_q_start[j], builder.joint_qd_start[j]
+            if name == "base_x_base_y_base_yaw":  # the three planar base joints merge into one D6
+                for i, sub in enumerate(spec.BASE_PLANAR_JOINTS):
+                    coord[sub], dof[sub] = q0 + i, qd0 + i
+            else:
+                coord[name], dof[name] = q0, qd0
+        body = {label.rsplit("/", 1)[-1]: b for b, label in enumerate(builder.body_label)}
+        return cls(coord=coord, dof=dof, body=body)

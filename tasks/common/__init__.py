@@ -1,0 +1,1 @@
+"""Pieces shared by the G1 table-top tasks: the table, robot postures and generic observation terms."""

@@ -1,0 +1,12 @@
+"""GalbotG1-PickCube-v0: pick the red cube and release it on the blue block."""
+
+from newton_lab.registry import register
+
+from .config.g1.env_cfg import pick_cube_cfg
+
+register(
+    "GalbotG1-PickCube-v0",
+    cfg=pick_cube_cfg,
+    motion_plan="newton_lab.tasks.pick_cube.config.g1.motion_plan:plan",
+    description="Pick the 5 cm cube and release it on the blue block.",
+)

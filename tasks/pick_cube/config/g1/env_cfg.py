@@ -1,0 +1,38 @@
+"""GalbotG1-PickCube-v0 configuration (reference §3.3)."""
+
+from __future__ import annotations
+
+from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
+from newton_lab.robots.g1 import spec
+
+from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common.table_top import manipulation_posture
+from newton_lab.tasks.pick_cube import scene
+from newton_lab.tasks.pick_cube.mdp import events, observations, terminations
+
+
+def pick_cube_cfg() -> TaskCfg:
+    """Fixed-base G1 at (-1, 0, 0); left arm + gripper absolute targets (8)."""
+    return TaskCfg(
+        task_id="GalbotG1-PickCube-v0",
+        entities=scene.entities(),
+        actions=[
+            ActionTermCfg(name="arm_action", group="left_arm", type="absolute"),
+            ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
+        ],
+        observations=[
+            ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
+            ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),
+            ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
+            ObsTermCfg(name="gripper_pos", func=common_obs.gripper_pos, dim=1),
+            ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7),
+            ObsTermCfg(name="blue_block_pos", func=observations.blue_block_pos, dim=3),
+        ],
+        phase_success=[terminations.released_on_blue_block],
+        terminations={"cube_dropped": terminations.cube_dropped},
+        signals={"grasped_cube": terminations.grasped_cube},
+        events=[events.randomize_cube_position],
+        posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.PICK_CUBE_HEAD),
+        root_pos=spec.MANIPULATION_ROOT_POS,
+        fixed_base=True,
+    )

@@ -1,0 +1,1 @@
+"""PickCube terms: predicates (terminations), observations and reset events."""

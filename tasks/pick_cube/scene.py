@@ -1,0 +1,20 @@
+"""PickCube scene: table, red cube (dynamic), blue block (static container). Slots index entities."""
+
+from __future__ import annotations
+
+from newton_lab.envs.cfg import EntityCfg
+
+from ..common.table_top import cube, table
+
+TABLE, CUBE, BLUE_BLOCK = 0, 1, 2
+CUBE_INIT = (-0.30, 0.18, 0.125)
+BLUE_BLOCK_POS = (-0.30, -0.08, 0.11)
+
+
+def entities() -> list[EntityCfg]:
+    return [
+        table(),
+        cube("cube", CUBE_INIT, (0.85, 0.18, 0.12)),
+        EntityCfg(name="blue_block", size=(0.15, 0.15, 0.02), pos=BLUE_BLOCK_POS, dynamic=False,
+                  color=(0.08, 0.22, 0.85)),
+    ]

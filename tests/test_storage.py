@@ -1,0 +1,329 @@
+"""Tests for newton_lab.datasets storage (HDF5 + zarr v3). Fast, no physics."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import zarr
+
+from newton_lab.datasets import (EpisodeWriter, delete_demos, list_demos, open_writer, read_dataset_info,
+                                 read_episode)
+
+ROOT = Path(__file__).resolve().parents[1]
+TASK = "pick_cube"
+ENV_ARGS = {"env_kwargs": {"robot": "g1", "control_freq": 20}}
+FORMATS = [".hdf5", ".zarr"]
+
+
+def make_episode(seed: int, steps: int = 200) -> dict:
+    """Deterministic episode with nested groups (also used by the SIGKILL child process)."""
+    rng = np.random.default_rng(seed)
+    return {
+        "actions": rng.standard_normal((steps, 7)).astype(np.float32),
+        "obs": {"eef_pos": rng.standard_normal((steps, 3)),
+                "rgb": rng.integers(0, 255, (steps, 8, 8, 3), dtype=np.uint8)},
+        "states": {"robot": {"qpos": rng.standard_normal((steps, 9)).astype(np.float32)},
+                   "objects": {"cube": {"pose": rng.standard_normal((steps, 7))}}},
+        "initial_state": {"robot": {"qpos": rng.standard_normal((1, 9)).astype(np.float32)}},
+        "datagen": {"subtask_term_signals": {"grasp": rng.random(steps) > 0.5},
+                    "tcp_pose": rng.standard_normal((steps, 4, 4)).astype(np.float32),
+                    "scale": np.float64(seed)},
+    }
+
+
+def assert_tree_equal(actual: dict, expected: dict, where: str = "") -> None:
+    assert sorted(actual) == sorted(expected), where
+    for key, exp in expected.items():
+        if isinstance(exp, dict):
+            assert_tree_equal(actual[key], exp, f"{where}/{key}")
+        else:
+            exp = np.asarray(exp)
+            got = actual[key]
+            assert isinstance(got, np.ndarray), f"{where}/{key}"
+            assert got.dtype == exp.dtype and got.shape == exp.shape, f"{where}/{key}"
+            np.testing.assert_array_equal(got, exp, err_msg=f"{where}/{key}")
+
+
+def fingerprint(path: Path) -> str:
+    """Hash of a file or of a directory tree (names + bytes)."""
+    h = hashlib.sha256()
+    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
+    for f in files:
+        h.update(str(f.relative_to(path.parent)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def stored_root_attrs(path: Path) -> dict:
+    """`data` attrs read with h5py/zarr directly (not through newton_lab)."""
+    if path.suffix == ".zarr":
+        return dict(zarr.open_group(str(path), mode="r", zarr_format=3)["data"].attrs.asdict())
+    with h5py.File(path, "r") as f:
+        return {k: (v.item() if hasattr(v, "item") else v) for k, v in f["data"].attrs.items()}
+
+
+def write_demos(path: Path, seeds, task: str = TASK) -> list[int]:
+    with EpisodeWriter.open(path, task_id=task, env_args=ENV_ARGS) as w:
+        return [w.append_episode(make_episode(s), success=s % 2 == 0,
+                                 attrs={"seed": s, "termination_reason": "success" if s % 2 == 0 else "timeout",
+                                        "episode_length": 200})
+                for s in seeds]
+
+
+@pytest.mark.parametrize("suffix", [".hdf5", ".h5", ".zarr"])
+def test_round_trip(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    assert write_demos(path, [0, 1, 2]) == [0, 1, 2]
+
+    info = read_dataset_info(path)
+    assert info["task_id"] == TASK and info["format_version"] == 1
+    assert info["env_args"] == {"env_name": TASK, "type": 2, "env_kwargs": ENV_ARGS["env_kwargs"]}
+    assert info["num_demos"] == 3 and info["total"] == 600 and info["demo_ids"] == [0, 1, 2]
+    assert info["demos"][1] == {"num_samples": 200, "success": False}
+    assert list_demos(path) == [0, 1, 2]
+
+    for seed in (0, 1, 2):
+        ep = read_episode(path, seed)
+        attrs = ep.pop("attrs")
+        assert_tree_equal(ep, make_episode(seed))
+        assert attrs == {"num_samples": 200, "success": seed % 2 == 0, "seed": seed, "episode_length": 200,
+                         "termination_reason": "success" if seed % 2 == 0 else "timeout"}
+    assert_tree_equal({k: v for k, v in read_episode(path, "demo_2").items() if k != "attrs"}, make_episode(2))
+
+    raw = stored_root_attrs(path)
+    assert raw["total"] == 600 and raw["num_demos"] == 3 and raw["task_id"] == TASK and raw["format_version"] == 1
+    assert json.loads(raw["env_args"])["env_name"] == TASK
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_append_to_existing_continues_ids(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    assert write_demos(path, [0, 1]) == [0, 1]
+    assert write_demos(path, [2, 3]) == [2, 3]
+    info = read_dataset_info(path)
+    assert info["num_demos"] == 4 and info["total"] == 800
+    assert_tree_equal({k: v for k, v in read_episode(path, 3).items() if k != "attrs"}, make_episode(3))
+    assert stored_root_attrs(path)["num_demos"] == 4
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_refuses_dataset_of_another_task(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_demos(path, [0])
+    before = fingerprint(path)
+    with pytest.raises(ValueError) as exc:
+        open_writer(path, task_id="stack_cubes", env_args={})
+    msg = str(exc.value)
+    assert TASK in msg and "stack_cubes" in msg and "another path" in msg and "\n" not in msg
+    assert fingerprint(path) == before
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_refuses_missing_parent(tmp_path, suffix):
+    path = tmp_path / "no" / "such" / f"ds{suffix}"
+    with pytest.raises(FileNotFoundError) as exc:
+        open_writer(path, task_id=TASK, env_args={})
+    assert str(path.parent) in str(exc.value) and "mkdir" in str(exc.value) and "\n" not in str(exc.value)
+    assert not (tmp_path / "no").exists()
+
+
+def test_refuses_bad_suffix(tmp_path):
+    for call in (lambda p: open_writer(p, task_id=TASK, env_args={}), read_dataset_info, list_demos):
+        with pytest.raises(ValueError) as exc:
+            call(tmp_path / "ds.npz")
+        assert all(s in str(exc.value) for s in (".hdf5", ".h5", ".zarr"))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_dataset_for_readers(tmp_path):
+    for call in (read_dataset_info, list_demos, lambda p: read_episode(p, 0), lambda p: delete_demos(p, [0])):
+        with pytest.raises(FileNotFoundError) as exc:
+            call(tmp_path / "nope.hdf5")
+        assert "nope.hdf5" in str(exc.value) and "\n" not in str(exc.value)
+
+
+def _corrupt(tmp_path: Path, kind: str) -> Path:
+    if kind == "garbage_hdf5":
+        path = tmp_path / "x.hdf5"
+        path.write_bytes(os.urandom(4096))
+    elif kind == "truncated_hdf5":
+        path = tmp_path / "x.hdf5"
+        write_demos(path, [0, 1])
+        path.write_bytes(path.read_bytes()[: path.stat().st_size // 3])
+    elif kind == "hdf5_without_data":
+        path = tmp_path / "x.hdf5"
+        with h5py.File(path, "w") as f:
+            f.create_group("something_else")
+    elif kind == "garbage_zarr":
+        path = tmp_path / "x.zarr"
+        path.mkdir()
+        (path / "zarr.json").write_bytes(b"\x00not json{")
+    elif kind == "empty_zarr_dir":
+        path = tmp_path / "x.zarr"
+        path.mkdir()
+    else:  # a plain file named .zarr
+        path = tmp_path / "x.zarr"
+        path.write_bytes(b"garbage")
+    return path
+
+
+@pytest.mark.parametrize("kind", ["garbage_hdf5", "truncated_hdf5", "hdf5_without_data",
+                                  "garbage_zarr", "empty_zarr_dir", "file_named_zarr"])
+def test_refuses_corrupt_dataset_and_leaves_it_untouched(tmp_path, kind):
+    path = _corrupt(tmp_path, kind)
+    before = fingerprint(path) if path.is_file() or any(path.iterdir()) else "empty"
+    calls = (lambda p: open_writer(p, task_id=TASK, env_args={}), read_dataset_info, list_demos,
+             lambda p: read_episode(p, 0), lambda p: delete_demos(p, [0]))
+    for call in calls:
+        with pytest.raises(ValueError) as exc:
+            call(path)
+        msg = str(exc.value)
+        assert "not a newton_lab dataset or is damaged" in msg and "re-collect" in msg and "\n" not in msg
+    assert (fingerprint(path) if path.is_file() or any(path.iterdir()) else "empty") == before
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_delete_demos_keeps_counts_consistent(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_demos(path, range(5))
+    assert delete_demos(path, [1, "demo_3"]) == [0, 2, 4]
+    info = read_dataset_info(path)
+    assert info["demo_ids"] == [0, 2, 4] and info["num_demos"] == 3 and info["total"] == 600
+    raw = stored_root_attrs(path)
+    assert raw["num_demos"] == 3 and raw["total"] == 600
+
+    with pytest.raises(KeyError) as exc:  # unknown id: nothing deleted, message lists what exists
+        delete_demos(path, [0, 7])
+    assert "0, 2, 4" in str(exc.value)
+    assert list_demos(path) == [0, 2, 4]
+    with pytest.raises(KeyError, match="0, 2, 4"):
+        read_episode(path, 1)
+
+    assert write_demos(path, [5]) == [5]  # ids continue after the highest, never reuse
+    assert read_dataset_info(path)["total"] == 800
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_unknown_demo_id_lists_range(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_demos(path, range(3))
+    with pytest.raises(KeyError, match=r"0\.\.2"):
+        read_episode(path, 9)
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_rejects_bad_episodes(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    with open_writer(path, task_id=TASK, env_args={}) as w:
+        with pytest.raises(ValueError, match="actions"):
+            w.append_episode({"obs": {"x": np.zeros((3, 1))}}, success=True)
+        with pytest.raises(ValueError, match="obs/x"):
+            w.append_episode({"actions": np.zeros((3, 2)), "obs": {"x": np.zeros((4, 1))}}, success=True)
+        with pytest.raises(ValueError, match="num_samples"):
+            w.append_episode({"actions": np.zeros((3, 2))}, success=True, attrs={"num_samples": 1})
+        with pytest.raises(TypeError):
+            w.append_episode({"actions": np.zeros((3, 2)), "names": np.array(["a", "b", "c"])}, success=True)
+    assert read_dataset_info(path)["num_demos"] == 0
+    with pytest.raises(RuntimeError, match="closed"):
+        w.append_episode({"actions": np.zeros((3, 2))}, success=True)
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_readers_ignore_and_writer_cleans_partial_demos(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_demos(path, [0])
+    if suffix == ".zarr":  # demo group without the num_samples commit marker
+        g = zarr.open_group(str(path), mode="r+", zarr_format=3)["data"].create_group("demo_1")
+        g.create_array("actions", data=np.zeros((5, 7), np.float32))
+        leftover = path / "data" / "demo_1"
+    else:
+        with h5py.File(path, "r+") as f:
+            f["data"].create_group("_partial_demo_1").create_dataset("actions", data=np.zeros((5, 7)))
+        leftover = None
+    assert list_demos(path) == [0] and read_dataset_info(path)["total"] == 200
+    assert write_demos(path, [1]) == [1]
+    assert_tree_equal({k: v for k, v in read_episode(path, 1).items() if k != "attrs"}, make_episode(1))
+    if leftover is None:
+        with h5py.File(path, "r") as f:
+            assert sorted(f["data"]) == ["demo_0", "demo_1"]
+
+
+# ----------------------------------------------------------------------------- SIGKILL crash safety
+CHILD = f"""
+import sys
+sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
+from test_storage import make_episode
+from newton_lab.datasets import EpisodeWriter
+w = EpisodeWriter.open(sys.argv[1], task_id="kill_task", env_args={{}})
+seed = int(sys.argv[2])
+while True:
+    demo_id = w.append_episode(make_episode(seed), success=seed % 2 == 0, attrs={{"seed": seed}})
+    print("APPENDED", demo_id, seed, flush=True)
+    seed += 1
+"""
+
+
+def _run_and_kill(path: Path, first_seed: int, min_reported: int, delay: float, log: Path) -> list[tuple[int, int]]:
+    """Start an endless appender, SIGKILL it once it reported >= min_reported appends."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    with open(log, "w") as err:
+        proc = subprocess.Popen([sys.executable, "-c", CHILD, str(path), str(first_seed)],
+                                stdout=subprocess.PIPE, stderr=err, text=True, env=env)
+    lines: queue.Queue = queue.Queue()
+
+    def pump() -> None:
+        for line in proc.stdout:
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=pump, daemon=True).start()
+    reported = []
+    try:
+        while len(reported) < min_reported:
+            line = lines.get(timeout=120)
+            if line is None:
+                pytest.fail(f"appender exited early (rc={proc.wait()}): {log.read_text()[-2000:]}")
+            reported.append(line)
+        time.sleep(delay)
+        os.kill(proc.pid, signal.SIGKILL)
+        assert proc.wait(timeout=60) == -signal.SIGKILL
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    while (line := lines.get(timeout=60)) is not None:  # appends that returned before the kill
+        reported.append(line)
+    return [(int(a), int(b)) for _, a, b in (line.split() for line in reported)]
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_sigkill_during_appends_keeps_every_reported_episode(tmp_path, suffix):
+    path = tmp_path / f"crash{suffix}"
+    reported = _run_and_kill(path, 0, 3, 0.0, tmp_path / "log1.txt")
+    # second writer on the crashed dataset: appends after the leftovers, then is killed again
+    reported += _run_and_kill(path, 1000, 3, 0.013, tmp_path / "log2.txt")
+
+    ids = [i for i, _ in reported]
+    assert len(reported) >= 6 and len(set(ids)) == len(ids)
+    info = read_dataset_info(path)
+    assert set(ids) <= set(info["demo_ids"]) and info["task_id"] == "kill_task"
+    assert info["num_demos"] == len(info["demo_ids"]) and info["total"] == 200 * info["num_demos"]
+    for demo_id, seed in reported:
+        ep = read_episode(path, demo_id)
+        assert ep.pop("attrs") == {"num_samples": 200, "success": seed % 2 == 0, "seed": seed}
+        assert_tree_equal(ep, make_episode(seed))
+    # and the dataset stays appendable
+    with open_writer(path, task_id="kill_task", env_args={}) as w:
+        assert w.append_episode(make_episode(7), success=True) == max(info["demo_ids"]) + 1
