@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import operator
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from types import ModuleType
@@ -58,7 +59,10 @@ def _root_meta(p: Path, root: dict[str, Any]) -> dict[str, Any]:
     task_id = root.get("task_id") or env_args.get("env_name")
     if not isinstance(task_id, str) or not task_id:
         raise damaged(p, "data has no task_id")
-    version = int(root.get("format_version", FORMAT_VERSION))
+    try:
+        version = int(root.get("format_version", FORMAT_VERSION))
+    except (TypeError, ValueError):
+        raise damaged(p, "data.attrs['format_version'] is not an int") from None
     if version > FORMAT_VERSION:
         raise ValueError(f"{p} has format_version {version}, newer than this newton_lab "
                          f"({FORMAT_VERSION}); upgrade newton_lab to read it")
@@ -82,7 +86,7 @@ def _as_id(demo_id: int | str) -> int:
         if parsed is None:
             raise KeyError(f"bad demo id {demo_id!r}: use an int or 'demo_<i>'")
         return parsed
-    return int(demo_id)
+    return operator.index(demo_id)
 
 
 def _missing_id(p: Path, demo_id: Any, ids: list[int]) -> KeyError:

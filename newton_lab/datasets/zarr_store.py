@@ -46,10 +46,12 @@ def _node_attrs(node_dir: Path) -> dict[str, Any] | None:
 
 
 def _scan(path: Path) -> tuple[dict[int, dict[str, Any]], list[Path]]:
-    """(committed demo id -> attrs, leftover dirs of killed appends/deletes)."""
+    """(committed demo id -> attrs, leftovers of killed appends/deletes: dirs and ``*.partial`` files)."""
     committed, leftovers = {}, []
     for entry in os.scandir(path / "data"):
         if not entry.is_dir():
+            if entry.name.endswith(".partial"):  # zarr's temp file of an interrupted metadata write
+                leftovers.append(Path(entry.path))
             continue
         i = demo_id_of(entry.name)
         attrs = _node_attrs(Path(entry.path)) if i is not None else None
@@ -109,8 +111,11 @@ def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples:
     """Write arrays + attrs, then ``num_samples`` last (commit), then refresh ``data`` totals."""
     data = _data(_root(path, writable=True), path)
     committed, leftovers = _scan(path)
-    for d in leftovers:
-        shutil.rmtree(d, ignore_errors=True)
+    for leftover in leftovers:
+        if leftover.is_dir():
+            shutil.rmtree(leftover, ignore_errors=True)
+        else:
+            leftover.unlink(missing_ok=True)
     demo_id = max(committed, default=-1) + 1
     g = data.create_group(demo_name(demo_id), attributes=attrs)
     _write_tree(g, tree)

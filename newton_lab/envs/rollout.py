@@ -1,0 +1,247 @@
+"""Episode loops over a batched env: ``collect`` (record to HDF5 / zarr) and ``evaluate``.
+
+Rows run episodes independently; a row's episode ends when the task terminates or truncates it (the env
+resets it inside the step) or when it reaches ``max_steps`` (reset here). Each finished episode is
+written and durable before the next step runs.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import warp as wp
+from tqdm import tqdm
+
+REASON_MAX_STEPS = "max_steps"
+
+
+class EpisodeRecorder:
+    """Per-row device buffers holding each running episode's frames: the observation and full state
+    before the step, the action taken, and the Mimic datagen signals (TCP / object poses, subtask
+    signals, phase)."""
+
+    def __init__(self, env, max_steps: int):
+        self.env = env
+        self.max_steps = max_steps
+        n = env.num_envs
+        q = wp.to_torch(env.state.joint_q).view(n, -1)
+        qd = wp.to_torch(env.state.joint_qd).view(n, -1)
+        self._views: dict[str, torch.Tensor] = {}
+        for name, sl in env.obs_terms.items():
+            self._views[f"obs/{name}"] = env.obs[:, sl]
+        self._views["states/joint_q"] = q
+        self._views["states/joint_qd"] = qd
+        self._views["datagen/tcp_pose"] = env.tcp_pose
+        for name, e in env.entities.items():
+            self._views[f"datagen/object_poses/{name}"] = env.entity_poses[:, e.slot]
+        for k, name in enumerate(env.signal_names):
+            self._views[f"datagen/subtask_signals/{name}"] = env.info["signals"][:, k : k + 1]
+        self._views["datagen/phase"] = env.info["phase"].view(n, 1)
+        self._slices: dict[str, slice] = {}
+        col = 0
+        for key, v in self._views.items():
+            self._slices[key] = slice(col, col + v.shape[1])
+            col += v.shape[1]
+        self._slices["actions"] = slice(col, col + env.action_dim)
+        col += env.action_dim
+        self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
+        self._rows = torch.arange(n, device=env.torch_device)
+
+    def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
+        """Store the pre-step frame of every row at its episode step ``t`` (N,)."""
+        frame = torch.cat([v.float() for v in self._views.values()] + [actions], dim=1)
+        self._frames[self._rows, t.clamp(max=self.max_steps - 1)] = frame
+
+    def episode(self, row: int, length: int) -> dict[str, Any]:
+        """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout)."""
+        env, lay = self.env, self.env.layout
+        data = self._frames[row, :length].cpu().numpy()
+        flat = {key: data[:, sl] for key, sl in self._slices.items()}
+        q, qd = flat.pop("states/joint_q"), flat.pop("states/joint_qd")
+        states: dict[str, Any] = {
+            "articulation": {
+                "robot": {
+                    "joint_position": q[:, : lay.robot_coords],
+                    "joint_velocity": qd[:, : lay.robot_dofs],
+                }
+            },
+            "rigid_object": {},
+        }
+        for name, e in env.entities.items():
+            if e.dynamic:
+                c, d = lay.entity_coord[e.slot], lay.entity_dof[e.slot]
+                states["rigid_object"][name] = {"root_pose": q[:, c : c + 7], "root_velocity": qd[:, d : d + 6]}
+        tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {}}
+        for key, arr in flat.items():
+            node = tree
+            parts = key.split("/")
+            for p in parts[:-1]:
+                node = node.setdefault(p, {})
+            node[parts[-1]] = arr
+        tree["datagen"]["subtask_signals"] = {
+            k: v[:, 0].astype(bool) for k, v in tree["datagen"].get("subtask_signals", {}).items()
+        }
+        tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
+        tree["initial_state"] = _first_frame(states)
+        return tree
+
+
+def _first_frame(tree: dict[str, Any]) -> dict[str, Any]:
+    return {k: _first_frame(v) if isinstance(v, dict) else v[:1] for k, v in tree.items()}
+
+
+def env_args(env) -> dict[str, Any]:
+    """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
+    return {
+        "env_name": env.task_id,
+        "type": 2,
+        "env_kwargs": {
+            "num_envs": env.num_envs,
+            "seed": env.seed,
+            "randomize": env.randomize,
+            "task_options": env.cfg.options,
+        },
+        "newton_lab": {
+            "sim_dt": env.cfg.sim_dt,
+            "decimation": env.cfg.decimation,
+            "action_joint_names": list(env.action_joint_names),
+            "obs_terms": {k: [s.start, s.stop] for k, s in env.obs_terms.items()},
+            "entities": list(env.entities),
+            "signals": list(env.signal_names),
+            "termination_reasons": list(env.termination_reasons),
+        },
+    }
+
+
+def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, on_episode=None):
+    """Shared loop; returns per-episode records and step counts."""
+    if not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    n = env.num_envs
+    env.reset()
+    agent.reset()
+    active = np.arange(n) < episodes
+    launched = int(active.sum())
+    step_in_ep = torch.zeros(n, dtype=torch.long, device=env.torch_device)
+    reward_total = torch.zeros(n, device=env.torch_device)
+    latched = np.zeros(n, dtype=bool)
+    records: list[dict[str, Any]] = []
+    vector_steps = 0
+    bar = tqdm(total=episodes, desc=f"{env.task_id} episodes", unit="ep", disable=not progress, leave=False)
+    t0 = time.perf_counter()
+    try:
+        while len(records) < episodes:
+            actions = agent.act(env)
+            if recorder is not None:
+                recorder.record(step_in_ep, actions)
+            _, reward, terminated, truncated, info = env.step(actions)
+            vector_steps += 1
+            step_in_ep += 1
+            reward_total += reward
+            latched |= info["success"].cpu().numpy()
+            done = (terminated | truncated).cpu().numpy()
+            limit = (step_in_ep >= max_steps).cpu().numpy() & ~done
+            ended = np.nonzero((done | limit) & active)[0]
+            reasons = info["termination_reason"].cpu().numpy()
+            if limit.any():
+                env.reset(np.nonzero(limit)[0])
+            for row in ended:
+                length = int(step_in_ep[row])
+                rec = {
+                    "env_index": int(row),
+                    "length": length,
+                    "success": bool(latched[row]),
+                    "reward_total": float(reward_total[row]),
+                    "termination_reason": REASON_MAX_STEPS if limit[row] else env.termination_reasons[reasons[row]],
+                }
+                if on_episode is not None:
+                    rec.update(on_episode(row, rec) or {})
+                records.append(rec)
+                bar.update(1)
+                bar.set_postfix(success=f"{sum(r['success'] for r in records)}/{len(records)}")
+                if launched < episodes:
+                    launched += 1
+                else:
+                    active[row] = False
+                if len(records) >= episodes:
+                    break
+            finished = done | limit
+            if finished.any():
+                idx = torch.as_tensor(np.nonzero(finished)[0], device=env.torch_device)
+                step_in_ep[idx] = 0
+                reward_total[idx] = 0.0
+                latched[finished] = False
+    finally:
+        bar.close()
+    wall = time.perf_counter() - t0
+    return records, vector_steps, wall
+
+
+def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
+    successes = sum(r["success"] for r in records)
+    reasons: dict[str, int] = {}
+    for r in records:
+        reasons[r["termination_reason"]] = reasons.get(r["termination_reason"], 0) + 1
+    row_steps = sum(r["length"] for r in records)
+    return {
+        "task": env.task_id,
+        "num_envs": env.num_envs,
+        "episodes": len(records),
+        "successes": successes,
+        "success_rate": successes / max(len(records), 1),
+        "episode_lengths": [r["length"] for r in records],
+        "average_length": row_steps / max(len(records), 1),
+        "reward_totals": [r["reward_total"] for r in records],
+        "termination_reasons": reasons,
+        "vector_steps": vector_steps,
+        "row_steps": row_steps,
+        "wall_time_s": wall,
+        "env_steps_per_s": vector_steps * env.num_envs / max(wall, 1e-9),
+    }
+
+
+def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True) -> dict[str, Any]:
+    """Run ``agent`` for ``episodes`` episodes and append every one to the dataset at ``path``
+    (``.hdf5``/``.h5`` robomimic layout or ``.zarr`` v3, same logical tree). Returns the summary."""
+    from ..datasets import open_writer
+
+    writer = open_writer(Path(path), task_id=env.task_id, env_args=env_args(env))
+    recorder = EpisodeRecorder(env, max_steps)
+    saved: list[int] = []
+
+    def write(row: int, rec: dict[str, Any]) -> dict[str, Any]:
+        demo = writer.append_episode(
+            recorder.episode(row, rec["length"]),
+            success=rec["success"],
+            attrs={
+                "termination_reason": rec["termination_reason"],
+                "env_index": rec["env_index"],
+                "episode_length": rec["length"],
+                "seed": env.seed,
+            },
+        )
+        saved.append(demo)
+        return {"demo_id": demo}
+
+    try:
+        records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
+                                    recorder=recorder, on_episode=write)
+    finally:
+        writer.close()
+    summary = _summary(env, records, steps, wall)
+    summary.update(path=str(path), saved_demo_ids=saved)
+    return summary
+
+
+def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True) -> dict[str, Any]:
+    """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
+    records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress)
+    summary = _summary(env, records, steps, wall)
+    summary["success_masks"] = [r["success"] for r in records]
+    return summary
