@@ -21,7 +21,8 @@ def gather_plan_actions(
 
     Segment ``k`` starts at frame ``seg_start[w, k]``, moves linearly from the previous waypoint (or
     ``start_q`` for ``k = 0``) to ``waypoints[w, k, :7]`` over ``seg_interp[w, k]`` frames, then holds;
-    ``waypoints[w, k, 7]`` is the gripper command for the whole segment. Past the end the last
+    ``waypoints[w, k, 7]`` is the gripper command for the whole segment (written when
+    ``gripper_col >= 0``). Past the end the last
     waypoint is held.
     """
     w = wp.tid()
@@ -42,5 +43,6 @@ def gather_plan_actions(
         if k > 0:
             a = waypoints[w, k - 1, j]
         actions[w, arm_cols[j]] = a + alpha * (waypoints[w, k, j] - a)
-    actions[w, gripper_col] = waypoints[w, k, 7]
+    if gripper_col >= 0:
+        actions[w, gripper_col] = waypoints[w, k, 7]
     cursor[w] = t + 1

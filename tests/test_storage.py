@@ -327,3 +327,68 @@ def test_sigkill_during_appends_keeps_every_reported_episode(tmp_path, suffix):
     # and the dataset stays appendable
     with open_writer(path, task_id="kill_task", env_args={}) as w:
         assert w.append_episode(make_episode(7), success=True) == max(info["demo_ids"]) + 1
+
+
+# Kill the HDF5 writer at the worst moments: in the middle of HDF5's metadata flush (some
+# metadata of the committed file already overwritten in place) and just before the commit.
+KILL_POINT_CHILD = f"""
+import os, signal, sys
+sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
+from test_storage import make_episode
+from newton_lab.datasets import EpisodeWriter, _journal
+point = sys.argv[2]
+if point == "mid_flush":
+    orig_save, count = _journal.JournaledFile._save, [0]
+    def _save(self, start, end):
+        orig_save(self, start, end)
+        if start < self._size0:
+            count[0] += 1
+            if count[0] == 3:
+                os.kill(os.getpid(), signal.SIGKILL)
+    _journal.JournaledFile._save = _save
+else:
+    orig_close = _journal.JournaledFile.close_journal
+    def close_journal(self):
+        orig_close(self)
+        os.kill(os.getpid(), signal.SIGKILL)
+    _journal.JournaledFile.close_journal = close_journal
+EpisodeWriter.open(sys.argv[1], task_id=TASK_ID, env_args={{}}).append_episode(make_episode(99), success=True)
+""".replace("TASK_ID", repr(TASK))
+
+
+@pytest.mark.parametrize("point", ["mid_flush", "before_commit"])
+def test_hdf5_kill_inside_append_rolls_back(tmp_path, point):
+    path = tmp_path / "ds.hdf5"
+    write_demos(path, [0, 1])
+    before = fingerprint(path)
+    proc = subprocess.run([sys.executable, "-c", KILL_POINT_CHILD, str(path), point],
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    assert (tmp_path / "ds.hdf5-journal").exists() and fingerprint(path) != before  # really torn
+    assert list_demos(path) == [0, 1]  # readers roll the torn append back first
+    assert fingerprint(path) == before and not (tmp_path / "ds.hdf5-journal").exists()
+    assert write_demos(path, [2]) == [2]
+    for seed in (0, 1, 2):
+        assert_tree_equal({k: v for k, v in read_episode(path, seed).items() if k != "attrs"}, make_episode(seed))
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
+    path = tmp_path / f"ds{suffix}"
+    write_demos(path, [0])
+    before = fingerprint(path)
+    store = __import__(f"newton_lab.datasets.{suffix[1:]}_store", fromlist=["_write_tree"])
+    real = store._write_tree
+
+    def failing(g, tree):
+        real(g, {k: v for k, v in tree.items() if k == "actions"})
+        raise OSError("disk full")
+
+    monkeypatch.setattr(store, "_write_tree", failing)
+    with pytest.raises(OSError, match="disk full"):
+        write_demos(path, [1])
+    monkeypatch.undo()
+    if suffix == ".hdf5":  # rolled back byte for byte
+        assert fingerprint(path) == before and not (tmp_path / "ds.hdf5-journal").exists()
+    assert list_demos(path) == [0] and read_dataset_info(path)["total"] == 200
+    assert write_demos(path, [1]) == [1]

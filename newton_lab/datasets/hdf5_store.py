@@ -1,32 +1,33 @@
-"""robomimic-layout HDF5 backend (one short-lived file handle per operation)."""
+"""robomimic-layout HDF5 backend: one short-lived, journaled file handle per write (see ``_journal``)."""
 
 from __future__ import annotations
 
 import os
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
 
+from . import _journal as journal
 from ._common import PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path, time_chunks
 
-# Superblock v0 (no "file open for write" flag, so a SIGKILLed writer leaves a file that reopens)
-# and objects readable by HDF5 >= 1.10 (robomimic & co).
+# Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
 LIBVER = ("earliest", "v110")
 LOCK_WAIT_S = 10.0
 
 
-def _open(path: Path, mode: str) -> h5py.File:
-    """Open ``path``; waits while another process holds the HDF5 lock, maps damage to ValueError."""
+def _open_read(path: Path) -> h5py.File:
+    """Open for reading (after rolling back a killed writer); waits while a writer holds the lock."""
     deadline = time.monotonic() + LOCK_WAIT_S
+    journal.recover(path, LOCK_WAIT_S)
     while True:
         try:
-            if mode == "r":
-                return h5py.File(path, "r")
-            return h5py.File(path, mode, libver=LIBVER)
+            return h5py.File(path, "r")
         except FileNotFoundError:
             raise FileNotFoundError(f"dataset {path} does not exist; check the path") from None
         except OSError as e:
@@ -36,6 +37,19 @@ def _open(path: Path, mode: str) -> h5py.File:
                 raise BlockingIOError(
                     f"{path} is locked by another process (a writer appending?); retry when it is done") from None
             time.sleep(0.05)
+
+
+@contextmanager
+def _open_write(path: Path, fsync: bool) -> Iterator[h5py.File]:
+    """Journaled read-write session: all of it lands on disk, or none of it (even on SIGKILL)."""
+    _open_read(path).close()  # same checks/errors as readers before touching anything
+    with journal.journaled(path, LOCK_WAIT_S, fsync) as fobj:
+        try:
+            f = h5py.File(fobj, "r+", libver=LIBVER)
+        except OSError as e:
+            raise damaged(path, e) from None
+        with f:
+            yield f
 
 
 def _data(f: h5py.File, path: Path) -> h5py.Group:
@@ -96,13 +110,13 @@ def create(path: Path, root_attrs: dict[str, Any], fsync: bool) -> None:
 
 
 def read_root(path: Path) -> dict[str, Any]:
-    with _open(path, "r") as f:
+    with _open_read(path) as f:
         return _attrs(_data(f, path))
 
 
 def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples: int, fsync: bool) -> int:
-    """Write under ``data/_partial_demo_<i>``, rename to ``data/demo_<i>``, refresh totals, close."""
-    with _open(path, "r+") as f:
+    """In one journaled session: write ``data/_partial_demo_<i>``, rename to ``data/demo_<i>``, refresh totals."""
+    with _open_write(path, fsync) as f:
         data = _data(f, path)
         for name in [n for n in data if n.startswith(PARTIAL_PREFIX)]:
             del data[name]  # leftovers of a killed append
@@ -116,14 +130,11 @@ def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples:
         data.move(tmp, demo_name(demo_id))
         total = sum(int(d.attrs["num_samples"]) for d in demos.values()) + int(num_samples)
         data.attrs.update({"total": total, "num_demos": len(demos) + 1})
-        f.flush()
-    if fsync:
-        fsync_path(path)
     return demo_id
 
 
 def info(path: Path) -> dict[str, Any]:
-    with _open(path, "r") as f:
+    with _open_read(path) as f:
         data = _data(f, path)
         demos = {i: {"num_samples": int(g.attrs["num_samples"]), "success": bool(g.attrs.get("success", False))}
                  for i, g in _committed(data).items()}
@@ -131,7 +142,7 @@ def info(path: Path) -> dict[str, Any]:
 
 
 def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
-    with _open(path, "r") as f:
+    with _open_read(path) as f:
         g = _committed(_data(f, path)).get(demo_id)
         if g is None:
             raise KeyError(demo_id)
@@ -143,12 +154,10 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
 
 def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
     """Delete demos and refresh totals (space is reclaimed only by h5repack)."""
-    with _open(path, "r+") as f:
+    with _open_write(path, fsync) as f:
         data = _data(f, path)
         for i in ids:
             del data[demo_name(i)]
         demos = _committed(data)
         data.attrs.update({"total": sum(int(d.attrs["num_samples"]) for d in demos.values()),
                            "num_demos": len(demos)})
-    if fsync:
-        fsync_path(path)

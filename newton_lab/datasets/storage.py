@@ -6,9 +6,11 @@ Layout (both formats)::
     data/demo_<i>/   attrs: num_samples, success, extra scalars
         actions (T, A) float32, obs/<term>, states/<...>, initial_state/<...>, any nested key
 
-Every ``append_episode`` is durable and crash safe before it returns: a writer killed at any
-time leaves a dataset holding every episode whose append returned (half-written demos are
-invisible to readers and removed by the next append). One writer per dataset at a time.
+Every ``append_episode`` is durable (fsync) and crash safe before it returns: a writer killed at
+any time leaves a dataset holding every episode whose append returned. HDF5 writes go through a
+rollback journal (``<file>-journal``, rolled back by the next reader/writer); zarr demos are
+committed by writing their ``num_samples`` attr last. Half-written demos are invisible to readers
+and removed by the next append. Concurrent writers on one dataset are not supported.
 """
 
 from __future__ import annotations

@@ -79,6 +79,11 @@ class TaskCfg:
     """Physics step [s]."""
     decimation: int = 5
     """Physics steps per control step (control at 1 / (sim_dt * decimation) Hz)."""
+    contacts_per_world: int | None = None
+    """MuJoCo contact capacity per world (``nconmax``); ``None`` keeps Newton's default. Size it from
+    measured peak contact counts (``NewtonEnv.peak_contacts``): oversized capacities slow every step."""
+    constraints_per_world: int | None = None
+    """MuJoCo constraint-row capacity per world (``njmax``); ``None`` keeps Newton's default."""
     terminate_on_success: bool = True
     options: dict[str, Any] = field(default_factory=dict)
     """The task options this cfg was built with (recorded in dataset env_args)."""

@@ -75,6 +75,8 @@ class NewtonEnv:
                 iterations=20,
                 ls_iterations=10,
                 impratio=10,
+                nconmax=cfg.contacts_per_world,
+                njmax=cfg.constraints_per_world,
             )
             self._build_actions()
             self._build_buffers()
@@ -357,6 +359,14 @@ class NewtonEnv:
         return actions
 
     # ------------------------------------------------------------------ conveniences
+    def contact_count(self) -> int:
+        """Active MuJoCo contacts summed over all worlds after the last step (host sync)."""
+        return int(self.solver.mjw_data.nacon.numpy()[0])
+
+    def constraint_rows(self) -> int:
+        """Largest number of MuJoCo constraint rows in any world after the last step (host sync)."""
+        return int(self.solver.mjw_data.nefc.numpy().max())
+
     def joint_positions(self, names) -> torch.Tensor:
         """(num_envs, len(names)) current positions of the named robot joints [rad | m]."""
         q = wp.to_torch(self.state.joint_q).view(self.num_envs, -1)

@@ -14,6 +14,11 @@ from ..robots.g1.model import JointIndex, add_g1
 from .cfg import EntityCfg, TaskCfg
 
 
+CONTACT_GAP = 0.005
+"""Contact detection gap [m]. Newton's default (0.1 m) makes MuJoCo track every pair within 10 cm, which
+fills the contact buffers with far-apart pairs (cubes 7 cm apart, the ground under the table)."""
+
+
 @dataclass
 class SceneLayout:
     """The finalized model and the world-local indices every kernel needs."""
@@ -57,6 +62,7 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str) -> SceneLayout:
     """Build, replicate ``num_envs`` times and finalize the task's scene on ``device``."""
     world = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(world)
+    world.rigid_gap = CONTACT_GAP
     add_g1(world)
     joints = JointIndex.from_builder(world)
     robot_coords, robot_dofs = world.joint_coord_count, world.joint_dof_count
@@ -85,6 +91,7 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str) -> SceneLayout:
 
     scene = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
+    scene.rigid_gap = CONTACT_GAP
     scene.replicate(world, num_envs)
     scene.add_ground_plane()
     model = scene.finalize(device=device)

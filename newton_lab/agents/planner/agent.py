@@ -61,11 +61,12 @@ class PlannerAgent(BaseAgent):
         arm = self.plan.arm
         arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
         names = list(env.action_joint_names)
-        missing = [j for j in (*arm_joints, f"{arm}_gripper_joint") if j not in names]
+        missing = [j for j in arm_joints if j not in names]
         if missing:
             raise ValueError(f"env {env.task_id} has no action columns for {missing}; the plan drives the {arm} arm")
         self._arm_cols = wp.array([names.index(j) for j in arm_joints], dtype=int, device=dev)
-        self._gripper_col = names.index(f"{arm}_gripper_joint")
+        gripper = f"{arm}_gripper_joint"
+        self._gripper_col = names.index(gripper) if gripper in names else -1
         self._arm_coords = [env.layout.joints.coord[j] for j in arm_joints]
         self._robot_coords = env.layout.robot_coords
 
@@ -120,6 +121,7 @@ class PlannerAgent(BaseAgent):
         ent = env.entity_poses.detach().cpu().numpy()[rows].astype(np.float64)
         poses = {name: ent[:, e.slot] for name, e in env.entities.items()}
         poses["tcp"] = env.tcp_pose.detach().cpu().numpy()[rows].astype(np.float64)
+        poses["command"] = env.info["command"].detach().cpu().numpy()[rows].astype(np.float64)
         q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1).cpu().numpy()[rows]
         coord = env.layout.joints.coord
         yaw = q[:, coord["base_yaw"]]
@@ -129,6 +131,8 @@ class PlannerAgent(BaseAgent):
         return poses
 
     def _target_quat(self, step, poses: dict[str, np.ndarray], r: int) -> np.ndarray:
+        if callable(step.quat):
+            return np.asarray(step.quat(poses), dtype=np.float64)
         if step.quat is not None:
             return np.tile(np.asarray(step.quat, dtype=np.float64), (r, 1))
         top = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float64), (r, 1))

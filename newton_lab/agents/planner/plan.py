@@ -2,7 +2,8 @@
 
 A target resolves per row at reset from live poses: ``AssetTarget`` (an entity's position + offset),
 ``WorldTarget`` (env-frame or base-frame point) or any callable ``(poses) -> (R, 3)`` where ``poses``
-maps entity names and ``"tcp"`` / ``"base"`` to (R, 7) arrays. No quaternion means the top-down TCP.
+maps entity names and ``"tcp"`` / ``"base"`` to (R, 7) arrays and ``"command"`` to the task command
+(an ``AssetTarget("command")`` reaches a commanded position). No quaternion means the top-down TCP.
 """
 
 from __future__ import annotations
@@ -49,8 +50,8 @@ class WorldTarget:
 class MotionStep:
     name: str
     target: AssetTarget | WorldTarget | Callable[[dict], np.ndarray] | None = None
-    quat: tuple[float, float, float, float] | None = None
-    """TCP orientation, xyzw; ``None`` = top-down."""
+    quat: tuple[float, float, float, float] | Callable[[dict], np.ndarray] | None = None
+    """TCP orientation, xyzw (or a callable ``(poses) -> (R, 4)``); ``None`` = top-down."""
     align_yaw: str | None = None
     """Turn the top-down TCP about z to match this asset's yaw (modulo 90 deg)."""
     joints: tuple[float, ...] | None = None

@@ -1,0 +1,12 @@
+"""GalbotG1-StackCube-v0: stack cube_2 on cube_1, then cube_3 on cube_2."""
+
+from newton_lab.registry import register
+
+from .config.g1.env_cfg import stack_cube_cfg
+
+register(
+    "GalbotG1-StackCube-v0",
+    cfg=stack_cube_cfg,
+    motion_plan="newton_lab.tasks.stack_cube.config.g1.motion_plan:plan",
+    description="Stack three 5 cm cubes: cube_2 on cube_1, cube_3 on cube_2.",
+)

@@ -1,0 +1,107 @@
+"""StackCube expert plan (reference §4.2 structure): for each (cube, level) in
+((cube_2, 1), (cube_3, 2)): approach, descend, close x25, lift, raise to transfer height, move above
+cube_1, descend to the stack pose, open, lift away. 33 commands per cube.
+
+Re-derived for the authored gripper: the fingers reach 5 cm below the TCP, so the grasp TCP sits 1 cm
+above the cube top (reference: 3 cm) and the release TCP is one grasp offset plus 8 mm above the cube's
+stacked pose. The top-down TCP turns to the cube's yaw (modulo 90 deg), choosing the finger axis that
+points away from the nearest other cube.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from newton_lab.agents.planner.plan import MotionPlan, MotionStep, yaw_of
+from newton_lab.robots.g1 import spec
+
+CUBES = ("cube_1", "cube_2", "cube_3")
+HALF = 0.025
+APPROACH = 0.18
+GRASP = 0.01
+LIFT = 0.10
+RELEASE_GAP = 0.008
+CLOSE_HOLD = 25
+
+
+def _turned_top_down(yaw: np.ndarray) -> np.ndarray:
+    top = np.asarray(spec.TOP_DOWN_TCP_QUAT)
+    c, s = np.cos(yaw / 2), np.sin(yaw / 2)
+    # (0, 0, s, c) * top  (rotation about world z applied after the top-down orientation)
+    tx, ty, tz, tw = top
+    return np.stack([c * tx - s * ty, c * ty + s * tx, c * tz + s * tw, c * tw - s * tz], axis=1)
+
+
+def _grasp_quat(name: str):
+    def quat(poses: dict[str, np.ndarray]) -> np.ndarray:
+        me = poses[name]
+        yaw = (yaw_of(me[:, 3:7]) + math.pi / 4) % (math.pi / 2) - math.pi / 4
+        # fingers close along the TCP y axis (world y at yaw 0): prefer the option whose finger axis is
+        # most perpendicular to the nearest other cube
+        others = [poses[o][:, :2] - me[:, :2] for o in CUBES if o != name]
+        near = min(others, key=lambda d: 0.0) if len(others) == 1 else np.where(
+            (np.linalg.norm(others[0], axis=1) < np.linalg.norm(others[1], axis=1))[:, None], others[0], others[1])
+        bearing = np.arctan2(near[:, 1], near[:, 0])
+        finger_a = yaw + math.pi / 2
+        along_a = np.abs(np.cos(bearing - finger_a))
+        along_b = np.abs(np.cos(bearing - finger_a - math.pi / 2))
+        yaw = np.where(along_a <= along_b, yaw, yaw + math.pi / 2)
+        yaw = (yaw + math.pi / 2) % math.pi - math.pi / 2
+        return _turned_top_down(yaw)
+
+    return quat
+
+
+def _point(name: str, dz: float):
+    def target(poses: dict[str, np.ndarray]) -> np.ndarray:
+        p = poses[name][:, :3].copy()
+        p[:, 2] += dz
+        return p
+
+    return target
+
+
+def _stack_point(level: int, dz: float):
+    def target(poses: dict[str, np.ndarray]) -> np.ndarray:
+        p = poses["cube_1"][:, :3].copy()
+        p[:, 2] += 0.05 * level + dz
+        return p
+
+    return target
+
+
+def _transfer(name: str, level: int, xy_of: str):
+    def target(poses: dict[str, np.ndarray]) -> np.ndarray:
+        lift_z = poses[name][:, 2] + HALF + GRASP + LIFT
+        stack_z = poses["cube_1"][:, 2] + 0.05 * level + HALF + GRASP + RELEASE_GAP
+        p = poses[xy_of][:, :3].copy()
+        p[:, 2] = np.maximum(lift_z, stack_z + 0.05)
+        return p
+
+    return target
+
+
+def _cube_steps(name: str, level: int) -> list[MotionStep]:
+    grasp_q = _grasp_quat(name)
+    place_q = _grasp_quat("cube_1")
+    release_dz = HALF + GRASP + RELEASE_GAP
+    return [
+        MotionStep(name=f"approach_{name}", target=_point(name, HALF + APPROACH), quat=grasp_q),
+        MotionStep(name=f"descend_{name}", target=_point(name, HALF + GRASP), quat=grasp_q),
+        MotionStep(name=f"close_on_{name}", gripper_open=False, hold=CLOSE_HOLD),
+        MotionStep(name=f"lift_{name}", target=_point(name, HALF + GRASP + LIFT), quat=grasp_q, gripper_open=False),
+        MotionStep(name=f"raise_{name}", target=_transfer(name, level, name), quat=grasp_q, gripper_open=False),
+        MotionStep(name=f"move_{name}_above_stack", target=_transfer(name, level, "cube_1"), quat=place_q,
+                   gripper_open=False),
+        MotionStep(name=f"descend_{name}_to_stack", target=_stack_point(level, release_dz), quat=place_q,
+                   gripper_open=False),
+        MotionStep(name=f"release_{name}", target=_stack_point(level, release_dz), quat=place_q),
+        MotionStep(name=f"lift_away_from_{name}", target=_transfer(name, level, "cube_1"), quat=place_q),
+    ]
+
+
+def plan() -> MotionPlan:
+    return MotionPlan(steps=tuple(_cube_steps("cube_2", 1) + _cube_steps("cube_3", 2)), max_joint_step=0.03,
+                      settle_steps=12)
