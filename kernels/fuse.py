@@ -3,8 +3,9 @@
 A task declares its logic as ``@wp.func`` terms (see ``newton_lab.envs.cfg``); this module turns them
 into exactly three kernels per task id, each launched once per env step / reset:
 
-* ``task_step``: phase advance, latched success, failure terminations, time-out, reward, subtask signals;
-* ``observe``: every observation term written into one (num_envs, obs_dim) buffer;
+* ``task_step``: phase advance, latched success, failure terminations, time-out, reward;
+* ``observe``: every observation term written into one (num_envs, obs_dim) buffer, plus the subtask
+  signals (on the post-reset state, so a recorded frame's signals describe its observation);
 * ``reset``: masked reset of the selected rows to their defaults, then the task's reset events
   (seeded per row and episode).
 
@@ -24,7 +25,7 @@ REASON_TIME_OUT = 2
 FIRST_FAILURE_REASON = 3
 
 
-def build_task_kernel(*, phase_success, terminations, rewards, signals, terminate_on_success=True):
+def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_success=True):
     """Return the fused per-step task kernel.
 
     Args:
@@ -33,7 +34,6 @@ def build_task_kernel(*, phase_success, terminations, rewards, signals, terminat
         terminations: ``func(ctx, w) -> bool`` failure terms; term ``i`` reports reason
             ``FIRST_FAILURE_REASON + i``.
         rewards: ``(func(ctx, w) -> float, weight)`` pairs, summed.
-        signals: ``func(ctx, w) -> bool`` subtask signals written per row (e.g. grasped).
         terminate_on_success: end the episode when the last phase succeeds.
     """
     phase_fns = tuple(phase_success)
@@ -43,8 +43,6 @@ def build_task_kernel(*, phase_success, terminations, rewards, signals, terminat
     reward_fns = tuple(f for f, _ in rewards)
     reward_w = tuple(float(w) for _, w in rewards)
     n_reward = len(reward_fns)
-    signal_fns = tuple(signals)
-    n_signal = len(signal_fns)
     end_on_success = bool(terminate_on_success)
 
     @wp.kernel(module="unique")
@@ -59,7 +57,6 @@ def build_task_kernel(*, phase_success, terminations, rewards, signals, terminat
         success_latched: wp.array(dtype=bool),
         reason: wp.array(dtype=int),
         episode_length: wp.array(dtype=int),
-        signal_out: wp.array2d(dtype=float),
     ):
         w = wp.tid()
         step = ctx.episode_step[w] + 1
@@ -91,8 +88,6 @@ def build_task_kernel(*, phase_success, terminations, rewards, signals, terminat
         r = float(0.0)
         for k in range(wp.static(n_reward)):
             r += wp.static(reward_w[k]) * wp.static(reward_fns[k])(ctx, w)
-        for k in range(wp.static(n_signal)):
-            signal_out[w, k] = wp.where(wp.static(signal_fns[k])(ctx, w), 1.0, 0.0)
         for j in range(ctx.actions.shape[1]):
             ctx.prev_actions[w, j] = ctx.actions[w, j]
         reward[w] = r
@@ -106,17 +101,26 @@ def build_task_kernel(*, phase_success, terminations, rewards, signals, terminat
     return task_step
 
 
-def build_observation_kernel(terms):
-    """Return the fused observation kernel; ``terms`` are ``(func(ctx, w, out, col), col)`` pairs."""
+def build_observation_kernel(terms, signals=()):
+    """Return the fused observation kernel.
+
+    ``terms`` are ``(func(ctx, w, out, col), col)`` pairs; ``signals`` are stateless
+    ``func(ctx, w) -> bool`` subtask signals (e.g. grasped), evaluated on the same state as the
+    observation (after resets) and written as 0 / 1 per row.
+    """
     fns = tuple(f for f, _ in terms)
     cols = tuple(int(c) for _, c in terms)
     n = len(fns)
+    signal_fns = tuple(signals)
+    n_signal = len(signal_fns)
 
     @wp.kernel(module="unique")
-    def observe(ctx: TaskContext, out: wp.array2d(dtype=float)):
+    def observe(ctx: TaskContext, out: wp.array2d(dtype=float), signal_out: wp.array2d(dtype=float)):
         w = wp.tid()
         for k in range(wp.static(n)):
             wp.static(fns[k])(ctx, w, out, wp.static(cols[k]))
+        for k in range(wp.static(n_signal)):
+            signal_out[w, k] = wp.where(wp.static(signal_fns[k])(ctx, w), 1.0, 0.0)
 
     return observe
 
@@ -180,3 +184,12 @@ def world_to_articulation_mask(
     a = wp.tid()
     aw = articulation_world[a]
     articulation_mask[a] = aw >= 0 and world_mask[aw]
+
+
+@wp.kernel
+def clear_solver_warmstart(world_mask: wp.array(dtype=bool), qacc_warmstart: wp.array2d(dtype=float)):
+    """Zero the solver's warm-start accelerations of reset worlds (a stale warm start from the previous
+    episode makes the first step after a reset converge badly: stacked cubes sink into each other)."""
+    w, i = wp.tid()
+    if world_mask[w]:
+        qacc_warmstart[w, i] = 0.0

@@ -202,14 +202,13 @@ class NewtonEnv:
             phase_success=cfg.phase_success,
             terminations=list(cfg.terminations.values()),
             rewards=list(cfg.rewards.values()),
-            signals=list(cfg.signals.values()),
             terminate_on_success=cfg.terminate_on_success,
         )
         cols, col = [], 0
         for term in cfg.observations:
             cols.append((term.func, col))
             col += term.dim
-        self._obs_kernel = fuse.build_observation_kernel(cols)
+        self._obs_kernel = fuse.build_observation_kernel(cols, list(cfg.signals.values()))
         self._reset_kernel = fuse.build_reset_kernel(cfg.events)
 
     def _capture(self):
@@ -257,7 +256,6 @@ class NewtonEnv:
                 self._success_latched,
                 self._reason,
                 self._episode_length,
-                self._signals,
             ],
         )
 
@@ -282,9 +280,11 @@ class NewtonEnv:
             inputs=[mask, self.model.articulation_world, self._art_mask],
         )
         newton.eval_fk(self.model, self.state.joint_q, self.state.joint_qd, self.state, mask=self._art_mask)
+        warmstart = self.solver.mjw_data.qacc_warmstart
+        wp.launch(fuse.clear_solver_warmstart, dim=warmstart.shape, inputs=[mask, warmstart])
 
     def _observe(self) -> None:
-        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._obs])
+        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._obs, self._signals])
         wp.launch(record_poses, dim=self.num_envs, inputs=[self._ctx, self._tcp_pose, self._entity_poses])
 
     def _step_body(self) -> None:

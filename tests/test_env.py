@@ -1,0 +1,119 @@
+"""Env core on real physics: one fused task kernel per step, graph capture, per-row resets, seeding."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+import warp as wp
+
+from newton_lab.envs import make_env
+from newton_lab.robots.g1 import spec
+
+
+@pytest.fixture(scope="module")
+def eager_env():
+    return make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, capture=False)
+
+
+def _q(env):
+    return wp.to_torch(env.state.joint_q).view(env.num_envs, -1).clone()
+
+
+def test_one_task_kernel_launch_per_step(eager_env, monkeypatch):
+    launched = []
+    real = wp.launch
+
+    def counting(kernel, *args, **kwargs):
+        launched.append(kernel)
+        return real(kernel, *args, **kwargs)
+
+    monkeypatch.setattr(wp, "launch", counting)
+    eager_env.step(eager_env.current_action())
+    assert sum(k is eager_env._task_kernel for k in launched) == 1
+    assert sum(k is eager_env._obs_kernel for k in launched) == 1
+    assert sum(k is eager_env._reset_kernel for k in launched) == 1
+
+
+def test_step_is_one_captured_graph(pick_env):
+    assert pick_env._graph is not None
+
+
+def test_captured_step_matches_eager(pick_env, eager_env):
+    for env in (pick_env, eager_env):  # same seed and episode counters -> same reset draws
+        env._episode_count.zero_()
+        env.reset()
+    torch.testing.assert_close(_q(pick_env), _q(eager_env))
+    for t in range(15):
+        a = pick_env.current_action()
+        a[:, 3] += 0.01 * t
+        pick_env.step(a)
+        eager_env.step(a.clone())
+    torch.testing.assert_close(_q(pick_env), _q(eager_env), atol=1e-5, rtol=0)
+    torch.testing.assert_close(pick_env.obs, eager_env.obs, atol=1e-5, rtol=0)
+
+
+def test_step_returns_views_of_warp_buffers(pick_env):
+    obs, reward, terminated, truncated, info = pick_env.step(pick_env.current_action())
+    assert obs.data_ptr() == wp.to_torch(pick_env._obs).data_ptr()
+    assert reward.data_ptr() == wp.to_torch(pick_env._reward).data_ptr()
+    assert obs.shape == (2, pick_env.obs_dim) and terminated.dtype == torch.bool
+    assert set(pick_env.obs_terms) == {"actions", "robot_joint_pos", "tcp_pose", "gripper_pos", "cube_pose",
+                                       "blue_block_pos"}
+
+
+def test_reset_touches_only_selected_rows(pick_env):
+    env = pick_env
+    env.reset()
+    a = env.current_action()
+    a[:, 0] += 0.3  # swing the shoulder so every row leaves its reset posture
+    for _ in range(10):
+        env.step(a)
+    q_before, body_before = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7).clone()
+    count_before = env._episode_count.numpy().copy()
+    env.reset([1])
+    q_after, body_after = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7)
+    assert torch.equal(q_after[0], q_before[0]) and torch.equal(body_after[0], body_before[0])
+    arm = [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]
+    torch.testing.assert_close(q_after[1, arm], torch.tensor(spec.PICK_CUBE_LEFT_ARM_INITIAL), atol=1e-6, rtol=0)
+    assert not torch.allclose(q_before[1, arm], q_after[1, arm])
+    assert (env._episode_count.numpy() - count_before).tolist() == [0, 1]
+    assert int(env.info["episode_length"][1]) >= 0 and int(wp.to_torch(env._ctx.episode_step)[1]) == 0
+
+
+def test_randomisation_is_seeded_per_row_and_episode(pick_env, eager_env):
+    for env in (pick_env, eager_env):  # same seed and episode counters -> same draws
+        env._episode_count.zero_()
+        env.reset()
+    cube = pick_env.entities["cube"].slot
+    a, b = pick_env.entity_poses[:, cube, :3].clone(), eager_env.entity_poses[:, cube, :3].clone()
+    torch.testing.assert_close(a, b)
+    assert not torch.allclose(a[0], a[1])  # rows draw independently
+    assert ((a[:, 0] >= -0.38) & (a[:, 0] <= -0.22) & (a[:, 1] >= 0.12) & (a[:, 1] <= 0.26)).all()
+    pick_env.reset()
+    assert not torch.allclose(pick_env.entity_poses[:, cube, :3], a)  # a new episode draws anew
+
+
+def test_no_randomisation_by_default():
+    env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=5)
+    cube = env.entity_poses[:, env.entities["cube"].slot, :3]
+    torch.testing.assert_close(cube, torch.tensor([[-0.30, 0.18, 0.125]] * 2), atol=1e-6, rtol=0)
+
+
+def test_time_out_truncates_and_auto_resets(reach_env):
+    from newton_lab.agents import ZeroAgent
+
+    env = reach_env
+    env.reset()
+    limit = env.cfg.max_episode_steps
+    agent = ZeroAgent()
+    hold = agent.act(env).clone()
+    hold[:, 0] = -1.4  # point the arm away from every goal
+    for _ in range(limit - 1):
+        _, _, term, trunc, _ = env.step(hold)
+        assert not (term | trunc).any()
+    _, _, term, trunc, info = env.step(hold)
+    assert trunc.all() and not term.any()
+    assert [env.termination_reasons[int(r)] for r in info["termination_reason"]] == ["time_out", "time_out"]
+    assert info["episode_length"].tolist() == [limit, limit]
+    assert wp.to_torch(env._ctx.episode_step).tolist() == [0, 0]
