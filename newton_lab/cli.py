@@ -10,8 +10,8 @@ import sys
 def _quiet_warp() -> None:
     import warp as wp
 
-    wp.config.quiet = True
-    wp.config.verbose = False
+    wp.config.quiet = True  # no init banner
+    wp.config.log_level = wp.LOG_WARNING  # no per-module load lines
 
 
 def _add_env_flags(p: argparse.ArgumentParser, *, episodes: int = 1, max_steps: int = 1000) -> None:

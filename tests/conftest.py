@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-import os
-
 import pytest
-
-os.environ.setdefault("WARP_CACHE_PATH", os.path.expanduser("~/.cache/warp"))
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -14,6 +10,7 @@ def _quiet_warp():
     import warp as wp
 
     wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     yield
 
 

@@ -34,6 +34,13 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vector ``v`` (3,) by (R, 4) xyzw quaternions."""
+    u, w = q[:, :3], q[:, 3:4]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
 class PlannerAgent(BaseAgent):
     """Executes ``plan`` for every row; see ``newton_lab.agents.planner.plan`` for the step format."""
 
@@ -103,7 +110,13 @@ class PlannerAgent(BaseAgent):
                 joint_dof_mask=wp.array(mask, dtype=wp.bool),
             )
             self._ik_q = wp.zeros((n, self._robot_coords), dtype=wp.float32)
-            self._fk_state = self._ik_model.state()
+            # one robot per problem, for a batched forward-kinematics check of the IK solutions
+            fk = newton.ModelBuilder()
+            newton.solvers.SolverMuJoCo.register_custom_attributes(fk)
+            fk.replicate(b, n)
+            self._fk_model = fk.finalize(device=dev)
+            self._fk_state = self._fk_model.state()
+            self._bodies = b.body_count
             self._tcp_link = link
             k = max(len(self.plan.steps), 1)
             self._waypoints = wp.zeros((n, k, 8), dtype=float)
@@ -154,19 +167,11 @@ class PlannerAgent(BaseAgent):
         self._ik_q.assign(q_seed.astype(np.float32))
         self._ik.step(self._ik_q, self._ik_q, iterations=self.ik_iterations)
         q = self._ik_q.numpy()
-        # TCP error of the solution, from forward kinematics of the IK model (one problem at a time is
-        # cheap: the IK model is a single robot)
-        err = np.zeros(len(rows))
-        for i, r in enumerate(rows):
-            self._fk_state.joint_q.assign(q[r])
-            newton.eval_fk(self._ik_model, self._fk_state.joint_q, self._fk_state.joint_qd, self._fk_state)
-            bq = self._fk_state.body_q.numpy()[self._tcp_link]
-            t = wp.transform_multiply(
-                wp.transform(wp.vec3(*bq[:3]), wp.quat(*bq[3:])),
-                wp.transform(wp.vec3(*spec.TCP_OFFSET_POS), wp.quat(*spec.TCP_OFFSET_QUAT)),
-            )
-            err[i] = float(np.linalg.norm(np.asarray(t.p) - pos[i]))
-        return q, err
+        self._fk_state.joint_q.assign(q.reshape(-1))
+        newton.eval_fk(self._fk_model, self._fk_state.joint_q, self._fk_state.joint_qd, self._fk_state)
+        link = self._fk_state.body_q.numpy().reshape(n, self._bodies, 7)[rows, self._tcp_link].astype(np.float64)
+        tcp = link[:, :3] + _quat_rotate(link[:, 3:7], np.asarray(spec.TCP_OFFSET_POS, dtype=np.float64))
+        return q, np.linalg.norm(tcp - pos, axis=1)
 
     def _plan_rows(self, env, rows: np.ndarray) -> None:
         plan, r = self.plan, len(rows)
