@@ -1,7 +1,8 @@
 """Episode datasets: robomimic-layout HDF5 / zarr v3 storage."""
 
+from .ref import DatasetProvenance, DatasetRef
 from .storage import (FORMAT_VERSION, SUFFIXES, EpisodeWriter, delete_demos, list_demos, open_writer,
-                      read_dataset_info, read_episode)
+                      read_dataset_info, read_episode, set_dataset_attrs)
 
-__all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
+__all__ = ["DatasetRef", "DatasetProvenance", "set_dataset_attrs", "EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
            "delete_demos", "SUFFIXES", "FORMAT_VERSION"]

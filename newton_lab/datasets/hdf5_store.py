@@ -133,6 +133,12 @@ def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples:
     return demo_id
 
 
+def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> None:
+    """Update ``data`` attrs in one journaled session."""
+    with _open_write(path, fsync) as f:
+        _data(f, path).attrs.update(attrs)
+
+
 def info(path: Path) -> dict[str, Any]:
     with _open_read(path) as f:
         data = _data(f, path)

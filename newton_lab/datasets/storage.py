@@ -31,7 +31,7 @@ SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 TIME_ALIGNED = ("obs", "states")  # every array under these has T rows
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
-           "delete_demos", "SUFFIXES", "FORMAT_VERSION"]
+           "delete_demos", "set_dataset_attrs", "SUFFIXES", "FORMAT_VERSION"]
 
 
 # ----------------------------------------------------------------------------- dispatch / checks
@@ -224,7 +224,14 @@ def read_dataset_info(path: str | Path) -> dict[str, Any]:
     return {"path": str(p), "format": fmt, "format_version": meta["format_version"],
             "task_id": meta["task_id"], "env_args": meta["env_args"],
             "num_demos": len(demos), "total": sum(d["num_samples"] for d in demos.values()),
-            "demo_ids": list(demos), "demos": demos}
+            "demo_ids": list(demos), "demos": demos,
+            "provenance": json.loads(raw["root"].get("provenance", "[]"))}
+
+
+def set_dataset_attrs(path: str | Path, attrs: Mapping[str, Any]) -> None:
+    """Update scalar / string attrs of the ``data`` group (e.g. ``provenance`` JSON); crash safe."""
+    p, backend, _ = _existing(path)
+    backend.set_root_attrs(p, {k: py_scalar(v, k) for k, v in attrs.items()})
 
 
 def list_demos(path: str | Path) -> list[int]:

@@ -134,6 +134,13 @@ def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples:
     return demo_id
 
 
+def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> None:
+    """Update ``data`` attrs (zarr replaces ``zarr.json`` atomically)."""
+    _data(_root(path, writable=True), path).attrs.update(attrs)
+    if fsync:
+        fsync_path(path / "data" / "zarr.json")
+
+
 def info(path: Path) -> dict[str, Any]:
     root = read_root(path)
     committed, _ = _scan(path)

@@ -6,39 +6,15 @@ from __future__ import annotations
 
 import math
 
-import newton
-import newton.ik as ik
 import numpy as np
 import torch
 import warp as wp
 
 from ...kernels.planner import gather_plan_actions
 from ...robots.g1 import spec
-from ...robots.g1.model import JointIndex, add_g1
+from ...robots.g1.kinematics import TcpKinematics, quat_mul
 from ..base import BaseAgent
 from .plan import MotionPlan, load_motion_plan, yaw_of
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of (R, 4) xyzw quaternions."""
-    ax, ay, az, aw = a.T
-    bx, by, bz, bw = b.T
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=1,
-    )
-
-
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vector ``v`` (3,) by (R, 4) xyzw quaternions."""
-    u, w = q[:, :3], q[:, 3:4]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
 
 
 class PlannerAgent(BaseAgent):
@@ -76,48 +52,8 @@ class PlannerAgent(BaseAgent):
         self._gripper_col = names.index(gripper) if gripper in names else -1
         self._arm_coords = [env.layout.joints.coord[j] for j in arm_joints]
         self._robot_coords = env.layout.robot_coords
-
+        self._kin = TcpKinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
-            b = newton.ModelBuilder()
-            newton.solvers.SolverMuJoCo.register_custom_attributes(b)
-            add_g1(b)
-            self._ik_model = b.finalize(device=dev)
-            joints = JointIndex.from_builder(b)
-            link = joints.body[spec.END_EFFECTOR_LINK[arm]]
-            self._ik_pos = ik.IKObjectivePosition(
-                link_index=link,
-                link_offset=wp.vec3(*spec.TCP_OFFSET_POS),
-                target_positions=wp.zeros(n, dtype=wp.vec3),
-            )
-            self._ik_rot = ik.IKObjectiveRotation(
-                link_index=link,
-                link_offset_rotation=wp.quat(*spec.TCP_OFFSET_QUAT),
-                target_rotations=wp.array(np.tile(spec.TOP_DOWN_TCP_QUAT, (n, 1)), dtype=wp.vec4),
-            )
-            lim = ik.IKObjectiveJointLimit(
-                joint_limit_lower=self._ik_model.joint_limit_lower,
-                joint_limit_upper=self._ik_model.joint_limit_upper,
-                weight=10.0,
-            )
-            mask = np.zeros(self._ik_model.joint_dof_count, dtype=bool)
-            mask[[joints.dof[j] for j in arm_joints]] = True
-            self._ik = ik.IKSolver(
-                model=self._ik_model,
-                n_problems=n,
-                objectives=[self._ik_pos, self._ik_rot, lim],
-                lambda_initial=0.1,
-                jacobian_mode=ik.IKJacobianType.ANALYTIC,
-                joint_dof_mask=wp.array(mask, dtype=wp.bool),
-            )
-            self._ik_q = wp.zeros((n, self._robot_coords), dtype=wp.float32)
-            # one robot per problem, for a batched forward-kinematics check of the IK solutions
-            fk = newton.ModelBuilder()
-            newton.solvers.SolverMuJoCo.register_custom_attributes(fk)
-            fk.replicate(b, n)
-            self._fk_model = fk.finalize(device=dev)
-            self._fk_state = self._fk_model.state()
-            self._bodies = b.body_count
-            self._tcp_link = link
             k = max(len(self.plan.steps), 1)
             self._waypoints = wp.zeros((n, k, 8), dtype=float)
             self._start_q = wp.zeros((n, 7), dtype=float)
@@ -154,24 +90,18 @@ class PlannerAgent(BaseAgent):
         yaw = yaw_of(poses[step.align_yaw][:, 3:7])
         yaw = (yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4  # a cube looks the same every 90 deg
         turn = np.stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
-        return _quat_mul(turn, top)
+        return quat_mul(turn, top)
 
     def _solve(self, q_seed: np.ndarray, rows: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """IK for the given rows (others ride along unchanged); returns arm joints (R, 7) and TCP error [m]."""
+        """IK for the given rows (others ride along unchanged); returns all (N, 34) coordinates and the
+        rows' TCP error [m] from forward kinematics of the solutions."""
         n = self._env.num_envs
-        p_all = np.zeros((n, 3), dtype=np.float32)
-        q_all = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float32), (n, 1))
+        p_all = np.zeros((n, 3))
+        q_all = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float64), (n, 1))
         p_all[rows], q_all[rows] = pos, quat
-        self._ik_pos.set_target_positions(wp.array(p_all, dtype=wp.vec3, device=self._env.device))
-        self._ik_rot.set_target_rotations(wp.array(q_all, dtype=wp.vec4, device=self._env.device))
-        self._ik_q.assign(q_seed.astype(np.float32))
-        self._ik.step(self._ik_q, self._ik_q, iterations=self.ik_iterations)
-        q = self._ik_q.numpy()
-        self._fk_state.joint_q.assign(q.reshape(-1))
-        newton.eval_fk(self._fk_model, self._fk_state.joint_q, self._fk_state.joint_qd, self._fk_state)
-        link = self._fk_state.body_q.numpy().reshape(n, self._bodies, 7)[rows, self._tcp_link].astype(np.float64)
-        tcp = link[:, :3] + _quat_rotate(link[:, 3:7], np.asarray(spec.TCP_OFFSET_POS, dtype=np.float64))
-        return q, np.linalg.norm(tcp - pos, axis=1)
+        q = self._kin.solve(q_seed, p_all, q_all, iterations=self.ik_iterations)
+        tcp = self._kin.tcp_poses(q)[rows]
+        return q, np.linalg.norm(tcp[:, :3] - pos, axis=1)
 
     def _plan_rows(self, env, rows: np.ndarray) -> None:
         plan, r = self.plan, len(rows)

@@ -16,6 +16,7 @@ import numpy as np
 
 from newton_lab.agents.planner.plan import MotionPlan, MotionStep, yaw_of
 from newton_lab.robots.g1 import spec
+from newton_lab.robots.g1.kinematics import quat_mul
 
 CUBES = ("cube_1", "cube_2", "cube_3")
 HALF = 0.025
@@ -27,11 +28,9 @@ CLOSE_HOLD = 25
 
 
 def _turned_top_down(yaw: np.ndarray) -> np.ndarray:
-    top = np.asarray(spec.TOP_DOWN_TCP_QUAT)
-    c, s = np.cos(yaw / 2), np.sin(yaw / 2)
-    # (0, 0, s, c) * top  (rotation about world z applied after the top-down orientation)
-    tx, ty, tz, tw = top
-    return np.stack([c * tx - s * ty, c * ty + s * tx, c * tz + s * tw, c * tw - s * tz], axis=1)
+    """The top-down TCP turned by ``yaw`` about world z."""
+    turn = np.stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
+    return quat_mul(turn, np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT), (len(yaw), 1)))
 
 
 def _grasp_quat(name: str):
@@ -40,9 +39,8 @@ def _grasp_quat(name: str):
         yaw = (yaw_of(me[:, 3:7]) + math.pi / 4) % (math.pi / 2) - math.pi / 4
         # fingers close along the TCP y axis (world y at yaw 0): prefer the option whose finger axis is
         # most perpendicular to the nearest other cube
-        others = [poses[o][:, :2] - me[:, :2] for o in CUBES if o != name]
-        near = min(others, key=lambda d: 0.0) if len(others) == 1 else np.where(
-            (np.linalg.norm(others[0], axis=1) < np.linalg.norm(others[1], axis=1))[:, None], others[0], others[1])
+        a, b = (poses[o][:, :2] - me[:, :2] for o in CUBES if o != name)
+        near = np.where((np.linalg.norm(a, axis=1) < np.linalg.norm(b, axis=1))[:, None], a, b)
         bearing = np.arctan2(near[:, 1], near[:, 0])
         finger_a = yaw + math.pi / 2
         along_a = np.abs(np.cos(bearing - finger_a))

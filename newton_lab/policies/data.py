@@ -1,0 +1,130 @@
+"""Sequence windows over every demo of a dataset, held in memory, for diffusion-policy training.
+
+One window per episode step t: observations of steps t-obs_horizon+1 .. t and actions of steps
+t-obs_horizon+1 .. t-obs_horizon+pred_horizon. Steps before 0 repeat frame 0 (pad_before =
+obs_horizon - 1); steps past the end repeat the last frame/action (pad_after = pred_horizon -
+obs_horizon). Repeating the last action is right here: actions are absolute joint targets, so it
+means "hold the final pose" (delta-action datasets would pad with zeros instead).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from newton_lab.datasets import read_dataset_info, read_episode
+
+EXCLUDED_OBS_KEYS = ("actions",)  # the last-action obs term would leak the label
+IMAGE_TAGS = ("rgb", "image", "depth", "camera")
+
+
+def is_image_like(name: str, arr: np.ndarray) -> bool:
+    """Images are left to a vision encoder: (T, H, W[, C]) arrays, uint8 arrays, or image-named keys."""
+    return arr.ndim >= 3 or arr.dtype == np.uint8 or any(tag in name.lower() for tag in IMAGE_TAGS)
+
+
+def default_obs_keys(obs: dict[str, Any], obs_terms: dict[str, Any] | None = None) -> list[str]:
+    """Flat low-dim obs arrays except ``actions``, in env layout order (``obs_terms``) then by name."""
+    order = {name: span[0] for name, span in (obs_terms or {}).items()}
+    keys = [k for k, v in obs.items()
+            if not isinstance(v, dict) and k not in EXCLUDED_OBS_KEYS and not is_image_like(k, np.asarray(v))]
+    return sorted(keys, key=lambda k: (k not in order, order.get(k, 0), k))
+
+
+class SequenceDataset(Dataset):
+    """``ds[i] -> {"obs": (obs_horizon, obs_dim), "actions": (pred_horizon, action_dim)}`` float32, raw units."""
+
+    def __init__(self, path: str | Path, *, obs_keys: Sequence[str] | None = None, obs_horizon: int = 2,
+                 pred_horizon: int = 16, success_only: bool = True) -> None:
+        if obs_horizon < 1 or pred_horizon < obs_horizon:
+            raise ValueError(f"need 1 <= obs_horizon <= pred_horizon, got {obs_horizon} and {pred_horizon}")
+        info = read_dataset_info(path)
+        self.path = Path(info["path"])
+        self.task_id: str = info["task_id"]
+        self.env_args: dict[str, Any] = info["env_args"]
+        meta = self.env_args.get("newton_lab", {})
+        self.obs_horizon, self.pred_horizon = obs_horizon, pred_horizon
+        self.demo_ids = [i for i in info["demo_ids"] if info["demos"][i]["success"] or not success_only]
+        if not self.demo_ids:
+            if info["demo_ids"]:
+                raise ValueError(f"{self.path} has no successful demos ({len(info['demo_ids'])} failed); "
+                                 "pass success_only=False to train on them")
+            raise ValueError(f"{self.path} has no demos to train on")
+
+        obs_rows, act_rows, obs_index, act_index, start = [], [], [], [], 0
+        self.obs_keys: tuple[str, ...] = ()
+        self.obs_dims: dict[str, int] = {}
+        for demo in self.demo_ids:
+            ep = read_episode(self.path, demo)
+            obs = ep.get("obs", {})
+            if not self.obs_keys:
+                keys = list(obs_keys) if obs_keys is not None else default_obs_keys(obs, meta.get("obs_terms"))
+                self.obs_keys = tuple(self._check_keys(keys, obs, demo))
+            parts = []
+            for k in self.obs_keys:
+                if k not in obs:
+                    raise ValueError(f"demo {demo} of {self.path} has no obs/{k}")
+                parts.append(np.asarray(obs[k], dtype=np.float32).reshape(len(ep["actions"]), -1))
+            obs_rows.append(np.concatenate(parts, axis=1))
+            act_rows.append(np.asarray(ep["actions"], dtype=np.float32))
+            n = len(ep["actions"])
+            steps = np.arange(n)[:, None]
+            obs_index.append(start + np.clip(steps + np.arange(-obs_horizon + 1, 1), 0, n - 1))
+            act_index.append(start + np.clip(steps + np.arange(-obs_horizon + 1, pred_horizon - obs_horizon + 1), 0, n - 1))
+            start += n
+            if not self.obs_dims:
+                self.obs_dims = {k: p.shape[1] for k, p in zip(self.obs_keys, parts)}
+            elif [p.shape[1] for p in parts] != list(self.obs_dims.values()):
+                raise ValueError(f"demo {demo} of {self.path} has obs dims differing from demo {self.demo_ids[0]}")
+        try:
+            self.obs = torch.from_numpy(np.concatenate(obs_rows))
+            self.actions = torch.from_numpy(np.concatenate(act_rows))
+        except ValueError:
+            raise ValueError(f"demos of {self.path} have different action dims") from None
+        self.obs_index = torch.from_numpy(np.concatenate(obs_index))
+        self.action_index = torch.from_numpy(np.concatenate(act_index))
+        names = meta.get("action_joint_names") or [f"action_{i}" for i in range(self.action_dim)]
+        if len(names) != self.action_dim:
+            raise ValueError(f"{self.path}: {len(names)} action_joint_names but actions have {self.action_dim} columns")
+        self.action_joint_names: tuple[str, ...] = tuple(names)
+
+    def _check_keys(self, keys: list[str], obs: dict[str, Any], demo: int) -> list[str]:
+        low_dim = [k for k, v in obs.items() if not isinstance(v, dict) and not is_image_like(k, np.asarray(v))]
+        bad = [k for k in keys if k not in low_dim]
+        if bad or not keys:
+            raise ValueError(f"obs keys {bad or keys} are not low-dim obs arrays of demo {demo} in {self.path}; "
+                             f"available: {', '.join(low_dim) or 'none'}")
+        return keys
+
+    @property
+    def obs_dim(self) -> int:
+        return self.obs.shape[1]
+
+    @property
+    def action_dim(self) -> int:
+        return self.actions.shape[1]
+
+    def __len__(self) -> int:
+        return self.obs_index.shape[0]
+
+    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
+        return {"obs": self.obs[self.obs_index[i]], "actions": self.actions[self.action_index[i]]}
+
+    def __getitems__(self, indices: Sequence[int]) -> dict[str, torch.Tensor]:
+        """A whole batch by fancy indexing (DataLoader uses it; pair with ``collate_fn=collate_batch``)."""
+        idx = torch.as_tensor(indices, dtype=torch.long)
+        return {"obs": self.obs[self.obs_index[idx]], "actions": self.actions[self.action_index[idx]]}
+
+    def __repr__(self) -> str:
+        return (f"SequenceDataset({str(self.path)!r}, demos={len(self.demo_ids)}, windows={len(self)}, "
+                f"obs_keys={list(self.obs_keys)}, obs_dim={self.obs_dim}, action_dim={self.action_dim})")
+
+
+def collate_batch(batch: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """DataLoader ``collate_fn`` for batches already built by ``SequenceDataset.__getitems__``."""
+    return batch

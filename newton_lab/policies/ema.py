@@ -1,0 +1,32 @@
+"""Exponential moving average of model weights with the Diffusion Policy / robomimic power warm-up."""
+
+from __future__ import annotations
+
+import copy
+
+import torch
+from torch import nn
+
+
+class EMA(nn.Module):
+    """``averaged`` tracks ``model``: decay_k = 1 - (1 + k) ** -power, k = max(0, updates - 1), capped at
+    ``max_decay`` (the first two updates copy the weights, so early checkpoints are not stuck at init)."""
+
+    def __init__(self, model: nn.Module, *, power: float = 0.75, max_decay: float = 0.9999) -> None:
+        super().__init__()
+        self.averaged = copy.deepcopy(model).requires_grad_(False).eval()
+        self.power, self.max_decay = power, max_decay
+        self.num_updates = 0
+
+    def decay(self) -> float:
+        k = max(0, self.num_updates - 1)
+        return 0.0 if k == 0 else min(self.max_decay, 1.0 - (1.0 + k) ** -self.power)
+
+    @torch.no_grad()
+    def update(self, model: nn.Module) -> None:
+        d = self.decay()
+        for avg, new in zip(self.averaged.parameters(), model.parameters()):
+            avg.lerp_(new.detach(), 1.0 - d)
+        for avg, new in zip(self.averaged.buffers(), model.buffers()):
+            avg.copy_(new)
+        self.num_updates += 1
