@@ -45,6 +45,10 @@ class DatasetRef:
     def __post_init__(self):
         object.__setattr__(self, "path", Path(self.path))
 
+    def __getitem__(self, key: str) -> Any:
+        """``ref[key]`` reads ``metadata[key]`` (the summary of the call that returned the ref)."""
+        return self.metadata[key]
+
     @property
     def format(self) -> str:
         return SUFFIXES.get(self.path.suffix.lower(), "unknown")

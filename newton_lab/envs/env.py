@@ -382,11 +382,13 @@ class NewtonEnv:
                 out[:, c] = tq[:, coords[name]]
         return out
 
-    def collect(self, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True):
-        """Run ``agent`` until ``episodes`` episodes finished and write them to ``path`` (see ``rollout``)."""
+    def collect(self, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True, **kwargs):
+        """Run ``agent`` for ``episodes`` episodes and write them to ``path``; returns a ``DatasetRef``
+        whose metadata is the run summary (see ``newton_lab.envs.rollout.collect``)."""
         from .rollout import collect
 
-        return collect(self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress)
+        return collect(self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress,
+                       **kwargs)
 
     def evaluate(self, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True):
         """Run ``agent`` for ``episodes`` episodes and report success rate and lengths (see ``rollout``)."""

@@ -117,26 +117,41 @@ def env_args(env) -> dict[str, Any]:
     }
 
 
-def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, on_episode=None):
-    """Shared loop; returns per-episode records and step counts."""
-    if not isinstance(episodes, int) or episodes < 1:
+def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, on_episode=None,
+         until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False):
+    """Shared loop; returns per-episode records, vector steps and wall time.
+
+    Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
+    ones (at most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the
+    agent reports it has nothing more to do (Mimic generation), with reason ``agent_done``.
+    """
+    if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if not isinstance(max_steps, int) or max_steps < 1:
         raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
     n = env.num_envs
     env.reset()
     agent.reset()
-    active = np.arange(n) < episodes
+    quota = max_attempts if until_successes and max_attempts else (None if until_successes else episodes)
+    active = np.arange(n) < (quota if quota is not None else n)
     launched = int(active.sum())
     step_in_ep = torch.zeros(n, dtype=torch.long, device=env.torch_device)
     reward_total = torch.zeros(n, device=env.torch_device)
     latched = np.zeros(n, dtype=bool)
     records: list[dict[str, Any]] = []
+    successes = 0
     vector_steps = 0
-    bar = tqdm(total=episodes, desc=f"{env.task_id} episodes", unit="ep", disable=not progress, leave=False)
+    bar = tqdm(total=episodes, desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
+               unit="ep", disable=not progress, leave=False)
+
+    def finished_enough() -> bool:
+        if until_successes:
+            return successes >= episodes or (max_attempts is not None and len(records) >= max_attempts)
+        return len(records) >= episodes
+
     t0 = time.perf_counter()
     try:
-        while len(records) < episodes:
+        while not finished_enough():
             actions = agent.act(env)
             if recorder is not None:
                 recorder.record(step_in_ep, actions)
@@ -146,32 +161,41 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             reward_total += reward
             latched |= info["success"].cpu().numpy()
             done = (terminated | truncated).cpu().numpy()
-            limit = (step_in_ep >= max_steps).cpu().numpy() & ~done
-            ended = np.nonzero((done | limit) & active)[0]
+            cut = (step_in_ep >= max_steps).cpu().numpy() & ~done
+            agent_done = np.zeros(n, dtype=bool)
+            if end_when_agent_done:
+                agent_done = agent.done(env).cpu().numpy() & ~done & ~cut
+            ended = np.nonzero((done | cut | agent_done) & active)[0]
             reasons = info["termination_reason"].cpu().numpy()
-            if limit.any():
-                env.reset(np.nonzero(limit)[0])
+            if (cut | agent_done).any():
+                env.reset(np.nonzero(cut | agent_done)[0])
             for row in ended:
-                length = int(step_in_ep[row])
+                if cut[row]:
+                    reason = REASON_MAX_STEPS
+                elif agent_done[row]:
+                    reason = "agent_done"
+                else:
+                    reason = env.termination_reasons[reasons[row]]
                 rec = {
                     "env_index": int(row),
-                    "length": length,
+                    "length": int(step_in_ep[row]),
                     "success": bool(latched[row]),
                     "reward_total": float(reward_total[row]),
-                    "termination_reason": REASON_MAX_STEPS if limit[row] else env.termination_reasons[reasons[row]],
+                    "termination_reason": reason,
                 }
                 if on_episode is not None:
                     rec.update(on_episode(row, rec) or {})
                 records.append(rec)
-                bar.update(1)
-                bar.set_postfix(success=f"{sum(r['success'] for r in records)}/{len(records)}")
-                if launched < episodes:
+                successes += rec["success"]
+                bar.update(1 if not until_successes else int(rec["success"]))
+                bar.set_postfix(success=f"{successes}/{len(records)}")
+                if quota is None or launched < quota:
                     launched += 1
                 else:
                     active[row] = False
-                if len(records) >= episodes:
+                if finished_enough():
                     break
-            finished = done | limit
+            finished = done | cut | agent_done
             if finished.any():
                 idx = torch.as_tensor(np.nonzero(finished)[0], device=env.torch_device)
                 step_in_ep[idx] = 0
@@ -206,16 +230,30 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
     }
 
 
-def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True) -> dict[str, Any]:
-    """Run ``agent`` for ``episodes`` episodes and append every one to the dataset at ``path``
-    (``.hdf5``/``.h5`` robomimic layout or ``.zarr`` v3, same logical tree). Returns the summary."""
-    from ..datasets import open_writer
+def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
+            only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
+            dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None):
+    """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
+    layout or ``.zarr`` v3, same logical tree).
 
-    writer = open_writer(Path(path), task_id=env.task_id, env_args=env_args(env))
+    By default ``episodes`` episodes are run and all are written. With ``only_successes`` the loop runs
+    until ``episodes`` successful ones are written (at most ``max_attempts`` attempts) and failures are
+    counted but not written (Mimic generation). Returns a ``DatasetRef`` whose ``metadata`` is the
+    summary (episodes, successes, success_rate, lengths, termination reasons, saved_demo_ids, ...);
+    ``ref["success_rate"]`` reads it.
+    """
+    from ..datasets import DatasetRef, open_writer
+
+    task_id = dataset_task_id or env.task_id
+    args = env_args(env)
+    args["env_name"] = task_id
+    writer = open_writer(Path(path), task_id=task_id, env_args=args)
     recorder = EpisodeRecorder(env, max_steps)
     saved: list[int] = []
 
     def write(row: int, rec: dict[str, Any]) -> dict[str, Any]:
+        if only_successes and not rec["success"]:
+            return {}
         demo = writer.append_episode(
             recorder.episode(row, rec["length"]),
             success=rec["success"],
@@ -231,12 +269,17 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
 
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
-                                    recorder=recorder, on_episode=write)
+                                    recorder=recorder, on_episode=write, until_successes=only_successes,
+                                    max_attempts=max_attempts, end_when_agent_done=end_when_agent_done)
     finally:
         writer.close()
     summary = _summary(env, records, steps, wall)
-    summary.update(path=str(path), saved_demo_ids=saved)
-    return summary
+    summary.update(task=task_id, path=str(path), saved_demo_ids=saved, attempts=len(records))
+    ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
+    cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.randomize, "max_steps": max_steps,
+           "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
+    keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts")
+    return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
 
 
 def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True) -> dict[str, Any]:

@@ -86,6 +86,8 @@ class SequenceDataset(Dataset):
             self.actions = torch.from_numpy(np.concatenate(act_rows))
         except ValueError:
             raise ValueError(f"demos of {self.path} have different action dims") from None
+        if self.actions.shape[0] == 0:
+            raise ValueError(f"the selected demos of {self.path} hold no steps")
         self.obs_index = torch.from_numpy(np.concatenate(obs_index))
         self.action_index = torch.from_numpy(np.concatenate(act_index))
         names = meta.get("action_joint_names") or [f"action_{i}" for i in range(self.action_dim)]

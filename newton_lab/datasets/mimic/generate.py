@@ -1,0 +1,65 @@
+"""``mimic(dataset, episodes=N, num_envs=K)``: expand a few source demos into many on a batched env."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..ref import DatasetRef
+
+
+def mimic_variant_of(task_id: str) -> tuple[str, dict]:
+    """The registered Mimic task id (and registry entry) whose source task is ``task_id``."""
+    from ...registry import list_tasks, lookup
+
+    variants = {lookup(t)["source_task"]: t for t in list_tasks() if lookup(t).get("mimic") is not None}
+    if task_id not in variants:
+        raise ValueError(f"task {task_id!r} has no Mimic variant; tasks with one: {', '.join(sorted(variants)) or 'none'}")
+    return variants[task_id], lookup(variants[task_id])
+
+
+def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: int = 1, device=None,
+          max_attempts: int | None = None, max_steps: int = 1000, progress: bool = True) -> DatasetRef:
+    """Generate ``episodes`` successful demos from the source demos of ``dataset`` (a path or a
+    ``DatasetRef``) and append them to ``output_path`` (default ``<stem>_mimic<suffix>`` beside the source).
+
+    Each attempt re-randomises the scene (seeded), picks a source segment per subtask (nearest object
+    pose, top-k), replays it in the current object frame, and keeps the attempt only if the task's success
+    fired at some step. Returns a ``DatasetRef``; its metadata holds ``attempts``, ``successes`` and
+    ``success_rate`` (also stored as provenance in the dataset).
+    """
+    from ...envs import make_env
+    from ...robots.g1.kinematics import TcpKinematics
+    from .agent import MimicAgent
+    from .source import load_sources
+
+    src = dataset if isinstance(dataset, DatasetRef) else DatasetRef.open(dataset)
+    path = Path(src.path)
+    if not path.exists():
+        raise FileNotFoundError(f"source dataset {path} does not exist; collect source demos first")
+    task_id = src.info()["task_id"]
+    mimic_id, entry = mimic_variant_of(task_id)
+    cfg = entry["mimic"]
+    out = Path(output_path) if output_path is not None else path.with_name(f"{path.stem}_mimic{path.suffix}")
+    if out.resolve() == path.resolve():
+        raise ValueError(f"output_path {out} is the source dataset; choose another path")
+    env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
+    sources = load_sources(path, cfg, TcpKinematics(256, device=env.device, arm=cfg.arm), task_id=task_id)
+    agent = MimicAgent(sources, cfg, seed=seed)
+    ref = env.collect(
+        agent=agent,
+        episodes=episodes,
+        path=out,
+        max_steps=max_steps,
+        progress=progress,
+        only_successes=True,
+        max_attempts=max_attempts if max_attempts is not None else 10 * episodes,
+        end_when_agent_done=True,
+        dataset_task_id=task_id,
+        operation="mimic",
+        config={"source_path": str(path), "mimic_task_id": mimic_id, "num_sources": len(sources), "seed": seed},
+    )
+    meta = dict(ref.metadata)
+    meta.update(source_task_id=task_id, mimic_task_id=mimic_id, num_sources=len(sources),
+                status="complete" if meta["successes"] >= episodes else "incomplete",
+                generation_success_rate=meta["successes"] / max(meta["attempts"], 1))
+    return DatasetRef(ref.path, task_id=task_id, metadata=meta, provenance=ref.provenance)

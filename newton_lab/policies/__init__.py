@@ -1,0 +1,53 @@
+"""Imitation-learning policies trained on newton_lab demonstration datasets.
+
+    backend = Policy.from_backend("diffusion")
+    ckpt = backend.train("demos.hdf5", {"epochs": 50, "output_dir": "outputs/dp"})
+    policy = backend.load_policy(ckpt)
+    actions = policy.predict_action(obs_history)  # (B, obs_horizon, obs_dim) -> (B, action_horizon, A)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .data import SequenceDataset
+from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
+from .normalize import MinMaxNormalizer
+from .scheduler import NoiseScheduler
+from .train import train
+
+__all__ = ["Policy", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
+           "MinMaxNormalizer", "NoiseScheduler", "train", "BACKENDS"]
+
+
+class DiffusionBackend:
+    """Diffusion Policy (1-D conv U-Net, DDPM training, DDIM inference) on low-dim observations."""
+
+    name = "diffusion"
+    config_class = DiffusionPolicyConfig
+
+    def train(self, dataset: str | Path | Any, train_cfg: dict[str, Any] | DiffusionPolicyConfig | None = None) -> Path:
+        """Train on ``dataset`` (path or object with ``.path``); returns the written checkpoint path."""
+        return train(dataset, train_cfg)
+
+    def load_policy(self, path: str | Path, *, device: str = "cpu") -> DiffusionPolicy:
+        """Load a checkpoint written by ``train`` / ``DiffusionPolicy.save``."""
+        return DiffusionPolicy.load(path, device=device)
+
+    def __repr__(self) -> str:
+        return "Policy.from_backend('diffusion')"
+
+
+BACKENDS = {"diffusion": DiffusionBackend}
+
+
+class Policy:
+    """Entry point: ``Policy.from_backend(name)`` returns a backend with ``train`` and ``load_policy``."""
+
+    @staticmethod
+    def from_backend(name: str) -> DiffusionBackend:
+        try:
+            return BACKENDS[name]()
+        except (KeyError, TypeError):
+            raise ValueError(f"unknown policy backend {name!r}; valid backends: {', '.join(BACKENDS)}") from None

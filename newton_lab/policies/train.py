@@ -1,0 +1,124 @@
+"""Training loop: AdamW, linear warm-up + cosine LR, EMA every step, tqdm, checkpoint + JSON log.
+
+Existing checkpoints are never replaced: when ``<output_dir>/checkpoint.pt`` exists, the run is written
+to the first free ``checkpoint-<k>.pt`` (with a matching ``train_log-<k>.json``) and a warning names it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch.utils.data import DataLoader
+from tqdm import tqdm
+
+from .data import SequenceDataset, collate_batch
+from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
+
+
+def as_config(cfg: DiffusionPolicyConfig | dict[str, Any] | None) -> DiffusionPolicyConfig:
+    """Accept a config, a plain dict of its fields, or None (defaults)."""
+    if cfg is None:
+        return DiffusionPolicyConfig()
+    if isinstance(cfg, DiffusionPolicyConfig):
+        return cfg
+    if isinstance(cfg, dict):
+        return DiffusionPolicyConfig.from_dict(cfg)
+    raise TypeError(f"train config must be a DiffusionPolicyConfig or dict, got {type(cfg).__name__}")
+
+
+def warmup_cosine(warmup_steps: int, total_steps: int) -> Callable[[int], float]:
+    """LR factor for step s (0-based): linear to 1 over ``warmup_steps``, then cosine to 0 at ``total_steps``."""
+
+    def factor(step: int) -> float:
+        if step < warmup_steps:
+            return (step + 1) / warmup_steps
+        progress = min(1.0, (step - warmup_steps) / max(1, total_steps - warmup_steps))
+        return 0.5 * (1.0 + math.cos(math.pi * progress))
+
+    return factor
+
+
+def _free_names(out_dir: Path) -> tuple[Path, Path]:
+    """First (checkpoint, log) pair of ``checkpoint[-k].pt`` / ``train_log[-k].json`` where neither exists."""
+    k = 0
+    while True:
+        suffix = f"-{k}" if k else ""
+        ckpt, log = out_dir / f"checkpoint{suffix}.pt", out_dir / f"train_log{suffix}.json"
+        if not ckpt.exists() and not log.exists():
+            return ckpt, log
+        k += 1
+
+
+def _save_run(policy: DiffusionPolicy, out_dir: Path, log: dict[str, Any]) -> Path:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    while True:
+        ckpt_path, log_path = _free_names(out_dir)
+        try:
+            policy.save(ckpt_path)  # exclusive: raises if another process took the name meanwhile
+            break
+        except FileExistsError:
+            continue
+    tmp = log_path.with_name(f".{log_path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps({**log, "checkpoint": str(ckpt_path)}, indent=2) + "\n")
+    os.replace(tmp, log_path)
+    if ckpt_path.name != "checkpoint.pt":
+        warnings.warn(f"{out_dir / 'checkpoint.pt'} already exists; this run was saved as {ckpt_path}", stacklevel=3)
+    return ckpt_path
+
+
+def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None) -> Path:
+    """Train a diffusion policy on a dataset (a path, or an object with ``.path``); returns the checkpoint path."""
+    cfg = as_config(cfg)
+    path = Path(getattr(dataset, "path", dataset)).expanduser()
+    if not path.exists():
+        raise FileNotFoundError(f"dataset {path} does not exist; check the path")
+    torch.manual_seed(cfg.seed)
+    data = SequenceDataset(path, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
+                           pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
+    policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
+    loader = DataLoader(data, batch_size=min(cfg.batch_size, len(data)), shuffle=True, drop_last=True,
+                        num_workers=cfg.num_workers, collate_fn=collate_batch, persistent_workers=cfg.num_workers > 0,
+                        generator=torch.Generator().manual_seed(cfg.seed))
+    total = len(loader) * cfg.epochs if cfg.max_steps is None else min(len(loader) * cfg.epochs, cfg.max_steps)
+    optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay)
+    lr_schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, warmup_cosine(cfg.warmup_steps, total))
+
+    epochs: list[dict[str, Any]] = []
+    step, t0 = 0, time.perf_counter()
+    policy.model.train()
+    with tqdm(total=total, desc=f"diffusion policy {data.task_id}", unit="step", disable=not cfg.progress) as bar:
+        while step < total:
+            losses = []
+            for batch in loader:
+                loss = policy.compute_loss(batch)
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                optimizer.step()
+                lr_schedule.step()
+                policy.ema.update(policy.model)
+                losses.append(loss.item())
+                step += 1
+                bar.update()
+                bar.set_postfix(loss=f"{losses[-1]:.4f}", epoch=len(epochs) + 1, refresh=False)
+                if step >= total:
+                    break
+            epochs.append({"epoch": len(epochs) + 1, "loss": sum(losses) / len(losses), "steps": step,
+                           "lr": optimizer.param_groups[0]["lr"]})
+    wall = time.perf_counter() - t0
+
+    training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
+                "num_demos": len(data.demo_ids), "num_windows": len(data), "batch_size": loader.batch_size,
+                "parameters": sum(p.numel() for p in policy.model.parameters()),
+                "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    policy.info["training"] = training
+    log = {"task_id": data.task_id, "dataset": str(data.path), **training, "config": cfg.to_dict(),
+           "epoch_log": epochs}
+    return _save_run(policy, Path(cfg.output_dir).expanduser(), log)
