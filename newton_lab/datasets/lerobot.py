@@ -31,7 +31,7 @@ import os
 import re
 import shutil
 import struct
-import tempfile
+import uuid
 import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -146,7 +146,8 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
                              state_keys=state_keys, task_description=task_description)
 
     root.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.partial-", dir=root.parent))
+    tmp = root.parent / f".{root.name}.partial-{uuid.uuid4().hex}"
+    tmp.mkdir()  # not mkdtemp: the renamed root should get the usual (umask) permissions
     try:
         data_files, frames = _write_all(tmp, plan, first, data_files_size_in_mb * 1024 * 1024,
                                         data_files_size_in_mb)
@@ -157,8 +158,7 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {"root": str(root), "repo_id": plan.repo_id, "episodes": len(plan.demo_ids),
-            "frames": frames,
+    return {"root": str(root), "repo_id": plan.repo_id, "episodes": len(plan.demo_ids), "frames": frames,
             "skipped_failed": len(plan.skipped_failed), "fps": plan.fps, "task": plan.task,
             "demo_ids": list(plan.demo_ids), "skipped_empty": len(plan.skipped_empty),
             "state_keys": [t for t, _ in plan.state_terms],
@@ -604,7 +604,8 @@ def _check_info(info: Any) -> dict[str, dict[str, Any]]:
     _need(isinstance(info, dict), "meta/info.json is not a JSON object")
     _need(info.get("codebase_version") == CODEBASE_VERSION,
           f"info.json codebase_version is {info.get('codebase_version')!r}, not {CODEBASE_VERSION!r}")
-    _need(_is_int(info.get("fps")) and info["fps"] > 0, f"info.json fps must be a positive int, got {info.get('fps')!r}")
+    _need(_is_int(info.get("fps")) and info["fps"] > 0,
+          f"info.json fps must be a positive int, got {info.get('fps')!r}")
     for key in ("total_episodes", "total_frames", "total_tasks"):
         _need(_is_int(info.get(key)) and info[key] >= 0, f"info.json {key} must be an int >= 0, got {info.get(key)!r}")
     _need(_is_int(info.get("chunks_size")) and info["chunks_size"] > 0,
@@ -720,7 +721,8 @@ def _validate(root: Path) -> dict[str, Any]:
             want = tuple(ft["shape"])
         if want is not None:
             for s in STATS[:4]:
-                _need(shapes[s] == want, f"meta/stats.json {key!r} {s} has shape {shapes[s]}, feature shape is {list(want)}")
+                _need(shapes[s] == want,
+                      f"meta/stats.json {key!r} {s} has shape {shapes[s]}, feature shape is {list(want)}")
 
     # tasks
     tasks_path = root / "meta/tasks.parquet"
@@ -765,10 +767,12 @@ def _validate(root: Path) -> dict[str, Any]:
         _need(isinstance(ep_tasks[e], list) and ep_tasks[e] and all(t in task_names for t in ep_tasks[e]),
               f"episode {e} tasks {ep_tasks[e]!r} are not in meta/tasks.parquet")
     total = int(stops[-1]) if n_eps else 0
-    _need(total == info["total_frames"], f"episodes cover {total} frames, info.json total_frames is {info['total_frames']}")
+    _need(total == info["total_frames"],
+          f"episodes cover {total} frames, info.json total_frames is {info['total_frames']}")
     for e in range(n_eps):
         for k in video_keys:
-            rel = info["video_path"].format(video_key=k, chunk_index=int(eps.column(f"videos/{k}/chunk_index")[e].as_py()),
+            rel = info["video_path"].format(video_key=k,
+                                            chunk_index=int(eps.column(f"videos/{k}/chunk_index")[e].as_py()),
                                             file_index=int(eps.column(f"videos/{k}/file_index")[e].as_py()))
             _need((root / rel).is_file(), f"episode {e} video {rel} is missing")
 
