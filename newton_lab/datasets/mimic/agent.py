@@ -10,7 +10,7 @@ import warp as wp
 from ...agents.base import BaseAgent
 from ...robots.g1.kinematics import TcpKinematics
 from .config import MimicCfg
-from .poses import interpolate_poses, rotation_angle, transform_segment
+from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segment
 from .source import SourceDemo
 
 
@@ -30,9 +30,12 @@ class _RowPlan:
 
 
 class MimicAgent(BaseAgent):
-    """Generates new demonstrations from ``sources`` on any env of the same task."""
+    """Generates new demonstrations from ``sources`` on any env of the same task.
 
-    def __init__(self, sources: list[SourceDemo], cfg: MimicCfg, *, seed: int = 1, ik_iterations: int = 24):
+    IK tracks the waypoints warm-started from the previous step's solution, so a few LM iterations per
+    step suffice (consecutive waypoints are millimetres apart)."""
+
+    def __init__(self, sources: list[SourceDemo], cfg: MimicCfg, *, seed: int = 1, ik_iterations: int = 6):
         self.sources = sources
         self.cfg = cfg
         self.rng = np.random.default_rng(seed)
@@ -76,11 +79,19 @@ class MimicAgent(BaseAgent):
             return cands[int(self.rng.integers(len(cands)))]
         dist = np.array([
             np.linalg.norm(src.objects[sub.object_ref][s, :3] - cur_obj[:3])
-            + self.cfg.rot_weight * rotation_angle(src.objects[sub.object_ref][s, 3:7], cur_obj[3:7])
+            + self.cfg.rot_weight * rotation_angle(src.objects[sub.object_ref][s, 3:7],
+                                                   self._frame(sub, cur_obj, src.objects[sub.object_ref][s])[3:7])
             for src, s, _ in cands
         ])
         top = np.argsort(dist)[: max(sub.nn_k, 1)]
         return cands[int(self.rng.choice(top))]
+
+    @staticmethod
+    def _frame(sub, cur_obj: np.ndarray, src_obj: np.ndarray) -> np.ndarray:
+        """The current object frame to replay in (turned by the object's yaw symmetry toward the source)."""
+        if sub.yaw_symmetry is None:
+            return cur_obj
+        return closest_symmetric_pose(cur_obj, src_obj, sub.yaw_symmetry)
 
     def _start_subtask(self, r: int, plan: _RowPlan, env_poses: dict[str, np.ndarray], tcp_now: np.ndarray) -> None:
         plan.subtask += 1
@@ -94,7 +105,8 @@ class MimicAgent(BaseAgent):
         plan.sources.append(src.demo_id)
         seg = src.target_tcp[start:end]
         if sub.object_ref is not None:
-            seg = transform_segment(seg, src.objects[sub.object_ref][start], cur_obj)
+            src_obj = src.objects[sub.object_ref][start]
+            seg = transform_segment(seg, src_obj, self._frame(sub, cur_obj, src_obj))
         first = plan.last_target if (self.cfg.interpolate_from_last_target_pose and plan.last_target is not None) else tcp_now
         interp = interpolate_poses(first, seg[0], sub.num_interpolation_steps)
         grip = src.gripper[start:end]

@@ -21,6 +21,10 @@ class SubtaskCfg:
     """Steps interpolating from the last target pose to the transformed segment's first pose."""
     nn_k: int = 3
     """Source selection: uniform among the k nearest source demos by object pose."""
+    yaw_symmetry: float | None = None
+    """The object looks the same after this yaw turn [rad] (pi/2 for a cube): the current object frame is
+    turned by a multiple of it to the one closest to the source's, so segments rotate as little as
+    possible (and stay within the wrist's joint range)."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -97,3 +97,21 @@ def rotation_angle(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     """Angle [rad] of the relative rotation between xyzw quaternions (broadcast)."""
     d = np.abs(np.sum(qa * qb, axis=-1))
     return 2.0 * np.arccos(np.clip(d, -1.0, 1.0))
+
+
+def yaw_of(q: np.ndarray) -> float:
+    """Yaw [rad] of one xyzw quaternion."""
+    x, y, z, w = q
+    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def closest_symmetric_pose(cur: np.ndarray, ref: np.ndarray, period: float) -> np.ndarray:
+    """``cur`` (7,) turned about its own z by the multiple of ``period`` [rad] that brings its yaw closest
+    to ``ref``'s (for objects that look the same after that turn)."""
+    d = yaw_of(ref[3:7]) - yaw_of(cur[3:7])
+    k = np.round(d / period)
+    half = 0.5 * k * period
+    turn = np.array([0.0, 0.0, np.sin(half), np.cos(half)])
+    out = cur.copy()
+    out[3:7] = mat_to_quat(quat_to_mat(cur[3:7]) @ quat_to_mat(turn))
+    return out
