@@ -64,13 +64,45 @@ def _cmd_collect(args) -> int:
 
 
 def _cmd_evaluate(args) -> int:
-    from .agents import PlannerAgent
+    from .agents import PlannerAgent, PolicyAgent
 
+    agent = PolicyAgent.from_checkpoint(args.checkpoint) if args.checkpoint else PlannerAgent.from_task(args.task)
     env = _make(args)
-    summary = env.evaluate(agent=PlannerAgent.from_task(args.task), episodes=args.episodes,
-                           max_steps=args.max_steps, progress=not args.no_progress)
+    summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps,
+                           progress=not args.no_progress)
     keys = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons")
     print(json.dumps({k: summary[k] for k in keys}))
+    return 0
+
+
+def _cmd_mimic(args) -> int:
+    from .datasets.mimic import mimic
+
+    ref = mimic(args.dataset_path, episodes=args.episodes, num_envs=args.num_envs, output_path=args.output_path,
+                seed=args.seed, device=args.device, max_attempts=args.max_attempts, progress=not args.no_progress)
+    m = ref.metadata
+    print(json.dumps({"task": ref.task_id, "successes": m["successes"], "attempts": m["attempts"],
+                      "generation_success_rate": m["generation_success_rate"], "path": str(ref.path)}))
+    return 0
+
+
+def _cmd_train(args) -> int:
+    from .policies import Policy
+
+    cfg = {"epochs": args.epochs, "batch_size": args.batch_size, "device": args.device, "seed": args.seed,
+           "output_dir": args.output_dir}
+    if args.max_steps:
+        cfg["max_steps"] = args.max_steps
+    path = Policy.from_backend("diffusion").train(args.dataset_path, cfg)
+    print(json.dumps({"checkpoint": str(path)}))
+    return 0
+
+
+def _cmd_export(args) -> int:
+    from .datasets.lerobot import export_lerobot
+
+    out = export_lerobot(args.dataset_path, args.root, include_failed=args.include_failed)
+    print(json.dumps({k: out[k] for k in ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps")}))
     return 0
 
 
@@ -91,9 +123,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dataset-path", default="data/pick_cube_demos.hdf5")
     p.set_defaults(func=_cmd_collect)
 
-    p = sub.add_parser("evaluate", help="run the expert planner and report the success rate")
+    p = sub.add_parser("evaluate", help="run a policy checkpoint (or the expert planner) and report the success rate")
     _add_env_flags(p)
+    p.add_argument("--checkpoint", default=None, help="policy checkpoint; the expert planner when omitted")
     p.set_defaults(func=_cmd_evaluate)
+
+    p = sub.add_parser("mimic", help="expand source demos with Mimic (successes only)")
+    p.add_argument("--dataset-path", required=True)
+    p.add_argument("--output-path", default=None)
+    p.add_argument("--episodes", type=int, default=36)
+    p.add_argument("--num-envs", type=int, default=8)
+    p.add_argument("--max-attempts", type=int, default=None)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--device", default=None)
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_cmd_mimic)
+
+    p = sub.add_parser("train", help="train a diffusion policy on a dataset")
+    p.add_argument("--dataset-path", required=True)
+    p.add_argument("--output-dir", default="outputs/policy")
+    p.add_argument("--epochs", type=int, default=100)
+    p.add_argument("--max-steps", type=int, default=None)
+    p.add_argument("--batch-size", type=int, default=256)
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("export", help="export a dataset to LeRobot v3")
+    p.add_argument("--dataset-path", required=True)
+    p.add_argument("--root", required=True, help="new LeRobot dataset folder (must not exist)")
+    p.add_argument("--include-failed", action="store_true")
+    p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("bench", help="env-steps/s of the captured step vs the bare solver on the same model")
     from .registry import DEFAULT_TASK_ID

@@ -3,5 +3,6 @@ reset envs. ``PlannerAgent`` executes a task's motion plan for every row at once
 
 from .base import BaseAgent, ZeroAgent
 from .planner.agent import PlannerAgent
+from .policy import PolicyAgent
 
-__all__ = ["BaseAgent", "PlannerAgent", "ZeroAgent"]
+__all__ = ["BaseAgent", "PlannerAgent", "PolicyAgent", "ZeroAgent"]

@@ -1,0 +1,101 @@
+"""PolicyAgent: runs a trained policy on a batched env with a per-row observation history.
+
+Each row keeps its last ``obs_horizon`` observations (filled with the first observation when the row's
+episode starts) and a queue of ``action_horizon`` actions; rows re-plan when their queue runs out, so a
+row that resets never disturbs the others.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .base import BaseAgent
+
+
+def _compatible_task(env_task: str, policy_task: str | None) -> bool:
+    """A policy trained on a task (or on its Mimic data) runs on that task and on its Mimic variant."""
+    if policy_task is None or env_task == policy_task:
+        return True
+    from ..registry import lookup
+
+    return lookup(env_task).get("source_task") == policy_task
+
+
+class PolicyAgent(BaseAgent):
+    """Acts with ``policy`` (an object with ``predict_action``, ``obs_keys``, ``info``, ``cfg``)."""
+
+    def __init__(self, policy, *, seed: int = 0):
+        self.policy = policy
+        self.seed = seed
+        self._env = None
+
+    @classmethod
+    def from_checkpoint(cls, path, *, device=None, seed: int = 0) -> PolicyAgent:
+        """Load a checkpoint written by ``Policy.from_backend(...).train``; missing / damaged files raise."""
+        from ..policies import load_policy
+
+        if not Path(path).exists():
+            raise FileNotFoundError(f"checkpoint {path} does not exist; train one first (examples/03_train.py)")
+        return cls(load_policy(path, device=device or "cpu"), seed=seed)
+
+    def _bind(self, env) -> None:
+        p = self.policy
+        task = p.info.get("task_id")
+        if not _compatible_task(env.task_id, task):
+            raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; "
+                             f"evaluate it on {task}")
+        missing = [k for k in p.obs_keys if k not in env.obs_terms]
+        if missing:
+            raise ValueError(f"checkpoint needs observation terms {missing} that {env.task_id} does not provide; "
+                             f"available: {sorted(env.obs_terms)}")
+        dims = p.info.get("obs_dims", {})
+        wrong = {k: (dims[k], env.obs_terms[k].stop - env.obs_terms[k].start) for k in p.obs_keys
+                 if k in dims and dims[k] != env.obs_terms[k].stop - env.obs_terms[k].start}
+        if wrong:
+            raise ValueError(f"checkpoint observation sizes (checkpoint, env) {wrong} do not match {env.task_id}")
+        names = list(p.info.get("action_joint_names", []))
+        if names and names != list(env.action_joint_names):
+            raise ValueError(f"checkpoint actions {names} differ from the env's {list(env.action_joint_names)}")
+        cols = np.concatenate([np.arange(env.obs_terms[k].start, env.obs_terms[k].stop) for k in p.obs_keys])
+        self._cols = torch.as_tensor(cols, device=env.torch_device)
+        n, h, a = env.num_envs, p.cfg.obs_horizon, p.cfg.action_horizon
+        self._history = torch.zeros(n, h, len(cols), device=env.torch_device)
+        self._queue = torch.zeros(n, a, env.action_dim, device=env.torch_device)
+        self._cursor = np.full(n, a, dtype=np.int64)
+        self._seen_episode = np.full(n, -1, dtype=np.int64)
+        self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
+        self._env = env
+
+    def reset(self, env_ids=None) -> None:
+        """Forget the history of ``env_ids`` (all rows when ``None``); they refill at the next ``act``."""
+        if self._env is None:
+            return
+        ids = slice(None) if env_ids is None else np.asarray(env_ids, dtype=np.int64)
+        self._seen_episode[ids] = -1
+
+    def act(self, env, env_ids=None) -> torch.Tensor:
+        if self._env is not env:
+            self._bind(env)
+        obs = env.obs[:, self._cols]
+        episode = env._episode_count.numpy()
+        fresh = episode != self._seen_episode
+        self._history[:, :-1] = self._history[:, 1:].clone()
+        self._history[:, -1] = obs
+        if fresh.any():
+            rows = torch.as_tensor(np.nonzero(fresh)[0], device=env.torch_device)
+            self._history[rows] = obs[rows].unsqueeze(1).expand(-1, self._history.shape[1], -1)
+            self._cursor[fresh] = self._queue.shape[1]
+            self._seen_episode[fresh] = episode[fresh]
+        replan = np.nonzero(self._cursor >= self._queue.shape[1])[0]
+        if replan.size:
+            rows = torch.as_tensor(replan, device=env.torch_device)
+            self._queue[rows] = self.policy.predict_action(self._history[rows], generator=self._generator).to(
+                self._queue.device)
+            self._cursor[replan] = 0
+        idx = torch.as_tensor(self._cursor, device=env.torch_device)
+        actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()
+        self._cursor += 1
+        return actions

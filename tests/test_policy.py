@@ -1,0 +1,240 @@
+"""Tests for newton_lab.policies (diffusion policy). CPU only, no physics, each a few seconds."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from newton_lab.datasets import open_writer
+from newton_lab.policies import (DiffusionPolicy, DiffusionPolicyConfig, MinMaxNormalizer, NoiseScheduler, Policy,
+                                 SequenceDataset)
+from newton_lab.policies.model import ConditionalUnet1D
+
+ROOT = Path(__file__).resolve().parents[1]
+TASK = "GalbotG1-PickCube-v0"
+T = 40
+JOINTS = ["left_arm_joint1", "left_arm_joint2", "left_gripper"]
+TINY = dict(down_dims=(16, 32, 64), diffusion_step_embed_dim=32, progress=False)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _quiet_warp():
+    """Overrides the conftest fixture: policy tests never import warp."""
+    yield
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def demo_arrays(steps: int = T) -> dict:
+    """Smooth sin-curve joint targets; the state follows them one step late and carries a phase clock."""
+    t = np.arange(steps)[:, None]
+    actions = np.concatenate([np.sin(2 * np.pi * f * t / steps + p) for f, p in [(1.0, 0.0), (0.5, 1.0), (1.5, 2.0)]],
+                             axis=1).astype(np.float32)
+    lagged = np.concatenate([actions[:1], actions[:-1]])
+    return {"actions": actions,
+            "obs": {"actions": lagged,  # last-action term: excluded by default
+                    "robot_joint_pos": np.concatenate([lagged, t / steps], axis=1).astype(np.float32),
+                    "cube_pose": np.tile(np.float32([0.1, 0.2, 0.3]), (steps, 1)),  # constant dims
+                    "rgb": np.zeros((steps, 4, 4, 3), np.uint8)}}  # image: excluded
+
+
+def write_dataset(path: Path, *, failed_demo: bool = True) -> Path:
+    env_args = {"newton_lab": {"action_joint_names": JOINTS, "sim_dt": 0.01, "decimation": 5,
+                               "obs_terms": {"actions": [0, 3], "robot_joint_pos": [3, 7], "cube_pose": [7, 10]}}}
+    with open_writer(path, task_id=TASK, env_args=env_args, fsync=False) as writer:
+        writer.append_episode(demo_arrays(), success=True)
+        if failed_demo:
+            bad = demo_arrays(12)
+            bad["actions"] = bad["actions"] + 5.0  # out of range: would show up in the stats if not filtered
+            writer.append_episode(bad, success=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    return write_dataset(tmp_path_factory.mktemp("policy_data") / "demos.hdf5")
+
+
+@pytest.fixture(scope="module")
+def trained(dataset, tmp_path_factory) -> Path:
+    """One tiny policy overfit on the single successful demo (shared by the tests that need weights)."""
+    cfg = DiffusionPolicyConfig(**TINY, lr=3e-3, warmup_steps=10, epochs=300, batch_size=64, seed=0,
+                                output_dir=str(tmp_path_factory.mktemp("policy_run")))
+    return Policy.from_backend("diffusion").train(dataset, cfg)
+
+
+# ----------------------------------------------------------------------------- scheduler
+def test_schedule_is_monotone_and_bounded():
+    s = NoiseScheduler(100)
+    a = s.alphas_cumprod
+    assert a.shape == (100,) and bool((a[1:] < a[:-1]).all())
+    assert 0.99 < a[0] < 1 and 0 < a[-1] < 1e-3
+    assert bool((s.betas > 0).all() and (s.betas <= 0.999).all())
+    assert s.ddim_timesteps(10) == [99, 89, 79, 69, 59, 49, 39, 29, 19, 9]
+    with pytest.raises(ValueError, match="num_inference_steps"):
+        s.ddim_timesteps(101)
+
+
+def test_add_noise_and_ddim_recover_x0_with_true_noise():
+    s = NoiseScheduler(100)
+    g = torch.Generator().manual_seed(0)
+    x0 = torch.rand(4, 16, 3, generator=g) * 2 - 1
+    noise = torch.randn(x0.shape, generator=g)
+    t = torch.tensor([0, 10, 50, 99])
+    xt = s.add_noise(x0, noise, t)
+    a = s.alphas_cumprod[t].float()[:, None, None]
+    torch.testing.assert_close(xt, a.sqrt() * x0 + (1 - a).sqrt() * noise)
+
+    def oracle(x, tt):  # the exact epsilon that explains x_t given the true x0
+        ab = s.alphas_cumprod[tt].float()[:, None, None]
+        return (x - ab.sqrt() * x0) / (1 - ab).sqrt()
+
+    x_T = s.add_noise(x0, noise, torch.full((4,), 99))
+    for steps in (1, 10, 100):
+        torch.testing.assert_close(s.sample(oracle, x_T, num_inference_steps=steps), x0, atol=1e-4, rtol=0)
+    stochastic = s.sample(oracle, x_T, num_inference_steps=10, eta=1.0, generator=g)
+    torch.testing.assert_close(stochastic, x0, atol=1e-4, rtol=0)
+
+
+# ----------------------------------------------------------------------------- normaliser
+def test_normalizer_round_trip_and_constant_dims():
+    data = torch.tensor([[0.0, -3.0, 7.25], [2.0, 1.0, 7.25], [1.0, 5.0, 7.25]])
+    n = MinMaxNormalizer.fit(data)
+    y = n.normalize(data)
+    assert float(y.min()) == -1.0 and float(y.max()) == 1.0
+    assert bool((y[:, 2] == 0).all())  # constant dim -> 0
+    back = n.unnormalize(y)
+    assert bool((back[:, 2] == 7.25).all())  # ... and back exactly
+    torch.testing.assert_close(back, data, atol=1e-6, rtol=0)
+    assert torch.equal(n.unnormalize(torch.zeros(1, 3))[0, 2], torch.tensor(7.25))
+    restored = MinMaxNormalizer.from_state_dict(n.state_dict())
+    assert torch.equal(restored.normalize(data), y)
+    with pytest.raises(ValueError, match="last dimension"):
+        n.normalize(torch.zeros(2, 4))
+
+
+# ----------------------------------------------------------------------------- data windows
+@pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
+def test_windows_pad_episode_edges(tmp_path, suffix):
+    path = write_dataset(tmp_path / f"demos{suffix}")
+    ds = SequenceDataset(path, obs_horizon=2, pred_horizon=16)
+    ep = demo_arrays()
+    assert ds.obs_keys == ("robot_joint_pos", "cube_pose")  # env order; 'actions' and 'rgb' excluded
+    assert ds.obs_dims == {"robot_joint_pos": 4, "cube_pose": 3} and ds.action_joint_names == tuple(JOINTS)
+    assert len(ds) == T and ds.demo_ids == [0]  # one window per step of the successful demo only
+    obs = np.concatenate([ep["obs"]["robot_joint_pos"], ep["obs"]["cube_pose"]], axis=1)
+    acts = ep["actions"]
+
+    first = ds[0]
+    assert first["obs"].shape == (2, 7) and first["actions"].shape == (16, 3)
+    np.testing.assert_array_equal(first["obs"].numpy(), obs[[0, 0]])  # pad_before repeats frame 0
+    np.testing.assert_array_equal(first["actions"].numpy(), acts[[0] + list(range(15))])
+    mid = ds[10]
+    np.testing.assert_array_equal(mid["obs"].numpy(), obs[9:11])
+    np.testing.assert_array_equal(mid["actions"].numpy(), acts[9:25])
+    last = ds[T - 1]
+    np.testing.assert_array_equal(last["obs"].numpy(), obs[T - 2:T])
+    np.testing.assert_array_equal(last["actions"].numpy(), acts[[T - 2] + [T - 1] * 15])  # pad_after repeats last
+    batch = ds.__getitems__([0, 10, T - 1])
+    np.testing.assert_array_equal(batch["actions"][2].numpy(), last["actions"].numpy())
+
+    assert len(SequenceDataset(path, success_only=False)) == T + 12
+    assert SequenceDataset(path, obs_keys=["cube_pose"]).obs_dim == 3
+    with pytest.raises(ValueError, match="rgb"):
+        SequenceDataset(path, obs_keys=["rgb"])
+
+
+# ----------------------------------------------------------------------------- model
+def test_unet_output_shape_and_horizon_check():
+    torch.manual_seed(0)
+    net = ConditionalUnet1D(action_dim=3, global_cond_dim=2 * 7, down_dims=(16, 32, 64), diffusion_step_embed_dim=32)
+    x = torch.randn(5, 16, 3)
+    out = net(x, torch.randint(0, 100, (5,)), torch.randn(5, 14))
+    assert out.shape == (5, 16, 3)
+    assert net(x, torch.tensor(7), torch.randn(5, 14)).shape == (5, 16, 3)  # scalar step broadcasts
+    with pytest.raises(ValueError, match="divisible"):
+        net(torch.randn(5, 10, 3), torch.zeros(5, dtype=torch.long), torch.randn(5, 14))
+    with pytest.raises(ValueError, match="pred_horizon"):
+        DiffusionPolicyConfig(pred_horizon=18)
+
+
+# ----------------------------------------------------------------------------- training / checkpoints
+def test_tiny_policy_overfits_one_demo(trained, dataset):
+    policy = Policy.from_backend("diffusion").load_policy(trained)
+    assert policy.task_id == TASK and policy.obs_keys == ["robot_joint_pos", "cube_pose"]
+    assert policy.action_joint_names == JOINTS and policy.info["obs_dims"] == {"robot_joint_pos": 4, "cube_pose": 3}
+    assert policy.info["training"]["steps"] == 300 and policy.info["control_dt"] == pytest.approx(0.05)
+    window = SequenceDataset(dataset)[0]
+    pred = policy.predict_action(window["obs"][None].repeat(4, 1, 1), generator=torch.Generator().manual_seed(0))
+    assert pred.shape == (4, 8, 3)
+    target = window["actions"][1:9]  # steps obs_horizon-1 .. obs_horizon-1+action_horizon-1 = demo steps 0..7
+    norm = policy.action_normalizer
+    err = (norm.normalize(pred) - norm.normalize(target)).abs()
+    assert float(err.mean()) < 0.05, f"mean normalised error {float(err.mean()):.3f}"
+
+    log = json.loads((trained.parent / "train_log.json").read_text())
+    assert len(log["epoch_log"]) == 300 and log["epoch_log"][-1]["loss"] < log["epoch_log"][0]["loss"]
+    assert log["checkpoint"] == str(trained)
+
+
+def test_checkpoint_round_trip_and_no_overwrite(trained, tmp_path):
+    policy = DiffusionPolicy.load(trained)
+    obs = torch.randn(3, 2, 7)
+    before = policy.predict_action(obs, generator=torch.Generator().manual_seed(1))
+    copy = policy.save(tmp_path / "copy.pt")
+    after = DiffusionPolicy.load(copy).predict_action(obs, generator=torch.Generator().manual_seed(1))
+    assert torch.equal(before, after)
+    with pytest.raises(FileExistsError):
+        policy.save(copy)
+    policy.save(copy, overwrite=True)
+
+
+def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):
+    cfg = {**TINY, "max_steps": 2, "warmup_steps": 1, "batch_size": 8, "output_dir": str(tmp_path)}
+    backend = Policy.from_backend("diffusion")
+    first = backend.train(dataset, cfg)
+    with pytest.warns(UserWarning, match="checkpoint-1.pt"):
+        second = backend.train(dataset, DiffusionPolicyConfig(**cfg))
+    assert first.name == "checkpoint.pt" and second.name == "checkpoint-1.pt"
+    assert (tmp_path / "train_log-1.json").is_file()
+    log = json.loads((tmp_path / "train_log.json").read_text())
+    assert log["steps"] == 2 and log["epochs"] == 1 and log["config"]["max_steps"] == 2
+
+
+def test_errors_are_one_line(tmp_path, dataset):
+    with pytest.raises(ValueError, match="unknown policy backend 'act'; valid backends: diffusion"):
+        Policy.from_backend("act")
+    backend = Policy.from_backend("diffusion")
+    with pytest.raises(FileNotFoundError, match="does not exist") as missing:
+        backend.load_policy(tmp_path / "nope.pt")
+    corrupt = tmp_path / "corrupt.pt"
+    corrupt.write_bytes(b"\x80\x04not a checkpoint")
+    with pytest.raises(ValueError, match="damaged") as damaged:
+        backend.load_policy(corrupt)
+    other = tmp_path / "other.pt"
+    torch.save({"weights": {}}, other)
+    with pytest.raises(ValueError, match="format"):
+        backend.load_policy(other)
+    with pytest.raises(FileNotFoundError, match="does not exist") as no_data:
+        backend.train(tmp_path / "missing.hdf5", {"output_dir": str(tmp_path)})
+    with pytest.raises(ValueError, match="unknown DiffusionPolicyConfig key"):
+        backend.train(dataset, {"epochz": 3})
+    for exc in (missing, damaged, no_data):
+        assert "\n" not in str(exc.value)
+
+
+def test_policies_do_not_import_warp():
+    code = "import sys, newton_lab.policies; sys.exit('warp' in sys.modules or 'newton' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", code], cwd=ROOT).returncode == 0
