@@ -1,1 +1,24 @@
-"""Prefect flows (imported as newton_lab.flows)."""
+"""Prefect flows (imported as ``newton_lab.flows``): ``collect``, ``mimic``, ``train``, ``evaluate`` and
+``pipeline`` chaining them over dataset / checkpoint artifacts.
+
+Prefect is imported on first use of a flow, after ``settings.configure`` has set local defaults
+(call ``newton_lab.flows.settings.configure(home)`` first to choose where Prefect keeps its state).
+"""
+
+from __future__ import annotations
+
+_FLOWS = ("collect", "mimic", "train", "evaluate", "pipeline", "run_pipeline")
+
+
+def __getattr__(name: str):
+    if name in _FLOWS:
+        from . import settings
+
+        settings.configure()
+        from . import pipeline as _pipeline
+
+        return getattr(_pipeline, name)
+    raise AttributeError(f"module 'newton_lab.flows' has no attribute {name!r}")
+
+
+__all__ = list(_FLOWS)

@@ -106,6 +106,36 @@ def _cmd_export(args) -> int:
     return 0
 
 
+DEMO_TRAIN_CFG = {"down_dims": [32, 64, 128], "batch_size": 256, "lr": 5e-4, "warmup_steps": 100,
+                  "epochs": 1000, "max_steps": 400, "seed": 0}
+"""Small embedded training default of the demo pipeline (minutes on a 2-core CPU)."""
+
+
+def _cmd_pipeline(args) -> int:
+    from pathlib import Path
+
+    from .flows.settings import configure
+
+    configure(Path(args.out) / ".prefect")
+    from .flows.pipeline import run_pipeline
+
+    train_cfg = dict(DEMO_TRAIN_CFG, device=args.device or "cpu")
+    if args.train_steps:
+        train_cfg["max_steps"] = args.train_steps
+    summary = run_pipeline(runner=args.runner, workers=args.workers, address=args.address, retries=args.retries,
+                           task_id=args.task, demos=args.demos, mimic_episodes=args.mimic_episodes,
+                           train_cfg=train_cfg, eval_episodes=args.eval_episodes, num_envs=args.num_envs,
+                           device=args.device, out=str(Path(args.out).resolve()), seed=args.seed)
+    arts = summary["artifacts"]
+    print(f"success rate: {summary['success_rate']:.1%} over {summary['evaluation']['episodes']} evaluation episodes")
+    for name in ("demos", "mimic", "checkpoint"):
+        print(f"{name}: {arts[name]['path']}")
+    print(f"metrics: {Path(args.out).resolve() / 'metrics.json'}")
+    print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"],
+                      "metrics": str(Path(args.out).resolve() / "metrics.json")}))
+    return 0
+
+
 def _cmd_bench(args) -> int:
     from .bench import bench
 
@@ -114,6 +144,8 @@ def _cmd_bench(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .registry import DEFAULT_TASK_ID
+
     parser = argparse.ArgumentParser(prog="newton-lab", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("tasks", help="list registered task ids").set_defaults(func=_cmd_tasks)
@@ -155,9 +187,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--include-failed", action="store_true")
     p.set_defaults(func=_cmd_export)
 
-    p = sub.add_parser("bench", help="env-steps/s of the captured step vs the bare solver on the same model")
-    from .registry import DEFAULT_TASK_ID
+    p = sub.add_parser("pipeline", help="Prefect flow: collect -> mimic -> train -> evaluate")
+    p.add_argument("--task", default=DEFAULT_TASK_ID)
+    p.add_argument("--demos", type=int, default=4)
+    p.add_argument("--mimic-episodes", type=int, default=40)
+    p.add_argument("--train-steps", type=int, default=None, help="gradient steps (demo default 400)")
+    p.add_argument("--eval-episodes", type=int, default=10)
+    p.add_argument("--num-envs", type=int, default=4)
+    p.add_argument("--device", default=None)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="outputs/pipeline")
+    p.add_argument("--runner", default="local", help="local or dask")
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--address", default=None, help="Dask scheduler address (default: start a local cluster)")
+    p.add_argument("--retries", type=int, default=1, help="retries of a failed stage")
+    p.set_defaults(func=_cmd_pipeline)
 
+    p = sub.add_parser("bench", help="env-steps/s of the captured step vs the bare solver on the same model")
     p.add_argument("--task", default=DEFAULT_TASK_ID)
     p.add_argument("--num-envs", type=int, default=4)
     p.add_argument("--steps", type=int, default=200)
@@ -171,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     _quiet_warp()
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError, FileExistsError, KeyError) as exc:
+    except (ValueError, FileNotFoundError, FileExistsError, KeyError, ConnectionError) as exc:
         msg = exc.args[0] if exc.args else str(exc)
         print(f"newton-lab {args.command}: error: {msg}", file=sys.stderr)
         return 2

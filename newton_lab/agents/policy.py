@@ -35,11 +35,11 @@ class PolicyAgent(BaseAgent):
     @classmethod
     def from_checkpoint(cls, path, *, device=None, seed: int = 0) -> PolicyAgent:
         """Load a checkpoint written by ``Policy.from_backend(...).train``; missing / damaged files raise."""
-        from ..policies import load_policy
+        from ..policies import Policy
 
         if not Path(path).exists():
             raise FileNotFoundError(f"checkpoint {path} does not exist; train one first (examples/03_train.py)")
-        return cls(load_policy(path, device=device or "cpu"), seed=seed)
+        return cls(Policy.from_backend("diffusion").load_policy(path, device=device or "cpu"), seed=seed)
 
     def _bind(self, env) -> None:
         p = self.policy

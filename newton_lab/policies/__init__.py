@@ -18,7 +18,7 @@ from .scheduler import NoiseScheduler
 from .train import train
 
 __all__ = ["Policy", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
-           "MinMaxNormalizer", "NoiseScheduler", "train", "BACKENDS"]
+           "MinMaxNormalizer", "NoiseScheduler", "train", "load_policy", "BACKENDS"]
 
 
 class DiffusionBackend:
@@ -51,3 +51,8 @@ class Policy:
             return BACKENDS[name]()
         except (KeyError, TypeError):
             raise ValueError(f"unknown policy backend {name!r}; valid backends: {', '.join(BACKENDS)}") from None
+
+
+def load_policy(path: str | Path, *, device: str = "cpu") -> DiffusionPolicy:
+    """Load any policy checkpoint (today: diffusion) written by a backend's ``train`` or ``save``."""
+    return DiffusionBackend().load_policy(path, device=device)

@@ -63,31 +63,36 @@ class SequenceDataset(Dataset):
             ep = read_episode(self.path, demo)
             obs = ep.get("obs", {})
             if not self.obs_keys:
+                if isinstance(obs_keys, str):
+                    obs_keys = [obs_keys]
                 keys = list(obs_keys) if obs_keys is not None else default_obs_keys(obs, meta.get("obs_terms"))
                 self.obs_keys = tuple(self._check_keys(keys, obs, demo))
+            n = len(ep["actions"])
+            if n == 0:
+                continue
             parts = []
             for k in self.obs_keys:
                 if k not in obs:
                     raise ValueError(f"demo {demo} of {self.path} has no obs/{k}")
-                parts.append(np.asarray(obs[k], dtype=np.float32).reshape(len(ep["actions"]), -1))
+                parts.append(np.asarray(obs[k], dtype=np.float32).reshape(n, -1))
             obs_rows.append(np.concatenate(parts, axis=1))
             act_rows.append(np.asarray(ep["actions"], dtype=np.float32))
-            n = len(ep["actions"])
             steps = np.arange(n)[:, None]
             obs_index.append(start + np.clip(steps + np.arange(-obs_horizon + 1, 1), 0, n - 1))
-            act_index.append(start + np.clip(steps + np.arange(-obs_horizon + 1, pred_horizon - obs_horizon + 1), 0, n - 1))
+            act_steps = np.arange(-obs_horizon + 1, pred_horizon - obs_horizon + 1)
+            act_index.append(start + np.clip(steps + act_steps, 0, n - 1))
             start += n
             if not self.obs_dims:
                 self.obs_dims = {k: p.shape[1] for k, p in zip(self.obs_keys, parts)}
             elif [p.shape[1] for p in parts] != list(self.obs_dims.values()):
                 raise ValueError(f"demo {demo} of {self.path} has obs dims differing from demo {self.demo_ids[0]}")
+        if not act_rows:
+            raise ValueError(f"the selected demos of {self.path} hold no steps")
         try:
             self.obs = torch.from_numpy(np.concatenate(obs_rows))
             self.actions = torch.from_numpy(np.concatenate(act_rows))
         except ValueError:
             raise ValueError(f"demos of {self.path} have different action dims") from None
-        if self.actions.shape[0] == 0:
-            raise ValueError(f"the selected demos of {self.path} hold no steps")
         self.obs_index = torch.from_numpy(np.concatenate(obs_index))
         self.action_index = torch.from_numpy(np.concatenate(act_index))
         names = meta.get("action_joint_names") or [f"action_{i}" for i in range(self.action_dim)]

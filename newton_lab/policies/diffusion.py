@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,7 +55,7 @@ class DiffusionPolicyConfig:
     ema_power: float = 0.75
     """EMA warm-up power: decay_k = 1 - (1 + k) ** -ema_power (capped at 0.9999)."""
     batch_size: int = 256
-    """Windows per optimiser step (reduced to the dataset size when it is smaller)."""
+    """Windows per optimiser step (a dataset with fewer windows is repeated to fill one batch per epoch)."""
     epochs: int = 100
     """Passes over all windows."""
     max_steps: int | None = None
@@ -77,31 +78,35 @@ class DiffusionPolicyConfig:
     def __post_init__(self) -> None:
         self.down_dims = tuple(int(d) for d in self.down_dims)
         self.betas = tuple(float(b) for b in self.betas)
+        if isinstance(self.obs_keys, str):
+            self.obs_keys = (self.obs_keys,)
         self.obs_keys = None if self.obs_keys is None else tuple(self.obs_keys)
         self.output_dir = str(self.output_dir)
+        levels = len(self.down_dims)
         checks = [
-            (self.obs_horizon >= 1, "obs_horizon must be >= 1"),
+            (self.obs_horizon >= 1, f"obs_horizon must be >= 1, got {self.obs_horizon}"),
             (1 <= self.action_horizon <= self.pred_horizon - self.obs_horizon + 1,
-             "action_horizon must be in 1 .. pred_horizon - obs_horizon + 1"),
-            (len(self.down_dims) >= 1 and all(d > 0 and d % self.n_groups == 0 for d in self.down_dims),
-             "down_dims must be positive multiples of n_groups"),
-            (self.pred_horizon % 2 ** (len(self.down_dims) - 1) == 0,
-             "pred_horizon must be divisible by 2 ** (len(down_dims) - 1)"),
-            (self.kernel_size % 2 == 1, "kernel_size must be odd"),
+             f"action_horizon must be in 1..pred_horizon - obs_horizon + 1 = "
+             f"{self.pred_horizon - self.obs_horizon + 1}, got {self.action_horizon}"),
+            (levels >= 1 and all(d > 0 and d % self.n_groups == 0 for d in self.down_dims),
+             f"down_dims must be positive multiples of n_groups={self.n_groups}, got {self.down_dims}"),
+            (self.pred_horizon % 2 ** (levels - 1) == 0,
+             f"pred_horizon must be divisible by 2 ** (len(down_dims) - 1) = {2 ** (levels - 1)}, "
+             f"got {self.pred_horizon}"),
+            (self.kernel_size % 2 == 1, f"kernel_size must be odd, got {self.kernel_size}"),
             (1 <= self.num_inference_steps <= self.num_train_timesteps,
-             "num_inference_steps must be in 1 .. num_train_timesteps"),
-            (len(self.betas) == 2, "betas must be a pair"),
-            (self.batch_size >= 1 and self.epochs >= 1, "batch_size and epochs must be >= 1"),
-            (self.max_steps is None or self.max_steps >= 1, "max_steps must be None or >= 1"),
-            (self.warmup_steps >= 0 and self.num_workers >= 0, "warmup_steps and num_workers must be >= 0"),
+             f"num_inference_steps must be in 1..num_train_timesteps={self.num_train_timesteps}, "
+             f"got {self.num_inference_steps}"),
+            (len(self.betas) == 2, f"betas must be a pair, got {self.betas}"),
+            (self.batch_size >= 1 and self.epochs >= 1,
+             f"batch_size and epochs must be >= 1, got {self.batch_size} and {self.epochs}"),
+            (self.max_steps is None or self.max_steps >= 1, f"max_steps must be None or >= 1, got {self.max_steps}"),
+            (self.warmup_steps >= 0 and self.num_workers >= 0,
+             f"warmup_steps and num_workers must be >= 0, got {self.warmup_steps} and {self.num_workers}"),
         ]
         for ok, message in checks:
             if not ok:
-                raise ValueError(f"DiffusionPolicyConfig: {message} ({self._summary()})")
-
-    def _summary(self) -> str:
-        return (f"obs_horizon={self.obs_horizon}, action_horizon={self.action_horizon}, pred_horizon={self.pred_horizon}, "
-                f"down_dims={self.down_dims}, num_inference_steps={self.num_inference_steps}")
+                raise ValueError(f"DiffusionPolicyConfig: {message}")
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> DiffusionPolicyConfig:
@@ -248,7 +253,9 @@ class DiffusionPolicy(nn.Module):
             return ValueError(f"{path} is not a newton_lab diffusion-policy checkpoint or is damaged ({reason})")
 
         try:
-            ckpt = torch.load(path, map_location="cpu", weights_only=True)
+            with warnings.catch_warnings():  # torch warns about odd pickle protocols before failing
+                warnings.simplefilter("ignore")
+                ckpt = torch.load(path, map_location="cpu", weights_only=True)
         except Exception as exc:  # noqa: BLE001 - any unpickling failure means a bad file
             raise damaged(f"{type(exc).__name__}: {exc}") from None
         if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:

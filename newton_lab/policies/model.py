@@ -66,7 +66,8 @@ class ConditionalUnet1D(nn.Module):
             raise ValueError(f"kernel_size must be odd, got {kernel_size}")
         self.num_downsamples = len(dims) - 1
         e = diffusion_step_embed_dim
-        self.step_encoder = nn.Sequential(SinusoidalStepEmbedding(e), nn.Linear(e, 4 * e), nn.Mish(), nn.Linear(4 * e, e))
+        self.step_encoder = nn.Sequential(SinusoidalStepEmbedding(e), nn.Linear(e, 4 * e), nn.Mish(),
+                                          nn.Linear(4 * e, e))
         cond_dim = e + global_cond_dim
 
         def block(c_in: int, c_out: int) -> FiLMResBlock:
@@ -76,14 +77,15 @@ class ConditionalUnet1D(nn.Module):
         self.down = nn.ModuleList()
         for i, (c_in, c_out) in enumerate(levels):
             last = i == len(levels) - 1
-            self.down.append(nn.ModuleList([block(c_in, c_out), block(c_out, c_out),
-                                            nn.Identity() if last else nn.Conv1d(c_out, c_out, 3, stride=2, padding=1)]))
+            downsample = nn.Identity() if last else nn.Conv1d(c_out, c_out, 3, stride=2, padding=1)
+            self.down.append(nn.ModuleList([block(c_in, c_out), block(c_out, c_out), downsample]))
         self.mid = nn.ModuleList([block(dims[-1], dims[-1]), block(dims[-1], dims[-1])])
         self.up = nn.ModuleList()
         for c_low, c_high in reversed(levels[1:]):  # upsample, then concat the skip of that resolution
             self.up.append(nn.ModuleList([nn.ConvTranspose1d(c_high, c_high, 4, stride=2, padding=1),
                                           block(c_high + c_low, c_low), block(c_low, c_low)]))
-        self.head = nn.Sequential(ConvNormMish(dims[0], dims[0], kernel_size, n_groups), nn.Conv1d(dims[0], action_dim, 1))
+        self.head = nn.Sequential(ConvNormMish(dims[0], dims[0], kernel_size, n_groups),
+                                  nn.Conv1d(dims[0], action_dim, 1))
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, global_cond: torch.Tensor) -> torch.Tensor:
         horizon = x.shape[1]

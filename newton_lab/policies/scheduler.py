@@ -66,8 +66,8 @@ class NoiseScheduler:
         a_t, a_prev = self._abar(torch.tensor(t), x_t), self._abar(torch.tensor(t_prev), x_t)
         x0 = (x_t - (1 - a_t).sqrt() * eps) / a_t.sqrt()
         if self.clip_sample:
+            # The model's eps stays the direction term: re-deriving it from the clipped x0 sampled worse in tests.
             x0 = x0.clamp(-1.0, 1.0)
-            eps = (x_t - a_t.sqrt() * x0) / (1 - a_t).sqrt()  # keep eps consistent with the clipped x0
         sigma = eta * ((1 - a_prev) / (1 - a_t) * (1 - a_t / a_prev)).sqrt()
         x_prev = a_prev.sqrt() * x0 + (1 - a_prev - sigma**2).clamp(min=0).sqrt() * eps
         if eta > 0:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from torch.utils.data import DataLoader
+from torch.utils.data import DataLoader, RandomSampler
 from tqdm import tqdm
 
 from .data import SequenceDataset, collate_batch
@@ -84,9 +84,12 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     data = SequenceDataset(path, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
     policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
-    loader = DataLoader(data, batch_size=min(cfg.batch_size, len(data)), shuffle=True, drop_last=True,
-                        num_workers=cfg.num_workers, collate_fn=collate_batch, persistent_workers=cfg.num_workers > 0,
-                        generator=torch.Generator().manual_seed(cfg.seed))
+    # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh
+    # permutations) up to batch_size windows, so every step sees batch_size differently-noised windows.
+    sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size),
+                            generator=torch.Generator().manual_seed(cfg.seed))
+    loader = DataLoader(data, batch_size=cfg.batch_size, sampler=sampler, drop_last=True, num_workers=cfg.num_workers,
+                        collate_fn=collate_batch, persistent_workers=cfg.num_workers > 0)
     total = len(loader) * cfg.epochs if cfg.max_steps is None else min(len(loader) * cfg.epochs, cfg.max_steps)
     optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay)
     lr_schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, warmup_cosine(cfg.warmup_steps, total))

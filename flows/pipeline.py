@@ -1,0 +1,187 @@
+"""Prefect flows: ``collect``, ``mimic``, ``train``, ``evaluate`` and ``pipeline`` chaining them.
+
+Each stage is a Prefect task over artifacts (path + content hash) cached on its inputs, so a re-run of
+the same pipeline is answered from the cache (task state ``Cached``) and a failed stage is retried alone.
+With ``runner="dask"``, collection, Mimic and evaluation are split into shards with disjoint seed ranges,
+mapped over a Dask cluster (a local one, or the scheduler ``address`` given), and shard datasets are
+merged into one.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from prefect import flow, task, unmapped
+from prefect.artifacts import create_markdown_artifact
+from prefect.cache_policies import INPUTS
+
+from . import stages
+
+SEED_STRIDE = 100_000
+"""Seed distance between shards: each shard draws from its own seed range."""
+
+VALID_RUNNERS = ("local", "dask")
+
+
+def _stage_task(fn, name: str):
+    return task(fn, name=name, cache_policy=INPUTS, persist_result=True, retries=1, retry_delay_seconds=1)
+
+
+collect_task = _stage_task(stages.collect_stage, "collect")
+mimic_task = _stage_task(stages.mimic_stage, "mimic")
+train_task = _stage_task(stages.train_stage, "train")
+evaluate_task = _stage_task(stages.evaluate_stage, "evaluate")
+
+
+@task(name="merge", cache_policy=INPUTS, persist_result=True)
+def merge_task(shards: list[dict[str, Any]], out_dir: str, name: str) -> dict[str, Any]:
+    """Merge shard dataset artifacts into ``<out_dir>/<name>.hdf5`` (ids renumbered, provenance kept)."""
+    from ..datasets.merge import merge_datasets
+    from .artifacts import artifact
+
+    path = Path(out_dir) / f"{name}.hdf5"
+    if path.exists():
+        path.unlink()  # a partial merge of an interrupted run; merges are recomputed from their shards
+    ref = merge_datasets([s["path"] for s in shards], path)
+    return artifact(path, "dataset", episodes=ref["episodes"],
+                    **{k: sum(s["metrics"].get(k, 0) for s in shards) for k in ("attempts", "successes")})
+
+
+def _split(total: int, parts: int) -> list[int]:
+    base, extra = divmod(total, parts)
+    return [base + (i < extra) for i in range(parts) if base + (i < extra) > 0]
+
+
+def _check(task_id: str, runner: str, workers: int) -> None:
+    from ..registry import lookup
+
+    lookup(task_id)
+    if runner not in VALID_RUNNERS:
+        raise ValueError(f"unknown runner {runner!r}; valid runners: {', '.join(VALID_RUNNERS)}")
+    if not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+
+
+@flow(name="collect")
+def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, device: str | None = None,
+            out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
+    """Expert demos of ``task_id`` -> dataset artifact (``shards`` > 1: disjoint seeds, merged)."""
+    if shards <= 1:
+        return collect_task(task_id=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device,
+                            out_dir=out)
+    sizes = _split(episodes, shards)
+    futures = collect_task.map(task_id=unmapped(task_id), episodes=sizes, num_envs=unmapped(num_envs),
+                               seed=[seed + SEED_STRIDE * i for i in range(len(sizes))], device=unmapped(device),
+                               out_dir=[str(Path(out) / "shards" / f"collect_{i}") for i in range(len(sizes))])
+    return merge_task(shards=[f.result() for f in futures], out_dir=out, name="demos")
+
+
+@flow(name="mimic")
+def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: int = 1, device: str | None = None,
+          out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
+    """Mimic expansion of a dataset artifact -> dataset artifact."""
+    if shards <= 1:
+        return mimic_task(source=source, episodes=episodes, num_envs=num_envs, seed=seed, device=device, out_dir=out)
+    sizes = _split(episodes, shards)
+    futures = mimic_task.map(source=unmapped(source), episodes=sizes, num_envs=unmapped(num_envs),
+                             seed=[seed + SEED_STRIDE * i for i in range(len(sizes))], device=unmapped(device),
+                             out_dir=[str(Path(out) / "shards" / f"mimic_{i}") for i in range(len(sizes))])
+    return merge_task(shards=[f.result() for f in futures], out_dir=out, name="mimic")
+
+
+@flow(name="train")
+def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None, out: str = "outputs/pipeline") -> dict[str, Any]:
+    """Diffusion policy on a dataset artifact -> checkpoint artifact."""
+    return train_task(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out)
+
+
+@flow(name="evaluate")
+def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_envs: int = 5, seed: int = 10_000,
+             device: str | None = None, shards: int = 1) -> dict[str, Any]:
+    """Success rate of a checkpoint artifact (``shards`` > 1: disjoint seeds, summed)."""
+    sizes = _split(episodes, max(shards, 1))
+    futures = evaluate_task.map(checkpoint=unmapped(checkpoint), task_id=unmapped(task_id), episodes=sizes,
+                                num_envs=unmapped(num_envs), seed=[seed + SEED_STRIDE * i for i in range(len(sizes))],
+                                device=unmapped(device))
+    parts = [f.result() for f in futures]
+    n = sum(p["episodes"] for p in parts)
+    ok = sum(p["successes"] for p in parts)
+    reasons: dict[str, int] = {}
+    for p in parts:
+        for k, v in p["termination_reasons"].items():
+            reasons[k] = reasons.get(k, 0) + v
+    return {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
+            "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}
+
+
+def _markdown(task_id: str, demos, gen, ckpt, metrics, out: Path) -> str:
+    rows = [
+        ("expert demos", f"{demos['metrics'].get('episodes')} ({demos['metrics'].get('success_rate', 1.0):.0%} success)"),
+        ("mimic demos", f"{gen['metrics'].get('episodes')} (generation rate "
+                        f"{gen['metrics'].get('generation_success_rate', gen['metrics'].get('successes', 0) / max(gen['metrics'].get('attempts', 1), 1)):.0%})"),
+        ("final training loss", f"{ckpt['metrics'].get('final_loss')}"),
+        ("evaluation success rate", f"{metrics['success_rate']:.1%} of {metrics['episodes']} episodes"),
+    ]
+    table = "\n".join(f"| {k} | {v} |" for k, v in rows)
+    paths = "\n".join(f"- {k}: `{a['path']}` (sha256 {a['sha256'][:12]})" for k, a in
+                      (("demos", demos), ("mimic", gen), ("checkpoint", ckpt)))
+    return f"# newton_lab pipeline: {task_id}\n\n| metric | value |\n|---|---|\n{table}\n\n{paths}\n- metrics: `{out / 'metrics.json'}`\n"
+
+
+@flow(name="pipeline")
+def pipeline(task_id: str = "GalbotG1-PickCube-v0", demos: int = 4, mimic_episodes: int = 40,
+             train_cfg: dict[str, Any] | None = None, eval_episodes: int = 10, num_envs: int = 4,
+             device: str | None = None, out: str = "outputs/pipeline", seed: int = 0, workers: int = 1) -> dict[str, Any]:
+    """collect -> mimic -> train -> evaluate for ``task_id``; publishes a markdown artifact with the metrics
+    table and writes ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation."""
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    demo_art = collect(task_id, episodes=demos, num_envs=num_envs, seed=seed, device=device, out=out, shards=workers)
+    gen_art = mimic(demo_art, episodes=mimic_episodes, num_envs=num_envs, seed=seed + 1, device=device, out=out,
+                    shards=workers)
+    ckpt_art = train(gen_art, train_cfg=train_cfg, out=out)
+    metrics = evaluate(ckpt_art, task_id, episodes=eval_episodes, num_envs=num_envs, seed=seed + 10_000,
+                       device=device, shards=workers)
+    summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
+               "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art}}
+    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    create_markdown_artifact(markdown=_markdown(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir),
+                             key="newton-lab-pipeline", description=f"newton_lab pipeline metrics for {task_id}")
+    return summary
+
+
+def run_pipeline(*, runner: str = "local", workers: int = 1, address: str | None = None, retries: int = 1,
+                 **kwargs) -> dict[str, Any]:
+    """Run ``pipeline`` with the chosen task runner: ``local`` (threads in this process) or ``dask``
+    (a local cluster of ``workers`` processes, or the scheduler at ``address``)."""
+    from .settings import check_api_reachable
+
+    _check(kwargs.get("task_id", "GalbotG1-PickCube-v0"), runner, workers)
+    check_api_reachable()
+    options: dict[str, Any] = {}
+    if runner == "dask":
+        from prefect_dask import DaskTaskRunner
+
+        if address:
+            _check_scheduler(address)
+            options["task_runner"] = DaskTaskRunner(address=address)
+        else:
+            options["task_runner"] = DaskTaskRunner(cluster_kwargs={
+                "n_workers": workers, "processes": True, "threads_per_worker": 1, "dashboard_address": None})
+    for t in (collect_task, mimic_task, train_task, evaluate_task):
+        t.retries = retries
+    return pipeline.with_options(**options)(workers=workers if runner == "dask" else 1, **kwargs)
+
+
+def _check_scheduler(address: str, timeout_s: float = 5.0) -> None:
+    """Fail within ``timeout_s`` with a one-line error when the Dask scheduler is unreachable."""
+    import socket
+    from urllib.parse import urlparse
+
+    u = urlparse(address if "://" in address else f"tcp://{address}")
+    try:
+        socket.create_connection((u.hostname, u.port or 8786), timeout=timeout_s).close()
+    except OSError as exc:
+        raise ConnectionError(f"Dask scheduler {address} is unreachable ({exc}); start it or drop --address") from None
