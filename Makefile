@@ -1,5 +1,5 @@
 # Two entry points; both create / reuse .venv and install the pinned versions first.
-#   make demo   collect PickCube expert episodes on the CPU and print the summary
+#   make demo   the Prefect pipeline on PickCube (collect -> mimic -> train -> evaluate) on the CPU
 #   make test   run the test suite (real Newton physics on CPU Warp)
 PY ?= python3
 VENV := .venv
@@ -14,9 +14,7 @@ $(STAMP): pyproject.toml setup.py
 
 .PHONY: demo test bench
 demo: $(STAMP)
-	mkdir -p outputs/demo
-	$(VENV)/bin/newton-lab collect --task GalbotG1-PickCube-v0 --episodes 4 --num-envs 2 --randomize \
-		--device cpu --dataset-path outputs/demo/pick_cube_demos.hdf5
+	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --device cpu --out outputs/demo
 
 test: $(STAMP)
 	$(VENV)/bin/python -m pytest -q

@@ -99,12 +99,12 @@ def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None, out:
 
 @flow(name="evaluate")
 def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_envs: int = 5, seed: int = 10_000,
-             device: str | None = None, shards: int = 1) -> dict[str, Any]:
+             device: str | None = None, shards: int = 1, max_steps: int = 600) -> dict[str, Any]:
     """Success rate of a checkpoint artifact (``shards`` > 1: disjoint seeds, summed)."""
     sizes = _split(episodes, max(shards, 1))
     futures = evaluate_task.map(checkpoint=unmapped(checkpoint), task_id=unmapped(task_id), episodes=sizes,
                                 num_envs=unmapped(num_envs), seed=[seed + SEED_STRIDE * i for i in range(len(sizes))],
-                                device=unmapped(device))
+                                device=unmapped(device), max_steps=unmapped(max_steps))
     parts = [f.result() for f in futures]
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
@@ -133,7 +133,8 @@ def _markdown(task_id: str, demos, gen, ckpt, metrics, out: Path) -> str:
 @flow(name="pipeline")
 def pipeline(task_id: str = "GalbotG1-PickCube-v0", demos: int = 4, mimic_episodes: int = 40,
              train_cfg: dict[str, Any] | None = None, eval_episodes: int = 10, num_envs: int = 4,
-             device: str | None = None, out: str = "outputs/pipeline", seed: int = 0, workers: int = 1) -> dict[str, Any]:
+             device: str | None = None, out: str = "outputs/pipeline", seed: int = 0, workers: int = 1,
+             eval_max_steps: int = 600) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``; publishes a markdown artifact with the metrics
     table and writes ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation."""
     out_dir = Path(out)
@@ -143,7 +144,7 @@ def pipeline(task_id: str = "GalbotG1-PickCube-v0", demos: int = 4, mimic_episod
                     shards=workers)
     ckpt_art = train(gen_art, train_cfg=train_cfg, out=out)
     metrics = evaluate(ckpt_art, task_id, episodes=eval_episodes, num_envs=num_envs, seed=seed + 10_000,
-                       device=device, shards=workers)
+                       device=device, shards=workers, max_steps=eval_max_steps)
     summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
                "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art}}
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))

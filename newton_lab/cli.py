@@ -26,6 +26,19 @@ def _add_env_flags(p: argparse.ArgumentParser, *, episodes: int = 1, max_steps: 
     p.add_argument("--randomize", action="store_true", help="turn on the task's reset randomisation")
     p.add_argument("--headless", action="store_true", help="accepted for compatibility; newton-lab never opens a window")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--rerun", action="store_true", help="stream to a rerun viewer (spawned)")
+    p.add_argument("--rerun-save", default=None, help="record the run to this .rrd file (headless)")
+    p.add_argument("--rerun-worlds", type=int, default=4, help="rows drawn in rerun")
+
+
+def _logger(args, env):
+    """A rerun ``on_step`` hook when --rerun / --rerun-save is given, else None (and a closer)."""
+    if not (getattr(args, "rerun", False) or getattr(args, "rerun_save", None)):
+        return None, lambda: None
+    from .viz import RerunLogger
+
+    lg = RerunLogger(env, save=args.rerun_save, spawn=args.rerun and not args.rerun_save, max_worlds=args.rerun_worlds)
+    return (lambda reward, info: lg.log_step(reward=reward, success=info["success"])), lg.close
 
 
 def _cmd_tasks(args) -> int:
@@ -47,8 +60,12 @@ def _cmd_collect(args) -> int:
 
     env = _make(args)
     agent = PlannerAgent.from_task(args.task)
-    summary = env.collect(agent=agent, episodes=args.episodes, path=args.dataset_path, max_steps=args.max_steps,
-                          progress=not args.no_progress)
+    hook, close = _logger(args, env)
+    try:
+        summary = env.collect(agent=agent, episodes=args.episodes, path=args.dataset_path, max_steps=args.max_steps,
+                              progress=not args.no_progress, on_step=hook)
+    finally:
+        close()
     print(json.dumps({
         "task": summary["task"],
         "episodes": summary["episodes"],
@@ -68,8 +85,12 @@ def _cmd_evaluate(args) -> int:
 
     agent = PolicyAgent.from_checkpoint(args.checkpoint) if args.checkpoint else PlannerAgent.from_task(args.task)
     env = _make(args)
-    summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps,
-                           progress=not args.no_progress)
+    hook, close = _logger(args, env)
+    try:
+        summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps,
+                               progress=not args.no_progress, on_step=hook)
+    finally:
+        close()
     keys = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons")
     print(json.dumps({k: summary[k] for k in keys}))
     return 0
@@ -133,6 +154,16 @@ def _cmd_pipeline(args) -> int:
     print(f"metrics: {Path(args.out).resolve() / 'metrics.json'}")
     print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"],
                       "metrics": str(Path(args.out).resolve() / "metrics.json")}))
+    return 0
+
+
+def _cmd_view(args) -> int:
+    from .viz import replay_episode
+
+    if not args.save and not args.spawn:
+        raise ValueError("view needs --save file.rrd (headless) or --spawn (open a rerun viewer)")
+    poses = replay_episode(args.dataset, args.episode, save=args.save, spawn=args.spawn)
+    print(json.dumps({"dataset": args.dataset, "episode": args.episode, "frames": len(poses), "rrd": args.save}))
     return 0
 
 
@@ -202,6 +233,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--address", default=None, help="Dask scheduler address (default: start a local cluster)")
     p.add_argument("--retries", type=int, default=1, help="retries of a failed stage")
     p.set_defaults(func=_cmd_pipeline)
+
+    p = sub.add_parser("view", help="replay a recorded episode into rerun by re-applying its states")
+    p.add_argument("dataset")
+    p.add_argument("--episode", type=int, default=0)
+    p.add_argument("--save", default=None, help=".rrd file to write")
+    p.add_argument("--spawn", action="store_true", help="open a rerun viewer")
+    p.set_defaults(func=_cmd_view)
 
     p = sub.add_parser("bench", help="env-steps/s of the captured step vs the bare solver on the same model")
     p.add_argument("--task", default=DEFAULT_TASK_ID)

@@ -390,8 +390,8 @@ class NewtonEnv:
         return collect(self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress,
                        **kwargs)
 
-    def evaluate(self, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True):
+    def evaluate(self, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True, **kwargs):
         """Run ``agent`` for ``episodes`` episodes and report success rate and lengths (see ``rollout``)."""
         from .rollout import evaluate
 
-        return evaluate(self, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress)
+        return evaluate(self, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress, **kwargs)

@@ -118,12 +118,14 @@ def env_args(env) -> dict[str, Any]:
 
 
 def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, on_episode=None,
-         until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False):
+         until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
+         on_step=None):
     """Shared loop; returns per-episode records, vector steps and wall time.
 
     Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
     ones (at most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the
     agent reports it has nothing more to do (Mimic generation), with reason ``agent_done``.
+    ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger).
     """
     if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -157,6 +159,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 recorder.record(step_in_ep, actions)
             _, reward, terminated, truncated, info = env.step(actions)
             vector_steps += 1
+            if on_step is not None:
+                on_step(reward, info)
             step_in_ep += 1
             reward_total += reward
             latched |= info["success"].cpu().numpy()
@@ -232,7 +236,8 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
 
 def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
             only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
-            dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None):
+            dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
+            on_step=None):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
 
@@ -270,7 +275,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
                                     recorder=recorder, on_episode=write, until_successes=only_successes,
-                                    max_attempts=max_attempts, end_when_agent_done=end_when_agent_done)
+                                    max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
+                                    on_step=on_step)
     finally:
         writer.close()
     summary = _summary(env, records, steps, wall)
@@ -282,9 +288,11 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
 
 
-def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True) -> dict[str, Any]:
+def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True,
+             on_step=None) -> dict[str, Any]:
     """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
-    records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress)
+    records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
+                                on_step=on_step)
     summary = _summary(env, records, steps, wall)
     summary["success_masks"] = [r["success"] for r in records]
     return summary
