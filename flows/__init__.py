@@ -12,12 +12,13 @@ _FLOWS = ("collect", "mimic", "train", "evaluate", "pipeline", "run_pipeline")
 
 def __getattr__(name: str):
     if name in _FLOWS:
+        import importlib
+
         from . import settings
 
         settings.configure()
-        from . import pipeline as _pipeline
-
-        return getattr(_pipeline, name)
+        module = importlib.import_module(f"{__name__}.orchestration")
+        return module.__dict__[name]
     raise AttributeError(f"module 'newton_lab.flows' has no attribute {name!r}")
 
 

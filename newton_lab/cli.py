@@ -138,7 +138,7 @@ def _cmd_pipeline(args) -> int:
     from .flows.settings import configure
 
     configure(Path(args.out) / ".prefect")
-    from .flows.pipeline import run_pipeline
+    from .flows.orchestration import run_pipeline
 
     train_cfg = dict(DEMO_TRAIN_CFG, device=args.device or "cpu")
     if args.train_steps:
@@ -152,6 +152,7 @@ def _cmd_pipeline(args) -> int:
     for name in ("demos", "mimic", "checkpoint"):
         print(f"{name}: {arts[name]['path']}")
     print(f"metrics: {Path(args.out).resolve() / 'metrics.json'}")
+    print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
     print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"],
                       "metrics": str(Path(args.out).resolve() / "metrics.json")}))
     return 0

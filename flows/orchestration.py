@@ -49,6 +49,12 @@ def merge_task(shards: list[dict[str, Any]], out_dir: str, name: str) -> dict[st
                     **{k: sum(s["metrics"].get(k, 0) for s in shards) for k in ("attempts", "successes")})
 
 
+def _with_state(state, shard_states: list[str] | None = None):
+    """(artifact, task state names): the artifact goes downstream unchanged (it is the next stage's cache
+    key); the state names ("Completed", "Cached", ...) are reported by the pipeline."""
+    return state.result(), [*(shard_states or []), state.name]
+
+
 def _split(total: int, parts: int) -> list[int]:
     base, extra = divmod(total, parts)
     return [base + (i < extra) for i in range(parts) if base + (i < extra) > 0]
@@ -69,13 +75,14 @@ def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, d
             out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
     """Expert demos of ``task_id`` -> dataset artifact (``shards`` > 1: disjoint seeds, merged)."""
     if shards <= 1:
-        return collect_task(task_id=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device,
-                            out_dir=out)
+        return _with_state(collect_task(task_id=task_id, episodes=episodes, num_envs=num_envs, seed=seed,
+                                        device=device, out_dir=out, return_state=True))
     sizes = _split(episodes, shards)
     futures = collect_task.map(task_id=unmapped(task_id), episodes=sizes, num_envs=unmapped(num_envs),
                                seed=[seed + SEED_STRIDE * i for i in range(len(sizes))], device=unmapped(device),
                                out_dir=[str(Path(out) / "shards" / f"collect_{i}") for i in range(len(sizes))])
-    return merge_task(shards=[f.result() for f in futures], out_dir=out, name="demos")
+    return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name="demos",
+                                  return_state=True), [f.state.name for f in futures])
 
 
 @flow(name="mimic")
@@ -83,18 +90,20 @@ def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: i
           out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
     """Mimic expansion of a dataset artifact -> dataset artifact."""
     if shards <= 1:
-        return mimic_task(source=source, episodes=episodes, num_envs=num_envs, seed=seed, device=device, out_dir=out)
+        return _with_state(mimic_task(source=source, episodes=episodes, num_envs=num_envs, seed=seed, device=device,
+                                      out_dir=out, return_state=True))
     sizes = _split(episodes, shards)
     futures = mimic_task.map(source=unmapped(source), episodes=sizes, num_envs=unmapped(num_envs),
                              seed=[seed + SEED_STRIDE * i for i in range(len(sizes))], device=unmapped(device),
                              out_dir=[str(Path(out) / "shards" / f"mimic_{i}") for i in range(len(sizes))])
-    return merge_task(shards=[f.result() for f in futures], out_dir=out, name="mimic")
+    return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name="mimic",
+                                  return_state=True), [f.state.name for f in futures])
 
 
 @flow(name="train")
 def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None, out: str = "outputs/pipeline") -> dict[str, Any]:
     """Diffusion policy on a dataset artifact -> checkpoint artifact."""
-    return train_task(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out)
+    return _with_state(train_task(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out, return_state=True))
 
 
 @flow(name="evaluate")
@@ -106,6 +115,7 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
                                 num_envs=unmapped(num_envs), seed=[seed + SEED_STRIDE * i for i in range(len(sizes))],
                                 device=unmapped(device), max_steps=unmapped(max_steps))
     parts = [f.result() for f in futures]
+    states = [f.state.name for f in futures]
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
     reasons: dict[str, int] = {}
@@ -113,7 +123,7 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
         for k, v in p["termination_reasons"].items():
             reasons[k] = reasons.get(k, 0) + v
     return {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
-            "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}
+            "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}, states
 
 
 def _markdown(task_id: str, demos, gen, ckpt, metrics, out: Path) -> str:
@@ -139,14 +149,16 @@ def pipeline(task_id: str = "GalbotG1-PickCube-v0", demos: int = 4, mimic_episod
     table and writes ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation."""
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
-    demo_art = collect(task_id, episodes=demos, num_envs=num_envs, seed=seed, device=device, out=out, shards=workers)
-    gen_art = mimic(demo_art, episodes=mimic_episodes, num_envs=num_envs, seed=seed + 1, device=device, out=out,
-                    shards=workers)
-    ckpt_art = train(gen_art, train_cfg=train_cfg, out=out)
-    metrics = evaluate(ckpt_art, task_id, episodes=eval_episodes, num_envs=num_envs, seed=seed + 10_000,
-                       device=device, shards=workers, max_steps=eval_max_steps)
+    demo_art, s_collect = collect(task_id, episodes=demos, num_envs=num_envs, seed=seed, device=device, out=out,
+                                  shards=workers)
+    gen_art, s_mimic = mimic(demo_art, episodes=mimic_episodes, num_envs=num_envs, seed=seed + 1, device=device,
+                             out=out, shards=workers)
+    ckpt_art, s_train = train(gen_art, train_cfg=train_cfg, out=out)
+    metrics, s_eval = evaluate(ckpt_art, task_id, episodes=eval_episodes, num_envs=num_envs, seed=seed + 10_000,
+                               device=device, shards=workers, max_steps=eval_max_steps)
     summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
-               "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art}}
+               "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art},
+               "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval}}
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
     create_markdown_artifact(markdown=_markdown(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir),
                              key="newton-lab-pipeline", description=f"newton_lab pipeline metrics for {task_id}")
