@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import EntityCfg
+from newton_lab.envs.cfg import ActionTermCfg, EntityCfg
 from newton_lab.robots.g1 import spec
 
 TABLE_TOP_Z = 0.10
@@ -27,3 +27,11 @@ def manipulation_posture(left_arm, head) -> dict[str, float]:
     posture.update(zip(spec.RIGHT_ARM_JOINTS, spec.STOWED_RIGHT_ARM))
     posture.update(zip(spec.HEAD_JOINTS, head))
     return posture
+
+
+def left_arm_actions(*, gripper: bool = True) -> list[ActionTermCfg]:
+    """Left arm absolute joint targets (7), plus the left gripper command (1) when ``gripper``."""
+    terms = [ActionTermCfg(name="arm_action", group="left_arm", type="absolute")]
+    if gripper:
+        terms.append(ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"))
+    return terms

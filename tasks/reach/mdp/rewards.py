@@ -5,6 +5,7 @@ from __future__ import annotations
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext
+from newton_lab.tasks.common.rewards import action_rate  # noqa: F401  (listed by the env cfg)
 
 from .terminations import goal_distance
 
@@ -19,15 +20,6 @@ def position_error(ctx: TaskContext, w: int) -> float:
 def position_tanh(ctx: TaskContext, w: int) -> float:
     """1 - tanh(d / 0.1)."""
     return 1.0 - wp.tanh(goal_distance(ctx, w) / 0.1)
-
-
-@wp.func
-def action_rate(ctx: TaskContext, w: int) -> float:
-    s = float(0.0)
-    for j in range(ctx.actions.shape[1]):
-        d = ctx.actions[w, j] - ctx.prev_actions[w, j]
-        s += d * d
-    return s
 
 
 @wp.func

@@ -5,6 +5,7 @@ from __future__ import annotations
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext, entity_pos
+from newton_lab.tasks.common.rewards import action_rate  # noqa: F401  (listed by the env cfg)
 
 from ..scene import CUBE_1, CUBE_2, CUBE_3
 from .terminations import stack_success as _stack_success
@@ -30,13 +31,3 @@ def cube_3_on_cube_2(ctx: TaskContext, w: int) -> float:
 @wp.func
 def stack_success(ctx: TaskContext, w: int) -> float:
     return wp.where(_stack_success(ctx, w), 1.0, 0.0)
-
-
-@wp.func
-def action_rate(ctx: TaskContext, w: int) -> float:
-    """Sum of squared action changes since the last step."""
-    s = float(0.0)
-    for j in range(ctx.actions.shape[1]):
-        d = ctx.actions[w, j] - ctx.prev_actions[w, j]
-        s += d * d
-    return s

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
+from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
 from newton_lab.robots.g1 import spec
 
 from newton_lab.tasks.common import observations as common_obs
-from newton_lab.tasks.common.table_top import manipulation_posture
+from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
 from newton_lab.tasks.pick_cube import scene
 from newton_lab.tasks.pick_cube.mdp import events, observations, terminations
 
@@ -16,10 +16,7 @@ def pick_cube_cfg() -> TaskCfg:
     return TaskCfg(
         task_id="GalbotG1-PickCube-v0",
         entities=scene.entities(),
-        actions=[
-            ActionTermCfg(name="arm_action", group="left_arm", type="absolute"),
-            ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
-        ],
+        actions=left_arm_actions(),
         observations=[
             ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
             ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),

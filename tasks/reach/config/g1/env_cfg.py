@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
+from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import observations as common_obs
-from newton_lab.tasks.common.table_top import manipulation_posture
+from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
 from newton_lab.tasks.reach import scene
 from newton_lab.tasks.reach.mdp import commands, observations, rewards, terminations
 
@@ -15,7 +15,7 @@ def reach_cfg() -> TaskCfg:
     return TaskCfg(
         task_id="GalbotG1-Reach-v0",
         entities=scene.entities(),
-        actions=[ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
+        actions=left_arm_actions(gripper=False),
         observations=[
             ObsTermCfg(name="joint_pos", func=common_obs.arm_joint_pos, dim=7),
             ObsTermCfg(name="joint_vel", func=common_obs.robot_joint_vel, dim=common_obs.ROBOT_COORDS),
