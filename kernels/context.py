@@ -33,6 +33,8 @@ class TaskContext:
     """Pose of static entities (identical in every world)."""
     entity_half_extents: wp.array(dtype=wp.vec3)
     """Half sizes of each entity's box (or bounding box) [m]."""
+    base_coord: int
+    """World-local coordinate of ``base_x`` (``base_y``, ``base_yaw`` follow): the planar base pose."""
     tcp_body: int
     tcp_offset: wp.transform
     gripper_coord: int
@@ -70,6 +72,19 @@ def entity_up_dot(ctx: TaskContext, w: int, k: int) -> float:
     """|local z . world z| of entity ``k`` (1 = upright)."""
     q = wp.transform_get_rotation(entity_pose(ctx, w, k))
     return wp.abs(wp.quat_rotate(q, wp.vec3(0.0, 0.0, 1.0))[2])
+
+
+@wp.func
+def base_pose2d(ctx: TaskContext, w: int) -> wp.vec3:
+    """Planar base pose (x [m], y [m], yaw [rad]) of row ``w``, env frame."""
+    b = w * ctx.coords_per_world + ctx.base_coord
+    return wp.vec3(ctx.joint_q[b], ctx.joint_q[b + 1], ctx.joint_q[b + 2])
+
+
+@wp.func
+def wrap_angle(a: float) -> float:
+    """``a`` wrapped to [-pi, pi)."""
+    return a - 2.0 * wp.pi * wp.floor((a + wp.pi) / (2.0 * wp.pi))
 
 
 @wp.func

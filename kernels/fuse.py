@@ -31,14 +31,15 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
     Args:
         phase_success: one ``func(ctx, w) -> bool`` per phase; a phase's success advances that row to
             the next phase, the last phase's success is episode success.
-        terminations: ``func(ctx, w) -> bool`` failure terms; term ``i`` reports reason
-            ``FIRST_FAILURE_REASON + i``.
+        terminations: ``(func(ctx, w) -> bool, phase)`` failure terms, evaluated while the row is in
+            ``phase`` (``-1``: every phase); term ``i`` reports reason ``FIRST_FAILURE_REASON + i``.
         rewards: ``(func(ctx, w) -> float, weight)`` pairs, summed.
         terminate_on_success: end the episode when the last phase succeeds.
     """
     phase_fns = tuple(phase_success)
     n_phase = len(phase_fns)
-    term_fns = tuple(terminations)
+    term_fns = tuple(f for f, _ in terminations)
+    term_phase = tuple(int(p) for _, p in terminations)
     n_term = len(term_fns)
     reward_fns = tuple(f for f, _ in rewards)
     reward_w = tuple(float(w) for _, w in rewards)
@@ -70,13 +71,16 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
                         succ = True
                     else:
                         ctx.phase[w] = p + 1
+                        for j in range(ctx.hold.shape[1]):  # hold counters restart in the new phase
+                            ctx.hold[w, j] = 0
         if succ:
             success_latched[w] = True
         code = int(REASON_NONE)
         for k in range(wp.static(n_term)):
-            if wp.static(term_fns[k])(ctx, w):
-                if code == REASON_NONE:
-                    code = FIRST_FAILURE_REASON + k
+            if wp.static(term_phase[k]) < 0 or ph == wp.static(term_phase[k]):
+                if wp.static(term_fns[k])(ctx, w):
+                    if code == REASON_NONE:
+                        code = FIRST_FAILURE_REASON + k
         term = code != REASON_NONE
         if succ and wp.static(end_on_success):
             term = True
@@ -172,6 +176,16 @@ def build_reset_kernel(events):
             wp.static(fns[k])(ctx, w, seed, stream + k, randomize != 0)
 
     return reset
+
+
+@wp.kernel
+def keep_terminal_coords(
+    done: wp.array(dtype=bool), joint_q: wp.array(dtype=float), terminal_q: wp.array2d(dtype=float)
+):
+    """Copy the finished rows' coordinates before their reset (scenario capture, final observations)."""
+    w, i = wp.tid()
+    if done[w]:
+        terminal_q[w, i] = joint_q[w * terminal_q.shape[1] + i]
 
 
 @wp.kernel

@@ -1,7 +1,8 @@
-"""The agent contract."""
+"""The agent contract, and the per-row episode bookkeeping agents share."""
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 
@@ -25,3 +26,25 @@ class ZeroAgent(BaseAgent):
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         return env.current_action()
+
+
+class EpisodeTracker:
+    """Which rows started a new episode (or were ``forget``-ed) since the agent last looked."""
+
+    def __init__(self, num_envs: int):
+        self.seen = np.full(num_envs, -1, dtype=np.int64)
+
+    def forget(self, env_ids=None) -> None:
+        if env_ids is None:
+            self.seen[:] = -1
+        else:
+            self.seen[np.asarray(torch.as_tensor(env_ids).cpu(), dtype=np.int64).reshape(-1)] = -1
+
+    def fresh_rows(self, env, env_ids=None) -> np.ndarray:
+        """Rows (restricted to ``env_ids``) needing a fresh start; marks them seen."""
+        episode = env.episode_count.cpu().numpy()
+        rows = np.nonzero(episode != self.seen)[0]
+        if env_ids is not None:
+            rows = np.intersect1d(rows, np.asarray(torch.as_tensor(env_ids).cpu(), dtype=np.int64).reshape(-1))
+        self.seen[rows] = episode[rows]
+        return rows

@@ -48,6 +48,19 @@ class ObsTermCfg:
 
 
 @dataclass(kw_only=True)
+class PhaseCfg:
+    """One phase of a multi-phase (coherent) task; see ``newton_lab.envs.compose``."""
+
+    name: str
+    task_id: str | None = None
+    """The component task this phase runs (its success ends the phase), if any."""
+    action_groups: tuple[str, ...] | None = None
+    """Joint groups whose action columns this phase commands; the others hold. ``None``: all."""
+    fixed_base: bool = False
+    """Zero base twist during this phase, whatever the wheel columns say."""
+
+
+@dataclass(kw_only=True)
 class TaskCfg:
     """Everything a task declares. Thresholds live as constants inside its ``@wp.func`` terms."""
 
@@ -59,6 +72,10 @@ class TaskCfg:
     """One success predicate per phase (single-phase tasks list one)."""
     terminations: dict[str, Callable] = field(default_factory=dict)
     """Failure terms ``name -> func(ctx, w) -> bool``."""
+    termination_phase: dict[str, int] = field(default_factory=dict)
+    """Phase a failure term is limited to (unnamed terms apply in every phase)."""
+    phases: list[PhaseCfg] = field(default_factory=list)
+    """Phase declarations matching ``phase_success`` (empty: one phase owning every action column)."""
     rewards: dict[str, tuple[Callable, float]] = field(default_factory=dict)
     signals: dict[str, Callable] = field(default_factory=dict)
     """Subtask signals recorded every step (Mimic segments on them)."""
@@ -66,10 +83,15 @@ class TaskCfg:
     """Reset events ``func(ctx, w, seed, stream, randomize)``."""
     posture: dict[str, float] = field(default_factory=dict)
     """Initial joint values by name; unnamed joints start at 0 [rad | m]."""
+    initial_targets: dict[str, float] = field(default_factory=dict)
+    """Drive targets at reset that differ from the initial positions (e.g. a gripper commanded closed on a
+    held object while its fingers rest on it) [rad | m]; applied after ``posture`` and ``scenario``."""
     root_pos: tuple[float, float, float] = (-1.0, 0.0, 0.0)
     root_yaw: float = 0.0
     fixed_base: bool = True
-    """Base velocity targets held at zero (manipulation tasks)."""
+    """Base twist held at zero (manipulation tasks); mobile tasks drive it from their wheel columns."""
+    scenario: str | None = None
+    """Reset overlay (``newton_lab.envs.scenario``): a YAML path or ``package:file.yaml`` resource."""
     arm: str = "left"
     arm_home: tuple[float, ...] = (0.0,) * 7
     command_dim: int = 0
@@ -95,6 +117,10 @@ class TaskCfg:
     @property
     def max_episode_steps(self) -> int:
         return int(round(self.episode_length_s / self.control_dt))
+
+    @property
+    def phase_names(self) -> list[str]:
+        return [p.name for p in self.phases] if self.phases else ["task"]
 
     @property
     def termination_reasons(self) -> list[str]:

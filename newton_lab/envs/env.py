@@ -16,10 +16,12 @@ import torch
 import warp as wp
 
 from ..kernels import fuse
-from ..kernels.actions import TARGET_POSITION, TARGET_VELOCITY, apply_actions
+from ..kernels.actions import TARGET_POSITION, TARGET_VELOCITY, apply_actions, drive_base
 from ..kernels.context import TaskContext, record_poses
 from ..robots.g1 import spec
+from ..robots.g1.packers import wheel_gains
 from .cfg import TaskCfg
+from .scenario import load_scenario
 from .scene import build_scene
 
 
@@ -107,6 +109,20 @@ class NewtonEnv:
             self.action_terms[term.name] = slice(start, len(names))
         self.action_joint_names = tuple(names)
         self.action_dim = len(names)
+        # Which columns each phase commands (the others hold), and whether the phase may move the base.
+        phases = self.cfg.phases
+        owned = np.ones((max(len(phases), 1), max(len(names), 1)), dtype=bool)
+        base_free = np.full(max(len(phases), 1), not self.cfg.fixed_base, dtype=bool)
+        for p, ph in enumerate(phases):
+            if ph.action_groups is not None:
+                groups = {t.name: t.group for t in self.cfg.actions}
+                for term, cols in self.action_terms.items():
+                    owned[p, cols] = groups[term] in ph.action_groups
+            base_free[p] = not ph.fixed_base
+        self._act_owned = wp.array(owned, dtype=bool)
+        self._base_free = wp.array(base_free, dtype=bool)
+        wheel_terms = [t for t in self.cfg.actions if t.group == "base"]
+        self._wheel_col = self.action_terms[wheel_terms[0].name].start if wheel_terms else -1
         self._act_kind = wp.array(kind, dtype=int)
         self._act_index = wp.array(index, dtype=int)
         self._act_low = wp.array(np.asarray(low, dtype=np.float32), dtype=float)
@@ -145,8 +161,17 @@ class NewtonEnv:
         self._art_mask = z(self.model.articulation_count, dtype=bool)
         self._tcp_pose = z((n, 7), dtype=float)
         self._entity_poses = z((n, max(n_ent, 1), 7), dtype=float)
-        self._default_q = wp.array(lay.default_q, dtype=float)
-        self._default_target_q = wp.array(lay.default_q, dtype=float)
+        default_q = lay.default_q
+        self.scenario = None
+        if cfg.scenario:
+            self.scenario = load_scenario(cfg.scenario)
+            default_q = self.scenario.overlay(lay, default_q, task_id=cfg.task_id)
+        default_target_q = np.array(default_q, copy=True)
+        for name, value in cfg.initial_targets.items():
+            default_target_q[lay.joints.coord[name]] = value
+        self._default_q = wp.array(default_q, dtype=float)
+        self._default_target_q = wp.array(default_target_q, dtype=float)
+        self._terminal_q = z((n, lay.coords_per_world), dtype=float)
 
         ctx = TaskContext()
         ctx.body_q, ctx.body_qd = self.state.body_q, self.state.body_qd
@@ -155,6 +180,7 @@ class NewtonEnv:
         ctx.bodies_per_world = lay.bodies_per_world
         ctx.coords_per_world = lay.coords_per_world
         ctx.dofs_per_world = lay.dofs_per_world
+        ctx.base_coord = lay.joints.coord["base_x"]
         ctx.entity_body = wp.array(lay.entity_body or [-1], dtype=int)
         ctx.entity_coord = wp.array(lay.entity_coord or [-1], dtype=int)
         ctx.entity_dof = wp.array(lay.entity_dof or [-1], dtype=int)
@@ -195,12 +221,17 @@ class NewtonEnv:
         """(num_envs, 7) TCP pose of the controlled arm, world frame, updated every step."""
         self.entity_poses = t(self._entity_poses)[:, :n_ent]
         """(num_envs, num_entities, 7) entity poses, world frame, updated every step."""
+        self.episode_count = t(self._episode_count)
+        """(num_envs,) episodes started per row (changes when a row resets; agents key per-row state on it)."""
+        self.terminal_joint_q = t(self._terminal_q)
+        """(num_envs, coords_per_world) coordinates of each row's last finished episode, taken just before
+        its automatic reset (valid for rows whose ``info["done"]`` is set)."""
 
     def _build_kernels(self) -> None:
         cfg = self.cfg
         self._task_kernel = fuse.build_task_kernel(
             phase_success=cfg.phase_success,
-            terminations=list(cfg.terminations.values()),
+            terminations=[(f, cfg.termination_phase.get(name, -1)) for name, f in cfg.terminations.items()],
             rewards=list(cfg.rewards.values()),
             terminate_on_success=cfg.terminate_on_success,
         )
@@ -231,6 +262,8 @@ class NewtonEnv:
                 self._act_index,
                 self._act_low,
                 self._act_high,
+                self._act_owned,
+                self._ctx.phase,
                 self.layout.coords_per_world,
                 self.layout.dofs_per_world,
                 self.control.joint_target_q,
@@ -238,8 +271,35 @@ class NewtonEnv:
             ],
         )
 
+    def _drive_base(self) -> None:
+        lin, yaw = wheel_gains()
+        joints = self.layout.joints
+        wp.launch(
+            drive_base,
+            dim=self.num_envs,
+            inputs=[
+                self._actions,
+                self._wheel_col,
+                self._act_low,
+                self._act_high,
+                self._act_owned,
+                self._base_free,
+                self._ctx.phase,
+                lin,
+                yaw,
+                joints.coord["base_x"],
+                joints.dof["base_x"],
+                self.layout.coords_per_world,
+                self.layout.dofs_per_world,
+                self.state.joint_q,
+                self.control.joint_target_qd,
+            ],
+        )
+
     def _simulate(self) -> None:
         for _ in range(self.cfg.decimation):
+            if self._wheel_col >= 0:
+                self._drive_base()  # per substep: the world-frame twist follows the turning base
             self.solver.step(self.state, self.state, self.control, None, self.cfg.sim_dt)
 
     def _evaluate_task(self) -> None:
@@ -291,6 +351,8 @@ class NewtonEnv:
         self._apply_actions()
         self._simulate()
         self._evaluate_task()
+        wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
+                  inputs=[self._done, self.state.joint_q, self._terminal_q])
         self._reset_rows(self._done)
         self._observe()
 
@@ -327,6 +389,8 @@ class NewtonEnv:
             mask[ids] = True
         self._reset_mask.assign(mask)
         with wp.ScopedDevice(self.device):
+            wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
+                      inputs=[self._reset_mask, self.state.joint_q, self._terminal_q])
             self._reset_rows(self._reset_mask)
             self._observe()
         return self.obs, self.info

@@ -33,9 +33,12 @@ class JointIndex:
     def from_builder(cls, builder: newton.ModelBuilder) -> JointIndex:
         coord: dict[str, int] = {}
         dof: dict[str, int] = {}
+        starts = list(builder.joint_q_start) + [builder.joint_coord_count]
         for j, label in enumerate(builder.joint_label):
             name = label.rsplit("/", 1)[-1]
             q0, qd0 = builder.joint_q_start[j], builder.joint_qd_start[j]
+            if starts[j + 1] == q0:  # fixed joint: no coordinate of its own
+                continue
             if name == "base_x_base_y_base_yaw":  # the three planar base joints merge into one D6
                 for i, sub in enumerate(spec.BASE_PLANAR_JOINTS):
                     coord[sub], dof[sub] = q0 + i, qd0 + i

@@ -105,8 +105,12 @@ PICK_CUBE_LEFT_ARM_INITIAL = (-0.9451, 0.0833, 0.0819, 2.0675, 0.0449, 0.4443, -
 PICK_CUBE_HEAD = (0.0, 0.45)
 STACK_CUBE_HEAD = (0.0, 0.0)
 
-# Re-derived: elbow tucked, hand raised beside the torso (same intent as the reference carry pose).
-CARRY_LEFT_ARM = (1.0, 0.6, 0.0, 2.2, 0.0, -0.4, 0.0)
+# Re-derived by IK (same intent as the reference carry / ready pose: elbow down, hand raised in front of the
+# torso, gripper horizontal pointing forward): TCP at (0.65, 0.22, 0.66) in the base frame, orientation
+# xyzw (1, 0, 0, 0). A held bar hangs clear of a 0.325 m table; used by PickToShelf and SortToShelf.
+CARRY_LEFT_ARM = (1.2723, 0.0131, -0.0472, -2.5397, -0.0513, 1.2681, -0.0167)
+SIDE_GRASP_TCP_QUAT = (1.0, 0.0, 0.0, 0.0)
+"""Horizontal TCP pointing along the base's +x (approach), fingers closing along y, xyzw."""
 # Re-derived: right arm folded beside the torso (TCP near (-0.77, -0.33, 0.40) with the root at
 # (-1, 0, 0)), clear of the table and of the left arm's workspace.
 STOWED_RIGHT_ARM = (-1.6, -0.2, -0.9, 2.5, -0.6, 0.4, 0.35)

@@ -1,0 +1,78 @@
+"""SequenceAgent: ordered steps per row, each an agent with a done predicate; rows advance independently."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import torch
+
+from .base import BaseAgent, EpisodeTracker
+
+
+@dataclass
+class SequenceStep:
+    name: str
+    agent: BaseAgent
+    done: Callable | None = None
+    """``done(env) -> (num_envs,) bool``; ``None`` uses ``agent.done``."""
+
+
+class SequenceAgent(BaseAgent):
+    """Runs ``steps`` in order for every row. Each call, a row's current step's agent acts for it; when the
+    step's predicate holds, that row moves on and only its next agent is reset (for that row). A row past the
+    last step holds its current targets. ``done``: every step finished."""
+
+    def __init__(self, steps: list[SequenceStep]):
+        if not steps:
+            raise ValueError("SequenceAgent needs at least one step")
+        self.steps = list(steps)
+        self._env = None
+
+    def _bind(self, env) -> None:
+        self._step = np.zeros(env.num_envs, dtype=np.int64)
+        self._tracker = EpisodeTracker(env.num_envs)
+        self._env = env
+
+    def reset(self, env_ids=None) -> None:
+        if self._env is not None:
+            self._tracker.forget(env_ids)
+
+    def current_step(self) -> np.ndarray:
+        """(num_envs,) index of each row's step (``len(steps)`` when finished)."""
+        return self._step.copy()
+
+    def act(self, env, env_ids=None) -> torch.Tensor:
+        if self._env is not env:
+            self._bind(env)
+        fresh = self._tracker.fresh_rows(env, env_ids)
+        if fresh.size:
+            self._step[fresh] = 0
+            self.steps[0].agent.reset(fresh)
+        rows = np.arange(env.num_envs) if env_ids is None else np.asarray(torch.as_tensor(env_ids).cpu()).reshape(-1)
+        out = env.current_action()
+        for k, step in enumerate(self.steps):
+            mine = rows[self._step[rows] == k]
+            if mine.size:
+                idx = torch.as_tensor(mine, device=env.torch_device)
+                out[idx] = step.agent.act(env, mine)[idx]
+        # advance rows whose step finished (at most one step per call); the next agent starts fresh for
+        # those rows only
+        before = self._step.copy()
+        for k, step in enumerate(self.steps):
+            mine = rows[before[rows] == k]
+            if not mine.size:
+                continue
+            finished = (step.done or step.agent.done)(env).cpu().numpy()[mine]
+            moved = mine[finished]
+            if moved.size:
+                self._step[moved] = k + 1
+                if k + 1 < len(self.steps):
+                    self.steps[k + 1].agent.reset(moved)
+        return out
+
+    def done(self, env) -> torch.Tensor:
+        if self._env is not env:
+            return torch.zeros(env.num_envs, dtype=torch.bool, device=env.torch_device)
+        return torch.as_tensor(self._step >= len(self.steps), device=env.torch_device)

@@ -1,0 +1,95 @@
+"""TaskFlowAgent: drive a coherent (multi-phase) task with one agent per phase."""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import torch
+
+from .base import BaseAgent, EpisodeTracker
+
+
+def default_agent(task_id: str, **options) -> BaseAgent:
+    """A component task's expert: its motion plan (planner) or its registered nav agent factory."""
+    from ..registry import lookup
+    from .planner.agent import PlannerAgent
+
+    entry = lookup(task_id)
+    if entry.get("motion_plan"):
+        return PlannerAgent.from_task(task_id, **options)
+    ref = entry.get("nav_agent") or entry.get("agent")
+    if ref:
+        module, _, name = ref.partition(":")
+        factory = getattr(importlib.import_module(module), name)
+        import inspect
+
+        accepted = inspect.signature(factory).parameters
+        return factory(**{k: v for k, v in options.items() if k in accepted})
+    raise ValueError(f"task {task_id!r} registers no expert (motion_plan or nav_agent); pass agents={{phase: agent}}")
+
+
+def expert_agent(env) -> BaseAgent:
+    """The expert for ``env``'s task: a ``TaskFlowAgent`` for coherent tasks, else the task's own expert."""
+    if env.cfg.phases:
+        return TaskFlowAgent.from_env(env)
+    return default_agent(env.task_id, **env.cfg.options)
+
+
+class TaskFlowAgent(BaseAgent):
+    """Reads each row's phase, lets that phase's agent act for those rows, and merges the results into the
+    full action tensor. A row entering a phase (or starting an episode) resets that phase's agent for it
+    alone. Phase agents act on the coherent env itself: they address columns by joint name."""
+
+    def __init__(self, phase_agents: list[BaseAgent], phase_names: list[str] | None = None):
+        self.phase_agents = list(phase_agents)
+        self.phase_names = list(phase_names or [f"phase{i}" for i in range(len(phase_agents))])
+        self._env = None
+
+    @classmethod
+    def from_env(cls, env, agents: dict[str, BaseAgent] | None = None) -> TaskFlowAgent:
+        """Default phase agents come from the component tasks; ``agents`` overrides some by phase name."""
+        phases = env.cfg.phases
+        if not phases:
+            raise ValueError(f"{env.task_id} is not a coherent task (it has no phases); use its own expert agent")
+        agents = dict(agents or {})
+        unknown = sorted(set(agents) - {p.name for p in phases})
+        if unknown:
+            raise ValueError(f"agents for unknown phase(s) {unknown}; phases of {env.task_id}: {[p.name for p in phases]}")
+        chosen = [agents.get(p.name) or default_agent(p.task_id, **env.cfg.options) for p in phases]
+        return cls(chosen, [p.name for p in phases])
+
+    def _bind(self, env) -> None:
+        self._tracker = EpisodeTracker(env.num_envs)
+        self._phase = np.full(env.num_envs, -1, dtype=np.int64)
+        self._env = env
+
+    def reset(self, env_ids=None) -> None:
+        if self._env is not None:
+            self._tracker.forget(env_ids)
+
+    def act(self, env, env_ids=None) -> torch.Tensor:
+        if self._env is not env:
+            self._bind(env)
+        rows = np.arange(env.num_envs) if env_ids is None else np.asarray(torch.as_tensor(env_ids).cpu()).reshape(-1)
+        fresh = self._tracker.fresh_rows(env, rows)
+        self._phase[fresh] = -1
+        phase = env.info["phase"].cpu().numpy()
+        entered = rows[phase[rows] != self._phase[rows]]
+        out = env.current_action()
+        for p, agent in enumerate(self.phase_agents):
+            new = entered[phase[entered] == p]
+            if new.size:
+                agent.reset(new)
+            mine = rows[phase[rows] == p]
+            if mine.size:
+                idx = torch.as_tensor(mine, device=env.torch_device)
+                out[idx] = agent.act(env, mine)[idx]
+        self._phase[rows] = phase[rows]
+        return out
+
+    def done(self, env) -> torch.Tensor:
+        """Rows in the last phase whose agent is done."""
+        phase = env.info["phase"]
+        last = len(self.phase_agents) - 1
+        return (phase == last) & self.phase_agents[last].done(env)

@@ -1,0 +1,138 @@
+"""Coherent long-horizon tasks from component tasks: ``combined_task(..., phases=task_sequence(phase(...)))``.
+
+Each phase names a registered component task. The combined task runs them back to back inside one
+episode: phase is a per-row device int, the component's success predicate advances only that row (inside
+the fused task kernel), the last phase's success is episode success, and a component's failure terms end
+the episode while the row is in that phase. Nothing is rebuilt, loaded or reset between phases.
+
+The scene, posture, reset events and rewards come from the first phase; every component must share that
+world (same entity names and order, so predicates address the same slots). The action space is the union of
+the phases' action terms in first-seen order (or an explicit ``actions`` list); a phase commands only its
+``terms`` groups, the others hold (position targets keep their value, wheel/base velocities go to zero).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from ..registry import lookup
+from .cfg import ActionTermCfg, PhaseCfg, TaskCfg
+
+
+def phase(name: str, task_id: str, *, terms: tuple[str, ...], fixed_base: bool = False) -> PhaseCfg:
+    """A phase running component ``task_id`` that commands the joint groups ``terms`` (e.g. ``("base",)``)."""
+    return PhaseCfg(name=name, task_id=task_id, action_groups=tuple(terms), fixed_base=fixed_base)
+
+
+def task_sequence(*phases: PhaseCfg) -> tuple[PhaseCfg, ...]:
+    """Phases in execution order (names unique)."""
+    names = [p.name for p in phases]
+    if len(set(names)) != len(names) or not phases:
+        raise ValueError(f"task_sequence needs at least one phase and unique names, got {names}")
+    return tuple(phases)
+
+
+def _component(task_id: str, options: dict[str, Any]) -> TaskCfg:
+    factory = lookup(task_id)["cfg"]
+    import inspect
+
+    accepted = inspect.signature(factory).parameters
+    return factory(**{k: v for k, v in options.items() if k in accepted})
+
+
+def combined_task(
+    task_id: str,
+    *,
+    phases: tuple[PhaseCfg, ...],
+    options: dict[str, Any] | None = None,
+    actions: list[ActionTermCfg] | None = None,
+    terminations: dict[str, Any] | None = None,
+    **overrides: Any,
+) -> TaskCfg:
+    """Build the coherent task ``task_id`` from its component phases.
+
+    Args:
+        phases: from ``task_sequence``.
+        options: task options passed to every component factory that accepts them (e.g. ``sorting_object``).
+        actions: explicit action terms (order = columns); default: union of the components' terms.
+        terminations: extra failure terms applying in every phase.
+        overrides: ``TaskCfg`` fields replacing the first phase's (e.g. ``episode_length_s``).
+    """
+    options = dict(options or {})
+    parts = [_component(p.task_id, options) for p in phases]
+    first = parts[0]
+    names = [e.name for e in first.entities]
+    for p, cfg in zip(phases, parts):
+        other = [e.name for e in cfg.entities]
+        if other != names:
+            raise ValueError(f"phase {p.name!r} ({p.task_id}) has objects {other} but the combined task's world has "
+                             f"{names}; components of a coherent task must share one world")
+        if tuple(cfg.arm_home) != tuple(first.arm_home) or cfg.arm != first.arm:
+            raise ValueError(f"phase {p.name!r} ({p.task_id}) uses another arm or arm reference posture")
+
+    if actions is None:
+        actions, seen = [], set()
+        for cfg in parts:
+            for term in cfg.actions:
+                if term.name not in seen:
+                    seen.add(term.name)
+                    actions.append(term)
+    groups = {t.group for t in actions}
+    for p in phases:
+        missing = sorted(set(p.action_groups or ()) - groups)
+        if missing:
+            raise ValueError(f"phase {p.name!r} commands {missing} but the combined action terms have groups "
+                             f"{sorted(groups)}")
+
+    observations, seen_obs = [], set()
+    for cfg in parts:
+        for term in cfg.observations:
+            if term.name not in seen_obs:
+                seen_obs.add(term.name)
+                observations.append(term)
+    if "actions" in seen_obs:  # the last-action term follows the combined width
+        observations = [dataclasses.replace(t, dim=sum(_width(a) for a in actions)) if t.name == "actions" else t
+                        for t in observations]
+
+    terms: dict[str, Any] = {}
+    term_phase: dict[str, int] = {}
+    for i, cfg in enumerate(parts):
+        for name, fn in cfg.terminations.items():
+            key = name if name not in terms else f"{phases[i].name}_{name}"
+            terms[key] = fn
+            term_phase[key] = i
+    for name, fn in (terminations or {}).items():
+        terms[name] = fn
+
+    signals: dict[str, Any] = {}
+    for cfg in parts:
+        for name, fn in cfg.signals.items():
+            signals.setdefault(name, fn)
+
+    cfg = dataclasses.replace(
+        first,
+        task_id=task_id,
+        actions=list(actions),
+        observations=observations,
+        phase_success=[c.phase_success[-1] for c in parts],
+        terminations=terms,
+        termination_phase=term_phase,
+        phases=list(phases),
+        signals=signals,
+        hold_slots=max(c.hold_slots for c in parts),
+        command_dim=max(c.command_dim for c in parts),
+        fixed_base=False,
+        contacts_per_world=max((c.contacts_per_world or 0) for c in parts) or None,
+        constraints_per_world=max((c.constraints_per_world or 0) for c in parts) or None,
+        terminate_on_success=True,
+        scenario=None,
+        options=options,
+    )
+    return dataclasses.replace(cfg, **overrides) if overrides else cfg
+
+
+def _width(term: ActionTermCfg) -> int:
+    from ..robots.g1 import spec
+
+    return len(spec.JOINT_GROUPS[term.group])

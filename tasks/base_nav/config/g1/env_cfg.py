@@ -1,0 +1,49 @@
+"""GalbotG1-BaseNav-v0 configuration (reference §3.5): drive the mobile base from A=(0, 0) to B=(2, 0)."""
+
+from __future__ import annotations
+
+from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
+from newton_lab.tasks.common import navigation as nav
+from newton_lab.tasks.common import observations as common_obs
+
+GOAL_XY = (2.0, 0.0)
+"""Goal position, env frame [m]."""
+GOAL_YAW = 0.0
+SUCCESS_RADIUS = 0.15
+"""Base within this distance of the goal ends the episode [m]."""
+
+_goal_reached = nav.make_goal_reached(GOAL_XY, SUCCESS_RADIUS)
+_base_xy, _goal_xy, _to_goal = nav.make_nav_observations(GOAL_XY)
+_neg_distance, _goal_reward = nav.make_nav_rewards(GOAL_XY, SUCCESS_RADIUS)
+
+
+def base_nav_cfg() -> TaskCfg:
+    """Mobile G1 at the origin, no objects; 4-wheel velocity action (clip +-4.5 rad/s); 12 s episodes."""
+    return TaskCfg(
+        task_id="GalbotG1-BaseNav-v0",
+        entities=[],
+        actions=nav.base_actions(),
+        observations=[
+            ObsTermCfg(name="actions", func=common_obs.last_action, dim=4),
+            ObsTermCfg(name="base_xy", func=_base_xy, dim=2),
+            ObsTermCfg(name="goal_xy", func=_goal_xy, dim=2),
+            ObsTermCfg(name="vector_to_goal", func=_to_goal, dim=2),
+        ],
+        phase_success=[_goal_reached],
+        rewards={
+            "distance": (_neg_distance, 2.0),
+            "goal_reached": (_goal_reward, 10.0),
+            "action_l2": (nav.action_l2, -0.02),
+        },
+        signals={"goal_reached": _goal_reached},
+        root_pos=(0.0, 0.0, 0.0),
+        fixed_base=False,
+        episode_length_s=12.0,
+    )
+
+
+def nav_agent():
+    """The expert: proportional drive to the goal (speed cap 0.45 m/s)."""
+    from newton_lab.agents.nav import ProportionalNavAgent
+
+    return ProportionalNavAgent(goal=GOAL_XY, goal_yaw=None, success_radius=SUCCESS_RADIUS)

@@ -1,0 +1,112 @@
+"""PickToShelf configurations (reference §3.6): the Pick, Nav and Place components and the coherent task.
+
+All four share the PickToShelf world; the robot starts at (-1.2, 0, 0) on its wheels, left arm in the carry
+posture. The Nav and Place components start from scenarios (``scenarios/*.yaml``) captured at the end of the
+previous component with ``--save-end-scenario``; the coherent task chains the components without resets.
+"""
+
+from __future__ import annotations
+
+from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
+from newton_lab.envs.compose import combined_task, phase, task_sequence
+from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import navigation as nav
+from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common.table_top import left_arm_actions
+from newton_lab.tasks.pick_to_shelf import scene
+from newton_lab.tasks.pick_to_shelf.mdp import events, observations, terminations
+
+NAV_GOAL_XY = (-1.7, -1.15)
+"""Base goal in front of the shelf: deck front edge + 0.65 m [m]."""
+NAV_GOAL_YAW = -1.5707963267948966
+NAV_SUCCESS_RADIUS = 0.02
+SCENARIOS = "newton_lab.tasks.pick_to_shelf.config.g1.scenarios"
+
+_goal_reached = nav.make_goal_reached(NAV_GOAL_XY, NAV_SUCCESS_RADIUS)
+_base_xy, _goal_xy, _to_goal = nav.make_nav_observations(NAV_GOAL_XY)
+_neg_distance, _goal_reward = nav.make_nav_rewards(NAV_GOAL_XY, NAV_SUCCESS_RADIUS)
+
+
+def _manipulation_obs() -> list[ObsTermCfg]:
+    return [
+        ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
+        ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),
+        ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
+        ObsTermCfg(name="gripper_pos", func=common_obs.gripper_pos, dim=1),
+        ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7),
+    ]
+
+
+def _world(task_id: str, **fields) -> TaskCfg:
+    base = dict(
+        task_id=task_id,
+        entities=scene.entities(),
+        actions=left_arm_actions(),
+        observations=_manipulation_obs(),
+        phase_success=[],
+        terminations={"cube_dropped": terminations.cube_dropped, "cube_tipped": terminations.cube_tipped},
+        signals={"grasped_cube": terminations.grasped_cube},
+        posture=scene.robot_posture(),
+        root_pos=scene.ROBOT_ROOT,
+        arm_home=spec.CARRY_LEFT_ARM,
+        fixed_base=True,
+    )
+    base.update(fields)
+    return TaskCfg(**base)
+
+
+def pick_cfg() -> TaskCfg:
+    """Pick the bar from the table and bring it to the carry posture (success: ``at_carry``)."""
+    return _world("GalbotG1-PickToShelf-Pick-v0", phase_success=[terminations.at_carry],
+                  events=[events.randomize_bar_position])
+
+
+def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
+    """Drive with the bar in hand to the shelf (success: base within 2 cm of the goal; yaw not checked)."""
+    return _world(
+        "GalbotG1-PickToShelf-Nav-v0",
+        actions=nav.base_actions(),
+        observations=[
+            ObsTermCfg(name="actions", func=common_obs.last_action, dim=4),
+            ObsTermCfg(name="base_xy", func=_base_xy, dim=2),
+            ObsTermCfg(name="goal_xy", func=_goal_xy, dim=2),
+            ObsTermCfg(name="vector_to_goal", func=_to_goal, dim=2),
+        ],
+        phase_success=[_goal_reached],
+        rewards={"distance": (_neg_distance, 2.0), "goal_reached": (_goal_reward, 10.0),
+                 "action_l2": (nav.action_l2, -0.02)},
+        signals={"goal_reached": _goal_reached},
+        scenario=init_scenario or f"{SCENARIOS}:nav_default.yaml",
+        initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+        fixed_base=False,
+    )
+
+
+def place_cfg(init_scenario: str | None = None) -> TaskCfg:
+    """Put the bar upright on the shelf deck and let go (success: ``cube_on_shelf`` held 20 steps)."""
+    return _world(
+        "GalbotG1-PickToShelf-Place-v0",
+        phase_success=[terminations.cube_on_shelf],
+        scenario=init_scenario or f"{SCENARIOS}:place_default.yaml",
+        initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+    )
+
+
+def coherent_cfg() -> TaskCfg:
+    """Pick -> Nav -> Place in one episode; the episode succeeds when the bar stands on the shelf."""
+    return combined_task(
+        "GalbotG1-PickToShelf-v0",
+        phases=task_sequence(
+            phase("pick", "GalbotG1-PickToShelf-Pick-v0", terms=("left_arm", "left_gripper")),
+            phase("nav", "GalbotG1-PickToShelf-Nav-v0", terms=("base",)),
+            phase("place", "GalbotG1-PickToShelf-Place-v0", terms=("left_arm", "left_gripper")),
+        ),
+    )
+
+
+def nav_agent():
+    """PickToShelf-Nav expert: turn to face the shelf, then drive straight to the goal."""
+    from newton_lab.agents.nav import TrajectoryNavAgent
+
+    return TrajectoryNavAgent(NAV_GOAL_XY, NAV_GOAL_YAW, success_radius=NAV_SUCCESS_RADIUS, yaw_tolerance=0.03,
+                              rotate_before_translate=True, waypoint_spacing=10.0)

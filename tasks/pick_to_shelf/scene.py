@@ -1,0 +1,41 @@
+"""PickToShelf world (reference §3.6), shared by the Pick / Nav / Place components and the coherent task:
+a 0.5 m high table with a 5 x 5 x 16 cm bar, and a one-cell shelf 2 m to the robot's right."""
+
+from __future__ import annotations
+
+from newton_lab.envs.cfg import EntityCfg
+from newton_lab.robots.g1 import spec
+
+TABLE_TOP_Z = 0.325
+BAR_SIZE = (0.05, 0.05, 0.16)
+BAR_POS = (-0.40, 0.18, 0.405)
+DECK_POS = (-1.7, -2.0, 0.34)
+DECK_SIZE = (0.50, 0.40, 0.03)
+ROBOT_ROOT = (-1.2, 0.0, 0.0)
+
+# entity slots (order of ``entities()``)
+TABLE, CUBE, DECK, BACK, LEFT, RIGHT = range(6)
+
+SHELF_COLOR = (0.10, 0.25, 0.60)
+
+
+def entities() -> list[EntityCfg]:
+    return [
+        EntityCfg(name="table", size=(0.8, 0.9, 0.50), pos=(-0.30, 0.0, 0.075), dynamic=False, color=(0.42, 0.44, 0.40)),
+        EntityCfg(name="cube", size=BAR_SIZE, pos=BAR_POS, mass=0.05, color=(0.85, 0.18, 0.12)),
+        EntityCfg(name="shelf_deck", size=DECK_SIZE, pos=DECK_POS, dynamic=False, color=(0.08, 0.22, 0.85)),
+        EntityCfg(name="shelf_back_baffle", size=(0.50, 0.06, 0.595), pos=(-1.7, -2.17, 0.2975), dynamic=False,
+                  color=SHELF_COLOR),
+        EntityCfg(name="shelf_left_baffle", size=(0.06, 0.40, 0.595), pos=(-1.92, -2.0, 0.2975), dynamic=False,
+                  color=SHELF_COLOR),
+        EntityCfg(name="shelf_right_baffle", size=(0.06, 0.40, 0.595), pos=(-1.48, -2.0, 0.2975), dynamic=False,
+                  color=SHELF_COLOR),
+    ]
+
+
+def robot_posture() -> dict[str, float]:
+    """Left arm carry, right arm stowed, head (0, 0.25), legs 0."""
+    posture = dict(zip(spec.LEFT_ARM_JOINTS, spec.CARRY_LEFT_ARM))
+    posture.update(zip(spec.RIGHT_ARM_JOINTS, spec.STOWED_RIGHT_ARM))
+    posture.update(zip(spec.HEAD_JOINTS, spec.SHELF_HEAD))
+    return posture
