@@ -84,7 +84,8 @@ class GoalNavAgent(BaseNavAgent):
 
     def __init__(self, goal, goal_yaw: float | None = None, *, success_radius: float = spec.NAV_SUCCESS_RADIUS,
                  yaw_tolerance: float = 0.03, max_speed: float = spec.NAV_MAX_SPEED, yaw_gain: float = 2.0,
-                 max_yaw_rate: float = 1.0, rotate_before_translate: bool = True, max_accel: float = 1.0):
+                 max_yaw_rate: float = 1.0, rotate_before_translate: bool = True, max_accel: float = 1.0,
+                 max_yaw_accel: float = 2.0):
         super().__init__()
         self.goal = tuple(float(v) for v in goal[:2])
         self.goal_yaw = None if goal_yaw is None else float(goal_yaw)
@@ -96,12 +97,17 @@ class GoalNavAgent(BaseNavAgent):
         self.rotate_before_translate = bool(rotate_before_translate)
         self.max_accel = float(max_accel)
         """Speed ramp [m/s^2]: the commanded speed grows by at most this per second (a held object stays put)."""
+        self.max_yaw_accel = float(max_yaw_accel)
+        """Yaw-rate ramp [rad/s^2]: the commanded yaw rate changes by at most this per second."""
 
     def bind(self, env) -> None:
         self._speed = torch.zeros(env.num_envs, device=env.torch_device)
+        self._wz = torch.zeros(env.num_envs, device=env.torch_device)
 
     def start(self, env, rows, pose) -> None:
-        self._speed[torch.as_tensor(rows, device=env.torch_device)] = 0.0
+        r = torch.as_tensor(rows, device=env.torch_device)
+        self._speed[r] = 0.0
+        self._wz[r] = 0.0
 
     def target(self, env, pose: torch.Tensor) -> torch.Tensor:
         """(num_envs, 2) point the base heads for."""
@@ -128,8 +134,10 @@ class GoalNavAgent(BaseNavAgent):
         else:
             wz = torch.where(xy_done, wz, torch.zeros_like(wz))
         speed = torch.where(xy_done, torch.zeros_like(speed), speed)
-        speed = torch.minimum(speed, self._speed + self.max_accel * env.cfg.control_dt)
-        self._speed = speed
+        dt = env.cfg.control_dt
+        speed = torch.minimum(speed, self._speed + self.max_accel * dt)
+        wz = torch.clamp(wz, self._wz - self.max_yaw_accel * dt, self._wz + self.max_yaw_accel * dt)
+        self._speed, self._wz = speed, wz
         to_target = self.target(env, pose) - pose[:, :2]
         direction = to_target / torch.linalg.norm(to_target, dim=1, keepdim=True).clamp_min(1e-9)
         c, s = torch.cos(pose[:, 2]), torch.sin(pose[:, 2])

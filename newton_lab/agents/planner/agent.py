@@ -54,7 +54,7 @@ class PlannerAgent(BaseAgent):
         self._robot_coords = env.layout.robot_coords
         self._kin = TcpKinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
-            k = max(len(self.plan.steps), 1)
+            k = max(self._num_waypoints(), 1)
             self._waypoints = wp.zeros((n, k, 8), dtype=float)
             self._start_q = wp.zeros((n, 7), dtype=float)
             self._seg_start = wp.zeros((n, k), dtype=int)
@@ -66,6 +66,10 @@ class PlannerAgent(BaseAgent):
         self._seen_episode = np.full(n, -1, dtype=np.int64)
 
     # ------------------------------------------------------------------ planning
+    def _num_waypoints(self) -> int:
+        """Joint-space waypoints of the plan: one per step, ``linear`` for straight-line TCP steps."""
+        return sum(s.linear if s.target is not None else 1 for s in self.plan.steps)
+
     def _poses(self, env, rows: np.ndarray) -> dict[str, np.ndarray]:
         ent = env.entity_poses.detach().cpu().numpy()[rows].astype(np.float64)
         poses = {name: ent[:, e.slot] for name, e in env.entities.items()}
@@ -110,33 +114,49 @@ class PlannerAgent(BaseAgent):
         q_seed = q_env.copy()
         prev = q_env[rows][:, self._arm_coords].astype(np.float64)
         start = prev.copy()
-        k = len(plan.steps)
+        k = self._num_waypoints()
         way = np.zeros((r, k, 8))
         seg_start = np.zeros((r, k), dtype=np.int64)
         seg_interp = np.zeros((r, k), dtype=np.int64)
         frame = np.zeros(r, dtype=np.int64)
         failed = np.zeros(r, dtype=bool)
-        for i, step in enumerate(plan.steps):
-            if step.joints is not None:
-                q_k = np.tile(np.asarray(step.joints, dtype=np.float64), (r, 1))
-            elif step.target is not None:
-                target = step.target.resolve(poses) if hasattr(step.target, "resolve") else step.target(poses)
-                q_all, err = self._solve(q_seed, rows, target, self._target_quat(step, poses, r))
-                q_k = q_all[rows][:, self._arm_coords].astype(np.float64)
-                q_seed = q_all
-                failed |= err > plan.position_tolerance
-            else:
-                q_k = prev
+        tcp_prev = poses["tcp"][:, :3].copy()  # start of the next straight-line TCP move
+        i = 0
+        for step in plan.steps:
+            gripper = spec.GRIPPER_OPEN if step.gripper_open else spec.GRIPPER_CLOSED
             moves = step.target is not None or step.joints is not None
-            n_interp = np.ceil(np.abs(q_k - prev).max(axis=1) / plan.max_joint_step).astype(np.int64)
-            n_interp = np.maximum(n_interp, 1 if moves else 0)
-            way[:, i, :7] = q_k
-            way[:, i, 7] = spec.GRIPPER_OPEN if step.gripper_open else spec.GRIPPER_CLOSED
-            seg_start[:, i] = frame
-            seg_interp[:, i] = n_interp
-            frame = frame + n_interp + max(step.hold - 1, 0) + (plan.settle_steps if moves else 0)
-            frame = np.maximum(frame, seg_start[:, i] + 1)
-            prev = q_k
+            if step.joints is not None:
+                targets = [np.tile(np.asarray(step.joints, dtype=np.float64), (r, 1))]
+            elif step.target is not None:
+                goal = step.target.resolve(poses) if hasattr(step.target, "resolve") else step.target(poses)
+                quat = self._target_quat(step, poses, r)
+                targets = []
+                for j in range(1, step.linear + 1):
+                    point = tcp_prev + (goal - tcp_prev) * (j / step.linear)
+                    q_all, err = self._solve(q_seed, rows, point, quat)
+                    targets.append(q_all[rows][:, self._arm_coords].astype(np.float64))
+                    q_seed = q_all
+                    failed |= err > plan.position_tolerance
+            else:
+                targets = [prev]
+            for j, q_k in enumerate(targets):
+                last = j == len(targets) - 1
+                n_interp = np.ceil(np.abs(q_k - prev).max(axis=1) / plan.max_joint_step).astype(np.int64)
+                n_interp = np.maximum(n_interp, 1 if moves else 0)
+                way[:, i, :7] = q_k
+                way[:, i, 7] = gripper
+                seg_start[:, i] = frame
+                seg_interp[:, i] = n_interp
+                frame = frame + n_interp + (max(step.hold - 1, 0) + (plan.settle_steps if moves else 0) if last else 0)
+                frame = np.maximum(frame, seg_start[:, i] + 1)
+                prev = q_k
+                i += 1
+            if step.target is not None:
+                tcp_prev = goal
+            elif step.joints is not None:
+                q_fk = q_env[rows].astype(np.float64).copy()
+                q_fk[:, self._arm_coords] = prev
+                tcp_prev = self._kin.tcp_poses(q_fk)[:, :3]
         self.plan_failures += int(failed.sum())
         self._plan_length[rows] = frame
         idx = torch.as_tensor(rows, device=env.torch_device)

@@ -59,6 +59,9 @@ class MotionStep:
     gripper_open: bool = True
     hold: int = 1
     """Frames the command is repeated (gripper steps use e.g. 25)."""
+    linear: int = 1
+    """Straight-line TCP move: the segment from the previous TCP target is split into this many IK targets
+    (1 = plain joint-space interpolation, which can bow the TCP path near obstacles)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,7 +89,7 @@ def yaw_of(quat_xyzw: np.ndarray) -> np.ndarray:
 
 
 def _step_from_dict(d: dict) -> MotionStep:
-    known = {"name", "target", "quat", "align_yaw", "joints", "gripper", "hold"}
+    known = {"name", "target", "quat", "align_yaw", "joints", "gripper", "hold", "linear"}
     unknown = set(d) - known
     if unknown:
         raise ValueError(f"motion step {d.get('name')!r} has unknown keys {sorted(unknown)}; valid: {sorted(known)}")
@@ -110,6 +113,7 @@ def _step_from_dict(d: dict) -> MotionStep:
         joints=tuple(d["joints"]) if d.get("joints") else None,
         gripper_open=gripper == "open",
         hold=int(d.get("hold", 1)),
+        linear=max(1, int(d.get("linear", 1))),
     )
 
 

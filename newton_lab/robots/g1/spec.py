@@ -106,9 +106,10 @@ PICK_CUBE_HEAD = (0.0, 0.45)
 STACK_CUBE_HEAD = (0.0, 0.0)
 
 # Re-derived by IK (same intent as the reference carry / ready pose: elbow down, hand raised in front of the
-# torso, gripper horizontal pointing forward): TCP at (0.65, 0.22, 0.66) in the base frame, orientation
-# xyzw (1, 0, 0, 0). A held bar hangs clear of a 0.325 m table; used by PickToShelf and SortToShelf.
-CARRY_LEFT_ARM = (1.2723, 0.0131, -0.0472, -2.5397, -0.0513, 1.2681, -0.0167)
+# torso, gripper horizontal pointing forward): TCP at (0.65, 0.0, 0.66) in the base frame, orientation
+# xyzw (1, 0, 0, 0). The held object sits on the base's centre line, so facing a shelf it enters the cell
+# between the side panels, and it hangs clear of a 0.325 m table; used by PickToShelf and SortToShelf.
+CARRY_LEFT_ARM = (1.5646, -0.6287, 0.6743, -2.2645, 0.8960, 0.9327, 0.0153)
 SIDE_GRASP_TCP_QUAT = (1.0, 0.0, 0.0, 0.0)
 """Horizontal TCP pointing along the base's +x (approach), fingers closing along y, xyzw."""
 # Re-derived: right arm folded beside the torso (TCP near (-0.77, -0.33, 0.40) with the root at
