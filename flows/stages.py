@@ -45,7 +45,7 @@ def _fresh(path: Path) -> Path:
 def collect_stage(*, task_id: str, episodes: int, num_envs: int, seed: int, device: str | None, out_dir: str,
                   name: str = "demos", progress: bool = True) -> dict[str, Any]:
     """Expert demos of ``task_id`` (planner, randomised) -> dataset artifact."""
-    from ..agents import PlannerAgent
+    from ..agents import expert_agent
     from ..envs import make_env
 
     out = Path(out_dir)
@@ -55,7 +55,7 @@ def collect_stage(*, task_id: str, episodes: int, num_envs: int, seed: int, devi
         return done
     path = _fresh(out / f"{name}.hdf5")
     env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
-    ref = env.collect(agent=PlannerAgent.from_task(task_id), episodes=episodes, path=path, progress=progress)
+    ref = env.collect(agent=expert_agent(env), episodes=episodes, path=path, progress=progress)
     art = artifact(path, "dataset", episodes=ref["episodes"], successes=ref["successes"],
                    success_rate=ref["success_rate"])
     return _finish(out, name, inputs, art)

@@ -29,6 +29,8 @@ def _add_env_flags(p: argparse.ArgumentParser, *, episodes: int = 1, max_steps: 
     p.add_argument("--rerun", action="store_true", help="stream to a rerun viewer (spawned)")
     p.add_argument("--rerun-save", default=None, help="record the run to this .rrd file (headless)")
     p.add_argument("--rerun-worlds", type=int, default=4, help="rows drawn in rerun")
+    p.add_argument("--sorting-object", default=None, help="SortToShelf tasks: the object to sort")
+    p.add_argument("--init-scenario", default=None, help="component tasks: start from this scenario YAML")
 
 
 def _logger(args, env):
@@ -49,21 +51,28 @@ def _cmd_tasks(args) -> int:
     return 0
 
 
+def task_options_from_args(args) -> dict:
+    """Task options given on the command line (only the ones set)."""
+    opts = {"sorting_object": getattr(args, "sorting_object", None), "init_scenario": getattr(args, "init_scenario", None)}
+    return {k: v for k, v in opts.items() if v is not None}
+
+
 def _make(args):
     from .envs import make_env
 
-    return make_env(args.task, num_envs=args.num_envs, device=args.device, seed=args.seed, randomize=args.randomize)
+    return make_env(args.task, num_envs=args.num_envs, device=args.device, seed=args.seed, randomize=args.randomize,
+                    task_options=task_options_from_args(args))
 
 
 def _cmd_collect(args) -> int:
-    from .agents import PlannerAgent
+    from .agents import expert_agent
 
     env = _make(args)
-    agent = PlannerAgent.from_task(args.task)
+    agent = expert_agent(env)
     hook, close = _logger(args, env)
     try:
         summary = env.collect(agent=agent, episodes=args.episodes, path=args.dataset_path, max_steps=args.max_steps,
-                              progress=not args.no_progress, on_step=hook)
+                              progress=not args.no_progress, on_step=hook, save_end_scenario=args.save_end_scenario)
     finally:
         close()
     print(json.dumps({
@@ -76,15 +85,17 @@ def _cmd_collect(args) -> int:
         "average_length": summary["average_length"],
         "termination_reasons": summary["termination_reasons"],
         "wall_time_s": round(summary["wall_time_s"], 2),
+        **({"saved_end_scenario_path": summary["saved_end_scenario_path"]} if args.save_end_scenario else {}),
     }))
     return 0
 
 
 def _cmd_evaluate(args) -> int:
-    from .agents import PlannerAgent, PolicyAgent
+    from .agents import PolicyAgent, expert_agent
 
-    agent = PolicyAgent.from_checkpoint(args.checkpoint) if args.checkpoint else PlannerAgent.from_task(args.task)
+    checkpoint_agent = PolicyAgent.from_checkpoint(args.checkpoint) if args.checkpoint else None
     env = _make(args)
+    agent = checkpoint_agent or expert_agent(env)
     hook, close = _logger(args, env)
     try:
         summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps,
@@ -185,6 +196,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("collect", help="collect expert episodes into HDF5 (.hdf5/.h5) or zarr (.zarr)")
     _add_env_flags(p)
     p.add_argument("--dataset-path", default="data/pick_cube_demos.hdf5")
+    p.add_argument("--save-end-scenario", default=None,
+                   help="write the final scene as a scenario YAML (needs --episodes 1 --num-envs 1)")
     p.set_defaults(func=_cmd_collect)
 
     p = sub.add_parser("evaluate", help="run a policy checkpoint (or the expert planner) and report the success rate")

@@ -237,9 +237,12 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
 def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
             only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
             dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
-            on_step=None):
+            on_step=None, save_end_scenario=None):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
+
+    ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML
+    (``newton_lab.envs.scenario``) that a following component task can start from; the file must not exist.
 
     By default ``episodes`` episodes are run and all are written. With ``only_successes`` the loop runs
     until ``episodes`` successful ones are written (at most ``max_attempts`` attempts) and failures are
@@ -250,6 +253,11 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     from ..datasets import DatasetRef, open_writer
 
     task_id = dataset_task_id or env.task_id
+    if save_end_scenario is not None:
+        if env.num_envs != 1 or episodes != 1:
+            raise ValueError(f"save_end_scenario needs num_envs=1 and episodes=1, got {env.num_envs} and {episodes}")
+        if Path(save_end_scenario).exists():
+            raise FileExistsError(f"scenario file {save_end_scenario} already exists; choose a new path")
     args = env_args(env)
     args["env_name"] = task_id
     writer = open_writer(Path(path), task_id=task_id, env_args=args)
@@ -281,6 +289,10 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
         writer.close()
     summary = _summary(env, records, steps, wall)
     summary.update(task=task_id, path=str(path), saved_demo_ids=saved, attempts=len(records))
+    if save_end_scenario is not None:
+        from .scenario import capture_scenario
+
+        summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
     cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.randomize, "max_steps": max_steps,
            "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
