@@ -120,11 +120,14 @@ def _cmd_mimic(args) -> int:
 
 def _cmd_train(args) -> int:
     from .policies import Policy
+    from .policies.diffusion import PRESETS
 
-    cfg = {"epochs": args.epochs, "batch_size": args.batch_size, "device": args.device, "seed": args.seed,
-           "output_dir": args.output_dir}
-    if args.max_steps:
-        cfg["max_steps"] = args.max_steps
+    if args.preset not in PRESETS:
+        raise ValueError(f"unknown training preset {args.preset!r}; valid presets: {sorted(PRESETS)}")
+    cfg = dict(PRESETS[args.preset], device=args.device, seed=args.seed, output_dir=args.output_dir)
+    for key in ("epochs", "batch_size", "max_steps", "lr"):
+        if getattr(args, key) is not None:
+            cfg[key] = getattr(args, key)
     path = Policy.from_backend("diffusion").train(args.dataset_path, cfg)
     print(json.dumps({"checkpoint": str(path)}))
     return 0
@@ -219,9 +222,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train a diffusion policy on a dataset")
     p.add_argument("--dataset-path", required=True)
     p.add_argument("--output-dir", default="outputs/policy")
-    p.add_argument("--epochs", type=int, default=100)
+    p.add_argument("--preset", default="default", help="named settings: default (GPU-sized) or cpu (2-core budget)")
+    p.add_argument("--epochs", type=int, default=None, help="passes over the data (default 100)")
     p.add_argument("--max-steps", type=int, default=None)
-    p.add_argument("--batch-size", type=int, default=256)
+    p.add_argument("--batch-size", type=int, default=None, help="default 256 (cpu preset: 64)")
+    p.add_argument("--lr", type=float, default=None, help="peak learning rate")
     p.add_argument("--device", default="cpu")
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=_cmd_train)

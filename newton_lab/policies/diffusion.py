@@ -18,6 +18,14 @@ from .model import ConditionalUnet1D
 from .normalize import MinMaxNormalizer
 from .scheduler import NoiseScheduler
 
+PRESETS: dict[str, dict[str, Any]] = {
+    "default": {},
+    # A 2-core CPU budget (~18 min): a quarter-width U-Net, small batches, a higher learning rate, 10k steps.
+    "cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 64, "lr": 6e-4,
+            "warmup_steps": 300, "max_steps": 10000, "epochs": 1000},
+}
+"""Named training settings; explicit fields override a preset's."""
+
 CHECKPOINT_FORMAT = "newton_lab.policies.diffusion"
 CHECKPOINT_VERSION = 1
 

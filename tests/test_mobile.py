@@ -1,0 +1,296 @@
+"""Mobile base, navigation, composition of coherent tasks, scenarios: real physics on CPU Warp."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+import warp as wp
+
+from newton_lab.robots.g1 import spec
+from newton_lab.robots.g1.packers import base_twist_to_wheel_velocities
+
+COHERENT = "GalbotG1-PickToShelf-v0"
+
+
+@pytest.fixture(scope="module")
+def nav_env():
+    from newton_lab.envs import make_env
+
+    return make_env("GalbotG1-BaseNav-v0", num_envs=2, device="cpu")
+
+
+@pytest.fixture(scope="module")
+def shelf_env():
+    from newton_lab.envs import make_env
+
+    return make_env(COHERENT, num_envs=4, device="cpu", seed=1, randomize=True)
+
+
+@pytest.fixture(scope="module")
+def shelf_run(shelf_env):
+    """One coherent episode per row with the default phase agents; per-step phase, bar and TCP history."""
+    from newton_lab.agents import TaskFlowAgent
+
+    env = shelf_env
+    env.reset()
+    agent = TaskFlowAgent.from_env(env)
+    bar = env.entities["cube"].slot
+    phases, bars, tcps, done_at, results = [], [], [], [None] * 4, [None] * 4
+    for t in range(700):
+        pre_phase = env.info["phase"].clone()
+        _, _, term, trunc, info = env.step(agent.act(env))
+        phases.append(torch.where(term | trunc, pre_phase, info["phase"]).clone())
+        bars.append(env.entity_poses[:, bar, :3].clone())
+        tcps.append(env.tcp_pose[:, :3].clone())
+        for r in np.nonzero((term | trunc).numpy())[0]:
+            if done_at[r] is None:
+                done_at[r] = t
+                results[r] = (bool(info["success"][r]), env.termination_reasons[int(info["termination_reason"][r])])
+        if all(d is not None for d in done_at):
+            break
+    return {"phase": torch.stack(phases), "bar": torch.stack(bars), "tcp": torch.stack(tcps), "done_at": done_at,
+            "results": results}
+
+
+# ---------------------------------------------------------------- base kinematics
+def test_commanded_twist_moves_base(nav_env):
+    env = nav_env
+    env.reset()
+    vx, vy, wz = 0.2, 0.05, 0.25
+    wheels = base_twist_to_wheel_velocities(vx, vy, wz, num_envs=env.num_envs)
+    for _ in range(40):  # 2 s at 20 Hz
+        env.step(wheels)
+    pose = env.joint_positions(spec.BASE_PLANAR_JOINTS)[0].numpy().astype(np.float64)
+    # integrate the base-frame twist exactly: a circular arc of radius v / wz
+    yaw = wz * 2.0
+    x = (vx * math.sin(yaw) + vy * (math.cos(yaw) - 1.0)) / wz
+    y = (vx * (1.0 - math.cos(yaw)) + vy * math.sin(yaw)) / wz
+    assert np.hypot(pose[0] - x, pose[1] - y) < 0.01, (pose, x, y)
+    assert abs(pose[2] - yaw) < 0.02
+
+
+def test_inactive_wheels_give_zero_twist(nav_env):
+    env = nav_env
+    env.reset()
+    for _ in range(10):
+        env.step(torch.zeros(env.num_envs, 4))
+    pose = env.joint_positions(spec.BASE_PLANAR_JOINTS)
+    assert float(pose.abs().max()) < 1e-3
+
+
+def test_base_nav_expert_reaches_goal(nav_env):
+    from newton_lab.agents import default_agent
+
+    res = nav_env.evaluate(agent=default_agent("GalbotG1-BaseNav-v0"), episodes=2, max_steps=240, progress=False)
+    assert res["success_rate"] == 1.0
+
+
+def test_wheel_clip_and_obs_layout(nav_env):
+    assert nav_env.action_joint_names == spec.BASE_WHEEL_JOINTS
+    assert list(nav_env.obs_terms) == ["actions", "base_xy", "goal_xy", "vector_to_goal"]
+    assert nav_env.obs_dim == 10
+
+
+# ---------------------------------------------------------------- agents composed per row
+class _SpyAgent:
+    def __init__(self):
+        self.resets = []
+
+    def act(self, env, env_ids=None):
+        return env.current_action()
+
+    def reset(self, env_ids=None):
+        self.resets.append(None if env_ids is None else sorted(np.asarray(env_ids).tolist()))
+
+    def done(self, env):
+        return torch.zeros(env.num_envs, dtype=torch.bool)
+
+
+def test_sequence_agent_rows_advance_independently(nav_env):
+    from newton_lab.agents import SequenceAgent, SequenceStep
+
+    first, second = _SpyAgent(), _SpyAgent()
+    row0_done = lambda env: torch.tensor([True, False])  # noqa: E731
+    seq = SequenceAgent([SequenceStep("drive", first, row0_done), SequenceStep("posture", second)])
+    nav_env.reset()
+    seq.act(nav_env)
+    assert seq.current_step().tolist() == [1, 0]
+    assert second.resets == [[0]], "only the advanced row's next agent is reset"
+    seq.act(nav_env)
+    assert seq.current_step().tolist() == [1, 0]
+
+
+# ---------------------------------------------------------------- coherent task
+def test_union_action_layout(shelf_env):
+    env = shelf_env
+    assert env.action_joint_names == spec.LEFT_ARM_JOINTS + (spec.LEFT_GRIPPER_JOINT,) + spec.BASE_WHEEL_JOINTS
+    assert list(env.action_terms) == ["arm_action", "gripper_action", "base_action"]
+    assert [p.name for p in env.cfg.phases] == ["pick", "nav", "place"]
+
+
+def test_inactive_terms_hold(shelf_env):
+    """Phase pick ignores the wheels (base stays); phase nav ignores arm/gripper (targets hold)."""
+    env = shelf_env
+    env.reset()
+    start = env.joint_positions(spec.BASE_PLANAR_JOINTS).clone()
+    act = env.current_action()
+    act[:, 7] = spec.GRIPPER_CLOSED
+    act[:, 8:12] = base_twist_to_wheel_velocities(0.3, 0.0, 0.0, num_envs=env.num_envs)
+    for _ in range(5):
+        env.step(act)
+    assert float((env.joint_positions(spec.BASE_PLANAR_JOINTS) - start).abs().max()) < 1e-3
+    tq = wp.to_torch(env.control.joint_target_q).view(env.num_envs, -1)
+    assert float(tq[0, env.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]]) == pytest.approx(spec.GRIPPER_CLOSED)
+    # row 0 in the nav phase: the arm command is ignored, the wheels drive
+    env.reset()
+    env.info["phase"][0] = 1
+    held = tq[0, [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]].clone()
+    act = env.current_action()
+    act[:, :7] += 0.3
+    act[:, 8:12] = base_twist_to_wheel_velocities(0.3, 0.0, 0.0, num_envs=env.num_envs)
+    for _ in range(5):
+        env.step(act)
+    moved = env.joint_positions(spec.BASE_PLANAR_JOINTS)[:, 0] - start[:, 0]
+    assert float(moved[0]) > 0.03 and float(moved[1:].abs().max()) < 1e-3
+    after = tq[0, [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]]
+    assert torch.allclose(after, held)
+    assert float(tq[1, env.layout.joints.coord["left_arm_joint1"]]) == pytest.approx(float(act[1, 0]))
+
+
+def test_nav_failure_ends_episode(shelf_env):
+    env = shelf_env
+    env.reset()
+    env.info["phase"][2] = 1
+    c = env.layout.entity_coord[env.entities["cube"].slot]
+    q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
+    q[2, c: c + 3] = torch.tensor([-1.0, -1.0, 0.1])  # the bar stands on the floor, away from the table
+    newton_fk(env)
+    _, _, term, _, info = env.step(env.current_action())
+    assert bool(term[2]) and not bool(term[0])
+    assert env.termination_reasons[int(info["termination_reason"][2])] == "nav_cube_dropped"
+    assert int(info["phase"][2]) == 0, "the row was reset"
+
+
+def newton_fk(env):
+    import newton
+
+    newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
+
+
+@pytest.mark.slow
+def test_coherent_rows_in_different_phases(shelf_run):
+    phase = shelf_run["phase"]
+    assert any(len(set(row.tolist())) > 1 for row in phase), "no step had rows in different phases"
+    assert all(r[0] for r in shelf_run["results"]), shelf_run["results"]
+    # within each row's episode the phase only ever advances, one at a time
+    for r, end in enumerate(shelf_run["done_at"]):
+        d = phase[1:end + 1, r] - phase[:end, r]
+        assert int(d.max()) <= 1 and int(d.min()) >= 0
+        assert int(phase[end, r]) == 2
+
+
+@pytest.mark.slow
+def test_bar_stays_in_hand_from_pick_to_place(shelf_run):
+    phase, bar, tcp = shelf_run["phase"], shelf_run["bar"], shelf_run["tcp"]
+    for r in range(phase.shape[1]):
+        nav = torch.nonzero(phase[:, r] == 1).flatten()
+        place = torch.nonzero(phase[:, r] == 2).flatten()
+        assert nav.numel() and place.numel()
+        span = torch.arange(int(nav[0]), int(place[0]) + 10)
+        dist = torch.linalg.norm(bar[span, r] - tcp[span, r], dim=1)
+        assert float(dist.max()) < 0.04, f"row {r}: bar left the gripper ({float(dist.max()):.3f} m)"
+
+
+def test_coherent_records_phase(shelf_env, tmp_path):
+    from newton_lab.datasets import read_episode
+
+    env = shelf_env
+    env.reset()
+
+    class Hold:
+        def act(self, env, env_ids=None):
+            return env.current_action()
+
+        def reset(self, env_ids=None):
+            pass
+
+        def done(self, env):
+            return torch.zeros(env.num_envs, dtype=torch.bool)
+
+    ref = env.collect(agent=Hold(), episodes=1, path=tmp_path / "c.hdf5", max_steps=3, progress=False)
+    ep = read_episode(ref.path, ref["saved_demo_ids"][0])
+    assert ep["datagen"]["phase"].shape == (3,)
+
+
+# ---------------------------------------------------------------- scenarios
+def test_scenario_round_trip(tmp_path):
+    from newton_lab.envs import make_env
+    from newton_lab.envs.scenario import capture_scenario, load_scenario
+
+    env = make_env("GalbotG1-PickToShelf-Nav-v0", num_envs=1, device="cpu")
+    wheels = base_twist_to_wheel_velocities(0.2, 0.0, 0.3, num_envs=1)
+    for _ in range(10):
+        env.step(wheels)
+    q = wp.to_torch(env.state.joint_q).view(1, -1)[0].numpy().copy()
+    path = capture_scenario(env, 0).save(tmp_path / "end.yaml")
+    with pytest.raises(FileExistsError):
+        capture_scenario(env, 0).save(path)
+    back = load_scenario(path).overlay(env.layout, env.layout.default_q, task_id=env.task_id)
+    robot = env.layout.robot_coords
+    assert np.abs(back[:robot] - q[:robot]).max() < 1e-3
+    c = env.layout.entity_coord[env.entities["cube"].slot]
+    assert np.abs(back[c:c + 3] - q[c:c + 3]).max() < 1e-3
+    # the option path: an env started from the saved scenario resets to it
+    env2 = make_env("GalbotG1-PickToShelf-Nav-v0", num_envs=1, device="cpu", task_options={"init_scenario": str(path)})
+    q2 = wp.to_torch(env2.state.joint_q).view(1, -1)[0].numpy()
+    assert np.abs(q2[:robot] - q[:robot]).max() < 1e-3
+
+
+@pytest.mark.parametrize(
+    "doc, match",
+    [
+        ({"schema": "other"}, "schema must be"),
+        ({"schema": "newton_lab/scenario-v1", "colour": 1}, r"unknown field\(s\) \['colour'\]"),
+        ({"schema": "newton_lab/scenario-v1", "articulations": {"robot": {"base_pose": [0, 0, 0]}}}, "7 numbers"),
+        ({"schema": "newton_lab/scenario-v1", "articulations": {"robot": {"velocity": {}}}}, "unknown field"),
+        ({"schema": "newton_lab/scenario-v1", "articulations": {"arm2": {}}}, r"\['arm2'\]"),
+        ({"schema": "newton_lab/scenario-v1", "rigid_objects": {"cube": {"root_pose": [0] * 7}}}, "non-zero quaternion"),
+    ],
+)
+def test_bad_scenario_documents(doc, match):
+    from newton_lab.envs.scenario import ScenarioError, parse_scenario
+
+    with pytest.raises(ScenarioError, match=match):
+        parse_scenario(doc, "bad.yaml")
+
+
+def test_scenario_names_unknown_joint_and_object(shelf_env, tmp_path):
+    from newton_lab.envs.scenario import ScenarioError, parse_scenario
+
+    lay = shelf_env.layout
+    doc = {"schema": "newton_lab/scenario-v1", "articulations": {"robot": {"joint_position": {"elbow": 1.0}}}}
+    with pytest.raises(ScenarioError, match="unknown joint 'elbow'"):
+        parse_scenario(doc, "s.yaml").overlay(lay, lay.default_q, task_id=COHERENT)
+    doc = {"schema": "newton_lab/scenario-v1", "rigid_objects": {"mug": {"root_pose": [0, 0, 0, 0, 0, 0, 1]}}}
+    with pytest.raises(ScenarioError, match="rigid_objects.mug is not an object.*valid objects"):
+        parse_scenario(doc, "s.yaml").overlay(lay, lay.default_q, task_id=COHERENT)
+    doc = {"schema": "newton_lab/scenario-v1", "rigid_objects": {"table": {"root_pose": [5, 0, 0, 0, 0, 0, 1]}}}
+    with pytest.raises(ScenarioError, match="static object"):
+        parse_scenario(doc, "s.yaml").overlay(lay, lay.default_q, task_id=COHERENT)
+
+
+def test_bad_scenario_file_and_option(tmp_path):
+    from newton_lab.envs import make_env
+    from newton_lab.envs.scenario import ScenarioError, load_scenario
+
+    with pytest.raises(ScenarioError, match="does not exist"):
+        load_scenario(tmp_path / "missing.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("schema: [unclosed\n")
+    with pytest.raises(ScenarioError, match="not valid YAML"):
+        load_scenario(bad)
+    with pytest.raises(ValueError, match=r"unknown task option\(s\) \['sorting_object'\].*init_scenario"):
+        make_env("GalbotG1-PickToShelf-Nav-v0", task_options={"sorting_object": "red_cube"})
