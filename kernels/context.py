@@ -35,6 +35,8 @@ class TaskContext:
     """Half sizes of each entity's box (or bounding box) [m]."""
     base_coord: int
     """World-local coordinate of ``base_x`` (``base_y``, ``base_yaw`` follow): the planar base pose."""
+    leg_coord: int
+    """World-local coordinate of ``leg_joint1`` (leg joints 2..5 follow)."""
     tcp_body: int
     tcp_offset: wp.transform
     gripper_coord: int

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import importlib
+import inspect
 from typing import Any, Callable
 
 _REGISTRY: dict[str, dict[str, Any]] = {}
@@ -35,3 +36,15 @@ def lookup(task_id: str) -> dict[str, Any]:
     if task_id not in _REGISTRY:
         raise ValueError(f"unknown task id {task_id!r}; valid ids: {', '.join(sorted(_REGISTRY))}")
     return _REGISTRY[task_id]
+
+
+def call_with_options(factory: Callable[..., Any], options: dict[str, Any] | None) -> Any:
+    """Call ``factory`` with the task options it accepts (coherent tasks pass theirs to every component)."""
+    accepted = inspect.signature(factory).parameters
+    return factory(**{k: v for k, v in (options or {}).items() if k in accepted})
+
+
+def resolve(ref: str) -> Any:
+    """The object named by ``module:attribute``."""
+    module, _, name = ref.partition(":")
+    return getattr(importlib.import_module(module), name)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
-
 import numpy as np
 import torch
 
@@ -12,20 +10,15 @@ from .base import BaseAgent, EpisodeTracker
 
 def default_agent(task_id: str, **options) -> BaseAgent:
     """A component task's expert: its motion plan (planner) or its registered nav agent factory."""
-    from ..registry import lookup
+    from ..registry import call_with_options, lookup, resolve
     from .planner.agent import PlannerAgent
 
     entry = lookup(task_id)
     if entry.get("motion_plan"):
-        return PlannerAgent.from_task(task_id, **options)
+        return PlannerAgent.from_task(task_id, task_options=options)
     ref = entry.get("nav_agent") or entry.get("agent")
     if ref:
-        module, _, name = ref.partition(":")
-        factory = getattr(importlib.import_module(module), name)
-        import inspect
-
-        accepted = inspect.signature(factory).parameters
-        return factory(**{k: v for k, v in options.items() if k in accepted})
+        return call_with_options(resolve(ref), options)
     raise ValueError(f"task {task_id!r} registers no expert (motion_plan or nav_agent); pass agents={{phase: agent}}")
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from ..registry import lookup
+from ..registry import call_with_options, lookup
 from .cfg import ActionTermCfg, PhaseCfg, TaskCfg
 
 
@@ -34,11 +34,7 @@ def task_sequence(*phases: PhaseCfg) -> tuple[PhaseCfg, ...]:
 
 
 def _component(task_id: str, options: dict[str, Any]) -> TaskCfg:
-    factory = lookup(task_id)["cfg"]
-    import inspect
-
-    accepted = inspect.signature(factory).parameters
-    return factory(**{k: v for k, v in options.items() if k in accepted})
+    return call_with_options(lookup(task_id)["cfg"], options)
 
 
 def combined_task(

@@ -181,6 +181,8 @@ class NewtonEnv:
         ctx.coords_per_world = lay.coords_per_world
         ctx.dofs_per_world = lay.dofs_per_world
         ctx.base_coord = lay.joints.coord["base_x"]
+        ctx.leg_coord = lay.joints.coord["leg_joint1"]
+        assert [lay.joints.coord[j] - ctx.leg_coord for j in spec.LEG_JOINTS] == list(range(5)), "legs not contiguous"
         ctx.entity_body = wp.array(lay.entity_body or [-1], dtype=int)
         ctx.entity_coord = wp.array(lay.entity_coord or [-1], dtype=int)
         ctx.entity_dof = wp.array(lay.entity_dof or [-1], dtype=int)

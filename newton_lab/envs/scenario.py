@@ -181,15 +181,11 @@ def load_scenario(ref: str | Path) -> Scenario:
 
 def capture_scenario(env, row: int = 0, *, terminal: bool = False, source: str | None = None) -> Scenario:
     """The scenario of ``row``'s current state (``terminal=True``: the state its last episode ended in)."""
-    import torch  # noqa: F401 - env tensors are torch
+    import warp as wp
 
     lay = env.layout
-    if terminal:
-        q = env.terminal_joint_q[row].detach().cpu().numpy().astype(np.float64)
-    else:
-        import warp as wp
-
-        q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[row].detach().cpu().numpy().astype(np.float64)
+    coords = env.terminal_joint_q if terminal else wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
+    q = coords[row].detach().cpu().numpy().astype(np.float64)
     coord = lay.joints.coord
     yaw = q[coord["base_yaw"]]
     base = (q[coord["base_x"]], q[coord["base_y"]], 0.0, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))

@@ -28,14 +28,15 @@ class PlannerAgent(BaseAgent):
         """Rows whose IK missed a target by more than the plan's tolerances (cumulative)."""
 
     @classmethod
-    def from_task(cls, task_id: str, **kwargs) -> PlannerAgent:
-        """The expert for ``task_id`` (its registered motion plan)."""
+    def from_task(cls, task_id: str, task_options: dict | None = None, **kwargs) -> PlannerAgent:
+        """The expert for ``task_id`` (its registered motion plan, built for ``task_options`` when the plan
+        is a Python factory taking them, e.g. ``sorting_object``)."""
         from ...registry import lookup
 
         ref = lookup(task_id).get("motion_plan")
         if not ref:
             raise ValueError(f"task {task_id!r} has no motion plan; use another agent (e.g. a policy or nav agent)")
-        return cls(load_motion_plan(ref), **kwargs)
+        return cls(load_motion_plan(ref, task_options), **kwargs)
 
     # ------------------------------------------------------------------ binding to an env
     def _bind(self, env) -> None:

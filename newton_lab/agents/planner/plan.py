@@ -126,9 +126,12 @@ def plan_from_yaml(text: str) -> MotionPlan:
     return MotionPlan(steps=steps, **data)
 
 
-def load_motion_plan(ref: str) -> MotionPlan:
-    """Load ``package:file.yaml`` (a YAML resource) or ``module:function`` (a Python plan factory)."""
+def load_motion_plan(ref: str, task_options: dict | None = None) -> MotionPlan:
+    """Load ``package:file.yaml`` (a YAML resource) or ``module:function`` (a Python plan factory, called
+    with the task options it accepts)."""
     module, _, name = ref.partition(":")
     if name.endswith((".yaml", ".yml")):
         return plan_from_yaml(resources.files(module).joinpath(name).read_text())
-    return getattr(importlib.import_module(module), name)()
+    from ...registry import call_with_options
+
+    return call_with_options(getattr(importlib.import_module(module), name), task_options)

@@ -1,0 +1,189 @@
+"""SortToShelf configurations (reference §3.7): Pick, Nav and Place components and the coherent task, each
+for one of the four sorting objects (``task_options={"sorting_object": ...}``, default red_cube).
+
+The Nav and Place components start from per-object scenarios (``scenarios/<component>_<object>.yaml``)
+captured at the end of the previous component; the coherent task chains the components without resets.
+"""
+
+from __future__ import annotations
+
+from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
+from newton_lab.envs.compose import combined_task, phase, task_sequence
+from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import navigation as nav
+from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common.table_top import left_arm_actions
+from newton_lab.tasks.sort_to_shelf import scene
+from newton_lab.tasks.sort_to_shelf.mdp import events, observations, terminations
+from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW, SortingObject
+from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
+
+SCENARIOS = "newton_lab.tasks.sort_to_shelf.config.g1.scenarios"
+NAV_SUCCESS_RADIUS = 0.02
+
+
+def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
+    base = dict(
+        task_id=task_id,
+        entities=scene.entities(),
+        actions=left_arm_actions(),
+        observations=[
+            ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
+            ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),
+            ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
+            ObsTermCfg(name="gripper_pos", func=common_obs.gripper_pos, dim=1),
+            ObsTermCfg(name="object_pose", func=observations.make_object_pose(obj), dim=7),
+        ],
+        phase_success=[],
+        terminations={"object_dropped": terminations.make_dropped(obj)},
+        signals={"grasped_object": terminations.make_grasped(obj)},
+        posture=scene.robot_posture(),
+        root_pos=scene.ROBOT_ROOT,
+        arm_home=spec.CARRY_LEFT_ARM,
+        fixed_base=True,
+        hold_slots=1,
+    )
+    base.update(fields)
+    return TaskCfg(**base)
+
+
+def _scenario(component: str, obj: SortingObject, init_scenario: str | None) -> str:
+    return init_scenario or f"{SCENARIOS}:{component}_{obj.name}.yaml"
+
+
+def pick_cfg(sorting_object: str | None = None) -> TaskCfg:
+    """Pick the object from the table into the ready posture (success: lifted and arm at ready)."""
+    obj = lookup_object(sorting_object)
+    terms = {"object_dropped": terminations.make_dropped(obj)}
+    if obj.upright_min > 0:
+        terms["object_tipped"] = terminations.make_tipped(obj)
+    return _world("GalbotG1-SortToShelf-Pick-v0", obj, phase_success=[terminations.make_at_carry(obj)],
+                  terminations=terms, events=[events.permute_objects], options={"sorting_object": obj.name})
+
+
+def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
+    """Drive to the object's place position, lift the legs for the upper row, bring the arm to the place-start
+    posture (success: all of it held for 20 steps)."""
+    obj = lookup_object(sorting_object)
+    _base_xy, _goal_xy, _to_goal = nav.make_nav_observations(obj.place_base_xy)
+    neg_distance, goal_reward = nav.make_nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS)
+    return _world(
+        "GalbotG1-SortToShelf-Nav-v0", obj,
+        actions=nav.base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
+                                      ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
+        observations=[
+            ObsTermCfg(name="actions", func=common_obs.last_action, dim=16),
+            ObsTermCfg(name="base_xy", func=_base_xy, dim=2),
+            ObsTermCfg(name="goal_xy", func=_goal_xy, dim=2),
+            ObsTermCfg(name="vector_to_goal", func=_to_goal, dim=2),
+        ],
+        phase_success=[terminations.make_at_place_start(obj)],
+        rewards={"distance": (neg_distance, 2.0), "goal_reached": (goal_reward, 10.0),
+                 "action_l2": (nav.action_l2, -0.02)},
+        scenario=_scenario("nav", obj, init_scenario),
+        initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+        fixed_base=False,
+        options={"sorting_object": obj.name},
+    )
+
+
+def place_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
+    """Put the object in its cell, let go and retract the arm (success: ``placed``)."""
+    obj = lookup_object(sorting_object)
+    return _world("GalbotG1-SortToShelf-Place-v0", obj, phase_success=[terminations.make_placed(obj)],
+                  scenario=_scenario("place", obj, init_scenario),
+                  initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+                  options={"sorting_object": obj.name})
+
+
+def coherent_cfg(sorting_object: str | None = None) -> TaskCfg:
+    """Pick -> Nav -> Place in one episode; the pick phase holds the base still."""
+    obj = lookup_object(sorting_object)
+    return combined_task(
+        "GalbotG1-SortToShelf-v0",
+        phases=task_sequence(
+            phase("pick", "GalbotG1-SortToShelf-Pick-v0", terms=("left_arm", "left_gripper"), fixed_base=True),
+            phase("nav", "GalbotG1-SortToShelf-Nav-v0", terms=("base", "legs", "left_arm")),
+            phase("place", "GalbotG1-SortToShelf-Place-v0", terms=("left_arm", "left_gripper")),
+        ),
+        options={"sorting_object": obj.name},
+        actions=[
+            ActionTermCfg(name="base_action", group="base", type="velocity"),  # no wheel clip (reference)
+            ActionTermCfg(name="leg_action", group="legs", type="absolute"),
+            ActionTermCfg(name="arm_action", group="left_arm", type="absolute"),
+            ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
+        ],
+    )
+
+
+# ---------------------------------------------------------------- experts
+def _place_quat():
+    return (0.70710678, -0.70710678, 0.0, 0.0)
+
+
+def pick_plan(sorting_object: str | None = None):
+    """Side grasp of the object, lift, ready posture (reference SortToShelf-Pick plan, settle 6)."""
+    from newton_lab.agents.planner.plan import AssetTarget, MotionPlan, MotionStep
+
+    o = lookup_object(sorting_object).name
+    side = spec.SIDE_GRASP_TCP_QUAT
+    return MotionPlan(
+        steps=(
+            MotionStep(name=f"pre_approach_{o}", target=AssetTarget(o, (-0.20, 0.0, 0.14)), quat=side, linear=6),
+            MotionStep(name=f"approach_{o}", target=AssetTarget(o, (-0.12, 0.0, 0.025)), quat=side, linear=4),
+            MotionStep(name=f"descend_to_{o}", target=AssetTarget(o, (-0.01, 0.0, 0.025)), quat=side, linear=4),
+            MotionStep(name="close_left_gripper", gripper_open=False, hold=25),
+            MotionStep(name=f"lift_{o}", target=AssetTarget(o, (0.0, 0.0, 0.22)), quat=side, gripper_open=False,
+                       linear=3),
+            MotionStep(name=f"carry_{o}", joints=spec.CARRY_LEFT_ARM, gripper_open=False, hold=10),
+        ),
+        max_joint_step=0.04,
+        settle_steps=6,
+    )
+
+
+def place_plan(sorting_object: str | None = None):
+    """Into the cell facing the shelf, down to the release height, let go, back out, arm to ready."""
+    from newton_lab.agents.planner.plan import MotionPlan, MotionStep, WorldTarget
+
+    obj = lookup_object(sorting_object)
+    x, y, z = obj.release_tcp
+    approach = WorldTarget((x, y + 0.24, z + 0.07))
+    insert = WorldTarget((x, y, z + 0.07))
+    release = WorldTarget((x, y, z))
+    q, cell = _place_quat(), obj.cell
+    return MotionPlan(
+        steps=(
+            MotionStep(name=f"approach_{cell}", target=approach, quat=q, gripper_open=False),
+            MotionStep(name=f"insert_to_{cell}", target=insert, quat=q, gripper_open=False, linear=4),
+            MotionStep(name=f"descend_to_{cell}", target=release, quat=q, gripper_open=False, linear=2),
+            MotionStep(name=f"release_on_{cell}", target=release, quat=q, hold=35),
+            MotionStep(name=f"retreat_from_{cell}", target=approach, quat=q, hold=20, linear=4),
+            MotionStep(name=f"retract_left_arm_from_{cell}", joints=spec.CARRY_LEFT_ARM, hold=20),
+        ),
+        max_joint_step=0.04,
+        settle_steps=6,
+    )
+
+
+def nav_agent(sorting_object: str | None = None):
+    """Drive only: turn to face the shelf, then straight to the object's place position."""
+    from newton_lab.agents.nav import TrajectoryNavAgent
+
+    obj = lookup_object(sorting_object)
+    return TrajectoryNavAgent(obj.place_base_xy, SHELF_NAV_YAW, success_radius=NAV_SUCCESS_RADIUS,
+                              yaw_tolerance=0.04, rotate_before_translate=True, waypoint_spacing=10.0)
+
+
+def nav_sequence_agent(sorting_object: str | None = None):
+    """The Nav expert: drive -> legs (ramped, lifted for the upper row) -> arm to the place-start posture."""
+    from newton_lab.agents import JointTargetAgent, SequenceAgent, SequenceStep
+
+    obj = lookup_object(sorting_object)
+    return SequenceAgent([
+        SequenceStep("drive", nav_agent(obj.name)),
+        SequenceStep("posture_legs", JointTargetAgent(dict(zip(spec.LEG_JOINTS, obj.legs)), max_step=0.04,
+                                                      tolerance=0.12, hold_steps=20)),
+        SequenceStep("posture_arm", JointTargetAgent(dict(zip(spec.LEFT_ARM_JOINTS, obj.approach_arm)),
+                                                     max_step=0.04, tolerance=0.12)),
+    ])
