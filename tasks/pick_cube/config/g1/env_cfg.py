@@ -32,4 +32,5 @@ def pick_cube_cfg() -> TaskCfg:
         posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.PICK_CUBE_HEAD),
         root_pos=spec.MANIPULATION_ROOT_POS,
         fixed_base=True,
+        constraints_per_world=128,  # policy rollouts pressing the cube into the table exceeded the default 64 rows
     )
