@@ -133,6 +133,14 @@ def _cmd_train(args) -> int:
     return 0
 
 
+def _cmd_split(args) -> int:
+    from .datasets import split_by_phase
+
+    refs = split_by_phase(args.dataset_path, args.out)
+    print(json.dumps({name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]} for name, r in refs.items()}))
+    return 0
+
+
 def _cmd_export(args) -> int:
     from .datasets.lerobot import export_lerobot
 
@@ -230,6 +238,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu")
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("split", help="split a coherent task's dataset into one dataset per phase")
+    p.add_argument("--dataset-path", required=True)
+    p.add_argument("--out", required=True, help="folder for <phase>.hdf5 / .zarr (files must not exist)")
+    p.set_defaults(func=_cmd_split)
 
     p = sub.add_parser("export", help="export a dataset to LeRobot v3")
     p.add_argument("--dataset-path", required=True)

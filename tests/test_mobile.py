@@ -204,14 +204,20 @@ def test_bar_stays_in_hand_from_pick_to_place(shelf_run):
         assert float(dist.max()) < 0.04, f"row {r}: bar left the gripper ({float(dist.max()):.3f} m)"
 
 
-def test_coherent_records_phase(shelf_env, tmp_path):
-    from newton_lab.datasets import read_episode
+def test_coherent_records_phase_and_splits(shelf_env, tmp_path):
+    from newton_lab.datasets import list_demos, read_dataset_info, read_episode
+    from newton_lab.datasets.split import split_by_phase
 
     env = shelf_env
     env.reset()
 
-    class Hold:
+    class HoldThenNav:  # holds still; moves every row to the nav phase after two steps (test only)
+        calls = 0
+
         def act(self, env, env_ids=None):
+            HoldThenNav.calls += 1
+            if HoldThenNav.calls == 3:
+                env.info["phase"][:] = 1
             return env.current_action()
 
         def reset(self, env_ids=None):
@@ -220,9 +226,18 @@ def test_coherent_records_phase(shelf_env, tmp_path):
         def done(self, env):
             return torch.zeros(env.num_envs, dtype=torch.bool)
 
-    ref = env.collect(agent=Hold(), episodes=1, path=tmp_path / "c.hdf5", max_steps=3, progress=False)
+    ref = env.collect(agent=HoldThenNav(), episodes=1, path=tmp_path / "c.hdf5", max_steps=5, progress=False)
     ep = read_episode(ref.path, ref["saved_demo_ids"][0])
-    assert ep["datagen"]["phase"].shape == (3,)
+    assert ep["datagen"]["phase"].tolist() == [0, 0, 1, 1, 1]
+    parts = split_by_phase(ref.path, tmp_path / "split")
+    pick, nav = read_episode(parts["pick"].path, 0), read_episode(parts["nav"].path, 0)
+    assert pick["actions"].shape == (2, 8) and nav["actions"].shape == (3, 4)
+    np.testing.assert_array_equal(nav["actions"], ep["actions"][2:, 8:12])
+    assert bool(pick["attrs"]["success"]) and not bool(nav["attrs"]["success"])
+    assert read_dataset_info(parts["nav"].path)["task_id"] == "GalbotG1-PickToShelf-Nav-v0"
+    assert list_demos(parts["place"].path) == []
+    with pytest.raises(FileExistsError):
+        split_by_phase(ref.path, tmp_path / "split")
 
 
 # ---------------------------------------------------------------- scenarios
@@ -294,3 +309,47 @@ def test_bad_scenario_file_and_option(tmp_path):
         load_scenario(bad)
     with pytest.raises(ValueError, match=r"unknown task option\(s\) \['sorting_object'\].*init_scenario"):
         make_env("GalbotG1-PickToShelf-Nav-v0", task_options={"sorting_object": "red_cube"})
+
+
+# ---------------------------------------------------------------- SortToShelf
+def test_sort_to_shelf_options_and_layout():
+    from newton_lab.envs import make_env
+    from newton_lab.registry import lookup
+
+    with pytest.raises(ValueError, match=r"unknown sorting_object 'mug'; valid values: \['red_cube', 'blue_cuboid'"):
+        make_env("GalbotG1-SortToShelf-v0", task_options={"sorting_object": "mug"})
+    with pytest.raises(ValueError, match=r"unknown task option\(s\) \['colour'\]"):
+        make_env("GalbotG1-SortToShelf-Pick-v0", task_options={"colour": "red"})
+    cfg = lookup("GalbotG1-SortToShelf-v0")["cfg"](sorting_object="yellow_cylinder")
+    assert [t.name for t in cfg.actions] == ["base_action", "leg_action", "arm_action", "gripper_action"]
+    assert sum(len(spec.JOINT_GROUPS[t.group]) for t in cfg.actions) == 17
+    assert cfg.actions[0].clip is None, "the coherent task's wheels are not clipped"
+    assert [p.fixed_base for p in cfg.phases] == [True, False, False]
+    nav = lookup("GalbotG1-SortToShelf-Nav-v0")["cfg"](sorting_object="blue_cuboid")
+    assert nav.scenario.endswith("nav_blue_cuboid.yaml") and nav.actions[0].clip == (-4.5, 4.5)
+
+
+@pytest.mark.slow
+def test_sort_to_shelf_upper_row_with_leg_lift():
+    """Coherent SortToShelf for the red cube (upper cell): the legs lift during nav and the cube ends in a1."""
+    from newton_lab.agents import expert_agent
+    from newton_lab.envs import make_env
+    from newton_lab.tasks.sort_to_shelf.objects import OBJECTS
+
+    env = make_env("GalbotG1-SortToShelf-v0", num_envs=1, device="cpu", seed=2, randomize=True,
+                   task_options={"sorting_object": "red_cube"})
+    agent = expert_agent(env)
+    env.reset()
+    lift_in_place = []
+    for _ in range(700):
+        phase = int(env.info["phase"][0])
+        _, _, term, trunc, info = env.step(agent.act(env))
+        if bool(term[0] | trunc[0]):
+            break
+        if phase == 2:
+            lift_in_place.append(float(env.joint_positions(["leg_joint1"])[0, 0]))
+    assert bool(info["success"][0]), env.termination_reasons[int(info["termination_reason"][0])]
+    assert min(lift_in_place) > 0.15, "legs lifted for the upper row while placing"
+    final = env.terminal_joint_q[0].numpy()
+    c = env.layout.entity_coord[env.entities["red_cube"].slot]
+    assert np.linalg.norm(final[c:c + 2] - np.asarray(OBJECTS["red_cube"].target[:2])) < 0.10

@@ -3,6 +3,7 @@
 from .ref import DatasetProvenance, DatasetRef
 from .storage import (FORMAT_VERSION, SUFFIXES, EpisodeWriter, delete_demos, list_demos, open_writer,
                       read_dataset_info, read_episode, set_dataset_attrs)
+from .split import split_by_phase
 
 __all__ = ["DatasetRef", "DatasetProvenance", "set_dataset_attrs", "EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
-           "delete_demos", "SUFFIXES", "FORMAT_VERSION"]
+           "delete_demos", "split_by_phase", "SUFFIXES", "FORMAT_VERSION"]
