@@ -15,13 +15,15 @@ import torch
 from .base import BaseAgent
 
 
-def _compatible_task(env_task: str, policy_task: str | None) -> bool:
-    """A policy trained on a task (or on its Mimic data) runs on that task and on its Mimic variant."""
-    if policy_task is None or env_task == policy_task:
+def _compatible_task(env, policy_task: str | None) -> bool:
+    """A policy trained on a task (or on its Mimic data) runs on that task, on its Mimic variant, and as a
+    phase agent of a coherent task that has it as a component."""
+    if policy_task is None or env.task_id == policy_task:
         return True
     from ..registry import lookup
 
-    return lookup(env_task).get("source_task") == policy_task
+    return (lookup(env.task_id).get("source_task") == policy_task
+            or policy_task in [p.task_id for p in env.cfg.phases])
 
 
 class PolicyAgent(BaseAgent):
@@ -44,7 +46,7 @@ class PolicyAgent(BaseAgent):
     def _bind(self, env) -> None:
         p = self.policy
         task = p.info.get("task_id")
-        if not _compatible_task(env.task_id, task):
+        if not _compatible_task(env, task):
             raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; "
                              f"evaluate it on {task}")
         missing = [k for k in p.obs_keys if k not in env.obs_terms]
@@ -56,14 +58,17 @@ class PolicyAgent(BaseAgent):
                  if k in dims and dims[k] != env.obs_terms[k].stop - env.obs_terms[k].start}
         if wrong:
             raise ValueError(f"checkpoint observation sizes (checkpoint, env) {wrong} do not match {env.task_id}")
-        names = list(p.info.get("action_joint_names", []))
-        if names and names != list(env.action_joint_names):
+        names = list(p.info.get("action_joint_names", [])) or list(env.action_joint_names)
+        if not set(names) <= set(env.action_joint_names):
             raise ValueError(f"checkpoint actions {names} differ from the env's {list(env.action_joint_names)}")
+        # a component policy inside a coherent task writes its own columns; the others hold
+        self._act_cols = torch.as_tensor([list(env.action_joint_names).index(j) for j in names], device=env.torch_device)
+        self._full_width = len(names) == env.action_dim
         cols = np.concatenate([np.arange(env.obs_terms[k].start, env.obs_terms[k].stop) for k in p.obs_keys])
         self._cols = torch.as_tensor(cols, device=env.torch_device)
         n, h, a = env.num_envs, p.cfg.obs_horizon, p.cfg.action_horizon
         self._history = torch.zeros(n, h, len(cols), device=env.torch_device)
-        self._queue = torch.zeros(n, a, env.action_dim, device=env.torch_device)
+        self._queue = torch.zeros(n, a, len(names), device=env.torch_device)
         self._cursor = np.full(n, a, dtype=np.int64)
         self._seen_episode = np.full(n, -1, dtype=np.int64)
         self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
@@ -98,4 +103,8 @@ class PolicyAgent(BaseAgent):
         idx = torch.as_tensor(self._cursor, device=env.torch_device)
         actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()
         self._cursor += 1
-        return actions
+        if self._full_width and bool((self._act_cols == torch.arange(env.action_dim, device=env.torch_device)).all()):
+            return actions
+        out = env.current_action()
+        out[:, self._act_cols] = actions
+        return out
