@@ -70,6 +70,17 @@ def _check(task_id: str, runner: str, workers: int) -> None:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
 
 
+def _sharded(task, stage: str, name: str, episodes: int, shards: int, seed: int, out: str, **fixed) -> dict[str, Any]:
+    """Map ``task`` over ``shards`` (disjoint seed ranges, one output folder each) and merge the shard datasets
+    into ``<out>/<name>``; returns the merged artifact with the shard states."""
+    sizes = _split(episodes, shards)
+    futures = task.map(episodes=sizes, seed=[seed + SEED_STRIDE * i for i in range(len(sizes))],
+                       out_dir=[str(Path(out) / "shards" / f"{stage}_{i}") for i in range(len(sizes))],
+                       **{k: unmapped(v) for k, v in fixed.items()})
+    return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name=name,
+                                  return_state=True), [f.state.name for f in futures])
+
+
 @flow(name="collect")
 def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, device: str | None = None,
             out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
@@ -77,12 +88,8 @@ def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, d
     if shards <= 1:
         return _with_state(collect_task(task_id=task_id, episodes=episodes, num_envs=num_envs, seed=seed,
                                         device=device, out_dir=out, return_state=True))
-    sizes = _split(episodes, shards)
-    futures = collect_task.map(task_id=unmapped(task_id), episodes=sizes, num_envs=unmapped(num_envs),
-                               seed=[seed + SEED_STRIDE * i for i in range(len(sizes))], device=unmapped(device),
-                               out_dir=[str(Path(out) / "shards" / f"collect_{i}") for i in range(len(sizes))])
-    return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name="demos",
-                                  return_state=True), [f.state.name for f in futures])
+    return _sharded(collect_task, "collect", "demos", episodes, shards, seed, out, task_id=task_id,
+                    num_envs=num_envs, device=device)
 
 
 @flow(name="mimic")
@@ -92,12 +99,8 @@ def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: i
     if shards <= 1:
         return _with_state(mimic_task(source=source, episodes=episodes, num_envs=num_envs, seed=seed, device=device,
                                       out_dir=out, return_state=True))
-    sizes = _split(episodes, shards)
-    futures = mimic_task.map(source=unmapped(source), episodes=sizes, num_envs=unmapped(num_envs),
-                             seed=[seed + SEED_STRIDE * i for i in range(len(sizes))], device=unmapped(device),
-                             out_dir=[str(Path(out) / "shards" / f"mimic_{i}") for i in range(len(sizes))])
-    return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name="mimic",
-                                  return_state=True), [f.state.name for f in futures])
+    return _sharded(mimic_task, "mimic", "mimic", episodes, shards, seed, out, source=source, num_envs=num_envs,
+                    device=device)
 
 
 @flow(name="train")

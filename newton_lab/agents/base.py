@@ -28,6 +28,13 @@ class ZeroAgent(BaseAgent):
         return env.current_action()
 
 
+def as_rows(env_ids, num_envs: int) -> np.ndarray:
+    """``env_ids`` (None = all rows, or any index sequence / tensor) as a 1-D int64 numpy array."""
+    if env_ids is None:
+        return np.arange(num_envs)
+    return np.asarray(torch.as_tensor(env_ids).cpu(), dtype=np.int64).reshape(-1)
+
+
 class EpisodeTracker:
     """Which rows started a new episode (or were ``forget``-ed) since the agent last looked."""
 
@@ -35,16 +42,13 @@ class EpisodeTracker:
         self.seen = np.full(num_envs, -1, dtype=np.int64)
 
     def forget(self, env_ids=None) -> None:
-        if env_ids is None:
-            self.seen[:] = -1
-        else:
-            self.seen[np.asarray(torch.as_tensor(env_ids).cpu(), dtype=np.int64).reshape(-1)] = -1
+        self.seen[as_rows(env_ids, len(self.seen))] = -1
 
     def fresh_rows(self, env, env_ids=None) -> np.ndarray:
         """Rows (restricted to ``env_ids``) needing a fresh start; marks them seen."""
         episode = env.episode_count.cpu().numpy()
         rows = np.nonzero(episode != self.seen)[0]
         if env_ids is not None:
-            rows = np.intersect1d(rows, np.asarray(torch.as_tensor(env_ids).cpu(), dtype=np.int64).reshape(-1))
+            rows = np.intersect1d(rows, as_rows(env_ids, len(self.seen)))
         self.seen[rows] = episode[rows]
         return rows

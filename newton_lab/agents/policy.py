@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .base import BaseAgent
+from .base import BaseAgent, EpisodeTracker
 
 
 def _compatible_task(env, policy_task: str | None) -> bool:
@@ -62,38 +62,34 @@ class PolicyAgent(BaseAgent):
         if not set(names) <= set(env.action_joint_names):
             raise ValueError(f"checkpoint actions {names} differ from the env's {list(env.action_joint_names)}")
         # a component policy inside a coherent task writes its own columns; the others hold
-        self._act_cols = torch.as_tensor([list(env.action_joint_names).index(j) for j in names], device=env.torch_device)
-        self._full_width = len(names) == env.action_dim
+        cols = [list(env.action_joint_names).index(j) for j in names]
+        self._act_cols = None if cols == list(range(env.action_dim)) else torch.as_tensor(cols, device=env.torch_device)
         cols = np.concatenate([np.arange(env.obs_terms[k].start, env.obs_terms[k].stop) for k in p.obs_keys])
         self._cols = torch.as_tensor(cols, device=env.torch_device)
         n, h, a = env.num_envs, p.cfg.obs_horizon, p.cfg.action_horizon
         self._history = torch.zeros(n, h, len(cols), device=env.torch_device)
         self._queue = torch.zeros(n, a, len(names), device=env.torch_device)
         self._cursor = np.full(n, a, dtype=np.int64)
-        self._seen_episode = np.full(n, -1, dtype=np.int64)
+        self._tracker = EpisodeTracker(n)
         self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
         self._env = env
 
     def reset(self, env_ids=None) -> None:
         """Forget the history of ``env_ids`` (all rows when ``None``); they refill at the next ``act``."""
-        if self._env is None:
-            return
-        ids = slice(None) if env_ids is None else np.asarray(env_ids, dtype=np.int64)
-        self._seen_episode[ids] = -1
+        if self._env is not None:
+            self._tracker.forget(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         if self._env is not env:
             self._bind(env)
         obs = env.obs[:, self._cols]
-        episode = env._episode_count.numpy()
-        fresh = episode != self._seen_episode
+        fresh = self._tracker.fresh_rows(env)
         self._history[:, :-1] = self._history[:, 1:].clone()
         self._history[:, -1] = obs
-        if fresh.any():
-            rows = torch.as_tensor(np.nonzero(fresh)[0], device=env.torch_device)
+        if fresh.size:
+            rows = torch.as_tensor(fresh, device=env.torch_device)
             self._history[rows] = obs[rows].unsqueeze(1).expand(-1, self._history.shape[1], -1)
             self._cursor[fresh] = self._queue.shape[1]
-            self._seen_episode[fresh] = episode[fresh]
         replan = np.nonzero(self._cursor >= self._queue.shape[1])[0]
         if replan.size:
             rows = torch.as_tensor(replan, device=env.torch_device)
@@ -103,7 +99,7 @@ class PolicyAgent(BaseAgent):
         idx = torch.as_tensor(self._cursor, device=env.torch_device)
         actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()
         self._cursor += 1
-        if self._full_width and bool((self._act_cols == torch.arange(env.action_dim, device=env.torch_device)).all()):
+        if self._act_cols is None:
             return actions
         out = env.current_action()
         out[:, self._act_cols] = actions

@@ -8,7 +8,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from .base import BaseAgent, EpisodeTracker
+from .base import BaseAgent, EpisodeTracker, as_rows
 
 
 @dataclass
@@ -50,7 +50,7 @@ class SequenceAgent(BaseAgent):
         if fresh.size:
             self._step[fresh] = 0
             self.steps[0].agent.reset(fresh)
-        rows = np.arange(env.num_envs) if env_ids is None else np.asarray(torch.as_tensor(env_ids).cpu()).reshape(-1)
+        rows = as_rows(env_ids, env.num_envs)
         out = env.current_action()
         for k, step in enumerate(self.steps):
             mine = rows[self._step[rows] == k]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .base import BaseAgent, EpisodeTracker
+from .base import BaseAgent, EpisodeTracker, as_rows
 
 
 def default_agent(task_id: str, **options) -> BaseAgent:
@@ -64,7 +64,7 @@ class TaskFlowAgent(BaseAgent):
     def act(self, env, env_ids=None) -> torch.Tensor:
         if self._env is not env:
             self._bind(env)
-        rows = np.arange(env.num_envs) if env_ids is None else np.asarray(torch.as_tensor(env_ids).cpu()).reshape(-1)
+        rows = as_rows(env_ids, env.num_envs)
         fresh = self._tracker.fresh_rows(env, rows)
         self._phase[fresh] = -1
         phase = env.info["phase"].cpu().numpy()

@@ -68,12 +68,7 @@ def combined_task(
             raise ValueError(f"phase {p.name!r} ({p.task_id}) uses another arm or arm reference posture")
 
     if actions is None:
-        actions, seen = [], set()
-        for cfg in parts:
-            for term in cfg.actions:
-                if term.name not in seen:
-                    seen.add(term.name)
-                    actions.append(term)
+        actions = _union_by_name(cfg.actions for cfg in parts)
     groups = {t.group for t in actions}
     for p in phases:
         missing = sorted(set(p.action_groups or ()) - groups)
@@ -81,15 +76,9 @@ def combined_task(
             raise ValueError(f"phase {p.name!r} commands {missing} but the combined action terms have groups "
                              f"{sorted(groups)}")
 
-    observations, seen_obs = [], set()
-    for cfg in parts:
-        for term in cfg.observations:
-            if term.name not in seen_obs:
-                seen_obs.add(term.name)
-                observations.append(term)
-    if "actions" in seen_obs:  # the last-action term follows the combined width
-        observations = [dataclasses.replace(t, dim=sum(_width(a) for a in actions)) if t.name == "actions" else t
-                        for t in observations]
+    # the last-action term follows the combined width
+    observations = [dataclasses.replace(t, dim=sum(_width(a) for a in actions)) if t.name == "actions" else t
+                    for t in _union_by_name(cfg.observations for cfg in parts)]
 
     terms: dict[str, Any] = {}
     term_phase: dict[str, int] = {}
@@ -126,6 +115,15 @@ def combined_task(
         options=options,
     )
     return dataclasses.replace(cfg, **overrides) if overrides else cfg
+
+
+def _union_by_name(term_lists) -> list:
+    """Terms of every list, first occurrence of each name kept, in first-seen order."""
+    out: dict[str, Any] = {}
+    for terms in term_lists:
+        for term in terms:
+            out.setdefault(term.name, term)
+    return list(out.values())
 
 
 def _width(term: ActionTermCfg) -> int:

@@ -113,9 +113,9 @@ class NewtonEnv:
         phases = self.cfg.phases
         owned = np.ones((max(len(phases), 1), max(len(names), 1)), dtype=bool)
         base_free = np.full(max(len(phases), 1), not self.cfg.fixed_base, dtype=bool)
+        groups = {t.name: t.group for t in self.cfg.actions}
         for p, ph in enumerate(phases):
             if ph.action_groups is not None:
-                groups = {t.name: t.group for t in self.cfg.actions}
                 for term, cols in self.action_terms.items():
                     owned[p, cols] = groups[term] in ph.action_groups
             base_free[p] = not ph.fixed_base

@@ -148,7 +148,9 @@ def parse_scenario(data: Any, origin: str = "<scenario>") -> Scenario:
             raise ScenarioError(f"{origin}: articulations.robot.joint_position.{name} must be a finite number, "
                                 f"got {value!r}")
         scn.joint_position[str(name)] = float(value)
-    objects = _check_keys(data.get("rigid_objects") or {}, set(data.get("rigid_objects") or {}), origin)
+    objects = data.get("rigid_objects") or {}
+    if not isinstance(objects, dict):
+        raise ScenarioError(f"{origin}: rigid_objects must map object names to {{root_pose: [...]}}")
     for name, entry in objects.items():
         entry = _check_keys(entry, _OBJECT_KEYS, f"{origin}: rigid_objects.{name}")
         if "root_pose" not in entry:

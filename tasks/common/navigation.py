@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.envs.cfg import ActionTermCfg
-from newton_lab.kernels.context import TaskContext, base_pose2d, held_for, wrap_angle
+from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg
+from newton_lab.kernels.context import TaskContext, base_pose2d
 from newton_lab.robots.g1 import spec
 
 
@@ -32,20 +32,24 @@ def make_goal_reached(goal_xy: tuple[float, float], radius: float):
     return goal_reached
 
 
-def make_base_at_pose(goal_xy: tuple[float, float], goal_yaw: float, radius: float, yaw_tol: float,
-                      hold_slot: int, hold_steps: int):
-    """``func(ctx, w) -> bool``: base within ``radius`` of ``goal_xy`` and ``yaw_tol`` of ``goal_yaw`` for
-    ``hold_steps`` consecutive steps (counter in ``ctx.hold[w, hold_slot]``)."""
-    gx, gy, gyaw, r, ytol = float(goal_xy[0]), float(goal_xy[1]), float(goal_yaw), float(radius), float(yaw_tol)
-    slot, steps = int(hold_slot), int(hold_steps)
+def nav_observations(goal_xy: tuple[float, float], action_dim: int) -> list[ObsTermCfg]:
+    """The BaseNav observation: last action (``action_dim``), base_xy, goal_xy, vector_to_goal (2 each,
+    env frame [m])."""
+    from .observations import last_action
 
-    @wp.func
-    def base_at_pose(ctx: TaskContext, w: int) -> bool:
-        b = base_pose2d(ctx, w)
-        ok = wp.length(wp.vec2(b[0] - gx, b[1] - gy)) <= r and wp.abs(wrap_angle(b[2] - gyaw)) <= ytol
-        return held_for(ctx, w, slot, ok, steps)
+    base_xy, goal_xy_obs, vector_to_goal = make_nav_observations(goal_xy)
+    return [
+        ObsTermCfg(name="actions", func=last_action, dim=action_dim),
+        ObsTermCfg(name="base_xy", func=base_xy, dim=2),
+        ObsTermCfg(name="goal_xy", func=goal_xy_obs, dim=2),
+        ObsTermCfg(name="vector_to_goal", func=vector_to_goal, dim=2),
+    ]
 
-    return base_at_pose
+
+def nav_rewards(goal_xy: tuple[float, float], radius: float) -> dict:
+    """The BaseNav rewards: -distance (weight 2), goal reached (10), squared actions (-0.02)."""
+    neg_distance, goal_reward = make_nav_rewards(goal_xy, radius)
+    return {"distance": (neg_distance, 2.0), "goal_reached": (goal_reward, 10.0), "action_l2": (action_l2, -0.02)}
 
 
 def make_nav_observations(goal_xy: tuple[float, float]):

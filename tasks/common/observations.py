@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from newton_lab.envs.cfg import ObsTermCfg
 from newton_lab.kernels.context import TaskContext, gripper_q, tcp_pose, write_transform
 
 ROBOT_COORDS = 34
@@ -48,3 +49,15 @@ def gripper_pos(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int
 def tcp_pose_obs(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
     """TCP pose (7): x, y, z, qx, qy, qz, qw, world frame."""
     write_transform(out, w, col, tcp_pose(ctx, w))
+
+
+def manipulation_observations(objects: list[ObsTermCfg]) -> list[ObsTermCfg]:
+    """The left-arm manipulation observation: last action (8), robot joints (34), TCP pose (7), gripper (1),
+    then the task's object terms."""
+    return [
+        ObsTermCfg(name="actions", func=last_action, dim=8),
+        ObsTermCfg(name="robot_joint_pos", func=robot_joint_pos, dim=ROBOT_COORDS),
+        ObsTermCfg(name="tcp_pose", func=tcp_pose_obs, dim=7),
+        ObsTermCfg(name="gripper_pos", func=gripper_pos, dim=1),
+        *objects,
+    ]

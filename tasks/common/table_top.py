@@ -29,6 +29,12 @@ def manipulation_posture(left_arm, head) -> dict[str, float]:
     return posture
 
 
+def shelf_posture() -> dict[str, float]:
+    """Mobile shelf tasks (PickToShelf, SortToShelf): left arm carry / ready, right arm stowed, head (0, 0.25),
+    legs 0."""
+    return manipulation_posture(spec.CARRY_LEFT_ARM, spec.SHELF_HEAD)
+
+
 def left_arm_actions(*, gripper: bool = True) -> list[ActionTermCfg]:
     """Left arm absolute joint targets (7), plus the left gripper command (1) when ``gripper``."""
     terms = [ActionTermCfg(name="arm_action", group="left_arm", type="absolute")]

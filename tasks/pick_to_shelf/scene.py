@@ -4,7 +4,6 @@ a 0.5 m high table with a 5 x 5 x 16 cm bar, and a one-cell shelf 2 m to the rob
 from __future__ import annotations
 
 from newton_lab.envs.cfg import EntityCfg
-from newton_lab.robots.g1 import spec
 
 TABLE_TOP_Z = 0.325
 BAR_SIZE = (0.05, 0.05, 0.16)
@@ -32,10 +31,3 @@ def entities() -> list[EntityCfg]:
                   color=SHELF_COLOR),
     ]
 
-
-def robot_posture() -> dict[str, float]:
-    """Left arm carry, right arm stowed, head (0, 0.25), legs 0."""
-    posture = dict(zip(spec.LEFT_ARM_JOINTS, spec.CARRY_LEFT_ARM))
-    posture.update(zip(spec.RIGHT_ARM_JOINTS, spec.STOWED_RIGHT_ARM))
-    posture.update(zip(spec.HEAD_JOINTS, spec.SHELF_HEAD))
-    return posture

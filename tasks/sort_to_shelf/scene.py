@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from newton_lab.envs.cfg import EntityCfg
-from newton_lab.robots.g1 import spec
 
 from .objects import OBJECTS
 
@@ -46,10 +45,3 @@ def entities() -> list[EntityCfg]:
         items.append(_board(cell, x, z, by_cell[cell].color))
     return items
 
-
-def robot_posture() -> dict[str, float]:
-    """Left arm ready (= carry), right arm stowed, head (0, 0.25), legs 0."""
-    posture = dict(zip(spec.LEFT_ARM_JOINTS, spec.CARRY_LEFT_ARM))
-    posture.update(zip(spec.RIGHT_ARM_JOINTS, spec.STOWED_RIGHT_ARM))
-    posture.update(zip(spec.HEAD_JOINTS, spec.SHELF_HEAD))
-    return posture

@@ -13,7 +13,7 @@ import warp as wp
 from ...kernels.planner import gather_plan_actions
 from ...robots.g1 import spec
 from ...robots.g1.kinematics import TcpKinematics, quat_mul
-from ..base import BaseAgent
+from ..base import BaseAgent, EpisodeTracker
 from .plan import MotionPlan, load_motion_plan, yaw_of
 
 
@@ -64,7 +64,7 @@ class PlannerAgent(BaseAgent):
             self._cursor = wp.zeros(n, dtype=int)
             self._plan_length = np.zeros(n, dtype=np.int64)
             self._actions = wp.from_torch(env.current_action().contiguous())
-        self._seen_episode = np.full(n, -1, dtype=np.int64)
+        self._tracker = EpisodeTracker(n)
 
     # ------------------------------------------------------------------ planning
     def _num_waypoints(self) -> int:
@@ -172,23 +172,15 @@ class PlannerAgent(BaseAgent):
     # ------------------------------------------------------------------ the agent contract
     def reset(self, env_ids=None) -> None:
         """Forces a re-plan of ``env_ids`` (all rows when ``None``) at the next ``act``."""
-        if self._env is None:
-            return
-        if env_ids is None:
-            self._seen_episode[:] = -1
-        else:
-            self._seen_episode[np.asarray(env_ids, dtype=np.int64)] = -1
+        if self._env is not None:
+            self._tracker.forget(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         if self._env is not env:
             self._bind(env)
-        episode = env._episode_count.numpy()
-        rows = np.nonzero(episode != self._seen_episode)[0]
-        if env_ids is not None:
-            rows = np.intersect1d(rows, np.asarray(env_ids, dtype=np.int64))
+        rows = self._tracker.fresh_rows(env, env_ids)
         if rows.size:
             self._plan_rows(env, rows)
-            self._seen_episode[rows] = episode[rows]
         wp.launch(
             gather_plan_actions,
             dim=env.num_envs,

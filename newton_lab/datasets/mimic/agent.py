@@ -7,7 +7,7 @@ import numpy as np
 import torch
 import warp as wp
 
-from ...agents.base import BaseAgent
+from ...agents.base import BaseAgent, EpisodeTracker
 from ...robots.g1.kinematics import TcpKinematics
 from .config import MimicCfg
 from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segment
@@ -52,16 +52,13 @@ class MimicAgent(BaseAgent):
         grip = f"{self.cfg.arm}_gripper_joint"
         self._grip_col = names.index(grip) if grip in names else None
         self._rows = [_RowPlan() for _ in range(n)]
-        self._seen_episode = np.full(n, -1, dtype=np.int64)
+        self._tracker = EpisodeTracker(n)
         self._q = np.zeros((n, self._kin.robot_coords))
         self._actions = env.current_action().clone()
 
     def reset(self, env_ids=None) -> None:
-        if self._env is None:
-            return
-        rows = range(self._env.num_envs) if env_ids is None else env_ids
-        for r in rows:
-            self._seen_episode[int(r)] = -1
+        if self._env is not None:
+            self._tracker.forget(env_ids)
 
     # ------------------------------------------------------------------ segments
     def _select(self, sub_idx: int, cur_obj: np.ndarray | None) -> tuple[SourceDemo, int, int] | None:
@@ -120,7 +117,7 @@ class MimicAgent(BaseAgent):
         if self._env is not env:
             self._bind(env)
         n = env.num_envs
-        episode = env._episode_count.numpy()
+        fresh = set(self._tracker.fresh_rows(env).tolist())  # new attempt on these rows
         q_env = wp.to_torch(env.state.joint_q).view(n, -1)[:, : self._kin.robot_coords].cpu().numpy()
         tcp_now = env.tcp_pose.cpu().numpy().astype(np.float64)
         ent = env.entity_poses.cpu().numpy().astype(np.float64)
@@ -130,8 +127,7 @@ class MimicAgent(BaseAgent):
         noisy = np.zeros(n, dtype=bool)
         for r in range(n):
             plan = self._rows[r]
-            if episode[r] != self._seen_episode[r]:  # new attempt on this row
-                self._seen_episode[r] = episode[r]
+            if r in fresh:
                 plan = self._rows[r] = _RowPlan()
                 self._q[r] = q_env[r]
             while not plan.done and plan.cursor >= len(plan.poses):

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
+from newton_lab.envs.cfg import TaskCfg
 from newton_lab.tasks.common import navigation as nav
-from newton_lab.tasks.common import observations as common_obs
 
 GOAL_XY = (2.0, 0.0)
 """Goal position, env frame [m]."""
@@ -13,8 +12,6 @@ SUCCESS_RADIUS = 0.15
 """Base within this distance of the goal ends the episode [m]."""
 
 _goal_reached = nav.make_goal_reached(GOAL_XY, SUCCESS_RADIUS)
-_base_xy, _goal_xy, _to_goal = nav.make_nav_observations(GOAL_XY)
-_neg_distance, _goal_reward = nav.make_nav_rewards(GOAL_XY, SUCCESS_RADIUS)
 
 
 def base_nav_cfg() -> TaskCfg:
@@ -23,18 +20,9 @@ def base_nav_cfg() -> TaskCfg:
         task_id="GalbotG1-BaseNav-v0",
         entities=[],
         actions=nav.base_actions(),
-        observations=[
-            ObsTermCfg(name="actions", func=common_obs.last_action, dim=4),
-            ObsTermCfg(name="base_xy", func=_base_xy, dim=2),
-            ObsTermCfg(name="goal_xy", func=_goal_xy, dim=2),
-            ObsTermCfg(name="vector_to_goal", func=_to_goal, dim=2),
-        ],
+        observations=nav.nav_observations(GOAL_XY, action_dim=4),
         phase_success=[_goal_reached],
-        rewards={
-            "distance": (_neg_distance, 2.0),
-            "goal_reached": (_goal_reward, 10.0),
-            "action_l2": (nav.action_l2, -0.02),
-        },
+        rewards=nav.nav_rewards(GOAL_XY, SUCCESS_RADIUS),
         signals={"goal_reached": _goal_reached},
         root_pos=(0.0, 0.0, 0.0),
         fixed_base=False,

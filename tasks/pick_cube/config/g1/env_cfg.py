@@ -17,14 +17,10 @@ def pick_cube_cfg() -> TaskCfg:
         task_id="GalbotG1-PickCube-v0",
         entities=scene.entities(),
         actions=left_arm_actions(),
-        observations=[
-            ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
-            ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),
-            ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
-            ObsTermCfg(name="gripper_pos", func=common_obs.gripper_pos, dim=1),
+        observations=common_obs.manipulation_observations([
             ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7),
             ObsTermCfg(name="blue_block_pos", func=observations.blue_block_pos, dim=3),
-        ],
+        ]),
         phase_success=[terminations.released_on_blue_block],
         terminations={"cube_dropped": terminations.cube_dropped},
         signals={"grasped_cube": terminations.grasped_cube},

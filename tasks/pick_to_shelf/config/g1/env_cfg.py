@@ -12,7 +12,7 @@ from newton_lab.envs.compose import combined_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
-from newton_lab.tasks.common.table_top import left_arm_actions
+from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
 from newton_lab.tasks.pick_to_shelf import scene
 from newton_lab.tasks.pick_to_shelf.mdp import events, observations, terminations
 
@@ -23,18 +23,6 @@ NAV_SUCCESS_RADIUS = 0.02
 SCENARIOS = "newton_lab.tasks.pick_to_shelf.config.g1.scenarios"
 
 _goal_reached = nav.make_goal_reached(NAV_GOAL_XY, NAV_SUCCESS_RADIUS)
-_base_xy, _goal_xy, _to_goal = nav.make_nav_observations(NAV_GOAL_XY)
-_neg_distance, _goal_reward = nav.make_nav_rewards(NAV_GOAL_XY, NAV_SUCCESS_RADIUS)
-
-
-def _manipulation_obs() -> list[ObsTermCfg]:
-    return [
-        ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
-        ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),
-        ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
-        ObsTermCfg(name="gripper_pos", func=common_obs.gripper_pos, dim=1),
-        ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7),
-    ]
 
 
 def _world(task_id: str, **fields) -> TaskCfg:
@@ -42,11 +30,12 @@ def _world(task_id: str, **fields) -> TaskCfg:
         task_id=task_id,
         entities=scene.entities(),
         actions=left_arm_actions(),
-        observations=_manipulation_obs(),
+        observations=common_obs.manipulation_observations(
+            [ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7)]),
         phase_success=[],
         terminations={"cube_dropped": terminations.cube_dropped, "cube_tipped": terminations.cube_tipped},
         signals={"grasped_cube": terminations.grasped_cube},
-        posture=scene.robot_posture(),
+        posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=spec.CARRY_LEFT_ARM,
         fixed_base=True,
@@ -66,15 +55,9 @@ def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
     return _world(
         "GalbotG1-PickToShelf-Nav-v0",
         actions=nav.base_actions(),
-        observations=[
-            ObsTermCfg(name="actions", func=common_obs.last_action, dim=4),
-            ObsTermCfg(name="base_xy", func=_base_xy, dim=2),
-            ObsTermCfg(name="goal_xy", func=_goal_xy, dim=2),
-            ObsTermCfg(name="vector_to_goal", func=_to_goal, dim=2),
-        ],
+        observations=nav.nav_observations(NAV_GOAL_XY, action_dim=4),
         phase_success=[_goal_reached],
-        rewards={"distance": (_neg_distance, 2.0), "goal_reached": (_goal_reward, 10.0),
-                 "action_l2": (nav.action_l2, -0.02)},
+        rewards=nav.nav_rewards(NAV_GOAL_XY, NAV_SUCCESS_RADIUS),
         signals={"goal_reached": _goal_reached},
         scenario=init_scenario or f"{SCENARIOS}:nav_default.yaml",
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},

@@ -12,7 +12,7 @@ from newton_lab.envs.compose import combined_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
-from newton_lab.tasks.common.table_top import left_arm_actions
+from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
 from newton_lab.tasks.sort_to_shelf import scene
 from newton_lab.tasks.sort_to_shelf.mdp import events, observations, terminations
 from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW, SortingObject
@@ -27,17 +27,12 @@ def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
         task_id=task_id,
         entities=scene.entities(),
         actions=left_arm_actions(),
-        observations=[
-            ObsTermCfg(name="actions", func=common_obs.last_action, dim=8),
-            ObsTermCfg(name="robot_joint_pos", func=common_obs.robot_joint_pos, dim=common_obs.ROBOT_COORDS),
-            ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
-            ObsTermCfg(name="gripper_pos", func=common_obs.gripper_pos, dim=1),
-            ObsTermCfg(name="object_pose", func=observations.make_object_pose(obj), dim=7),
-        ],
+        observations=common_obs.manipulation_observations(
+            [ObsTermCfg(name="object_pose", func=observations.make_object_pose(obj), dim=7)]),
         phase_success=[],
         terminations={"object_dropped": terminations.make_dropped(obj)},
         signals={"grasped_object": terminations.make_grasped(obj)},
-        posture=scene.robot_posture(),
+        posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=spec.CARRY_LEFT_ARM,
         fixed_base=True,
@@ -65,21 +60,13 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
     """Drive to the object's place position, lift the legs for the upper row, bring the arm to the place-start
     posture (success: all of it held for 20 steps)."""
     obj = lookup_object(sorting_object)
-    _base_xy, _goal_xy, _to_goal = nav.make_nav_observations(obj.place_base_xy)
-    neg_distance, goal_reward = nav.make_nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS)
     return _world(
         "GalbotG1-SortToShelf-Nav-v0", obj,
         actions=nav.base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
                                       ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
-        observations=[
-            ObsTermCfg(name="actions", func=common_obs.last_action, dim=16),
-            ObsTermCfg(name="base_xy", func=_base_xy, dim=2),
-            ObsTermCfg(name="goal_xy", func=_goal_xy, dim=2),
-            ObsTermCfg(name="vector_to_goal", func=_to_goal, dim=2),
-        ],
+        observations=nav.nav_observations(obj.place_base_xy, action_dim=16),
         phase_success=[terminations.make_at_place_start(obj)],
-        rewards={"distance": (neg_distance, 2.0), "goal_reached": (goal_reward, 10.0),
-                 "action_l2": (nav.action_l2, -0.02)},
+        rewards=nav.nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS),
         scenario=_scenario("nav", obj, init_scenario),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
         fixed_base=False,
