@@ -68,6 +68,9 @@ class DiffusionPolicyConfig:
     """Passes over all windows."""
     max_steps: int | None = None
     """Optional cap on optimiser steps (stops mid-epoch)."""
+    time_budget_s: float | None = None
+    """Optional wall-clock budget [s] for the optimiser loop: the step rate is measured over the first 50 steps and
+    the run is shortened to fit, with the cosine schedule re-planned so the LR still decays to 0."""
     num_workers: int = 0
     """DataLoader worker processes (data is in memory: 0 is usually fastest)."""
     seed: int = 0
@@ -109,6 +112,8 @@ class DiffusionPolicyConfig:
             (self.batch_size >= 1 and self.epochs >= 1,
              f"batch_size and epochs must be >= 1, got {self.batch_size} and {self.epochs}"),
             (self.max_steps is None or self.max_steps >= 1, f"max_steps must be None or >= 1, got {self.max_steps}"),
+            (self.time_budget_s is None or self.time_budget_s > 0,
+             f"time_budget_s must be None or > 0, got {self.time_budget_s}"),
             (self.warmup_steps >= 0 and self.num_workers >= 0,
              f"warmup_steps and num_workers must be >= 0, got {self.warmup_steps} and {self.num_workers}"),
         ]

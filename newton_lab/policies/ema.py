@@ -25,8 +25,8 @@ class EMA(nn.Module):
     @torch.no_grad()
     def update(self, model: nn.Module) -> None:
         d = self.decay()
-        for avg, new in zip(self.averaged.parameters(), model.parameters()):
-            avg.lerp_(new.detach(), 1.0 - d)
+        # one fused multi-tensor kernel instead of a launch per parameter (launch-bound on a GPU)
+        torch._foreach_lerp_(list(self.averaged.parameters()), [p.detach() for p in model.parameters()], 1.0 - d)
         for avg, new in zip(self.averaged.buffers(), model.buffers()):
             avg.copy_(new)
         self.num_updates += 1

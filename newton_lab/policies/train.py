@@ -34,13 +34,15 @@ def as_config(cfg: DiffusionPolicyConfig | dict[str, Any] | None) -> DiffusionPo
     raise TypeError(f"train config must be a DiffusionPolicyConfig or dict, got {type(cfg).__name__}")
 
 
-def warmup_cosine(warmup_steps: int, total_steps: int) -> Callable[[int], float]:
-    """LR factor for step s (0-based): linear to 1 over ``warmup_steps``, then cosine to 0 at ``total_steps``."""
+def warmup_cosine(warmup_steps: int, total_steps: int | Callable[[], int]) -> Callable[[int], float]:
+    """LR factor for step s (0-based): linear to 1 over ``warmup_steps``, then cosine to 0 at ``total_steps``
+    (an int, or a callable read at every step, for a run re-planned to a time budget)."""
 
     def factor(step: int) -> float:
         if step < warmup_steps:
             return (step + 1) / warmup_steps
-        progress = min(1.0, (step - warmup_steps) / max(1, total_steps - warmup_steps))
+        total = total_steps() if callable(total_steps) else total_steps
+        progress = min(1.0, (step - warmup_steps) / max(1, total - warmup_steps))
         return 0.5 * (1.0 + math.cos(math.pi * progress))
 
     return factor
@@ -91,8 +93,11 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     loader = DataLoader(data, batch_size=cfg.batch_size, sampler=sampler, drop_last=True, num_workers=cfg.num_workers,
                         collate_fn=collate_batch, persistent_workers=cfg.num_workers > 0)
     total = len(loader) * cfg.epochs if cfg.max_steps is None else min(len(loader) * cfg.epochs, cfg.max_steps)
-    optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay)
-    lr_schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, warmup_cosine(cfg.warmup_steps, total))
+    fused = {"fused": True} if torch.device(cfg.device).type == "cuda" else {}
+    optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay,
+                                  **fused)
+    lr_schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, warmup_cosine(cfg.warmup_steps, lambda: total))
+    budget_check = 50 if cfg.time_budget_s is not None else None
 
     epochs: list[dict[str, Any]] = []
     step, t0 = 0, time.perf_counter()
@@ -107,13 +112,20 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
                 optimizer.step()
                 lr_schedule.step()
                 policy.ema.update(policy.model)
-                losses.append(loss.item())
+                losses.append(loss.detach())  # no host sync per step: read back every 50 steps
                 step += 1
                 bar.update()
-                bar.set_postfix(loss=f"{losses[-1]:.4f}", epoch=len(epochs) + 1, refresh=False)
+                if step == budget_check:  # fit the rest of the run to the time budget at the measured rate
+                    elapsed = time.perf_counter() - t0
+                    fits = step + int((cfg.time_budget_s - elapsed) * step / elapsed * 0.97)
+                    if fits < total:
+                        total = max(step + 1, fits)
+                        bar.total = total
+                if step % 50 == 0:
+                    bar.set_postfix(loss=f"{losses[-1].item():.4f}", epoch=len(epochs) + 1, refresh=False)
                 if step >= total:
                     break
-            epochs.append({"epoch": len(epochs) + 1, "loss": sum(losses) / len(losses), "steps": step,
+            epochs.append({"epoch": len(epochs) + 1, "loss": torch.stack(losses).mean().item(), "steps": step,
                            "lr": optimizer.param_groups[0]["lr"]})
     wall = time.perf_counter() - t0
 
