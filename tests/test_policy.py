@@ -15,6 +15,7 @@ from newton_lab.datasets import open_writer
 from newton_lab.policies import (DiffusionPolicy, DiffusionPolicyConfig, MinMaxNormalizer, NoiseScheduler, Policy,
                                  SequenceDataset, load_policy)
 from newton_lab.policies.model import ConditionalUnet1D
+from newton_lab.policies.train import _fit_to_budget, warmup_cosine
 
 ROOT = Path(__file__).resolve().parents[1]
 TASK = "GalbotG1-PickCube-v0"
@@ -86,6 +87,21 @@ def test_schedule_is_monotone_and_bounded():
     assert s.ddim_timesteps(10) == [99, 89, 79, 69, 59, 49, 39, 29, 19, 9]
     with pytest.raises(ValueError, match="num_inference_steps"):
         s.ddim_timesteps(101)
+
+
+def test_time_budget_replans_the_run_and_its_schedule():
+    # 50 steps in 10 s (5 steps/s) with a 100 s budget: 50 + 90 s * 5 * 0.97 = 486 steps, below the cap
+    assert _fit_to_budget(50, 10.0, 100.0, 10_000, (50, 0.0), 10_000) == 486
+    assert _fit_to_budget(50, 10.0, 100.0, 300, (50, 0.0), 300) == 300  # never above the cap
+    assert _fit_to_budget(51, 10.0, 100.0, 10_000, (50, 10.0), 486) == 486  # only re-planned every 500 steps
+    # from step 50 on the rate excludes the warm-up: 450 steps in 20 s after it -> 22.5 steps/s
+    assert _fit_to_budget(500, 30.0, 100.0, 10_000, (50, 10.0), 486) == 500 + int(70 * 22.5 * 0.97)
+    assert _fit_to_budget(500, 120.0, 100.0, 10_000, (50, 10.0), 486) == 501  # over budget: stop now
+    total = 1000
+    factor = warmup_cosine(10, lambda: total)
+    assert factor(9) == 1.0 and factor(505) == pytest.approx(0.5, abs=0.01)
+    total = 505  # re-planned: the cosine now ends at the new total
+    assert factor(505) == 0.0
 
 
 def test_add_noise_and_ddim_recover_x0_with_true_noise():

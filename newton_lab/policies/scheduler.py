@@ -36,12 +36,21 @@ class NoiseScheduler:
         self.clip_sample = clip_sample
         self.betas = squaredcos_cap_v2(num_train_timesteps)
         self.alphas_cumprod = torch.cumprod(1.0 - self.betas, dim=0)  # float64, strictly decreasing
+        self._tables: dict[tuple[torch.device, torch.dtype], torch.Tensor] = {}
 
     def _abar(self, t: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
         """alpha_bar at integer steps ``t`` (negative = clean, alpha_bar 1), shaped to broadcast over ``like``."""
-        t = torch.as_tensor(t, device="cpu").long()
-        a = torch.where(t >= 0, self.alphas_cumprod[t.clamp(min=0)], torch.ones((), dtype=torch.float64))
-        return a.to(device=like.device, dtype=like.dtype).reshape(a.shape + (1,) * (like.ndim - a.ndim))
+        t = torch.as_tensor(t, device=like.device).long()
+        table = self._table(like)  # indexed where ``t`` lives: no device round trip (a sync per training step)
+        a = torch.where(t >= 0, table[t.clamp(min=0)], torch.ones((), dtype=like.dtype, device=like.device))
+        return a.reshape(a.shape + (1,) * (like.ndim - a.ndim))
+
+    def _table(self, like: torch.Tensor) -> torch.Tensor:
+        """``alphas_cumprod`` in ``like``'s device and dtype (cached)."""
+        key = (like.device, like.dtype)
+        if key not in self._tables:
+            self._tables[key] = self.alphas_cumprod.to(device=like.device, dtype=like.dtype)
+        return self._tables[key]
 
     def sample_timesteps(self, batch: int, device: torch.device | str = "cpu",
                          generator: torch.Generator | None = None) -> torch.Tensor:

@@ -76,6 +76,20 @@ def _save_run(policy: DiffusionPolicy, out_dir: Path, log: dict[str, Any]) -> Pa
     return ckpt_path
 
 
+def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from: tuple[int, float],
+                   total: int) -> int:
+    """Planned total steps so the loop ends within ``budget`` seconds: re-planned at step 50 (rate over the
+    first 50 steps), then every 500 steps from the rate since step 50; never above ``cap``."""
+    start, t_start = rate_from
+    if step == start:
+        rate = step / elapsed
+    elif step > start and step % 500 == 0:
+        rate = (step - start) / max(elapsed - t_start, 1e-9)
+    else:
+        return total
+    return max(step + 1, min(cap, step + int((budget - elapsed) * rate * 0.97)))
+
+
 def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None) -> Path:
     """Train a diffusion policy on a dataset (a path, or an object with ``.path``); returns the checkpoint path."""
     cfg = as_config(cfg)
@@ -97,7 +111,8 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay,
                                   **fused)
     lr_schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, warmup_cosine(cfg.warmup_steps, lambda: total))
-    budget_check = 50 if cfg.time_budget_s is not None else None
+    cap = total
+    rate_from = (50, 0.0)  # (step, time): the rate is measured after the first 50 steps (warm-up, autotuning)
 
     epochs: list[dict[str, Any]] = []
     step, t0 = 0, time.perf_counter()
@@ -115,12 +130,11 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
                 losses.append(loss.detach())  # no host sync per step: read back every 50 steps
                 step += 1
                 bar.update()
-                if step == budget_check:  # fit the rest of the run to the time budget at the measured rate
-                    elapsed = time.perf_counter() - t0
-                    fits = step + int((cfg.time_budget_s - elapsed) * step / elapsed * 0.97)
-                    if fits < total:
-                        total = max(step + 1, fits)
-                        bar.total = total
+                if cfg.time_budget_s is not None:
+                    total = _fit_to_budget(step, time.perf_counter() - t0, cfg.time_budget_s, cap, rate_from, total)
+                    if step == rate_from[0]:
+                        rate_from = (step, time.perf_counter() - t0)
+                    bar.total = total
                 if step % 50 == 0:
                     bar.set_postfix(loss=f"{losses[-1].item():.4f}", epoch=len(epochs) + 1, refresh=False)
                 if step >= total:
