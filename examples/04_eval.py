@@ -30,7 +30,7 @@ def main() -> None:
     summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps)
     print(f"success rate: {summary['success_rate']:.3f} ({summary['successes']}/{summary['episodes']})")
     print(json.dumps({k: summary[k] for k in ("task", "episodes", "successes", "success_rate", "average_length",
-                                              "termination_reasons")}))
+                                              "termination_reasons", "subtask_signals")}))
 
 
 if __name__ == "__main__":

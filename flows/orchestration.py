@@ -122,10 +122,14 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
     reasons: dict[str, int] = {}
+    signals: dict[str, int] = {}
     for p in parts:
         for k, v in p["termination_reasons"].items():
             reasons[k] = reasons.get(k, 0) + v
+        for k, v in p.get("subtask_signals", {}).items():
+            signals[k] = signals.get(k, 0) + v
     return {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
+            "subtask_signals": signals,
             "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}, states
 
 

@@ -103,4 +103,5 @@ def evaluate_stage(*, checkpoint: dict[str, Any], task_id: str, episodes: int, n
     env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
     s = env.evaluate(agent=PolicyAgent.from_checkpoint(checkpoint["path"]), episodes=episodes, max_steps=max_steps,
                      progress=progress)
-    return {k: s[k] for k in ("episodes", "successes", "success_rate", "average_length", "termination_reasons")}
+    return {k: s[k] for k in ("episodes", "successes", "success_rate", "average_length", "termination_reasons",
+                                    "subtask_signals")}

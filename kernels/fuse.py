@@ -129,6 +129,21 @@ def build_observation_kernel(terms, signals=()):
     return observe
 
 
+def build_signal_kernel(signals):
+    """Return a kernel writing the subtask ``signals`` (0 / 1 per row) of the state the step reached,
+    before automatic resets: a signal that holds only at the terminal step (the last placement) is seen."""
+    signal_fns = tuple(signals)
+    n_signal = len(signal_fns)
+
+    @wp.kernel(module="unique")
+    def step_signals(ctx: TaskContext, signal_out: wp.array2d(dtype=float)):
+        w = wp.tid()
+        for k in range(wp.static(n_signal)):
+            signal_out[w, k] = wp.where(wp.static(signal_fns[k])(ctx, w), 1.0, 0.0)
+
+    return step_signals
+
+
 def build_reset_kernel(events):
     """Return the fused masked reset kernel.
 

@@ -84,6 +84,7 @@ def _cmd_collect(args) -> int:
         "num_envs": summary["num_envs"],
         "average_length": summary["average_length"],
         "termination_reasons": summary["termination_reasons"],
+        "subtask_signals": summary["subtask_signals"],
         "wall_time_s": round(summary["wall_time_s"], 2),
         **({"saved_end_scenario_path": summary["saved_end_scenario_path"]} if args.save_end_scenario else {}),
     }))
@@ -102,7 +103,8 @@ def _cmd_evaluate(args) -> int:
                                progress=not args.no_progress, on_step=hook)
     finally:
         close()
-    keys = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons")
+    keys = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
+            "subtask_signals")
     print(json.dumps({k: summary[k] for k in keys}))
     return 0
 

@@ -23,6 +23,7 @@ def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
                                max_steps=400, progress=False)
     assert summary["episodes"] == 3 and summary["successes"] == 3 and summary["success_rate"] == 1.0
     assert summary["termination_reasons"] == {"success": 3} and len(summary["saved_demo_ids"]) == 3
+    assert summary["subtask_signals"] == {"grasped_cube": 3}  # every expert episode grasped the cube
     info = read_dataset_info(path)
     assert info["task_id"] == "GalbotG1-PickCube-v0" and info["num_demos"] == 3
     assert info["env_args"]["env_name"] == "GalbotG1-PickCube-v0"

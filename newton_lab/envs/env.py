@@ -156,6 +156,7 @@ class NewtonEnv:
         self._reason = z(n, dtype=int)
         self._episode_length = z(n, dtype=int)
         self._signals = z((n, max(len(self.signal_names), 1)), dtype=float)
+        self._step_signals = z((n, max(len(self.signal_names), 1)), dtype=float)
         self._episode_count = z(n, dtype=int)
         self._reset_mask = z(n, dtype=bool)
         self._art_mask = z(self.model.articulation_count, dtype=bool)
@@ -217,6 +218,8 @@ class NewtonEnv:
             "episode_length": t(self._episode_length),
             "phase": t(ctx.phase),
             "signals": t(self._signals)[:, : len(self.signal_names)],
+            # the same signals on the state the step reached, before an automatic reset replaced it
+            "step_signals": t(self._step_signals)[:, : len(self.signal_names)],
             "command": t(ctx.command)[:, : cfg.command_dim],
         }
         self.tcp_pose = t(self._tcp_pose)
@@ -242,6 +245,7 @@ class NewtonEnv:
             cols.append((term.func, col))
             col += term.dim
         self._obs_kernel = fuse.build_observation_kernel(cols, list(cfg.signals.values()))
+        self._signal_kernel = fuse.build_signal_kernel(list(cfg.signals.values())) if cfg.signals else None
         self._reset_kernel = fuse.build_reset_kernel(cfg.events)
 
     def _capture(self):
@@ -353,6 +357,8 @@ class NewtonEnv:
         self._apply_actions()
         self._simulate()
         self._evaluate_task()
+        if self._signal_kernel is not None:
+            wp.launch(self._signal_kernel, dim=self.num_envs, inputs=[self._ctx, self._step_signals])
         wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
                   inputs=[self._done, self.state.joint_q, self._terminal_q])
         self._reset_rows(self._done)

@@ -140,6 +140,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     step_in_ep = torch.zeros(n, dtype=torch.long, device=env.torch_device)
     reward_total = torch.zeros(n, device=env.torch_device)
     latched = np.zeros(n, dtype=bool)
+    names = tuple(getattr(env, "signal_names", ()))
+    reached = np.zeros((n, len(names)), dtype=bool)  # subtask signals seen during the episode
     records: list[dict[str, Any]] = []
     successes = 0
     vector_steps = 0
@@ -164,6 +166,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             step_in_ep += 1
             reward_total += reward
             latched |= info["success"].cpu().numpy()
+            if names:
+                reached |= info["step_signals"].cpu().numpy() > 0.5
             done = (terminated | truncated).cpu().numpy()
             cut = (step_in_ep >= max_steps).cpu().numpy() & ~done
             agent_done = np.zeros(n, dtype=bool)
@@ -186,6 +190,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                     "success": bool(latched[row]),
                     "reward_total": float(reward_total[row]),
                     "termination_reason": reason,
+                    "signals_reached": [name for name, hit in zip(names, reached[row]) if hit],
                 }
                 if on_episode is not None:
                     rec.update(on_episode(row, rec) or {})
@@ -205,6 +210,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 step_in_ep[idx] = 0
                 reward_total[idx] = 0.0
                 latched[finished] = False
+                reached[finished] = False
     finally:
         bar.close()
     wall = time.perf_counter() - t0
@@ -227,6 +233,9 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "average_length": row_steps / max(len(records), 1),
         "reward_totals": [r["reward_total"] for r in records],
         "termination_reasons": reasons,
+        # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
+        "subtask_signals": {name: sum(name in r.get("signals_reached", ()) for r in records)
+                            for name in getattr(env, "signal_names", ())},
         "vector_steps": vector_steps,
         "row_steps": row_steps,
         "wall_time_s": wall,
