@@ -127,7 +127,7 @@ def _cmd_train(args) -> int:
     if args.preset not in PRESETS:
         raise ValueError(f"unknown training preset {args.preset!r}; valid presets: {sorted(PRESETS)}")
     cfg = dict(PRESETS[args.preset], device=args.device, seed=args.seed, output_dir=args.output_dir)
-    for key in ("epochs", "batch_size", "max_steps", "lr", "time_budget_s"):
+    for key in ("epochs", "batch_size", "max_steps", "lr", "time_budget_s", "init_checkpoint"):
         if getattr(args, key) is not None:
             cfg[key] = getattr(args, key)
     path = Policy.from_backend("diffusion").train(args.dataset_path, cfg)
@@ -238,6 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=None)
     p.add_argument("--batch-size", type=int, default=None, help="default 256 (cpu preset: 64)")
     p.add_argument("--lr", type=float, default=None, help="peak learning rate")
+    p.add_argument("--init-checkpoint", default=None,
+                   help="continue training this checkpoint (its architecture and normalisers are kept)")
     p.add_argument("--time-budget-s", type=float, default=None,
                    help="wall-clock budget [s]: the run is shortened to fit (LR schedule re-planned)")
     p.add_argument("--device", default="cpu")

@@ -266,6 +266,28 @@ def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):
     assert log["steps"] == 2 and log["epochs"] == 1 and log["config"]["max_steps"] == 2
 
 
+def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
+    start = DiffusionPolicy.load(trained)
+    # another architecture and obs keys asked for: the checkpoint's win; lr 0 keeps the weights unchanged
+    cfg = {"down_dims": (8, 16, 32), "obs_keys": ("cube_pose",), "lr": 0.0, "max_steps": 3, "warmup_steps": 1,
+           "batch_size": 8, "progress": False, "output_dir": str(tmp_path), "init_checkpoint": str(trained)}
+    path = Policy.from_backend("diffusion").train(dataset, cfg)
+    cont = DiffusionPolicy.load(path)
+    assert cont.cfg.down_dims == start.cfg.down_dims and cont.obs_keys == start.obs_keys
+    assert cont.info["training"]["init_checkpoint"] == str(trained)
+    obs = torch.randn(2, 2, 7)
+    torch.testing.assert_close(cont.predict_action(obs, generator=torch.Generator().manual_seed(3)),
+                               start.predict_action(obs, generator=torch.Generator().manual_seed(3)))
+    with open_writer(tmp_path / "wide.hdf5", task_id=TASK, env_args={"newton_lab": {"action_joint_names": JOINTS}},
+                     fsync=False) as w:
+        arrays = demo_arrays()
+        arrays["obs"]["robot_joint_pos"] = np.concatenate([arrays["obs"]["robot_joint_pos"]] * 2, axis=1)
+        w.append_episode(arrays, success=True)
+    with pytest.raises(ValueError, match="cannot continue from .*observation sizes") as err:
+        Policy.from_backend("diffusion").train(tmp_path / "wide.hdf5", {**cfg, "output_dir": str(tmp_path / "w")})
+    assert "\n" not in str(err.value)
+
+
 def test_errors_are_one_line(tmp_path, dataset):
     with pytest.raises(ValueError, match="unknown policy backend 'act'; valid backends: diffusion"):
         Policy.from_backend("act")

@@ -26,6 +26,10 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 """Named training settings; explicit fields override a preset's."""
 
+ARCHITECTURE_FIELDS = ("obs_horizon", "action_horizon", "pred_horizon", "down_dims", "kernel_size", "n_groups",
+                       "diffusion_step_embed_dim", "num_train_timesteps", "num_inference_steps", "obs_keys")
+"""Config fields a checkpoint fixes: fine-tuning from it keeps them."""
+
 CHECKPOINT_FORMAT = "newton_lab.policies.diffusion"
 CHECKPOINT_VERSION = 1
 
@@ -68,6 +72,9 @@ class DiffusionPolicyConfig:
     """Passes over all windows."""
     max_steps: int | None = None
     """Optional cap on optimiser steps (stops mid-epoch)."""
+    init_checkpoint: str | None = None
+    """Continue from this checkpoint (fine-tuning / training across sessions): its weights, normalisers,
+    observation keys and architecture are kept; this config's training fields (lr, steps, ...) apply."""
     time_budget_s: float | None = None
     """Optional wall-clock budget [s] for the optimiser loop: the step rate is measured over the first 50 steps and
     the run is shortened to fit, with the cosine schedule re-planned so the LR still decays to 0."""
@@ -129,6 +136,10 @@ class DiffusionPolicyConfig:
         if unknown:
             raise ValueError(f"unknown DiffusionPolicyConfig key(s) {unknown}; valid keys: {', '.join(names)}")
         return cls(**values)
+
+    def with_architecture_of(self, other: DiffusionPolicyConfig) -> DiffusionPolicyConfig:
+        """This config with ``other``'s architecture, horizons, diffusion settings and obs keys."""
+        return dataclasses.replace(self, **{k: getattr(other, k) for k in ARCHITECTURE_FIELDS})
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dict (tuples as lists)."""

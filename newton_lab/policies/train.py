@@ -6,6 +6,7 @@ to the first free ``checkpoint-<k>.pt`` (with a matching ``train_log-<k>.json``)
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -90,6 +91,26 @@ def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from
     return max(step + 1, min(cap, step + int((budget - elapsed) * rate * 0.97)))
 
 
+def _continue(policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig) -> DiffusionPolicy:
+    """``policy`` (loaded from ``cfg.init_checkpoint``) ready to train on ``data``: same task, observation
+    layout and actions, or a one-line error. Its normalisers stay (the weights were trained against them)."""
+    info = policy.info
+    problems = []
+    if info.get("task_id") not in (None, data.task_id):
+        problems.append(f"it was trained for {info['task_id']}, the dataset is {data.task_id}")
+    if dict(info.get("obs_dims", {})) != dict(data.obs_dims):
+        problems.append(f"observation sizes {info.get('obs_dims')} differ from the dataset's {data.obs_dims}")
+    if list(info.get("action_joint_names", [])) != list(data.action_joint_names):
+        problems.append("its action columns differ from the dataset's")
+    if problems:
+        raise ValueError(f"cannot continue from {cfg.init_checkpoint}: {'; '.join(problems)}; "
+                         "train from scratch (no init_checkpoint) or pick a matching dataset")
+    policy.cfg = cfg
+    policy.info["dataset"] = str(data.path)
+    policy.model.train()
+    return policy
+
+
 def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None) -> Path:
     """Train a diffusion policy on a dataset (a path, or an object with ``.path``); returns the checkpoint path."""
     cfg = as_config(cfg)
@@ -97,9 +118,13 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     if not path.exists():
         raise FileNotFoundError(f"dataset {path} does not exist; check the path")
     torch.manual_seed(cfg.seed)
+    start = None
+    if cfg.init_checkpoint is not None:
+        start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
+        cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
     data = SequenceDataset(path, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
-    policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
+    policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device) if start is None else _continue(start, data, cfg)
     # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh
     # permutations) up to batch_size windows, so every step sees batch_size differently-noised windows.
     sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size),
@@ -144,7 +169,7 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     wall = time.perf_counter() - t0
 
     training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
-                "num_demos": len(data.demo_ids), "num_windows": len(data), "batch_size": loader.batch_size,
+                "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demo_ids), "num_windows": len(data), "batch_size": loader.batch_size,
                 "parameters": sum(p.numel() for p in policy.model.parameters()),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     policy.info["training"] = training
