@@ -130,6 +130,8 @@ def _cmd_train(args) -> int:
     for key in ("epochs", "batch_size", "max_steps", "lr", "time_budget_s", "init_checkpoint"):
         if getattr(args, key) is not None:
             cfg[key] = getattr(args, key)
+    if args.obs_keys:
+        cfg["obs_keys"] = tuple(k.strip() for k in args.obs_keys.split(",") if k.strip())
     path = Policy.from_backend("diffusion").train(args.dataset_path, cfg)
     print(json.dumps({"checkpoint": str(path)}))
     return 0
@@ -238,6 +240,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=None)
     p.add_argument("--batch-size", type=int, default=None, help="default 256 (cpu preset: 64)")
     p.add_argument("--lr", type=float, default=None, help="peak learning rate")
+    p.add_argument("--obs-keys", default=None,
+                   help="comma-separated obs terms to condition on (default: every low-dim term but actions)")
     p.add_argument("--init-checkpoint", default=None,
                    help="continue training this checkpoint (its architecture and normalisers are kept)")
     p.add_argument("--time-budget-s", type=float, default=None,

@@ -288,6 +288,17 @@ def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
     assert "\n" not in str(err.value)
 
 
+def test_train_cli_flags(dataset, tmp_path, capsys):
+    from newton_lab.cli import main
+
+    assert main(["train", "--dataset-path", str(dataset), "--output-dir", str(tmp_path), "--preset", "cpu",
+                 "--max-steps", "2", "--batch-size", "8", "--obs-keys", "robot_joint_pos", "--time-budget-s", "60"]) == 0
+    ckpt = Path(json.loads(capsys.readouterr().out.strip().splitlines()[-1])["checkpoint"])
+    policy = DiffusionPolicy.load(ckpt)
+    assert policy.obs_keys == ["robot_joint_pos"] and policy.cfg.down_dims == (32, 64, 128)
+    assert policy.info["training"]["steps"] == 2 and policy.cfg.time_budget_s == 60
+
+
 def test_errors_are_one_line(tmp_path, dataset):
     with pytest.raises(ValueError, match="unknown policy backend 'act'; valid backends: diffusion"):
         Policy.from_backend("act")
