@@ -93,7 +93,7 @@ def test_time_budget_replans_the_run_and_its_schedule():
     # 50 steps in 10 s (5 steps/s) with a 100 s budget: 50 + 90 s * 5 * 0.97 = 486 steps, below the cap
     assert _fit_to_budget(50, 10.0, 100.0, 10_000, (50, 0.0), 10_000) == 486
     assert _fit_to_budget(50, 10.0, 100.0, 300, (50, 0.0), 300) == 300  # never above the cap
-    assert _fit_to_budget(51, 10.0, 100.0, 10_000, (50, 10.0), 486) == 486  # only re-planned every 500 steps
+    assert _fit_to_budget(51, 10.0, 100.0, 10_000, (50, 10.0), 486) == 486  # only re-planned every 100 steps
     # from step 50 on the rate excludes the warm-up: 450 steps in 20 s after it -> 22.5 steps/s
     assert _fit_to_budget(500, 30.0, 100.0, 10_000, (50, 10.0), 486) == 500 + int(70 * 22.5 * 0.97)
     assert _fit_to_budget(500, 120.0, 100.0, 10_000, (50, 10.0), 486) == 501  # over budget: stop now

@@ -80,11 +80,12 @@ def _save_run(policy: DiffusionPolicy, out_dir: Path, log: dict[str, Any]) -> Pa
 def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from: tuple[int, float],
                    total: int) -> int:
     """Planned total steps so the loop ends within ``budget`` seconds: re-planned at step 50 (rate over the
-    first 50 steps), then every 500 steps from the rate since step 50; never above ``cap``."""
+    first 50 steps), then every 100 steps from the rate since step 50 (the machine may speed up or slow
+    down; each re-plan moves the cosine schedule only a little); never above ``cap``."""
     start, t_start = rate_from
     if step == start:
         rate = step / elapsed
-    elif step > start and step % 500 == 0:
+    elif step > start and step % 100 == 0:
         rate = (step - start) / max(elapsed - t_start, 1e-9)
     else:
         return total
