@@ -96,7 +96,8 @@ def test_time_budget_replans_the_run_and_its_schedule():
     assert _fit_to_budget(51, 10.0, 100.0, 10_000, (50, 10.0), 486) == 486  # only re-planned every 100 steps
     # from step 50 on the rate excludes the warm-up: 450 steps in 20 s after it -> 22.5 steps/s
     assert _fit_to_budget(500, 30.0, 100.0, 10_000, (50, 10.0), 486) == 500 + int(70 * 22.5 * 0.97)
-    assert _fit_to_budget(500, 120.0, 100.0, 10_000, (50, 10.0), 486) == 501  # over budget: stop now
+    assert _fit_to_budget(500, 120.0, 100.0, 10_000, (50, 10.0), 486) == 500  # over budget: stop now
+    assert _fit_to_budget(10_000, 30.0, 100.0, 10_000, (50, 10.0), 10_000) == 10_000  # the cap is final
     total = 1000
     factor = warmup_cosine(10, lambda: total)
     assert factor(9) == 1.0 and factor(505) == pytest.approx(0.5, abs=0.01)

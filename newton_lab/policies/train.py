@@ -89,7 +89,7 @@ def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from
         rate = (step - start) / max(elapsed - t_start, 1e-9)
     else:
         return total
-    return max(step + 1, min(cap, step + int((budget - elapsed) * rate * 0.97)))
+    return min(cap, step + max(0, int((budget - elapsed) * rate * 0.97)))  # == step: stop now
 
 
 def _continue(policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig) -> DiffusionPolicy:
