@@ -293,7 +293,8 @@ def test_train_cli_flags(dataset, tmp_path, capsys):
     from newton_lab.cli import main
 
     assert main(["train", "--dataset-path", str(dataset), "--output-dir", str(tmp_path), "--preset", "cpu",
-                 "--max-steps", "2", "--batch-size", "8", "--obs-keys", "robot_joint_pos", "--time-budget-s", "60"]) == 0
+                 "--max-steps", "2", "--batch-size", "8", "--obs-keys", "robot_joint_pos",
+                 "--time-budget-s", "60"]) == 0
     ckpt = Path(json.loads(capsys.readouterr().out.strip().splitlines()[-1])["checkpoint"])
     policy = DiffusionPolicy.load(ckpt)
     assert policy.obs_keys == ["robot_joint_pos"] and policy.cfg.down_dims == (32, 64, 128)

@@ -170,7 +170,8 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     wall = time.perf_counter() - t0
 
     training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
-                "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demo_ids), "num_windows": len(data), "batch_size": loader.batch_size,
+                "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demo_ids), "num_windows": len(data),
+                "batch_size": loader.batch_size,
                 "parameters": sum(p.numel() for p in policy.model.parameters()),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     policy.info["training"] = training
