@@ -375,7 +375,8 @@ class NewtonEnv:
             ``(obs, reward, terminated, truncated, info)`` as torch views of the env's Warp buffers
             (overwritten by the next step). Rows that finished were reset in the same step: ``obs`` is
             their new episode's first observation, and ``info`` holds the finished episode's
-            ``success``, ``termination_reason`` and ``episode_length``.
+            ``success``, ``termination_reason``, ``episode_length`` and ``step_signals`` (subtask
+            signals of the state the step reached; ``info["signals"]`` belong to ``obs``).
         """
         self.actions.copy_(self.check_actions(actions))
         if self._graph is not None:
