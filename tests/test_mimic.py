@@ -87,3 +87,30 @@ def test_mimic_from_two_sources_generates_successes(pick_env, tmp_path):
     ops = [p.operation for p in DatasetRef.open(ref.path).provenance]
     assert ops == ["mimic"]
     assert DatasetRef.open(ref.path).provenance[0].config["source_path"] == str(src.path)
+
+
+def test_stack_cube_segments_end_clear_of_the_stack(stack_env, tmp_path):
+    """Every StackCube segment boundary (over its whole offset range) has the fingertips above the objects
+    the next segment's interpolation may cross: a boundary inside the release let the cube_3 segment
+    sweep the open fingers through cube_2."""
+    from newton_lab.agents import PlannerAgent
+    from newton_lab.datasets.mimic.source import load_sources
+    from newton_lab.registry import lookup
+    from newton_lab.robots.g1.kinematics import TcpKinematics
+
+    src = stack_env.collect(agent=PlannerAgent.from_task(stack_env.task_id), episodes=1, path=tmp_path / "s.hdf5",
+                            max_steps=900, progress=False)
+    assert src["successes"] == 1
+    cfg = lookup("GalbotG1-StackCube-Mimic-v0")["mimic"]
+    (demo,) = load_sources(src.path, cfg, TcpKinematics(64, device="cpu"), task_id=stack_env.task_id)
+    fingers = 0.05  # fingertips reach this far below the TCP [m]
+    for sub in cfg.subtasks[:-1]:
+        lo, hi = sub.term_offset_range
+        edge = demo.signal_edges[sub.term_signal]
+        for end in range(edge + lo, edge + hi + 1):
+            tips = demo.target_tcp[end, 2] - fingers
+            tops = max(demo.objects[name][end, 2] + 0.025 for name in ("cube_1", "cube_2", "cube_3")
+                       if name != sub.object_ref or sub.term_signal == "cube_2_on_cube_1")
+            held = demo.gripper[end] > 0.1  # a carried cube hangs below the fingertips
+            clearance = tips - tops - (0.05 if held else 0.0)
+            assert clearance > 0.0, (sub.term_signal, end - edge, round(clearance, 3))
