@@ -11,6 +11,7 @@ import json
 
 from newton_lab.agents import PolicyAgent
 from newton_lab.envs import make_env
+from newton_lab.envs.rollout import EVAL_REPORT_KEYS
 
 
 def main() -> None:
@@ -29,8 +30,7 @@ def main() -> None:
     env = make_env(args.task, num_envs=args.num_envs, device=args.device, seed=args.seed, randomize=args.randomize)
     summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps)
     print(f"success rate: {summary['success_rate']:.3f} ({summary['successes']}/{summary['episodes']})")
-    print(json.dumps({k: summary[k] for k in ("task", "episodes", "successes", "success_rate", "average_length",
-                                              "termination_reasons", "subtask_signals")}))
+    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
 
 
 if __name__ == "__main__":

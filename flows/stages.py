@@ -99,9 +99,9 @@ def evaluate_stage(*, checkpoint: dict[str, Any], task_id: str, episodes: int, n
     """Success rate of a checkpoint artifact on ``task_id`` (randomised, its own seed range)."""
     from ..agents import PolicyAgent
     from ..envs import make_env
+    from ..envs.rollout import EVAL_REPORT_KEYS
 
     env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
     s = env.evaluate(agent=PolicyAgent.from_checkpoint(checkpoint["path"]), episodes=episodes, max_steps=max_steps,
                      progress=progress)
-    return {k: s[k] for k in ("episodes", "successes", "success_rate", "average_length", "termination_reasons",
-                                    "subtask_signals")}
+    return {k: s[k] for k in EVAL_REPORT_KEYS if k != "task"}

@@ -105,33 +105,28 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
     return task_step
 
 
-def build_observation_kernel(terms, signals=()):
+def build_observation_kernel(terms):
     """Return the fused observation kernel.
 
-    ``terms`` are ``(func(ctx, w, out, col), col)`` pairs; ``signals`` are stateless
-    ``func(ctx, w) -> bool`` subtask signals (e.g. grasped), evaluated on the same state as the
-    observation (after resets) and written as 0 / 1 per row.
+    ``terms`` are ``(func(ctx, w, out, col), col)`` pairs writing columns ``col..`` of row ``w``.
     """
     fns = tuple(f for f, _ in terms)
     cols = tuple(int(c) for _, c in terms)
     n = len(fns)
-    signal_fns = tuple(signals)
-    n_signal = len(signal_fns)
 
     @wp.kernel(module="unique")
-    def observe(ctx: TaskContext, out: wp.array2d(dtype=float), signal_out: wp.array2d(dtype=float)):
+    def observe(ctx: TaskContext, out: wp.array2d(dtype=float)):
         w = wp.tid()
         for k in range(wp.static(n)):
             wp.static(fns[k])(ctx, w, out, wp.static(cols[k]))
-        for k in range(wp.static(n_signal)):
-            signal_out[w, k] = wp.where(wp.static(signal_fns[k])(ctx, w), 1.0, 0.0)
 
     return observe
 
 
 def build_signal_kernel(signals):
-    """Return a kernel writing the subtask ``signals`` (0 / 1 per row) of the state the step reached,
-    before automatic resets: a signal that holds only at the terminal step (the last placement) is seen."""
+    """Return a kernel writing the stateless subtask ``signals`` (``func(ctx, w) -> bool``, e.g. grasped)
+    as 0 / 1 per row. The env launches it twice per step: on the state the step reached (before automatic
+    resets, so a signal that holds only at the terminal step is seen) and on the observed state."""
     signal_fns = tuple(signals)
     n_signal = len(signal_fns)
 

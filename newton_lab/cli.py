@@ -93,6 +93,7 @@ def _cmd_collect(args) -> int:
 
 def _cmd_evaluate(args) -> int:
     from .agents import PolicyAgent, expert_agent
+    from .envs.rollout import EVAL_REPORT_KEYS
 
     checkpoint_agent = PolicyAgent.from_checkpoint(args.checkpoint) if args.checkpoint else None
     env = _make(args)
@@ -103,9 +104,7 @@ def _cmd_evaluate(args) -> int:
                                progress=not args.no_progress, on_step=hook)
     finally:
         close()
-    keys = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
-            "subtask_signals")
-    print(json.dumps({k: summary[k] for k in keys}))
+    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
     return 0
 
 

@@ -244,7 +244,7 @@ class NewtonEnv:
         for term in cfg.observations:
             cols.append((term.func, col))
             col += term.dim
-        self._obs_kernel = fuse.build_observation_kernel(cols, list(cfg.signals.values()))
+        self._obs_kernel = fuse.build_observation_kernel(cols)
         self._signal_kernel = fuse.build_signal_kernel(list(cfg.signals.values())) if cfg.signals else None
         self._reset_kernel = fuse.build_reset_kernel(cfg.events)
 
@@ -349,16 +349,20 @@ class NewtonEnv:
         warmstart = self.solver.mjw_data.qacc_warmstart
         wp.launch(fuse.clear_solver_warmstart, dim=warmstart.shape, inputs=[mask, warmstart])
 
+    def _write_signals(self, out: wp.array2d) -> None:
+        if self._signal_kernel is not None:
+            wp.launch(self._signal_kernel, dim=self.num_envs, inputs=[self._ctx, out])
+
     def _observe(self) -> None:
-        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._obs, self._signals])
+        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._obs])
+        self._write_signals(self._signals)
         wp.launch(record_poses, dim=self.num_envs, inputs=[self._ctx, self._tcp_pose, self._entity_poses])
 
     def _step_body(self) -> None:
         self._apply_actions()
         self._simulate()
         self._evaluate_task()
-        if self._signal_kernel is not None:
-            wp.launch(self._signal_kernel, dim=self.num_envs, inputs=[self._ctx, self._step_signals])
+        self._write_signals(self._step_signals)
         wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
                   inputs=[self._done, self.state.joint_q, self._terminal_q])
         self._reset_rows(self._done)

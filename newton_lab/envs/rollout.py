@@ -17,6 +17,9 @@ import warp as wp
 from tqdm import tqdm
 
 REASON_MAX_STEPS = "max_steps"
+EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
+                    "subtask_signals")
+"""The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
 
 
 class EpisodeRecorder:
@@ -140,8 +143,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     step_in_ep = torch.zeros(n, dtype=torch.long, device=env.torch_device)
     reward_total = torch.zeros(n, device=env.torch_device)
     latched = np.zeros(n, dtype=bool)
-    names = tuple(getattr(env, "signal_names", ()))
-    reached = np.zeros((n, len(names)), dtype=bool)  # subtask signals seen during the episode
+    # subtask signals seen during each row's episode, kept on the device (read only when an episode ends)
+    reached = torch.zeros((n, len(env.signal_names)), dtype=torch.bool, device=env.torch_device)
     records: list[dict[str, Any]] = []
     successes = 0
     vector_steps = 0
@@ -166,8 +169,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             step_in_ep += 1
             reward_total += reward
             latched |= info["success"].cpu().numpy()
-            if names:
-                reached |= info["step_signals"].cpu().numpy() > 0.5
+            reached |= info["step_signals"] > 0.5
             done = (terminated | truncated).cpu().numpy()
             cut = (step_in_ep >= max_steps).cpu().numpy() & ~done
             agent_done = np.zeros(n, dtype=bool)
@@ -190,7 +192,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                     "success": bool(latched[row]),
                     "reward_total": float(reward_total[row]),
                     "termination_reason": reason,
-                    "signals_reached": [name for name, hit in zip(names, reached[row]) if hit],
+                    "signals_reached": [name for name, hit in zip(env.signal_names, reached[row].tolist()) if hit],
                 }
                 if on_episode is not None:
                     rec.update(on_episode(row, rec) or {})
@@ -210,7 +212,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 step_in_ep[idx] = 0
                 reward_total[idx] = 0.0
                 latched[finished] = False
-                reached[finished] = False
+                reached[idx] = False
     finally:
         bar.close()
     wall = time.perf_counter() - t0
@@ -234,8 +236,7 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "reward_totals": [r["reward_total"] for r in records],
         "termination_reasons": reasons,
         # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
-        "subtask_signals": {name: sum(name in r.get("signals_reached", ()) for r in records)
-                            for name in getattr(env, "signal_names", ())},
+        "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.signal_names},
         "vector_steps": vector_steps,
         "row_steps": row_steps,
         "wall_time_s": wall,
