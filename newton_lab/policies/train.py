@@ -157,9 +157,10 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
                 step += 1
                 bar.update()
                 if cfg.time_budget_s is not None:
-                    total = _fit_to_budget(step, time.perf_counter() - t0, cfg.time_budget_s, cap, rate_from, total)
+                    elapsed = time.perf_counter() - t0
+                    total = _fit_to_budget(step, elapsed, cfg.time_budget_s, cap, rate_from, total)
                     if step == rate_from[0]:
-                        rate_from = (step, time.perf_counter() - t0)
+                        rate_from = (step, elapsed)
                     bar.total = total
                 if step % 50 == 0:
                     bar.set_postfix(loss=f"{losses[-1].item():.4f}", epoch=len(epochs) + 1, refresh=False)
