@@ -53,3 +53,38 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
         "bare_world_steps_per_s": num_envs * dec / t_bare,
         "ratio_env_step_to_bare": t_env / t_bare,
     }
+
+
+def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, device: str = "cpu",
+                preset: str = "default") -> dict[str, Any]:
+    """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
+    side in one process on fresh policies of the same architecture."""
+    from .policies.data import SequenceDataset
+    from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
+    from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
+
+    fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
+    cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
+    data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon)
+    kinds = [EagerTrainStep] + ([CudaGraphTrainStep] if torch.device(device).type == "cuda" else [])
+    out: dict[str, Any] = {"dataset": dataset, "device": device, "batch_size": batch_size, "preset": preset,
+                           "device_name": torch.cuda.get_device_name(device) if "cuda" in device else "cpu",
+                           "windows": len(data)}
+    for kind in kinds:
+        torch.manual_seed(0)
+        policy = DiffusionPolicy.from_dataset(data, cfg).to(device)
+        stepper, done, t0, loss = kind(policy, data, cfg), 0, 0.0, None
+        while done < steps + 10:  # 10 untimed steps: allocation, autotuning, capture
+            for loss in stepper.epoch():
+                done += 1
+                if done == 10:
+                    torch.cuda.synchronize(device) if "cuda" in device else None
+                    t0 = time.perf_counter()
+                if done == steps + 10:
+                    break
+        final = loss.item()  # waits for the queued steps
+        out[f"{kind.__name__}_steps_per_s"] = steps / (time.perf_counter() - t0)
+        out[f"{kind.__name__}_final_loss"] = final
+    if len(kinds) == 2:
+        out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]
+    return out

@@ -1,4 +1,4 @@
-"""The ``newton-lab`` console script: ``tasks``, ``collect``, ``evaluate``, ``bench``."""
+"""The ``newton-lab`` console script: ``tasks``, ``collect``, ``evaluate``, ``bench``, ``bench-train``, ..."""
 
 from __future__ import annotations
 
@@ -95,7 +95,9 @@ def _cmd_evaluate(args) -> int:
     from .agents import PolicyAgent, expert_agent
     from .envs.rollout import EVAL_REPORT_KEYS
 
-    checkpoint_agent = PolicyAgent.from_checkpoint(args.checkpoint) if args.checkpoint else None
+    on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
+    checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.device if on_gpu else None)
+                        if args.checkpoint else None)
     env = _make(args)
     agent = checkpoint_agent or expert_agent(env)
     hook, close = _logger(args, env)
@@ -201,6 +203,14 @@ def _cmd_bench(args) -> int:
     return 0
 
 
+def _cmd_bench_train(args) -> int:
+    from .bench import bench_train
+
+    print(json.dumps(bench_train(args.dataset_path, batch_size=args.batch_size, steps=args.steps,
+                                 device=args.device, preset=args.preset)))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .registry import DEFAULT_TASK_ID
 
@@ -289,6 +299,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=200)
     p.add_argument("--device", default=None)
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("bench-train", help="diffusion-policy training steps/s: eager vs CUDA-graph step")
+    p.add_argument("--dataset-path", required=True)
+    p.add_argument("--batch-size", type=int, default=1024)
+    p.add_argument("--steps", type=int, default=200)
+    p.add_argument("--preset", default="default", choices=["default", "cpu"])
+    p.add_argument("--device", default="cpu")
+    p.set_defaults(func=_cmd_bench_train)
     return parser
 
 

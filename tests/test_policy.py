@@ -301,6 +301,34 @@ def test_train_cli_flags(dataset, tmp_path, capsys):
     assert policy.info["training"]["steps"] == 2 and policy.cfg.time_budget_s == 60
 
 
+def test_graph_safe_ema_update_matches_the_eager_one():
+    from newton_lab.policies.ema import EMA
+
+    torch.manual_seed(0)
+    model = ConditionalUnet1D(3, 8, down_dims=(8, 16), diffusion_step_embed_dim=8, n_groups=4)
+    a, b = EMA(model), EMA(model)
+    for _ in range(4):  # the first updates copy, later ones average
+        with torch.no_grad():
+            for p in model.parameters():
+                p.add_(torch.randn_like(p))
+        b_weight = torch.tensor(1.0 - b.decay())
+        a.update(model)
+        b.update_with(model, b_weight)
+        b.num_updates += 1
+    for pa, pb in zip(a.averaged.parameters(), b.averaged.parameters()):
+        torch.testing.assert_close(pa, pb)
+
+
+def test_train_bench_prints_the_eager_rate_on_cpu(dataset, capsys):
+    from newton_lab.cli import main
+
+    assert main(["bench-train", "--dataset-path", str(dataset), "--batch-size", "8", "--steps", "3",
+                 "--preset", "cpu"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["EagerTrainStep_steps_per_s"] > 0 and np.isfinite(out["EagerTrainStep_final_loss"])
+    assert "CudaGraphTrainStep_steps_per_s" not in out  # no capture without CUDA
+
+
 def test_errors_are_one_line(tmp_path, dataset):
     with pytest.raises(ValueError, match="unknown policy backend 'act'; valid backends: diffusion"):
         Policy.from_backend("act")

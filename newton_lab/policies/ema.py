@@ -30,3 +30,14 @@ class EMA(nn.Module):
         for avg, new in zip(self.averaged.buffers(), model.buffers()):
             avg.copy_(new)
         self.num_updates += 1
+
+    @torch.no_grad()
+    def update_with(self, model: nn.Module, weight: torch.Tensor) -> None:
+        """``averaged += weight * (model - averaged)`` with ``weight`` a device tensor (1 - decay): no host value,
+        so a CUDA graph can capture it. The caller sets ``weight`` and counts ``num_updates``."""
+        avg = list(self.averaged.parameters())
+        delta = torch._foreach_sub([p.detach() for p in model.parameters()], avg)
+        torch._foreach_mul_(delta, weight)
+        torch._foreach_add_(avg, delta)
+        for a, new in zip(self.averaged.buffers(), model.buffers()):
+            a.copy_(new)

@@ -21,6 +21,7 @@ class MinMaxNormalizer:
         self.low, self.high = low, high
         self.constant = (high - low) < CONSTANT_RANGE
         self.scale = torch.where(self.constant, torch.ones_like(low), high - low)
+        self._on_device: dict[tuple[torch.device, torch.dtype], tuple[torch.Tensor, ...]] = {}
 
     @classmethod
     def fit(cls, data: torch.Tensor) -> MinMaxNormalizer:
@@ -37,7 +38,11 @@ class MinMaxNormalizer:
     def _stats(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         if x.shape[-1] != self.dim:
             raise ValueError(f"last dimension {x.shape[-1]} does not match the normaliser's {self.dim}")
-        return (self.low.to(x.device, x.dtype), self.scale.to(x.device, x.dtype), self.constant.to(x.device))
+        key = (x.device, x.dtype)  # cached: no host-to-device copy per call (and a CUDA graph can capture it)
+        if key not in self._on_device:
+            self._on_device[key] = (self.low.to(x.device, x.dtype), self.scale.to(x.device, x.dtype),
+                                    self.constant.to(x.device))
+        return self._on_device[key]
 
     def normalize(self, x: torch.Tensor) -> torch.Tensor:
         low, scale, const = self._stats(x)

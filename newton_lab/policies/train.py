@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from torch.utils.data import DataLoader, RandomSampler
 from tqdm import tqdm
 
-from .data import SequenceDataset, collate_batch
+from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
+from .train_step import make_train_step, set_lr, steps_per_epoch
 
 
 def as_config(cfg: DiffusionPolicyConfig | dict[str, Any] | None) -> DiffusionPolicyConfig:
@@ -126,17 +126,10 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     data = SequenceDataset(path, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
     policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device) if start is None else _continue(start, data, cfg)
-    # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh
-    # permutations) up to batch_size windows, so every step sees batch_size differently-noised windows.
-    sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size),
-                            generator=torch.Generator().manual_seed(cfg.seed))
-    loader = DataLoader(data, batch_size=cfg.batch_size, sampler=sampler, drop_last=True, num_workers=cfg.num_workers,
-                        collate_fn=collate_batch, persistent_workers=cfg.num_workers > 0)
-    total = len(loader) * cfg.epochs if cfg.max_steps is None else min(len(loader) * cfg.epochs, cfg.max_steps)
-    fused = {"fused": True} if torch.device(cfg.device).type == "cuda" else {}
-    optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay,
-                                  **fused)
-    lr_schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, warmup_cosine(cfg.warmup_steps, lambda: total))
+    stepper = make_train_step(policy, data, cfg)
+    per_epoch = steps_per_epoch(data, cfg.batch_size)
+    total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
+    lr_factor = warmup_cosine(cfg.warmup_steps, lambda: total)
     cap = total
     rate_from = (50, 0.0)  # (step, time): the rate is measured after the first 50 steps (warm-up, autotuning)
 
@@ -146,14 +139,9 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     with tqdm(total=total, desc=f"diffusion policy {data.task_id}", unit="step", disable=not cfg.progress) as bar:
         while step < total:
             losses = []
-            for batch in loader:
-                loss = policy.compute_loss(batch)
-                optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                optimizer.step()
-                lr_schedule.step()
-                policy.ema.update(policy.model)
-                losses.append(loss.detach())  # no host sync per step: read back every 50 steps
+            set_lr(stepper.optimizer, cfg.lr * lr_factor(step))
+            for loss in stepper.epoch():
+                losses.append(loss)  # no host sync per step: read back every 50 steps
                 step += 1
                 bar.update()
                 if cfg.time_budget_s is not None:
@@ -166,13 +154,14 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
                     bar.set_postfix(loss=f"{losses[-1].item():.4f}", epoch=len(epochs) + 1, refresh=False)
                 if step >= total:
                     break
+                set_lr(stepper.optimizer, cfg.lr * lr_factor(step))
             epochs.append({"epoch": len(epochs) + 1, "loss": torch.stack(losses).mean().item(), "steps": step,
-                           "lr": optimizer.param_groups[0]["lr"]})
+                           "lr": cfg.lr * lr_factor(step)})
     wall = time.perf_counter() - t0
 
     training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
                 "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demo_ids), "num_windows": len(data),
-                "batch_size": loader.batch_size,
+                "batch_size": cfg.batch_size, "cuda_graph": type(stepper).__name__ == "CudaGraphTrainStep",
                 "parameters": sum(p.numel() for p in policy.model.parameters()),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     policy.info["training"] = training
