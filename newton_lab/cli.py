@@ -133,7 +133,8 @@ def _cmd_train(args) -> int:
             cfg[key] = getattr(args, key)
     if args.obs_keys:
         cfg["obs_keys"] = tuple(k.strip() for k in args.obs_keys.split(",") if k.strip())
-    path = Policy.from_backend("diffusion").train(args.dataset_path, cfg)
+    datasets = args.dataset_path[0] if len(args.dataset_path) == 1 else args.dataset_path
+    path = Policy.from_backend("diffusion").train(datasets, cfg)
     print(json.dumps({"checkpoint": str(path)}))
     return 0
 
@@ -242,7 +243,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_mimic)
 
     p = sub.add_parser("train", help="train a diffusion policy on a dataset")
-    p.add_argument("--dataset-path", required=True)
+    p.add_argument("--dataset-path", required=True, nargs="+",
+                   help="one dataset, or several of the same task trained as one")
     p.add_argument("--output-dir", default="outputs/policy")
     p.add_argument("--preset", default="default", help="named settings: default (GPU-sized) or cpu (2-core budget)")
     p.add_argument("--epochs", type=int, default=None, help="passes over the data (default 100)")

@@ -176,6 +176,19 @@ def test_windows_pad_episode_edges(tmp_path, suffix):
         SequenceDataset(path, obs_keys=["rgb"])
 
 
+def test_several_datasets_train_as_one(tmp_path, dataset):
+    other = write_dataset(tmp_path / "more.zarr", failed_demo=False)
+    both = SequenceDataset([dataset, other])
+    assert len(both) == 2 * T and both.demos == [(Path(dataset), 0), (other, 0)]
+    assert both.source == f"{dataset}, {other}"
+    np.testing.assert_array_equal(both[T + 3]["obs"].numpy(), both[3]["obs"].numpy())  # windows stay per demo
+    np.testing.assert_array_equal(both[T]["actions"].numpy(), both[0]["actions"].numpy())  # padded at its own edge
+    with open_writer(tmp_path / "place.hdf5", task_id="GalbotG1-StackCube-v0", env_args={}, fsync=False) as writer:
+        writer.append_episode(demo_arrays(), success=True)
+    with pytest.raises(ValueError, match="need the same task and action columns"):
+        SequenceDataset([dataset, tmp_path / "place.hdf5"])
+
+
 # ----------------------------------------------------------------------------- model
 def test_unet_output_shape_and_horizon_check():
     torch.manual_seed(0)
@@ -292,13 +305,14 @@ def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
 def test_train_cli_flags(dataset, tmp_path, capsys):
     from newton_lab.cli import main
 
-    assert main(["train", "--dataset-path", str(dataset), "--output-dir", str(tmp_path), "--preset", "cpu",
+    assert main(["train", "--dataset-path", str(dataset), str(dataset), "--output-dir", str(tmp_path), "--preset", "cpu",
                  "--max-steps", "2", "--batch-size", "8", "--obs-keys", "robot_joint_pos",
                  "--time-budget-s", "60"]) == 0
     ckpt = Path(json.loads(capsys.readouterr().out.strip().splitlines()[-1])["checkpoint"])
     policy = DiffusionPolicy.load(ckpt)
     assert policy.obs_keys == ["robot_joint_pos"] and policy.cfg.down_dims == (32, 64, 128)
     assert policy.info["training"]["steps"] == 2 and policy.cfg.time_budget_s == 60
+    assert policy.info["training"]["num_demos"] == 2 and policy.info["dataset"] == f"{dataset}, {dataset}"
 
 
 def test_graph_safe_ema_update_matches_the_eager_one():

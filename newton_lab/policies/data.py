@@ -39,28 +39,39 @@ def default_obs_keys(obs: dict[str, Any], obs_terms: dict[str, Any] | None = Non
 class SequenceDataset(Dataset):
     """``ds[i] -> {"obs": (obs_horizon, obs_dim), "actions": (pred_horizon, action_dim)}`` float32, raw units."""
 
-    def __init__(self, path: str | Path, *, obs_keys: Sequence[str] | None = None, obs_horizon: int = 2,
-                 pred_horizon: int = 16, success_only: bool = True) -> None:
+    def __init__(self, path: str | Path | Sequence[str | Path], *, obs_keys: Sequence[str] | None = None,
+                 obs_horizon: int = 2, pred_horizon: int = 16, success_only: bool = True) -> None:
         if obs_horizon < 1 or pred_horizon < obs_horizon:
             raise ValueError(f"need 1 <= obs_horizon <= pred_horizon, got {obs_horizon} and {pred_horizon}")
-        info = read_dataset_info(path)
-        self.path = Path(info["path"])
-        self.task_id: str = info["task_id"]
-        self.env_args: dict[str, Any] = info["env_args"]
+        infos = [read_dataset_info(p) for p in ([path] if isinstance(path, (str, Path)) else path)]
+        if not infos:
+            raise ValueError("no dataset given; pass a dataset path or a list of them")
+        self.paths: tuple[Path, ...] = tuple(Path(i["path"]) for i in infos)
+        self.path = self.paths[0]
+        self.task_id: str = infos[0]["task_id"]
+        self.env_args: dict[str, Any] = infos[0]["env_args"]
         meta = self.env_args.get("newton_lab", {})
+        for info in infos[1:]:
+            other = info["env_args"].get("newton_lab", {})
+            if info["task_id"] != self.task_id or other.get("action_joint_names") != meta.get("action_joint_names"):
+                raise ValueError(f"{info['path']} ({info['task_id']}) does not match {self.path} ({self.task_id}): "
+                                 "datasets trained together need the same task and action columns")
         self.obs_horizon, self.pred_horizon = obs_horizon, pred_horizon
-        self.demo_ids = [i for i in info["demo_ids"] if info["demos"][i]["success"] or not success_only]
-        if not self.demo_ids:
-            if info["demo_ids"]:
-                raise ValueError(f"{self.path} has no successful demos ({len(info['demo_ids'])} failed); "
+        self.demos: list[tuple[Path, int]] = [(Path(info["path"]), i) for info in infos for i in info["demo_ids"]
+                                              if info["demos"][i]["success"] or not success_only]
+        self.demo_ids = [i for _, i in self.demos]  # ids within their file; ``demos`` pairs each with its file
+        if not self.demos:
+            total = sum(len(info["demo_ids"]) for info in infos)
+            if total:
+                raise ValueError(f"{self.path} has no successful demos ({total} failed); "
                                  "pass success_only=False to train on them")
             raise ValueError(f"{self.path} has no demos to train on")
 
         obs_rows, act_rows, obs_index, act_index, start = [], [], [], [], 0
         self.obs_keys: tuple[str, ...] = ()
         self.obs_dims: dict[str, int] = {}
-        for demo in self.demo_ids:
-            ep = read_episode(self.path, demo)
+        for file, demo in self.demos:
+            ep = read_episode(file, demo)
             obs = ep.get("obs", {})
             if not self.obs_keys:
                 if isinstance(obs_keys, str):
@@ -73,7 +84,7 @@ class SequenceDataset(Dataset):
             parts = []
             for k in self.obs_keys:
                 if k not in obs:
-                    raise ValueError(f"demo {demo} of {self.path} has no obs/{k}")
+                    raise ValueError(f"demo {demo} of {file} has no obs/{k}")
                 parts.append(np.asarray(obs[k], dtype=np.float32).reshape(n, -1))
             obs_rows.append(np.concatenate(parts, axis=1))
             act_rows.append(np.asarray(ep["actions"], dtype=np.float32))
@@ -85,7 +96,8 @@ class SequenceDataset(Dataset):
             if not self.obs_dims:
                 self.obs_dims = {k: p.shape[1] for k, p in zip(self.obs_keys, parts)}
             elif [p.shape[1] for p in parts] != list(self.obs_dims.values()):
-                raise ValueError(f"demo {demo} of {self.path} has obs dims differing from demo {self.demo_ids[0]}")
+                raise ValueError(f"demo {demo} of {file} has obs dims differing from demo {self.demo_ids[0]} "
+                                 f"of {self.path}")
         if not act_rows:
             raise ValueError(f"the selected demos of {self.path} hold no steps")
         try:
@@ -109,6 +121,11 @@ class SequenceDataset(Dataset):
         return keys
 
     @property
+    def source(self) -> str:
+        """The data as recorded in checkpoints and logs: the path, or the paths joined by ``", "``."""
+        return ", ".join(str(p) for p in self.paths)
+
+    @property
     def obs_dim(self) -> int:
         return self.obs.shape[1]
 
@@ -128,7 +145,7 @@ class SequenceDataset(Dataset):
         return {"obs": self.obs[self.obs_index[idx]], "actions": self.actions[self.action_index[idx]]}
 
     def __repr__(self) -> str:
-        return (f"SequenceDataset({str(self.path)!r}, demos={len(self.demo_ids)}, windows={len(self)}, "
+        return (f"SequenceDataset({self.source!r}, demos={len(self.demos)}, windows={len(self)}, "
                 f"obs_keys={list(self.obs_keys)}, obs_dim={self.obs_dim}, action_dim={self.action_dim})")
 
 

@@ -190,7 +190,7 @@ class DiffusionPolicy(nn.Module):
         control_dt = meta["sim_dt"] * meta["decimation"] if "sim_dt" in meta and "decimation" in meta else None
         info = {"task_id": dataset.task_id, "obs_keys": list(dataset.obs_keys), "obs_dims": dict(dataset.obs_dims),
                 "action_joint_names": list(dataset.action_joint_names), "control_dt": control_dt,
-                "dataset": str(dataset.path)}
+                "dataset": dataset.source}
         return cls(cfg, obs_normalizer=MinMaxNormalizer.fit(dataset.obs),
                    action_normalizer=MinMaxNormalizer.fit(dataset.actions), info=info)
 

@@ -107,23 +107,26 @@ def _continue(policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPoli
         raise ValueError(f"cannot continue from {cfg.init_checkpoint}: {'; '.join(problems)}; "
                          "train from scratch (no init_checkpoint) or pick a matching dataset")
     policy.cfg = cfg
-    policy.info["dataset"] = str(data.path)
+    policy.info["dataset"] = data.source
     policy.model.train()
     return policy
 
 
 def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None) -> Path:
-    """Train a diffusion policy on a dataset (a path, or an object with ``.path``); returns the checkpoint path."""
+    """Train a diffusion policy on a dataset (a path, an object with ``.path``, or a list of them: same task and
+    action columns, trained as one); returns the checkpoint path."""
     cfg = as_config(cfg)
-    path = Path(getattr(dataset, "path", dataset)).expanduser()
-    if not path.exists():
-        raise FileNotFoundError(f"dataset {path} does not exist; check the path")
+    many = isinstance(dataset, (list, tuple))
+    paths = [Path(getattr(d, "path", d)).expanduser() for d in (dataset if many else [dataset])]
+    for path in paths:
+        if not path.exists():
+            raise FileNotFoundError(f"dataset {path} does not exist; check the path")
     torch.manual_seed(cfg.seed)
     start = None
     if cfg.init_checkpoint is not None:
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
-    data = SequenceDataset(path, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
+    data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
     policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device) if start is None else _continue(start, data, cfg)
     stepper = make_train_step(policy, data, cfg)
@@ -160,11 +163,11 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     wall = time.perf_counter() - t0
 
     training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
-                "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demo_ids), "num_windows": len(data),
+                "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demos), "num_windows": len(data),
                 "batch_size": cfg.batch_size, "cuda_graph": type(stepper).__name__ == "CudaGraphTrainStep",
                 "parameters": sum(p.numel() for p in policy.model.parameters()),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     policy.info["training"] = training
-    log = {"task_id": data.task_id, "dataset": str(data.path), **training, "config": cfg.to_dict(),
+    log = {"task_id": data.task_id, "dataset": data.source, **training, "config": cfg.to_dict(),
            "epoch_log": epochs}
     return _save_run(policy, Path(cfg.output_dir).expanduser(), log)
