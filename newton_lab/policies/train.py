@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
-from .train_step import make_train_step, set_lr, steps_per_epoch
+from .train_step import CudaGraphTrainStep, make_train_step, set_lr, steps_per_epoch
 
 
 def as_config(cfg: DiffusionPolicyConfig | dict[str, Any] | None) -> DiffusionPolicyConfig:
@@ -164,7 +164,7 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
 
     training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
                 "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demos), "num_windows": len(data),
-                "batch_size": cfg.batch_size, "cuda_graph": type(stepper).__name__ == "CudaGraphTrainStep",
+                "batch_size": cfg.batch_size, "cuda_graph": isinstance(stepper, CudaGraphTrainStep),
                 "parameters": sum(p.numel() for p in policy.model.parameters()),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     policy.info["training"] = training
