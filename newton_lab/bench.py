@@ -66,9 +66,10 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
     data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon)
-    kinds = [EagerTrainStep] + ([CudaGraphTrainStep] if torch.device(device).type == "cuda" else [])
+    on_cuda = torch.device(device).type == "cuda"
+    kinds = [EagerTrainStep] + ([CudaGraphTrainStep] if on_cuda else [])
     out: dict[str, Any] = {"dataset": dataset, "device": device, "batch_size": batch_size, "preset": preset,
-                           "device_name": torch.cuda.get_device_name(device) if "cuda" in device else "cpu",
+                           "device_name": torch.cuda.get_device_name(device) if on_cuda else "cpu",
                            "windows": len(data)}
     for kind in kinds:
         torch.manual_seed(0)
@@ -78,7 +79,8 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
             for loss in stepper.epoch():
                 done += 1
                 if done == 10:
-                    torch.cuda.synchronize(device) if "cuda" in device else None
+                    if on_cuda:
+                        torch.cuda.synchronize(device)
                     t0 = time.perf_counter()
                 if done == steps + 10:
                     break

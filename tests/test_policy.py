@@ -325,10 +325,8 @@ def test_graph_safe_ema_update_matches_the_eager_one():
         with torch.no_grad():
             for p in model.parameters():
                 p.add_(torch.randn_like(p))
-        b_weight = torch.tensor(1.0 - b.decay())
         a.update(model)
-        b.update_with(model, b_weight)
-        b.num_updates += 1
+        b.blend(model, torch.tensor(b.next_weight()))  # the captured step's form: a tensor weight
     for pa, pb in zip(a.averaged.parameters(), b.averaged.parameters()):
         torch.testing.assert_close(pa, pb)
 

@@ -79,8 +79,8 @@ class DiffusionPolicyConfig:
     """Optional wall-clock budget [s] for the optimiser loop: the step rate is measured over the first 50 steps and
     the run is shortened to fit, with the cosine schedule re-planned so the LR still decays to 0."""
     cuda_graph: bool = True
-    """On CUDA, capture the whole training step once and replay it (several times faster for this launch-bound
-    model); off = the eager step."""
+    """On CUDA, capture the whole training step once and replay it (1.7x the eager steps/s on an H100 at batch
+    1024); off = the eager step."""
     num_workers: int = 0
     """DataLoader worker processes (data is in memory: 0 is usually fastest)."""
     seed: int = 0

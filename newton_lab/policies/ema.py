@@ -22,19 +22,21 @@ class EMA(nn.Module):
         k = max(0, self.num_updates - 1)
         return 0.0 if k == 0 else min(self.max_decay, 1.0 - (1.0 + k) ** -self.power)
 
-    @torch.no_grad()
-    def update(self, model: nn.Module) -> None:
-        d = self.decay()
-        # one fused multi-tensor kernel instead of a launch per parameter (launch-bound on a GPU)
-        torch._foreach_lerp_(list(self.averaged.parameters()), [p.detach() for p in model.parameters()], 1.0 - d)
-        for avg, new in zip(self.averaged.buffers(), model.buffers()):
-            avg.copy_(new)
+    def next_weight(self) -> float:
+        """Blend weight (1 - decay) of the next update, counting that update."""
+        weight = 1.0 - self.decay()
         self.num_updates += 1
+        return weight
 
     @torch.no_grad()
-    def update_with(self, model: nn.Module, weight: torch.Tensor) -> None:
-        """``averaged += weight * (model - averaged)`` with ``weight`` a device tensor (1 - decay): no host value,
-        so a CUDA graph can capture it. The caller sets ``weight`` and counts ``num_updates``."""
+    def update(self, model: nn.Module) -> None:
+        self.blend(model, self.next_weight())
+
+    @torch.no_grad()
+    def blend(self, model: nn.Module, weight: float | torch.Tensor) -> None:
+        """``averaged += weight * (model - averaged)``, in fused multi-tensor kernels (a launch per parameter
+        would dominate on a GPU). ``weight`` may be a device tensor: then no host value is read, so a CUDA
+        graph can capture the update and the weight is written before each replay."""
         avg = list(self.averaged.parameters())
         delta = torch._foreach_sub([p.detach() for p in model.parameters()], avg)
         torch._foreach_mul_(delta, weight)

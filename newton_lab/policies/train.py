@@ -139,10 +139,10 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     epochs: list[dict[str, Any]] = []
     step, t0 = 0, time.perf_counter()
     policy.model.train()
+    set_lr(stepper.optimizer, cfg.lr * lr_factor(0))
     with tqdm(total=total, desc=f"diffusion policy {data.task_id}", unit="step", disable=not cfg.progress) as bar:
         while step < total:
             losses = []
-            set_lr(stepper.optimizer, cfg.lr * lr_factor(step))
             for loss in stepper.epoch():
                 losses.append(loss)  # no host sync per step: read back every 50 steps
                 step += 1
