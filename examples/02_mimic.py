@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from newton_lab.datasets.mimic import mimic
+from newton_lab.mimic import mimic
 
 
 def main() -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from newton_lab.agents import PolicyAgent
+from newton_lab.policies import PolicyAgent
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import EVAL_REPORT_KEYS
 

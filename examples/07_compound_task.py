@@ -16,7 +16,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from newton_lab.agents import PolicyAgent, TaskFlowAgent, default_agent
+from newton_lab.agents import TaskFlowAgent, default_agent
+from newton_lab.policies import PolicyAgent
 from newton_lab.envs import make_env
 
 COMPOUND_AGENT_PRESET = "task_default"

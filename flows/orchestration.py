@@ -61,7 +61,8 @@ def _split(total: int, parts: int) -> list[int]:
 
 
 def _check(task_id: str, runner: str, workers: int) -> None:
-    from ..registry import lookup
+    from .. import tasks  # noqa: F401  (registers the task ids)
+    from ..task_api.registry import lookup
 
     lookup(task_id)
     if runner not in VALID_RUNNERS:

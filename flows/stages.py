@@ -64,7 +64,7 @@ def collect_stage(*, task_id: str, episodes: int, num_envs: int, seed: int, devi
 def mimic_stage(*, source: dict[str, Any], episodes: int, num_envs: int, seed: int, device: str | None,
                 out_dir: str, name: str = "mimic", progress: bool = True) -> dict[str, Any]:
     """Mimic expansion of a source dataset artifact -> dataset artifact (successes only)."""
-    from ..datasets.mimic import mimic
+    from ..mimic import mimic
 
     out = Path(out_dir)
     inputs = {"stage": "mimic", "source": source["sha256"], "episodes": episodes, "num_envs": num_envs, "seed": seed}
@@ -97,7 +97,7 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
 def evaluate_stage(*, checkpoint: dict[str, Any], task_id: str, episodes: int, num_envs: int, seed: int,
                    device: str | None, max_steps: int = 600, progress: bool = True) -> dict[str, Any]:
     """Success rate of a checkpoint artifact on ``task_id`` (randomised, its own seed range)."""
-    from ..agents import PolicyAgent
+    from ..policies import PolicyAgent
     from ..envs import make_env
     from ..envs.rollout import EVAL_REPORT_KEYS
 

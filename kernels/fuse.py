@@ -1,6 +1,6 @@
 """Fuse a task's declared terms into single Warp kernels.
 
-A task declares its logic as ``@wp.func`` terms (see ``newton_lab.envs.cfg``); this module turns them
+A task declares its logic as ``@wp.func`` terms (see ``newton_lab.task_api.cfg``); this module turns them
 into exactly three kernels per task id, each launched once per env step / reset:
 
 * ``task_step``: phase advance, latched success, failure terminations, time-out, reward;

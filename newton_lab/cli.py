@@ -15,7 +15,7 @@ def _quiet_warp() -> None:
 
 
 def _add_env_flags(p: argparse.ArgumentParser, *, episodes: int = 1, max_steps: int = 1000) -> None:
-    from .registry import DEFAULT_TASK_ID
+    from .task_api.registry import DEFAULT_TASK_ID
 
     p.add_argument("--task", default=DEFAULT_TASK_ID, help="task id (see `newton-lab tasks`)")
     p.add_argument("--episodes", type=int, default=episodes)
@@ -44,10 +44,11 @@ def _logger(args, env):
 
 
 def _cmd_tasks(args) -> int:
-    from .registry import list_tasks, lookup
+    from . import tasks  # noqa: F401  (deferred: registering the tasks imports Warp)
+    from .task_api.registry import list_tasks, lookup
 
     for task_id in list_tasks():
-        print(f"{task_id}\t{lookup(task_id).get('description', '')}")
+        print(f"{task_id}\t{lookup(task_id).description}")
     return 0
 
 
@@ -92,7 +93,8 @@ def _cmd_collect(args) -> int:
 
 
 def _cmd_evaluate(args) -> int:
-    from .agents import PolicyAgent, expert_agent
+    from .agents import expert_agent
+    from .policies import PolicyAgent
     from .envs.rollout import EVAL_REPORT_KEYS
 
     on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
@@ -111,7 +113,7 @@ def _cmd_evaluate(args) -> int:
 
 
 def _cmd_mimic(args) -> int:
-    from .datasets.mimic import mimic
+    from .mimic import mimic
 
     ref = mimic(args.dataset_path, episodes=args.episodes, num_envs=args.num_envs, output_path=args.output_path,
                 seed=args.seed, device=args.device, max_attempts=args.max_attempts, progress=not args.no_progress)
@@ -213,7 +215,7 @@ def _cmd_bench_train(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .registry import DEFAULT_TASK_ID
+    from .task_api.registry import DEFAULT_TASK_ID
 
     parser = argparse.ArgumentParser(prog="newton-lab", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from newton_lab.datasets import DatasetRef, read_dataset_info, read_episode
-from newton_lab.datasets.mimic import mimic, mimic_variant_of
-from newton_lab.datasets.mimic.poses import (closest_symmetric_pose, interpolate_poses, mat_to_pose, pose_to_mat,
+from newton_lab.mimic import mimic, mimic_variant_of
+from newton_lab.mimic.poses import (closest_symmetric_pose, interpolate_poses, mat_to_pose, pose_to_mat,
                                              transform_segment)
 
 
@@ -47,8 +47,8 @@ def test_interpolation_and_symmetry():
 
 
 def test_mimic_variants_and_errors(tmp_path):
-    assert mimic_variant_of("GalbotG1-PickCube-v0")[0] == "GalbotG1-PickCube-Mimic-v0"
-    assert mimic_variant_of("GalbotG1-StackCube-v0")[0] == "GalbotG1-StackCube-Mimic-v0"
+    assert mimic_variant_of("GalbotG1-PickCube-v0").id == "GalbotG1-PickCube-Mimic-v0"
+    assert mimic_variant_of("GalbotG1-StackCube-v0").id == "GalbotG1-StackCube-Mimic-v0"
     with pytest.raises(ValueError) as e:
         mimic_variant_of("GalbotG1-Reach-v0")
     assert "GalbotG1-PickCube-v0" in str(e.value)
@@ -94,14 +94,14 @@ def test_stack_cube_segments_end_clear_of_the_stack(stack_env, tmp_path):
     the next segment's interpolation may cross: a boundary inside the release let the cube_3 segment
     sweep the open fingers through cube_2."""
     from newton_lab.agents import PlannerAgent
-    from newton_lab.datasets.mimic.source import load_sources
-    from newton_lab.registry import lookup
+    from newton_lab.mimic.source import load_sources
+    from newton_lab.task_api.registry import lookup
     from newton_lab.robots.g1.kinematics import TcpKinematics
 
     src = stack_env.collect(agent=PlannerAgent.from_task(stack_env.task_id), episodes=1, path=tmp_path / "s.hdf5",
                             max_steps=900, progress=False)
     assert src["successes"] == 1
-    cfg = lookup("GalbotG1-StackCube-Mimic-v0")["mimic"]
+    cfg = lookup("GalbotG1-StackCube-Mimic-v0").mimic
     (demo,) = load_sources(src.path, cfg, TcpKinematics(64, device="cpu"), task_id=stack_env.task_id)
     fingers = 0.05  # fingertips reach this far below the TCP [m]
     for sub in cfg.subtasks[:-1]:

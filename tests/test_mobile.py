@@ -314,18 +314,18 @@ def test_bad_scenario_file_and_option(tmp_path):
 # ---------------------------------------------------------------- SortToShelf
 def test_sort_to_shelf_options_and_layout():
     from newton_lab.envs import make_env
-    from newton_lab.registry import lookup
+    from newton_lab.task_api.registry import lookup
 
     with pytest.raises(ValueError, match=r"unknown sorting_object 'mug'; valid values: \['red_cube', 'blue_cuboid'"):
         make_env("GalbotG1-SortToShelf-v0", task_options={"sorting_object": "mug"})
     with pytest.raises(ValueError, match=r"unknown task option\(s\) \['colour'\]"):
         make_env("GalbotG1-SortToShelf-Pick-v0", task_options={"colour": "red"})
-    cfg = lookup("GalbotG1-SortToShelf-v0")["cfg"](sorting_object="yellow_cylinder")
+    cfg = lookup("GalbotG1-SortToShelf-v0").cfg(sorting_object="yellow_cylinder")
     assert [t.name for t in cfg.actions] == ["base_action", "leg_action", "arm_action", "gripper_action"]
     assert sum(len(spec.JOINT_GROUPS[t.group]) for t in cfg.actions) == 17
     assert cfg.actions[0].clip is None, "the coherent task's wheels are not clipped"
     assert [p.fixed_base for p in cfg.phases] == [True, False, False]
-    nav = lookup("GalbotG1-SortToShelf-Nav-v0")["cfg"](sorting_object="blue_cuboid")
+    nav = lookup("GalbotG1-SortToShelf-Nav-v0").cfg(sorting_object="blue_cuboid")
     assert nav.scenario.endswith("nav_blue_cuboid.yaml") and nav.actions[0].clip == (-4.5, 4.5)
 
 

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 import torch
 
-from newton_lab.registry import list_tasks, lookup
+import newton_lab.tasks  # noqa: F401  (registers every task id)
+from newton_lab.task_api.registry import TaskSpec, list_tasks, lookup, register
 
 
 def test_import_has_no_side_effects():
@@ -19,12 +22,14 @@ def test_import_has_no_side_effects():
 def test_registry_lists_the_tasks():
     assert {"GalbotG1-PickCube-v0", "GalbotG1-StackCube-v0", "GalbotG1-Reach-v0"} <= set(list_tasks())
     with pytest.raises(ValueError):
-        from newton_lab.registry import register
+        register(dataclasses.replace(lookup("GalbotG1-PickCube-v0")))
+    spec = lookup("GalbotG1-PickCube-v0")
+    assert isinstance(spec, TaskSpec) and spec.expert is not None and spec.description
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        spec.description = "changed"  # type: ignore[misc]
 
-        register("GalbotG1-PickCube-v0", cfg=lookup("GalbotG1-PickCube-v0")["cfg"])
 
-
-@pytest.mark.parametrize("task_id", ["GalbotG1-PickCube-v0", "GalbotG1-StackCube-v0", "GalbotG1-Reach-v0"])
+@pytest.mark.parametrize("task_id", list_tasks())
 def test_every_task_steps(task_id):
     from newton_lab.agents import ZeroAgent
     from newton_lab.envs import make_env
@@ -35,3 +40,6 @@ def test_every_task_steps(task_id):
     assert not (term | trunc).any()
     assert env.action_dim == len(env.action_joint_names)
     assert sum(s.stop - s.start for s in env.obs_terms.values()) == env.obs_dim
+    count = int(env.episode_count[0])
+    obs, _ = env.reset()
+    assert torch.isfinite(obs).all() and int(env.episode_count[0]) == count + 1, "reset starts a new episode"

@@ -3,10 +3,10 @@ reset envs. ``PlannerAgent`` executes a task's motion plan for every row at once
 base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row."""
 
 from .base import BaseAgent, ZeroAgent
+from .experts import agent_for_expert, task_expert
 from .joint import JointTargetAgent
 from .nav import BaseNavAgent, GoalNavAgent, ProportionalNavAgent, TrajectoryNavAgent
 from .planner.agent import PlannerAgent
-from .policy import PolicyAgent
 from .sequence import SequenceAgent, SequenceStep
 from .task_flow import TaskFlowAgent, default_agent, expert_agent
 
@@ -16,13 +16,14 @@ __all__ = [
     "GoalNavAgent",
     "JointTargetAgent",
     "PlannerAgent",
-    "PolicyAgent",
     "ProportionalNavAgent",
     "SequenceAgent",
     "SequenceStep",
     "TaskFlowAgent",
     "TrajectoryNavAgent",
     "ZeroAgent",
+    "agent_for_expert",
+    "task_expert",
     "default_agent",
     "expert_agent",
 ]

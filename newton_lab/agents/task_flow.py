@@ -6,20 +6,12 @@ import numpy as np
 import torch
 
 from .base import BaseAgent, EpisodeTracker, as_rows
+from .experts import task_expert
 
 
 def default_agent(task_id: str, **options) -> BaseAgent:
-    """A component task's expert: its motion plan (planner) or its registered nav agent factory."""
-    from ..registry import call_with_options, lookup, resolve
-    from .planner.agent import PlannerAgent
-
-    entry = lookup(task_id)
-    if entry.get("motion_plan"):
-        return PlannerAgent.from_task(task_id, task_options=options)
-    ref = entry.get("nav_agent") or entry.get("agent")
-    if ref:
-        return call_with_options(resolve(ref), options)
-    raise ValueError(f"task {task_id!r} registers no expert (motion_plan or nav_agent); pass agents={{phase: agent}}")
+    """A component task's expert, built for the task ``options`` it declares."""
+    return task_expert(task_id, **options)
 
 
 def expert_agent(env) -> BaseAgent:

@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from ..registry import call_with_options, lookup
+from .. import tasks  # noqa: F401  (registers the task ids whose phases a dataset names)
 from ..robots.g1 import spec
+from ..task_api.registry import lookup
 from .ref import DatasetRef
 from .storage import open_writer, read_dataset_info, read_episode
 
@@ -34,7 +35,7 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
     task_id = info["task_id"]
     env_args = info["env_args"]
     options = env_args.get("env_kwargs", {}).get("task_options") or {}
-    cfg = call_with_options(lookup(task_id)["cfg"], options)
+    cfg = lookup(task_id).make_cfg(options)
     if not cfg.phases:
         raise ValueError(f"{path} was recorded on {task_id}, which has no phases; nothing to split")
     columns = env_args["newton_lab"]["action_joint_names"]
@@ -46,7 +47,8 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
     refs: dict[str, DatasetRef] = {}
     last = len(cfg.phases) - 1
     for p, ph in enumerate(cfg.phases):
-        comp = call_with_options(lookup(ph.task_id)["cfg"], options)
+        comp = lookup(ph.task_id)
+        comp = comp.cfg(**comp.accepted(options))
         names = [j for t in comp.actions for j in spec.JOINT_GROUPS[t.group]]
         cols = [columns.index(j) for j in names]
         args = {**env_args, "env_name": ph.task_id,

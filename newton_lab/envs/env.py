@@ -20,7 +20,7 @@ from ..kernels.actions import TARGET_POSITION, TARGET_VELOCITY, apply_actions, d
 from ..kernels.context import TaskContext, record_poses
 from ..robots.g1 import spec
 from ..robots.g1.packers import wheel_gains
-from .cfg import TaskCfg
+from ..task_api.cfg import TaskCfg
 from .scenario import load_scenario
 from .scene import build_scene
 

@@ -11,7 +11,7 @@ import warp as wp
 
 from ..robots.g1 import spec
 from ..robots.g1.model import JointIndex, add_g1
-from .cfg import EntityCfg, TaskCfg
+from ..task_api.cfg import EntityCfg, TaskCfg
 
 
 CONTACT_GAP = 0.005

@@ -11,13 +11,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from .agent import PolicyAgent
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
 from .normalize import MinMaxNormalizer
 from .scheduler import NoiseScheduler
 from .train import train
 
-__all__ = ["Policy", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
+__all__ = ["Policy", "PolicyAgent", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
            "MinMaxNormalizer", "NoiseScheduler", "train", "load_policy", "BACKENDS"]
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg
+from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg
 from newton_lab.kernels.context import TaskContext, base_pose2d
 from newton_lab.robots.g1 import spec
 

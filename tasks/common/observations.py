@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.envs.cfg import ObsTermCfg
+from newton_lab.task_api.cfg import ObsTermCfg
 from newton_lab.kernels.context import TaskContext, gripper_q, tcp_pose, write_transform
 
 ROBOT_COORDS = 34

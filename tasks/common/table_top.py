@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ActionTermCfg, EntityCfg
+from newton_lab.task_api.cfg import ActionTermCfg, EntityCfg
 from newton_lab.robots.g1 import spec
 
 TABLE_TOP_Z = 0.10

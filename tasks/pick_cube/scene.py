@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import EntityCfg
+from newton_lab.task_api.cfg import EntityCfg
 
 from ..common.table_top import cube, table
 

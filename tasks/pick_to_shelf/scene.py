@@ -3,7 +3,7 @@ a 0.5 m high table with a 5 x 5 x 16 cm bar, and a one-cell shelf 2 m to the rob
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import EntityCfg
+from newton_lab.task_api.cfg import EntityCfg
 
 TABLE_TOP_Z = 0.325
 BAR_SIZE = (0.05, 0.05, 0.16)

@@ -1,12 +1,15 @@
 """GalbotG1-Reach-v0: bring the left TCP to a commanded position."""
 
-from newton_lab.registry import register
+from pathlib import Path
+
+from newton_lab.task_api.registry import TaskSpec, register
+from newton_lab.task_api.experts import yaml_plan
 
 from .config.g1.env_cfg import reach_cfg
 
-register(
-    "GalbotG1-Reach-v0",
+SPEC = register(TaskSpec(
+    id="GalbotG1-Reach-v0",
     cfg=reach_cfg,
-    motion_plan="newton_lab.tasks.reach.config.g1:motion_plan.yaml",
+    expert=yaml_plan(Path(__file__).parent / "config" / "g1" / "motion_plan.yaml"),
     description="Left TCP to a commanded position (success within 2 cm).",
-)
+))

@@ -4,17 +4,24 @@ Every id takes ``task_options={"sorting_object": "red_cube" | "blue_cuboid" | "y
 "green_cylinder"}``.
 """
 
-from newton_lab.registry import register
+from newton_lab.task_api.registry import TaskOption, TaskSpec, register
 
 from .config.g1.env_cfg import coherent_cfg, nav_cfg, pick_cfg, place_cfg
+from .config.g1.experts import nav_sequence_expert, pick_plan, place_plan
+from .objects import DEFAULT_OBJECT, OBJECTS
 
-_CFG = "newton_lab.tasks.sort_to_shelf.config.g1.env_cfg"
+_OBJECT = TaskOption(name="sorting_object", choices=tuple(OBJECTS), default=DEFAULT_OBJECT,
+                     doc="Which object to sort; selects its cell, thresholds, nav goal and postures.")
+_INIT_SCENARIO = TaskOption(name="init_scenario", doc="Reset overlay: a scenario YAML path (default: the "
+                                                      "component's captured start for the object).")
 
-register("GalbotG1-SortToShelf-Pick-v0", cfg=pick_cfg, motion_plan=f"{_CFG}:pick_plan",
-         description="Pick the sorting object from the table into the ready posture.")
-register("GalbotG1-SortToShelf-Nav-v0", cfg=nav_cfg, nav_agent=f"{_CFG}:nav_sequence_agent",
-         description="Drive to the object's shelf cell, lift the legs for the upper row, arm to place start.")
-register("GalbotG1-SortToShelf-Place-v0", cfg=place_cfg, motion_plan=f"{_CFG}:place_plan",
-         description="Place the carried object in its shelf cell and retract the arm.")
-register("GalbotG1-SortToShelf-v0", cfg=coherent_cfg, task_flow=True,
-         description="Pick -> nav -> place of one sorting object in one episode (coherent task).")
+register(TaskSpec(id="GalbotG1-SortToShelf-Pick-v0", cfg=pick_cfg, expert=pick_plan, options=(_OBJECT,),
+                  description="Pick the sorting object from the table into the ready posture."))
+register(TaskSpec(id="GalbotG1-SortToShelf-Nav-v0", cfg=nav_cfg, expert=nav_sequence_expert,
+                  options=(_OBJECT, _INIT_SCENARIO),
+                  description="Drive to the object's shelf cell, lift the legs for the upper row, arm to place start."))
+register(TaskSpec(id="GalbotG1-SortToShelf-Place-v0", cfg=place_cfg, expert=place_plan,
+                  options=(_OBJECT, _INIT_SCENARIO),
+                  description="Place the carried object in its shelf cell and retract the arm."))
+register(TaskSpec(id="GalbotG1-SortToShelf-v0", cfg=coherent_cfg, options=(_OBJECT,),
+                  description="Pick -> nav -> place of one sorting object in one episode (coherent task)."))

@@ -1,1 +1,1 @@
-"""Batched motion-plan execution: plans (``plan``) and the agent that runs them (``agent``)."""
+"""Batched motion-plan execution: the agent that runs a task's ``MotionPlan`` (``newton_lab.task_api.motion_plan``)."""

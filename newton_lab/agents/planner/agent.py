@@ -13,12 +13,13 @@ import warp as wp
 from ...kernels.planner import gather_plan_actions
 from ...robots.g1 import spec
 from ...robots.g1.kinematics import TcpKinematics, quat_mul
+from ...task_api.motion_plan import MotionPlan, yaw_of
+from ...task_api.registry import lookup
 from ..base import BaseAgent, EpisodeTracker
-from .plan import MotionPlan, load_motion_plan, yaw_of
 
 
 class PlannerAgent(BaseAgent):
-    """Executes ``plan`` for every row; see ``newton_lab.agents.planner.plan`` for the step format."""
+    """Executes ``plan`` for every row; see ``newton_lab.task_api.motion_plan`` for the step format."""
 
     def __init__(self, plan: MotionPlan, *, ik_iterations: int = 48):
         self.plan = plan
@@ -31,12 +32,11 @@ class PlannerAgent(BaseAgent):
     def from_task(cls, task_id: str, task_options: dict | None = None, **kwargs) -> PlannerAgent:
         """The expert for ``task_id`` (its registered motion plan, built for ``task_options`` when the plan
         is a Python factory taking them, e.g. ``sorting_object``)."""
-        from ...registry import lookup
-
-        ref = lookup(task_id).get("motion_plan")
-        if not ref:
+        task = lookup(task_id)
+        plan = task.make_expert(task.accepted(task_options)) if task.expert is not None else None
+        if not isinstance(plan, MotionPlan):
             raise ValueError(f"task {task_id!r} has no motion plan; use another agent (e.g. a policy or nav agent)")
-        return cls(load_motion_plan(ref, task_options), **kwargs)
+        return cls(plan, **kwargs)
 
     # ------------------------------------------------------------------ binding to an env
     def _bind(self, env) -> None:

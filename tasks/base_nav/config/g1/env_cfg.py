@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import TaskCfg
+from newton_lab.task_api.cfg import TaskCfg
+from newton_lab.task_api.experts import NavExpert
 from newton_lab.tasks.common import navigation as nav
 
 GOAL_XY = (2.0, 0.0)
@@ -30,8 +31,6 @@ def base_nav_cfg() -> TaskCfg:
     )
 
 
-def nav_agent():
+def nav_expert() -> NavExpert:
     """The expert: proportional drive to the goal (speed cap 0.45 m/s)."""
-    from newton_lab.agents.nav import ProportionalNavAgent
-
-    return ProportionalNavAgent(goal=GOAL_XY, goal_yaw=None, success_radius=SUCCESS_RADIUS)
+    return NavExpert(goal=GOAL_XY, goal_yaw=None, success_radius=SUCCESS_RADIUS)

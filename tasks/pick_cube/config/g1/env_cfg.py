@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
+from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg
 from newton_lab.robots.g1 import spec
 
 from newton_lab.tasks.common import observations as common_obs

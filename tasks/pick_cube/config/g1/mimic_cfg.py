@@ -3,7 +3,7 @@
 The reference replays the place segment in the cube's frame; the blue block is the place target, so its
 frame is used here (it is static in PickCube, which makes that segment a world-frame replay)."""
 
-from newton_lab.datasets.mimic import MimicCfg, SubtaskCfg
+from newton_lab.task_api.mimic_cfg import MimicCfg, SubtaskCfg
 
 MIMIC = MimicCfg(
     subtasks=(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from newton_lab.agents.planner.plan import AssetTarget, MotionPlan, MotionStep
+from newton_lab.task_api.motion_plan import AssetTarget, MotionPlan, MotionStep
 
 
 def _above_block(poses: dict[str, np.ndarray]) -> np.ndarray:

@@ -7,8 +7,9 @@ previous component with ``--save-end-scenario``; the coherent task chains the co
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ObsTermCfg, TaskCfg
-from newton_lab.envs.compose import combined_task, phase, task_sequence
+from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg
+from newton_lab.task_api.experts import NavExpert
+from newton_lab.task_api.compose import combined_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
@@ -87,9 +88,7 @@ def coherent_cfg() -> TaskCfg:
     )
 
 
-def nav_agent():
+def nav_expert(init_scenario: str | None = None) -> NavExpert:
     """PickToShelf-Nav expert: turn to face the shelf, then drive straight to the goal."""
-    from newton_lab.agents.nav import TrajectoryNavAgent
-
-    return TrajectoryNavAgent(NAV_GOAL_XY, NAV_GOAL_YAW, success_radius=NAV_SUCCESS_RADIUS, yaw_tolerance=0.03,
-                              rotate_before_translate=True, waypoint_spacing=10.0)
+    return NavExpert(goal=NAV_GOAL_XY, goal_yaw=NAV_GOAL_YAW, success_radius=NAV_SUCCESS_RADIUS, yaw_tolerance=0.03,
+                     rotate_before_translate=True, waypoint_spacing=10.0)

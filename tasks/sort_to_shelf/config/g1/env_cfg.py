@@ -7,8 +7,8 @@ captured at the end of the previous component; the coherent task chains the comp
 
 from __future__ import annotations
 
-from newton_lab.envs.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
-from newton_lab.envs.compose import combined_task, phase, task_sequence
+from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
+from newton_lab.task_api.compose import combined_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
@@ -101,76 +101,3 @@ def coherent_cfg(sorting_object: str | None = None) -> TaskCfg:
             ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
         ],
     )
-
-
-# ---------------------------------------------------------------- experts
-def _place_quat():
-    return (0.70710678, -0.70710678, 0.0, 0.0)
-
-
-def pick_plan(sorting_object: str | None = None):
-    """Side grasp of the object, lift, ready posture (reference SortToShelf-Pick plan, settle 6)."""
-    from newton_lab.agents.planner.plan import AssetTarget, MotionPlan, MotionStep
-
-    o = lookup_object(sorting_object).name
-    side = spec.SIDE_GRASP_TCP_QUAT
-    return MotionPlan(
-        steps=(
-            MotionStep(name=f"pre_approach_{o}", target=AssetTarget(o, (-0.20, 0.0, 0.14)), quat=side, linear=6),
-            MotionStep(name=f"approach_{o}", target=AssetTarget(o, (-0.12, 0.0, 0.025)), quat=side, linear=4),
-            MotionStep(name=f"descend_to_{o}", target=AssetTarget(o, (-0.01, 0.0, 0.025)), quat=side, linear=4),
-            MotionStep(name="close_left_gripper", gripper_open=False, hold=25),
-            MotionStep(name=f"lift_{o}", target=AssetTarget(o, (0.0, 0.0, 0.22)), quat=side, gripper_open=False,
-                       linear=3),
-            MotionStep(name=f"carry_{o}", joints=spec.CARRY_LEFT_ARM, gripper_open=False, hold=10),
-        ),
-        max_joint_step=0.04,
-        settle_steps=6,
-    )
-
-
-def place_plan(sorting_object: str | None = None):
-    """Into the cell facing the shelf, down to the release height, let go, back out, arm to ready."""
-    from newton_lab.agents.planner.plan import MotionPlan, MotionStep, WorldTarget
-
-    obj = lookup_object(sorting_object)
-    x, y, z = obj.release_tcp
-    approach = WorldTarget((x, y + 0.24, z + 0.07))
-    insert = WorldTarget((x, y, z + 0.07))
-    release = WorldTarget((x, y, z))
-    q, cell = _place_quat(), obj.cell
-    return MotionPlan(
-        steps=(
-            MotionStep(name=f"approach_{cell}", target=approach, quat=q, gripper_open=False),
-            MotionStep(name=f"insert_to_{cell}", target=insert, quat=q, gripper_open=False, linear=4),
-            MotionStep(name=f"descend_to_{cell}", target=release, quat=q, gripper_open=False, linear=2),
-            MotionStep(name=f"release_on_{cell}", target=release, quat=q, hold=35),
-            MotionStep(name=f"retreat_from_{cell}", target=approach, quat=q, hold=20, linear=4),
-            MotionStep(name=f"retract_left_arm_from_{cell}", joints=spec.CARRY_LEFT_ARM, hold=20),
-        ),
-        max_joint_step=0.04,
-        settle_steps=6,
-    )
-
-
-def nav_agent(sorting_object: str | None = None):
-    """Drive only: turn to face the shelf, then straight to the object's place position."""
-    from newton_lab.agents.nav import TrajectoryNavAgent
-
-    obj = lookup_object(sorting_object)
-    return TrajectoryNavAgent(obj.place_base_xy, SHELF_NAV_YAW, success_radius=NAV_SUCCESS_RADIUS,
-                              yaw_tolerance=0.04, rotate_before_translate=True, waypoint_spacing=10.0)
-
-
-def nav_sequence_agent(sorting_object: str | None = None):
-    """The Nav expert: drive -> legs (ramped, lifted for the upper row) -> arm to the place-start posture."""
-    from newton_lab.agents import JointTargetAgent, SequenceAgent, SequenceStep
-
-    obj = lookup_object(sorting_object)
-    return SequenceAgent([
-        SequenceStep("drive", nav_agent(obj.name)),
-        SequenceStep("posture_legs", JointTargetAgent(dict(zip(spec.LEG_JOINTS, obj.legs)), max_step=0.04,
-                                                      tolerance=0.12, hold_steps=20)),
-        SequenceStep("posture_arm", JointTargetAgent(dict(zip(spec.LEFT_ARM_JOINTS, obj.approach_arm)),
-                                                     max_step=0.04, tolerance=0.12)),
-    ])

@@ -2,7 +2,7 @@
 
 import math
 
-from newton_lab.datasets.mimic import MimicCfg, SubtaskCfg
+from newton_lab.task_api.mimic_cfg import MimicCfg, SubtaskCfg
 
 CUBE = math.pi / 2  # a cube looks the same after a quarter turn
 

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from newton_lab.agents.planner.plan import MotionPlan, MotionStep, yaw_of
+from newton_lab.task_api.motion_plan import MotionPlan, MotionStep, yaw_of
 from newton_lab.robots.g1 import spec
 from newton_lab.robots.g1.kinematics import quat_mul
 

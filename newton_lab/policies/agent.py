@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .base import BaseAgent, EpisodeTracker
+from ..agents.base import BaseAgent, EpisodeTracker
+from ..task_api.registry import lookup
+from .diffusion import DiffusionPolicy
 
 
 def _compatible_task(env, policy_task: str | None) -> bool:
@@ -20,9 +22,7 @@ def _compatible_task(env, policy_task: str | None) -> bool:
     phase agent of a coherent task that has it as a component."""
     if policy_task is None or env.task_id == policy_task:
         return True
-    from ..registry import lookup
-
-    return (lookup(env.task_id).get("source_task") == policy_task
+    return (lookup(env.task_id).source_task == policy_task
             or policy_task in [p.task_id for p in env.cfg.phases])
 
 
@@ -37,11 +37,9 @@ class PolicyAgent(BaseAgent):
     @classmethod
     def from_checkpoint(cls, path, *, device=None, seed: int = 0) -> PolicyAgent:
         """Load a checkpoint written by ``Policy.from_backend(...).train``; missing / damaged files raise."""
-        from ..policies import Policy
-
         if not Path(path).exists():
             raise FileNotFoundError(f"checkpoint {path} does not exist; train one first (examples/03_train.py)")
-        return cls(Policy.from_backend("diffusion").load_policy(path, device=device or "cpu"), seed=seed)
+        return cls(DiffusionPolicy.load(path, device=device or "cpu"), seed=seed)
 
     def _bind(self, env) -> None:
         p = self.policy

@@ -8,9 +8,7 @@ maps entity names and ``"tcp"`` / ``"base"`` to (R, 7) arrays and ``"command"`` 
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
-from importlib import resources
 from typing import Any, Callable
 
 import numpy as np
@@ -124,14 +122,3 @@ def plan_from_yaml(text: str) -> MotionPlan:
     data = yaml.safe_load(text)
     steps = tuple(_step_from_dict(s) for s in data.pop("steps"))
     return MotionPlan(steps=steps, **data)
-
-
-def load_motion_plan(ref: str, task_options: dict | None = None) -> MotionPlan:
-    """Load ``package:file.yaml`` (a YAML resource) or ``module:function`` (a Python plan factory, called
-    with the task options it accepts)."""
-    module, _, name = ref.partition(":")
-    if name.endswith((".yaml", ".yml")):
-        return plan_from_yaml(resources.files(module).joinpath(name).read_text())
-    from ...registry import call_with_options
-
-    return call_with_options(getattr(importlib.import_module(module), name), task_options)

@@ -7,9 +7,9 @@ import numpy as np
 import torch
 import warp as wp
 
-from ...agents.base import BaseAgent, EpisodeTracker
-from ...robots.g1.kinematics import TcpKinematics
-from .config import MimicCfg
+from ..agents.base import BaseAgent, EpisodeTracker
+from ..robots.g1.kinematics import TcpKinematics
+from ..task_api.mimic_cfg import MimicCfg
 from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segment
 from .source import SourceDemo
 

@@ -4,17 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..ref import DatasetRef
-
-
-def mimic_variant_of(task_id: str) -> tuple[str, dict]:
-    """The registered Mimic task id (and registry entry) whose source task is ``task_id``."""
-    from ...registry import list_tasks, lookup
-
-    variants = {lookup(t)["source_task"]: t for t in list_tasks() if lookup(t).get("mimic") is not None}
-    if task_id not in variants:
-        raise ValueError(f"task {task_id!r} has no Mimic variant; tasks with one: {', '.join(sorted(variants)) or 'none'}")
-    return variants[task_id], lookup(variants[task_id])
+from ..datasets.ref import DatasetRef
+from ..envs import make_env
+from ..robots.g1.kinematics import TcpKinematics
+from ..task_api.registry import mimic_variant_of
+from .agent import MimicAgent
+from .source import load_sources
 
 
 def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: int = 1, device=None,
@@ -27,18 +22,13 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
     fired at some step. Returns a ``DatasetRef``; its metadata holds ``attempts``, ``successes`` and
     ``success_rate`` (also stored as provenance in the dataset).
     """
-    from ...envs import make_env
-    from ...robots.g1.kinematics import TcpKinematics
-    from .agent import MimicAgent
-    from .source import load_sources
-
     src = dataset if isinstance(dataset, DatasetRef) else DatasetRef.open(dataset)
     path = Path(src.path)
     if not path.exists():
         raise FileNotFoundError(f"source dataset {path} does not exist; collect source demos first")
     task_id = src.info()["task_id"]
-    mimic_id, entry = mimic_variant_of(task_id)
-    cfg = entry["mimic"]
+    variant = mimic_variant_of(task_id)
+    mimic_id, cfg = variant.id, variant.mimic
     out = Path(output_path) if output_path is not None else path.with_name(f"{path.stem}_mimic{path.suffix}")
     if out.resolve() == path.resolve():
         raise ValueError(f"output_path {out} is the source dataset; choose another path")

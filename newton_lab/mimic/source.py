@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..storage import read_dataset_info, read_episode
-from .config import MimicCfg
+from ..datasets.storage import read_dataset_info, read_episode
+from ..task_api.mimic_cfg import MimicCfg
 
 
 @dataclass

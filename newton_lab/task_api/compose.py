@@ -16,8 +16,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from ..registry import call_with_options, lookup
+from ..robots.g1 import spec
 from .cfg import ActionTermCfg, PhaseCfg, TaskCfg
+from .registry import lookup
 
 
 def phase(name: str, task_id: str, *, terms: tuple[str, ...], fixed_base: bool = False) -> PhaseCfg:
@@ -34,7 +35,8 @@ def task_sequence(*phases: PhaseCfg) -> tuple[PhaseCfg, ...]:
 
 
 def _component(task_id: str, options: dict[str, Any]) -> TaskCfg:
-    return call_with_options(lookup(task_id)["cfg"], options)
+    spec_ = lookup(task_id)
+    return spec_.cfg(**spec_.accepted(options))
 
 
 def combined_task(
@@ -127,6 +129,4 @@ def _union_by_name(term_lists) -> list:
 
 
 def _width(term: ActionTermCfg) -> int:
-    from ..robots.g1 import spec
-
     return len(spec.JOINT_GROUPS[term.group])

@@ -49,7 +49,7 @@ class ObsTermCfg:
 
 @dataclass(kw_only=True)
 class PhaseCfg:
-    """One phase of a multi-phase (coherent) task; see ``newton_lab.envs.compose``."""
+    """One phase of a multi-phase (coherent) task; see ``newton_lab.task_api.compose``."""
 
     name: str
     task_id: str | None = None

@@ -1,0 +1,37 @@
+"""Expert declarations (``newton_lab.task_api.experts``) -> agents."""
+
+from __future__ import annotations
+
+from ..task_api.experts import Expert, JointTargetExpert, NavExpert, SequenceExpert
+from ..task_api.motion_plan import MotionPlan
+from ..task_api.registry import lookup
+from .base import BaseAgent
+from .joint import JointTargetAgent
+from .nav import ProportionalNavAgent, TrajectoryNavAgent
+from .planner.agent import PlannerAgent
+from .sequence import SequenceAgent, SequenceStep
+
+
+def agent_for_expert(expert: Expert) -> BaseAgent:
+    """The agent that executes ``expert``."""
+    if isinstance(expert, MotionPlan):
+        return PlannerAgent(expert)
+    if isinstance(expert, NavExpert):
+        kwargs = dict(success_radius=expert.success_radius, yaw_tolerance=expert.yaw_tolerance,
+                      rotate_before_translate=expert.rotate_before_translate)
+        if expert.waypoint_spacing is None:
+            return ProportionalNavAgent(expert.goal, expert.goal_yaw, **kwargs)
+        return TrajectoryNavAgent(expert.goal, expert.goal_yaw, waypoint_spacing=expert.waypoint_spacing, **kwargs)
+    if isinstance(expert, JointTargetExpert):
+        return JointTargetAgent(expert.targets, max_step=expert.max_step, tolerance=expert.tolerance,
+                                hold_steps=expert.hold_steps)
+    if isinstance(expert, SequenceExpert):
+        return SequenceAgent([SequenceStep(name, agent_for_expert(e)) for name, e in expert.steps])
+    raise TypeError(f"unknown expert declaration {type(expert).__name__}; use a MotionPlan, NavExpert, "
+                    "JointTargetExpert or SequenceExpert")
+
+
+def task_expert(task_id: str, **options) -> BaseAgent:
+    """The expert agent of a registered (non-coherent) task, built for the task ``options`` it declares."""
+    task = lookup(task_id)
+    return agent_for_expert(task.make_expert(task.accepted(options)))
