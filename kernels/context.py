@@ -24,6 +24,8 @@ class TaskContext:
     bodies_per_world: int
     coords_per_world: int
     dofs_per_world: int
+    robot_coords: int
+    """Joint coordinates of the robot (the first ``robot_coords`` of each world)."""
     entity_body: wp.array(dtype=int)
     """World-local body index of each entity, -1 for a static entity."""
     entity_coord: wp.array(dtype=int)

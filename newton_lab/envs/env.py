@@ -21,8 +21,10 @@ from ..kernels.context import TaskContext, record_poses
 from ..robots.g1 import spec
 from ..robots.g1.packers import wheel_gains
 from ..task_api.cfg import TaskCfg
+from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
 from .scenario import load_scenario
 from .scene import build_scene
+from .terms import build_task_kernels, observation_layout
 
 
 @dataclass(frozen=True)
@@ -130,12 +132,9 @@ class NewtonEnv:
 
     def _build_buffers(self) -> None:
         n, lay, cfg = self.num_envs, self.layout, self.cfg
-        self.obs_terms: dict[str, slice] = {}
-        col = 0
-        for term in cfg.observations:
-            self.obs_terms[term.name] = slice(col, col + term.dim)
-            col += term.dim
-        self.obs_dim = col
+        self.obs_terms = observation_layout(cfg, {ACTION_DIM: self.action_dim, ROBOT_COORDS: lay.robot_coords,
+                                                  ARM_JOINTS: len(spec.LEFT_ARM_JOINTS)})
+        self.obs_dim = max((s.stop for s in self.obs_terms.values()), default=0)
         n_ent = len(lay.entity_names)
         self.entities = {
             name: Entity(name=name, slot=k, body=lay.entity_body[k], dynamic=lay.entity_body[k] >= 0)
@@ -181,6 +180,7 @@ class NewtonEnv:
         ctx.bodies_per_world = lay.bodies_per_world
         ctx.coords_per_world = lay.coords_per_world
         ctx.dofs_per_world = lay.dofs_per_world
+        ctx.robot_coords = lay.robot_coords
         ctx.base_coord = lay.joints.coord["base_x"]
         ctx.leg_coord = lay.joints.coord["leg_joint1"]
         assert [lay.joints.coord[j] - ctx.leg_coord for j in spec.LEG_JOINTS] == list(range(5)), "legs not contiguous"
@@ -233,20 +233,9 @@ class NewtonEnv:
         its automatic reset (valid for rows whose ``info["done"]`` is set)."""
 
     def _build_kernels(self) -> None:
-        cfg = self.cfg
-        self._task_kernel = fuse.build_task_kernel(
-            phase_success=cfg.phase_success,
-            terminations=[(f, cfg.termination_phase.get(name, -1)) for name, f in cfg.terminations.items()],
-            rewards=list(cfg.rewards.values()),
-            terminate_on_success=cfg.terminate_on_success,
-        )
-        cols, col = [], 0
-        for term in cfg.observations:
-            cols.append((term.func, col))
-            col += term.dim
-        self._obs_kernel = fuse.build_observation_kernel(cols)
-        self._signal_kernel = fuse.build_signal_kernel(list(cfg.signals.values())) if cfg.signals else None
-        self._reset_kernel = fuse.build_reset_kernel(cfg.events)
+        kernels = build_task_kernels(self.cfg, self.obs_terms)
+        self._task_kernel, self._obs_kernel = kernels.task, kernels.observe
+        self._signal_kernel, self._reset_kernel = kernels.signals, kernels.reset
 
     def _capture(self):
         """Record the whole step as one graph (CUDA graph on GPU, Warp's CPU graph on the CPU)."""

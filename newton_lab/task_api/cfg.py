@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -26,6 +27,30 @@ class EntityCfg:
     friction: float = 1.0
 
 
+class SceneCfg:
+    """A task's rigid objects by name. The env gives each object the slot of its position here, so task
+    terms address objects through ``slot(name)`` (a compile-time constant of their ``@wp.func``), never
+    through hand-kept numbers."""
+
+    def __init__(self, *entities: EntityCfg):
+        names = [e.name for e in entities]
+        if len(set(names)) != len(names):
+            raise ValueError(f"scene object names must be unique, got {names}")
+        self._entities = tuple(entities)
+        self.names = tuple(names)
+
+    def slot(self, name: str) -> int:
+        """The slot of object ``name`` (index into ``env.entity_poses``)."""
+        if name not in self.names:
+            raise ValueError(f"scene has no object {name!r}; objects: {list(self.names)}")
+        return self.names.index(name)
+
+    @property
+    def entities(self) -> list[EntityCfg]:
+        """The objects in slot order (fresh copies: a task may adjust its own)."""
+        return [dataclasses.replace(e) for e in self._entities]
+
+
 @dataclass(kw_only=True)
 class ActionTermCfg:
     """One action term: a joint group driven by position or velocity targets."""
@@ -38,13 +63,45 @@ class ActionTermCfg:
     clip: tuple[float, float] | None = None
 
 
-@dataclass(kw_only=True)
-class ObsTermCfg:
-    """One observation term: ``func(ctx, w, out, col)`` writes ``dim`` values from column ``col``."""
+ACTION_DIM = "action_dim"
+"""Observation width the env derives: the task's action columns."""
+ROBOT_COORDS = "robot_coords"
+"""Observation width the env derives: the robot's joint coordinates."""
+ARM_JOINTS = "arm_joints"
+"""Observation width the env derives: the controlled arm's joints."""
+DERIVED_SIZES = (ACTION_DIM, ROBOT_COORDS, ARM_JOINTS)
 
-    name: str
+
+@dataclass(frozen=True, kw_only=True)
+class TermCfg:
+    """A task term: a ``@wp.func`` the task kernels call. Events: ``func(ctx, w, seed, stream, randomize)``
+    at reset; signals: ``func(ctx, w) -> bool`` recorded every step."""
+
     func: Callable
-    dim: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObsTermCfg(TermCfg):
+    """An observation term: ``func(ctx, w, out, col)`` writes ``size`` columns from ``col``."""
+
+    size: int | str
+    """Columns written: a fixed count of the value's own (7 for a pose, 3 for a position) or a width the env
+    derives from the robot and the action map (``ACTION_DIM``, ``ROBOT_COORDS``, ``ARM_JOINTS``)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RewardTermCfg(TermCfg):
+    """A reward term ``func(ctx, w) -> float``; the step reward is the weighted sum."""
+
+    weight: float = 1.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class TerminationTermCfg(TermCfg):
+    """A failure term ``func(ctx, w) -> bool``; it ends the episode (reason = its name)."""
+
+    phase: int = -1
+    """Phase the term is limited to (``-1``: every phase)."""
 
 
 @dataclass(kw_only=True)
@@ -67,20 +124,19 @@ class TaskCfg:
     task_id: str
     entities: list[EntityCfg]
     actions: list[ActionTermCfg]
-    observations: list[ObsTermCfg]
+    observations: dict[str, ObsTermCfg]
+    """Observation terms by name, in column order."""
     phase_success: list[Callable]
     """One success predicate per phase (single-phase tasks list one)."""
-    terminations: dict[str, Callable] = field(default_factory=dict)
-    """Failure terms ``name -> func(ctx, w) -> bool``."""
-    termination_phase: dict[str, int] = field(default_factory=dict)
-    """Phase a failure term is limited to (unnamed terms apply in every phase)."""
+    terminations: dict[str, TerminationTermCfg] = field(default_factory=dict)
+    """Failure terms by name (the name is the termination reason)."""
     phases: list[PhaseCfg] = field(default_factory=list)
     """Phase declarations matching ``phase_success`` (empty: one phase owning every action column)."""
-    rewards: dict[str, tuple[Callable, float]] = field(default_factory=dict)
-    signals: dict[str, Callable] = field(default_factory=dict)
+    rewards: dict[str, RewardTermCfg] = field(default_factory=dict)
+    signals: dict[str, TermCfg] = field(default_factory=dict)
     """Subtask signals recorded every step (Mimic segments on them)."""
-    events: list[Callable] = field(default_factory=list)
-    """Reset events ``func(ctx, w, seed, stream, randomize)``."""
+    events: dict[str, TermCfg] = field(default_factory=dict)
+    """Reset events, run in order after a row's defaults are restored."""
     posture: dict[str, float] = field(default_factory=dict)
     """Initial joint values by name; unnamed joints start at 0 [rad | m]."""
     initial_targets: dict[str, float] = field(default_factory=dict)

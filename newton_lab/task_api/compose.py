@@ -1,6 +1,6 @@
-"""Coherent long-horizon tasks from component tasks: ``combined_task(..., phases=task_sequence(phase(...)))``.
+"""Coherent long-horizon tasks from component tasks: ``coherent_task(..., phases=task_sequence(phase(...)))``.
 
-Each phase names a registered component task. The combined task runs them back to back inside one
+Each phase names a registered component task. The coherent task runs them back to back inside one
 episode: phase is a per-row device int, the component's success predicate advances only that row (inside
 the fused task kernel), the last phase's success is episode success, and a component's failure terms end
 the episode while the row is in that phase. Nothing is rebuilt, loaded or reset between phases.
@@ -16,8 +16,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from ..robots.g1 import spec
-from .cfg import ActionTermCfg, PhaseCfg, TaskCfg
+from .cfg import ActionTermCfg, PhaseCfg, TaskCfg, TerminationTermCfg
 from .registry import lookup
 
 
@@ -39,13 +38,13 @@ def _component(task_id: str, options: dict[str, Any]) -> TaskCfg:
     return spec_.cfg(**spec_.accepted(options))
 
 
-def combined_task(
+def coherent_task(
     task_id: str,
     *,
     phases: tuple[PhaseCfg, ...],
     options: dict[str, Any] | None = None,
     actions: list[ActionTermCfg] | None = None,
-    terminations: dict[str, Any] | None = None,
+    terminations: dict[str, TerminationTermCfg] | None = None,
     **overrides: Any,
 ) -> TaskCfg:
     """Build the coherent task ``task_id`` from its component phases.
@@ -64,7 +63,7 @@ def combined_task(
     for p, cfg in zip(phases, parts):
         other = [e.name for e in cfg.entities]
         if other != names:
-            raise ValueError(f"phase {p.name!r} ({p.task_id}) has objects {other} but the combined task's world has "
+            raise ValueError(f"phase {p.name!r} ({p.task_id}) has objects {other} but the coherent task's world has "
                              f"{names}; components of a coherent task must share one world")
         if tuple(cfg.arm_home) != tuple(first.arm_home) or cfg.arm != first.arm:
             raise ValueError(f"phase {p.name!r} ({p.task_id}) uses another arm or arm reference posture")
@@ -75,27 +74,17 @@ def combined_task(
     for p in phases:
         missing = sorted(set(p.action_groups or ()) - groups)
         if missing:
-            raise ValueError(f"phase {p.name!r} commands {missing} but the combined action terms have groups "
+            raise ValueError(f"phase {p.name!r} commands {missing} but the coherent task's action terms have groups "
                              f"{sorted(groups)}")
 
-    # the last-action term follows the combined width
-    observations = [dataclasses.replace(t, dim=sum(_width(a) for a in actions)) if t.name == "actions" else t
-                    for t in _union_by_name(cfg.observations for cfg in parts)]
-
-    terms: dict[str, Any] = {}
-    term_phase: dict[str, int] = {}
+    observations = _union_of_dicts(cfg.observations for cfg in parts)  # widths are derived by the env
+    terms: dict[str, TerminationTermCfg] = {}
     for i, cfg in enumerate(parts):
-        for name, fn in cfg.terminations.items():
+        for name, term in cfg.terminations.items():
             key = name if name not in terms else f"{phases[i].name}_{name}"
-            terms[key] = fn
-            term_phase[key] = i
-    for name, fn in (terminations or {}).items():
-        terms[name] = fn
-
-    signals: dict[str, Any] = {}
-    for cfg in parts:
-        for name, fn in cfg.signals.items():
-            signals.setdefault(name, fn)
+            terms[key] = dataclasses.replace(term, phase=i)
+    terms.update(terminations or {})
+    signals = _union_of_dicts(cfg.signals for cfg in parts)
 
     cfg = dataclasses.replace(
         first,
@@ -104,7 +93,6 @@ def combined_task(
         observations=observations,
         phase_success=[c.phase_success[-1] for c in parts],
         terminations=terms,
-        termination_phase=term_phase,
         phases=list(phases),
         signals=signals,
         hold_slots=max(c.hold_slots for c in parts),
@@ -119,6 +107,15 @@ def combined_task(
     return dataclasses.replace(cfg, **overrides) if overrides else cfg
 
 
+def _union_of_dicts(term_dicts) -> dict:
+    """Terms of every dict, first occurrence of each name kept, in first-seen order."""
+    out: dict[str, Any] = {}
+    for terms in term_dicts:
+        for name, term in terms.items():
+            out.setdefault(name, term)
+    return out
+
+
 def _union_by_name(term_lists) -> list:
     """Terms of every list, first occurrence of each name kept, in first-seen order."""
     out: dict[str, Any] = {}
@@ -128,5 +125,3 @@ def _union_by_name(term_lists) -> list:
     return list(out.values())
 
 
-def _width(term: ActionTermCfg) -> int:
-    return len(spec.JOINT_GROUPS[term.group])

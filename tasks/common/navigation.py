@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg
 from newton_lab.kernels.context import TaskContext, base_pose2d
 from newton_lab.robots.g1 import spec
+from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, RewardTermCfg
+
+from .observations import LAST_ACTION
 
 
 def base_actions(*, clip: bool = True) -> list[ActionTermCfg]:
@@ -32,24 +34,23 @@ def make_goal_reached(goal_xy: tuple[float, float], radius: float):
     return goal_reached
 
 
-def nav_observations(goal_xy: tuple[float, float], action_dim: int) -> list[ObsTermCfg]:
-    """The BaseNav observation: last action (``action_dim``), base_xy, goal_xy, vector_to_goal (2 each,
-    env frame [m])."""
-    from .observations import last_action
-
+def nav_observations(goal_xy: tuple[float, float]) -> dict[str, ObsTermCfg]:
+    """The BaseNav observation: last action, base_xy, goal_xy, vector_to_goal (2 each, env frame [m])."""
     base_xy, goal_xy_obs, vector_to_goal = make_nav_observations(goal_xy)
-    return [
-        ObsTermCfg(name="actions", func=last_action, dim=action_dim),
-        ObsTermCfg(name="base_xy", func=base_xy, dim=2),
-        ObsTermCfg(name="goal_xy", func=goal_xy_obs, dim=2),
-        ObsTermCfg(name="vector_to_goal", func=vector_to_goal, dim=2),
-    ]
+    return {
+        "actions": LAST_ACTION,
+        "base_xy": ObsTermCfg(func=base_xy, size=2),
+        "goal_xy": ObsTermCfg(func=goal_xy_obs, size=2),
+        "vector_to_goal": ObsTermCfg(func=vector_to_goal, size=2),
+    }
 
 
-def nav_rewards(goal_xy: tuple[float, float], radius: float) -> dict:
+def nav_rewards(goal_xy: tuple[float, float], radius: float) -> dict[str, RewardTermCfg]:
     """The BaseNav rewards: -distance (weight 2), goal reached (10), squared actions (-0.02)."""
     neg_distance, goal_reward = make_nav_rewards(goal_xy, radius)
-    return {"distance": (neg_distance, 2.0), "goal_reached": (goal_reward, 10.0), "action_l2": (action_l2, -0.02)}
+    return {"distance": RewardTermCfg(func=neg_distance, weight=2.0),
+            "goal_reached": RewardTermCfg(func=goal_reward, weight=10.0),
+            "action_l2": RewardTermCfg(func=action_l2, weight=-0.02)}
 
 
 def make_nav_observations(goal_xy: tuple[float, float]):

@@ -4,11 +4,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.task_api.cfg import ObsTermCfg
 from newton_lab.kernels.context import TaskContext, gripper_q, tcp_pose, write_transform
-
-ROBOT_COORDS = 34
-"""Coordinates of the authored G1 (base x/y/yaw, wheels, legs, head, arms, grippers, fingers)."""
+from newton_lab.task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS, ObsTermCfg
 
 
 @wp.func
@@ -20,22 +17,22 @@ def last_action(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int
 
 @wp.func
 def robot_joint_pos(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
-    """Every robot coordinate in model order (34) [m | rad]."""
-    for j in range(ROBOT_COORDS):
+    """Every robot coordinate in model order (robot_coords) [m | rad]."""
+    for j in range(ctx.robot_coords):
         out[w, col + j] = ctx.joint_q[w * ctx.coords_per_world + j]
 
 
 @wp.func
 def robot_joint_vel(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
-    """Every robot DOF velocity in model order (34) [m/s | rad/s]."""
-    for j in range(ROBOT_COORDS):
+    """Every robot DOF velocity in model order (robot_coords) [m/s | rad/s]."""
+    for j in range(ctx.robot_coords):
         out[w, col + j] = ctx.joint_qd[w * ctx.dofs_per_world + j]
 
 
 @wp.func
 def arm_joint_pos(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
-    """The controlled arm's 7 joint positions [rad]."""
-    for j in range(7):
+    """The controlled arm's joint positions (arm_joints) [rad]."""
+    for j in range(ctx.arm_coords.shape[0]):
         out[w, col + j] = ctx.joint_q[w * ctx.coords_per_world + ctx.arm_coords[j]]
 
 
@@ -51,13 +48,16 @@ def tcp_pose_obs(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: in
     write_transform(out, w, col, tcp_pose(ctx, w))
 
 
-def manipulation_observations(objects: list[ObsTermCfg]) -> list[ObsTermCfg]:
-    """The left-arm manipulation observation: last action (8), robot joints (34), TCP pose (7), gripper (1),
-    then the task's object terms."""
-    return [
-        ObsTermCfg(name="actions", func=last_action, dim=8),
-        ObsTermCfg(name="robot_joint_pos", func=robot_joint_pos, dim=ROBOT_COORDS),
-        ObsTermCfg(name="tcp_pose", func=tcp_pose_obs, dim=7),
-        ObsTermCfg(name="gripper_pos", func=gripper_pos, dim=1),
-        *objects,
-    ]
+LAST_ACTION = ObsTermCfg(func=last_action, size=ACTION_DIM)
+ROBOT_JOINT_POS = ObsTermCfg(func=robot_joint_pos, size=ROBOT_COORDS)
+ROBOT_JOINT_VEL = ObsTermCfg(func=robot_joint_vel, size=ROBOT_COORDS)
+ARM_JOINT_POS = ObsTermCfg(func=arm_joint_pos, size=ARM_JOINTS)
+TCP_POSE = ObsTermCfg(func=tcp_pose_obs, size=7)
+GRIPPER_POS = ObsTermCfg(func=gripper_pos, size=1)
+
+
+def manipulation_observations(**objects: ObsTermCfg) -> dict[str, ObsTermCfg]:
+    """The left-arm manipulation observation: last action, robot joints, TCP pose (7), gripper (1), then the
+    task's object terms."""
+    return {"actions": LAST_ACTION, "robot_joint_pos": ROBOT_JOINT_POS, "tcp_pose": TCP_POSE,
+            "gripper_pos": GRIPPER_POS, **objects}

@@ -1,20 +1,23 @@
-"""PickCube scene: table, red cube (dynamic), blue block (static container). Slots index entities."""
+"""PickCube scene: table, red cube (dynamic), blue block (static container)."""
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import EntityCfg
+from newton_lab.task_api.cfg import EntityCfg, SceneCfg
 
 from ..common.table_top import cube, table
 
-TABLE, CUBE, BLUE_BLOCK = 0, 1, 2
 CUBE_INIT = (-0.30, 0.18, 0.125)
 BLUE_BLOCK_POS = (-0.30, -0.08, 0.11)
 
 
+SCENE = SceneCfg(
+    table(),
+    cube("cube", CUBE_INIT, (0.85, 0.18, 0.12)),
+    EntityCfg(name="blue_block", size=(0.15, 0.15, 0.02), pos=BLUE_BLOCK_POS, dynamic=False, color=(0.08, 0.22, 0.85)),
+)
+CUBE = SCENE.slot("cube")
+BLUE_BLOCK = SCENE.slot("blue_block")
+
+
 def entities() -> list[EntityCfg]:
-    return [
-        table(),
-        cube("cube", CUBE_INIT, (0.85, 0.18, 0.12)),
-        EntityCfg(name="blue_block", size=(0.15, 0.15, 0.02), pos=BLUE_BLOCK_POS, dynamic=False,
-                  color=(0.08, 0.22, 0.85)),
-    ]
+    return SCENE.entities

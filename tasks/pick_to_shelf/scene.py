@@ -3,7 +3,7 @@ a 0.5 m high table with a 5 x 5 x 16 cm bar, and a one-cell shelf 2 m to the rob
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import EntityCfg
+from newton_lab.task_api.cfg import EntityCfg, SceneCfg
 
 TABLE_TOP_Z = 0.325
 BAR_SIZE = (0.05, 0.05, 0.16)
@@ -12,14 +12,10 @@ DECK_POS = (-1.7, -2.0, 0.34)
 DECK_SIZE = (0.50, 0.40, 0.03)
 ROBOT_ROOT = (-1.2, 0.0, 0.0)
 
-# entity slots (order of ``entities()``)
-TABLE, CUBE, DECK, BACK, LEFT, RIGHT = range(6)
-
 SHELF_COLOR = (0.10, 0.25, 0.60)
 
 
-def entities() -> list[EntityCfg]:
-    return [
+SCENE = SceneCfg(
         EntityCfg(name="table", size=(0.8, 0.9, 0.50), pos=(-0.30, 0.0, 0.075), dynamic=False, color=(0.42, 0.44, 0.40)),
         EntityCfg(name="cube", size=BAR_SIZE, pos=BAR_POS, mass=0.05, color=(0.85, 0.18, 0.12)),
         EntityCfg(name="shelf_deck", size=DECK_SIZE, pos=DECK_POS, dynamic=False, color=(0.08, 0.22, 0.85)),
@@ -29,5 +25,11 @@ def entities() -> list[EntityCfg]:
                   color=SHELF_COLOR),
         EntityCfg(name="shelf_right_baffle", size=(0.06, 0.40, 0.595), pos=(-1.48, -2.0, 0.2975), dynamic=False,
                   color=SHELF_COLOR),
-    ]
+)
+CUBE = SCENE.slot("cube")
+DECK = SCENE.slot("shelf_deck")
+
+
+def entities() -> list[EntityCfg]:
+    return SCENE.entities
 

@@ -1,13 +1,13 @@
-"""Reach scene: the table only (slot 0)."""
+"""Reach scene: the table only."""
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import EntityCfg
+from newton_lab.task_api.cfg import EntityCfg, SceneCfg
 
 from ..common.table_top import table
 
-TABLE = 0
+SCENE = SceneCfg(table())
 
 
 def entities() -> list[EntityCfg]:
-    return [table()]
+    return SCENE.entities

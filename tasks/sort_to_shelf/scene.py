@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import EntityCfg
+from newton_lab.task_api.cfg import EntityCfg, SceneCfg
 
 from .objects import OBJECTS
 
 ROBOT_ROOT = (-1.2, 0.0, 0.0)
 OBJECT_NAMES = tuple(OBJECTS)
-OBJECT_SLOT = {name: 1 + i for i, name in enumerate(OBJECT_NAMES)}
-"""Entity slot of each sorting object (slot 0 is the table)."""
 _PANEL = (0.10, 0.25, 0.60)
 _DIVIDER = (0.12, 0.30, 0.68)
 
@@ -21,7 +19,7 @@ def _board(cell: str, x: float, z: float, color) -> EntityCfg:
                      color=light)
 
 
-def entities() -> list[EntityCfg]:
+def _entities() -> list[EntityCfg]:
     items = [EntityCfg(name="table", size=(0.8, 0.9, 0.50), pos=(-0.30, 0.0, 0.075), dynamic=False,
                        color=(0.42, 0.44, 0.40))]
     for o in OBJECTS.values():
@@ -44,4 +42,13 @@ def entities() -> list[EntityCfg]:
     for cell, x, z in (("a1", -1.9, 0.6575), ("a2", -1.5, 0.6575), ("b1", -1.9, 0.3475), ("b2", -1.5, 0.3475)):
         items.append(_board(cell, x, z, by_cell[cell].color))
     return items
+
+
+SCENE = SceneCfg(*_entities())
+OBJECT_SLOT = {name: SCENE.slot(name) for name in OBJECT_NAMES}
+"""Entity slot of each sorting object."""
+
+
+def entities() -> list[EntityCfg]:
+    return SCENE.entities
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import TaskCfg
+from newton_lab.task_api.cfg import TaskCfg, TermCfg
 from newton_lab.task_api.experts import NavExpert
 from newton_lab.tasks.common import navigation as nav
 
@@ -21,10 +21,10 @@ def base_nav_cfg() -> TaskCfg:
         task_id="GalbotG1-BaseNav-v0",
         entities=[],
         actions=nav.base_actions(),
-        observations=nav.nav_observations(GOAL_XY, action_dim=4),
+        observations=nav.nav_observations(GOAL_XY),
         phase_success=[_goal_reached],
         rewards=nav.nav_rewards(GOAL_XY, SUCCESS_RADIUS),
-        signals={"goal_reached": _goal_reached},
+        signals={"goal_reached": TermCfg(func=_goal_reached)},
         root_pos=(0.0, 0.0, 0.0),
         fixed_base=False,
         episode_length_s=12.0,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg
+from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.robots.g1 import spec
 
 from newton_lab.tasks.common import observations as common_obs
@@ -17,14 +17,14 @@ def pick_cube_cfg() -> TaskCfg:
         task_id="GalbotG1-PickCube-v0",
         entities=scene.entities(),
         actions=left_arm_actions(),
-        observations=common_obs.manipulation_observations([
-            ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7),
-            ObsTermCfg(name="blue_block_pos", func=observations.blue_block_pos, dim=3),
-        ]),
+        observations=common_obs.manipulation_observations(
+            cube_pose=ObsTermCfg(func=observations.cube_pose, size=7),
+            blue_block_pos=ObsTermCfg(func=observations.blue_block_pos, size=3),
+        ),
         phase_success=[terminations.released_on_blue_block],
-        terminations={"cube_dropped": terminations.cube_dropped},
-        signals={"grasped_cube": terminations.grasped_cube},
-        events=[events.randomize_cube_position],
+        terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
+        signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
+        events={"randomize_cube_position": TermCfg(func=events.randomize_cube_position)},
         posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.PICK_CUBE_HEAD),
         root_pos=spec.MANIPULATION_ROOT_POS,
         fixed_base=True,

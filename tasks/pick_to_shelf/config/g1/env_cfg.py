@@ -7,9 +7,11 @@ previous component with ``--save-end-scenario``; the coherent task chains the co
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg
+from pathlib import Path
+
+from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.experts import NavExpert
-from newton_lab.task_api.compose import combined_task, phase, task_sequence
+from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
@@ -21,7 +23,7 @@ NAV_GOAL_XY = (-1.7, -1.15)
 """Base goal in front of the shelf: deck front edge + 0.65 m [m]."""
 NAV_GOAL_YAW = -1.5707963267948966
 NAV_SUCCESS_RADIUS = 0.02
-SCENARIOS = "newton_lab.tasks.pick_to_shelf.config.g1.scenarios"
+SCENARIOS = Path(__file__).parent / "scenarios"
 
 _goal_reached = nav.make_goal_reached(NAV_GOAL_XY, NAV_SUCCESS_RADIUS)
 
@@ -31,11 +33,11 @@ def _world(task_id: str, **fields) -> TaskCfg:
         task_id=task_id,
         entities=scene.entities(),
         actions=left_arm_actions(),
-        observations=common_obs.manipulation_observations(
-            [ObsTermCfg(name="cube_pose", func=observations.cube_pose, dim=7)]),
+        observations=common_obs.manipulation_observations(cube_pose=ObsTermCfg(func=observations.cube_pose, size=7)),
         phase_success=[],
-        terminations={"cube_dropped": terminations.cube_dropped, "cube_tipped": terminations.cube_tipped},
-        signals={"grasped_cube": terminations.grasped_cube},
+        terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped),
+                      "cube_tipped": TerminationTermCfg(func=terminations.cube_tipped)},
+        signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=spec.CARRY_LEFT_ARM,
@@ -48,7 +50,7 @@ def _world(task_id: str, **fields) -> TaskCfg:
 def pick_cfg() -> TaskCfg:
     """Pick the bar from the table and bring it to the carry posture (success: ``at_carry``)."""
     return _world("GalbotG1-PickToShelf-Pick-v0", phase_success=[terminations.at_carry],
-                  events=[events.randomize_bar_position])
+                  events={"randomize_bar_position": TermCfg(func=events.randomize_bar_position)})
 
 
 def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
@@ -56,11 +58,11 @@ def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
     return _world(
         "GalbotG1-PickToShelf-Nav-v0",
         actions=nav.base_actions(),
-        observations=nav.nav_observations(NAV_GOAL_XY, action_dim=4),
+        observations=nav.nav_observations(NAV_GOAL_XY),
         phase_success=[_goal_reached],
         rewards=nav.nav_rewards(NAV_GOAL_XY, NAV_SUCCESS_RADIUS),
-        signals={"goal_reached": _goal_reached},
-        scenario=init_scenario or f"{SCENARIOS}:nav_default.yaml",
+        signals={"goal_reached": TermCfg(func=_goal_reached)},
+        scenario=init_scenario or str(SCENARIOS / "nav_default.yaml"),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
         fixed_base=False,
     )
@@ -71,14 +73,14 @@ def place_cfg(init_scenario: str | None = None) -> TaskCfg:
     return _world(
         "GalbotG1-PickToShelf-Place-v0",
         phase_success=[terminations.cube_on_shelf],
-        scenario=init_scenario or f"{SCENARIOS}:place_default.yaml",
+        scenario=init_scenario or str(SCENARIOS / "place_default.yaml"),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
     )
 
 
 def coherent_cfg() -> TaskCfg:
     """Pick -> Nav -> Place in one episode; the episode succeeds when the bar stands on the shelf."""
-    return combined_task(
+    return coherent_task(
         "GalbotG1-PickToShelf-v0",
         phases=task_sequence(
             phase("pick", "GalbotG1-PickToShelf-Pick-v0", terms=("left_arm", "left_gripper")),

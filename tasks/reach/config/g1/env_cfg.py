@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg
+from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
@@ -16,22 +16,22 @@ def reach_cfg() -> TaskCfg:
         task_id="GalbotG1-Reach-v0",
         entities=scene.entities(),
         actions=left_arm_actions(gripper=False),
-        observations=[
-            ObsTermCfg(name="joint_pos", func=common_obs.arm_joint_pos, dim=7),
-            ObsTermCfg(name="joint_vel", func=common_obs.robot_joint_vel, dim=common_obs.ROBOT_COORDS),
-            ObsTermCfg(name="pose_command", func=observations.pose_command, dim=3),
-            ObsTermCfg(name="tcp_pose", func=common_obs.tcp_pose_obs, dim=7),
-            ObsTermCfg(name="actions", func=common_obs.last_action, dim=7),
-        ],
+        observations={
+            "joint_pos": common_obs.ARM_JOINT_POS,
+            "joint_vel": common_obs.ROBOT_JOINT_VEL,
+            "pose_command": ObsTermCfg(func=observations.pose_command, size=3),
+            "tcp_pose": common_obs.TCP_POSE,
+            "actions": common_obs.LAST_ACTION,
+        },
         phase_success=[terminations.reached_goal],
         rewards={
-            "position_error": (rewards.position_error, -0.2),
-            "position_tanh": (rewards.position_tanh, 0.1),
-            "action_rate": (rewards.action_rate, -1e-4),
-            "joint_vel": (rewards.arm_joint_vel, -1e-4),
+            "position_error": RewardTermCfg(func=rewards.position_error, weight=-0.2),
+            "position_tanh": RewardTermCfg(func=rewards.position_tanh, weight=0.1),
+            "action_rate": RewardTermCfg(func=rewards.action_rate, weight=-1e-4),
+            "joint_vel": RewardTermCfg(func=rewards.arm_joint_vel, weight=-1e-4),
         },
-        signals={"reached_goal": terminations.reached_goal},
-        events=[commands.sample_goal],
+        signals={"reached_goal": TermCfg(func=terminations.reached_goal)},
+        events={"sample_goal": TermCfg(func=commands.sample_goal)},
         posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, (0.0, 0.0)),
         root_pos=spec.MANIPULATION_ROOT_POS,
         command_dim=3,

@@ -7,8 +7,10 @@ captured at the end of the previous component; the coherent task chains the comp
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, TaskCfg
-from newton_lab.task_api.compose import combined_task, phase, task_sequence
+from pathlib import Path
+
+from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
@@ -18,7 +20,7 @@ from newton_lab.tasks.sort_to_shelf.mdp import events, observations, termination
 from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW, SortingObject
 from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
 
-SCENARIOS = "newton_lab.tasks.sort_to_shelf.config.g1.scenarios"
+SCENARIOS = Path(__file__).parent / "scenarios"
 NAV_SUCCESS_RADIUS = 0.02
 
 
@@ -28,10 +30,10 @@ def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
         entities=scene.entities(),
         actions=left_arm_actions(),
         observations=common_obs.manipulation_observations(
-            [ObsTermCfg(name="object_pose", func=observations.make_object_pose(obj), dim=7)]),
+            object_pose=ObsTermCfg(func=observations.make_object_pose(obj), size=7)),
         phase_success=[],
-        terminations={"object_dropped": terminations.make_dropped(obj)},
-        signals={"grasped_object": terminations.make_grasped(obj)},
+        terminations={"object_dropped": TerminationTermCfg(func=terminations.make_dropped(obj))},
+        signals={"grasped_object": TermCfg(func=terminations.make_grasped(obj))},
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=spec.CARRY_LEFT_ARM,
@@ -43,17 +45,17 @@ def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
 
 
 def _scenario(component: str, obj: SortingObject, init_scenario: str | None) -> str:
-    return init_scenario or f"{SCENARIOS}:{component}_{obj.name}.yaml"
+    return init_scenario or str(SCENARIOS / f"{component}_{obj.name}.yaml")
 
 
 def pick_cfg(sorting_object: str | None = None) -> TaskCfg:
     """Pick the object from the table into the ready posture (success: lifted and arm at ready)."""
     obj = lookup_object(sorting_object)
-    terms = {"object_dropped": terminations.make_dropped(obj)}
+    terms = {"object_dropped": TerminationTermCfg(func=terminations.make_dropped(obj))}
     if obj.upright_min > 0:
-        terms["object_tipped"] = terminations.make_tipped(obj)
+        terms["object_tipped"] = TerminationTermCfg(func=terminations.make_tipped(obj))
     return _world("GalbotG1-SortToShelf-Pick-v0", obj, phase_success=[terminations.make_at_carry(obj)],
-                  terminations=terms, events=[events.permute_objects], options={"sorting_object": obj.name})
+                  terminations=terms, events={"permute_objects": TermCfg(func=events.permute_objects)}, options={"sorting_object": obj.name})
 
 
 def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
@@ -64,7 +66,7 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
         "GalbotG1-SortToShelf-Nav-v0", obj,
         actions=nav.base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
                                       ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
-        observations=nav.nav_observations(obj.place_base_xy, action_dim=16),
+        observations=nav.nav_observations(obj.place_base_xy),
         phase_success=[terminations.make_at_place_start(obj)],
         rewards=nav.nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS),
         scenario=_scenario("nav", obj, init_scenario),
@@ -86,7 +88,7 @@ def place_cfg(sorting_object: str | None = None, init_scenario: str | None = Non
 def coherent_cfg(sorting_object: str | None = None) -> TaskCfg:
     """Pick -> Nav -> Place in one episode; the pick phase holds the base still."""
     obj = lookup_object(sorting_object)
-    return combined_task(
+    return coherent_task(
         "GalbotG1-SortToShelf-v0",
         phases=task_sequence(
             phase("pick", "GalbotG1-SortToShelf-Pick-v0", terms=("left_arm", "left_gripper"), fixed_base=True),
