@@ -12,6 +12,11 @@ from typing import Any
 import torch
 import warp as wp
 
+from .envs import make_env
+from .policies.data import SequenceDataset
+from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
+from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
+
 
 def _time_graph(launch, steps: int, device) -> float:
     for _ in range(3):
@@ -26,8 +31,6 @@ def _time_graph(launch, steps: int, device) -> float:
 
 def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | None = None) -> dict[str, Any]:
     """Env-steps/s, bare world-steps/s and their per-step time ratio (env step / decimation solver steps)."""
-    from .envs import make_env
-
     env = make_env(task_id, num_envs=num_envs, device=device, seed=0)
     if env._graph is None:
         raise RuntimeError(f"step capture is unavailable on {env.device}; benchmark needs Warp graph capture")
@@ -59,10 +62,6 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
                 preset: str = "default") -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture."""
-    from .policies.data import SequenceDataset
-    from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
-    from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
-
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
     data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon)

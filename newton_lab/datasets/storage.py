@@ -15,7 +15,6 @@ and removed by the next append. Concurrent writers on one dataset are not suppor
 
 from __future__ import annotations
 
-import importlib
 import json
 import operator
 from collections.abc import Iterable, Mapping
@@ -25,9 +24,12 @@ from typing import Any
 
 import numpy as np
 
+from . import hdf5_store, zarr_store
 from ._common import FORMAT_VERSION, RESERVED_DEMO_ATTRS, damaged, demo_id_of, dumps_env_args, py_scalar
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
+BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
+"""Storage module of each format."""
 TIME_ALIGNED = ("obs", "states")  # every array under these has T rows
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
@@ -41,7 +43,7 @@ def _backend(path: str | Path) -> tuple[Path, ModuleType, str]:
     if fmt is None:
         raise ValueError(f"unknown dataset suffix {p.suffix or '(none)'!r} for {p}: "
                          f"use one of {', '.join(SUFFIXES)}")
-    return p, importlib.import_module(f".{fmt}_store", __package__), fmt
+    return p, BACKENDS[fmt], fmt
 
 
 def _existing(path: str | Path) -> tuple[Path, ModuleType, str]:

@@ -16,6 +16,9 @@ import torch
 import warp as wp
 from tqdm import tqdm
 
+from ..datasets import DatasetRef, open_writer
+from .scenario import capture_scenario
+
 REASON_MAX_STEPS = "max_steps"
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
                     "subtask_signals")
@@ -120,6 +123,60 @@ def env_args(env) -> dict[str, Any]:
     }
 
 
+class _Episodes:
+    """Per-row bookkeeping of the loop: step counts, returns, latched success and subtask signals (on the
+    device until an episode ends), finished records, and which rows may still start an episode."""
+
+    def __init__(self, env, *, episodes: int, until_successes: bool, max_attempts: int | None):
+        n, dev = env.num_envs, env.torch_device
+        self.env, self.episodes, self.until_successes, self.max_attempts = env, episodes, until_successes, max_attempts
+        self.quota = max_attempts if until_successes and max_attempts else (None if until_successes else episodes)
+        self.active = np.arange(n) < (self.quota if self.quota is not None else n)
+        self.launched = int(self.active.sum())
+        self.step_in_ep = torch.zeros(n, dtype=torch.long, device=dev)
+        self.reward_total = torch.zeros(n, device=dev)
+        self.latched = np.zeros(n, dtype=bool)
+        self.reached = torch.zeros((n, len(env.signal_names)), dtype=torch.bool, device=dev)
+        self.records: list[dict[str, Any]] = []
+        self.successes = 0
+
+    def enough(self) -> bool:
+        if self.until_successes:
+            return self.successes >= self.episodes or (self.max_attempts is not None
+                                                       and len(self.records) >= self.max_attempts)
+        return len(self.records) >= self.episodes
+
+    def add_step(self, reward, info) -> None:
+        self.step_in_ep += 1
+        self.reward_total += reward
+        self.latched |= info["success"].cpu().numpy()
+        self.reached |= info["step_signals"] > 0.5
+
+    def record(self, row: int, reason: str) -> dict[str, Any]:
+        """The finished episode of ``row``; frees or retires the row."""
+        rec = {
+            "env_index": int(row),
+            "length": int(self.step_in_ep[row]),
+            "success": bool(self.latched[row]),
+            "reward_total": float(self.reward_total[row]),
+            "termination_reason": reason,
+            "signals_reached": [name for name, hit in zip(self.env.signal_names, self.reached[row].tolist()) if hit],
+        }
+        if self.quota is None or self.launched < self.quota:
+            self.launched += 1
+        else:
+            self.active[row] = False
+        return rec
+
+    def clear(self, finished: np.ndarray) -> None:
+        if finished.any():
+            idx = torch.as_tensor(np.nonzero(finished)[0], device=self.env.torch_device)
+            self.step_in_ep[idx] = 0
+            self.reward_total[idx] = 0.0
+            self.latched[finished] = False
+            self.reached[idx] = False
+
+
 def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, on_episode=None,
          until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
          on_step=None):
@@ -137,86 +194,46 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     n = env.num_envs
     env.reset()
     agent.reset()
-    quota = max_attempts if until_successes and max_attempts else (None if until_successes else episodes)
-    active = np.arange(n) < (quota if quota is not None else n)
-    launched = int(active.sum())
-    step_in_ep = torch.zeros(n, dtype=torch.long, device=env.torch_device)
-    reward_total = torch.zeros(n, device=env.torch_device)
-    latched = np.zeros(n, dtype=bool)
-    # subtask signals seen during each row's episode, kept on the device (read only when an episode ends)
-    reached = torch.zeros((n, len(env.signal_names)), dtype=torch.bool, device=env.torch_device)
-    records: list[dict[str, Any]] = []
-    successes = 0
+    eps = _Episodes(env, episodes=episodes, until_successes=until_successes, max_attempts=max_attempts)
     vector_steps = 0
     bar = tqdm(total=episodes, desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
                unit="ep", disable=not progress, leave=False)
-
-    def finished_enough() -> bool:
-        if until_successes:
-            return successes >= episodes or (max_attempts is not None and len(records) >= max_attempts)
-        return len(records) >= episodes
-
     t0 = time.perf_counter()
     try:
-        while not finished_enough():
+        while not eps.enough():
             actions = agent.act(env)
             if recorder is not None:
-                recorder.record(step_in_ep, actions)
+                recorder.record(eps.step_in_ep, actions)
             _, reward, terminated, truncated, info = env.step(actions)
             vector_steps += 1
             if on_step is not None:
                 on_step(reward, info)
-            step_in_ep += 1
-            reward_total += reward
-            latched |= info["success"].cpu().numpy()
-            reached |= info["step_signals"] > 0.5
+            eps.add_step(reward, info)
             done = (terminated | truncated).cpu().numpy()
-            cut = (step_in_ep >= max_steps).cpu().numpy() & ~done
+            cut = (eps.step_in_ep >= max_steps).cpu().numpy() & ~done
             agent_done = np.zeros(n, dtype=bool)
             if end_when_agent_done:
                 agent_done = agent.done(env).cpu().numpy() & ~done & ~cut
-            ended = np.nonzero((done | cut | agent_done) & active)[0]
+            ended = np.nonzero((done | cut | agent_done) & eps.active)[0]
             reasons = info["termination_reason"].cpu().numpy()
             if (cut | agent_done).any():
                 env.reset(np.nonzero(cut | agent_done)[0])
             for row in ended:
-                if cut[row]:
-                    reason = REASON_MAX_STEPS
-                elif agent_done[row]:
-                    reason = "agent_done"
-                else:
-                    reason = env.termination_reasons[reasons[row]]
-                rec = {
-                    "env_index": int(row),
-                    "length": int(step_in_ep[row]),
-                    "success": bool(latched[row]),
-                    "reward_total": float(reward_total[row]),
-                    "termination_reason": reason,
-                    "signals_reached": [name for name, hit in zip(env.signal_names, reached[row].tolist()) if hit],
-                }
+                reason = (REASON_MAX_STEPS if cut[row] else "agent_done" if agent_done[row]
+                          else env.termination_reasons[reasons[row]])
+                rec = eps.record(row, reason)
                 if on_episode is not None:
                     rec.update(on_episode(row, rec) or {})
-                records.append(rec)
-                successes += rec["success"]
+                eps.records.append(rec)
+                eps.successes += rec["success"]
                 bar.update(1 if not until_successes else int(rec["success"]))
-                bar.set_postfix(success=f"{successes}/{len(records)}")
-                if quota is None or launched < quota:
-                    launched += 1
-                else:
-                    active[row] = False
-                if finished_enough():
+                bar.set_postfix(success=f"{eps.successes}/{len(eps.records)}")
+                if eps.enough():
                     break
-            finished = done | cut | agent_done
-            if finished.any():
-                idx = torch.as_tensor(np.nonzero(finished)[0], device=env.torch_device)
-                step_in_ep[idx] = 0
-                reward_total[idx] = 0.0
-                latched[finished] = False
-                reached[idx] = False
+            eps.clear(done | cut | agent_done)
     finally:
         bar.close()
-    wall = time.perf_counter() - t0
-    return records, vector_steps, wall
+    return eps.records, vector_steps, time.perf_counter() - t0
 
 
 def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
@@ -260,8 +277,6 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     summary (episodes, successes, success_rate, lengths, termination reasons, saved_demo_ids, ...);
     ``ref["success_rate"]`` reads it.
     """
-    from ..datasets import DatasetRef, open_writer
-
     task_id = dataset_task_id or env.task_id
     if save_end_scenario is not None:
         if env.num_envs != 1 or episodes != 1:
@@ -300,8 +315,6 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     summary = _summary(env, records, steps, wall)
     summary.update(task=task_id, path=str(path), saved_demo_ids=saved, attempts=len(records))
     if save_end_scenario is not None:
-        from .scenario import capture_scenario
-
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
     cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.randomize, "max_steps": max_steps,

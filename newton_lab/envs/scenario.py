@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import warp as wp
 import yaml
 
 from ..robots.g1 import spec
@@ -183,8 +184,6 @@ def load_scenario(ref: str | Path) -> Scenario:
 
 def capture_scenario(env, row: int = 0, *, terminal: bool = False, source: str | None = None) -> Scenario:
     """The scenario of ``row``'s current state (``terminal=True``: the state its last episode ended in)."""
-    import warp as wp
-
     lay = env.layout
     coords = env.terminal_joint_q if terminal else wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
     q = coords[row].detach().cpu().numpy().astype(np.float64)

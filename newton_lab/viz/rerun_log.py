@@ -16,6 +16,9 @@ import rerun as rr
 import torch
 import warp as wp
 
+from ..datasets import read_dataset_info, read_episode
+from ..envs import make_env
+
 
 def _color(rgb) -> list[int]:
     return [int(255 * c) for c in rgb]
@@ -121,9 +124,6 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
                    device: str | None = "cpu") -> np.ndarray:
     """Re-apply a recorded episode's states (robot joints, object poses) frame by frame on a one-row env of
     its task and log them to rerun. Returns the replayed body poses (T, bodies, 7)."""
-    from ..datasets import read_dataset_info, read_episode
-    from ..envs import make_env
-
     info = read_dataset_info(path)
     ids = info["demo_ids"]
     if episode not in ids:

@@ -1,0 +1,207 @@
+"""The layering rules of newton_lab, checked on the source with ``ast`` (no imports, no physics).
+
+Layers, lowest first; a module may import its own layer and the ones below, never one above:
+
+    robots, assets  ->  kernels  ->  task_api  ->  tasks  ->  datasets  ->  envs  ->  agents  ->  mimic
+    ->  policies  ->  viz  ->  commands, bench, cli, flows
+
+Also: no import cycle between modules or between packages, no ``importlib`` of project modules by name,
+imports at module top (a deliberately deferred import says ``deferred`` in a comment on its line), no
+module over 400 lines, no function over 80 lines except Warp kernels / funcs.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+FOLDERS = {"newton_lab": "newton_lab", "newton_lab.kernels": "kernels", "newton_lab.tasks": "tasks",
+           "newton_lab.flows": "flows", "newton_lab.assets": "assets"}
+LAYERS = [("robots", "assets"), ("kernels",), ("task_api",), ("tasks",), ("datasets",), ("envs",), ("agents",),
+          ("mimic",), ("policies",), ("viz",), ("commands", "bench", "cli", "flows")]
+RANK = {unit: i for i, units in enumerate(LAYERS) for unit in units}
+MAX_MODULE_LINES = 400
+MAX_FUNCTION_LINES = 80
+
+
+def _modules() -> dict[str, Path]:
+    found = {}
+    for pkg, folder in FOLDERS.items():
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            parts = path.relative_to(ROOT / folder).with_suffix("").parts
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            found[".".join((pkg, *parts))] = path
+    return found
+
+
+MODULES = _modules()
+TREES = {name: ast.parse(path.read_text(), filename=str(path)) for name, path in MODULES.items()}
+
+
+def _unit(module: str) -> str | None:
+    """The layer unit of a project module: ``newton_lab.<unit>...``."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else None
+
+
+def _is_package(module: str) -> bool:
+    return MODULES[module].name == "__init__.py"
+
+
+def _resolve(module: str, node: ast.ImportFrom) -> list[str]:
+    """Project modules named by a ``from ... import ...`` in ``module``."""
+    if node.level:
+        base = module.split(".") if _is_package(module) else module.split(".")[:-1]
+        base = base[: len(base) - (node.level - 1)]
+        target = ".".join(base + ([node.module] if node.module else []))
+    else:
+        target = node.module or ""
+    if not target.startswith("newton_lab"):
+        return []
+    names = [f"{target}.{a.name}" for a in node.names if f"{target}.{a.name}" in MODULES]
+    return names or [target]
+
+
+def _imports(module: str) -> list[tuple[str, ast.stmt]]:
+    out = []
+    for node in ast.walk(TREES[module]):
+        if isinstance(node, ast.ImportFrom):
+            out += [(t, node) for t in _resolve(module, node)]
+        elif isinstance(node, ast.Import):
+            out += [(a.name, node) for a in node.names if a.name.startswith("newton_lab")]
+    return [(t, n) for t, n in out if t in MODULES or any(m.startswith(t + ".") for m in MODULES)]
+
+
+def _owner(target: str) -> str:
+    """The module file that a dotted import target lives in."""
+    while target not in MODULES:
+        target = target.rsplit(".", 1)[0]
+    return target
+
+
+GRAPH = {m: sorted({_owner(t) for t, _ in _imports(m)} - {m}) for m in MODULES}
+
+
+def test_every_unit_has_a_layer():
+    units = {_unit(m) for m in MODULES} - {None}
+    assert units <= set(RANK), f"modules outside the layer list: {sorted(units - set(RANK))}"
+
+
+def test_no_upward_import():
+    bad = []
+    for module, targets in GRAPH.items():
+        src = _unit(module)
+        for target in targets:
+            dst = _unit(target)
+            if src in RANK and dst in RANK and RANK[dst] > RANK[src]:
+                bad.append(f"{module} -> {target} ({src} may not import {dst})")
+    assert not bad, "upward imports:\n" + "\n".join(bad)
+
+
+def _cycle(graph: dict[str, list[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in graph.get(node, ()):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in graph:
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def _package_of(module: str) -> str:
+    return module if _is_package(module) else module.rsplit(".", 1)[0]
+
+
+def test_no_module_cycle():
+    # a package's __init__ importing its own submodules is how packages re-export; the cycle that matters is
+    # a submodule importing back through an ancestor package
+    graph = {m: [t for t in ts if not (_is_package(m) and t.startswith(m + "."))] for m, ts in GRAPH.items()}
+    cycle = _cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_no_package_cycle():
+    graph: dict[str, set[str]] = defaultdict(set)
+    for module, targets in GRAPH.items():
+        src = _package_of(module)
+        for target in targets:
+            dst = _package_of(target)
+            if src != dst and not dst.startswith(src + ".") and not src.startswith(dst + "."):
+                graph[src].add(dst)
+    cycle = _cycle({k: sorted(v) for k, v in graph.items()})
+    assert cycle is None, "package cycle: " + " -> ".join(cycle)
+
+
+def test_no_importlib_of_project_modules():
+    bad = []
+    for module, tree in TREES.items():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and "import_module" in ast.unparse(node.func):
+                bad.append(f"{module}:{node.lineno} {ast.unparse(node)}")
+    assert not bad, "importlib by string:\n" + "\n".join(bad)
+
+
+def test_imports_at_module_top():
+    bad = []
+    for module, tree in TREES.items():
+        lines = MODULES[module].read_text().splitlines()
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                if isinstance(node, (ast.Import, ast.ImportFrom)) and "deferred" not in lines[node.lineno - 1]:
+                    bad.append(f"{module}:{node.lineno} {ast.unparse(node)}")
+    assert not bad, ("imports inside functions (move them up, or say '# deferred: <why>'):\n"
+                     + "\n".join(sorted(set(bad))))
+
+
+def test_module_size():
+    long = {m: n for m, p in MODULES.items() if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+def _is_warp(fn: ast.FunctionDef) -> bool:
+    for d in fn.decorator_list:
+        name = ast.unparse(d.func if isinstance(d, ast.Call) else d)
+        if name in ("wp.kernel", "wp.func", "warp.kernel", "warp.func"):
+            return True
+    return False
+
+
+def test_function_size():
+    long = []
+    for module, tree in TREES.items():
+        for fn in ast.walk(tree):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_warp(fn):
+                n = fn.end_lineno - fn.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long.append(f"{module}.{fn.name}: {n} lines")
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines:\n" + "\n".join(long)
+
+
+@pytest.mark.parametrize("rule", ["tasks import no agents, datasets, envs or mimic"])
+def test_tasks_declare_data_only(rule):
+    bad = [f"{m} -> {t}" for m, ts in GRAPH.items() if _unit(m) == "tasks"
+           for t in ts if _unit(t) in ("agents", "datasets", "envs", "mimic", "policies")]
+    assert not bad, rule + ":\n" + "\n".join(bad)
