@@ -22,6 +22,7 @@ from ..robots.g1 import spec
 from ..robots.g1.packers import wheel_gains
 from ..task_api.cfg import TaskCfg
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
+from . import rollout
 from .scenario import load_scenario
 from .scene import build_scene
 from .terms import build_task_kernels, observation_layout
@@ -451,13 +452,9 @@ class NewtonEnv:
     def collect(self, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True, **kwargs):
         """Run ``agent`` for ``episodes`` episodes and write them to ``path``; returns a ``DatasetRef``
         whose metadata is the run summary (see ``newton_lab.envs.rollout.collect``)."""
-        from .rollout import collect
-
-        return collect(self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress,
+        return rollout.collect(self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress,
                        **kwargs)
 
     def evaluate(self, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True, **kwargs):
         """Run ``agent`` for ``episodes`` episodes and report success rate and lengths (see ``rollout``)."""
-        from .rollout import evaluate
-
-        return evaluate(self, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress, **kwargs)
+        return rollout.evaluate(self, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress, **kwargs)
