@@ -1,0 +1,1 @@
+"""LiftCube configurations by robot."""

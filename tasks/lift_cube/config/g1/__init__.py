@@ -1,0 +1,1 @@
+"""G1 configuration of LiftCube: env cfg and motion plan."""

@@ -1,0 +1,33 @@
+"""GalbotG1-LiftCube-v0 configuration: fixed-base G1, left arm + gripper absolute targets (8), 20 s episodes."""
+
+from __future__ import annotations
+
+from newton_lab.robots.g1 import spec
+from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
+from newton_lab.tasks.lift_cube import scene
+from newton_lab.tasks.lift_cube.mdp import events, observations, rewards, terminations
+
+
+def lift_cube_cfg() -> TaskCfg:
+    """The PickCube robot set-up (table-top posture, head pitched down) with one cube to lift."""
+    return TaskCfg(
+        task_id="GalbotG1-LiftCube-v0",
+        entities=scene.entities(),
+        actions=left_arm_actions(),
+        observations=common_obs.manipulation_observations(cube_pose=ObsTermCfg(func=observations.cube_pose, size=7)),
+        phase_success=[terminations.cube_lifted],
+        terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
+        rewards={
+            "reaching": RewardTermCfg(func=rewards.reaching, weight=1.0),
+            "lift_progress": RewardTermCfg(func=rewards.lift_progress, weight=5.0),
+            "action_rate": RewardTermCfg(func=rewards.action_rate, weight=-1e-4),
+        },
+        signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
+        events={"randomize_cube": TermCfg(func=events.randomize_cube)},
+        posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.PICK_CUBE_HEAD),
+        root_pos=spec.MANIPULATION_ROOT_POS,
+        episode_length_s=20.0,
+        constraints_per_world=128,
+    )

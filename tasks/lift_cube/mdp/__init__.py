@@ -1,0 +1,1 @@
+"""LiftCube terms: predicates (terminations), rewards, observations and reset events."""
