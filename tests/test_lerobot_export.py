@@ -17,7 +17,7 @@ pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
 from newton_lab.datasets import open_writer, read_episode  # noqa: E402
-from newton_lab.datasets import lerobot as lr  # noqa: E402
+from newton_lab.datasets.lerobot import writer as lr  # noqa: E402  (the export reads episodes through it)
 from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3  # noqa: E402
 
 TASK = "GalbotG1-PickCube-v0"

@@ -17,9 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import lerobot as _package  # episodes are read through the package's read_episode (tests patch it)
 from .._common import fsync_path
-from ..storage import read_dataset_info
+from ..storage import read_dataset_info, read_episode
 from .tables import (CHUNKS_SIZE, CODEBASE_VERSION, DATA_FILES_SIZE_IN_MB, DATA_PATH, EPISODES_PATH, IMAGE_NAMES,
                      IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, DataFiles,
                      aggregate, episode_table, image_stats, vector_stats, write_episodes, write_tasks)
@@ -208,7 +207,7 @@ def _make_plan(info: dict[str, Any], *, repo_id, fps, include_failed, state_keys
         raise ValueError(f"{source} has no episodes to export: {len(demos)} demos, {len(failed)} failed, "
                          f"{len(empty)} empty{hint}")
 
-    first = _package.read_episode(source, chosen[0])
+    first = read_episode(source, chosen[0])
     obs = {k: np.asarray(v) for k, v in first.get("obs", {}).items() if not isinstance(v, Mapping)}
     kinds = {k: _obs_kind(v) for k, v in obs.items()}
     order = _obs_order(nl, obs)
@@ -285,7 +284,7 @@ def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
     start = 0
     try:
         for episode_index, demo_id in enumerate(plan.demo_ids):
-            ep = first if episode_index == 0 else _package.read_episode(plan.source, demo_id)
+            ep = first if episode_index == 0 else read_episode(plan.source, demo_id)
             state, actions, images = _episode_arrays(ep, plan, demo_id)
             del ep
             table, scalars = episode_table(state, actions, images, plan.fps, episode_index, start)
