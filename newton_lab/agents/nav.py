@@ -3,6 +3,10 @@
 Every nav agent writes only the wheel columns and keeps the rest of the action at the current drive targets
 (arm, legs and gripper hold), so it can drive a row of any task whose action space has a ``base`` term.
 Base pose = the planar base coordinates (x, y [m], yaw [rad]), env frame.
+
+The wheel speeds are the action (the reference's action space: datasets record them, policies learn them), so
+an agent's twist becomes wheel speeds through the one mecanum formula (``robots.g1.mecanum``); the env's
+``drive_base`` kernel applies the same formula's inverse because its base is a planar joint without rollers.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ import numpy as np
 import torch
 
 from ..robots.g1 import spec
-from ..robots.g1.packers import base_twist_to_wheel_velocities
+from ..robots.g1.mecanum import twist_to_wheels_torch
 from .base import BaseAgent, EpisodeTracker
 
 
@@ -68,7 +72,7 @@ class BaseNavAgent(BaseAgent):
             self.start(env, rows, pose)
         vx, vy, wz = self.twist(env, pose)
         out = env.current_action()
-        out[:, self._wheel_cols] = base_twist_to_wheel_velocities(vx, vy, wz, device=env.torch_device)
+        out[:, self._wheel_cols] = twist_to_wheels_torch(torch.stack((vx, vy, wz), dim=1).to(out.device))
         return out
 
 

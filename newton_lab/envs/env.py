@@ -1,13 +1,13 @@
 """The batched G1 env: transparent over Newton, one captured graph per env step.
 
 One step, as data (all on the env's device, nothing allocated, no host sync):
-actions -> ``apply_actions`` -> ``solver.step`` x decimation -> fused task kernel -> masked reset of
-finished rows (+ seeded randomisation) -> forward kinematics of reset rows -> fused observation kernel.
+actions -> ``apply_actions`` (the robot binding's action map, ``actuation``) -> (base twist, drive setpoints,
+``solver.step``) x decimation -> fused task kernel -> masked reset of finished rows (+ seeded randomisation)
+-> forward kinematics of reset rows -> fused observation kernel.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import newton
@@ -16,34 +16,27 @@ import torch
 import warp as wp
 
 from ..kernels import fuse
-from ..kernels.actions import TARGET_POSITION, TARGET_VELOCITY, apply_actions, drive_base
-from ..kernels.context import TaskContext, record_poses
+from ..kernels.context import record_poses
 from ..robots.g1 import spec
-from ..robots.g1.packers import wheel_gains
+from ..robots.g1.binding import G1Binding
 from ..task_api.cfg import TaskCfg
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
 from . import rollout
-from .scenario import load_scenario
+from .actuation import Actuation
+from .buffers import Entity, build_context, entity_table, reset_coordinates
 from .scene import build_scene
 from .terms import build_task_kernels, observation_layout
 
-
-@dataclass(frozen=True)
-class Entity:
-    """A named rigid object of the scene; ``slot`` indexes ``env.entity_poses``."""
-
-    name: str
-    slot: int
-    body: int
-    """World-local body index, -1 for a static collider."""
-    dynamic: bool
+__all__ = ["Entity", "NewtonEnv"]
 
 
 class NewtonEnv:
     """A batch of ``num_envs`` G1 worlds running one task.
 
     Transparent: ``model``, ``state``, ``control`` and ``solver`` are Newton's own objects; the step
-    writes into them in place. ``step`` returns torch tensors that share memory with Warp arrays.
+    writes into them in place. ``control`` holds the targets the actions command; the solver tracks ``drive``
+    (the same targets, velocity-limited joints' setpoints rate-limited, see ``actuation``). ``step`` returns
+    torch tensors that share memory with Warp arrays.
     """
 
     def __init__(
@@ -91,56 +84,27 @@ class NewtonEnv:
 
     # ------------------------------------------------------------------ construction
     def _build_actions(self) -> None:
-        joints = self.layout.joints
-        names, kind, index, low, high, self.action_terms = [], [], [], [], [], {}
-        for term in self.cfg.actions:
-            group = spec.JOINT_GROUPS[term.group]
-            start = len(names)
-            for j in group:
-                names.append(j)
-                if term.type == "velocity":
-                    kind.append(TARGET_VELOCITY)
-                    index.append(joints.dof[j])
-                else:
-                    kind.append(TARGET_POSITION)
-                    index.append(joints.coord[j])
-                lo, hi = term.clip if term.clip else (-np.inf, np.inf)
-                if term.type == "binary":
-                    lo, hi = spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED
-                low.append(lo)
-                high.append(hi)
-            self.action_terms[term.name] = slice(start, len(names))
-        self.action_joint_names = tuple(names)
-        self.action_dim = len(names)
-        # Which columns each phase commands (the others hold), and whether the phase may move the base.
-        phases = self.cfg.phases
-        owned = np.ones((max(len(phases), 1), max(len(names), 1)), dtype=bool)
-        base_free = np.full(max(len(phases), 1), not self.cfg.fixed_base, dtype=bool)
-        groups = {t.name: t.group for t in self.cfg.actions}
-        for p, ph in enumerate(phases):
-            if ph.action_groups is not None:
-                for term, cols in self.action_terms.items():
-                    owned[p, cols] = groups[term] in ph.action_groups
-            base_free[p] = not ph.fixed_base
-        self._act_owned = wp.array(owned, dtype=bool)
-        self._base_free = wp.array(base_free, dtype=bool)
-        wheel_terms = [t for t in self.cfg.actions if t.group == "base"]
-        self._wheel_col = self.action_terms[wheel_terms[0].name].start if wheel_terms else -1
-        self._act_kind = wp.array(kind, dtype=int)
-        self._act_index = wp.array(index, dtype=int)
-        self._act_low = wp.array(np.asarray(low, dtype=np.float32), dtype=float)
-        self._act_high = wp.array(np.asarray(high, dtype=np.float32), dtype=float)
+        self.binding = G1Binding.from_layout(self.layout, actions=self.cfg.actions, arm=self.cfg.arm)
+        """The G1 on this scene: robot half of the task context, the action map, the drive limits."""
+        action_map = self.binding.actions
+        self.action_joint_names = action_map.joint_names
+        self.action_terms = action_map.terms
+        self.action_dim = action_map.dim
+        self._actuation = Actuation(self.binding, self.cfg, self.layout, self.control, self.num_envs)
+        self.drive = self._actuation.drive
+        """The Newton ``Control`` the solver tracks (``control``'s targets, velocity limits applied)."""
 
-    def _build_buffers(self) -> None:
-        n, lay, cfg = self.num_envs, self.layout, self.cfg
+    def _build_observation_layout(self) -> None:
+        lay, cfg = self.layout, self.cfg
         self.obs_terms = observation_layout(cfg, {ACTION_DIM: self.action_dim, ROBOT_COORDS: lay.robot_coords,
                                                   ARM_JOINTS: len(spec.LEFT_ARM_JOINTS)})
         self.obs_dim = max((s.stop for s in self.obs_terms.values()), default=0)
+
+    def _build_buffers(self) -> None:
+        n, lay, cfg = self.num_envs, self.layout, self.cfg
+        self._build_observation_layout()
         n_ent = len(lay.entity_names)
-        self.entities = {
-            name: Entity(name=name, slot=k, body=lay.entity_body[k], dynamic=lay.entity_body[k] >= 0)
-            for k, name in enumerate(lay.entity_names)
-        }
+        self.entities = entity_table(lay)
         self.signal_names = tuple(cfg.signals)
         self.termination_reasons = cfg.termination_reasons
 
@@ -162,49 +126,17 @@ class NewtonEnv:
         self._art_mask = z(self.model.articulation_count, dtype=bool)
         self._tcp_pose = z((n, 7), dtype=float)
         self._entity_poses = z((n, max(n_ent, 1), 7), dtype=float)
-        default_q = lay.default_q
-        self.scenario = None
-        if cfg.scenario:
-            self.scenario = load_scenario(cfg.scenario)
-            default_q = self.scenario.overlay(lay, default_q, task_id=cfg.task_id)
-        default_target_q = np.array(default_q, copy=True)
-        for name, value in cfg.initial_targets.items():
-            default_target_q[lay.joints.coord[name]] = value
+        self.scenario, default_q, default_target_q = reset_coordinates(cfg, lay)
         self._default_q = wp.array(default_q, dtype=float)
         self._default_target_q = wp.array(default_target_q, dtype=float)
         self._terminal_q = z((n, lay.coords_per_world), dtype=float)
+        self._ctx = build_context(cfg=cfg, layout=lay, binding=self.binding, state=self.state, control=self.control,
+                                  actions=self._actions, num_envs=n)
+        self._build_views()
 
-        ctx = TaskContext()
-        ctx.body_q, ctx.body_qd = self.state.body_q, self.state.body_qd
-        ctx.joint_q, ctx.joint_qd = self.state.joint_q, self.state.joint_qd
-        ctx.joint_target_q, ctx.joint_target_qd = self.control.joint_target_q, self.control.joint_target_qd
-        ctx.bodies_per_world = lay.bodies_per_world
-        ctx.coords_per_world = lay.coords_per_world
-        ctx.dofs_per_world = lay.dofs_per_world
-        ctx.robot_coords = lay.robot_coords
-        ctx.base_coord = lay.joints.coord["base_x"]
-        ctx.leg_coord = lay.joints.coord["leg_joint1"]
-        assert [lay.joints.coord[j] - ctx.leg_coord for j in spec.LEG_JOINTS] == list(range(5)), "legs not contiguous"
-        ctx.entity_body = wp.array(lay.entity_body or [-1], dtype=int)
-        ctx.entity_coord = wp.array(lay.entity_coord or [-1], dtype=int)
-        ctx.entity_dof = wp.array(lay.entity_dof or [-1], dtype=int)
-        ctx.entity_static_pose = wp.array(lay.entity_static_pose or [(0, 0, 0, 0, 0, 0, 1)], dtype=wp.transform)
-        ctx.entity_half_extents = wp.array(lay.entity_half_extents or [(0, 0, 0)], dtype=wp.vec3)
-        arm = cfg.arm
-        ctx.tcp_body = lay.joints.body[spec.END_EFFECTOR_LINK[arm]]
-        ctx.tcp_offset = wp.transform(wp.vec3(*spec.TCP_OFFSET_POS), wp.quat(*spec.TCP_OFFSET_QUAT))
-        ctx.gripper_coord = lay.joints.coord[f"{arm}_gripper_joint"]
-        arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
-        ctx.arm_coords = wp.array([lay.joints.coord[j] for j in arm_joints], dtype=int)
-        ctx.arm_home = wp.array(np.asarray(cfg.arm_home, dtype=np.float32), dtype=float)
-        ctx.command = z((n, max(cfg.command_dim, 1)), dtype=float)
-        ctx.actions = self._actions
-        ctx.prev_actions = z((n, self.action_dim), dtype=float)
-        ctx.episode_step = z(n, dtype=int)
-        ctx.phase = z(n, dtype=int)
-        ctx.hold = z((n, max(cfg.hold_slots, 1)), dtype=int)
-        self._ctx = ctx
-
+    def _build_views(self) -> None:
+        """The public torch views of the step buffers (they share memory with the Warp arrays)."""
+        cfg, ctx, n_ent = self.cfg, self._ctx, len(self.layout.entity_names)
         t = wp.to_torch
         self.obs = t(self._obs)[:, : self.obs_dim]
         self.reward = t(self._reward)
@@ -249,54 +181,13 @@ class NewtonEnv:
 
     # ------------------------------------------------------------------ the step
     def _apply_actions(self) -> None:
-        wp.launch(
-            apply_actions,
-            dim=(self.num_envs, self.action_dim),
-            inputs=[
-                self._actions,
-                self._act_kind,
-                self._act_index,
-                self._act_low,
-                self._act_high,
-                self._act_owned,
-                self._ctx.phase,
-                self.layout.coords_per_world,
-                self.layout.dofs_per_world,
-                self.control.joint_target_q,
-                self.control.joint_target_qd,
-            ],
-        )
-
-    def _drive_base(self) -> None:
-        lin, yaw = wheel_gains()
-        joints = self.layout.joints
-        wp.launch(
-            drive_base,
-            dim=self.num_envs,
-            inputs=[
-                self._actions,
-                self._wheel_col,
-                self._act_low,
-                self._act_high,
-                self._act_owned,
-                self._base_free,
-                self._ctx.phase,
-                lin,
-                yaw,
-                joints.coord["base_x"],
-                joints.dof["base_x"],
-                self.layout.coords_per_world,
-                self.layout.dofs_per_world,
-                self.state.joint_q,
-                self.control.joint_target_qd,
-            ],
-        )
+        self._actuation.apply(self._actions, self._ctx.phase)
 
     def _simulate(self) -> None:
         for _ in range(self.cfg.decimation):
-            if self._wheel_col >= 0:
-                self._drive_base()  # per substep: the world-frame twist follows the turning base
-            self.solver.step(self.state, self.state, self.control, None, self.cfg.sim_dt)
+            # per substep: the world-frame base twist follows the turning base, limited setpoints advance
+            self._actuation.substep(self._actions, self._ctx.phase, self.state.joint_q)
+            self.solver.step(self.state, self.state, self.drive, None, self.cfg.sim_dt)
 
     def _evaluate_task(self) -> None:
         wp.launch(
@@ -330,6 +221,7 @@ class NewtonEnv:
                 self._success_latched,
             ],
         )
+        self._actuation.sync(mask)  # the reset rows' drive setpoints jump to their reset targets
         wp.launch(
             fuse.world_to_articulation_mask,
             dim=self.model.articulation_count,
@@ -363,7 +255,8 @@ class NewtonEnv:
 
         Args:
             actions: (num_envs, action_dim) float32 tensor on the env's device; columns follow
-                ``action_joint_names`` (absolute joint targets [rad], gripper 0 open .. 1.2 closed).
+                ``action_joint_names``, each of the kind ``binding.actions.kinds`` names (absolute or relative
+                joint targets [rad], wheel speeds [rad/s], gripper 0 open .. 1.2 closed).
 
         Returns:
             ``(obs, reward, terminated, truncated, info)`` as torch views of the env's Warp buffers
@@ -440,14 +333,9 @@ class NewtonEnv:
         return q[:, [self.layout.joints.coord[n] for n in names]]
 
     def current_action(self) -> torch.Tensor:
-        """An action that holds every commanded joint at its current drive target."""
-        tq = wp.to_torch(self.control.joint_target_q).view(self.num_envs, -1)
-        out = torch.zeros(self.num_envs, self.action_dim, device=self.torch_device)
-        coords = self.layout.joints.coord
-        for c, name in enumerate(self.action_joint_names):
-            if name not in spec.BASE_WHEEL_JOINTS:
-                out[:, c] = tq[:, coords[name]]
-        return out
+        """An action that holds every commanded joint at its current target (absolute / binary columns: the
+        target; relative and wheel-velocity columns: 0)."""
+        return self._actuation.hold()
 
     def collect(self, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True, **kwargs):
         """Run ``agent`` for ``episodes`` episodes and write them to ``path``; returns a ``DatasetRef``

@@ -17,8 +17,38 @@ def mjcf_path() -> str:
 
 
 def add_g1(builder: newton.ModelBuilder) -> None:
-    """Add one G1 at the origin; its planar base coordinates (base_x, base_y, base_yaw) are its pose."""
+    """Add one G1 at the origin; its planar base coordinates (base_x, base_y, base_yaw) are its pose. The spec's
+    joint limits beyond the MJCF ranges are written into Newton's limit fields (``apply_spec_limits``)."""
+    first_joint = builder.joint_count
     builder.add_mjcf(mjcf_path(), enable_self_collisions=False, xform=wp.transform_identity())
+    apply_spec_limits(builder, first_joint)
+
+
+def apply_spec_limits(builder: newton.ModelBuilder, first_joint: int = 0) -> None:
+    """Write ``spec.JOINT_VELOCITY_LIMITS`` / ``spec.JOINT_EFFORT_LIMITS`` into the per-DOF
+    ``joint_velocity_limit`` / ``joint_effort_limit`` of the robot added from joint ``first_joint`` on.
+
+    SolverMuJoCo applies effort limits (actuator force range) but not velocity limits, so a velocity-limited
+    joint's position drive becomes ``POSITION_VELOCITY``: the env moves its drive setpoint toward the command at
+    no more than the limit and feeds the setpoint's velocity to the drive (``kernels.actions.drive_setpoints``).
+    With a zero velocity target that drive is the same PD as the position-only one.
+    """
+    dof = {
+        label.rsplit("/", 1)[-1]: builder.joint_qd_start[j]
+        for j, label in enumerate(builder.joint_label)
+        if j >= first_joint
+    }
+    unknown = sorted((set(spec.JOINT_VELOCITY_LIMITS) | set(spec.JOINT_EFFORT_LIMITS)) - set(dof))
+    if unknown:
+        raise ValueError(f"spec limits name joints the G1 model lacks: {unknown}; valid: {sorted(dof)}")
+    position_only = int(newton.JointTargetMode.POSITION)
+    for name, limit in spec.JOINT_VELOCITY_LIMITS.items():
+        d = dof[name]
+        builder.joint_velocity_limit[d] = float(limit)
+        if builder.joint_target_mode[d] == position_only:
+            builder.joint_target_mode[d] = int(newton.JointTargetMode.POSITION_VELOCITY)
+    for name, limit in spec.JOINT_EFFORT_LIMITS.items():
+        builder.joint_effort_limit[dof[name]] = float(limit)
 
 
 @dataclass(frozen=True)

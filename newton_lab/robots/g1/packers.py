@@ -1,8 +1,9 @@
-"""Galbot G1 action packers: pure numpy + torch (no Warp, no Newton).
+"""Galbot G1 action packers: numpy + torch (no Newton).
 
 Turn human-level commands into batched action tensors of shape ``(num_envs, A)``:
 
-* base twist ``(vx, vy, wz)`` <-> mecanum wheel velocities ``wheel1..wheel4`` [rad/s];
+* base twist ``(vx, vy, wz)`` <-> mecanum wheel velocities ``wheel1..wheel4`` [rad/s], through the one wheel
+  formula (``robots.g1.mecanum``, a Warp function run on the tensors' device);
 * named absolute joint targets [rad] packed into an action-joint order, keeping a baseline elsewhere;
 * named relative joint deltas (scaled) with zeros elsewhere;
 * binary gripper open/close flags -> master-joint targets [rad].
@@ -13,7 +14,6 @@ message naming the problem and the fix.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from newton_lab.robots.g1 import spec
+from newton_lab.robots.g1.mecanum import twist_to_wheels_torch, wheel_gains, wheels_to_twist_torch
 
 __all__ = [
     "G1_ACTION_TYPES",
@@ -151,18 +152,6 @@ def _start(baseline: Any, current: Any, num_envs: int, n_act: int, device: torch
 
 
 # ---------------------------------------------------------------- base: twist <-> wheels
-def wheel_gains(*, lin_scale: float = 1.0, ang_scale: float = 1.0) -> tuple[float, float]:
-    """Mecanum gains ``(lin, yaw)``: wheel [rad/s] per base [m/s] and per base yaw [rad/s].
-
-    ``lin = lin_scale / (sqrt(2) r)``, ``yaw = ang_scale / (2 sqrt(2) r (|wx| + |wy|))`` with
-    r = WHEEL_RADIUS [m], wx/wy = WHEEL_OFFSET_X/Y [m]; defaults give (7.0711, 10.0161).
-    """
-    r = spec.WHEEL_RADIUS
-    lin = lin_scale / (math.sqrt(2.0) * r)
-    yaw = ang_scale / (2.0 * math.sqrt(2.0) * r * (abs(spec.WHEEL_OFFSET_X) + abs(spec.WHEEL_OFFSET_Y)))
-    return lin, yaw
-
-
 def base_twist_to_wheel_velocities(
     vx: Any = 0.0,
     vy: Any = 0.0,
@@ -201,17 +190,8 @@ def base_twist_to_wheel_velocities(
             f"{fn}: per-row twist length {lengths.pop()} != {m} selected row(s); "
             f"pass scalars or length len(env_indices) (or num_envs when env_indices is None)"
         )
-    vx_t, vy_t, wz_t = (p.expand(m) for p in parts)
-    lin, yaw = wheel_gains(lin_scale=lin_scale, ang_scale=ang_scale)
-    wheels = torch.stack(
-        (
-            -vx_t * lin + vy_t * lin + wz_t * yaw,
-            -vx_t * lin - vy_t * lin + wz_t * yaw,
-            vx_t * lin - vy_t * lin + wz_t * yaw,
-            vx_t * lin + vy_t * lin + wz_t * yaw,
-        ),
-        dim=-1,
-    )
+    twist = torch.stack([p.expand(m) for p in parts], dim=-1)
+    wheels = twist_to_wheels_torch(twist, lin_scale=lin_scale, ang_scale=ang_scale)
     if rows is None:
         return wheels
     out = torch.zeros(n, 4, dtype=DTYPE, device=dev)
@@ -224,7 +204,8 @@ def wheel_velocities_to_base_twist(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Wheel velocities (..., 4) [rad/s], order wheel1..wheel4 -> ``(vx, vy, wz)`` of shape (...).
 
-    Exact (least-squares) inverse of :func:`base_twist_to_wheel_velocities`; vx, vy [m/s], wz [rad/s].
+    Exact (least-squares) inverse of :func:`base_twist_to_wheel_velocities` (``mecanum.wheels_to_twist``);
+    vx, vy [m/s], wz [rad/s].
     """
     fn = "wheel_velocities_to_base_twist"
     w = _as_float(wheels, _device_of(None, wheels))
@@ -232,11 +213,8 @@ def wheel_velocities_to_base_twist(
         raise ValueError(f"{fn}: wheels has shape {tuple(w.shape)}; pass shape (4,) or (N, 4) ordered wheel1..wheel4")
     if lin_scale == 0 or ang_scale == 0:
         raise ValueError(f"{fn}: lin_scale/ang_scale must be non-zero to invert; pass the scales used to pack")
-    lin, yaw = wheel_gains(lin_scale=lin_scale, ang_scale=ang_scale)
-    w1, w2, w3, w4 = w.unbind(-1)
-    vx = (-w1 - w2 + w3 + w4) / (4.0 * lin)
-    vy = (w1 - w2 - w3 + w4) / (4.0 * lin)
-    wz = (w1 + w2 + w3 + w4) / (4.0 * yaw)
+    twist = wheels_to_twist_torch(w.reshape(-1, 4), lin_scale=lin_scale, ang_scale=ang_scale)
+    vx, vy, wz = twist.reshape(*w.shape[:-1], 3).unbind(-1)
     return vx, vy, wz
 
 

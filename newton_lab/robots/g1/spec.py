@@ -57,6 +57,17 @@ GRIPPER_VELOCITY_LIMIT = 2.0
 FINGER_TRAVEL_PER_RAD = 0.0375
 """Each finger slides this far inward per radian of the master joint [m/rad]."""
 
+# ---------------------------------------------------------------- joint limits beyond the MJCF ranges
+JOINT_VELOCITY_LIMITS: dict[str, float] = {
+    LEFT_GRIPPER_JOINT: GRIPPER_VELOCITY_LIMIT,
+    RIGHT_GRIPPER_JOINT: GRIPPER_VELOCITY_LIMIT,
+}
+"""Per-joint speed limits [rad/s | m/s] (the reference sets only the grippers' ``velocity_limit_sim``);
+``robots.g1.model.apply_spec_limits`` writes them into Newton's ``joint_velocity_limit``."""
+JOINT_EFFORT_LIMITS: dict[str, float] = {}
+"""Per-joint effort limits [N m | N]; the reference sets none (its drive values are authoritative).
+Written into Newton's ``joint_effort_limit`` (MuJoCo's actuator force range)."""
+
 # ---------------------------------------------------------------- base / wheels
 WHEEL_RADIUS = 0.1
 WHEEL_OFFSET_X = 0.176493
