@@ -97,7 +97,7 @@ class NewtonEnv:
     def _build_observation_layout(self) -> None:
         lay, cfg = self.layout, self.cfg
         self.obs_terms = observation_layout(cfg, {ACTION_DIM: self.action_dim, ROBOT_COORDS: lay.robot_coords,
-                                                  ARM_JOINTS: len(spec.LEFT_ARM_JOINTS)})
+                                                  ARM_JOINTS: len(self.binding.context.arm_coords)})
         self.obs_dim = max((s.stop for s in self.obs_terms.values()), default=0)
 
     def _build_buffers(self) -> None:

@@ -53,14 +53,18 @@ class SceneCfg:
 
 @dataclass(kw_only=True)
 class ActionTermCfg:
-    """One action term: a joint group driven by position or velocity targets."""
+    """One action term: a joint group's columns and how they drive it (``newton_lab.robots.g1.binding``)."""
 
     name: str
     group: str
     """Joint group of ``newton_lab.robots.g1.spec.JOINT_GROUPS``."""
     type: str = "absolute"
-    """``absolute`` (position targets), ``velocity`` (velocity targets) or ``binary`` (gripper)."""
+    """``absolute`` (target = a [rad | m]), ``relative`` (target = current target + a), ``velocity`` (wheel
+    speeds [rad/s]) or ``binary`` (gripper master target, 0 open .. 1.2 closed); others are refused."""
+    scale: float = 1.0
+    """Each column's action is multiplied by this before ``clip``."""
     clip: tuple[float, float] | None = None
+    """Bounds of the scaled action (``None``: none)."""
 
 
 ACTION_DIM = "action_dim"

@@ -199,7 +199,7 @@ class _Columns:
         self.names.append(joint)
         self.kinds.append(kind)
         self.index.append(index)
-        self.scale.append(float(getattr(term, "scale", 1.0)))
+        self.scale.append(float(term.scale))
         self.low.append(lo)
         self.high.append(hi)
         self.target_low.append(joint_range[0] if kind == "relative" else -np.inf)
