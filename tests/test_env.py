@@ -9,6 +9,7 @@ import warp as wp
 
 from newton_lab.envs import make_env
 from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ def test_reset_touches_only_selected_rows(pick_env):
     q_after, body_after = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7)
     assert torch.equal(q_after[0], q_before[0]) and torch.equal(body_after[0], body_before[0])
     arm = [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]
-    torch.testing.assert_close(q_after[1, arm], torch.tensor(spec.PICK_CUBE_LEFT_ARM_INITIAL), atol=1e-6, rtol=0)
+    torch.testing.assert_close(q_after[1, arm], torch.tensor(postures.TABLE_TOP_LEFT_ARM), atol=1e-6, rtol=0)
     assert not torch.allclose(q_before[1, arm], q_after[1, arm])
     assert (env._episode_count.numpy() - count_before).tolist() == [0, 1]
     assert int(env.info["episode_length"][1]) >= 0 and int(wp.to_torch(env._ctx.episode_step)[1]) == 0

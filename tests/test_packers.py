@@ -17,6 +17,7 @@ from newton_lab.robots.g1.packers import (
     wheel_gains,
     wheel_velocities_to_base_twist,
 )
+from newton_lab.tasks.common import postures
 
 ACT = spec.G1_ACTION_JOINT_NAMES
 A = len(ACT)
@@ -179,8 +180,8 @@ def test_g1_action_dispatch():
     arm = g1_action("right_arm", "relative", joint_names=["right_arm_joint2"], deltas=[1.0], num_envs=1)
     assert arm.shape == (1, 7)
     assert_close(arm, torch.tensor([[0.0, 0.05, 0, 0, 0, 0, 0]]))
-    left = g1_action("left_arm", "absolute", values=spec.CARRY_LEFT_ARM, num_envs=1)
-    assert_close(left, torch.tensor([spec.CARRY_LEFT_ARM], dtype=torch.float32))
+    left = g1_action("left_arm", "absolute", values=postures.CARRY_LEFT_ARM, num_envs=1)
+    assert_close(left, torch.tensor([postures.CARRY_LEFT_ARM], dtype=torch.float32))
     assert_close(g1_action("left_gripper", "binary", open_flags=[False]), torch.tensor([[1.2]]))
 
 

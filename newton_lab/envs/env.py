@@ -17,7 +17,6 @@ import warp as wp
 
 from ..kernels import fuse
 from ..kernels.context import record_poses
-from ..robots.g1 import spec
 from ..robots.g1.binding import G1Binding
 from ..task_api.cfg import TaskCfg
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS

@@ -5,6 +5,8 @@ from __future__ import annotations
 from newton_lab.task_api.cfg import ActionTermCfg, EntityCfg
 from newton_lab.robots.g1 import spec
 
+from . import postures
+
 TABLE_TOP_Z = 0.10
 CUBE_SIZE = 0.05
 CUBE_MASS = 0.04
@@ -32,7 +34,7 @@ def manipulation_posture(left_arm, head) -> dict[str, float]:
 def shelf_posture() -> dict[str, float]:
     """Mobile shelf tasks (PickToShelf, SortToShelf): left arm carry / ready, right arm stowed, head (0, 0.25),
     legs 0."""
-    return manipulation_posture(spec.CARRY_LEFT_ARM, spec.SHELF_HEAD)
+    return manipulation_posture(postures.CARRY_LEFT_ARM, postures.SHELF_HEAD)
 
 
 def left_arm_actions(*, gripper: bool = True) -> list[ActionTermCfg]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 
 SHELF_NAV_YAW = -1.5707963267948966
 """The base faces the shelf (-y) when placing [rad]."""
@@ -47,7 +48,7 @@ class SortingObject:
     @property
     def legs(self) -> tuple[float, ...]:
         """Leg posture while placing: lifted for the upper row [rad] (5)."""
-        return spec.leg_lift(spec.LEG_LIFT_STEP) if self.upper_row else (0.0,) * 5
+        return spec.leg_lift(postures.LEG_LIFT_STEP) if self.upper_row else (0.0,) * 5
 
     @property
     def release_tcp(self) -> tuple[float, float, float]:

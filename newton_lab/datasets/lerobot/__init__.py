@@ -30,7 +30,6 @@ try:
 except ImportError as exc:  # pragma: no cover - pyarrow is the "lerobot" extra
     raise ImportError("newton_lab.datasets.lerobot needs pyarrow: pip install 'newton_lab[lerobot]'") from exc
 
-from ..storage import read_episode  # the writer reads episodes through this name (tests patch it)
 from .tables import CODEBASE_VERSION, ROBOT_TYPE
 from .validate import validate_lerobot_v3
 from .writer import export_lerobot

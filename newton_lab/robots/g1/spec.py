@@ -75,7 +75,6 @@ WHEEL_OFFSET_Y = 0.176493
 NAV_MAX_SPEED = 0.45
 NAV_SUCCESS_RADIUS = 0.15
 WHEEL_VELOCITY_CLIP = NAV_MAX_SPEED / WHEEL_RADIUS  # 4.5 [rad/s]
-MANIPULATION_ROOT_POS = (-1.0, 0.0, 0.0)
 
 # ---------------------------------------------------------------- TCP
 END_EFFECTOR_LINK = {"left": "left_arm_link7", "right": "right_arm_link7"}
@@ -110,26 +109,9 @@ MANIPULATION_JOINT_POSITIONS = {name: 0.0 for name in G1_ACTION_JOINT_NAMES + HE
 FOLDED_ARM = {"joint2": -1.0, "joint4": -1.5}
 """Reference folded-arm spec constant (per side, others 0); used by tests only."""
 
-# Re-derived for the authored kinematics (same intent as the reference): TCP top-down at
-# (-0.50, 0.25, 0.35) in the env frame, above the table's near half, robot root at (-1, 0, 0).
-PICK_CUBE_LEFT_ARM_INITIAL = (-0.9451, 0.0833, 0.0819, 2.0675, 0.0449, 0.4443, -0.0746)
-PICK_CUBE_HEAD = (0.0, 0.45)
-STACK_CUBE_HEAD = (0.0, 0.0)
-
-# Re-derived by IK (same intent as the reference carry / ready pose: elbow down, hand raised in front of the
-# torso, gripper horizontal pointing forward): TCP at (0.65, 0.0, 0.66) in the base frame, orientation
-# xyzw (1, 0, 0, 0). The held object sits on the base's centre line, so facing a shelf it enters the cell
-# between the side panels, and it hangs clear of a 0.325 m table; used by PickToShelf and SortToShelf.
-CARRY_LEFT_ARM = (1.5646, -0.6287, 0.6743, -2.2645, 0.8960, 0.9327, 0.0153)
-SIDE_GRASP_TCP_QUAT = (1.0, 0.0, 0.0, 0.0)
-"""Horizontal TCP pointing along the base's +x (approach), fingers closing along y, xyzw."""
 # Re-derived: right arm folded beside the torso (TCP near (-0.77, -0.33, 0.40) with the root at
 # (-1, 0, 0)), clear of the table and of the left arm's workspace.
 STOWED_RIGHT_ARM = (-1.6, -0.2, -0.9, 2.5, -0.6, 0.4, 0.35)
-SHELF_HEAD = (0.0, 0.25)
-
-LEG_LIFT_STEP = 0.2
-"""Sorting upper-row leg lift step s: legs (s, 3s, 2s, 0, 0)."""
 
 
 def leg_lift(step: float) -> tuple[float, float, float, float, float]:

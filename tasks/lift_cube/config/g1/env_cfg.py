@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
@@ -26,8 +26,8 @@ def lift_cube_cfg() -> TaskCfg:
         },
         signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
         events={"randomize_cube": TermCfg(func=events.randomize_cube)},
-        posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.PICK_CUBE_HEAD),
-        root_pos=spec.MANIPULATION_ROOT_POS,
+        posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
+        root_pos=postures.MANIPULATION_ROOT_POS,
         episode_length_s=20.0,
         constraints_per_world=128,
     )

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
@@ -25,8 +25,8 @@ def pick_cube_cfg() -> TaskCfg:
         terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
         signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
         events={"randomize_cube_position": TermCfg(func=events.randomize_cube_position)},
-        posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.PICK_CUBE_HEAD),
-        root_pos=spec.MANIPULATION_ROOT_POS,
+        posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
+        root_pos=postures.MANIPULATION_ROOT_POS,
         fixed_base=True,
         constraints_per_world=128,  # policy rollouts pressing the cube into the table exceeded the default 64 rows
     )

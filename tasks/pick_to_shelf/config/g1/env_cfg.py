@@ -13,6 +13,7 @@ from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTer
 from newton_lab.task_api.experts import NavExpert
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
@@ -40,7 +41,7 @@ def _world(task_id: str, **fields) -> TaskCfg:
         signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
-        arm_home=spec.CARRY_LEFT_ARM,
+        arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
     )
     base.update(fields)

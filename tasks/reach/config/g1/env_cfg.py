@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg
-from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
 from newton_lab.tasks.reach import scene
@@ -32,8 +32,8 @@ def reach_cfg() -> TaskCfg:
         },
         signals={"reached_goal": TermCfg(func=terminations.reached_goal)},
         events={"sample_goal": TermCfg(func=commands.sample_goal)},
-        posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, (0.0, 0.0)),
-        root_pos=spec.MANIPULATION_ROOT_POS,
+        posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, (0.0, 0.0)),
+        root_pos=postures.MANIPULATION_ROOT_POS,
         command_dim=3,
         episode_length_s=12.0,
     )

@@ -12,12 +12,13 @@ from pathlib import Path
 from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
 from newton_lab.tasks.sort_to_shelf import scene
 from newton_lab.tasks.sort_to_shelf.mdp import events, observations, terminations
-from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW, SortingObject
+from newton_lab.tasks.sort_to_shelf.objects import SortingObject
 from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
 
 SCENARIOS = Path(__file__).parent / "scenarios"
@@ -36,7 +37,7 @@ def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
         signals={"grasped_object": TermCfg(func=terminations.make_grasped(obj))},
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
-        arm_home=spec.CARRY_LEFT_ARM,
+        arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
         hold_slots=1,
     )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 from newton_lab.task_api.experts import JointTargetExpert, NavExpert, SequenceExpert
 from newton_lab.task_api.motion_plan import AssetTarget, MotionPlan, MotionStep, WorldTarget
 from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW
@@ -18,7 +19,7 @@ def _place_quat():
 def pick_plan(sorting_object: str | None = None) -> MotionPlan:
     """Side grasp of the object, lift, ready posture (reference SortToShelf-Pick plan, settle 6)."""
     o = lookup_object(sorting_object).name
-    side = spec.SIDE_GRASP_TCP_QUAT
+    side = postures.SIDE_GRASP_TCP_QUAT
     return MotionPlan(
         steps=(
             MotionStep(name=f"pre_approach_{o}", target=AssetTarget(o, (-0.20, 0.0, 0.14)), quat=side, linear=6),
@@ -27,7 +28,7 @@ def pick_plan(sorting_object: str | None = None) -> MotionPlan:
             MotionStep(name="close_left_gripper", gripper_open=False, hold=25),
             MotionStep(name=f"lift_{o}", target=AssetTarget(o, (0.0, 0.0, 0.22)), quat=side, gripper_open=False,
                        linear=3),
-            MotionStep(name=f"carry_{o}", joints=spec.CARRY_LEFT_ARM, gripper_open=False, hold=10),
+            MotionStep(name=f"carry_{o}", joints=postures.CARRY_LEFT_ARM, gripper_open=False, hold=10),
         ),
         max_joint_step=0.04,
         settle_steps=6,
@@ -49,7 +50,7 @@ def place_plan(sorting_object: str | None = None, init_scenario: str | None = No
             MotionStep(name=f"descend_to_{cell}", target=release, quat=q, gripper_open=False, linear=2),
             MotionStep(name=f"release_on_{cell}", target=release, quat=q, hold=35),
             MotionStep(name=f"retreat_from_{cell}", target=approach, quat=q, hold=20, linear=4),
-            MotionStep(name=f"retract_left_arm_from_{cell}", joints=spec.CARRY_LEFT_ARM, hold=20),
+            MotionStep(name=f"retract_left_arm_from_{cell}", joints=postures.CARRY_LEFT_ARM, hold=20),
         ),
         max_joint_step=0.04,
         settle_steps=6,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.robots.g1 import spec
+from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
 from newton_lab.tasks.stack_cube import scene
@@ -41,8 +41,8 @@ def stack_cube_cfg() -> TaskCfg:
             "cube_3_on_cube_2": TermCfg(func=terminations.cube_3_on_cube_2),
         },
         events={"randomize_cube_positions": TermCfg(func=events.randomize_cube_positions)},
-        posture=manipulation_posture(spec.PICK_CUBE_LEFT_ARM_INITIAL, spec.STACK_CUBE_HEAD),
-        root_pos=spec.MANIPULATION_ROOT_POS,
+        posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.LEVEL_HEAD),
+        root_pos=postures.MANIPULATION_ROOT_POS,
         # measured peaks (expert, randomised): 21 contacts and 67 constraint rows per world
         constraints_per_world=128,
     )
