@@ -1,37 +1,39 @@
 """Train a diffusion policy on a dataset (reference example 03).
 
     python examples/03_train.py --dataset-path data/pick_cube_demos_mimic.hdf5 --output-dir outputs/pick_cube
+
+Flags: the ``TrainArgs`` of ``newton-lab train`` (``newton_lab.commands``) with this example's defaults, and
+``--task``.
 """
 
 from __future__ import annotations
 
-import argparse
+from dataclasses import dataclass
 
+from newton_lab.cli import parse_args
+from newton_lab.commands import TrainArgs
+from newton_lab.datasets import DatasetRef
 from newton_lab.policies import Policy
+from newton_lab.policies.diffusion import PRESETS
+
+
+@dataclass(kw_only=True)
+class TrainExampleArgs(TrainArgs):
+    """``TrainArgs`` plus a check of the datasets' task."""
+
+    task: str | None = None
+    """checked against the datasets' task (optional)"""
+
+
+DEFAULTS = {"dataset_path": ["data/pick_cube_demos_mimic.hdf5"], "output_dir": "outputs/pick_cube", "epochs": 20}
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--task", default="GalbotG1-PickCube-v0", help="checked against the dataset's task")
-    p.add_argument("--dataset-path", default="data/pick_cube_demos_mimic.hdf5")
-    p.add_argument("--output-dir", default="outputs/pick_cube")
-    p.add_argument("--epochs", type=int, default=20)
-    p.add_argument("--max-steps", type=int, default=None, help="cap on gradient steps")
-    p.add_argument("--batch-size", type=int, default=None)
-    p.add_argument("--num-data-workers", type=int, default=0)
-    p.add_argument("--learning-rate", type=float, default=1e-4)
-    p.add_argument("--weight-decay", type=float, default=1e-6)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default="cpu")
-    args = p.parse_args()
-    cfg = {"epochs": args.epochs, "lr": args.learning_rate, "weight_decay": args.weight_decay,
-           "num_workers": args.num_data_workers, "seed": args.seed, "device": args.device,
-           "output_dir": args.output_dir}
-    if args.batch_size:
-        cfg["batch_size"] = args.batch_size
-    if args.max_steps:
-        cfg["max_steps"] = args.max_steps
-    path = Policy.from_backend("diffusion").train(args.dataset_path, cfg)
+    args = parse_args(TrainExampleArgs, description=__doc__, defaults=DEFAULTS)
+    for path in args.dataset_path if args.task else ():
+        if (found := DatasetRef.open(path).task_id) != args.task:
+            raise SystemExit(f"dataset {path} holds task {found}, not --task {args.task}")
+    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS))
     print(f"checkpoint: {path}")
 
 

@@ -2,33 +2,30 @@
 
     python examples/04_eval.py --task GalbotG1-PickCube-v0 --checkpoint outputs/pick_cube/checkpoint.pt \
         --episodes 50 --num-envs 10 --randomize
+
+Flags: the ``EvaluateArgs`` of ``newton-lab evaluate`` (``newton_lab.commands``) without the rerun ones, with
+this example's defaults (a required checkpoint, a seed apart from training data seeds, randomised resets).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 
-from newton_lab.policies import PolicyAgent
+from newton_lab.cli import REQUIRED, parse_args
+from newton_lab.commands import EvaluateArgs
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import EVAL_REPORT_KEYS
+from newton_lab.policies import PolicyAgent
+
+DEFAULTS = {"checkpoint": REQUIRED, "episodes": 36, "num_envs": 9, "seed": 1000, "randomize": True}
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--task", default="GalbotG1-PickCube-v0")
-    p.add_argument("--checkpoint", required=True)
-    p.add_argument("--episodes", type=int, default=36)
-    p.add_argument("--num-envs", type=int, default=9)
-    p.add_argument("--max-steps", type=int, default=1000)
-    p.add_argument("--seed", type=int, default=1000, help="evaluation seed (keep it apart from training data seeds)")
-    p.add_argument("--randomize", action=argparse.BooleanOptionalAction, default=True)
-    p.add_argument("--device", default=None)
-    p.add_argument("--headless", action="store_true", help="always headless")
-    args = p.parse_args()
+    args = parse_args(EvaluateArgs, description=__doc__, defaults=DEFAULTS,
+                      exclude=("rerun", "rerun_save", "rerun_worlds"))
     agent = PolicyAgent.from_checkpoint(args.checkpoint)
-    env = make_env(args.task, num_envs=args.num_envs, device=args.device, seed=args.seed, randomize=args.randomize)
-    summary = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps)
+    env = make_env(args.task, **args.env_kwargs())
+    summary = env.evaluate(agent=agent, **args.rollout_kwargs())
     print(f"success rate: {summary['success_rate']:.3f} ({summary['successes']}/{summary['episodes']})")
     print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
 

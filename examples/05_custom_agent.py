@@ -1,17 +1,22 @@
 """A custom agent (reference example 05): a sinusoid on every action column around the start posture.
 
     python examples/05_custom_agent.py --task GalbotG1-Reach-v0 --num-envs 9 --episodes 36 --max-steps 200
+
+Flags: the env and rollout flags of ``newton-lab evaluate`` (``RolloutArgs`` in ``newton_lab.commands``) plus
+``--frequency``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
+from dataclasses import dataclass
 
 import torch
 
 from newton_lab.agents import BaseAgent
+from newton_lab.cli import parse_args
+from newton_lab.commands import RolloutArgs
 from newton_lab.envs import make_env
 
 
@@ -33,18 +38,21 @@ class SinusoidAgent(BaseAgent):
         return self.start + 0.1 * math.sin(2 * math.pi * self.frequency * self.t * env.cfg.control_dt)
 
 
+@dataclass(kw_only=True)
+class SinusoidArgs(RolloutArgs):
+    """``RolloutArgs`` plus the sinusoid's frequency."""
+
+    frequency: float = 1.0
+    """Sinusoid frequency [Hz]."""
+
+
+DEFAULTS = {"task": "GalbotG1-Reach-v0", "num_envs": 9, "episodes": 36, "max_steps": 200, "randomize": True}
+
+
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--task", default="GalbotG1-Reach-v0")
-    p.add_argument("--num-envs", type=int, default=9)
-    p.add_argument("--episodes", type=int, default=36)
-    p.add_argument("--max-steps", type=int, default=200)
-    p.add_argument("--frequency", type=float, default=1.0, help="[Hz]")
-    p.add_argument("--device", default=None)
-    p.add_argument("--headless", action="store_true", help="always headless")
-    args = p.parse_args()
-    env = make_env(args.task, num_envs=args.num_envs, device=args.device, randomize=True)
-    summary = env.evaluate(agent=SinusoidAgent(args.frequency), episodes=args.episodes, max_steps=args.max_steps)
+    args = parse_args(SinusoidArgs, description=__doc__, defaults=DEFAULTS)
+    env = make_env(args.task, **args.env_kwargs())
+    summary = env.evaluate(agent=SinusoidAgent(args.frequency), **args.rollout_kwargs())
     print(json.dumps({k: summary[k] for k in ("task", "episodes", "success_rate", "average_length",
                                               "termination_reasons")}))
 

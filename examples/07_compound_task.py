@@ -9,18 +9,36 @@
 The default is ``task_default`` so the example runs without trained checkpoints.
 
     python examples/07_compound_task.py --task GalbotG1-PickToShelf-v0 --episodes 4 --num-envs 4
+
+Flags: the ``CollectArgs`` of ``newton-lab collect`` (``newton_lab.commands``) without the rerun ones, plus
+``--mode``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
+from dataclasses import dataclass
+from typing import Literal
 
 from newton_lab.agents import TaskFlowAgent, default_agent
-from newton_lab.policies import PolicyAgent
+from newton_lab.cli import parse_args
+from newton_lab.commands import CollectArgs
 from newton_lab.envs import make_env
+from newton_lab.policies import PolicyAgent
 
 COMPOUND_AGENT_PRESET = "task_default"
+
+
+@dataclass(kw_only=True)
+class CompoundArgs(CollectArgs):
+    """``CollectArgs`` plus what to do with the episodes."""
+
+    mode: Literal["evaluate", "collect"] = "evaluate"
+    """evaluate: report the success rate; collect: also write the episodes to --dataset-path"""
+
+
+DEFAULTS = {"task": "GalbotG1-PickToShelf-v0", "dataset_path": "data/compound_task_demos.hdf5", "episodes": 36,
+            "num_envs": 9, "max_steps": 1500, "randomize": True}
 
 
 def phase_agents(env, preset: str):
@@ -36,26 +54,15 @@ def phase_agents(env, preset: str):
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--task", default="GalbotG1-PickToShelf-v0")
-    p.add_argument("--mode", choices=["evaluate", "collect"], default="evaluate")
-    p.add_argument("--dataset-path", default="data/compound_task_demos.hdf5")
-    p.add_argument("--episodes", type=int, default=36)
-    p.add_argument("--num-envs", type=int, default=9)
-    p.add_argument("--max-steps", type=int, default=1500)
-    p.add_argument("--sorting-object", default=None)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--headless", action="store_true", help="always headless; kept for the reference's flag set")
-    args = p.parse_args()
-
-    options = {"sorting_object": args.sorting_object} if args.sorting_object else None
-    env = make_env(args.task, num_envs=args.num_envs, randomize=True, seed=args.seed, task_options=options)
+    args = parse_args(CompoundArgs, description=__doc__, defaults=DEFAULTS,
+                      exclude=("rerun", "rerun_save", "rerun_worlds"))
+    env = make_env(args.task, **args.env_kwargs())
     agent = TaskFlowAgent.from_env(env, agents=phase_agents(env, COMPOUND_AGENT_PRESET))
     if args.mode == "collect":
-        ref = env.collect(agent=agent, episodes=args.episodes, path=args.dataset_path, max_steps=args.max_steps)
+        ref = env.collect(agent=agent, **args.collect_kwargs())
         out = {k: ref[k] for k in ("task", "episodes", "successes", "success_rate", "path", "termination_reasons")}
     else:
-        res = env.evaluate(agent=agent, episodes=args.episodes, max_steps=args.max_steps)
+        res = env.evaluate(agent=agent, **args.rollout_kwargs())
         out = {k: res[k] for k in ("task", "episodes", "successes", "success_rate", "average_length",
                                    "termination_reasons")}
     print(json.dumps(out))

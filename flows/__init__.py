@@ -7,18 +7,17 @@ Prefect is imported on first use of a flow, after ``settings.configure`` has set
 
 from __future__ import annotations
 
+from . import settings
+
 _FLOWS = ("collect", "mimic", "train", "evaluate", "pipeline", "run_pipeline")
 
 
 def __getattr__(name: str):
     if name in _FLOWS:
-        import importlib
-
-        from . import settings
-
         settings.configure()
-        module = importlib.import_module(f"{__name__}.orchestration")
-        return module.__dict__[name]
+        from . import orchestration  # deferred: Prefect is slow to import and must follow settings.configure()
+
+        return getattr(orchestration, name)
     raise AttributeError(f"module 'newton_lab.flows' has no attribute {name!r}")
 
 

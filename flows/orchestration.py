@@ -10,19 +10,29 @@ merged into one.
 from __future__ import annotations
 
 import json
+import socket
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlparse
 
 from prefect import flow, task, unmapped
 from prefect.artifacts import create_markdown_artifact
 from prefect.cache_policies import INPUTS
 
+from ..commands import CollectArgs, EvaluateArgs, MimicArgs, PipelineArgs
+from ..task_api.registry import lookup
 from . import stages
+from .artifacts import artifact
+from .settings import check_api_reachable
 
 SEED_STRIDE = 100_000
 """Seed distance between shards: each shard draws from its own seed range."""
 
 VALID_RUNNERS = ("local", "dask")
+
+_P = PipelineArgs()
+"""The pipeline's defaults: the ones of ``newton-lab pipeline``."""
 
 
 def _stage_task(fn, name: str):
@@ -38,8 +48,7 @@ evaluate_task = _stage_task(stages.evaluate_stage, "evaluate")
 @task(name="merge", cache_policy=INPUTS, persist_result=True)
 def merge_task(shards: list[dict[str, Any]], out_dir: str, name: str) -> dict[str, Any]:
     """Merge shard dataset artifacts into ``<out_dir>/<name>.hdf5`` (ids renumbered, provenance kept)."""
-    from ..datasets.merge import merge_datasets
-    from .artifacts import artifact
+    from ..datasets.merge import merge_datasets  # deferred: the dataset package imports Warp/Newton
 
     path = Path(out_dir) / f"{name}.hdf5"
     if path.exists():
@@ -61,8 +70,7 @@ def _split(total: int, parts: int) -> list[int]:
 
 
 def _check(task_id: str, runner: str, workers: int) -> None:
-    from .. import tasks  # noqa: F401  (registers the task ids)
-    from ..task_api.registry import lookup
+    from .. import tasks  # noqa: F401  deferred: registering the task ids imports Warp
 
     lookup(task_id)
     if runner not in VALID_RUNNERS:
@@ -71,13 +79,21 @@ def _check(task_id: str, runner: str, workers: int) -> None:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
 
 
-def _sharded(task, stage: str, name: str, episodes: int, shards: int, seed: int, out: str, **fixed) -> dict[str, Any]:
-    """Map ``task`` over ``shards`` (disjoint seed ranges, one output folder each) and merge the shard datasets
-    into ``<out>/<name>``; returns the merged artifact with the shard states."""
-    sizes = _split(episodes, shards)
-    futures = task.map(episodes=sizes, seed=[seed + SEED_STRIDE * i for i in range(len(sizes))],
-                       out_dir=[str(Path(out) / "shards" / f"{stage}_{i}") for i in range(len(sizes))],
-                       **{k: unmapped(v) for k, v in fixed.items()})
+def _shards(args, shards: int, out: str | None = None, stage: str = "", path_field: str | None = None) -> list:
+    """``args`` split into at most ``shards`` argument objects: the episodes divided, disjoint seed ranges and,
+    with ``path_field``, one output folder each (``<out>/shards/<stage>_<i>/``, same file name)."""
+    parts = []
+    for i, n in enumerate(_split(args.episodes, max(shards, 1))):
+        moved = ({path_field: str(Path(out) / "shards" / f"{stage}_{i}" / Path(getattr(args, path_field)).name)}
+                 if path_field else {})
+        parts.append(replace(args, episodes=n, seed=args.seed + SEED_STRIDE * i, **moved))
+    return parts
+
+
+def _sharded(task, args, *, shards: int, out: str, stage: str, name: str, path_field: str, **fixed) -> dict[str, Any]:
+    """Map ``task`` over the shards of ``args`` and merge the shard datasets into ``<out>/<name>.hdf5``;
+    returns the merged artifact with the shard states."""
+    futures = task.map(args=_shards(args, shards, out, stage, path_field), **{k: unmapped(v) for k, v in fixed.items()})
     return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name=name,
                                   return_state=True), [f.state.name for f in futures])
 
@@ -85,23 +101,25 @@ def _sharded(task, stage: str, name: str, episodes: int, shards: int, seed: int,
 @flow(name="collect")
 def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, device: str | None = None,
             out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
-    """Expert demos of ``task_id`` -> dataset artifact (``shards`` > 1: disjoint seeds, merged)."""
+    """Expert demos of ``task_id`` (randomised) -> dataset artifact (``shards`` > 1: disjoint seeds, merged)."""
+    args = CollectArgs(task=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device, randomize=True,
+                       dataset_path=str(Path(out) / "demos.hdf5"))
     if shards <= 1:
-        return _with_state(collect_task(task_id=task_id, episodes=episodes, num_envs=num_envs, seed=seed,
-                                        device=device, out_dir=out, return_state=True))
-    return _sharded(collect_task, "collect", "demos", episodes, shards, seed, out, task_id=task_id,
-                    num_envs=num_envs, device=device)
+        return _with_state(collect_task(args=args, return_state=True))
+    return _sharded(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
+                    path_field="dataset_path")
 
 
 @flow(name="mimic")
 def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: int = 1, device: str | None = None,
           out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
     """Mimic expansion of a dataset artifact -> dataset artifact."""
+    args = MimicArgs(dataset_path=source["path"], output_path=str(Path(out) / "mimic.hdf5"), episodes=episodes,
+                     num_envs=num_envs, seed=seed, device=device)
     if shards <= 1:
-        return _with_state(mimic_task(source=source, episodes=episodes, num_envs=num_envs, seed=seed, device=device,
-                                      out_dir=out, return_state=True))
-    return _sharded(mimic_task, "mimic", "mimic", episodes, shards, seed, out, source=source, num_envs=num_envs,
-                    device=device)
+        return _with_state(mimic_task(source=source, args=args, return_state=True))
+    return _sharded(mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic", path_field="output_path",
+                    source=source)
 
 
 @flow(name="train")
@@ -113,11 +131,10 @@ def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None, out:
 @flow(name="evaluate")
 def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_envs: int = 5, seed: int = 10_000,
              device: str | None = None, shards: int = 1, max_steps: int = 600) -> dict[str, Any]:
-    """Success rate of a checkpoint artifact (``shards`` > 1: disjoint seeds, summed)."""
-    sizes = _split(episodes, max(shards, 1))
-    futures = evaluate_task.map(checkpoint=unmapped(checkpoint), task_id=unmapped(task_id), episodes=sizes,
-                                num_envs=unmapped(num_envs), seed=[seed + SEED_STRIDE * i for i in range(len(sizes))],
-                                device=unmapped(device), max_steps=unmapped(max_steps))
+    """Success rate of a checkpoint artifact (randomised; ``shards`` > 1: disjoint seeds, summed)."""
+    args = EvaluateArgs(task=task_id, checkpoint=checkpoint["path"], episodes=episodes, num_envs=num_envs, seed=seed,
+                        device=device, randomize=True, max_steps=max_steps)
+    futures = evaluate_task.map(checkpoint=unmapped(checkpoint), args=_shards(args, shards))
     parts = [f.result() for f in futures]
     states = [f.state.name for f in futures]
     n = sum(p["episodes"] for p in parts)
@@ -149,12 +166,13 @@ def _markdown(task_id: str, demos, gen, ckpt, metrics, out: Path) -> str:
 
 
 @flow(name="pipeline")
-def pipeline(task_id: str = "GalbotG1-PickCube-v0", demos: int = 4, mimic_episodes: int = 40,
-             train_cfg: dict[str, Any] | None = None, eval_episodes: int = 10, num_envs: int = 4,
-             device: str | None = None, out: str = "outputs/pipeline", seed: int = 0, workers: int = 1,
-             eval_max_steps: int = 600) -> dict[str, Any]:
+def pipeline(task_id: str = _P.task, demos: int = _P.demos, mimic_episodes: int = _P.mimic_episodes,
+             train_cfg: dict[str, Any] | None = None, eval_episodes: int = _P.eval_episodes,
+             num_envs: int = _P.num_envs, device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
+             workers: int = _P.workers, eval_max_steps: int = 600) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``; publishes a markdown artifact with the metrics
-    table and writes ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation."""
+    table and writes ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation.
+    Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     demo_art, s_collect = collect(task_id, episodes=demos, num_envs=num_envs, seed=seed, device=device, out=out,
@@ -173,17 +191,16 @@ def pipeline(task_id: str = "GalbotG1-PickCube-v0", demos: int = 4, mimic_episod
     return summary
 
 
-def run_pipeline(*, runner: str = "local", workers: int = 1, address: str | None = None, retries: int = 1,
-                 **kwargs) -> dict[str, Any]:
+def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address: str | None = _P.address,
+                 retries: int = _P.retries, **kwargs) -> dict[str, Any]:
     """Run ``pipeline`` with the chosen task runner: ``local`` (threads in this process) or ``dask``
-    (a local cluster of ``workers`` processes, or the scheduler at ``address``)."""
-    from .settings import check_api_reachable
-
-    _check(kwargs.get("task_id", "GalbotG1-PickCube-v0"), runner, workers)
+    (a local cluster of ``workers`` processes, or the scheduler at ``address``). ``PipelineArgs.pipeline_kwargs()``
+    gives every keyword from the command line's arguments."""
+    _check(kwargs.get("task_id", _P.task), runner, workers)
     check_api_reachable()
     options: dict[str, Any] = {}
     if runner == "dask":
-        from prefect_dask import DaskTaskRunner
+        from prefect_dask import DaskTaskRunner  # deferred: Dask is slow to import and only the dask runner needs it
 
         if address:
             _check_scheduler(address)
@@ -198,9 +215,6 @@ def run_pipeline(*, runner: str = "local", workers: int = 1, address: str | None
 
 def _check_scheduler(address: str, timeout_s: float = 5.0) -> None:
     """Fail within ``timeout_s`` with a one-line error when the Dask scheduler is unreachable."""
-    import socket
-    from urllib.parse import urlparse
-
     u = urlparse(address if "://" in address else f"tcp://{address}")
     try:
         socket.create_connection((u.hostname, u.port or 8786), timeout=timeout_s).close()

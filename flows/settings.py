@@ -5,6 +5,8 @@ A user with a Prefect server exports ``PREFECT_API_URL`` and these defaults leav
 from __future__ import annotations
 
 import os
+import urllib.error
+import urllib.request
 from pathlib import Path
 
 DEFAULTS = {
@@ -32,9 +34,6 @@ def check_api_reachable(timeout_s: float = 5.0) -> None:
     url = os.environ.get("PREFECT_API_URL")
     if not url:
         return
-    import urllib.error
-    import urllib.request
-
     try:
         urllib.request.urlopen(url.rstrip("/") + "/health", timeout=timeout_s)
     except (urllib.error.URLError, OSError, ValueError) as exc:

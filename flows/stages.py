@@ -1,6 +1,7 @@
-"""The pipeline's stages as plain functions over artifacts (Prefect wraps them in ``pipeline``).
+"""The pipeline's stages as plain functions over artifacts (Prefect wraps them in ``pipeline``); collect,
+Mimic and evaluation take the command argument objects of ``newton_lab.commands`` (the CLI's own model).
 
-Every stage writes its output under ``out_dir`` next to a manifest (``<name>.manifest.json``) naming the
+Every stage writes its output next to a manifest (``<name>.manifest.json``) naming the
 inputs that produced it: re-running with the same inputs reuses the output, and an output folder that
 holds another pipeline's artifacts is refused instead of overwritten.
 """
@@ -12,7 +13,11 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from ..commands import CollectArgs, EvaluateArgs, MimicArgs
 from .artifacts import artifact
+
+BACKEND = "diffusion"
+"""The pipeline's policy backend: ``train_stage`` trains with it, ``evaluate_stage`` loads through it."""
 
 
 def _guard(out_dir: Path, name: str, inputs: dict[str, Any]) -> dict[str, Any] | None:
@@ -42,37 +47,41 @@ def _fresh(path: Path) -> Path:
     return path
 
 
-def collect_stage(*, task_id: str, episodes: int, num_envs: int, seed: int, device: str | None, out_dir: str,
-                  name: str = "demos", progress: bool = True) -> dict[str, Any]:
-    """Expert demos of ``task_id`` (planner, randomised) -> dataset artifact."""
-    from ..agents import expert_agent
-    from ..envs import make_env
+def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
+    """Expert demos (the task's expert) -> dataset artifact at ``args.dataset_path`` (its folder holds the
+    manifest ``<name>.manifest.json``)."""
+    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
+    from ..envs import make_env  # deferred: Warp/Newton are slow to import
 
-    out = Path(out_dir)
+    path = Path(args.dataset_path)
+    out = path.parent
     out.mkdir(parents=True, exist_ok=True)
-    inputs = {"stage": "collect", "task_id": task_id, "episodes": episodes, "num_envs": num_envs, "seed": seed}
+    inputs = {"stage": "collect", "task_id": args.task, "episodes": args.episodes, "num_envs": args.num_envs,
+              "seed": args.seed}
     if (done := _guard(out, name, inputs)) is not None:
         return done
-    path = _fresh(out / f"{name}.hdf5")
-    env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
-    ref = env.collect(agent=expert_agent(env), episodes=episodes, path=path, progress=progress)
+    _fresh(path)
+    env = make_env(args.task, **args.env_kwargs())
+    ref = env.collect(agent=expert_agent(env), **args.collect_kwargs())
     art = artifact(path, "dataset", episodes=ref["episodes"], successes=ref["successes"],
                    success_rate=ref["success_rate"])
     return _finish(out, name, inputs, art)
 
 
-def mimic_stage(*, source: dict[str, Any], episodes: int, num_envs: int, seed: int, device: str | None,
-                out_dir: str, name: str = "mimic", progress: bool = True) -> dict[str, Any]:
-    """Mimic expansion of a source dataset artifact -> dataset artifact (successes only)."""
-    from ..mimic import mimic
+def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic") -> dict[str, Any]:
+    """Mimic expansion of the source dataset artifact (``args.dataset_path`` is its path) -> dataset artifact
+    at ``args.output_path`` (successes only)."""
+    from ..mimic import mimic  # deferred: Warp/Newton are slow to import
 
-    out = Path(out_dir)
-    inputs = {"stage": "mimic", "source": source["sha256"], "episodes": episodes, "num_envs": num_envs, "seed": seed}
+    path = Path(args.output_path)
+    out = path.parent
+    out.mkdir(parents=True, exist_ok=True)
+    inputs = {"stage": "mimic", "source": source["sha256"], "episodes": args.episodes, "num_envs": args.num_envs,
+              "seed": args.seed}
     if (done := _guard(out, name, inputs)) is not None:
         return done
-    path = _fresh(out / f"{name}.hdf5")
-    ref = mimic(source["path"], episodes=episodes, num_envs=num_envs, output_path=path, seed=seed, device=device,
-                progress=progress)
+    _fresh(path)
+    ref = mimic(args.dataset_path, **args.mimic_kwargs())
     m = ref.metadata
     art = artifact(path, "dataset", episodes=m["successes"], attempts=m["attempts"],
                    generation_success_rate=m["generation_success_rate"])
@@ -81,27 +90,26 @@ def mimic_stage(*, source: dict[str, Any], episodes: int, num_envs: int, seed: i
 
 def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy") -> dict[str, Any]:
     """Diffusion policy on a dataset artifact -> checkpoint artifact."""
-    from ..policies import Policy
+    from ..policies import Policy  # deferred: torch is slow to import
 
     out = Path(out_dir)
     inputs = {"stage": "train", "dataset": dataset["sha256"], "train_cfg": train_cfg}
     if (done := _guard(out, name, inputs)) is not None:
         return done
     run_dir = _fresh(out / name)
-    ckpt = Policy.from_backend("diffusion").train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)})
+    ckpt = Policy.from_backend(BACKEND).train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)})
     log_path = Path(ckpt).parent / "train_log.json"
     final_loss = json.loads(log_path.read_text()).get("final_loss") if log_path.exists() else None
     return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=final_loss))
 
 
-def evaluate_stage(*, checkpoint: dict[str, Any], task_id: str, episodes: int, num_envs: int, seed: int,
-                   device: str | None, max_steps: int = 600, progress: bool = True) -> dict[str, Any]:
-    """Success rate of a checkpoint artifact on ``task_id`` (randomised, its own seed range)."""
-    from ..policies import PolicyAgent
-    from ..envs import make_env
-    from ..envs.rollout import EVAL_REPORT_KEYS
+def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[str, Any]:
+    """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``."""
+    from ..envs import make_env  # deferred: Warp/Newton are slow to import
+    from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
+    from ..policies import Policy, PolicyAgent  # deferred: torch is slow to import
 
-    env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
-    s = env.evaluate(agent=PolicyAgent.from_checkpoint(checkpoint["path"]), episodes=episodes, max_steps=max_steps,
-                     progress=progress)
+    env = make_env(args.task, **args.env_kwargs())
+    agent = PolicyAgent(Policy.from_backend(BACKEND).load_policy(args.checkpoint))
+    s = env.evaluate(agent=agent, **args.rollout_kwargs())
     return {k: s[k] for k in EVAL_REPORT_KEYS if k != "task"}

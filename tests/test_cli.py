@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 
 import pytest
 
-from newton_lab.cli import main
+from newton_lab.cli import REQUIRED, build_parser, main, parse_args
+from newton_lab.commands import CollectArgs, EvaluateArgs, TrainArgs
 
 
 def test_tasks_lists_every_id(capsys):
@@ -38,3 +40,64 @@ def test_bench_prints_side_by_side_figures(capsys):
     assert main(["bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "1", "--steps", "10", "--device", "cpu"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["env_steps_per_s"] > 0 and out["bare_world_steps_per_s"] > 0 and out["ratio_env_step_to_bare"] > 0
+
+
+REQ = "<required>"
+LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the dataclass-generated one replaced
+    "collect": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
+                "--device": None, "--seed": 0, "--randomize": False, "--headless": False, "--no-progress": False,
+                "--rerun": False, "--rerun-save": None, "--rerun-worlds": 4, "--sorting-object": None,
+                "--init-scenario": None, "--dataset-path": "data/pick_cube_demos.hdf5", "--save-end-scenario": None},
+    "evaluate": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
+                 "--device": None, "--seed": 0, "--randomize": False, "--headless": False, "--no-progress": False,
+                 "--rerun": False, "--rerun-save": None, "--rerun-worlds": 4, "--sorting-object": None,
+                 "--init-scenario": None, "--checkpoint": None},
+    "mimic": {"--dataset-path": REQ, "--output-path": None, "--episodes": 36, "--num-envs": 8, "--max-attempts": None,
+              "--seed": 1, "--device": None, "--no-progress": False},
+    "train": {"--dataset-path": REQ, "--output-dir": "outputs/policy", "--preset": "default", "--epochs": None,
+              "--max-steps": None, "--batch-size": None, "--lr": None, "--obs-keys": None, "--init-checkpoint": None,
+              "--time-budget-s": None, "--device": "cpu", "--seed": 0},
+    "split": {"--dataset-path": REQ, "--out": REQ},
+    "export": {"--dataset-path": REQ, "--root": REQ, "--include-failed": False},
+    "pipeline": {"--task": "GalbotG1-PickCube-v0", "--demos": 4, "--mimic-episodes": 40, "--train-steps": None,
+                 "--eval-episodes": 10, "--num-envs": 4, "--device": None, "--seed": 0, "--out": "outputs/pipeline",
+                 "--runner": "local", "--workers": 1, "--address": None, "--retries": 1},
+    "view": {"dataset": REQ, "--episode": 0, "--save": None, "--spawn": False},
+    "bench": {"--task": "GalbotG1-PickCube-v0", "--num-envs": 4, "--steps": 200, "--device": None},
+    "bench-train": {"--dataset-path": REQ, "--batch-size": 1024, "--steps": 200, "--preset": "default",
+                    "--device": "cpu"},
+}
+
+
+def test_generated_parser_keeps_every_flag_and_default():
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    assert set(LEGACY_FLAGS) | {"tasks"} == set(sub.choices)
+    for command, flags in LEGACY_FLAGS.items():
+        actions = {s: a for a in sub.choices[command]._actions for s in (a.option_strings or [a.dest])}
+        for flag, default in flags.items():
+            a = actions[flag]
+            assert (REQ if a.required else a.default) == default, (command, flag)
+        assert all(a.help for a in actions.values()), command  # every flag documented (its field docstring)
+
+
+def test_parse_args_builds_the_dataclass():
+    a = parse_args(CollectArgs, ["--num-envs", "2", "--sorting-object", "red_cube", "--randomize"])
+    assert isinstance(a, CollectArgs) and a.num_envs == 2 and a.randomize and a.episodes == 1
+    assert a.env_kwargs()["task_options"] == {"sorting_object": "red_cube"}
+    t = parse_args(TrainArgs, ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys", "x, y"])
+    cfg = t.train_cfg({"default": {"epochs": 7}})
+    assert t.datasets() == ["a.hdf5", "b.hdf5"] and cfg["lr"] == 0.001 and cfg["epochs"] == 7
+    assert cfg["obs_keys"] == ("x", "y") and "batch_size" not in cfg
+    # an example's own defaults: a required checkpoint, randomised resets on (--no-randomize turns them off)
+    example = {"checkpoint": REQUIRED, "randomize": True, "task": "GalbotG1-Reach-v0"}
+    e = parse_args(EvaluateArgs, ["--checkpoint", "c.pt", "--no-randomize"], defaults=example, exclude=("task",))
+    assert e.checkpoint == "c.pt" and e.randomize is False and e.task == "GalbotG1-Reach-v0"
+    with pytest.raises(SystemExit) as exit_:
+        parse_args(EvaluateArgs, [], defaults=example)
+    assert exit_.value.code == 2
+
+
+def test_train_reports_an_unknown_preset_in_one_line(capsys):
+    assert main(["train", "--dataset-path", "nope.hdf5", "--preset", "huge"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "unknown training preset 'huge'" in err and "cpu" in err

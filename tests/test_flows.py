@@ -6,6 +6,11 @@ import json
 
 import pytest
 
+import newton_lab.policies as policies
+from newton_lab.datasets import read_dataset_info, read_episode
+from newton_lab.flows import settings
+from newton_lab.flows.stages import _finish, _guard
+
 pytestmark = pytest.mark.slow
 
 TINY_TRAIN = {"down_dims": [16, 32, 64], "batch_size": 32, "max_steps": 3, "epochs": 1, "warmup_steps": 1,
@@ -16,10 +21,8 @@ TINY = dict(task_id="GalbotG1-PickCube-v0", demos=2, mimic_episodes=2, train_cfg
 
 @pytest.fixture(scope="module")
 def harness(tmp_path_factory):
-    from newton_lab.flows import settings
-
     settings.configure(tmp_path_factory.mktemp("prefect_home"))
-    from prefect.testing.utilities import prefect_test_harness
+    from prefect.testing.utilities import prefect_test_harness  # deferred: Prefect reads settings.configure's home
 
     with prefect_test_harness(server_startup_timeout=120):
         yield
@@ -29,7 +32,7 @@ STAGES = ("collect", "mimic", "train", "evaluate")
 
 
 def test_pipeline_runs_then_is_cached(harness, tmp_path):
-    from newton_lab.flows import pipeline
+    from newton_lab.flows import pipeline  # deferred: imports Prefect (after the harness configured it)
 
     out = tmp_path / "out"
     first = pipeline(out=str(out), **TINY)
@@ -43,8 +46,7 @@ def test_pipeline_runs_then_is_cached(harness, tmp_path):
 
 
 def test_failed_stage_is_retried(harness, tmp_path, monkeypatch):
-    import newton_lab.policies as policies
-    from newton_lab.flows import pipeline
+    from newton_lab.flows import pipeline  # deferred: imports Prefect (after the harness configured it)
 
     real = policies.Policy.from_backend
     calls = {"n": 0}
@@ -63,7 +65,7 @@ def test_failed_stage_is_retried(harness, tmp_path, monkeypatch):
 
 
 def test_bad_pipeline_inputs():
-    from newton_lab.flows.orchestration import run_pipeline
+    from newton_lab.flows.orchestration import run_pipeline  # deferred: Prefect is slow to import
 
     with pytest.raises(ValueError, match="unknown runner"):
         run_pipeline(runner="ray", task_id="GalbotG1-PickCube-v0")
@@ -76,8 +78,6 @@ def test_bad_pipeline_inputs():
 
 
 def test_output_folder_of_another_pipeline_is_refused(tmp_path):
-    from newton_lab.flows.stages import _finish, _guard
-
     (tmp_path / "x").write_text("x")
     _finish(tmp_path, "demos", {"task_id": "A"}, {"path": str(tmp_path / "x")})
     with pytest.raises(ValueError, match="another pipeline"):
@@ -85,10 +85,9 @@ def test_output_folder_of_another_pipeline_is_refused(tmp_path):
 
 
 def test_dask_shards_match_single_worker(harness, tmp_path):
-    from prefect_dask import DaskTaskRunner
+    from prefect_dask import DaskTaskRunner  # deferred: Dask and Prefect are slow to import
 
-    from newton_lab.datasets import read_dataset_info, read_episode
-    from newton_lab.flows import collect
+    from newton_lab.flows import collect  # deferred: imports Prefect (after the harness configured it)
 
     single, _ = collect("GalbotG1-Reach-v0", episodes=4, num_envs=2, device="cpu", out=str(tmp_path / "one"))
     runner = DaskTaskRunner(cluster_kwargs={"n_workers": 2, "processes": True, "threads_per_worker": 1,

@@ -1,0 +1,161 @@
+"""What each ``newton-lab`` command does with its argument object (``newton_lab.commands``); each prints its
+result (one JSON line last) and returns the exit status.
+
+The library imports are deferred into the commands on purpose: Warp/Newton (envs), torch (policies) and
+Prefect (flows) each take seconds to import, and a command pays only for what it runs.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..commands import (BenchArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
+                        RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
+from ..flows.settings import configure
+from ..task_api.registry import list_tasks, lookup
+
+COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
+                       "termination_reasons", "subtask_signals")
+"""Keys of the collect summary printed by ``newton-lab collect`` (then ``wall_time_s``)."""
+
+
+def quiet_warp() -> None:
+    import warp as wp  # deferred: Warp is slow to import
+
+    wp.config.quiet = True  # no init banner
+    wp.config.log_level = wp.LOG_WARNING  # no per-module load lines
+
+
+def _logger(args: RerunArgs, env):
+    """A rerun ``on_step`` hook when --rerun / --rerun-save is given, else None (and a closer)."""
+    if not (args.rerun or args.rerun_save):
+        return None, lambda: None
+    from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
+
+    lg = RerunLogger(env, save=args.rerun_save, spawn=args.rerun and not args.rerun_save, max_worlds=args.rerun_worlds)
+    return (lambda reward, info: lg.log_step(reward=reward, success=info["success"])), lg.close
+
+
+def list_task_ids(args: TasksArgs) -> int:
+    from .. import tasks as _registered  # noqa: F401  deferred: registering the tasks imports Warp
+
+    for task_id in list_tasks():
+        print(f"{task_id}\t{lookup(task_id).description}")
+    return 0
+
+
+def collect(args: CollectArgs) -> int:
+    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
+    from ..envs import make_env  # deferred: Warp/Newton are slow to import
+
+    env = make_env(args.task, **args.env_kwargs())
+    agent = expert_agent(env)
+    hook, close = _logger(args, env)
+    try:
+        summary = env.collect(agent=agent, on_step=hook, **args.collect_kwargs())
+    finally:
+        close()
+    print(json.dumps({
+        **{k: summary[k] for k in COLLECT_REPORT_KEYS},
+        "wall_time_s": round(summary["wall_time_s"], 2),
+        **({"saved_end_scenario_path": summary["saved_end_scenario_path"]} if args.save_end_scenario else {}),
+    }))
+    return 0
+
+
+def evaluate(args: EvaluateArgs) -> int:
+    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
+    from ..envs import make_env  # deferred: Warp/Newton are slow to import
+    from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
+    from ..policies import PolicyAgent  # deferred: torch is slow to import
+
+    on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
+    checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.device if on_gpu else None)
+                        if args.checkpoint else None)
+    env = make_env(args.task, **args.env_kwargs())
+    agent = checkpoint_agent or expert_agent(env)
+    hook, close = _logger(args, env)
+    try:
+        summary = env.evaluate(agent=agent, on_step=hook, **args.rollout_kwargs())
+    finally:
+        close()
+    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
+    return 0
+
+
+def mimic(args: MimicArgs) -> int:
+    from ..mimic import mimic as generate  # deferred: Warp/Newton are slow to import
+
+    ref = generate(args.dataset_path, **args.mimic_kwargs())
+    m = ref.metadata
+    print(json.dumps({"task": ref.task_id, "successes": m["successes"], "attempts": m["attempts"],
+                      "generation_success_rate": m["generation_success_rate"], "path": str(ref.path)}))
+    return 0
+
+
+def train(args: TrainArgs) -> int:
+    from ..policies import Policy  # deferred: torch is slow to import
+    from ..policies.diffusion import PRESETS  # deferred: torch is slow to import
+
+    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS))
+    print(json.dumps({"checkpoint": str(path)}))
+    return 0
+
+
+def split(args: SplitArgs) -> int:
+    from ..datasets import split_by_phase  # deferred: the dataset package imports Warp/Newton
+
+    refs = split_by_phase(args.dataset_path, args.out)
+    print(json.dumps({name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]}
+                      for name, r in refs.items()}))
+    return 0
+
+
+def export(args: ExportArgs) -> int:
+    from ..datasets.lerobot import export_lerobot  # deferred: pyarrow, Warp/Newton are slow
+
+    out = export_lerobot(args.dataset_path, args.root, include_failed=args.include_failed)
+    print(json.dumps({k: out[k] for k in ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps")}))
+    return 0
+
+
+def pipeline(args: PipelineArgs) -> int:
+    configure(Path(args.out) / ".prefect")  # before Prefect is imported
+    from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
+
+    summary = run_pipeline(**args.pipeline_kwargs())
+    arts = summary["artifacts"]
+    metrics = Path(args.out).resolve() / "metrics.json"
+    print(f"success rate: {summary['success_rate']:.1%} over {summary['evaluation']['episodes']} evaluation episodes")
+    for name in ("demos", "mimic", "checkpoint"):
+        print(f"{name}: {arts[name]['path']}")
+    print(f"metrics: {metrics}")
+    print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
+    print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"], "metrics": str(metrics)}))
+    return 0
+
+
+def view(args: ViewArgs) -> int:
+    from ..viz import replay_episode  # deferred: rerun-sdk is slow to import
+
+    if not args.save and not args.spawn:
+        raise ValueError("view needs --save file.rrd (headless) or --spawn (open a rerun viewer)")
+    poses = replay_episode(args.dataset, args.episode, save=args.save, spawn=args.spawn)
+    print(json.dumps({"dataset": args.dataset, "episode": args.episode, "frames": len(poses), "rrd": args.save}))
+    return 0
+
+
+def bench(args: BenchArgs) -> int:
+    from ..bench import bench as measure  # deferred: Warp/Newton are slow to import
+
+    print(json.dumps(measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device)))
+    return 0
+
+
+def bench_train(args: BenchTrainArgs) -> int:
+    from ..bench import bench_train as measure  # deferred: torch is slow to import
+
+    print(json.dumps(measure(args.dataset_path, batch_size=args.batch_size, steps=args.steps, device=args.device,
+                             preset=args.preset)))
+    return 0

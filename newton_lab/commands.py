@@ -1,0 +1,309 @@
+"""The argument model: one ``@dataclass`` per command, shared by the console script (``newton_lab.cli``
+generates its argparse parser from these classes: fields -> flags, field docstrings -> help), the numbered
+examples (``newton_lab.cli.parse_args`` with their own defaults) and the Prefect stages (``newton_lab.flows``
+pass these objects to the stages).
+
+A field ``num_envs`` is the flag ``--num-envs``; ``bool`` fields are switches; ``X | None`` fields are
+optional; fields without a default are required; ``list[str]`` fields take one or more values; field
+metadata may set ``flags`` (the spellings, default ``--field-name``) or ``positional``. Methods turn an
+argument object into the keywords of the library call it drives (``make_env``, ``env.collect``, ``mimic``,
+``Policy.train``, ``run_pipeline``), so no caller re-lists them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from .task_api.registry import DEFAULT_TASK_ID
+
+TASK_OPTION_FIELDS = ("sorting_object", "init_scenario")
+"""``EnvArgs`` fields that are task options (``make_env(..., task_options=...)``)."""
+
+
+@dataclass(kw_only=True)
+class EnvArgs:
+    """Which task, how many rows, where, how seeded: everything ``make_env`` takes."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    num_envs: int = 1
+    """Parallel env rows (worlds) stepped as one batch."""
+    device: str | None = None
+    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+    seed: int = 0
+    """Seed of the reset randomisation (per row and episode)."""
+    randomize: bool = False
+    """turn on the task's reset randomisation"""
+    sorting_object: str | None = None
+    """SortToShelf tasks: the object to sort"""
+    init_scenario: str | None = None
+    """component tasks: start from this scenario YAML"""
+
+    def task_options(self) -> dict[str, Any]:
+        """Task options that were given (unset ones are left to the task's defaults)."""
+        return {k: getattr(self, k) for k in TASK_OPTION_FIELDS if getattr(self, k) is not None}
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """Keywords of ``make_env(self.task, **...)``."""
+        return {"num_envs": self.num_envs, "device": self.device, "seed": self.seed, "randomize": self.randomize,
+                "task_options": self.task_options()}
+
+
+@dataclass(kw_only=True)
+class RolloutArgs(EnvArgs):
+    """An env plus how long to run it: ``env.collect`` / ``env.evaluate``."""
+
+    episodes: int = 1
+    """Episodes to run (over all rows)."""
+    max_steps: int = 1000
+    """episode step limit of the loop [control steps]"""
+    no_progress: bool = False
+    """No progress bar."""
+    headless: bool = False
+    """accepted for compatibility; newton-lab never opens a window"""
+
+    def rollout_kwargs(self) -> dict[str, Any]:
+        """Keywords shared by ``env.collect`` and ``env.evaluate``."""
+        return {"episodes": self.episodes, "max_steps": self.max_steps, "progress": not self.no_progress}
+
+
+@dataclass(kw_only=True)
+class RerunArgs:
+    """Streaming a run to the rerun viewer."""
+
+    rerun: bool = False
+    """stream to a rerun viewer (spawned)"""
+    rerun_save: str | None = None
+    """record the run to this .rrd file (headless)"""
+    rerun_worlds: int = 4
+    """rows drawn in rerun"""
+
+
+@dataclass(kw_only=True)
+class TasksArgs:
+    """``newton-lab tasks``: no arguments."""
+
+
+@dataclass(kw_only=True)
+class CollectArgs(RerunArgs, RolloutArgs):
+    """``newton-lab collect``: expert episodes of a task into a dataset."""
+
+    dataset_path: str = "data/pick_cube_demos.hdf5"
+    """Dataset to append to: .hdf5 / .h5 (robomimic layout) or .zarr."""
+    save_end_scenario: str | None = None
+    """write the final scene as a scenario YAML (needs --episodes 1 --num-envs 1)"""
+
+    def collect_kwargs(self) -> dict[str, Any]:
+        """Keywords of ``env.collect(agent=..., **...)``."""
+        return {**self.rollout_kwargs(), "path": self.dataset_path, "save_end_scenario": self.save_end_scenario}
+
+
+@dataclass(kw_only=True)
+class EvaluateArgs(RerunArgs, RolloutArgs):
+    """``newton-lab evaluate``: success rate of a policy checkpoint, or of the task's expert."""
+
+    checkpoint: str | None = None
+    """policy checkpoint; the expert planner when omitted"""
+
+
+@dataclass(kw_only=True)
+class MimicArgs:
+    """``newton-lab mimic``: expand source demos with Mimic (successes only)."""
+
+    dataset_path: str
+    """Source dataset (expert demos of a task with a Mimic variant)."""
+    output_path: str | None = None
+    """Dataset the generated demos are appended to (default: <source stem>_mimic<suffix> beside the source)."""
+    episodes: int = 36
+    """Successful demos to generate."""
+    num_envs: int = 8
+    """Parallel env rows generating at once."""
+    max_attempts: int | None = None
+    """Give up after this many attempts (default 10 x --episodes)."""
+    seed: int = 1
+    """Seed of the scene randomisation and the source-segment choice."""
+    device: str | None = None
+    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+    no_progress: bool = False
+    """No progress bar."""
+    headless: bool = False
+    """accepted for compatibility; newton-lab never opens a window"""
+
+    def mimic_kwargs(self) -> dict[str, Any]:
+        """Keywords of ``mimic(self.dataset_path, **...)``."""
+        return {"episodes": self.episodes, "num_envs": self.num_envs, "output_path": self.output_path,
+                "seed": self.seed, "device": self.device, "max_attempts": self.max_attempts,
+                "progress": not self.no_progress}
+
+
+TRAIN_OVERRIDES = ("epochs", "batch_size", "max_steps", "lr", "weight_decay", "num_workers", "time_budget_s",
+                   "init_checkpoint")
+"""``TrainArgs`` fields that override the preset only when given."""
+
+
+@dataclass(kw_only=True)
+class TrainArgs:
+    """``newton-lab train``: a diffusion policy on one or more datasets of one task."""
+
+    dataset_path: list[str]
+    """one dataset, or several of the same task trained as one"""
+    output_dir: str = "outputs/policy"
+    """Folder for checkpoint.pt and train_log.json."""
+    preset: str = "default"
+    """named settings: default (GPU-sized) or cpu (2-core budget)"""
+    epochs: int | None = None
+    """passes over the data (default 100)"""
+    max_steps: int | None = None
+    """Cap on gradient steps."""
+    batch_size: int | None = None
+    """default 256 (cpu preset: 64)"""
+    lr: float | None = field(default=None, metadata={"flags": ("--lr", "--learning-rate")})
+    """peak learning rate (default 1e-4; cpu preset: 6e-4)"""
+    weight_decay: float | None = None
+    """AdamW weight decay (default 1e-6)."""
+    num_workers: int | None = field(default=None, metadata={"flags": ("--num-data-workers",)})
+    """DataLoader worker processes (default 0: the data is in memory)."""
+    obs_keys: str | None = None
+    """comma-separated obs terms to condition on (default: every low-dim term but actions)"""
+    init_checkpoint: str | None = None
+    """continue training this checkpoint (its architecture and normalisers are kept)"""
+    time_budget_s: float | None = None
+    """wall-clock budget [s]: the run is shortened to fit (LR schedule re-planned)"""
+    device: str = "cpu"
+    """Torch device for training (cpu, cuda, cuda:1, ...)."""
+    seed: int = 0
+    """Seed of weight init, batch order and diffusion noise."""
+
+    def datasets(self) -> str | list[str]:
+        """The dataset argument of ``Policy.train``: one path, or the list of several."""
+        return self.dataset_path[0] if len(self.dataset_path) == 1 else list(self.dataset_path)
+
+    def train_cfg(self, presets: dict[str, dict[str, Any]]) -> dict[str, Any]:
+        """The training config: the named preset (of ``presets``), then every field that was given."""
+        if self.preset not in presets:
+            raise ValueError(f"unknown training preset {self.preset!r}; valid presets: {sorted(presets)}")
+        cfg = dict(presets[self.preset], device=self.device, seed=self.seed, output_dir=self.output_dir)
+        cfg.update({k: getattr(self, k) for k in TRAIN_OVERRIDES if getattr(self, k) is not None})
+        if self.obs_keys:
+            cfg["obs_keys"] = tuple(k.strip() for k in self.obs_keys.split(",") if k.strip())
+        return cfg
+
+
+@dataclass(kw_only=True)
+class SplitArgs:
+    """``newton-lab split``: one dataset per phase of a coherent task's dataset."""
+
+    dataset_path: str
+    """Dataset of a coherent task (its episodes record datagen/phase)."""
+    out: str
+    """folder for <phase>.hdf5 / .zarr (files must not exist)"""
+
+
+@dataclass(kw_only=True)
+class ExportArgs:
+    """``newton-lab export``: a dataset as a LeRobot v3 dataset."""
+
+    dataset_path: str
+    """Dataset to export."""
+    root: str
+    """new LeRobot dataset folder (must not exist)"""
+    include_failed: bool = False
+    """Export failed episodes too."""
+
+
+DEMO_TRAIN_CFG = {"down_dims": [32, 64, 128], "diffusion_step_embed_dim": 64, "batch_size": 64, "lr": 6e-4,
+                  "warmup_steps": 300, "epochs": 1000, "max_steps": 2000, "seed": 0}
+"""Small embedded training default of the demo pipeline: the ``cpu`` preset cut to 2000 steps (~3.5 min on a
+2-core CPU); ``newton-lab train --preset cpu`` runs the full 10k-step budget."""
+
+
+@dataclass(kw_only=True)
+class PipelineArgs:
+    """``newton-lab pipeline``: the Prefect flow collect -> mimic -> train -> evaluate."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    demos: int = 4
+    """Expert demos collected."""
+    mimic_episodes: int = 40
+    """Demos generated by Mimic from the expert demos."""
+    train_steps: int | None = None
+    """gradient steps (demo default 2000)"""
+    eval_episodes: int = 10
+    """Evaluation episodes of the trained policy."""
+    num_envs: int = 4
+    """Parallel env rows of collection, Mimic and evaluation."""
+    device: str | None = None
+    """Warp device of the envs, e.g. cpu or cuda:0 (default: Warp's); training runs on it or on the CPU."""
+    seed: int = 0
+    """Base seed: Mimic uses seed + 1, evaluation seed + 10000."""
+    out: str = "outputs/pipeline"
+    """Output folder: artifacts, manifests, metrics.json, Prefect state."""
+    runner: str = "local"
+    """local or dask"""
+    workers: int = 1
+    """Dask worker processes: collection, Mimic and evaluation are split into this many shards."""
+    address: str | None = None
+    """Dask scheduler address (default: start a local cluster)"""
+    retries: int = 1
+    """retries of a failed stage"""
+
+    def train_cfg(self) -> dict[str, Any]:
+        """``DEMO_TRAIN_CFG`` on the pipeline's device (CPU by default), with ``train_steps`` when given."""
+        cfg = dict(DEMO_TRAIN_CFG, device=self.device or "cpu")
+        if self.train_steps:
+            cfg["max_steps"] = self.train_steps
+        return cfg
+
+    def pipeline_kwargs(self) -> dict[str, Any]:
+        """Keywords of ``newton_lab.flows.orchestration.run_pipeline``."""
+        return {"runner": self.runner, "workers": self.workers, "address": self.address, "retries": self.retries,
+                "task_id": self.task, "demos": self.demos, "mimic_episodes": self.mimic_episodes,
+                "train_cfg": self.train_cfg(), "eval_episodes": self.eval_episodes, "num_envs": self.num_envs,
+                "device": self.device, "out": str(Path(self.out).resolve()), "seed": self.seed}
+
+
+@dataclass(kw_only=True)
+class ViewArgs:
+    """``newton-lab view``: replay a recorded episode into rerun by re-applying its states."""
+
+    dataset: str = field(metadata={"positional": True})
+    """Dataset holding the episode."""
+    episode: int = 0
+    """Demo id to replay."""
+    save: str | None = None
+    """.rrd file to write"""
+    spawn: bool = False
+    """open a rerun viewer"""
+
+
+@dataclass(kw_only=True)
+class BenchArgs:
+    """``newton-lab bench``: env-steps/s of the captured step vs the bare solver on the same model."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    num_envs: int = 4
+    """Parallel env rows."""
+    steps: int = 200
+    """Env steps timed."""
+    device: str | None = None
+    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+
+
+@dataclass(kw_only=True)
+class BenchTrainArgs:
+    """``newton-lab bench-train``: diffusion-policy training steps/s, eager vs CUDA-graph step."""
+
+    dataset_path: str
+    """Dataset the batches are drawn from."""
+    batch_size: int = 1024
+    """Windows per training step."""
+    steps: int = 200
+    """Training steps timed per variant."""
+    preset: Literal["default", "cpu"] = "default"
+    """Named training settings (network size)."""
+    device: str = "cpu"
+    """Torch device (cpu, cuda, cuda:1, ...)."""
