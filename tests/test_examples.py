@@ -107,9 +107,9 @@ def test_06_component_task_saves_its_end_scenario(tmp_path):
     assert out["saved_end_scenario_path"] == str(scenario) and scenario.read_text().strip()
 
 
-def test_07_compound_task_collects_an_episode(tmp_path):
-    path = tmp_path / "compound.hdf5"
-    out = last_json(run_example("07_compound_task.py", "--mode", "collect", "--episodes", "1", "--num-envs", "1",
+def test_07_coherent_task_collects_an_episode(tmp_path):
+    path = tmp_path / "coherent.hdf5"
+    out = last_json(run_example("07_coherent_task.py", "--mode", "collect", "--episodes", "1", "--num-envs", "1",
                                 "--max-steps", "40", "--dataset-path", path, *SMALL))
     assert out["task"] == "GalbotG1-PickToShelf-v0" and out["episodes"] == 1 and num_demos(path) == 1
 

@@ -8,7 +8,7 @@
     tasks' data at outputs/pick/checkpoint.pt and outputs/place/checkpoint.pt), the nav expert for nav.
 The default is ``task_default`` so the example runs without trained checkpoints.
 
-    python examples/07_compound_task.py --task GalbotG1-PickToShelf-v0 --episodes 4 --num-envs 4
+    python examples/07_coherent_task.py --task GalbotG1-PickToShelf-v0 --episodes 4 --num-envs 4
 
 Flags: the ``CollectArgs`` of ``newton-lab collect`` (``newton_lab.commands``) without the rerun ones, plus
 ``--mode``.
@@ -37,7 +37,7 @@ class CompoundArgs(CollectArgs):
     """evaluate: report the success rate; collect: also write the episodes to --dataset-path"""
 
 
-DEFAULTS = {"task": "GalbotG1-PickToShelf-v0", "dataset_path": "data/compound_task_demos.hdf5", "episodes": 36,
+DEFAULTS = {"task": "GalbotG1-PickToShelf-v0", "dataset_path": "data/coherent_task_demos.hdf5", "episodes": 36,
             "num_envs": 9, "max_steps": 1500, "randomize": True}
 
 
