@@ -15,7 +15,7 @@ from newton_lab.cli import REQUIRED, parse_args
 from newton_lab.commands import EvaluateArgs
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import EVAL_REPORT_KEYS
-from newton_lab.policies import PolicyAgent
+from newton_lab.policies.agent import PolicyAgent
 
 DEFAULTS = {"checkpoint": REQUIRED, "episodes": 36, "num_envs": 9, "seed": 1000, "randomize": True}
 

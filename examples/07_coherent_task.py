@@ -24,7 +24,7 @@ from newton_lab.agents import TaskFlowAgent, default_agent
 from newton_lab.cli import parse_args
 from newton_lab.commands import CollectArgs
 from newton_lab.envs import make_env
-from newton_lab.policies import PolicyAgent
+from newton_lab.policies.agent import PolicyAgent
 
 COMPOUND_AGENT_PRESET = "task_default"
 

@@ -107,7 +107,8 @@ def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[st
     """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``."""
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
-    from ..policies import Policy, PolicyAgent  # deferred: torch is slow to import
+    from ..policies import Policy  # deferred: torch is slow to import
+    from ..policies.agent import PolicyAgent  # deferred: imports the env stack (Warp)
 
     env = make_env(args.task, **args.env_kwargs())
     agent = PolicyAgent(Policy.from_backend(BACKEND).load_policy(args.checkpoint))

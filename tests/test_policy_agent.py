@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import pytest
 import torch
 
-from newton_lab.policies import PolicyAgent
+from newton_lab.policies.agent import PolicyAgent
 
 
 class RecordingPolicy:

@@ -68,7 +68,7 @@ def evaluate(args: EvaluateArgs) -> int:
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
-    from ..policies import PolicyAgent  # deferred: torch is slow to import
+    from ..policies.agent import PolicyAgent  # deferred: torch is slow to import
 
     on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
     checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.device if on_gpu else None)

@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from .. import tasks  # noqa: F401  (registers the task ids whose phases a dataset names)
 from ..robots.g1 import spec
 from ..task_api.registry import lookup
 from .ref import DatasetRef
@@ -35,6 +34,8 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
     task_id = info["task_id"]
     env_args = info["env_args"]
     options = env_args.get("env_kwargs", {}).get("task_options") or {}
+    from .. import tasks  # noqa: F401  (deferred: registering the tasks imports Warp; storage stays Warp-free)
+
     cfg = lookup(task_id).make_cfg(options)
     if not cfg.phases:
         raise ValueError(f"{path} was recorded on {task_id}, which has no phases; nothing to split")

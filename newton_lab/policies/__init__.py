@@ -4,6 +4,9 @@
     ckpt = backend.train("demos.hdf5", {"epochs": 50, "output_dir": "outputs/dp"})
     policy = backend.load_policy(ckpt)
     actions = policy.predict_action(obs_history)  # (B, obs_horizon, obs_dim) -> (B, action_horizon, A)
+
+``PolicyAgent`` (``newton_lab.policies.agent``) runs a checkpoint on an env; it is not imported here, so
+training needs neither Warp nor Newton.
 """
 
 from __future__ import annotations
@@ -11,14 +14,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .agent import PolicyAgent
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
 from .normalize import MinMaxNormalizer
 from .scheduler import NoiseScheduler
 from .train import train
 
-__all__ = ["Policy", "PolicyAgent", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
+__all__ = ["Policy", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
            "MinMaxNormalizer", "NoiseScheduler", "train", "load_policy", "BACKENDS"]
 
 
