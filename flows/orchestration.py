@@ -35,8 +35,22 @@ _P = PipelineArgs()
 """The pipeline's defaults: the ones of ``newton-lab pipeline``."""
 
 
+INPUT_ERRORS = (ValueError, TypeError, KeyError, FileNotFoundError, FileExistsError)
+"""Failures caused by a stage's input: a retry would fail the same way, so they are not retried."""
+
+
+def retry_transient(task, task_run, state) -> bool:
+    """Prefect retry condition: retry a failed stage unless it failed on its input (``INPUT_ERRORS``)."""
+    try:
+        error = state.result(raise_on_failure=False)
+    except Exception as exc:  # noqa: BLE001  (a state whose result can't be read back: judge its exception)
+        error = exc
+    return not isinstance(error, INPUT_ERRORS)
+
+
 def _stage_task(fn, name: str):
-    return task(fn, name=name, cache_policy=INPUTS, persist_result=True, retries=1, retry_delay_seconds=1)
+    return task(fn, name=name, cache_policy=INPUTS, persist_result=True, retries=1, retry_delay_seconds=1,
+                retry_condition_fn=retry_transient)
 
 
 collect_task = _stage_task(stages.collect_stage, "collect")
@@ -67,6 +81,13 @@ def _with_state(state, shard_states: list[str] | None = None):
 def _split(total: int, parts: int) -> list[int]:
     base, extra = divmod(total, parts)
     return [base + (i < extra) for i in range(parts) if base + (i < extra) > 0]
+
+
+def _check_counts(**counts: Any) -> None:
+    """Episode / step counts must be integers >= 1 (checked before the flow starts: nothing is written)."""
+    for name, value in counts.items():
+        if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
 
 
 def _check(task_id: str, runner: str, workers: int) -> None:
@@ -197,6 +218,8 @@ def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address:
     (a local cluster of ``workers`` processes, or the scheduler at ``address``). ``PipelineArgs.pipeline_kwargs()``
     gives every keyword from the command line's arguments."""
     _check(kwargs.get("task_id", _P.task), runner, workers)
+    _check_counts(**{k: kwargs.get(k) for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs",
+                                                 "eval_max_steps")})
     check_api_reachable()
     options: dict[str, Any] = {}
     if runner == "dask":

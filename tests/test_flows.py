@@ -64,6 +64,30 @@ def test_failed_stage_is_retried(harness, tmp_path, monkeypatch):
     assert summary["evaluation"]["episodes"] == 2
 
 
+def test_input_error_in_a_stage_is_not_retried(harness, tmp_path, monkeypatch):
+    from newton_lab.flows import pipeline  # deferred: imports Prefect (after the harness configured it)
+
+    calls = {"n": 0}
+
+    def bad_input(name):
+        calls["n"] += 1
+        raise ValueError("injected input error")
+
+    monkeypatch.setattr(policies.Policy, "from_backend", staticmethod(bad_input))
+    with pytest.raises(ValueError, match="injected input error"):
+        pipeline(out=str(tmp_path / "no_retry"), **TINY)
+    assert calls["n"] == 1, "a deterministic input error must not be retried"
+
+
+def test_pipeline_counts_are_checked_before_anything_runs(tmp_path):
+    from newton_lab.flows.orchestration import run_pipeline  # deferred: Prefect is slow to import
+
+    for name in ("demos", "mimic_episodes", "eval_episodes"):
+        with pytest.raises(ValueError, match=f"{name} must be an integer >= 1"):
+            run_pipeline(**{**TINY, name: 0, "out": str(tmp_path / name)})
+        assert not (tmp_path / name).exists()
+
+
 def test_bad_pipeline_inputs():
     from newton_lab.flows.orchestration import run_pipeline  # deferred: Prefect is slow to import
 
