@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from .datasets.storage import SUFFIXES
 from .task_api.registry import DEFAULT_TASK_ID
 
 TASK_OPTION_FIELDS = ("sorting_object", "init_scenario")
@@ -175,6 +176,12 @@ class TrainArgs:
     """Torch device for training (cpu, cuda, cuda:1, ...)."""
     seed: int = 0
     """Seed of weight init, batch order and diffusion noise."""
+    resume: bool = False
+    """continue the interrupted run in --output-dir from its resume.pt (same datasets and settings)"""
+    checkpoint_every_steps: int | None = None
+    """write --output-dir/resume.pt every N steps (default 500)"""
+    checkpoint_every_s: float | None = None
+    """write --output-dir/resume.pt every N seconds too (default 300)"""
 
     def datasets(self) -> str | list[str]:
         """The dataset argument of ``Policy.train``: one path, or the list of several."""
@@ -185,7 +192,8 @@ class TrainArgs:
         if self.preset not in presets:
             raise ValueError(f"unknown training preset {self.preset!r}; valid presets: {sorted(presets)}")
         cfg = dict(presets[self.preset], device=self.device, seed=self.seed, output_dir=self.output_dir)
-        cfg.update({k: getattr(self, k) for k in TRAIN_OVERRIDES if getattr(self, k) is not None})
+        given = (*TRAIN_OVERRIDES, "checkpoint_every_steps", "checkpoint_every_s")
+        cfg.update({k: getattr(self, k) for k in given if getattr(self, k) is not None})
         if self.obs_keys:
             cfg["obs_keys"] = tuple(k.strip() for k in self.obs_keys.split(",") if k.strip())
         return cfg
@@ -307,3 +315,42 @@ class BenchTrainArgs:
     """Named training settings (network size)."""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""
+
+
+COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
+                "batch_size", "rerun_worlds", "max_attempts", "train_steps", "epochs")
+"""Fields that count something: an integer >= 1 when given."""
+DATASET_FIELDS = ("dataset_path", "output_path")
+"""Fields naming a dataset file: its suffix picks the format."""
+EXISTING_FIELDS = {MimicArgs: ("dataset_path",), EvaluateArgs: ("checkpoint",), ViewArgs: ("dataset",),
+                   BenchTrainArgs: ("dataset_path",)}
+"""Fields naming an input that must exist, per command."""
+
+
+def _label(args: Any, name: str) -> str:
+    """How the command line spells field ``name``: ``--flag-name``, or the bare name of a positional."""
+    if args.__dataclass_fields__[name].metadata.get("positional"):
+        return name
+    return f"--{name.replace('_', '-')}"
+
+
+def check_args(args: Any) -> None:
+    """Refuse bad arguments in one line before anything is imported, built or written (``ValueError`` /
+    ``FileNotFoundError`` naming the field and the fix)."""
+    names = {f for f in getattr(args, "__dataclass_fields__", {})}
+    for name in names & set(COUNT_FIELDS):
+        value = getattr(args, name)
+        if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
+            raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
+    for name in names & set(DATASET_FIELDS):
+        value = getattr(args, name)
+        paths = value if isinstance(value, list) else [value]
+        for path in (p for p in paths if p is not None):
+            if Path(path).suffix.lower() not in SUFFIXES:
+                raise ValueError(f"{_label(args, name)} {path}: unknown dataset suffix; use one of "
+                                 f"{', '.join(SUFFIXES)}")
+    for name in EXISTING_FIELDS.get(type(args), ()):
+        value = getattr(args, name)
+        if value is not None and not Path(value).exists():
+            raise FileNotFoundError(f"{_label(args, name)} {value} does not exist; check the path")
+

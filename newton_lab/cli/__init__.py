@@ -58,9 +58,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     ns = build_parser().parse_args(argv)
     cmd = COMMANDS[ns.command]
-    run.quiet_warp()
     try:
-        return cmd.run(from_namespace(cmd.args, ns))
+        args = from_namespace(cmd.args, ns)
+        c.check_args(args)  # before Warp, Newton or torch is imported and before any file is created
+        run.quiet_warp()
+        return cmd.run(args)
     except ERRORS as exc:
         msg = exc.args[0] if exc.args else str(exc)
         print(f"newton-lab {ns.command}: error: {msg}", file=sys.stderr)
