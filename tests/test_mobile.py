@@ -123,6 +123,16 @@ def test_sequence_agent_rows_advance_independently(nav_env):
     assert seq.current_step().tolist() == [1, 0]
 
 
+def test_sequence_agent_refuses_a_wrong_done_mask(nav_env):
+    from newton_lab.agents import SequenceAgent, SequenceStep
+
+    for bad in (torch.tensor([True]), torch.tensor([1.0, 0.0])):
+        seq = SequenceAgent([SequenceStep("drive", _SpyAgent(), lambda env, bad=bad: bad)])
+        nav_env.reset()
+        with pytest.raises(ValueError, match=r"done of sequence step 'drive' must be a \(2,\) bool tensor"):
+            seq.act(nav_env)
+
+
 # ---------------------------------------------------------------- coherent task
 def test_union_action_layout(shelf_env):
     env = shelf_env

@@ -64,7 +64,7 @@ class SequenceAgent(BaseAgent):
             mine = rows[before[rows] == k]
             if not mine.size:
                 continue
-            finished = (step.done or step.agent.done)(env).cpu().numpy()[mine]
+            finished = _done_mask(step, env)[mine]
             moved = mine[finished]
             if moved.size:
                 self._step[moved] = k + 1
@@ -76,3 +76,13 @@ class SequenceAgent(BaseAgent):
         if self._env is not env:
             return torch.zeros(env.num_envs, dtype=torch.bool, device=env.torch_device)
         return torch.as_tensor(self._step >= len(self.steps), device=env.torch_device)
+
+
+def _done_mask(step: SequenceStep, env) -> np.ndarray:
+    """The step's done predicate as a (num_envs,) bool array; any other shape or dtype is refused."""
+    mask = torch.as_tensor((step.done or step.agent.done)(env))
+    if tuple(mask.shape) != (env.num_envs,) or mask.dtype != torch.bool:
+        raise ValueError(f"done of sequence step {step.name!r} must be a ({env.num_envs},) bool tensor, got "
+                         f"{tuple(mask.shape)} {mask.dtype}; return one flag per env row")
+    return mask.cpu().numpy()
+
