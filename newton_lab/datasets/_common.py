@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
 import os
 import re
+import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +19,8 @@ DEMO_RE = re.compile(r"^demo_(\d+)$")
 PARTIAL_PREFIX = "_partial_"
 RESERVED_DEMO_ATTRS = ("num_samples", "success")
 CHUNK_BYTES = 1 << 20  # target bytes per time chunk
+LOCK_WAIT_S = 10.0  # bounded wait for the writer lock (both formats)
+TURNSTILE = 1 << 62  # byte offset of the writers' fairness lock
 
 
 def demo_name(demo_id: int) -> str:
@@ -84,3 +90,115 @@ def fsync_path(path: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+# ----------------------------------------------------------------------------- writer protocol
+class DatasetLockedError(BlockingIOError, ValueError):
+    """Another process kept the dataset locked past the bounded wait (one line; also a ``ValueError``)."""
+
+
+class DatasetWriteError(OSError):
+    """The disk refused a write (ENOSPC, EIO, ...): one line saying what the dataset still holds."""
+
+    def __init__(self, message: str, err: int) -> None:
+        super().__init__(message)
+        self.errno = err
+
+
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.EROFS})
+"""OS errors of the medium that end a write session as a :class:`DatasetWriteError`."""
+
+
+def lock_holder(st: os.stat_result) -> int | None:
+    """Pid holding the writer ``flock`` on the file of ``st`` (from ``/proc/locks``; None where unknown)."""
+    key = (os.major(st.st_dev), os.minor(st.st_dev), st.st_ino)
+    try:
+        lines = Path("/proc/locks").read_text().splitlines()
+    except OSError:
+        return None
+    found = []
+    for fields in (line.split() for line in lines):
+        if len(fields) < 6 or "->" in fields:
+            continue  # a waiter, not a holder
+        try:
+            major, minor, ino = fields[5].split(":")
+            if (int(major, 16), int(minor, 16), int(ino)) == key and int(fields[4]) > 0:
+                found.append((fields[1] != "FLOCK", int(fields[4])))
+        except ValueError:
+            continue
+    return min(found)[1] if found else None
+
+
+def locked_error(path: Path, st: os.stat_result) -> DatasetLockedError:
+    pid = lock_holder(st)
+    who = f"process {pid}" if pid is not None else "another process"
+    return DatasetLockedError(f"{path} is locked by {who}; wait for it or write to another path")
+
+
+def _poll(take, fd: int, path: Path, deadline: float) -> None:
+    delay = 0.001
+    while True:
+        try:
+            take()
+            return
+        except OSError as e:
+            if e.errno not in (errno.EAGAIN, errno.EACCES):
+                raise
+            if time.monotonic() > deadline:
+                raise locked_error(path, os.fstat(fd)) from None
+            time.sleep(delay)
+            delay = min(2 * delay, 0.05)
+
+
+def lock_exclusive(fd: int, path: Path, wait_s: float | None = None) -> None:
+    """The writer lock of both formats: exclusive ``flock`` on ``fd`` (opened for writing), waiting at
+    most ``wait_s`` (default ``LOCK_WAIT_S``), then a one-line :class:`DatasetLockedError` naming the holder.
+
+    Waiters first take a turnstile (a POSIX record lock on one byte past any real data, independent of
+    ``flock``), so a writer that appends in a tight loop cannot starve another: on its next append it
+    queues behind the waiter. Both are released when ``fd`` is closed or the process dies.
+    """
+    deadline = time.monotonic() + (LOCK_WAIT_S if wait_s is None else wait_s)
+    _poll(lambda: fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, TURNSTILE), fd, path, deadline)
+    try:
+        _poll(lambda: fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB), fd, path, deadline)
+    finally:
+        fcntl.lockf(fd, fcntl.LOCK_UN, 1, TURNSTILE)
+
+
+# ----------------------------------------------------------------------------- fault injection (tests)
+_FAULT_ENV = "NEWTON_LAB_TEST_WRITE_FAULT"
+_fault_lock = threading.Lock()
+_fault: dict[str, int | None] = {"left": None, "errno": errno.ENOSPC}
+
+
+def inject_write_fault(fail_at: int | None, err: int = errno.ENOSPC) -> None:
+    """Test seam: the ``fail_at``-th low-level dataset write from now on raises ``OSError(err)``, and so
+    does every later one (a full disk stays full); ``None`` clears it. Subprocesses started by pytest
+    read ``NEWTON_LAB_TEST_WRITE_FAULT=<fail_at>[:<errno name>]`` (honoured only under pytest)."""
+    if fail_at is not None and fail_at < 1:
+        raise ValueError(f"fail_at must be >= 1, got {fail_at}")
+    with _fault_lock:
+        _fault.update(left=None if fail_at is None else fail_at - 1, errno=err)
+
+
+def write_fault_point() -> None:
+    """Called before every low-level write of both stores; raises the injected fault, if any."""
+    with _fault_lock:
+        left, err = _fault["left"], _fault["errno"]
+        if left is None:
+            return
+        if left > 0:
+            _fault["left"] = left - 1
+            return
+    raise OSError(err, os.strerror(err))
+
+
+def _fault_from_env() -> None:
+    spec = os.environ.get(_FAULT_ENV)
+    if spec and "PYTEST_CURRENT_TEST" in os.environ:
+        at, _, name = spec.partition(":")
+        inject_write_fault(int(at), getattr(errno, name or "ENOSPC"))
+
+
+_fault_from_env()

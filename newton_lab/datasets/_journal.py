@@ -10,14 +10,14 @@ An exclusive ``flock`` on the data file (the lock HDF5 itself uses) serialises s
 
 from __future__ import annotations
 
-import fcntl
 import os
 import struct
-import time
 import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from ._common import lock_exclusive, write_fault_point
 
 MAGIC = b"NLJOURN1"
 _HEAD = struct.Struct("<8sQI")  # magic, original size, crc32 of the first two
@@ -34,19 +34,6 @@ def _fsync_dir(path: Path) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
-
-
-def _lock(fd: int, path: Path, wait_s: float) -> None:
-    deadline = time.monotonic() + wait_s
-    while True:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            return
-        except BlockingIOError:
-            if time.monotonic() > deadline:
-                raise BlockingIOError(f"{path} is locked by another process (a writer or reader); "
-                                      "retry when it is done") from None
-            time.sleep(0.05)
 
 
 def _rollback(raw, path: Path, fsync: bool) -> None:
@@ -90,23 +77,44 @@ def recover(path: Path, wait_s: float, fsync: bool = True) -> None:
         raise ValueError(f"{path} has an interrupted write ({journal_path(path).name}); "
                          "open it once with write access to roll it back") from None
     with raw:
-        _lock(raw.fileno(), path, wait_s)
+        lock_exclusive(raw.fileno(), path, wait_s)
         _rollback(raw, path, fsync)
 
 
+def _write_all(f, data) -> None:
+    """Write every byte (an unbuffered write may be short just before ENOSPC)."""
+    view = memoryview(data).cast("B")
+    while view.nbytes:
+        write_fault_point()
+        view = view[f.write(view):]
+
+
 class JournaledFile:
-    """Binary file object for ``h5py.File``: journals original bytes before overwriting them."""
+    """Binary file object for ``h5py.File``: journals original bytes before overwriting them.
+
+    If the disk refuses a write (ENOSPC, EIO), HDF5 is not told (it answers a failing driver with
+    tracebacks and, at close, a crash): the error is kept in ``error``, and the rest of the session
+    goes to memory, so HDF5 finishes against a consistent view; :func:`journaled` then raises
+    ``error`` and rolls the file back.
+    """
 
     def __init__(self, raw, path: Path, fsync: bool) -> None:
         self._raw, self._fsync = raw, fsync
         self._size0 = os.fstat(raw.fileno()).st_size
         self._saved: set[tuple[int, int]] = set()
+        self.error: OSError | None = None
+        self._mem: list[tuple[int, bytes]] = []  # writes after the error: (offset, bytes)
+        self._pos = self._len = self._valid = 0  # position, size, bytes of raw still valid (after the error)
         self._journal = open(journal_path(path), "wb", buffering=0)  # noqa: SIM115
         head = _HEAD.pack(MAGIC, self._size0, 0)[:-4]
-        self._append(head + struct.pack("<I", zlib.crc32(head)))
+        try:
+            self._append(head + struct.pack("<I", zlib.crc32(head)))
+        except BaseException:
+            self._journal.close()
+            raise
 
     def _append(self, blob: bytes) -> None:
-        self._journal.write(blob)
+        _write_all(self._journal, blob)
         if self._fsync:
             os.fsync(self._journal.fileno())
 
@@ -121,53 +129,108 @@ class JournaledFile:
         self._append(_REC.pack(start, len(data), zlib.crc32(data)) + data)
         self._saved.add((start, end))
 
+    def _fail(self, error: OSError, pos: int) -> None:
+        self.error, self._pos = error, pos
+        self._len = self._valid = os.fstat(self._raw.fileno()).st_size
+
+    def _read_failed(self, n: int) -> bytes:
+        start = self._pos
+        end = self._len if n is None or n < 0 else min(self._len, start + n)
+        buf = bytearray(max(0, end - start))
+        if start < min(end, self._valid):
+            self._raw.seek(start)
+            got = self._raw.read(min(end, self._valid) - start)
+            buf[:len(got)] = got
+        for off, blob in self._mem:
+            lo, hi = max(off, start), min(off + len(blob), end)
+            if lo < hi:
+                buf[lo - start:hi - start] = blob[lo - off:hi - off]
+        self._pos = start + len(buf)
+        return bytes(buf)
+
     # file protocol used by h5py's fileobj driver
     def seek(self, pos: int, whence: int = 0) -> int:
-        return self._raw.seek(pos, whence)
+        if self.error is None:
+            return self._raw.seek(pos, whence)
+        self._pos = (0, self._pos, self._len)[whence] + pos
+        return self._pos
 
     def tell(self) -> int:
-        return self._raw.tell()
+        return self._raw.tell() if self.error is None else self._pos
 
     def read(self, n: int = -1) -> bytes:
-        return self._raw.read(n)
+        return self._raw.read(n) if self.error is None else self._read_failed(n)
 
     def readinto(self, buf) -> int:
-        return self._raw.readinto(buf)
+        if self.error is None:
+            return self._raw.readinto(buf)
+        data = self._read_failed(memoryview(buf).nbytes)
+        memoryview(buf).cast("B")[:len(data)] = data
+        return len(data)
 
     def write(self, data) -> int:
         n = memoryview(data).nbytes
-        pos = self._raw.tell()
-        self._save(pos, pos + n)
-        return self._raw.write(data)
+        if self.error is None:
+            pos = self._raw.tell()
+            try:
+                self._save(pos, pos + n)
+                _write_all(self._raw, data)
+                return n
+            except OSError as e:
+                self._fail(e, pos)
+        self._mem.append((self._pos, bytes(memoryview(data).cast("B"))))
+        self._pos += n
+        self._len = max(self._len, self._pos)
+        return n
 
     def truncate(self, size: int | None = None) -> int:
-        size = self._raw.tell() if size is None else size
-        self._save(size, self._size0)
-        return self._raw.truncate(size)
+        size = self.tell() if size is None else size
+        if self.error is None:
+            try:
+                self._save(size, self._size0)
+                return self._raw.truncate(size)
+            except OSError as e:
+                self._fail(e, self._raw.tell())
+        self._len, self._valid = size, min(self._valid, size)
+        self._mem = [(off, blob[:size - off]) for off, blob in self._mem if off < size]
+        return size
 
     def flush(self) -> None:
-        self._raw.flush()
+        if self.error is None:
+            self._raw.flush()
 
     def close_journal(self) -> None:
         self._journal.close()
+
+
+def _abort(raw, path: Path, fsync: bool, jf: JournaledFile | None) -> None:
+    """Roll back a failed session; if even that fails, the journal stays for the next opener."""
+    if jf is not None:
+        jf.close_journal()
+    try:
+        _rollback(raw, path, fsync)
+    except OSError:
+        pass
 
 
 @contextmanager
 def journaled(path: Path, wait_s: float, fsync: bool) -> Iterator[JournaledFile]:
     """Exclusive write session on ``path``: committed on success, rolled back on any error or kill."""
     with open(path, "r+b", buffering=0) as raw:
-        _lock(raw.fileno(), path, wait_s)
+        lock_exclusive(raw.fileno(), path, wait_s)
         _rollback(raw, path, fsync)  # a previous writer was killed mid-session
-        jf = JournaledFile(raw, path, fsync)
+        jf = None
         try:
+            jf = JournaledFile(raw, path, fsync)
             yield jf
-        except BaseException:
+            if jf.error is not None:
+                raise jf.error
             jf.close_journal()
-            _rollback(raw, path, fsync)
+            if fsync:
+                os.fsync(raw.fileno())
+        except BaseException:
+            _abort(raw, path, fsync, jf)
             raise
-        jf.close_journal()
-        if fsync:
-            os.fsync(raw.fileno())
         journal_path(path).unlink()  # commit point
         if fsync:
             _fsync_dir(path)

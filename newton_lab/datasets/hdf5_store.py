@@ -13,18 +13,19 @@ from typing import Any
 import h5py
 import numpy as np
 
+from . import _common as common
 from . import _journal as journal
-from ._common import PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path, time_chunks
+from ._common import (PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
+                      locked_error, time_chunks)
 
 # Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
 LIBVER = ("earliest", "v110")
-LOCK_WAIT_S = 10.0
 
 
 def _open_read(path: Path) -> h5py.File:
     """Open for reading (after rolling back a killed writer); waits while a writer holds the lock."""
-    deadline = time.monotonic() + LOCK_WAIT_S
-    journal.recover(path, LOCK_WAIT_S)
+    deadline = time.monotonic() + common.LOCK_WAIT_S
+    journal.recover(path, common.LOCK_WAIT_S)
     while True:
         try:
             return h5py.File(path, "r")
@@ -34,17 +35,21 @@ def _open_read(path: Path) -> h5py.File:
             if "unable to lock file" not in str(e).lower():
                 raise damaged(path, e) from None
             if time.monotonic() > deadline:
-                raise BlockingIOError(
-                    f"{path} is locked by another process (a writer appending?); retry when it is done") from None
+                raise locked_error(path, os.stat(path)) from None
             time.sleep(0.05)
 
 
 @contextmanager
 def _open_write(path: Path, fsync: bool) -> Iterator[h5py.File]:
-    """Journaled read-write session: all of it lands on disk, or none of it (even on SIGKILL)."""
-    _open_read(path).close()  # same checks/errors as readers before touching anything
-    with journal.journaled(path, LOCK_WAIT_S, fsync) as fobj:
+    """Journaled read-write session under the writer lock: all of it lands on disk, or none of it (even on
+    SIGKILL). The lock is taken first (it queues writers fairly, see ``_common.lock_exclusive``)."""
+    if not path.exists():
+        raise FileNotFoundError(f"dataset {path} does not exist; check the path")
+    if not path.is_file():
+        raise damaged(path, "not a file")
+    with journal.journaled(path, common.LOCK_WAIT_S, fsync) as fobj:
         try:
+            h5py.File(path, "r", locking=False).close()  # same checks as readers; this session holds the lock
             f = h5py.File(fobj, "r+", libver=LIBVER)
         except OSError as e:
             raise damaged(path, e) from None

@@ -9,15 +9,26 @@ Layout (both formats)::
 Every ``append_episode`` is durable (fsync) and crash safe before it returns: a writer killed at
 any time leaves a dataset holding every episode whose append returned. HDF5 writes go through a
 rollback journal (``<file>-journal``, rolled back by the next reader/writer); zarr demos are
-committed by writing their ``num_samples`` attr last. Half-written demos are invisible to readers
-and removed by the next append. Concurrent writers on one dataset are not supported.
+written under a temporary name (``num_samples`` attr last) and committed by renaming them into
+place. Half-written demos are invisible to readers and removed by the next append.
+
+One writer protocol for both formats: every write session (append, delete, attrs) holds an
+exclusive ``flock`` (HDF5: on the file; zarr: on the store's root ``zarr.json``), queued fairly and
+waited for at most ``_common.LOCK_WAIT_S`` (10 s), else a one-line :class:`DatasetLockedError`
+naming the holder's pid; the demo id is allocated under that lock from the committed demos, so
+writers in several processes interleave their appends and ids never collide. A write the disk
+refuses (ENOSPC, EIO, ...) rolls the session back and raises one line, :class:`DatasetWriteError`
+(an ``OSError``): ``disk full after N episodes; <path> holds M finished episodes``.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import operator
-from collections.abc import Iterable, Mapping
+import os
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -25,7 +36,8 @@ from typing import Any
 import numpy as np
 
 from . import hdf5_store, zarr_store
-from ._common import FORMAT_VERSION, RESERVED_DEMO_ATTRS, damaged, demo_id_of, dumps_env_args, py_scalar
+from ._common import (FORMAT_VERSION, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
+                      DatasetWriteError, damaged, demo_id_of, dumps_env_args, inject_write_fault, py_scalar)
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
@@ -33,7 +45,8 @@ BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
 TIME_ALIGNED = ("obs", "states")  # every array under these has T rows
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
-           "delete_demos", "set_dataset_attrs", "SUFFIXES", "FORMAT_VERSION"]
+           "delete_demos", "set_dataset_attrs", "SUFFIXES", "FORMAT_VERSION",
+           "DatasetLockedError", "DatasetWriteError", "inject_write_fault"]
 
 
 # ----------------------------------------------------------------------------- dispatch / checks
@@ -91,6 +104,37 @@ def _as_id(demo_id: int | str) -> int:
             raise KeyError(f"bad demo id {demo_id!r}: use an int or 'demo_<i>'")
         return parsed
     return operator.index(demo_id)
+
+
+def _episodes(n: int, kind: str = "") -> str:
+    return f"{n} {kind}episode" if n == 1 else f"{n} {kind}episodes"
+
+
+def _medium_errno(exc: OSError) -> int | None:
+    """errno of an error of the storage medium (disk full, I/O error, ...), else None."""
+    if exc.errno in STORAGE_ERRNOS:
+        return exc.errno
+    text = str(exc).lower()  # h5py reports some OS errors in words only
+    return next((e for e in STORAGE_ERRNOS if os.strerror(e).lower() in text), None)
+
+
+@contextmanager
+def _medium_errors(p: Path, backend: ModuleType, done: str) -> Iterator[None]:
+    """Turn a write the disk refused into one line, :class:`DatasetWriteError` (others pass unchanged)."""
+    try:
+        yield
+    except OSError as exc:
+        err = _medium_errno(exc)
+        if err is None or isinstance(exc, DatasetWriteError):
+            raise
+        try:
+            holds = f"{p} holds {_episodes(len(backend.info(p)['demos']), 'finished ')}"
+        except FileNotFoundError:
+            holds = f"nothing was written to {p}"
+        except (OSError, ValueError):
+            holds = f"{p} could not be read back"
+        words = "disk full" if err in (errno.ENOSPC, errno.EDQUOT) else os.strerror(err).lower()
+        raise DatasetWriteError(f"{words} {done}; {holds}", err) from None
 
 
 def _missing_id(p: Path, demo_id: Any, ids: list[int]) -> KeyError:
@@ -159,6 +203,8 @@ class EpisodeWriter:
     def __init__(self, path: Path, backend: ModuleType, fmt: str, task_id: str, fsync: bool) -> None:
         self.path, self.format, self.task_id = path, fmt, task_id
         self._backend, self._fsync, self._closed = backend, fsync, False
+        self.appended = 0
+        """Episodes this writer has appended."""
 
     @classmethod
     def open(cls, path: str | Path, *, task_id: str, env_args: Mapping[str, Any],
@@ -179,7 +225,8 @@ class EpisodeWriter:
                 "task_id": task_id, "format_version": FORMAT_VERSION}
         if not p.exists():
             try:
-                backend.create(p, root, fsync)
+                with _medium_errors(p, backend, "while creating it"):
+                    backend.create(p, root, fsync)
                 return cls(p, backend, fmt, task_id, fsync)
             except FileExistsError:
                 pass  # created concurrently: validate it like any existing dataset
@@ -195,7 +242,10 @@ class EpisodeWriter:
         if self._closed:
             raise RuntimeError(f"EpisodeWriter for {self.path} is closed")
         tree, steps = _normalize_episode(episode)
-        return self._backend.append(self.path, tree, _demo_attrs(success, attrs), steps, self._fsync)
+        with _medium_errors(self.path, self._backend, f"after {_episodes(self.appended)}"):
+            demo_id = self._backend.append(self.path, tree, _demo_attrs(success, attrs), steps, self._fsync)
+        self.appended += 1
+        return demo_id
 
     def close(self) -> None:
         """Mark the writer closed (every append is already on disk)."""
@@ -233,7 +283,8 @@ def read_dataset_info(path: str | Path) -> dict[str, Any]:
 def set_dataset_attrs(path: str | Path, attrs: Mapping[str, Any]) -> None:
     """Update scalar / string attrs of the ``data`` group (e.g. ``provenance`` JSON); crash safe."""
     p, backend, _ = _existing(path)
-    backend.set_root_attrs(p, {k: py_scalar(v, k) for k, v in attrs.items()})
+    with _medium_errors(p, backend, "while setting dataset attrs"):
+        backend.set_root_attrs(p, {k: py_scalar(v, k) for k, v in attrs.items()})
 
 
 def list_demos(path: str | Path) -> list[int]:
@@ -262,5 +313,6 @@ def delete_demos(path: str | Path, ids: Iterable[int | str]) -> list[int]:
         if i not in present:
             raise _missing_id(p, i, present)
     if wanted:
-        backend.delete(p, wanted)
+        with _medium_errors(p, backend, "while deleting demos"):
+            backend.delete(p, wanted)
     return [i for i in present if i not in wanted]
