@@ -130,6 +130,37 @@ def held_for(ctx: TaskContext, w: int, slot: int, cond: bool, steps: int) -> boo
 
 
 @wp.func
+def row_diverged(ctx: TaskContext, w: int, max_dist: float, max_lin_speed: float, max_ang_speed: float) -> bool:
+    """True when row ``w``'s simulation has diverged: any body position farther than ``max_dist`` [m] from the
+    env origin (worlds share the world origin: the scene is replicated without spacing), any body linear speed
+    above ``max_lin_speed`` [m/s] or angular speed above ``max_ang_speed`` [rad/s], or any non-finite body pose,
+    body velocity, joint coordinate or joint velocity. Comparisons are written ``not (x <= bound)`` so NaN fails."""
+    d2 = max_dist * max_dist
+    v2 = max_lin_speed * max_lin_speed
+    a2 = max_ang_speed * max_ang_speed
+    bad = bool(False)
+    b0 = w * ctx.bodies_per_world
+    for i in range(ctx.bodies_per_world):
+        t = ctx.body_q[b0 + i]
+        v = ctx.body_qd[b0 + i]  # Newton twist: linear [m/s] first, angular [rad/s] last
+        if not (wp.length_sq(wp.transform_get_translation(t)) <= d2):
+            bad = True
+        if not wp.isfinite(wp.transform_get_rotation(t)):
+            bad = True
+        if not (wp.length_sq(wp.spatial_top(v)) <= v2) or not (wp.length_sq(wp.spatial_bottom(v)) <= a2):
+            bad = True
+    c0 = w * ctx.coords_per_world
+    for i in range(ctx.coords_per_world):
+        if not wp.isfinite(ctx.joint_q[c0 + i]):
+            bad = True
+    q0 = w * ctx.dofs_per_world
+    for i in range(ctx.dofs_per_world):
+        if not wp.isfinite(ctx.joint_qd[q0 + i]):
+            bad = True
+    return bad
+
+
+@wp.func
 def write_vec3(out: wp.array2d(dtype=float), w: int, col: int, v: wp.vec3):
     for i in range(3):
         out[w, col + i] = v[i]

@@ -3,7 +3,11 @@
 A task declares its logic as ``@wp.func`` terms (see ``newton_lab.task_api.cfg``); this module turns them
 into exactly three kernels per task id, each launched once per env step / reset:
 
-* ``task_step``: phase advance, latched success, failure terminations, time-out, reward;
+* ``task_step``: phase advance, latched success, failure terminations, time-out, reward, and the divergence
+  guard: it takes ``divergence = (max body distance [m], linear speed [m/s], angular speed [rad/s])``
+  (``TaskCfg.divergence_bounds``); a row whose state breaks them or is non-finite (``context.row_diverged``)
+  terminates with ``REASON_DIVERGED`` (over any other reason), no success and zero reward, and is reset
+  like any finished row;
 * ``observe``: every observation term written into one (num_envs, obs_dim) buffer, plus the subtask
   signals (on the post-reset state, so a recorded frame's signals describe its observation);
 * ``reset``: masked reset of the selected rows to their defaults, then the task's reset events
@@ -17,12 +21,16 @@ from __future__ import annotations
 
 import warp as wp
 
-from .context import TaskContext
+from .context import TaskContext, row_diverged
 
+# Termination reason codes the task kernel writes; ``TaskCfg.termination_reasons`` names them in this order
+# (``BUILTIN_TERMINATION_REASONS``, then the task's failure terms).
 REASON_NONE = 0
 REASON_SUCCESS = 1
 REASON_TIME_OUT = 2
-FIRST_FAILURE_REASON = 3
+REASON_DIVERGED = 3
+"""The row's body state went non-finite or absurd (``row_diverged``); wins over every other reason."""
+FIRST_FAILURE_REASON = 4
 
 
 def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_success=True):
@@ -36,20 +44,16 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
         rewards: ``(func(ctx, w) -> float, weight)`` pairs, summed.
         terminate_on_success: end the episode when the last phase succeeds.
     """
-    phase_fns = tuple(phase_success)
-    n_phase = len(phase_fns)
-    term_fns = tuple(f for f, _ in terminations)
-    term_phase = tuple(int(p) for _, p in terminations)
-    n_term = len(term_fns)
-    reward_fns = tuple(f for f, _ in rewards)
-    reward_w = tuple(float(w) for _, w in rewards)
-    n_reward = len(reward_fns)
-    end_on_success = bool(terminate_on_success)
+    phase_fns, end_on_success = tuple(phase_success), bool(terminate_on_success)
+    term_fns, term_phase = tuple(f for f, _ in terminations), tuple(int(p) for _, p in terminations)
+    reward_fns, reward_w = tuple(f for f, _ in rewards), tuple(float(w) for _, w in rewards)
+    n_phase, n_term, n_reward = len(phase_fns), len(term_fns), len(reward_fns)
 
     @wp.kernel(module="unique")
     def task_step(
         ctx: TaskContext,
         max_episode_steps: int,
+        divergence: wp.vec3,
         reward: wp.array(dtype=float),
         terminated: wp.array(dtype=bool),
         truncated: wp.array(dtype=bool),
@@ -73,6 +77,8 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
                         ctx.phase[w] = p + 1
                         for j in range(ctx.hold.shape[1]):  # hold counters restart in the new phase
                             ctx.hold[w, j] = 0
+        diverged = row_diverged(ctx, w, divergence[0], divergence[1], divergence[2])
+        succ = succ and not diverged  # diverged wins over success
         if succ:
             success_latched[w] = True
         code = int(REASON_NONE)
@@ -85,6 +91,8 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
         if succ and wp.static(end_on_success):
             term = True
             code = REASON_SUCCESS
+        term = term or diverged
+        code = wp.where(diverged, REASON_DIVERGED, code)
         trunc = bool(False)
         if not term and step >= max_episode_steps:
             trunc = True
@@ -94,7 +102,7 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
             r += wp.static(reward_w[k]) * wp.static(reward_fns[k])(ctx, w)
         for j in range(ctx.actions.shape[1]):
             ctx.prev_actions[w, j] = ctx.actions[w, j]
-        reward[w] = r
+        reward[w] = wp.where(diverged, 0.0, r)
         terminated[w] = term
         truncated[w] = trunc
         done[w] = term or trunc
@@ -211,9 +219,20 @@ def world_to_articulation_mask(
 
 
 @wp.kernel
-def clear_solver_warmstart(world_mask: wp.array(dtype=bool), qacc_warmstart: wp.array2d(dtype=float)):
-    """Zero the solver's warm-start accelerations of reset worlds (a stale warm start from the previous
-    episode makes the first step after a reset converge badly: stacked cubes sink into each other)."""
+def clear_solver_warmstart(
+    world_mask: wp.array(dtype=bool),
+    qacc_warmstart: wp.array2d(dtype=float),
+    qacc: wp.array2d(dtype=float),
+    qvel: wp.array2d(dtype=float),
+):
+    """Zero the solver's per-world accelerations and velocities of reset worlds, launched over (worlds, nv).
+
+    A stale warm start from the previous episode makes the first step after a reset converge badly (stacked
+    cubes sink into each other), and a diverged world leaves NaN in them that must not reach its next episode
+    (``qpos`` / ``qvel`` are pushed from the Newton state before every solver step; the rest of MuJoCo's data
+    is recomputed from those)."""
     w, i = wp.tid()
     if world_mask[w]:
         qacc_warmstart[w, i] = 0.0
+        qacc[w, i] = 0.0
+        qvel[w, i] = 0.0

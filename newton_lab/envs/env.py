@@ -192,7 +192,7 @@ class NewtonEnv:
         wp.launch(
             self._task_kernel,
             dim=self.num_envs,
-            inputs=[self._ctx, self.cfg.max_episode_steps],
+            inputs=[self._ctx, self.cfg.max_episode_steps, wp.vec3(*self.cfg.divergence_bounds)],
             outputs=[
                 self._reward,
                 self._terminated,
@@ -227,8 +227,9 @@ class NewtonEnv:
             inputs=[mask, self.model.articulation_world, self._art_mask],
         )
         newton.eval_fk(self.model, self.state.joint_q, self.state.joint_qd, self.state, mask=self._art_mask)
-        warmstart = self.solver.mjw_data.qacc_warmstart
-        wp.launch(fuse.clear_solver_warmstart, dim=warmstart.shape, inputs=[mask, warmstart])
+        data = self.solver.mjw_data  # the reset worlds' solver history (NaN after a divergence) is cleared
+        wp.launch(fuse.clear_solver_warmstart, dim=data.qacc_warmstart.shape,
+                  inputs=[mask, data.qacc_warmstart, data.qacc, data.qvel])
 
     def _write_signals(self, out: wp.array2d) -> None:
         if self._signal_kernel is not None:
@@ -262,7 +263,8 @@ class NewtonEnv:
             (overwritten by the next step). Rows that finished were reset in the same step: ``obs`` is
             their new episode's first observation, and ``info`` holds the finished episode's
             ``success``, ``termination_reason``, ``episode_length`` and ``step_signals`` (subtask
-            signals of the state the step reached; ``info["signals"]`` belong to ``obs``).
+            signals of the state the step reached; ``info["signals"]`` belong to ``obs``). A row whose
+            physics diverged (non-finite or beyond ``cfg.divergence_bounds``) ends with reason ``diverged``.
         """
         self.actions.copy_(self.check_actions(actions))
         if self._graph is not None:

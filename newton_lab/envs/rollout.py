@@ -2,7 +2,9 @@
 
 Rows run episodes independently; a row's episode ends when the task terminates or truncates it (the env
 resets it inside the step) or when it reaches ``max_steps`` (reset here). Each finished episode is
-written and durable before the next step runs.
+written and durable before the next step runs. A row whose physics diverged ends with reason ``diverged``
+(the env's divergence guard); ``collect`` never writes such an episode, nor any episode holding a non-finite
+value, and both summaries count them (``diverged``).
 """
 
 from __future__ import annotations
@@ -17,11 +19,12 @@ import warp as wp
 from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
+from ..task_api.cfg import DIVERGED
 from .scenario import capture_scenario
 
 REASON_MAX_STEPS = "max_steps"
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
-                    "subtask_signals")
+                    "diverged", "subtask_signals")
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
 
 
@@ -100,6 +103,17 @@ def _first_frame(tree: dict[str, Any]) -> dict[str, Any]:
     return {k: _first_frame(v) if isinstance(v, dict) else v[:1] for k, v in tree.items()}
 
 
+def all_finite(tree: dict[str, Any]) -> bool:
+    """Every floating-point array of a nested episode dict holds only finite values."""
+    for v in tree.values():
+        if isinstance(v, dict):
+            if not all_finite(v):
+                return False
+        elif np.issubdtype(np.asarray(v).dtype, np.floating) and not np.isfinite(v).all():
+            return False
+    return True
+
+
 def env_args(env) -> dict[str, Any]:
     """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
     return {
@@ -157,7 +171,7 @@ class _Episodes:
         rec = {
             "env_index": int(row),
             "length": int(self.step_in_ep[row]),
-            "success": bool(self.latched[row]),
+            "success": bool(self.latched[row]) and reason != DIVERGED,
             "reward_total": float(self.reward_total[row]),
             "termination_reason": reason,
             "signals_reached": [name for name, hit in zip(self.env.signal_names, self.reached[row].tolist()) if hit],
@@ -252,6 +266,7 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "average_length": row_steps / max(len(records), 1),
         "reward_totals": [r["reward_total"] for r in records],
         "termination_reasons": reasons,
+        "diverged": reasons.get(DIVERGED, 0),
         # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
         "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.signal_names},
         "vector_steps": vector_steps,
@@ -273,9 +288,10 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
 
     By default ``episodes`` episodes are run and all are written. With ``only_successes`` the loop runs
     until ``episodes`` successful ones are written (at most ``max_attempts`` attempts) and failures are
-    counted but not written (Mimic generation). Returns a ``DatasetRef`` whose ``metadata`` is the
-    summary (episodes, successes, success_rate, lengths, termination reasons, saved_demo_ids, ...);
-    ``ref["success_rate"]`` reads it.
+    counted but not written (Mimic generation). Diverged episodes (and any episode holding a non-finite value)
+    are never written: they count as failed attempts, under ``diverged`` and ``termination_reasons``.
+    Returns a ``DatasetRef`` whose ``metadata`` is the summary (episodes, successes, success_rate, lengths,
+    termination reasons, diverged, saved_demo_ids, ...); ``ref["success_rate"]`` reads it.
     """
     task_id = dataset_task_id or env.task_id
     if save_end_scenario is not None:
@@ -290,10 +306,13 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     saved: list[int] = []
 
     def write(row: int, rec: dict[str, Any]) -> dict[str, Any]:
-        if only_successes and not rec["success"]:
+        if rec["termination_reason"] == DIVERGED or (only_successes and not rec["success"]):
             return {}
+        episode = recorder.episode(row, rec["length"])
+        if not all_finite(episode):  # diverged without tripping the guard: dropped and counted as diverged
+            return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
         demo = writer.append_episode(
-            recorder.episode(row, rec["length"]),
+            episode,
             success=rec["success"],
             attrs={
                 "termination_reason": rec["termination_reason"],
@@ -319,7 +338,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
     cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.randomize, "max_steps": max_steps,
            "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
-    keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts")
+    keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
 
 

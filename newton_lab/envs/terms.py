@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..kernels import fuse
-from ..task_api.cfg import DERIVED_SIZES, TaskCfg
+from ..task_api.cfg import BUILTIN_TERMINATION_REASONS, DERIVED_SIZES, TaskCfg
 
 
 def observation_layout(cfg: TaskCfg, derived: dict[str, int]) -> dict[str, slice]:
@@ -38,6 +38,10 @@ class TaskKernels:
 
 def build_task_kernels(cfg: TaskCfg, obs_layout: dict[str, slice]) -> TaskKernels:
     """Fuse ``cfg``'s terms into its kernels."""
+    clash = sorted(set(cfg.terminations) & set(BUILTIN_TERMINATION_REASONS))
+    if clash:
+        raise ValueError(f"{cfg.task_id}: termination terms may not be named {clash}; those names are the env's "
+                         f"own reasons {list(BUILTIN_TERMINATION_REASONS)}; rename the terms")
     return TaskKernels(
         task=fuse.build_task_kernel(
             phase_success=cfg.phase_success,

@@ -75,6 +75,14 @@ ARM_JOINTS = "arm_joints"
 """Observation width the env derives: the controlled arm's joints."""
 DERIVED_SIZES = (ACTION_DIM, ROBOT_COORDS, ARM_JOINTS)
 
+DIVERGED = "diverged"
+"""Termination reason of a row whose simulation diverged (non-finite or absurd body state, see
+``TaskCfg.max_body_distance``); ``collect`` drops such episodes and counts them."""
+BUILTIN_TERMINATION_REASONS = ("none", "success", "time_out", DIVERGED)
+"""Names of the reason codes the fused task kernel writes before the task's failure terms
+(``newton_lab.kernels.fuse.REASON_NONE`` .. ``REASON_DIVERGED``; failure term ``i`` is code
+``FIRST_FAILURE_REASON + i``)."""
+
 
 @dataclass(frozen=True, kw_only=True)
 class TermCfg:
@@ -167,6 +175,13 @@ class TaskCfg:
     constraints_per_world: int | None = None
     """MuJoCo constraint-row capacity per world (``njmax``); ``None`` keeps Newton's default."""
     terminate_on_success: bool = True
+    max_body_distance: float = 50.0
+    """Divergence guard: a body farther than this from its env origin ends the row (reason ``diverged``) [m]."""
+    max_body_linear_speed: float = 100.0
+    """Divergence guard: a body moving faster than this ends the row (reason ``diverged``) [m/s]."""
+    max_body_angular_speed: float = 1000.0
+    """Divergence guard: a body spinning faster than this ends the row (reason ``diverged``) [rad/s]. Non-finite
+    body poses, velocities, joint coordinates or joint velocities always do."""
     options: dict[str, Any] = field(default_factory=dict)
     """The task options this cfg was built with (recorded in dataset env_args)."""
 
@@ -183,6 +198,11 @@ class TaskCfg:
         return [p.name for p in self.phases] if self.phases else ["task"]
 
     @property
+    def divergence_bounds(self) -> tuple[float, float, float]:
+        """(max body distance [m], linear speed [m/s], angular speed [rad/s]) the task kernel guards."""
+        return (float(self.max_body_distance), float(self.max_body_linear_speed), float(self.max_body_angular_speed))
+
+    @property
     def termination_reasons(self) -> list[str]:
         """Reason names indexed by the codes the task kernel writes."""
-        return ["none", "success", "time_out", *self.terminations]
+        return [*BUILTIN_TERMINATION_REASONS, *self.terminations]
