@@ -3,6 +3,7 @@ file is written (the working folder is left as it was)."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -38,3 +39,20 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message
     assert out.returncode == 2, (out.returncode, out.stderr)
     assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
+    """The injected ENOSPC (the writer's test seam) hits after the first episode: exit 1, one line saying what
+    the dataset holds, and that episode stays readable."""
+    from newton_lab.datasets import read_dataset_info, read_episode
+
+    env = {**os.environ, "NEWTON_LAB_TEST_WRITE_FAULT": "200"}
+    argv = ["collect", "--episodes", "4", "--num-envs", "1", "--max-steps", "5", "--dataset-path", "d.hdf5",
+            "--no-progress"]
+    out = subprocess.run([sys.executable, "-m", "newton_lab.cli", *argv], cwd=tmp_path, capture_output=True,
+                         text=True, env=env)
+    errors = [line for line in out.stderr.splitlines() if "CUDA driver" not in line]
+    assert out.returncode == 1 and len(errors) == 1, out.stderr
+    assert "disk full after 1 episode; d.hdf5 holds 1 finished episode" in errors[0]
+    assert read_dataset_info(tmp_path / "d.hdf5")["demo_ids"] == [0]
+    assert read_episode(tmp_path / "d.hdf5", 0)["actions"].shape[0] == 5

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from .. import commands as c
+from ..datasets import DatasetWriteError
 from . import run
 from .parsing import REQUIRED, add_arguments, from_namespace, parse_args
 
@@ -63,6 +64,9 @@ def main(argv: list[str] | None = None) -> int:
         c.check_args(args)  # before Warp, Newton or torch is imported and before any file is created
         run.quiet_warp()
         return cmd.run(args)
+    except DatasetWriteError as exc:  # the disk refused a write: the run stops, the dataset keeps what it had
+        print(f"newton-lab {ns.command}: error: {exc}", file=sys.stderr)
+        return 1
     except ERRORS as exc:
         msg = exc.args[0] if exc.args else str(exc)
         print(f"newton-lab {ns.command}: error: {msg}", file=sys.stderr)

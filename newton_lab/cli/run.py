@@ -16,7 +16,7 @@ from ..flows.settings import configure
 from ..task_api.registry import list_tasks, lookup
 
 COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
-                       "termination_reasons", "subtask_signals")
+                       "termination_reasons", "diverged", "subtask_signals")
 """Keys of the collect summary printed by ``newton-lab collect`` (then ``wall_time_s``)."""
 
 
@@ -98,7 +98,7 @@ def train(args: TrainArgs) -> int:
     from ..policies import Policy  # deferred: torch is slow to import
     from ..policies.diffusion import PRESETS  # deferred: torch is slow to import
 
-    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS))
+    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS), resume=args.resume)
     print(json.dumps({"checkpoint": str(path)}))
     return 0
 
