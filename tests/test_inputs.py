@@ -79,6 +79,13 @@ def test_reset_rows_out_of_range(pick_env):
     assert "[0, 2)" in _one_line(e.value)
 
 
+@pytest.mark.parametrize("ids", [torch.tensor([0.5]), torch.tensor([True, False]), np.array([1.0])])
+def test_reset_rows_must_be_integers(pick_env, ids):
+    with pytest.raises(ValueError) as e:
+        pick_env.reset(ids)
+    assert "integer row indices" in _one_line(e.value)
+
+
 def test_planner_for_unknown_task():
     from newton_lab.agents import PlannerAgent
 

@@ -280,7 +280,11 @@ class NewtonEnv:
         if env_ids is None:
             mask[:] = True
         else:
-            ids = np.asarray(torch.as_tensor(env_ids).cpu(), dtype=np.int64).reshape(-1)
+            given = torch.as_tensor(env_ids).cpu()
+            if given.numel() and (given.dtype.is_floating_point or given.dtype.is_complex or given.dtype == torch.bool):
+                raise ValueError(f"env_ids must be integer row indices, got dtype {given.dtype}; pass e.g. "
+                                 f"torch.nonzero(mask).flatten() for a boolean mask")
+            ids = given.numpy().astype(np.int64).reshape(-1)
             if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
                 raise ValueError(f"env_ids must lie in [0, {self.num_envs}), got {ids.tolist()}")
             mask[ids] = True
