@@ -89,15 +89,22 @@ def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic")
 
 
 def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy") -> dict[str, Any]:
-    """Diffusion policy on a dataset artifact -> checkpoint artifact."""
+    """Diffusion policy on a dataset artifact -> checkpoint artifact. An interrupted run (its folder holds a
+    ``resume.pt``) is continued; any other leftover of it is removed first."""
     from ..policies import Policy  # deferred: torch is slow to import
+    from ..policies.resume import RESUME_NAME  # deferred: torch is slow to import
 
     out = Path(out_dir)
     inputs = {"stage": "train", "dataset": dataset["sha256"], "train_cfg": train_cfg}
     if (done := _guard(out, name, inputs)) is not None:
         return done
-    run_dir = _fresh(out / name)
-    ckpt = Policy.from_backend(BACKEND).train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)})
+    run_dir = out / name
+    resume = (run_dir / RESUME_NAME).is_file()
+    for leftover in (list(run_dir.iterdir()) if resume else [run_dir]):
+        if leftover.name != RESUME_NAME:
+            _fresh(leftover)
+    ckpt = Policy.from_backend(BACKEND).train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)},
+                                              resume=resume)
     log_path = Path(ckpt).parent / "train_log.json"
     final_loss = json.loads(log_path.read_text()).get("final_loss") if log_path.exists() else None
     return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=final_loss))

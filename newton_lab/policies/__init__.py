@@ -30,9 +30,11 @@ class DiffusionBackend:
     name = "diffusion"
     config_class = DiffusionPolicyConfig
 
-    def train(self, dataset: str | Path | Any, train_cfg: dict[str, Any] | DiffusionPolicyConfig | None = None) -> Path:
-        """Train on ``dataset`` (path or object with ``.path``); returns the written checkpoint path."""
-        return train(dataset, train_cfg)
+    def train(self, dataset: str | Path | Any, train_cfg: dict[str, Any] | DiffusionPolicyConfig | None = None, *,
+              resume: bool = False) -> Path:
+        """Train on ``dataset`` (path or object with ``.path``); returns the written checkpoint path. ``resume``:
+        continue the interrupted run of ``output_dir`` from its ``resume.pt``."""
+        return train(dataset, train_cfg, resume=resume)
 
     def load_policy(self, path: str | Path, *, device: str = "cpu") -> DiffusionPolicy:
         """Load a checkpoint written by ``train`` / ``DiffusionPolicy.save``."""

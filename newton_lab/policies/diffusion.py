@@ -95,6 +95,11 @@ class DiffusionPolicyConfig:
     """Where train() writes checkpoint.pt and train_log.json."""
     progress: bool = True
     """Show a tqdm progress bar while training."""
+    checkpoint_every_steps: int | None = 500
+    """Write the resume file ``<output_dir>/resume.pt`` every this many optimiser steps (None: not by steps)."""
+    checkpoint_every_s: float | None = 300.0
+    """Also write it when this many seconds passed since the last one (None: not by time); a killed run then
+    continues from it with ``train(..., resume=True)`` / ``newton-lab train --resume``."""
 
     def __post_init__(self) -> None:
         self.down_dims = tuple(int(d) for d in self.down_dims)
@@ -124,6 +129,10 @@ class DiffusionPolicyConfig:
             (self.max_steps is None or self.max_steps >= 1, f"max_steps must be None or >= 1, got {self.max_steps}"),
             (self.time_budget_s is None or self.time_budget_s > 0,
              f"time_budget_s must be None or > 0, got {self.time_budget_s}"),
+            (self.checkpoint_every_steps is None or self.checkpoint_every_steps >= 1,
+             f"checkpoint_every_steps must be None or >= 1, got {self.checkpoint_every_steps}"),
+            (self.checkpoint_every_s is None or self.checkpoint_every_s > 0,
+             f"checkpoint_every_s must be None or > 0, got {self.checkpoint_every_s}"),
             (self.warmup_steps >= 0 and self.num_workers >= 0,
              f"warmup_steps and num_workers must be >= 0, got {self.warmup_steps} and {self.num_workers}"),
         ]

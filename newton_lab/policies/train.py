@@ -2,6 +2,9 @@
 
 Existing checkpoints are never replaced: when ``<output_dir>/checkpoint.pt`` exists, the run is written
 to the first free ``checkpoint-<k>.pt`` (with a matching ``train_log-<k>.json``) and a warning names it.
+While it runs, ``<output_dir>/resume.pt`` is replaced atomically every ``checkpoint_every_steps`` steps or
+``checkpoint_every_s`` seconds (``newton_lab.policies.resume``); ``train(..., resume=True)`` continues from it
+and it is deleted once the final checkpoint is written.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +25,11 @@ from tqdm import tqdm
 
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
-from .train_step import CudaGraphTrainStep, make_train_step, set_lr, steps_per_epoch
+from .resume import (RESUME_FORMAT, RESUME_VERSION, capture_rng, check_resumable, data_fingerprint, load_resume,
+                     policy_state, refuse_fresh_run, remove_stale_temps, restore_policy, restore_rng, resume_path,
+                     resumed_config, write_atomic)
+from .train_step import (CudaGraphTrainStep, EagerTrainStep, load_optimizer_state, make_train_step, set_lr,
+                         steps_per_epoch)
 
 
 def as_config(cfg: DiffusionPolicyConfig | dict[str, Any] | None) -> DiffusionPolicyConfig:
@@ -112,62 +120,154 @@ def _continue(policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPoli
     return policy
 
 
-def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None) -> Path:
+@dataclass
+class Progress:
+    """The loop's own state (saved in the resume file): steps, the planned total (re-planned to a time budget),
+    the epoch log and the running epoch's step losses (device tensors, read back at the epoch end)."""
+
+    total: int
+    cap: int
+    step: int = 0
+    rate_from: tuple[int, float] = (50, 0.0)  # (step, time): the rate is measured after the first 50 steps
+    epochs: list[dict[str, Any]] = field(default_factory=list)
+    losses: list[torch.Tensor] = field(default_factory=list)
+    elapsed_s: float = 0.0
+    resumed_at: list[int] = field(default_factory=list)
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"total": self.total, "cap": self.cap, "step": self.step, "rate_from": tuple(self.rate_from),
+                "epochs": self.epochs, "elapsed_s": self.elapsed_s, "resumed_at": self.resumed_at,
+                "losses": torch.stack(self.losses).cpu() if self.losses else torch.zeros(0)}
+
+    @classmethod
+    def from_state_dict(cls, state: dict[str, Any], device: torch.device) -> Progress:
+        return cls(**{**state, "rate_from": tuple(state["rate_from"]), "epochs": list(state["epochs"]),
+                      "resumed_at": list(state["resumed_at"]), "losses": list(state["losses"].to(device).unbind())})
+
+
+class Checkpointer:
+    """Writes the resume file when due: every ``checkpoint_every_steps`` steps or ``checkpoint_every_s`` seconds."""
+
+    def __init__(self, cfg: DiffusionPolicyConfig, out_dir: Path, policy: DiffusionPolicy,
+                 stepper: EagerTrainStep | CudaGraphTrainStep, data: SequenceDataset) -> None:
+        self.cfg, self.path, self.policy, self.stepper, self.data = cfg, resume_path(out_dir), policy, stepper, data
+        self.last = time.perf_counter()
+        self.fingerprint: str | None = None
+
+    def due(self, step: int) -> bool:
+        every_steps, every_s = self.cfg.checkpoint_every_steps, self.cfg.checkpoint_every_s
+        return bool((every_steps and step % every_steps == 0)
+                    or (every_s and time.perf_counter() - self.last >= every_s))
+
+    def save(self, progress: Progress) -> None:
+        self.fingerprint = self.fingerprint or data_fingerprint(self.data)
+        payload = {"format": RESUME_FORMAT, "version": RESUME_VERSION, "config": self.cfg.to_dict(),
+                   "policy": policy_state(self.policy), "optimizer": self.stepper.optimizer.state_dict(),
+                   "data_order": self.stepper.state_dict(), "progress": progress.state_dict(), "rng": capture_rng(),
+                   "data": {"fingerprint": self.fingerprint, "source": self.data.source}}
+        write_atomic(payload, self.path)
+        self.last = time.perf_counter()
+
+    def finish(self) -> None:
+        """The run's final checkpoint is written: its resume file has served."""
+        self.path.unlink(missing_ok=True)
+
+
+def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep, task_id: str,
+          cfg: DiffusionPolicyConfig, run: Progress, checkpointer: Checkpointer) -> None:
+    """Optimiser steps until ``run.total`` (re-planned to ``cfg.time_budget_s``), from ``run.step`` on."""
+    lr_factor = warmup_cosine(cfg.warmup_steps, lambda: run.total)
+    t0 = time.perf_counter() - run.elapsed_s  # a resumed run's budget counts the time before the interruption
+    policy.model.train()
+    set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
+    with tqdm(total=run.total, initial=run.step, desc=f"diffusion policy {task_id}", unit="step",
+              disable=not cfg.progress) as bar:
+        while run.step < run.total:
+            for loss in stepper.epoch():
+                run.losses.append(loss)  # no host sync per step: read back every 50 steps
+                run.step += 1
+                bar.update()
+                if cfg.time_budget_s is not None:
+                    elapsed = time.perf_counter() - t0
+                    run.total = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
+                    if run.step == run.rate_from[0]:
+                        run.rate_from = (run.step, elapsed)
+                    bar.total = run.total
+                if run.step % 50 == 0:
+                    bar.set_postfix(loss=f"{run.losses[-1].item():.4f}", epoch=len(run.epochs) + 1, refresh=False)
+                if run.step >= run.total:
+                    break
+                set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
+                if checkpointer.due(run.step):
+                    run.elapsed_s = time.perf_counter() - t0
+                    checkpointer.save(run)
+            run.epochs.append({"epoch": len(run.epochs) + 1, "loss": torch.stack(run.losses).mean().item(),
+                               "steps": run.step, "lr": cfg.lr * lr_factor(run.step)})
+            run.losses = []
+    run.elapsed_s = time.perf_counter() - t0
+
+
+def _resume(state: dict[str, Any], policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep) -> Progress:
+    """Optimizer, data order and loop state of the interrupted run; its RNG states are restored when the first
+    resumed epoch has rewound its data order (the DataLoader draws from them at an epoch start)."""
+    load_optimizer_state(stepper.optimizer, state["optimizer"])
+    stepper.load_state_dict(state["data_order"], then=lambda: restore_rng(state["rng"]))
+    run = Progress.from_state_dict(state["progress"], policy.device)
+    run.resumed_at.append(run.step)
+    return run
+
+
+def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None, *,
+          resume: bool = False) -> Path:
     """Train a diffusion policy on a dataset (a path, an object with ``.path``, or a list of them: same task and
-    action columns, trained as one); returns the checkpoint path."""
+    action columns, trained as one); returns the checkpoint path. ``resume``: continue the interrupted run whose
+    resume file is in ``cfg.output_dir`` (same dataset and settings); without it, such a file is refused."""
     cfg = as_config(cfg)
     many = isinstance(dataset, (list, tuple))
     paths = [Path(getattr(d, "path", d)).expanduser() for d in (dataset if many else [dataset])]
     for path in paths:
         if not path.exists():
             raise FileNotFoundError(f"dataset {path} does not exist; check the path")
+    out_dir = Path(cfg.output_dir).expanduser()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"output_dir {out_dir} is a file; pass a folder for the checkpoint")
+    if not resume:
+        refuse_fresh_run(out_dir)
+    state = load_resume(out_dir) if resume else None
     torch.manual_seed(cfg.seed)
     start = None
-    if cfg.init_checkpoint is not None:
+    if state is not None:
+        cfg = resumed_config(state, cfg)
+    elif cfg.init_checkpoint is not None:
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
     data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
-    policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device) if start is None else _continue(start, data, cfg)
+    if state is not None:
+        check_resumable(state, cfg, data, out_dir)
+        policy = restore_policy(state, cfg)
+    elif start is None:
+        policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
+    else:
+        policy = _continue(start, data, cfg)
     stepper = make_train_step(policy, data, cfg)
     per_epoch = steps_per_epoch(data, cfg.batch_size)
     total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
-    lr_factor = warmup_cosine(cfg.warmup_steps, lambda: total)
-    cap = total
-    rate_from = (50, 0.0)  # (step, time): the rate is measured after the first 50 steps (warm-up, autotuning)
+    run = Progress(total=total, cap=total) if state is None else _resume(state, policy, stepper)
+    if out_dir.is_dir():
+        remove_stale_temps(out_dir)
+    checkpointer = Checkpointer(cfg, out_dir, policy, stepper, data)
+    _loop(policy, stepper, data.task_id, cfg, run, checkpointer)
 
-    epochs: list[dict[str, Any]] = []
-    step, t0 = 0, time.perf_counter()
-    policy.model.train()
-    set_lr(stepper.optimizer, cfg.lr * lr_factor(0))
-    with tqdm(total=total, desc=f"diffusion policy {data.task_id}", unit="step", disable=not cfg.progress) as bar:
-        while step < total:
-            losses = []
-            for loss in stepper.epoch():
-                losses.append(loss)  # no host sync per step: read back every 50 steps
-                step += 1
-                bar.update()
-                if cfg.time_budget_s is not None:
-                    elapsed = time.perf_counter() - t0
-                    total = _fit_to_budget(step, elapsed, cfg.time_budget_s, cap, rate_from, total)
-                    if step == rate_from[0]:
-                        rate_from = (step, elapsed)
-                    bar.total = total
-                if step % 50 == 0:
-                    bar.set_postfix(loss=f"{losses[-1].item():.4f}", epoch=len(epochs) + 1, refresh=False)
-                if step >= total:
-                    break
-                set_lr(stepper.optimizer, cfg.lr * lr_factor(step))
-            epochs.append({"epoch": len(epochs) + 1, "loss": torch.stack(losses).mean().item(), "steps": step,
-                           "lr": cfg.lr * lr_factor(step)})
-    wall = time.perf_counter() - t0
-
-    training = {"final_loss": epochs[-1]["loss"], "epochs": len(epochs), "steps": step, "wall_time_s": round(wall, 3),
-                "init_checkpoint": cfg.init_checkpoint, "num_demos": len(data.demos), "num_windows": len(data),
-                "batch_size": cfg.batch_size, "cuda_graph": isinstance(stepper, CudaGraphTrainStep),
+    training = {"final_loss": run.epochs[-1]["loss"], "epochs": len(run.epochs), "steps": run.step,
+                "wall_time_s": round(run.elapsed_s, 3), "init_checkpoint": cfg.init_checkpoint,
+                "num_demos": len(data.demos), "num_windows": len(data), "batch_size": cfg.batch_size,
+                "cuda_graph": isinstance(stepper, CudaGraphTrainStep), "resumed_at_steps": run.resumed_at,
                 "parameters": sum(p.numel() for p in policy.model.parameters()),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     policy.info["training"] = training
     log = {"task_id": data.task_id, "dataset": data.source, **training, "config": cfg.to_dict(),
-           "epoch_log": epochs}
-    return _save_run(policy, Path(cfg.output_dir).expanduser(), log)
+           "epoch_log": run.epochs}
+    path = _save_run(policy, out_dir, log)
+    checkpointer.finish()
+    return path

@@ -9,7 +9,8 @@ tensors written before each replay, and the diffusion noise comes from the graph
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import torch
 from torch.utils.data import DataLoader, RandomSampler
@@ -35,18 +36,67 @@ def set_lr(optimizer: torch.optim.Optimizer, lr: float) -> None:
             group["lr"] = lr
 
 
-class EagerTrainStep:
+def load_optimizer_state(optimizer: torch.optim.Optimizer, state: dict[str, Any]) -> None:
+    """``optimizer.load_state_dict`` that keeps the optimizer's own learning-rate objects (a captured step's
+    device tensors); the caller sets the rate of the next step."""
+    lrs = [group["lr"] for group in optimizer.param_groups]
+    optimizer.load_state_dict(state)
+    for group, lr in zip(optimizer.param_groups, lrs):
+        group["lr"] = lr
+
+
+class ResumableOrder:
+    """Data-order state of a step: the batch-order generator's state at the start of the running epoch and the
+    steps taken in it. ``load_state_dict`` makes the next ``epoch()`` rewind to that epoch, pass over the steps
+    already taken, then call ``then`` (which restores the global RNGs: the DataLoader draws from them when an
+    epoch starts) before the first new step."""
+
+    generator: torch.Generator
+
+    def _init_order(self) -> None:
+        self.epoch_start: torch.Tensor | None = None
+        self.position = 0
+        self._pending: tuple[dict[str, Any], Callable[[], None] | None] | None = None
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"kind": type(self).__name__, "generator": self.epoch_start, "position": self.position}
+
+    def load_state_dict(self, state: dict[str, Any], then: Callable[[], None] | None = None) -> None:
+        if state.get("kind") != type(self).__name__:
+            raise ValueError(f"the interrupted run used the {state.get('kind')} step, this one the "
+                             f"{type(self).__name__}; resume on the same kind of device with the same cuda_graph setting")
+        self._pending = (state, then)
+
+    def _begin_epoch(self) -> int:
+        """Remember the generator state at the epoch start (or rewind to a resumed one); the steps to pass over."""
+        if self._pending is None:
+            self.epoch_start, self.position = self.generator.get_state(), 0
+            return 0
+        state = self._pending[0]
+        self.generator.set_state(state["generator"])
+        self.epoch_start, self.position = state["generator"].clone(), state["position"]
+        return self.position
+
+    def _resumed(self) -> None:
+        if self._pending is not None:
+            then, self._pending = self._pending[1], None
+            if then is not None:
+                then()
+
+
+class EagerTrainStep(ResumableOrder):
     """Batches from a torch DataLoader over the in-memory windows; one Python-driven step per call."""
 
     def __init__(self, policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig) -> None:
         self.policy = policy
+        self._init_order()
         fused = {"fused": True} if policy.device.type == "cuda" else {}
         self.optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas,
                                            weight_decay=cfg.weight_decay, **fused)
         # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh
         # permutations) up to batch_size windows, so every step sees batch_size differently-noised windows.
-        sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size),
-                                generator=torch.Generator().manual_seed(cfg.seed))
+        self.generator = torch.Generator().manual_seed(cfg.seed)
+        sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size), generator=self.generator)
         self.loader = DataLoader(data, batch_size=cfg.batch_size, sampler=sampler, drop_last=True,
                                  num_workers=cfg.num_workers, collate_fn=collate_batch,
                                  persistent_workers=cfg.num_workers > 0)
@@ -54,20 +104,28 @@ class EagerTrainStep:
     def epoch(self) -> Iterator[torch.Tensor]:
         """Run the epoch's steps, yielding each step's (device, detached) loss."""
         policy, optimizer = self.policy, self.optimizer
-        for batch in self.loader:
+        skip = self._begin_epoch()
+        batches = iter(self.loader)
+        for _ in range(skip):  # a resumed epoch: the batches the interrupted run trained on are drawn, not used
+            next(batches)
+        self._resumed()
+        for batch in batches:
             loss = policy.compute_loss(batch)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()
             policy.ema.update(policy.model)
+            self.position += 1
             yield loss.detach()
 
 
-class CudaGraphTrainStep:
-    """The same step with windows on the GPU, captured on the 4th call and replayed from then on."""
+class CudaGraphTrainStep(ResumableOrder):
+    """The same step with windows on the GPU, captured on the 4th call and replayed from then on (a resumed run
+    loads its weights, optimizer and RNG states before its first call, so before the capture)."""
 
     def __init__(self, policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig) -> None:
         device = policy.device
+        self._init_order()
         self.policy, self.batch_size = policy, cfg.batch_size
         self.optimizer = torch.optim.AdamW(policy.model.parameters(), lr=torch.tensor(cfg.lr, device=device),
                                            betas=cfg.betas, weight_decay=cfg.weight_decay, fused=True,
@@ -113,9 +171,12 @@ class CudaGraphTrainStep:
     def epoch(self) -> Iterator[torch.Tensor]:
         n, b = self.num_windows, self.batch_size
         reps = -(-max(n, b) // n)
+        skip = self._begin_epoch()
         order = torch.cat([torch.randperm(n, device=self.index.device, generator=self.generator) for _ in range(reps)])
-        for k in range(self.steps):
+        self._resumed()
+        for k in range(skip, self.steps):
             self.index.copy_(order[k * b:(k + 1) * b])
+            self.position = k + 1
             yield self._run()
 
 
