@@ -33,7 +33,7 @@ def main() -> None:
     for path in args.dataset_path if args.task else ():
         if (found := DatasetRef.open(path).task_id) != args.task:
             raise SystemExit(f"dataset {path} holds task {found}, not --task {args.task}")
-    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS))
+    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS), resume=args.resume)
     print(f"checkpoint: {path}")
 
 

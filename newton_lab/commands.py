@@ -318,7 +318,7 @@ class BenchTrainArgs:
 
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
-                "batch_size", "rerun_worlds", "max_attempts", "train_steps", "epochs")
+                "batch_size", "rerun_worlds", "max_attempts", "train_steps", "epochs", "checkpoint_every_steps")
 """Fields that count something: an integer >= 1 when given."""
 DATASET_FIELDS = ("dataset_path", "output_path")
 """Fields naming a dataset file: its suffix picks the format."""
@@ -342,6 +342,10 @@ def check_args(args: Any) -> None:
         value = getattr(args, name)
         if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
             raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
+    for name in names & {"checkpoint_every_s", "time_budget_s"}:
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise ValueError(f"{_label(args, name)} must be > 0 [s], got {value!r}")
     for name in names & set(DATASET_FIELDS):
         value = getattr(args, name)
         paths = value if isinstance(value, list) else [value]

@@ -27,6 +27,11 @@ BAD = [
     ("pipeline --eval-episodes -1", "--eval-episodes must be an integer >= 1"),
     ("pipeline --workers 0", "--workers must be an integer >= 1"),
     ("view nope.hdf5", "dataset nope.hdf5 does not exist"),
+    ("train --dataset-path src.hdf5 --checkpoint-every-steps 0", "--checkpoint-every-steps must be an integer >= 1"),
+    ("train --dataset-path src.hdf5 --checkpoint-every-s -1", "--checkpoint-every-s must be > 0"),
+    ("train --dataset-path src.hdf5 --time-budget-s 0", "--time-budget-s must be > 0"),
+    ("train --dataset-path src.hdf5 --max-steps 0", "--max-steps must be an integer >= 1"),
+    ("train --dataset-path src.txt", "unknown dataset suffix"),
 ]
 CHECK = "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); sys.exit(rc if 'warp' not in sys.modules else 99)"
 
