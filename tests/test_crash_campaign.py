@@ -63,20 +63,20 @@ def _quiet_warp():
     yield
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _table(request):
-    yield
-    if not REPORT:
-        return
+def table() -> str:
     lines = [f"crash campaign: NEWTON_LAB_CRASH_KILLS={KILLS}, NEWTON_LAB_CRASH_SEED={SEED}",
              "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(str(row.get(c, "")) for c in COLUMNS) + " |" for row in REPORT.values()]
-    text = "\n".join(lines) + "\n"
-    if os.environ.get("NEWTON_LAB_CRASH_REPORT"):
-        Path(os.environ["NEWTON_LAB_CRASH_REPORT"]).write_text(text)
-    capture = request.config.pluginmanager.getplugin("capturemanager")
-    with capture.global_and_fixture_disabled():
-        print("\n" + text)
+    return "\n".join(lines) + "\n"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _table(request):
+    yield
+    if REPORT:
+        capture = request.config.pluginmanager.getplugin("capturemanager")
+        with capture.global_and_fixture_disabled():
+            print("\n" + table())
 
 
 # --- running and killing a command ------------------------------------------------------------------------------
@@ -206,6 +206,15 @@ def running_window(measure: Run) -> tuple[float, float]:
     return window
 
 
+def narrowed(window: tuple[float, float], run: Run) -> tuple[float, float]:
+    """``window`` scaled to a run that completed before its kill moment. The measured run can be much slower than
+    later ones (on a cold Warp cache it compiles the kernels), so later kill moments follow the latest run."""
+    if run.killed or run.last_output_s >= window[1]:
+        return window
+    scale = run.last_output_s / window[1]
+    return window[0] * scale, run.last_output_s
+
+
 def kill_moments(command: str) -> random.Random:
     """The seeded generator of ``command``'s kill moments (draw with ``rng.uniform(*window)``)."""
     return random.Random(f"{SEED}/{command}")
@@ -215,6 +224,8 @@ def row(command: str, **values: Any) -> dict[str, Any]:
     """Record ``command``'s row of the table (keyword names are the columns with ``_`` for spaces, ``_s`` for [s])."""
     names = {c.replace(" [s]", "_s").replace(" ", "_"): c for c in COLUMNS}
     REPORT[command] = {"command": command, **{names[k]: v for k, v in values.items()}}
+    if os.environ.get("NEWTON_LAB_CRASH_REPORT"):  # written as each campaign ends: a cut-short session keeps its rows
+        Path(os.environ["NEWTON_LAB_CRASH_REPORT"]).write_text(table())
     return REPORT[command]
 
 
@@ -285,6 +296,7 @@ def append_campaign(command: str, args: list[str], path: Path, folder: Path,
         else:
             assert len(now) == len(ids) + added(finished(run)), f"{command} run {runs} did not append all it reported"
             appends_after_kill += kills > 0
+            window = narrowed(window, run)
         ids = now
         if final:
             break
@@ -372,6 +384,8 @@ def test_train_resumes_after_sigkill(collected, tmp_path):
         run = run_cli(train_args(source, out) + ["--resume"] * resume, tmp_path / f"run{runs}.log",
                       kill_at=None if final else rng.uniform(*window))
         kills += run.killed
+        if not resume:  # a resumed run skips the steps done before: it says nothing about a fresh run's length
+            window = narrowed(window, run)
         if not run.killed:
             checkpoint = Path(finished(run).last_json()["checkpoint"])
         elif not (out / "resume.pt").exists() and (out / "checkpoint.pt").exists():
@@ -479,6 +493,8 @@ def pipeline_campaign(folder: Path) -> dict[str, Any]:
             kills_after_a_stage += bool(done_before)
             continue
         finished(run)
+        if not cycle_kills:  # a re-run answers finished stages from the cache: shorter than a fresh run
+            window = narrowed(window, run)
         states = json.loads((out / "metrics.json").read_text())["stage_states"]
         assert set(states) == set(STAGES) and all(v[-1] in ("Completed", "Cached") for v in states.values()), states
         recomputed += [f"run {runs}: {s} {states[s]}" for s in sorted(done_before) if states[s] != ["Cached"]]
