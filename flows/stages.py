@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..commands import CollectArgs, EvaluateArgs, MimicArgs
+from ..datasets.contained import contained
 from .artifacts import artifact
 
 BACKEND = "diffusion"
@@ -28,7 +29,7 @@ def _guard(out_dir: Path, name: str, inputs: dict[str, Any]) -> dict[str, Any] |
     saved = json.loads(manifest.read_text())
     if saved["inputs"] != json.loads(json.dumps(inputs)):
         raise ValueError(f"{out_dir} holds another pipeline's {name} ({manifest}); use a new --out folder")
-    if not Path(saved["artifact"]["path"]).exists():
+    if not contained(out_dir, saved["artifact"]["path"], f"{manifest} artifact path").exists():
         return None
     return saved["artifact"]
 

@@ -15,11 +15,20 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from ..contained import OutsidePathError, contained
 from .tables import CODEBASE_VERSION, EPISODE_COLUMNS, INDEX_FEATURES, PNG_SIGNATURE, STATS, TIMESTAMP_TOLERANCE_S
 
 
 class _Invalid(Exception):
     pass
+
+
+def _inside(root: Path, rel: str, what: str) -> Path:
+    """``root / rel`` for a path taken from info.json; a path leaving ``root`` makes the dataset invalid."""
+    try:
+        return contained(root, rel, what)
+    except OutsidePathError as e:
+        raise _Invalid(str(e)) from None
 
 
 def _need(cond: Any, msg: str) -> None:
@@ -271,7 +280,7 @@ def _check_episodes(root: Path, info: dict[str, Any], eps: _Episodes, video_keys
             rel = info["video_path"].format(video_key=k,
                                             chunk_index=int(eps.table.column(f"videos/{k}/chunk_index")[e].as_py()),
                                             file_index=int(eps.table.column(f"videos/{k}/file_index")[e].as_py()))
-            _need((root / rel).is_file(), f"episode {e} video {rel} is missing")
+            _need(_inside(root, rel, "info.json video_path").is_file(), f"episode {e} video {rel} is missing")
 
 
 def _check_data_paths(root: Path, info: dict[str, Any],
@@ -282,7 +291,7 @@ def _check_data_paths(root: Path, info: dict[str, Any],
     referenced = sorted({(int(c), int(f)) for c, f in zip(eps.col["data/chunk_index"], eps.col["data/file_index"])})
     ref_paths = {(c, f): info["data_path"].format(chunk_index=c, file_index=f) for c, f in referenced}
     for rel in ref_paths.values():
-        _need((root / rel).is_file(), f"{rel} (referenced by meta/episodes) is missing")
+        _need(_inside(root, rel, "info.json data_path").is_file(), f"{rel} (referenced by meta/episodes) is missing")
         _need(rel in disk_rel, f"{rel} (referenced by meta/episodes) is not at data/<chunk>/<file>.parquet")
     extra = [rel for rel in disk_rel if rel not in set(ref_paths.values())]
     _need(not extra, f"{extra[0] if extra else ''} is not referenced by any episode")
