@@ -16,8 +16,11 @@ $(STAMP): pyproject.toml setup.py
 demo: $(STAMP)
 	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --device cpu --out outputs/demo
 
+# Tests run on both cores: one pytest worker per core, each test module kept on one worker (its fixtures
+# build envs once). TEST_WORKERS=0 runs them in this process.
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest -q
+	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 bench: $(STAMP)
 	$(VENV)/bin/newton-lab bench --task GalbotG1-PickCube-v0 --num-envs 4 --steps 200 --device cpu
