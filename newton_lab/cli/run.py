@@ -34,7 +34,13 @@ def _logger(args: RerunArgs, env):
     from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
 
     lg = RerunLogger(env, save=args.rerun_save, spawn=args.rerun and not args.rerun_save, max_worlds=args.rerun_worlds)
-    return (lambda reward, info: lg.log_step(reward=reward, success=info["success"])), lg.close
+
+    def close() -> None:
+        lg.close()
+        if lg.path is not None:
+            print(f"rerun recording: {lg.path} (open it with: rerun {lg.path})")
+
+    return lg.on_step, close
 
 
 def list_task_ids(args: TasksArgs) -> int:
@@ -142,6 +148,8 @@ def view(args: ViewArgs) -> int:
     if not args.save and not args.spawn:
         raise ValueError("view needs --save file.rrd (headless) or --spawn (open a rerun viewer)")
     poses = replay_episode(args.dataset, args.episode, save=args.save, spawn=args.spawn)
+    if args.save:
+        print(f"rerun recording: {Path(args.save).resolve()} (open it with: rerun {Path(args.save).resolve()})")
     print(json.dumps({"dataset": args.dataset, "episode": args.episode, "frames": len(poses), "rrd": args.save}))
     return 0
 

@@ -23,6 +23,7 @@ from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
 from . import rollout
 from .actuation import Actuation
 from .buffers import Entity, build_context, entity_table, reset_coordinates
+from .cameras import Cameras, ImageViews, resolve_cameras
 from .scene import build_scene
 from .terms import build_task_kernels, observation_layout
 
@@ -47,6 +48,7 @@ class NewtonEnv:
         seed: int | None = None,
         randomize: bool = False,
         capture: bool = True,
+        cameras: bool | dict | None = None,
     ):
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
@@ -78,6 +80,7 @@ class NewtonEnv:
             self._build_actions()
             self._build_buffers()
             self._build_kernels()
+            self._build_cameras(cameras, capture)
             self.reset()
             self._graph = self._capture() if capture else None
 
@@ -163,6 +166,23 @@ class NewtonEnv:
         self.terminal_joint_q = t(self._terminal_q)
         """(num_envs, coords_per_world) coordinates of each row's last finished episode, taken just before
         its automatic reset (valid for rows whose ``info["done"]`` is set)."""
+
+    def _build_cameras(self, cameras, capture: bool) -> None:
+        lay = self.layout
+        self.cameras = Cameras(resolve_cameras(self.cfg, cameras), model=self.model, state=self.state,
+                               num_envs=self.num_envs, bodies_per_world=lay.bodies_per_world,
+                               entity_names=lay.entity_names, capture=capture)
+        """The rendered cameras (``envs.cameras``): specs, intrinsics, poses, segmentation names."""
+        self.image_terms = self.cameras.terms
+        """Image observations by name (``front_head_rgb``, ...): camera, data, per-row shape, dtype."""
+        self.images = ImageViews(self.cameras)
+        """Image observations as torch views, rendered on first read after a step or reset (a step whose images
+        are not read renders nothing)."""
+
+    def render(self) -> dict[str, torch.Tensor]:
+        """Render the cameras for the current state (if not done since the last step / reset); returns the image
+        views by name (empty without cameras)."""
+        return self.cameras.render()
 
     def _build_kernels(self) -> None:
         kernels = build_task_kernels(self.cfg, self.obs_terms)
@@ -272,6 +292,7 @@ class NewtonEnv:
         else:
             with wp.ScopedDevice(self.device):
                 self._step_body()
+        self.cameras.stale = True
         return self.obs, self.reward, self.terminated, self.truncated, self.info
 
     def reset(self, env_ids=None):
@@ -294,6 +315,7 @@ class NewtonEnv:
                       inputs=[self._reset_mask, self.state.joint_q, self._terminal_q])
             self._reset_rows(self._reset_mask)
             self._observe()
+        self.cameras.stale = True
         return self.obs, self.info
 
     # ------------------------------------------------------------------ input checks

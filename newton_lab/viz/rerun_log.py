@@ -1,9 +1,11 @@
-"""Log a batched env to rerun: shapes once (static), body transforms and per-row scalars every step.
+"""Log a batched env to rerun: every model shape once (static), body transforms and per-row scalars every
+step, episode starts / ends as events, with a default blueprint (``newton_lab.viz.blueprint``).
 
 Newton's ``ViewerRerun`` always starts a gRPC / web server and only records through it, which does not
 fit headless ``.rrd`` recording or tests; this module logs with rerun's own API instead: one entity per
-body (``world/<row>/<body>``) carrying its shapes, so a frame costs one ``Transform3D`` per body.
-Only the first ``max_worlds`` rows are drawn.
+body (``world/<row>/<body>``) carrying its shapes (``newton_lab.viz.shapes``), so a frame costs one
+``Transform3D`` per body. Only the first ``max_worlds`` rows are drawn, side by side on a grid
+``row_spacing`` [m] apart (Newton's worlds all sit at the origin).
 """
 
 from __future__ import annotations
@@ -18,102 +20,105 @@ import warp as wp
 
 from ..datasets import read_dataset_info, read_episode
 from ..envs import make_env
-
-
-def _color(rgb) -> list[int]:
-    return [int(255 * c) for c in rgb]
+from .blueprint import default_blueprint, eye_for
+from .shapes import entity_name, log_model_shapes, row_offsets
 
 
 class RerunLogger:
-    """Streams ``env`` to a rerun sink: ``save`` (a ``.rrd`` file), ``spawn`` (a local viewer) or
-    ``connect`` (a viewer's gRPC url). Call ``log_step()`` after each env step."""
+    """Streams ``env`` to a rerun sink: ``save`` (a ``.rrd`` file; its folder is created), ``spawn`` (a
+    local viewer) or ``connect`` (a viewer's gRPC url), with the default blueprint. Call ``on_step(reward,
+    info)`` (or ``log_step``) after each env step; ``close()`` at the end. ``path`` is the ``.rrd`` written
+    (absolute) or None; ``shape_paths`` maps each logged model shape index to its entity path."""
 
     def __init__(self, env, *, save: str | Path | None = None, spawn: bool = False, connect: str | None = None,
-                 max_worlds: int = 4, app_id: str = "newton_lab"):
+                 max_worlds: int = 4, app_id: str = "newton_lab", row_spacing: float = 2.5):
+        if save is None and connect is None and not spawn:
+            raise ValueError("RerunLogger needs a sink: save='file.rrd', spawn=True or connect='rerun+http://...'")
+        if not isinstance(max_worlds, int) or max_worlds < 1:
+            raise ValueError(f"max_worlds must be an integer >= 1, got {max_worlds!r}")
         self.env = env
         self.rows = min(max_worlds, env.num_envs)
+        self._bpw = env.layout.bodies_per_world
+        taken = {"static", "tcp"}  # reserved names under world/<row>
+        self._names = [entity_name(env.model.body_label[b] or f"b{b:02d}", taken) for b in range(self._bpw)]
         self.rec = rr.RecordingStream(app_id)
-        if save is not None:
-            self.rec.save(str(save))
+        self.path = None if save is None else Path(save).resolve()
+        offsets = row_offsets(self.rows, row_spacing)
+        body_paths = {w * self._bpw + b: self.body_path(w, b) for w in range(self.rows) for b in range(self._bpw)}
+        logged = log_model_shapes(self.rec, env.model, body_paths, self.rows, offsets)
+        self.shape_paths = logged.paths
+        self.blueprint = default_blueprint(self.rows, eye=self._eye(), hidden=logged.hidden)
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.rec.save(str(self.path), default_blueprint=self.blueprint)
         elif connect is not None:
-            self.rec.connect_grpc(connect)
-        elif spawn:
-            self.rec.spawn()
+            self.rec.connect_grpc(connect, default_blueprint=self.blueprint)
         else:
-            raise ValueError("RerunLogger needs a sink: save='file.rrd', spawn=True or connect='rerun+http://...'")
-        lay = env.layout
-        self._bpw = lay.bodies_per_world
-        self._names = [f"b{b:02d}" for b in range(self._bpw)]
-        labels = env.model.body_label
-        for b in range(self._bpw):
-            self._names[b] = labels[b].rsplit("/", 1)[-1] or self._names[b]
+            self.rec.spawn(default_blueprint=self.blueprint)
         self._step = 0
-        self._log_shapes()
+        self._episodes = self._episode_count()
+        self._ended = [0] * self.rows
 
     def body_path(self, row: int, body: int) -> str:
+        """Entity path of ``body`` (index within a world) of ``row``."""
         return f"world/{row}/{self._names[body]}"
 
-    def _log_shapes(self) -> None:
-        m = self.env.model
-        stype = m.shape_type.numpy()
-        scale = m.shape_scale.numpy()
-        xform = m.shape_transform.numpy()
-        sbody = m.shape_body.numpy()
-        sworld = m.shape_world.numpy()
-        colors = {e.name: _color(c.color) for e, c in zip(self.env.entities.values(), self.env.cfg.entities)}
-        flags = m.shape_flags.numpy()
-        for s in range(m.shape_count):
-            w = int(sworld[s])
-            if w >= self.rows or (w < 0 and stype[s] != int(newton.GeoType.PLANE)):
-                continue
-            label = m.shape_label[s].rsplit("/", 1)[-1]
-            color = next((c for name, c in colors.items() if label.startswith(name)), [200, 200, 205])
-            b = int(sbody[s])
-            if stype[s] == int(newton.GeoType.PLANE):
-                self.rec.log("world/ground", rr.Boxes3D(half_sizes=[[3.5, 3.5, 0.005]], centers=[[0, 0, -0.005]],
-                                                        colors=[[40, 40, 40]], fill_mode="solid"), static=True)
-                continue
-            if not flags[s] & int(newton.ShapeFlags.VISIBLE):
-                continue
-            local = b - w * self._bpw if b >= 0 else -1
-            parent = self.body_path(w, local) if local >= 0 else f"world/{w}/static"
-            path = f"{parent}/shape_{s}"
-            t = xform[s]
-            self.rec.log(path, rr.Transform3D(translation=t[:3], quaternion=rr.Quaternion(xyzw=t[3:7])), static=True)
-            sx, sy, sz = (float(v) for v in scale[s])
-            kind = int(stype[s])
-            if kind == int(newton.GeoType.BOX):
-                arch = rr.Boxes3D(half_sizes=[[sx, sy, sz]], colors=[color], fill_mode="solid")
-            elif kind == int(newton.GeoType.SPHERE):
-                arch = rr.Ellipsoids3D(half_sizes=[[sx, sx, sx]], colors=[color], fill_mode="solid")
-            elif kind == int(newton.GeoType.CAPSULE):
-                arch = rr.Capsules3D(lengths=[2 * sy], radii=[sx], translations=[[0, 0, -sy]], colors=[color])
-            elif kind == int(newton.GeoType.CYLINDER):
-                arch = rr.Cylinders3D(lengths=[2 * sy], radii=[sx], colors=[color], fill_mode="solid")
-            else:
-                continue
-            self.rec.log(path, arch, static=True)
+    def _eye(self):
+        q = self.env.state.body_q.numpy()[: self._bpw]
+        poses = self.env.entity_poses[0, :, :3].cpu().numpy()
+        robot = q[0, :3]
+        return eye_for(robot, poses.mean(axis=0) if len(poses) else robot + np.array([1.0, 0.0, 0.0]))
 
-    def log_step(self, *, reward=None, success=None, body_q: np.ndarray | None = None) -> None:
+    def _episode_count(self) -> np.ndarray:
+        return self.env.episode_count[: self.rows].cpu().numpy().copy()
+
+    def _log_events(self, info) -> None:
+        """``events/<row>``: an episode's end (success or failure, reason, length; episodes numbered from 1 per
+        row in this recording) and each reset that starts a new one."""
+        if info is not None:
+            done = info["done"][: self.rows].cpu().numpy()
+            success = info["success"][: self.rows].cpu().numpy()
+            reason = info["termination_reason"][: self.rows].cpu().numpy()
+            length = info["episode_length"][: self.rows].cpu().numpy()
+            for w in np.nonzero(done)[0]:
+                ok = bool(success[w])
+                self._ended[w] += 1
+                why = self.env.termination_reasons[int(reason[w])]
+                self.rec.log(f"events/{w}", rr.TextLog(
+                    f"row {w} episode {self._ended[w]} {'succeeded' if ok else 'failed'} ({why}) after "
+                    f"{int(length[w])} steps", level="INFO" if ok else "WARN"))
+        count = self._episode_count()
+        for w in np.nonzero(count != self._episodes)[0]:
+            self.rec.log(f"events/{w}", rr.TextLog(f"row {w} reset: episode {self._ended[w] + 1} starts",
+                                                   level="DEBUG"))
+        self._episodes = count
+
+    def log_step(self, *, reward=None, success=None, body_q: np.ndarray | None = None, info=None) -> None:
         """Log the current body poses of the first rows (or ``body_q`` given (rows * bodies, 7)), the TCP
-        marker and per-row phase / reward / success scalars at the next ``step`` time."""
+        marker, per-row phase / reward / success scalars and (with the step's ``info``) episode events at
+        the next ``step`` time."""
         env = self.env
         self.rec.set_time("step", sequence=self._step)
         self.rec.set_time("sim_time", duration=self._step * env.cfg.control_dt)
         q = body_q if body_q is not None else env.state.body_q.numpy()[: self.rows * self._bpw]
-        q = np.asarray(q).reshape(self.rows, self._bpw, 7)
+        q = np.asarray(q)[: self.rows * self._bpw].reshape(self.rows, self._bpw, 7)
+        tcp = env.tcp_pose[: self.rows, :3].cpu().numpy()
         for w in range(self.rows):
             for b in range(self._bpw):
                 self.rec.log(self.body_path(w, b),
                              rr.Transform3D(translation=q[w, b, :3], quaternion=rr.Quaternion(xyzw=q[w, b, 3:7])))
-            self.rec.log(f"world/{w}/tcp", rr.Points3D([env.tcp_pose[w, :3].cpu().numpy()], radii=[0.01],
-                                                       colors=[[255, 200, 0]]))
+            self.rec.log(f"world/{w}/tcp", rr.Points3D([tcp[w]], radii=[0.01], colors=[[255, 200, 0]]))
             self.rec.log(f"metrics/{w}/phase", rr.Scalars(float(env.info["phase"][w])))
             if reward is not None:
                 self.rec.log(f"metrics/{w}/reward", rr.Scalars(float(reward[w])))
             if success is not None:
                 self.rec.log(f"metrics/{w}/success", rr.Scalars(float(success[w])))
+        self._log_events(info)
         self._step += 1
+
+    def on_step(self, reward, info) -> None:
+        """The ``on_step(reward, info)`` hook of ``env.collect`` / ``env.evaluate``."""
+        self.log_step(reward=reward, success=info["success"], info=info)
 
     def close(self) -> None:
         self.rec.flush()
@@ -151,4 +156,3 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
     if logger is not None:
         logger.close()
     return np.stack(poses)
-

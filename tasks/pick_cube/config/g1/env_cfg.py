@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common import cameras, postures
 
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
@@ -28,5 +28,6 @@ def pick_cube_cfg() -> TaskCfg:
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
         root_pos=postures.MANIPULATION_ROOT_POS,
         fixed_base=True,
+        cameras=cameras.front_head_rgb(),
         constraints_per_world=128,  # policy rollouts pressing the cube into the table exceeded the default 64 rows
     )
