@@ -18,17 +18,22 @@ def make_env(
     task_options: dict[str, Any] | None = None,
     *,
     capture: bool = True,
+    cameras: bool | dict[str, Any] | None = None,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
 
     ``randomize`` turns on the task's reset randomisation (seeded per row by ``seed``);
     ``task_options`` are the task's own options (unknown keys raise with the valid ones).
+    ``cameras``: ``None`` renders the task's cameras (``TaskCfg.cameras``), ``False`` none (state-only speed),
+    ``{"front_head": (96, 72)}`` changes a camera's resolution [px] (or ``{"front_head": {"resolution": (w, h),
+    "data": ("rgb", "depth", "segmentation")}}``; a G1 mount the task lacks is added).
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     cfg = spec.make_cfg(task_options)
-    return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture)
+    return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture,
+                     cameras=cameras)
 
 
 __all__ = ["NewtonEnv", "make_env"]

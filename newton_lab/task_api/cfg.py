@@ -67,6 +67,24 @@ class ActionTermCfg:
     """Bounds of the scaled action (``None``: none)."""
 
 
+IMAGE_DATA = ("rgb", "depth", "segmentation")
+"""What a camera can give, each an image observation ``<camera>_<data>``: RGB uint8 (N, H, W, 3), depth float32
+(N, H, W) [m] along the view axis (inf where nothing is hit), segmentation int32 (N, H, W) ids."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class CameraCfg:
+    """A camera a task observes through: one of the robot's mounts (the ``TaskCfg.cameras`` key, e.g.
+    ``front_head``), rendered in every world at ``width`` x ``height`` with the reference pinhole."""
+
+    width: int = 298
+    """Image width [px] (the reference's 298 x 224)."""
+    height: int = 224
+    """Image height [px]."""
+    data: tuple[str, ...] = ("rgb",)
+    """Images it gives, of ``IMAGE_DATA``."""
+
+
 ACTION_DIM = "action_dim"
 """Observation width the env derives: the task's action columns."""
 ROBOT_COORDS = "robot_coords"
@@ -182,6 +200,9 @@ class TaskCfg:
     max_body_angular_speed: float = 1000.0
     """Divergence guard: a body spinning faster than this ends the row (reason ``diverged``) [rad/s]. Non-finite
     body poses, velocities, joint coordinates or joint velocities always do."""
+    cameras: dict[str, CameraCfg] = field(default_factory=dict)
+    """Cameras by robot mount name (``newton_lab.robots.g1.spec.CAMERA_MOUNTS``); empty: a state-only task.
+    ``make_env(..., cameras=...)`` turns them off or changes their resolution."""
     options: dict[str, Any] = field(default_factory=dict)
     """The task options this cfg was built with (recorded in dataset env_args)."""
 

@@ -13,12 +13,12 @@ from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTer
 from newton_lab.task_api.experts import NavExpert
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common import cameras, postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
 from newton_lab.tasks.pick_to_shelf import scene
-from newton_lab.tasks.pick_to_shelf.mdp import events, observations, terminations
+from newton_lab.tasks.pick_to_shelf.mdp import events, observations, rewards, terminations
 
 NAV_GOAL_XY = (-1.7, -1.15)
 """Base goal in front of the shelf: deck front edge + 0.65 m [m]."""
@@ -43,6 +43,7 @@ def _world(task_id: str, **fields) -> TaskCfg:
         root_pos=scene.ROBOT_ROOT,
         arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
+        cameras=cameras.front_head_rgb(),
     )
     base.update(fields)
     return TaskCfg(**base)
@@ -50,7 +51,7 @@ def _world(task_id: str, **fields) -> TaskCfg:
 
 def pick_cfg() -> TaskCfg:
     """Pick the bar from the table and bring it to the carry posture (success: ``at_carry``)."""
-    return _world("GalbotG1-PickToShelf-Pick-v0", phase_success=[terminations.at_carry],
+    return _world("GalbotG1-PickToShelf-Pick-v0", phase_success=[terminations.at_carry], rewards=rewards.pick_rewards(),
                   events={"randomize_bar_position": TermCfg(func=events.randomize_bar_position)})
 
 
@@ -74,6 +75,7 @@ def place_cfg(init_scenario: str | None = None) -> TaskCfg:
     return _world(
         "GalbotG1-PickToShelf-Place-v0",
         phase_success=[terminations.cube_on_shelf],
+        rewards=rewards.place_rewards(),
         scenario=init_scenario or str(SCENARIOS / "place_default.yaml"),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
     )
@@ -88,6 +90,7 @@ def coherent_cfg() -> TaskCfg:
             phase("nav", "GalbotG1-PickToShelf-Nav-v0", terms=("base",)),
             phase("place", "GalbotG1-PickToShelf-Place-v0", terms=("left_arm", "left_gripper")),
         ),
+        rewards=rewards.coherent_rewards(NAV_GOAL_XY, NAV_GOAL_YAW, NAV_SUCCESS_RADIUS),
     )
 
 

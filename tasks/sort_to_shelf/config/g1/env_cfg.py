@@ -12,12 +12,12 @@ from pathlib import Path
 from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common import cameras, postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
 from newton_lab.tasks.sort_to_shelf import scene
-from newton_lab.tasks.sort_to_shelf.mdp import events, observations, terminations
+from newton_lab.tasks.sort_to_shelf.mdp import events, observations, rewards, terminations
 from newton_lab.tasks.sort_to_shelf.objects import SortingObject
 from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
 
@@ -40,6 +40,7 @@ def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
         arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
         hold_slots=1,
+        cameras=cameras.front_head_rgb_depth_segmentation(),
     )
     base.update(fields)
     return TaskCfg(**base)
@@ -56,7 +57,8 @@ def pick_cfg(sorting_object: str | None = None) -> TaskCfg:
     if obj.upright_min > 0:
         terms["object_tipped"] = TerminationTermCfg(func=terminations.make_tipped(obj))
     return _world("GalbotG1-SortToShelf-Pick-v0", obj, phase_success=[terminations.make_at_carry(obj)],
-                  terminations=terms, events={"permute_objects": TermCfg(func=events.permute_objects)}, options={"sorting_object": obj.name})
+                  terminations=terms, events={"permute_objects": TermCfg(func=events.permute_objects)},
+                  rewards=rewards.pick_rewards(obj), options={"sorting_object": obj.name})
 
 
 def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
@@ -81,6 +83,7 @@ def place_cfg(sorting_object: str | None = None, init_scenario: str | None = Non
     """Put the object in its cell, let go and retract the arm (success: ``placed``)."""
     obj = lookup_object(sorting_object)
     return _world("GalbotG1-SortToShelf-Place-v0", obj, phase_success=[terminations.make_placed(obj)],
+                  rewards=rewards.place_rewards(obj),
                   scenario=_scenario("place", obj, init_scenario),
                   initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
                   options={"sorting_object": obj.name})
@@ -103,4 +106,5 @@ def coherent_cfg(sorting_object: str | None = None) -> TaskCfg:
             ActionTermCfg(name="arm_action", group="left_arm", type="absolute"),
             ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
         ],
+        rewards=rewards.coherent_rewards(obj),
     )

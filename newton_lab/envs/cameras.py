@@ -1,0 +1,354 @@
+"""The env's cameras: a task's views on the G1 mounts, rendered by Newton's ``SensorCamera``.
+
+All views of all worlds that share a resolution are rendered by one ``SensorCamera.update`` (views camera-major:
+view ``k * N + w`` is camera ``k`` in world ``w``), after the view poses follow their mount bodies
+(``kernels.camera.mount_transforms``) and the shape BVH is refit. That render is captured once as a graph and
+launched only when images are read after a step or reset (``env.images[...]``, ``env.render()``): a step whose
+images nobody reads renders nothing, and an env without cameras does no camera work at all (nothing is built).
+
+Images are torch views of the Warp buffers: RGB uint8 (N, H, W, 3) (a view of the renderer's packed RGBA),
+depth float32 (N, H, W) [m] along the view axis (inf where nothing is hit within 15 m), segmentation int32
+(N, H, W) with ids named by ``segmentation_names``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import newton
+import numpy as np
+import torch
+import warp as wp
+from newton.sensors import SensorCamera
+
+from ..kernels.camera import mount_transforms, segmentation_ids
+from ..robots.g1 import cameras as mounts
+from ..robots.g1 import spec
+from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg
+
+SKY_RGBA = (178, 190, 204, 0)
+"""Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
+RENDERED_SHAPES = newton.ShapeFlags.VISIBLE | newton.ShapeFlags.COLLIDE_SHAPES
+"""Shapes the cameras see: visual and collision geometry (the G1 MJCF's collision geoms are its body; Newton
+marks them invisible because the MJCF also has visual geoms), not sites."""
+BACKGROUND, GROUND = "background", "ground"
+
+
+@dataclass(frozen=True)
+class ImageTerm:
+    """One image observation: ``<camera>_<data>``, per-row ``shape`` and torch ``dtype``."""
+
+    name: str
+    camera: str
+    data: str
+    shape: tuple[int, ...]
+    dtype: torch.dtype
+
+
+def _resolution(name: str, value: Any) -> tuple[int, int]:
+    ok = (isinstance(value, (tuple, list)) and len(value) == 2
+          and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
+          and all(mounts.MIN_RESOLUTION <= v <= mounts.MAX_RESOLUTION for v in value))
+    if not ok:
+        raise ValueError(f"camera {name!r} resolution must be (width, height) integers in [{mounts.MIN_RESOLUTION}, "
+                         f"{mounts.MAX_RESOLUTION}] px, got {value!r}; e.g. cameras={{'{name}': (96, 72)}}")
+    return int(value[0]), int(value[1])
+
+
+def _data(name: str, value: Any) -> tuple[str, ...]:
+    data = (value,) if isinstance(value, str) else tuple(value)
+    bad = [d for d in data if d not in IMAGE_DATA]
+    if not data or bad or len(set(data)) != len(data):
+        raise ValueError(f"camera {name!r} data must be distinct entries of {list(IMAGE_DATA)}, got {value!r}")
+    return data
+
+
+def _override(name: str, base: CameraCfg, value: Any) -> CameraCfg:
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - {"resolution", "data"})
+        if unknown:
+            raise ValueError(f"camera {name!r} override has unknown keys {unknown}; use 'resolution' and/or 'data'")
+        w, h = _resolution(name, value.get("resolution", (base.width, base.height)))
+        return CameraCfg(width=w, height=h, data=_data(name, value.get("data", base.data)))
+    w, h = _resolution(name, value)
+    return CameraCfg(width=w, height=h, data=base.data)
+
+
+def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | None) -> dict[str, CameraCfg]:
+    """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
+    ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a G1 mount the task does
+    not declare is added). Raises a one-line ``ValueError`` on an unknown mount, a bad resolution or data, or
+    cameras asked of a task that declares none."""
+    if cameras is None or cameras is True:
+        chosen = dict(cfg.cameras)
+    elif cameras is False:
+        return {}
+    elif isinstance(cameras, Mapping):
+        if not cfg.cameras:
+            raise ValueError(f"{cfg.task_id} has no cameras (a state-only task, as in the reference), so cameras="
+                             f"{dict(cameras)!r} cannot apply; leave cameras unset or pass cameras=False")
+        chosen = dict(cfg.cameras)
+        for name, value in cameras.items():
+            if name not in spec.CAMERA_MOUNTS:
+                raise ValueError(f"unknown camera {name!r}; the G1's cameras are {list(spec.CAMERA_MOUNTS)}")
+            chosen[name] = _override(name, chosen.get(name, CameraCfg()), value)
+    else:
+        raise ValueError(f"cameras must be None, True, False or a dict {{camera: (width, height)}}, got {cameras!r}")
+    for name, cam in chosen.items():
+        if name not in spec.CAMERA_MOUNTS:
+            raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the G1's are {list(spec.CAMERA_MOUNTS)}")
+        _resolution(name, (cam.width, cam.height))
+        _data(name, cam.data)
+    return chosen
+
+
+def image_terms(specs: Mapping[str, CameraCfg]) -> dict[str, ImageTerm]:
+    """The image observations of ``specs``, in camera then ``IMAGE_DATA`` order."""
+    out = {}
+    for cam, c in specs.items():
+        for data in IMAGE_DATA:
+            if data in c.data:
+                shape = (c.height, c.width, 3) if data == "rgb" else (c.height, c.width)
+                dtype = {"rgb": torch.uint8, "depth": torch.float32, "segmentation": torch.int32}[data]
+                out[f"{cam}_{data}"] = ImageTerm(f"{cam}_{data}", cam, data, shape, dtype)
+    return out
+
+
+def segmentation_table(model: newton.Model, entity_names: list[str]) -> tuple[tuple[str, ...], np.ndarray]:
+    """(names, shape_to_id): id 0 ``background`` (nothing hit), 1 ``ground``, then the task's objects in slot
+    order, then the robot's link groups (``robot/<group>``, ``robots.g1.cameras.LINK_GROUPS``); and the id of
+    every shape of the model."""
+    names = [BACKGROUND, GROUND, *entity_names, *(g for g, _ in mounts.LINK_GROUPS)]
+    ids = {n: i for i, n in enumerate(names)}
+    world = model.shape_world.numpy()
+    body = model.shape_body.numpy()
+    table = np.zeros(model.shape_count, dtype=np.int32)
+    for s in range(model.shape_count):
+        label = model.shape_label[s].rsplit("/", 1)[-1]
+        if world[s] < 0:
+            table[s] = ids[GROUND]
+        elif label in entity_names:
+            table[s] = ids[label]
+        elif body[s] >= 0:
+            table[s] = ids[mounts.link_group(model.body_label[body[s]].rsplit("/", 1)[-1])]
+    return tuple(names), table
+
+
+@dataclass
+class _ViewGroup:
+    """The cameras of one resolution: one ``SensorCamera.update`` renders all their views in every world."""
+
+    cameras: tuple[str, ...]
+    width: int
+    height: int
+    rays: wp.array
+    view_body: wp.array
+    view_offset: wp.array
+    world: wp.array
+    poses: wp.array
+    color: wp.array | None
+    depth: wp.array | None
+    shape_index: wp.array | None
+    segmentation: wp.array | None
+
+
+class Cameras:
+    """The cameras of one env. Built lazily: construction only checks and names; the first ``render`` allocates
+    the ``SensorCamera``, the buffers and the captured render graph."""
+
+    def __init__(self, specs: Mapping[str, CameraCfg], *, model: newton.Model, state: newton.State, num_envs: int,
+                 bodies_per_world: int, entity_names: list[str], capture: bool = True):
+        self.specs = dict(specs)
+        self.terms = image_terms(self.specs)
+        self.model, self.state, self.num_envs = model, state, num_envs
+        self.bodies_per_world = bodies_per_world
+        self.entity_names = list(entity_names)
+        self.capture = capture
+        self.stale = True
+        """Set by every step / reset; the next read renders."""
+        self._images: dict[str, torch.Tensor] | None = None
+        self._groups: list[_ViewGroup] = []
+        self._names: tuple[str, ...] | None = None
+        self._graph = None
+
+    @property
+    def segmentation_names(self) -> tuple[str, ...]:
+        """Segmentation id -> name (``segmentation_table``)."""
+        if self._names is None:
+            self._names, self._shape_ids = segmentation_table(self.model, self.entity_names)
+        return self._names
+
+    def intrinsics(self, camera: str) -> np.ndarray:
+        """3x3 pinhole matrix K [px] of ``camera`` at its resolution (u right, v down, centre principal point)."""
+        c = self._spec(camera)
+        return mounts.intrinsics(c.width, c.height)
+
+    def poses(self, camera: str) -> torch.Tensor:
+        """(N, 7) world pose (x, y, z, qx, qy, qz, qw) of ``camera`` at the last render (pinhole frame: looks along
+        -z, +y up); renders first if the state moved since."""
+        self.render()
+        for g in self._groups:
+            if camera in g.cameras:
+                k = g.cameras.index(camera)
+                return wp.to_torch(g.poses).view(-1, 7)[k * self.num_envs:(k + 1) * self.num_envs]
+        raise KeyError(self._missing(camera))
+
+    def _spec(self, camera: str) -> CameraCfg:
+        if camera not in self.specs:
+            raise KeyError(self._missing(camera))
+        return self.specs[camera]
+
+    def _missing(self, camera: str) -> str:
+        if not self.specs:
+            return f"camera {camera!r}: this env renders no cameras (a state-only task or cameras=False)"
+        return f"camera {camera!r} is not rendered by this env; its cameras are {list(self.specs)}"
+
+    # ------------------------------------------------------------------ build
+    def _build(self) -> None:
+        self.segmentation_names  # noqa: B018  (fills the shape -> id table)
+        self.model.bvh_build_shapes(self.state, shape_flags=RENDERED_SHAPES)
+        clear = SensorCamera.ClearData(clear_color=int.from_bytes(bytes(SKY_RGBA), "little"),
+                                       clear_depth=math.inf)
+        config = SensorCamera.RenderConfig(max_distance=spec.CAMERA_CLIPPING[1])
+        self.sensor = SensorCamera(self.model, default_clear_data=clear, default_render_config=config,
+                                   load_textures=False)
+        self.sensor.create_default_light(enable_shadows=False)
+        self._shape_to_id = wp.array(self._shape_ids, dtype=wp.int32)
+        by_res: dict[tuple[int, int], list[str]] = {}
+        for name, c in self.specs.items():
+            by_res.setdefault((c.width, c.height), []).append(name)
+        self._groups = [self._group(tuple(names), w, h) for (w, h), names in by_res.items()]
+        self._images = self._views()
+
+    def _group(self, names: tuple[str, ...], width: int, height: int) -> _ViewGroup:
+        n, v = self.num_envs, len(names) * self.num_envs
+        body, offset = [], []
+        for name in names:
+            b, xf = self._mount(name)
+            body += [b + w * self.bodies_per_world for w in range(n)]
+            offset += [xf] * n
+        wants = {d for name in names for d in self.specs[name].data}
+        img = lambda dtype: wp.zeros((v, height, width), dtype=dtype)  # noqa: E731
+        return _ViewGroup(
+            cameras=names, width=width, height=height,
+            rays=wp.array(mounts.pinhole_rays(width, height), dtype=wp.vec3f).reshape((height, width, 1, 2)),
+            view_body=wp.array(body, dtype=int), view_offset=wp.array(offset, dtype=wp.transform),
+            world=wp.array(np.tile(np.arange(n, dtype=np.int32), len(names)), dtype=wp.int32),
+            poses=wp.zeros(v, dtype=wp.transformf),
+            color=img(wp.uint32) if "rgb" in wants else None,
+            depth=img(wp.float32) if "depth" in wants else None,
+            shape_index=img(wp.uint32) if "segmentation" in wants else None,
+            segmentation=img(wp.int32) if "segmentation" in wants else None,
+        )
+
+    def _mount(self, camera: str) -> tuple[int, wp.transform]:
+        """(world-0 body index, camera offset in that body) of ``camera``'s MJCF site."""
+        site = spec.CAMERA_MOUNTS[camera]
+        world = self.model.shape_world.numpy()
+        for s, label in enumerate(self.model.shape_label):
+            if label.rsplit("/", 1)[-1] == site and world[s] == 0:
+                xf = self.model.shape_transform.numpy()[s]
+                return int(self.model.shape_body.numpy()[s]), wp.transform(wp.vec3(*xf[:3]), wp.quat(*xf[3:]))
+        raise ValueError(f"the G1 model has no camera site {site!r} for camera {camera!r}")
+
+    def _views(self) -> dict[str, torch.Tensor]:
+        out, n = {}, self.num_envs
+        for g in self._groups:
+            for k, cam in enumerate(g.cameras):
+                rows = slice(k * n, (k + 1) * n)
+                for term in (t for t in self.terms.values() if t.camera == cam):
+                    if term.data == "rgb":
+                        rgba = wp.to_torch(g.color).view(torch.uint8).view(-1, g.height, g.width, 4)
+                        out[term.name] = rgba[rows, ..., :3]
+                    elif term.data == "depth":
+                        out[term.name] = wp.to_torch(g.depth)[rows]
+                    else:
+                        out[term.name] = wp.to_torch(g.segmentation)[rows]
+        return {name: out[name] for name in self.terms}
+
+    # ------------------------------------------------------------------ render
+    def _render_body(self) -> None:
+        for g in self._groups:
+            wp.launch(mount_transforms, dim=g.poses.shape[0],
+                      inputs=[self.state.body_q, g.view_body, g.view_offset, g.poses])
+        self.model.bvh_refit_shapes(self.state)
+        for g in self._groups:
+            self.sensor.update(self.state, g.poses, g.rays, color_image=g.color, forward_depth_image=g.depth,
+                               shape_index_image=g.shape_index, world_indices=g.world, sync_deformables=False)
+            if g.segmentation is not None:
+                wp.launch(segmentation_ids, dim=g.segmentation.size,
+                          inputs=[g.shape_index.flatten(), self._shape_to_id, g.segmentation.flatten()])
+
+    def render(self) -> dict[str, torch.Tensor]:
+        """Render every view if the state changed since the last render; returns the image views by term name."""
+        if not self.specs:
+            return {}
+        with wp.ScopedDevice(self.model.device):
+            if self._images is None:
+                self._build()
+                self._render_body()  # compiles the render kernels before any capture
+                self._graph = self._capture() if self.capture else None
+            elif self.stale:
+                if self._graph is not None:
+                    wp.capture_launch(self._graph)
+                else:
+                    self._render_body()
+        self.stale = False
+        return self._images
+
+    def _capture(self):
+        try:
+            with wp.ScopedCapture(device=self.model.device) as cap:
+                self._render_body()
+        except Exception:  # pragma: no cover - depends on the Warp build; eager rendering stays correct
+            return None
+        return cap.graph
+
+
+class ImageViews(Mapping):
+    """``env.images``: image observations by name, rendered on first read after each step or reset."""
+
+    def __init__(self, cameras: Cameras):
+        self._cameras = cameras
+
+    def __getitem__(self, name: str) -> torch.Tensor:
+        if name not in self._cameras.terms:
+            if not self._cameras.specs:
+                raise KeyError(f"image term {name!r} needs cameras, but this env renders none (a state-only task or "
+                               f"make_env(..., cameras=False)); build the env with its task's cameras")
+            raise KeyError(f"no image term {name!r}; this env's image terms are {list(self._cameras.terms)}")
+        return self._cameras.render()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._cameras.terms)
+
+    def __len__(self) -> int:
+        return len(self._cameras.terms)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._cameras.terms
+
+
+def picture(images: Mapping[str, torch.Tensor], camera: str, row: int = 0) -> np.ndarray:
+    """One row's frame of ``camera`` as an (H, k W, 3) uint8 picture: RGB | depth (near bright, far dark, nothing
+    hit black) | segmentation (one colour per id), each panel the camera gives."""
+    panels = []
+    if f"{camera}_rgb" in images:
+        panels.append(images[f"{camera}_rgb"][row].cpu().numpy())
+    if f"{camera}_depth" in images:
+        d = images[f"{camera}_depth"][row].cpu().numpy()
+        hit = np.isfinite(d)
+        lo, hi = (float(d[hit].min()), float(d[hit].max())) if hit.any() else (0.0, 1.0)
+        g = np.where(hit, 1.0 - 0.85 * (d - lo) / max(hi - lo, 1e-6), 0.0)
+        panels.append(np.repeat((255.0 * g).astype(np.uint8)[..., None], 3, axis=2))
+    if f"{camera}_segmentation" in images:
+        s = images[f"{camera}_segmentation"][row].cpu().numpy()
+        palette = np.random.default_rng(7).integers(40, 256, size=(max(int(s.max()) + 1, 1), 3), dtype=np.uint8)
+        palette[0] = 0
+        panels.append(palette[s])
+    if not panels:
+        raise ValueError(f"no images of camera {camera!r}; the images are {list(images)}")
+    return np.concatenate(panels, axis=1)

@@ -1,0 +1,211 @@
+"""Cameras on the G1 mounts (issue 13): mounts from the reference offsets, pinhole projection against the rendered
+segmentation, what the front head sees at reset, upright images, zero-copy views, lazy rendering, bad input.
+
+One PickCube env (2 worlds, front head RGB + depth + segmentation at 96 x 72) on CPU Warp; every render shares one
+render kernel, so Warp compiles it once."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+import torch
+import warp as wp
+
+from newton_lab.envs import make_env
+from newton_lab.envs.cameras import resolve_cameras
+from newton_lab.robots.g1 import cameras as mounts
+from newton_lab.robots.g1 import spec
+from newton_lab.robots.g1.model import mjcf_path
+from newton_lab.task_api.registry import lookup
+
+W, H = 96, 72
+ALL = ("rgb", "depth", "segmentation")
+PICK = "GalbotG1-PickCube-v0"
+
+
+@pytest.fixture(scope="module")
+def cam_env():
+    return make_env(PICK, num_envs=2, device="cpu", seed=5, randomize=True,
+                    cameras={"front_head": {"resolution": (W, H), "data": ALL}})
+
+
+def _rotate(q, v):
+    return mounts._quat_rotate(np.asarray(q, dtype=float), v)
+
+
+def _project(pose: np.ndarray, point: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, float]:
+    """Pixel (u, v) of world ``point`` seen from camera ``pose`` (pinhole frame: -z forward, +y up), and its
+    distance along the view axis [m]."""
+    q_inv = np.array([-pose[3], -pose[4], -pose[5], pose[6]])
+    pc = _rotate(q_inv, point - pose[:3])
+    z = -pc[2]
+    return np.array([K[0, 2] + K[0, 0] * pc[0] / z, K[1, 2] - K[1, 1] * pc[1] / z]), z
+
+
+def _centroid(mask: np.ndarray) -> np.ndarray:
+    """Mask centroid in continuous pixel coordinates (pixel (r, c) covers [c, c + 1) x [r, r + 1))."""
+    rows, cols = np.nonzero(mask)
+    return np.array([cols.mean() + 0.5, rows.mean() + 0.5])
+
+
+# ---------------------------------------------------------------- mounts (no physics)
+def test_mjcf_camera_sites_follow_the_reference_offsets():
+    root = ET.parse(mjcf_path()).getroot()
+    for mount, site_name in spec.CAMERA_MOUNTS.items():
+        body_name, pos, quat = mounts.site_pose(mount)
+        body = next(b for b in root.iter("body") if b.get("name") == body_name)
+        site = next(s for s in body.findall("site") if s.get("name") == site_name)
+        np.testing.assert_allclose([float(x) for x in site.get("pos").split()], pos, atol=1e-8)
+        w, x, y, z = (float(v) for v in site.get("quat").split())
+        np.testing.assert_allclose((x, y, z, w), quat, atol=1e-8)
+    # the head camera looks forward, pitched 28 deg down, level (image x = robot right); wrists along the approach
+    _, _, q = mounts.site_pose("front_head")
+    fwd, right = _rotate(q, (0, 0, -1)), _rotate(q, (1, 0, 0))
+    assert math.degrees(math.asin(-fwd[2])) == pytest.approx(28.1, abs=0.5) and fwd[0] > 0.85
+    assert right[1] < -0.99
+    for side in ("left_wrist", "right_wrist"):
+        _, _, q = mounts.site_pose(side)
+        assert _rotate(q, (0, 0, -1))[0] < -0.99  # link7's -x is the gripper's approach
+
+
+def test_intrinsics_follow_the_reference_lens():
+    K = mounts.intrinsics(298, 224)
+    assert K[0, 0] == K[1, 1] == pytest.approx(1.1453 * 298, rel=1e-4)
+    assert (K[0, 2], K[1, 2]) == (149.0, 112.0)
+    rays = mounts.pinhole_rays(W, H)
+    assert rays.shape == (H, W, 1, 2, 3)
+    np.testing.assert_allclose(np.linalg.norm(rays[..., 1, :], axis=-1), 1.0, rtol=1e-6)
+    np.testing.assert_allclose(-rays[..., 0, 2], spec.CAMERA_CLIPPING[0], rtol=1e-6)  # origins on the near plane
+
+
+# ---------------------------------------------------------------- rendering
+def test_image_terms_are_zero_copy_views(cam_env):
+    env = cam_env
+    env.reset()
+    assert list(env.image_terms) == ["front_head_rgb", "front_head_depth", "front_head_segmentation"]
+    rgb, depth, seg = (env.images[n] for n in env.image_terms)
+    assert (rgb.shape, rgb.dtype) == ((2, H, W, 3), torch.uint8)
+    assert (depth.shape, depth.dtype) == ((2, H, W), torch.float32)
+    assert (seg.shape, seg.dtype) == ((2, H, W), torch.int32)
+    group = env.cameras._groups[0]
+    assert rgb.data_ptr() == wp.to_torch(group.color).data_ptr()
+    assert seg.data_ptr() == wp.to_torch(group.segmentation).data_ptr()
+    assert env.images["front_head_rgb"] is rgb  # the same view every read
+
+
+def test_render_only_when_images_are_read_and_capture_matches_eager(cam_env):
+    env = cam_env
+    env.reset()
+    view = env.images["front_head_segmentation"]
+    before = view.clone()
+    action = env.current_action()
+    action[:, :7] += 0.3  # swing the arm: the wrist and gripper move in the head view
+    for _ in range(5):
+        env.step(action)
+    assert env.cameras.stale and torch.equal(view, before)  # stepping rendered nothing
+    captured = {k: v.clone() for k, v in env.render().items()}
+    assert not env.cameras.stale
+    assert env.cameras._graph is not None  # the render is one captured graph
+    assert not torch.equal(captured["front_head_segmentation"], before)
+    with wp.ScopedDevice(env.device):
+        env.cameras._render_body()  # the same render, eager
+    for name, img in env.images.items():
+        assert torch.equal(img, captured[name]), name
+
+
+def test_projection_matches_segmentation(cam_env):
+    """At 10 randomised resets x 2 rows, the cube centre projected through K and the camera pose lands within
+    3 px of its mask's centroid, and the cube's depth is its distance along the view axis."""
+    env = cam_env
+    cube = env.cameras.segmentation_names.index("cube")
+    K = env.cameras.intrinsics("front_head")
+    seen = []
+    for _ in range(10):
+        env.reset()
+        seg = env.images["front_head_segmentation"].numpy()
+        depth = env.images["front_head_depth"].numpy()
+        poses = env.cameras.poses("front_head").numpy()
+        centres = env.entity_poses[:, env.entities["cube"].slot, :3].numpy()
+        for row in range(env.num_envs):
+            uv, z = _project(poses[row], centres[row], K)
+            mask = seg[row] == cube
+            assert mask.sum() >= 9, f"cube hardly visible in row {row}"
+            assert np.linalg.norm(_centroid(mask) - uv) < 3.0, (uv, _centroid(mask))
+            # the cube's visible faces lie within 2.5 cm of its centre along the view axis
+            assert float(np.median(depth[row][mask])) == pytest.approx(z, abs=0.04)
+            seen.append(tuple(centres[row, :2].round(3)))
+    assert len(set(seen)) >= 15  # the resets really moved the cube
+
+
+def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
+    env = cam_env
+    env.reset()
+    names = env.cameras.segmentation_names
+    seg = env.images["front_head_segmentation"].numpy()
+    for row in range(env.num_envs):
+        ids = {names[i] for i in np.unique(seg[row])}
+        assert {"cube", "blue_block", "table", "robot/left_gripper"} <= ids, ids
+        table = seg[row] == names.index("table")
+        assert table[H // 2:].sum() > 0.6 * table.sum()  # the table lies below the horizon
+        ground = seg[row] == names.index("ground")
+        assert ground[: H // 2].sum() > 0.9 * ground.sum()  # the far floor above it
+        # the cube (robot's left, y > 0.1) is in the image's left half, left of the block (y = -0.08)
+        cube_u = _centroid(seg[row] == names.index("cube"))[0]
+        block_u = _centroid(seg[row] == names.index("blue_block"))[0]
+        assert cube_u < W / 2 and cube_u < block_u
+    rgb = env.images["front_head_rgb"].numpy()
+    red = rgb[0][seg[0] == names.index("cube")].astype(int)
+    assert (red[:, 0] > red[:, 1] + 40).all()  # the cube renders red
+
+
+def test_state_only_envs_do_no_camera_work(stack_env):
+    stack_env.reset()
+    stack_env.step(stack_env.current_action())
+    assert stack_env.image_terms == {} and stack_env.render() == {}
+    assert stack_env.cameras._images is None  # no sensor, no buffers, no graph
+    with pytest.raises(KeyError, match="renders none") as err:
+        stack_env.images["front_head_rgb"]
+    assert "\n" not in str(err.value)
+
+
+# ---------------------------------------------------------------- bad input (no env build)
+@pytest.mark.parametrize("task, cameras, message", [
+    (PICK, {"head_cam": (96, 72)}, "unknown camera 'head_cam'"),
+    (PICK, {"front_head": (0, 72)}, "resolution must be"),
+    (PICK, {"front_head": (-96, 72)}, "resolution must be"),
+    (PICK, {"front_head": (100_000, 72)}, "resolution must be"),
+    (PICK, {"front_head": (96,)}, "resolution must be"),
+    (PICK, {"front_head": "96x72"}, "resolution must be"),
+    (PICK, {"front_head": (96.0, 72)}, "resolution must be"),
+    (PICK, {"front_head": {"data": ("rgb", "infrared")}}, "data must be"),
+    (PICK, {"front_head": {"fov": 1.0}}, "unknown keys"),
+    (PICK, "front_head", "cameras must be"),
+    ("GalbotG1-StackCube-v0", {"front_head": (96, 72)}, "has no cameras"),
+    ("GalbotG1-Reach-v0", {"left_wrist": (96, 72)}, "has no cameras"),
+])
+def test_bad_camera_requests_raise_one_line(task, cameras, message):
+    cfg = lookup(task).make_cfg(None)
+    with pytest.raises(ValueError, match=message) as err:
+        resolve_cameras(cfg, cameras)
+    assert "\n" not in str(err.value)
+
+
+def test_camera_sets_per_task_and_overrides():
+    def cams(task, cameras=None):
+        return resolve_cameras(lookup(task).make_cfg(None), cameras)
+
+    for task in (PICK, "GalbotG1-PickCube-Mimic-v0", "GalbotG1-PickToShelf-v0", "GalbotG1-PickToShelf-Nav-v0"):
+        c = cams(task)["front_head"]
+        assert (c.width, c.height, c.data) == (298, 224, ("rgb",)), task
+    for task in ("GalbotG1-SortToShelf-v0", "GalbotG1-SortToShelf-Place-v0"):
+        assert cams(task)["front_head"].data == ALL, task
+    for task in ("GalbotG1-StackCube-v0", "GalbotG1-BaseNav-v0", "GalbotG1-Reach-v0"):
+        assert cams(task) == {}, task
+    assert cams(PICK, False) == {}
+    small = cams(PICK, {"front_head": (96, 72)})["front_head"]
+    assert (small.width, small.height, small.data) == (96, 72, ("rgb",))
+    assert set(cams(PICK, {"left_wrist": (64, 48)})) == {"front_head", "left_wrist"}
+
