@@ -132,6 +132,7 @@ class NewtonEnv:
         self._default_q = wp.array(default_q, dtype=float)
         self._default_target_q = wp.array(default_target_q, dtype=float)
         self._terminal_q = z((n, lay.coords_per_world), dtype=float)
+        self._final_obs = z((n, max(self.obs_dim, 1)), dtype=float)
         self._ctx = build_context(cfg=cfg, layout=lay, binding=self.binding, state=self.state, control=self.control,
                                   actions=self._actions, num_envs=n)
         self._build_views()
@@ -166,6 +167,10 @@ class NewtonEnv:
         self.terminal_joint_q = t(self._terminal_q)
         """(num_envs, coords_per_world) coordinates of each row's last finished episode, taken just before
         its automatic reset (valid for rows whose ``info["done"]`` is set)."""
+        self.final_obs = t(self._final_obs)[:, : self.obs_dim]
+        """(num_envs, obs_dim) observation of the state the last step reached, before an automatic reset
+        replaced it: the last observation of a finished episode (rows whose ``info["done"]`` is set); equal to
+        ``obs`` in the other rows."""
 
     def _build_cameras(self, cameras, capture: bool) -> None:
         lay = self.layout
@@ -265,6 +270,7 @@ class NewtonEnv:
         self._simulate()
         self._evaluate_task()
         self._write_signals(self._step_signals)
+        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._final_obs])
         wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
                   inputs=[self._done, self.state.joint_q, self._terminal_q])
         self._reset_rows(self._done)
@@ -317,6 +323,19 @@ class NewtonEnv:
             self._observe()
         self.cameras.stale = True
         return self.obs, self.info
+
+    def reseed(self, seed: int):
+        """Restart the reset randomisation from ``seed`` and reset every row: the rows then start the episodes a
+        new env built with ``seed`` starts (episode counters back to 0, the captured step re-recorded with the
+        new seed). Returns ``(obs, info)``."""
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise ValueError(f"seed must be an int, got {seed!r}")
+        self.seed = seed
+        if self._graph is not None:
+            with wp.ScopedDevice(self.device):
+                self._graph = self._capture()
+        self.episode_count.zero_()
+        return self.reset()
 
     # ------------------------------------------------------------------ input checks
     def check_actions(self, actions) -> torch.Tensor:
