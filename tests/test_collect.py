@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from newton_lab.agents import PlannerAgent
-from newton_lab.datasets import read_dataset_info, read_episode
+from newton_lab.datasets import read_dataset_info, read_episode, state_tree
 
 
 @pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
@@ -35,11 +35,16 @@ def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
     assert ep["actions"].shape == (t, 8) and ep["actions"].dtype == np.float32
     for term, sl in pick_env.obs_terms.items():
         assert ep["obs"][term].shape == (t, sl.stop - sl.start)
-    robot = ep["states"]["articulation"]["robot"]
+    states = state_tree(ep["states"], info["env_args"])  # flat (T, D) states, named by env_args
+    layout = info["env_args"]["newton_lab"]["state_layout"]
+    assert ep["states"].shape == (t, layout["joint_qd"][1]) and ep["states"].dtype == np.float32
+    robot = states["articulation"]["robot"]
     assert robot["joint_position"].shape == (t, 34)
-    np.testing.assert_array_equal(ep["initial_state"]["articulation"]["robot"]["joint_position"][0],
-                                  robot["joint_position"][0])
-    cube = ep["states"]["rigid_object"]["cube"]["root_pose"]
+    np.testing.assert_array_equal(ep["initial_state"], ep["states"][:1])
+    assert ep["rewards"].shape == (t,) and ep["rewards"].dtype == np.float32
+    np.testing.assert_allclose(ep["rewards"].sum(), summary["reward_totals"][0], rtol=1e-4, atol=1e-4)
+    assert ep["dones"].tolist() == [0] * (t - 1) + [1]  # robomimic: 1 on the last step of a success
+    cube = states["rigid_object"]["cube"]["root_pose"]
     np.testing.assert_allclose(cube, ep["datagen"]["object_poses"]["cube"], atol=1e-6)
     grasped = ep["datagen"]["subtask_signals"]["grasped_cube"]
     assert grasped.dtype == bool and grasped.any() and not grasped[0]

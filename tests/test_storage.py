@@ -18,8 +18,10 @@ import numpy as np
 import pytest
 import zarr
 
-from newton_lab.datasets import (EpisodeWriter, delete_demos, list_demos, open_writer, read_dataset_info,
-                                 read_episode)
+from newton_lab.datasets import (FORMAT_VERSION, EpisodeWriter, delete_demos, list_demos, open_writer,
+                                 read_dataset_info, read_episode, read_filter_keys, set_filter_keys,
+                                 split_train_val, state_tree)
+from newton_lab.datasets._common import inject_write_fault
 
 ROOT = Path(__file__).resolve().parents[1]
 TASK = "pick_cube"
@@ -88,7 +90,7 @@ def test_round_trip(tmp_path, suffix):
     assert write_demos(path, [0, 1, 2]) == [0, 1, 2]
 
     info = read_dataset_info(path)
-    assert info["task_id"] == TASK and info["format_version"] == 1
+    assert info["task_id"] == TASK and info["format_version"] == FORMAT_VERSION == 2
     assert info["env_args"] == {"env_name": TASK, "type": 2, "env_kwargs": ENV_ARGS["env_kwargs"]}
     assert info["num_demos"] == 3 and info["total"] == 600 and info["demo_ids"] == [0, 1, 2]
     assert info["demos"][1] == {"num_samples": 200, "success": False}
@@ -103,7 +105,7 @@ def test_round_trip(tmp_path, suffix):
     assert_tree_equal({k: v for k, v in read_episode(path, "demo_2").items() if k != "attrs"}, make_episode(2))
 
     raw = stored_root_attrs(path)
-    assert raw["total"] == 600 and raw["num_demos"] == 3 and raw["task_id"] == TASK and raw["format_version"] == 1
+    assert raw["total"] == 600 and raw["num_demos"] == 3 and raw["task_id"] == TASK and raw["format_version"] == 2
     assert json.loads(raw["env_args"])["env_name"] == TASK
 
 
@@ -258,6 +260,125 @@ def test_readers_ignore_and_writer_cleans_partial_demos(tmp_path, suffix):
     if leftover is None:
         with h5py.File(path, "r") as f:
             assert sorted(f["data"]) == ["demo_0", "demo_1"]
+
+
+# ----------------------------------------------------------------------------- robomimic layout
+def stored_masks(path: Path) -> dict:
+    """``mask/<key>`` read with h5py / zarr directly: HDF5 holds robomimic's byte strings."""
+    if path.suffix == ".zarr":
+        root = zarr.open_group(str(path), mode="r", zarr_format=3)
+        return {k: [str(n) for n in v[...]] for k, v in root["mask"].arrays()} if "mask" in root else {}
+    with h5py.File(path, "r") as f:
+        if "mask" not in f:
+            return {}
+        assert all(v.dtype.kind == "S" for v in f["mask"].values())
+        return {k: [n.decode() for n in v[()]] for k, v in f["mask"].items()}
+
+
+def robomimic_split(names: list[str], val_ratio: float) -> tuple[list[str], list[str]]:
+    """robomimic 0.3.0 scripts/split_train_val.py, step by step (np.random.seed(0) in its __main__)."""
+    demos = sorted(names)
+    num_val = int(val_ratio * len(demos))
+    mask = np.zeros(len(demos))
+    mask[:num_val] = 1.0
+    np.random.seed(0)
+    np.random.shuffle(mask)
+    mask = mask.astype(int)
+    return [demos[i] for i in (1 - mask).nonzero()[0]], [demos[i] for i in mask.nonzero()[0]]
+
+
+def write_small(path: Path, n: int) -> None:
+    """n short demos (even ones successful), no fsync: the filter-key tests need demos, not data."""
+    with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
+        for i in range(n):
+            w.append_episode({"actions": np.full((3, 2), i, np.float32)}, success=i % 2 == 0)
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_filter_keys_round_trip_and_follow_deletes(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_small(path, 4)
+    assert read_filter_keys(path) == {} and stored_masks(path) == {}
+    assert set_filter_keys(path, {"train": [0, "demo_2", 3], "valid": [1], "none": []}) == {
+        "train": ["demo_0", "demo_2", "demo_3"], "valid": ["demo_1"], "none": []}
+    assert set_filter_keys(path, {"valid": ["demo_1", 2]})["valid"] == ["demo_1", "demo_2"]  # replaced, others kept
+    want = {"train": ["demo_0", "demo_2", "demo_3"], "valid": ["demo_1", "demo_2"], "none": []}
+    assert read_filter_keys(path) == stored_masks(path) == want
+    assert read_dataset_info(path)["demo_ids"] == [0, 1, 2, 3]  # masks are not demos
+    before = fingerprint(path)
+    for keys, words in (({"train": [9]}, ["demo 9", "0..3"]), ({"a/b": [0]}, ["'a/b'"]), ({"_x": [0]}, ["'_x'"])):
+        with pytest.raises((KeyError, ValueError)) as exc:
+            set_filter_keys(path, keys)
+        assert all(w in str(exc.value) for w in words) and "\n" not in str(exc.value)
+    assert fingerprint(path) == before
+    delete_demos(path, [2])  # robomimic would fail on a mask naming a missing demo: deletes prune them
+    assert read_filter_keys(path) == {"train": ["demo_0", "demo_3"], "valid": ["demo_1"], "none": []}
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_failed_filter_key_write_keeps_the_old_keys(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_small(path, 3)
+    set_filter_keys(path, {"train": [0, 1], "valid": [2]})
+    inject_write_fault(1)
+    try:
+        with pytest.raises(OSError, match="disk full"):
+            set_filter_keys(path, {"train": [0], "valid": [1, 2]})
+    finally:
+        inject_write_fault(None)
+    assert read_filter_keys(path) == {"train": ["demo_0", "demo_1"], "valid": ["demo_2"]}
+    assert list_demos(path) == [0, 1, 2]
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_split_train_val_matches_robomimic(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_small(path, 12)  # names sort as strings: demo_0, demo_1, demo_10, demo_11, demo_2, ...
+    keys = split_train_val(path, 0.25)
+    train, valid = robomimic_split([f"demo_{i}" for i in range(12)], 0.25)
+    assert keys["train"] == sorted(train, key=lambda n: int(n[5:])) and len(valid) == 3
+    assert keys["valid"] == sorted(valid, key=lambda n: int(n[5:]))
+    assert keys["successful"] == [f"demo_{i}" for i in range(0, 12, 2)]  # write_small: even demos succeed
+    inner = split_train_val(path, 0.5, filter_key="successful")  # robomimic --filter_key successful
+    s_train, s_valid = robomimic_split(keys["successful"], 0.5)
+    assert sorted(inner["successful_train"]) == sorted(s_train) and sorted(inner["successful_valid"]) == sorted(s_valid)
+    assert set(stored_masks(path)) == {"successful", "train", "valid", "successful_train", "successful_valid"}
+    for bad, words in ((1.0, ["val_ratio", "[0, 1)"]), (-0.1, ["val_ratio"]), ("x", ["val_ratio"])):
+        with pytest.raises(ValueError) as exc:
+            split_train_val(path, bad)
+        assert all(w in str(exc.value) for w in words)
+    with pytest.raises(ValueError, match="no filter key 'better'.*available"):
+        split_train_val(path, 0.1, filter_key="better")
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_rewards_and_dones_are_time_aligned(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    with open_writer(path, task_id=TASK, env_args={}) as w:
+        for key in ("rewards", "dones"):
+            with pytest.raises(ValueError, match=f"'{key}'.*3 rows"):
+                w.append_episode({"actions": np.zeros((3, 2)), key: np.zeros(4)}, success=True)
+        w.append_episode({"actions": np.zeros((3, 2)), "rewards": np.ones(3, np.float32),
+                          "dones": np.array([0, 0, 1])}, success=True)
+    ep = read_episode(path, 0)
+    assert ep["rewards"].tolist() == [1, 1, 1] and ep["dones"].tolist() == [0, 0, 1]
+
+
+def test_state_tree_names_flat_states_and_passes_nested_ones():
+    layout = {"joint_q": [0, 3], "joint_qd": [3, 5], "articulation/robot/joint_position": [0, 2],
+              "articulation/robot/joint_velocity": [3, 4], "rigid_object/cube/root_pose": [1, 3]}
+    flat = np.arange(10, dtype=np.float32).reshape(2, 5)
+    tree = state_tree(flat, {"newton_lab": {"state_layout": layout}})
+    np.testing.assert_array_equal(tree["articulation"]["robot"]["joint_position"], flat[:, :2])
+    np.testing.assert_array_equal(tree["articulation"]["robot"]["joint_velocity"], flat[:, 3:4])
+    np.testing.assert_array_equal(tree["rigid_object"]["cube"]["root_pose"], flat[:, 1:3])
+    np.testing.assert_array_equal(tree["joint_qd"], flat[:, 3:])
+    nested = make_episode(0, steps=4)["states"]  # a format 1 dataset's nested states
+    assert state_tree(nested, {}) == nested
+    with pytest.raises(ValueError, match="no newton_lab.state_layout"):
+        state_tree(flat, {})
+    with pytest.raises(ValueError, match="exceeds the 2 state columns"):
+        state_tree(flat[:, :2], {"newton_lab": {"state_layout": layout}})
 
 
 # ----------------------------------------------------------------------------- SIGKILL crash safety

@@ -12,7 +12,7 @@ import warp as wp
 from rerun.chunk import RrdReader
 
 from newton_lab.agents import PlannerAgent
-from newton_lab.datasets import read_episode
+from newton_lab.datasets import read_dataset_info, read_episode, state_tree
 from newton_lab.viz import RerunLogger, log_model_shapes, replay_episode
 from newton_lab.viz.shapes import row_offsets
 
@@ -128,7 +128,8 @@ def test_view_replays_recorded_states_and_logs_episode_events(pick_env, tmp_path
     rrd = tmp_path / "replay.rrd"
     poses = replay_episode(ref.path, 0, save=rrd)
     cube = pick_env.entities["cube"].body
-    np.testing.assert_allclose(poses[:, cube], ep["states"]["rigid_object"]["cube"]["root_pose"], atol=1e-5)
+    states = state_tree(ep["states"], read_dataset_info(ref.path)["env_args"])
+    np.testing.assert_allclose(poses[:, cube], states["rigid_object"]["cube"]["root_pose"], atol=1e-5)
     assert _rows(rrd)["/world/0/cube"] == ep["attrs"]["num_samples"]
     with pytest.raises(ValueError) as e:
         replay_episode(ref.path, 7)

@@ -2,10 +2,12 @@
 
 from ._common import DatasetLockedError, DatasetWriteError
 from .ref import DatasetProvenance, DatasetRef
-from .split import split_by_phase
+from .split import split_by_phase, split_train_val
+from .states import state_tree
 from .storage import (FORMAT_VERSION, SUFFIXES, EpisodeWriter, delete_demos, list_demos, open_writer,
-                      read_dataset_info, read_episode, set_dataset_attrs)
+                      read_dataset_info, read_episode, read_filter_keys, set_dataset_attrs, set_filter_keys)
 
 __all__ = ["DatasetRef", "DatasetProvenance", "DatasetLockedError", "DatasetWriteError", "set_dataset_attrs",
            "EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos", "delete_demos",
-           "split_by_phase", "SUFFIXES", "FORMAT_VERSION"]
+           "read_filter_keys", "set_filter_keys", "split_by_phase", "split_train_val", "state_tree",
+           "SUFFIXES", "FORMAT_VERSION"]

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: flat (T, D) ``states`` / ``initial_state``, ``rewards``, ``dones``, ``mask/``
 DEMO_RE = re.compile(r"^demo_(\d+)$")
 PARTIAL_PREFIX = "_partial_"
 RESERVED_DEMO_ATTRS = ("num_samples", "success")

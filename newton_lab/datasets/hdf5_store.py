@@ -164,7 +164,7 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
-    """Delete demos and refresh totals (space is reclaimed only by h5repack)."""
+    """Delete demos, drop them from the filter keys and refresh totals (space is reclaimed only by h5repack)."""
     with _open_write(path, fsync) as f:
         data = _data(f, path)
         for i in ids:
@@ -172,3 +172,35 @@ def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
         demos = _committed(data)
         data.attrs.update({"total": sum(int(d.attrs["num_samples"]) for d in demos.values()),
                            "num_demos": len(demos)})
+        gone = {demo_name(i) for i in ids}
+        _write_masks(f, {k: [n for n in names if n not in gone] for k, names in _read_masks(f).items()})
+
+
+def _read_masks(f: h5py.File) -> dict[str, list[str]]:
+    g = f.get("mask")
+    if not isinstance(g, h5py.Group):
+        return {}
+    return {k: [from_stored(n) for n in np.asarray(v[()]).reshape(-1)] for k, v in g.items()
+            if isinstance(v, h5py.Dataset)}
+
+
+def _write_masks(f: h5py.File, masks: dict[str, list[str]]) -> None:
+    if not masks:
+        return
+    g = f.require_group("mask")
+    for key, names in masks.items():
+        if key in g:
+            del g[key]
+        g.create_dataset(key, data=np.array([n.encode() for n in names], dtype="S"))  # robomimic: byte strings
+
+
+def read_masks(path: Path) -> dict[str, list[str]]:
+    """robomimic filter keys: ``mask/<key>`` -> demo names."""
+    with _open_read(path) as f:
+        return _read_masks(f)
+
+
+def set_masks(path: Path, masks: dict[str, list[str]], fsync: bool = True) -> None:
+    """Write (or replace) the filter keys ``mask/<key>`` in one journaled session; other keys are kept."""
+    with _open_write(path, fsync) as f:
+        _write_masks(f, masks)

@@ -1,6 +1,7 @@
-"""Split a coherent task's dataset into one dataset per phase (component task), using ``datagen/phase``.
+"""Split a dataset: robomimic train / valid filter keys (:func:`split_train_val`), or one dataset per
+phase of a coherent task (:func:`split_by_phase`).
 
-Each episode contributes its contiguous steps of phase ``p`` to ``<out_dir>/<phase name>.<suffix>``, labelled
+By phase: each episode contributes its contiguous steps of phase ``p`` to ``<out_dir>/<phase name>.<suffix>``, labelled
 with the component task id; the actions keep only the component's columns (by joint name) and the
 segment's ``initial_state`` is the recorded state at its first step. A segment is successful when the row
 moved on to the next phase (the last phase: when the episode succeeded).
@@ -16,7 +17,7 @@ import numpy as np
 from ..robots.g1 import spec
 from ..task_api.registry import lookup
 from .ref import DatasetRef
-from .storage import open_writer, read_dataset_info, read_episode
+from .storage import open_writer, read_dataset_info, read_episode, read_filter_keys, set_filter_keys
 
 
 def _slice(node: Any, sel: np.ndarray, steps: int) -> Any:
@@ -69,9 +70,37 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
                 if "states" in ep:  # (1, ...) like a collected episode's initial_state
                     seg["initial_state"] = _slice(ep["states"], sel[:1], steps)
                 success = bool(attrs.get("success", False)) if p == last else bool((phase > p).any())
+                if "dones" in seg:  # robomimic: 1 on the last step of a successful segment
+                    seg["dones"] = np.zeros_like(seg["dones"])
+                    seg["dones"][-1:] = int(success)
                 saved.append(writer.append_episode(seg, success=success,
                                                    attrs={"source": f"{path.name}:{demo}", "phase": ph.name}))
         ref = DatasetRef(outs[ph.name], task_id=ph.task_id, metadata={"saved_demo_ids": saved, "episodes": len(saved)})
         refs[ph.name] = ref.record("split", config={"source": str(path), "phase": ph.name, "phase_index": p})
     return refs
 
+
+def split_train_val(path: str | Path, val_ratio: float = 0.1, *, seed: int = 0,
+                    filter_key: str | None = None) -> dict[str, list[str]]:
+    """Write robomimic filter keys ``mask/train`` and ``mask/valid`` (``<filter_key>_train`` / ``_valid``
+    when splitting the demos of an existing key), as robomimic's ``split_train_val.py`` does with the same
+    seed: ``int(val_ratio * n)`` demos, drawn by a seeded shuffle, go to valid. Also writes
+    ``mask/successful`` (the demos marked successful). Returns the keys written."""
+    if isinstance(val_ratio, bool) or not isinstance(val_ratio, (int, float)) or not 0 <= val_ratio < 1:
+        raise ValueError(f"val_ratio must be a fraction in [0, 1), got {val_ratio!r}")
+    info = read_dataset_info(path)
+    masks = {"successful": [d for d in info["demo_ids"] if info["demos"][d]["success"]]}
+    if filter_key is None:
+        demos = sorted(f"demo_{d}" for d in info["demo_ids"])  # robomimic sorts the names as strings
+    else:
+        keys = {**read_filter_keys(path), "successful": [f"demo_{d}" for d in masks["successful"]]}
+        if filter_key not in keys:
+            raise ValueError(f"{path} has no filter key {filter_key!r}; available: {sorted(keys)}")
+        demos = sorted(keys[filter_key])
+    mask = np.zeros(len(demos))
+    mask[: int(val_ratio * len(demos))] = 1.0
+    np.random.RandomState(seed).shuffle(mask)  # robomimic: np.random.seed(0); np.random.shuffle(mask)
+    prefix = f"{filter_key}_" if filter_key else ""
+    masks[f"{prefix}train"] = [d for d, m in zip(demos, mask) if not m]
+    masks[f"{prefix}valid"] = [d for d, m in zip(demos, mask) if m]
+    return set_filter_keys(path, masks)

@@ -4,7 +4,14 @@ Layout (both formats)::
 
     data/            attrs: env_args (JSON), total, num_demos, task_id, format_version
     data/demo_<i>/   attrs: num_samples, success, extra scalars
-        actions (T, A) float32, obs/<term>, states/<...>, initial_state/<...>, any nested key
+        actions (T, A) float32, obs/<term> (T, ...), rewards (T,) float32, dones (T,) int (1 on the last step
+        of a successful episode), states (T, D) float32 flat sim state (named by env_args
+        newton_lab.state_layout, see ``states``), initial_state (1, D), datagen/<...>, any nested key
+    mask/<key>       robomimic filter keys: demo names (HDF5: byte strings; zarr: utf-8 strings), e.g.
+                     train / valid written by ``split_train_val`` (``newton-lab split``)
+
+robomimic's ``SequenceDataset`` reads these files as they are (``load_next_obs=False``: there is no
+``next_obs``). Format 1 datasets (nested ``states``, no rewards/dones) stay readable.
 
 Every ``append_episode`` is durable (fsync) and crash safe before it returns: a writer killed at
 any time leaves a dataset holding every episode whose append returned. HDF5 writes go through a
@@ -42,10 +49,10 @@ from ._common import (FORMAT_VERSION, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, Datas
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
 """Storage module of each format."""
-TIME_ALIGNED = ("obs", "states")  # every array under these has T rows
+TIME_ALIGNED = ("obs", "states", "rewards", "dones")  # every array under these has T rows
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
-           "delete_demos", "set_dataset_attrs", "SUFFIXES", "FORMAT_VERSION",
+           "delete_demos", "set_dataset_attrs", "read_filter_keys", "set_filter_keys", "SUFFIXES", "FORMAT_VERSION",
            "DatasetLockedError", "DatasetWriteError", "inject_write_fault"]
 
 
@@ -316,3 +323,28 @@ def delete_demos(path: str | Path, ids: Iterable[int | str]) -> list[int]:
         with _medium_errors(p, backend, "while deleting demos"):
             backend.delete(p, wanted)
     return [i for i in present if i not in wanted]
+
+
+def read_filter_keys(path: str | Path) -> dict[str, list[str]]:
+    """robomimic filter keys of a dataset: ``{key: [demo names]}`` (``mask/<key>``; empty when none)."""
+    p, backend, _ = _existing(path)
+    return backend.read_masks(p)
+
+
+def set_filter_keys(path: str | Path, keys: Mapping[str, Iterable[int | str]]) -> dict[str, list[str]]:
+    """Write (or replace) robomimic filter keys ``mask/<key>``, each a list of demo ids or names of
+    committed demos; other keys are kept. Crash safe like every write. Returns the names written."""
+    p, backend, _ = _existing(path)
+    present = sorted(backend.info(p)["demos"])
+    masks: dict[str, list[str]] = {}
+    for key, ids in keys.items():
+        if not isinstance(key, str) or not key or "/" in key or key.startswith(("_", ".")):
+            raise ValueError(f"filter key {key!r} must be a non-empty str without '/' or a leading '_' / '.'")
+        wanted = [_as_id(i) for i in ids]
+        for i in wanted:
+            if i not in present:
+                raise _missing_id(p, i, present)
+        masks[key] = [f"demo_{i}" for i in sorted(set(wanted))]
+    with _medium_errors(p, backend, "while writing filter keys"):
+        backend.set_masks(p, masks)
+    return masks

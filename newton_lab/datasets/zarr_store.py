@@ -274,7 +274,8 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
-    """Delete demos under the lock (atomic rename out of the tree, then rmtree) and refresh totals."""
+    """Delete demos under the lock (atomic rename out of the tree, then rmtree), refresh totals and drop
+    them from the filter keys."""
     with _locked(path) as data:
         for i in ids:
             _remove(path / "data" / demo_name(i))
@@ -282,3 +283,48 @@ def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
         data.attrs.update(_totals(committed))
         if fsync:
             fsync_path(path / "data")
+        gone = {demo_name(i) for i in ids}
+        _write_masks(path, {k: [n for n in names if n not in gone] for k, names in read_masks(path).items()}, fsync)
+
+
+# ----------------------------------------------------------------------------- filter keys (mask/<key>)
+def read_masks(path: Path) -> dict[str, list[str]]:
+    """robomimic filter keys: ``mask/<key>`` (vlen-utf8 string arrays) -> demo names."""
+    root = _root(path)
+    if not (path / "mask").is_dir():
+        return {}
+    out = {}
+    for entry in sorted(os.scandir(path / "mask"), key=lambda e: e.name):
+        if entry.is_dir() and not entry.name.startswith(PARTIAL_PREFIX) and _node_attrs(Path(entry.path)) is not None:
+            try:
+                out[entry.name] = [str(n) for n in np.asarray(root[f"mask/{entry.name}"][...]).reshape(-1)]
+            except Exception as e:  # noqa: BLE001
+                raise damaged(path, f"mask/{entry.name}: {type(e).__name__}: {e}") from None
+    return out
+
+
+def _write_masks(path: Path, masks: dict[str, list[str]], fsync: bool) -> None:
+    """Each key is written under a temporary name, then renamed over the old one (under the writer lock)."""
+    if not masks:
+        return
+    group = _root(path, writable=True).require_group("mask")
+    mdir = path / "mask"
+    for entry in mdir.iterdir():
+        if entry.name.startswith(PARTIAL_PREFIX):  # leftovers of a killed session
+            shutil.rmtree(entry, ignore_errors=True)
+    for key, names in masks.items():
+        tmp = f"{PARTIAL_PREFIX}{key}_{uuid.uuid4().hex}"
+        group.create_array(tmp, data=np.array(names, dtype=np.dtypes.StringDType()))
+        if fsync:
+            _fsync_tree(mdir / tmp)
+        if (mdir / key).exists():
+            _remove(mdir / key)
+        os.rename(mdir / tmp, mdir / key)
+    if fsync:
+        fsync_path(mdir)
+
+
+def set_masks(path: Path, masks: dict[str, list[str]], fsync: bool = True) -> None:
+    """Write (or replace) the filter keys ``mask/<key>`` under the writer lock; other keys are kept."""
+    with _locked(path):
+        _write_masks(path, masks, fsync)

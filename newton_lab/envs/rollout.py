@@ -19,6 +19,7 @@ import warp as wp
 from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
+from ..datasets.states import state_layout
 from ..task_api.cfg import DIVERGED
 from .scenario import capture_scenario
 
@@ -58,6 +59,7 @@ class EpisodeRecorder:
         self._slices["actions"] = slice(col, col + env.action_dim)
         col += env.action_dim
         self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
+        self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
 
     def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
@@ -65,26 +67,21 @@ class EpisodeRecorder:
         frame = torch.cat([v.float() for v in self._views.values()] + [actions], dim=1)
         self._frames[self._rows, t.clamp(max=self.max_steps - 1)] = frame
 
+    def record_reward(self, t: torch.Tensor, reward: torch.Tensor) -> None:
+        """Store every row's reward of the step taken at its episode step ``t`` (N,)."""
+        self._rewards[self._rows, t.clamp(max=self.max_steps - 1)] = reward.float()
+
     def episode(self, row: int, length: int) -> dict[str, Any]:
-        """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout)."""
-        env, lay = self.env, self.env.layout
+        """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
+        ``obs/*``, flat ``states`` (T, joint_q + joint_qd; named by ``env_args`` ``state_layout``),
+        ``rewards`` (T,) the env's reward of each step, ``dones`` (T,) zeros (``collect`` sets the last step
+        of a successful episode to 1, as robomimic does), ``initial_state`` (1, D) and ``datagen/*``."""
         data = self._frames[row, :length].cpu().numpy()
         flat = {key: data[:, sl] for key, sl in self._slices.items()}
-        q, qd = flat.pop("states/joint_q"), flat.pop("states/joint_qd")
-        states: dict[str, Any] = {
-            "articulation": {
-                "robot": {
-                    "joint_position": q[:, : lay.robot_coords],
-                    "joint_velocity": qd[:, : lay.robot_dofs],
-                }
-            },
-            "rigid_object": {},
-        }
-        for name, e in env.entities.items():
-            if e.dynamic:
-                c, d = lay.entity_coord[e.slot], lay.entity_dof[e.slot]
-                states["rigid_object"][name] = {"root_pose": q[:, c : c + 7], "root_velocity": qd[:, d : d + 6]}
-        tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {}}
+        states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
+        dones = np.zeros(length, dtype=np.int64)
+        tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
+                                "rewards": self._rewards[row, :length].cpu().numpy(), "dones": dones}
         for key, arr in flat.items():
             node = tree
             parts = key.split("/")
@@ -95,12 +92,8 @@ class EpisodeRecorder:
             k: v[:, 0].astype(bool) for k, v in tree["datagen"].get("subtask_signals", {}).items()
         }
         tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
-        tree["initial_state"] = _first_frame(states)
+        tree["initial_state"] = states[:1]
         return tree
-
-
-def _first_frame(tree: dict[str, Any]) -> dict[str, Any]:
-    return {k: _first_frame(v) if isinstance(v, dict) else v[:1] for k, v in tree.items()}
 
 
 def all_finite(tree: dict[str, Any]) -> bool:
@@ -116,6 +109,8 @@ def all_finite(tree: dict[str, Any]) -> bool:
 
 def env_args(env) -> dict[str, Any]:
     """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
+    lay, n = env.layout, env.num_envs
+    q, qd = wp.to_torch(env.state.joint_q).view(n, -1), wp.to_torch(env.state.joint_qd).view(n, -1)
     return {
         "env_name": env.task_id,
         "type": 2,
@@ -133,6 +128,10 @@ def env_args(env) -> dict[str, Any]:
             "entities": list(env.entities),
             "signals": list(env.signal_names),
             "termination_reasons": list(env.termination_reasons),
+            "state_layout": state_layout(
+                q.shape[1], qd.shape[1], lay.robot_coords, lay.robot_dofs,
+                {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.entities.items()
+                 if e.dynamic}),
         },
     }
 
@@ -220,6 +219,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 recorder.record(eps.step_in_ep, actions)
             _, reward, terminated, truncated, info = env.step(actions)
             vector_steps += 1
+            if recorder is not None:
+                recorder.record_reward(eps.step_in_ep, reward)
             if on_step is not None:
                 on_step(reward, info)
             eps.add_step(reward, info)
@@ -309,6 +310,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
         if rec["termination_reason"] == DIVERGED or (only_successes and not rec["success"]):
             return {}
         episode = recorder.episode(row, rec["length"])
+        episode["dones"][-1:] = int(rec["success"])
         if not all_finite(episode):  # diverged without tripping the guard: dropped and counted as diverged
             return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
         demo = writer.append_episode(

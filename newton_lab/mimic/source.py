@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..datasets.states import state_tree
 from ..datasets.storage import read_dataset_info, read_episode
 from ..task_api.mimic_cfg import MimicCfg
 
@@ -72,7 +73,8 @@ def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str) -> list
             edges[s] = int(on[0])
         if len(edges) < len(cfg.signals):
             continue  # a successful demo whose signal never fired cannot be segmented
-        q = np.asarray(ep["states"]["articulation"]["robot"]["joint_position"], dtype=np.float64)
+        robot = state_tree(ep["states"], info["env_args"])["articulation"]["robot"]
+        q = np.asarray(robot["joint_position"], dtype=np.float64)
         actions = np.asarray(ep["actions"], dtype=np.float64)
         q_cmd = q.copy()
         q_cmd[:, kinematics.arm_coords] = actions[:, arm_cols]

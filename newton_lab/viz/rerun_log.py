@@ -18,7 +18,7 @@ import rerun as rr
 import torch
 import warp as wp
 
-from ..datasets import read_dataset_info, read_episode
+from ..datasets import read_dataset_info, read_episode, state_tree
 from ..envs import make_env
 from .blueprint import default_blueprint, eye_for
 from .shapes import entity_name, log_model_shapes, row_offsets
@@ -138,8 +138,9 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
     env = make_env(info["task_id"], num_envs=1, device=device, capture=False)
     logger = RerunLogger(env, save=save, spawn=spawn, max_worlds=1, app_id="newton_lab_replay") \
         if (save is not None or spawn) else None
-    robot = ep["states"]["articulation"]["robot"]["joint_position"]
-    objects = ep["states"].get("rigid_object", {})
+    states = state_tree(ep["states"], info["env_args"])  # flat (format 2) or nested (format 1)
+    robot = states["articulation"]["robot"]["joint_position"]
+    objects = states.get("rigid_object", {})
     q = wp.to_torch(env.state.joint_q).view(-1)
     poses = []
     for t in range(len(robot)):
