@@ -201,12 +201,18 @@ class TrainArgs:
 
 @dataclass(kw_only=True)
 class SplitArgs:
-    """``newton-lab split``: one dataset per phase of a coherent task's dataset."""
+    """``newton-lab split``: robomimic train / valid filter keys (``mask/``), or one dataset per phase (``--out``)."""
 
     dataset_path: str
-    """Dataset of a coherent task (its episodes record datagen/phase)."""
-    out: str
-    """folder for <phase>.hdf5 / .zarr (files must not exist)"""
+    """Dataset to split (by phase: a coherent task's, its episodes record datagen/phase)."""
+    out: str | None = None
+    """split by phase into this folder (<phase>.hdf5 / .zarr, must not exist); default: write filter keys"""
+    val_ratio: float = 0.1
+    """Fraction of the demos put in mask/valid (robomimic's --ratio)."""
+    filter_key: str | None = None
+    """split only this filter key's demos (e.g. successful) into <key>_train / <key>_valid"""
+    seed: int = 0
+    """Seed of the train / valid shuffle (robomimic's split_train_val uses 0)."""
 
 
 @dataclass(kw_only=True)

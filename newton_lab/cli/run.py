@@ -110,8 +110,12 @@ def train(args: TrainArgs) -> int:
 
 
 def split(args: SplitArgs) -> int:
-    from ..datasets import split_by_phase  # deferred: the dataset package imports Warp/Newton
+    from ..datasets import split_by_phase, split_train_val  # deferred: the dataset package imports Warp/Newton
 
+    if args.out is None:
+        keys = split_train_val(args.dataset_path, args.val_ratio, seed=args.seed, filter_key=args.filter_key)
+        print(json.dumps({"path": str(args.dataset_path), "filter_keys": {k: len(v) for k, v in keys.items()}}))
+        return 0
     refs = split_by_phase(args.dataset_path, args.out)
     print(json.dumps({name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]}
                       for name, r in refs.items()}))
