@@ -52,6 +52,7 @@ def test_captured_step_matches_eager(pick_env, eager_env):
         eager_env.step(a.clone())
     torch.testing.assert_close(_q(pick_env), _q(eager_env), atol=1e-5, rtol=0)
     torch.testing.assert_close(pick_env.obs, eager_env.obs, atol=1e-5, rtol=0)
+    torch.testing.assert_close(pick_env.reward, eager_env.reward, atol=1e-5, rtol=0)
 
 
 def test_step_returns_views_of_warp_buffers(pick_env):

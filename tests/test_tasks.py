@@ -84,7 +84,7 @@ def test_stack_success_needs_the_full_stack(stack_env):
     _place(env, 0, "cube_3", (base[0], base[1], base[2] + 0.10))
     _, reward, term, _, info = env.step(_gripper_action(env, 0.0))
     assert bool(info["success"][0]) and bool(term[0])
-    assert float(reward[0]) > 20.0  # stack bonus + both shaping terms
+    assert abs(float(reward[0]) - 1.0) < 1e-5  # the dense reward's maximum (every stage done)
     # the success step resets the row: its observation signals show the new episode, the step signals the stack
     step_sig = dict(zip(env.signal_names, info["step_signals"][0].tolist()))
     assert step_sig["cube_3_on_cube_2"] == 1.0 and info["signals"][0].tolist() != info["step_signals"][0].tolist()

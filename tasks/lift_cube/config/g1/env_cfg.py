@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.tasks.common import postures
-from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
 from newton_lab.tasks.lift_cube import scene
@@ -19,11 +19,7 @@ def lift_cube_cfg() -> TaskCfg:
         observations=common_obs.manipulation_observations(cube_pose=ObsTermCfg(func=observations.cube_pose, size=7)),
         phase_success=[terminations.cube_lifted],
         terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
-        rewards={
-            "reaching": RewardTermCfg(func=rewards.reaching, weight=1.0),
-            "lift_progress": RewardTermCfg(func=rewards.lift_progress, weight=5.0),
-            "action_rate": RewardTermCfg(func=rewards.action_rate, weight=-1e-4),
-        },
+        rewards=rewards.dense_rewards(),  # staged, in [0, 1]
         signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
         events={"randomize_cube": TermCfg(func=events.randomize_cube)},
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),

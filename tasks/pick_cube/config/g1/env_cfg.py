@@ -8,7 +8,7 @@ from newton_lab.tasks.common import cameras, postures
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
 from newton_lab.tasks.pick_cube import scene
-from newton_lab.tasks.pick_cube.mdp import events, observations, terminations
+from newton_lab.tasks.pick_cube.mdp import events, observations, rewards, terminations
 
 
 def pick_cube_cfg() -> TaskCfg:
@@ -23,6 +23,7 @@ def pick_cube_cfg() -> TaskCfg:
         ),
         phase_success=[terminations.released_on_blue_block],
         terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
+        rewards=rewards.dense_rewards(),  # staged, in [0, 1] (not in the reference, which has none)
         signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
         events={"randomize_cube_position": TermCfg(func=events.randomize_cube_position)},
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),

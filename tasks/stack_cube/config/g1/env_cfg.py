@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
@@ -28,12 +28,7 @@ def stack_cube_cfg() -> TaskCfg:
         },
         phase_success=[terminations.stack_success],
         terminations={"cube_dropping": TerminationTermCfg(func=terminations.cube_dropping)},
-        rewards={
-            "cube_2_on_cube_1": RewardTermCfg(func=rewards.cube_2_on_cube_1, weight=2.0),
-            "cube_3_on_cube_2": RewardTermCfg(func=rewards.cube_3_on_cube_2, weight=2.0),
-            "stack_success": RewardTermCfg(func=rewards.stack_success, weight=20.0),
-            "action_rate": RewardTermCfg(func=rewards.action_rate, weight=-1e-4),
-        },
+        rewards=rewards.dense_rewards(),  # staged, in [0, 1]; reference_rewards() has the reference weights
         signals={
             "cube_2_grasped": TermCfg(func=terminations.cube_2_grasped),
             "cube_2_on_cube_1": TermCfg(func=terminations.cube_2_on_cube_1),
