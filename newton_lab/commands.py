@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from .datasets.storage import SUFFIXES
+from .task_api.catalog import check_task_id
 from .task_api.registry import DEFAULT_TASK_ID
 
 TASK_OPTION_FIELDS = ("sorting_object", "init_scenario")
@@ -344,6 +344,8 @@ def check_args(args: Any) -> None:
     """Refuse bad arguments in one line before anything is imported, built or written (``ValueError`` /
     ``FileNotFoundError`` naming the field and the fix)."""
     names = {f for f in getattr(args, "__dataclass_fields__", {})}
+    if "task" in names:
+        check_task_id(args.task)  # first: it needs no import at all (typo'd ids answer at once)
     for name in names & set(COUNT_FIELDS):
         value = getattr(args, name)
         if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
@@ -352,6 +354,8 @@ def check_args(args: Any) -> None:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise ValueError(f"{_label(args, name)} must be > 0 [s], got {value!r}")
+    from .datasets.storage import SUFFIXES  # deferred: the datasets package imports h5py and zarr (~1 s)
+
     for name in names & set(DATASET_FIELDS):
         value = getattr(args, name)
         paths = value if isinstance(value, list) else [value]

@@ -9,6 +9,8 @@ import pytest
 
 from newton_lab.cli import REQUIRED, build_parser, main, parse_args
 from newton_lab.commands import CollectArgs, EvaluateArgs, TrainArgs
+from newton_lab.task_api.catalog import declared_task_ids
+from newton_lab.task_api.registry import list_tasks
 
 
 def test_tasks_lists_every_id(capsys):
@@ -19,7 +21,7 @@ def test_tasks_lists_every_id(capsys):
 
 
 def test_collect_prints_one_json_line(tmp_path, capsys):
-    path = tmp_path / "reach.zarr"
+    path = tmp_path / "data" / "reach.zarr"  # data/ does not exist yet: the command creates it
     rc = main(["collect", "--task", "GalbotG1-Reach-v0", "--episodes", "2", "--num-envs", "2", "--randomize",
                "--device", "cpu", "--no-progress", "--dataset-path", str(path)])
     assert rc == 0
@@ -33,6 +35,31 @@ def test_cli_reports_bad_input_in_one_line(capsys):
     assert main(["collect", "--task", "GalbotG1-Nope-v0", "--device", "cpu"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "unknown task id" in err and "GalbotG1-PickCube-v0" in err
+
+
+def test_task_ids_read_from_source_are_the_registry():
+    """The CLI checks --task against ids read from the task packages' source (no import); they must be the
+    registered ones."""
+    from newton_lab import tasks  # noqa: F401  registers every id
+
+    assert declared_task_ids() == tuple(list_tasks()) and len(list_tasks()) >= 10
+
+
+def test_task_option_typo_names_the_closest_value(capsys):
+    rc = main(["collect", "--task", "GalbotG1-SortToShelf-Pick-v0", "--sorting-object", "red_cub", "--device", "cpu"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.count("\n") == 0 and "unknown sorting_object 'red_cub' (did you mean red_cube?)" in err
+
+
+def test_version_and_defaults_in_help(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip().startswith("newton-lab 0.")
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    text = " ".join(sub.choices["collect"].format_help().split())
+    assert "(default: GalbotG1-PickCube-v0)" in text and "(default: data/pick_cube_demos.hdf5)" in text
+    assert "(default: 1000)" in text and "--verbose" in text
+    assert "(default: None)" not in text and "(default: False)" not in text
 
 
 @pytest.mark.slow

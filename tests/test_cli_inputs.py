@@ -32,6 +32,14 @@ BAD = [
     ("train --dataset-path src.hdf5 --time-budget-s 0", "--time-budget-s must be > 0"),
     ("train --dataset-path src.hdf5 --max-steps 0", "--max-steps must be an integer >= 1"),
     ("train --dataset-path src.txt", "unknown dataset suffix"),
+    # typos: the closest task id / flag is named, answered before Warp (the task ids are read from source)
+    ("collect --task GalbotG1-PickCub-v0", "unknown task id 'GalbotG1-PickCub-v0' (did you mean GalbotG1-PickCube-v0?)"),
+    ("evaluate --task GalbotG1-Reach-v1 --episodes 2", "(did you mean GalbotG1-Reach-v0?)"),
+    ("pipeline --task GalbotG1-StackCub-v0", "(did you mean GalbotG1-StackCube-v0?)"),
+    ("bench --task galbotg1-pickcube-v0", "(did you mean GalbotG1-PickCube-v0?)"),
+    ("collect --epsiodes 2", "unrecognized arguments: --epsiodes (did you mean --episodes?) 2"),
+    ("bench-train --dataset-path src.hdf5 --batchsize 8", "--batchsize (did you mean --batch-size?)"),
+    ("collect --task GalbotG1-PickCube-v0 --dataset-path d/x.txt", "unknown dataset suffix"),  # no d/ left behind
 ]
 CHECK = "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); sys.exit(rc if 'warp' not in sys.modules else 99)"
 

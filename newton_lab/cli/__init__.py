@@ -10,11 +10,13 @@ import argparse
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
 
 from .. import commands as c
-from ..datasets import DatasetWriteError
 from . import run
-from .parsing import REQUIRED, add_arguments, from_namespace, parse_args
+from .parsing import REQUIRED, HelpFormatter, add_arguments, add_verbose, apply_verbose, from_namespace, parse_args
+from .parsing import unrecognized
 
 
 @dataclass(frozen=True)
@@ -44,34 +46,72 @@ COMMANDS: dict[str, Command] = {
 }
 """Subcommands in ``--help`` order."""
 
+OUTPUT_FIELDS = {c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_save"), c.EvaluateArgs: ("rerun_save",),
+                 c.MimicArgs: ("output_path",), c.ExportArgs: ("root",), c.ViewArgs: ("save",)}
+"""Fields naming an output file (or new folder), per command: the command creates their parent folder
+(``collect --dataset-path data/demos.hdf5`` into a missing ``data/``)."""
+
 ERRORS = (ValueError, FileNotFoundError, FileExistsError, KeyError, ConnectionError)
 """Exceptions reported as one ``newton-lab <command>: error: ...`` line and exit status 2."""
 
 
+def version() -> str:
+    """The installed newton_lab version (``unknown`` when run from a source tree that is not installed)."""
+    try:
+        return metadata.version("newton_lab")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The ``newton-lab`` parser: one subparser per ``COMMANDS`` entry, flags from its dataclass."""
-    parser = argparse.ArgumentParser(prog="newton-lab", description=__doc__)
+    """The ``newton-lab`` parser: one subparser per ``COMMANDS`` entry, flags from its dataclass, defaults
+    shown in ``--help``."""
+    parser = argparse.ArgumentParser(prog="newton-lab", description=__doc__, formatter_class=HelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    add_verbose(parser)
     sub = parser.add_subparsers(dest="command", required=True)
     for name, cmd in COMMANDS.items():
-        add_arguments(sub.add_parser(name, help=cmd.help, description=cmd.help), cmd.args)
+        cmd_parser = sub.add_parser(name, help=cmd.help, description=cmd.help, formatter_class=HelpFormatter)
+        add_arguments(cmd_parser, cmd.args)
+        add_verbose(cmd_parser)
+        cmd_parser.set_defaults(command_parser=cmd_parser)
     return parser
 
 
+def make_output_dirs(args: object) -> None:
+    """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``)."""
+    for name in OUTPUT_FIELDS.get(type(args), ()):
+        if (value := getattr(args, name)) is not None:
+            Path(value).parent.mkdir(parents=True, exist_ok=True)
+
+
+def _write_error() -> type[Exception]:
+    from ..datasets import DatasetWriteError  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    return DatasetWriteError
+
+
 def main(argv: list[str] | None = None) -> int:
-    ns = build_parser().parse_args(argv)
+    parser = build_parser()
+    ns, extra = parser.parse_known_args(argv)
+    if extra:  # an unknown flag: one line, with the closest flag of that command
+        print(f"newton-lab {ns.command}: error: {unrecognized(ns.command_parser, extra)}; see `newton-lab "
+              f"{ns.command} --help`", file=sys.stderr)
+        return 2
+    apply_verbose(ns)
     cmd = COMMANDS[ns.command]
     try:
         args = from_namespace(cmd.args, ns)
         c.check_args(args)  # before Warp, Newton or torch is imported and before any file is created
-        run.quiet_warp()
+        make_output_dirs(args)
         return cmd.run(args)
-    except DatasetWriteError as exc:  # the disk refused a write: the run stops, the dataset keeps what it had
-        print(f"newton-lab {ns.command}: error: {exc}", file=sys.stderr)
-        return 1
     except ERRORS as exc:
         msg = exc.args[0] if exc.args else str(exc)
         print(f"newton-lab {ns.command}: error: {msg}", file=sys.stderr)
         return 2
+    except _write_error() as exc:  # the disk refused a write: the run stops, the dataset keeps what it had
+        print(f"newton-lab {ns.command}: error: {exc}", file=sys.stderr)
+        return 1
 
 
 __all__ = ["COMMANDS", "REQUIRED", "build_parser", "main", "parse_args"]

@@ -19,8 +19,44 @@ import typing
 from collections.abc import Iterable, Mapping
 from typing import Any, Literal
 
+from ..kernels.runtime import set_verbose
+from ..task_api.catalog import did_you_mean
+
 REQUIRED = dataclasses.MISSING
 """A ``defaults`` value making a field required (an example that needs ``--checkpoint``)."""
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Descriptions kept as written; every option with a default shows it (``(default: ...)``) unless its
+    help already says its default; switches and unset optionals show none."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if ("%(default)" in text or "default" in text.lower() or not action.option_strings
+                or any(default is x for x in (None, False, argparse.SUPPRESS, REQUIRED)) or action.required):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def unrecognized(parser: argparse.ArgumentParser, extra: list[str]) -> str:
+    """argparse's ``unrecognized arguments`` message, with the closest flag of ``parser`` for each unknown
+    one (``--epsiodes`` -> ``did you mean --episodes?``)."""
+    flags = [s for a in parser._actions for s in a.option_strings]
+    hints = [f"{x}{did_you_mean(x.split('=')[0], flags)}" for x in extra]
+    return "unrecognized arguments: " + " ".join(hints)
+
+
+def add_verbose(parser: argparse.ArgumentParser) -> None:
+    """The ``--verbose`` switch: show Warp's banner and per-module load lines (quiet by default)."""
+    parser.add_argument("--verbose", action="store_true", default=argparse.SUPPRESS,
+                        help="show Warp's start-up and module-load output (also: NEWTON_LAB_VERBOSE=1)")
+
+
+def apply_verbose(ns: argparse.Namespace) -> None:
+    """Turn Warp's output on when ``--verbose`` was given."""
+    if getattr(ns, "verbose", False):
+        set_verbose()
 
 
 @functools.cache
@@ -112,7 +148,13 @@ def from_namespace(cls: type, ns: argparse.Namespace, *, defaults: Mapping[str, 
 def parse_args(cls: type, argv: list[str] | None = None, *, description: str | None = None,
                defaults: Mapping[str, Any] | None = None, exclude: Iterable[str] = (),
                choices: Mapping[str, Iterable[Any]] | None = None):
-    """Parse ``argv`` (default ``sys.argv[1:]``) into a ``cls``; bad input exits 2 with argparse's message."""
-    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Parse ``argv`` (default ``sys.argv[1:]``) into a ``cls``; bad input exits 2 with argparse's message
+    (an unknown flag names the closest one). ``--verbose`` shows Warp's output."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=HelpFormatter)
     add_arguments(parser, cls, defaults=defaults, exclude=exclude, choices=choices)
-    return from_namespace(cls, parser.parse_args(argv), defaults=defaults)
+    add_verbose(parser)
+    ns, extra = parser.parse_known_args(argv)
+    if extra:
+        parser.error(unrecognized(parser, extra))
+    apply_verbose(ns)
+    return from_namespace(cls, ns, defaults=defaults)

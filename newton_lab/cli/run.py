@@ -20,13 +20,6 @@ COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", 
 """Keys of the collect summary printed by ``newton-lab collect`` (then ``wall_time_s``)."""
 
 
-def quiet_warp() -> None:
-    import warp as wp  # deferred: Warp is slow to import
-
-    wp.config.quiet = True  # no init banner
-    wp.config.log_level = wp.LOG_WARNING  # no per-module load lines
-
-
 def _logger(args: RerunArgs, env):
     """A rerun ``on_step`` hook when --rerun / --rerun-save is given, else None (and a closer)."""
     if not (args.rerun or args.rerun_save):

@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .catalog import did_you_mean
 from .cfg import TaskCfg
 from .experts import Expert
 from .mimic_cfg import MimicCfg
@@ -59,12 +60,14 @@ class TaskSpec:
         options = dict(options or {})
         unknown = sorted(set(options) - set(self.option_names))
         if unknown:
-            raise ValueError(f"unknown task option(s) {unknown} for {self.id}; "
+            hint = did_you_mean(unknown[0], self.option_names) if len(unknown) == 1 else ""
+            raise ValueError(f"unknown task option(s) {unknown} for {self.id}{hint}; "
                              f"valid options: {self.option_names if self.options else 'none'}")
         for opt in self.options:
             value = options.get(opt.name)
             if value is not None and opt.choices is not None and value not in opt.choices:
-                raise ValueError(f"unknown {opt.name} {value!r}; valid values: {list(opt.choices)}")
+                raise ValueError(f"unknown {opt.name} {value!r}{did_you_mean(value, opt.choices)}; "
+                                 f"valid values: {list(opt.choices)}")
         return options
 
     def accepted(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -112,7 +115,7 @@ def lookup(task_id: str) -> TaskSpec:
     """The spec of ``task_id``; unknown ids raise with the list of valid ones."""
     if task_id not in _REGISTRY:
         valid = ", ".join(sorted(_REGISTRY)) or "none (import newton_lab.tasks to register them)"
-        raise ValueError(f"unknown task id {task_id!r}; valid ids: {valid}")
+        raise ValueError(f"unknown task id {task_id!r}{did_you_mean(task_id, _REGISTRY)}; valid ids: {valid}")
     return _REGISTRY[task_id]
 
 
