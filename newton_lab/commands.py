@@ -323,6 +323,22 @@ class BenchTrainArgs:
     """Torch device (cpu, cuda, cuda:1, ...)."""
 
 
+@dataclass(kw_only=True)
+class RenderArgs(EnvArgs):
+    """``newton-lab render``: one camera frame of a task as a PNG, RGB | depth | segmentation side by side."""
+
+    camera: str = "front_head"
+    """G1 camera: front_head, left_wrist or right_wrist"""
+    resolution: list[int] | None = None
+    """image width and height [px] (default: the task's, else 298 224)"""
+    randomize: bool = True
+    """turn on the task's reset randomisation (seeded by --seed)"""
+    expert_steps: int = 0
+    """run the task's expert this many control steps before the frame"""
+    out: str = "render.png"
+    """PNG file to write"""
+
+
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
                 "batch_size", "rerun_worlds", "max_attempts", "train_steps", "epochs", "checkpoint_every_steps")
 """Fields that count something: an integer >= 1 when given."""

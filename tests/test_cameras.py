@@ -14,6 +14,7 @@ import pytest
 import torch
 import warp as wp
 
+from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
 from newton_lab.envs.cameras import resolve_cameras
 from newton_lab.robots.g1 import cameras as mounts
@@ -28,8 +29,9 @@ PICK = "GalbotG1-PickCube-v0"
 
 @pytest.fixture(scope="module")
 def cam_env():
+    view = {"resolution": (W, H), "data": ALL}  # both cameras in one render call (one resolution)
     return make_env(PICK, num_envs=2, device="cpu", seed=5, randomize=True,
-                    cameras={"front_head": {"resolution": (W, H), "data": ALL}})
+                    cameras={"front_head": view, "left_wrist": view})
 
 
 def _rotate(q, v):
@@ -85,13 +87,15 @@ def test_intrinsics_follow_the_reference_lens():
 def test_image_terms_are_zero_copy_views(cam_env):
     env = cam_env
     env.reset()
-    assert list(env.image_terms) == ["front_head_rgb", "front_head_depth", "front_head_segmentation"]
-    rgb, depth, seg = (env.images[n] for n in env.image_terms)
+    assert list(env.image_terms) == [f"{cam}_{data}" for cam in ("front_head", "left_wrist") for data in ALL]
+    rgb, depth, seg = (env.images[f"front_head_{data}"] for data in ALL)
     assert (rgb.shape, rgb.dtype) == ((2, H, W, 3), torch.uint8)
     assert (depth.shape, depth.dtype) == ((2, H, W), torch.float32)
     assert (seg.shape, seg.dtype) == ((2, H, W), torch.int32)
-    group = env.cameras._groups[0]
+    group, = env.cameras._groups  # 2 cameras x 2 worlds: 4 views, camera-major
+    assert group.poses.shape == (4,)
     assert rgb.data_ptr() == wp.to_torch(group.color).data_ptr()
+    assert env.images["left_wrist_rgb"].data_ptr() == rgb.data_ptr() + 2 * H * W * 4
     assert seg.data_ptr() == wp.to_torch(group.segmentation).data_ptr()
     assert env.images["front_head_rgb"] is rgb  # the same view every read
 
@@ -161,6 +165,28 @@ def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
     assert (red[:, 0] > red[:, 1] + 40).all()  # the cube renders red
 
 
+def test_left_wrist_view_sees_the_cube_while_grasping(cam_env):
+    """The expert's grasp: at the step each row's ``grasped_cube`` signal turns on, the cube is in its wrist view,
+    between the fingers (the middle third of the image)."""
+    env = cam_env
+    env.reset()
+    agent = expert_agent(env)
+    agent.reset()
+    names = env.cameras.segmentation_names
+    k = env.signal_names.index("grasped_cube")
+    checked = set()
+    for _ in range(150):
+        env.step(agent.act(env))
+        for row in set(np.nonzero(env.info["signals"][:, k].numpy() > 0.5)[0].tolist()) - checked:
+            cube = env.images["left_wrist_segmentation"][row].numpy() == names.index("cube")
+            assert cube.sum() >= 20, f"row {row}: cube hardly in the wrist view"
+            assert W / 3 < _centroid(cube)[0] < 2 * W / 3
+            checked.add(row)
+        if len(checked) == env.num_envs:
+            break
+    assert checked == {0, 1}
+
+
 def test_state_only_envs_do_no_camera_work(stack_env):
     stack_env.reset()
     stack_env.step(stack_env.current_action())
@@ -209,3 +235,21 @@ def test_camera_sets_per_task_and_overrides():
     assert (small.width, small.height, small.data) == (96, 72, ("rgb",))
     assert set(cams(PICK, {"left_wrist": (64, 48)})) == {"front_head", "left_wrist"}
 
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--camera", "nose_cam"], "--camera 'nose_cam' is unknown"),
+    (["--resolution", "0", "72"], "--resolution takes width and height"),
+    (["--resolution", "96"], "--resolution takes width and height"),
+    (["--resolution", "96", "72000"], "--resolution takes width and height"),
+    (["--out", "frame.jpg"], "the picture is a PNG"),
+    (["--task", "GalbotG1-StackCube-v0"], "has no cameras"),
+])
+def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp_path):
+    from newton_lab.cli import main
+
+    out = ["--out", str(tmp_path / "x.png")] if "--out" not in argv else []
+    assert main(["render", *argv, *out]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err, err
+    assert not (tmp_path / "x.png").exists()

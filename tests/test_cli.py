@@ -98,7 +98,7 @@ LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the data
 
 def test_generated_parser_keeps_every_flag_and_default():
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    assert set(LEGACY_FLAGS) | {"tasks"} == set(sub.choices)
+    assert set(LEGACY_FLAGS) | {"tasks", "render"} == set(sub.choices)
     for command, flags in LEGACY_FLAGS.items():
         actions = {s: a for a in sub.choices[command]._actions for s in (a.option_strings or [a.dest])}
         for flag, default in flags.items():

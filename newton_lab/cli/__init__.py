@@ -43,6 +43,7 @@ COMMANDS: dict[str, Command] = {
     "bench": Command(c.BenchArgs, run.bench, "env-steps/s of the captured step vs the bare solver on the same model"),
     "bench-train": Command(c.BenchTrainArgs, run.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
+    "render": Command(c.RenderArgs, run.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),
 }
 """Subcommands in ``--help`` order."""
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..commands import RenderArgs
 from ..commands import (BenchArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
                         RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.settings import configure
@@ -163,4 +164,47 @@ def bench_train(args: BenchTrainArgs) -> int:
 
     print(json.dumps(measure(args.dataset_path, batch_size=args.batch_size, steps=args.steps, device=args.device,
                              preset=args.preset)))
+    return 0
+
+
+def _check_render(args: RenderArgs) -> None:
+    """One-line errors for a ``render`` request (before Warp is imported)."""
+    from ..robots.g1.cameras import MAX_RESOLUTION, MIN_RESOLUTION  # deferred: numpy, only for this command
+    from ..robots.g1.spec import CAMERA_MOUNTS  # deferred: only for this command
+
+    if args.camera not in CAMERA_MOUNTS:
+        raise ValueError(f"--camera {args.camera!r} is unknown; the G1's cameras are {', '.join(CAMERA_MOUNTS)}")
+    res = args.resolution
+    if res is not None and (len(res) != 2 or not all(MIN_RESOLUTION <= v <= MAX_RESOLUTION for v in res)):
+        raise ValueError(f"--resolution takes width and height in [{MIN_RESOLUTION}, {MAX_RESOLUTION}] px, got "
+                         f"{' '.join(map(str, res))}; e.g. --resolution 298 224")
+    if args.expert_steps < 0:
+        raise ValueError(f"--expert-steps must be >= 0, got {args.expert_steps}")
+    if Path(args.out).suffix.lower() != ".png":
+        raise ValueError(f"--out {args.out}: the picture is a PNG; name it e.g. render.png")
+
+
+def render(args: RenderArgs) -> int:
+    _check_render(args)  # before Warp is imported
+    from PIL import Image  # deferred: only this command writes pictures
+
+    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
+    from ..envs import make_env  # deferred: Warp/Newton are slow to import
+    from ..envs.cameras import picture  # deferred: Warp/Newton are slow to import
+
+    view = {"data": ("rgb", "depth", "segmentation")}
+    if args.resolution:
+        view["resolution"] = tuple(args.resolution)
+    env = make_env(args.task, **args.env_kwargs(), cameras={args.camera: view})
+    if args.expert_steps:
+        agent = expert_agent(env)
+        for _ in range(args.expert_steps):
+            env.step(agent.act(env))
+    images = env.render()
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(picture(images, args.camera)).save(args.out)
+    cam, names = env.cameras.specs[args.camera], env.cameras.segmentation_names
+    seen = images[f"{args.camera}_segmentation"][0].unique().tolist()
+    print(json.dumps({"task": args.task, "camera": args.camera, "resolution": [cam.width, cam.height],
+                      "visible": [names[i] for i in seen], "out": args.out}))
     return 0

@@ -59,6 +59,7 @@ class NewtonEnv:
         self.torch_device = torch.device(wp.device_to_torch(self.device))
         self.seed = 0 if seed is None else int(seed)
         self.randomize = bool(randomize)
+        self.camera_specs = resolve_cameras(cfg, cameras)  # a bad camera request fails before the build
 
         with wp.ScopedDevice(self.device):
             self.layout = build_scene(cfg, num_envs, str(self.device))
@@ -80,7 +81,7 @@ class NewtonEnv:
             self._build_actions()
             self._build_buffers()
             self._build_kernels()
-            self._build_cameras(cameras, capture)
+            self._build_cameras(capture)
             self.reset()
             self._graph = self._capture() if capture else None
 
@@ -172,9 +173,9 @@ class NewtonEnv:
         replaced it: the last observation of a finished episode (rows whose ``info["done"]`` is set); equal to
         ``obs`` in the other rows."""
 
-    def _build_cameras(self, cameras, capture: bool) -> None:
+    def _build_cameras(self, capture: bool) -> None:
         lay = self.layout
-        self.cameras = Cameras(resolve_cameras(self.cfg, cameras), model=self.model, state=self.state,
+        self.cameras = Cameras(self.camera_specs, model=self.model, state=self.state,
                                num_envs=self.num_envs, bodies_per_world=lay.bodies_per_world,
                                entity_names=lay.entity_names, capture=capture)
         """The rendered cameras (``envs.cameras``): specs, intrinsics, poses, segmentation names."""

@@ -32,10 +32,11 @@ MOUNT_FRAMES: dict[str, tuple[str, tuple[float, float, float], tuple[float, floa
     # head_end_effector_mount_link: at the head pitch axis, x forward, y down, z left (head_link2 turned -90 deg
     # about x); the reference offset then sets the lens 8.6 cm ahead of the axis, pitched 28 deg down, level
     "front_head": ("head_link2", (0.0, 0.0, 0.0), (-_HALF, 0.0, 0.0, _HALF)),
-    # <side>_arm_end_effector_mount_link: the flange at link7's origin, x along the gripper's approach, z up
-    # in the wrist image (link7 turned 180 deg about z, like the TCP); the lens sits 6.9 cm above the gripper
-    "left_wrist": ("left_arm_link7", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0)),
-    "right_wrist": ("right_arm_link7", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0)),
+    # <side>_arm_end_effector_mount_link: the flange where the gripper mounts (the palm's back face, 7 cm down
+    # link7's -x), x along the gripper's approach, z up in the wrist image (link7 turned 180 deg about z, like the
+    # TCP); the lens sits 6.9 cm above the gripper's axis, looking past the palm at the fingers
+    "left_wrist": ("left_arm_link7", (-0.07, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0)),
+    "right_wrist": ("right_arm_link7", (-0.07, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0)),
 }
 """Mount link of each camera as a frame of an authored body: (body, pos [m], rot xyzw in that body)."""
 
