@@ -1,29 +1,24 @@
-"""Maps the top-level folders kernels/, tasks/, flows/ and assets/ into the newton_lab namespace."""
+"""Maps the top-level folders kernels/, tasks/, flows/ and assets/ into the newton_lab namespace.
 
-from pathlib import Path
+Every folder under them is a package (``find_namespace_packages``), data-only ones (assets/g1,
+tasks/*/config/g1/scenarios) included, so setuptools ships their files without warnings.
+"""
 
-from setuptools import setup
+from setuptools import find_namespace_packages, setup
 
 ROOTS = {"newton_lab": "newton_lab", "newton_lab.kernels": "kernels", "newton_lab.tasks": "tasks",
          "newton_lab.flows": "flows", "newton_lab.assets": "assets"}
 
 
-def _packages():
-    found = []
+def _packages() -> dict[str, str]:
+    """Package name -> folder, for every folder under ``ROOTS`` (caches excluded)."""
+    found = {}
     for pkg, folder in ROOTS.items():
-        for init in sorted(Path(folder).rglob("__init__.py")):
-            rel = init.parent.relative_to(folder).parts
-            found.append(".".join((pkg, *rel)))
+        found[pkg] = folder
+        for sub in find_namespace_packages(where=folder, exclude=["__pycache__", "*.__pycache__"]):
+            found[f"{pkg}.{sub}"] = f"{folder}/{sub.replace('.', '/')}"
     return found
 
 
-def _package_dir():
-    dirs = dict(ROOTS)
-    for pkg in _packages():
-        root = max((r for r in ROOTS if pkg.startswith(r + ".")), key=len, default=None)
-        if root is not None and pkg not in ROOTS:
-            dirs[pkg] = str(Path(ROOTS[root], *pkg[len(root) + 1:].split(".")))
-    return dirs
-
-
-setup(packages=_packages(), package_dir=_package_dir())
+PACKAGES = _packages()
+setup(packages=sorted(PACKAGES), package_dir=PACKAGES)

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import json
 import os
+import pty
 import re
 import signal
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
@@ -127,15 +129,22 @@ def test_kill_before_the_first_checkpoint_leaves_nothing(dataset, tmp_path):
     script = (f"from newton_lab.policies import train; train({str(dataset)!r}, "
               f"{{**{dict(CFG, progress=True)!r}, 'max_steps': 10**6, 'checkpoint_every_steps': 10**6, "
               f"'checkpoint_every_s': None, 'output_dir': {str(out)!r}}})")
+    tty, term = pty.openpty()  # the progress bar shows on a terminal only (one 120 columns wide)
+    termios.tcsetwinsize(term, (24, 120))
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=ONE_THREAD, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
+                            stderr=term)
+    os.close(term)
     seen, deadline = b"", time.monotonic() + 60
     while proc.poll() is None and time.monotonic() < deadline:  # until the progress bar shows 5 steps done
-        seen += proc.stderr.read1(4096)
+        try:
+            seen += os.read(tty, 4096)
+        except OSError:  # the child closed the terminal
+            break
         if any(int(n) >= 5 for n in re.findall(rb"\| *(\d+)/\d+ \[", seen)):
             break
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    os.close(tty)
     assert proc.returncode == -signal.SIGKILL, seen.decode(errors="replace")[-300:]
     assert not out.exists() or not any(out.iterdir())  # the folder is made by the first checkpoint
     with pytest.raises(FileNotFoundError, match="no resume file .*without --resume") as err:

@@ -210,7 +210,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     eps = _Episodes(env, episodes=episodes, until_successes=until_successes, max_attempts=max_attempts)
     vector_steps = 0
     bar = tqdm(total=episodes, desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
-               unit="ep", disable=not progress, leave=False)
+               unit="ep", disable=None if progress else True, leave=False)  # None: a terminal only
     t0 = time.perf_counter()
     try:
         while not eps.enough():

@@ -181,7 +181,7 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
     policy.model.train()
     set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
     with tqdm(total=run.total, initial=run.step, desc=f"diffusion policy {task_id}", unit="step",
-              disable=not cfg.progress) as bar:
+              disable=None if cfg.progress else True) as bar:  # None: a terminal only (no \r bars in logs)
         while run.step < run.total:
             for loss in stepper.epoch():
                 run.losses.append(loss)  # no host sync per step: read back every 50 steps
