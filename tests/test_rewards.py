@@ -133,7 +133,7 @@ def test_stack_cube_reward_rises_along_the_expert_episode(stack_env):
     assert r[np.argmax(r >= 4 / 9 - 1e-5):].min() >= 4 / 9 - 1e-5  # cube_2 stays stacked while cube_3 is moved
 
 
-# ---------------------------------------------------------------- LiftCube, coherent PickToShelf
+# ---------------------------------------------------------------- LiftCube, coherent PickToShelf / SortToShelf
 @pytest.mark.slow
 def test_lift_cube_reward_rises_along_the_expert_episode():
     from newton_lab.envs import make_env
@@ -144,10 +144,12 @@ def test_lift_cube_reward_rises_along_the_expert_episode():
 
 
 @pytest.mark.slow
-def test_coherent_pick_to_shelf_reward_rises_through_the_phases():
+@pytest.mark.parametrize("task_id, options", [("GalbotG1-PickToShelf-v0", None),
+                                              ("GalbotG1-SortToShelf-v0", {"sorting_object": "red_cube"})])
+def test_coherent_reward_rises_through_the_phases(task_id, options):
     from newton_lab.envs import make_env
 
-    env = make_env("GalbotG1-PickToShelf-v0", num_envs=1, device="cpu", seed=1, randomize=True)
+    env = make_env(task_id, num_envs=1, device="cpu", seed=1, randomize=True, task_options=options)
     env.reset()
     agent = expert_agent(env)
     agent.reset()
