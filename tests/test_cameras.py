@@ -47,6 +47,15 @@ def _project(pose: np.ndarray, point: np.ndarray, K: np.ndarray) -> tuple[np.nda
     return np.array([K[0, 2] + K[0, 0] * pc[0] / z, K[1, 2] - K[1, 1] * pc[1] / z]), z
 
 
+def _touches(mask: np.ndarray, other: np.ndarray) -> bool:
+    """Whether ``mask`` borders ``other`` (8-neighbourhood): an object partly hidden behind another."""
+    grown = mask.copy()
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            grown |= np.roll(np.roll(mask, dr, axis=0), dc, axis=1)
+    return bool((grown & other).any())
+
+
 def _centroid(mask: np.ndarray) -> np.ndarray:
     """Mask centroid in continuous pixel coordinates (pixel (r, c) covers [c, c + 1) x [r, r + 1))."""
     rows, cols = np.nonzero(mask)
@@ -121,13 +130,17 @@ def test_render_only_when_images_are_read_and_capture_matches_eager(cam_env):
 
 
 def test_projection_matches_segmentation(cam_env):
-    """At 10 randomised resets x 2 rows, the cube centre projected through K and the camera pose lands within
-    3 px of its mask's centroid, and the cube's depth is its distance along the view axis."""
+    """At 15 randomised resets x 2 rows, the cube centre projected through K and the camera pose lands within
+    3 px of its mask's centroid, and the cube's depth is its distance along the view axis. A cube far to the left
+    (y > 0.22) can be partly behind the gripper's fingers at reset; its mask is then cut and those rows are
+    left out."""
     env = cam_env
-    cube = env.cameras.segmentation_names.index("cube")
+    names = env.cameras.segmentation_names
+    cube = names.index("cube")
+    robot = np.array([n.startswith("robot/") for n in names])
     K = env.cameras.intrinsics("front_head")
-    seen = []
-    for _ in range(10):
+    seen, checked = [], 0
+    for _ in range(15):
         env.reset()
         seg = env.images["front_head_segmentation"].numpy()
         depth = env.images["front_head_depth"].numpy()
@@ -137,11 +150,14 @@ def test_projection_matches_segmentation(cam_env):
             uv, z = _project(poses[row], centres[row], K)
             mask = seg[row] == cube
             assert mask.sum() >= 9, f"cube hardly visible in row {row}"
+            seen.append(tuple(centres[row, :2].round(3)))
+            if _touches(mask, robot[seg[row]]):
+                continue
+            checked += 1
             assert np.linalg.norm(_centroid(mask) - uv) < 3.0, (uv, _centroid(mask))
             # the cube's visible faces lie within 2.5 cm of its centre along the view axis
             assert float(np.median(depth[row][mask])) == pytest.approx(z, abs=0.04)
-            seen.append(tuple(centres[row, :2].round(3)))
-    assert len(set(seen)) >= 15  # the resets really moved the cube
+    assert len(set(seen)) >= 25 and checked >= 12  # the resets really moved the cube; most in full view
 
 
 def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
