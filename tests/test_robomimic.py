@@ -52,6 +52,8 @@ def test_demos_hold_what_robomimic_reads(collected):
             assert demo["dones"][()].tolist() == [0] * (t - 1) + [int(success)], name
             assert demo["states"].shape == (t, layout["joint_qd"][1]) and demo["states"].dtype == np.float32
             assert all(demo[f"obs/{k}"].shape[0] == t for k in demo["obs"])
+            assert sorted(demo["next_obs"]) == sorted(demo["obs"])
+            assert all(demo[f"next_obs/{k}"].shape == demo[f"obs/{k}"].shape for k in demo["obs"])
             assert info["demos"][int(name[5:])]["success"] == success
     ep = read_episode(collected, 0)
     states = state_tree(ep["states"], info["env_args"])
@@ -85,7 +87,7 @@ def test_robomimic_sequence_dataset_loads_it(collected):
     for cache in ("low_dim", None):  # robomimic's default cache mode, and reads straight from the file
         ds = SequenceDataset(hdf5_path=str(collected), obs_keys=obs_keys, dataset_keys=DATASET_KEYS,
                              seq_length=4, frame_stack=1, hdf5_cache_mode=cache, filter_by_attribute="train",
-                             load_next_obs=False)  # robomimic's BC config: there is no next_obs
+                             goal_mode="last")  # load_next_obs=True (its default): the goal is the last next_obs
         eps = {d: read_episode(collected, d) for d in train}
         assert ds.n_demos == len(train) and len(ds) == sum(e["attrs"]["num_samples"] for e in eps.values())
         first = eps[train[0]]
@@ -94,7 +96,9 @@ def test_robomimic_sequence_dataset_loads_it(collected):
         np.testing.assert_array_equal(item["rewards"], first["rewards"][:4])
         np.testing.assert_array_equal(item["states"], first["states"][:4])
         for k in obs_keys:
-            np.testing.assert_array_equal(item["obs"][k], first["obs"][k][:4].astype(item["obs"][k].dtype))
+            np.testing.assert_array_equal(item["obs"][k], first["obs"][k][:4])
+            np.testing.assert_array_equal(item["next_obs"][k], first["next_obs"][k][:4])
+            np.testing.assert_array_equal(item["goal_obs"][k], first["next_obs"][k][-1])
         last = ds[len(ds) - 1]  # padded at the end of the last demo, as robomimic pads
         final = eps[train[-1]]
         assert last["dones"][-1] == final["dones"][-1] == int(final["attrs"]["success"])

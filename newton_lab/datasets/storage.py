@@ -4,14 +4,15 @@ Layout (both formats)::
 
     data/            attrs: env_args (JSON), total, num_demos, task_id, format_version
     data/demo_<i>/   attrs: num_samples, success, extra scalars
-        actions (T, A) float32, obs/<term> (T, ...), rewards (T,) float32, dones (T,) int (1 on the last step
-        of a successful episode), states (T, D) float32 flat sim state (named by env_args
-        newton_lab.state_layout, see ``states``), initial_state (1, D), datagen/<...>, any nested key
+        actions (T, A) float32, obs/<term> (T, ...), next_obs/<term> (the observation after each step),
+        rewards (T,) float32, dones (T,) int (1 on the last step of a successful episode), states (T, D)
+        float32 flat sim state (named by env_args newton_lab.state_layout, see ``states``),
+        initial_state (1, D), datagen/<...>, any nested key
     mask/<key>       robomimic filter keys: demo names (HDF5: byte strings; zarr: utf-8 strings), e.g.
                      train / valid written by ``split_train_val`` (``newton-lab split``)
 
-robomimic's ``SequenceDataset`` reads these files as they are (``load_next_obs=False``: there is no
-``next_obs``). Format 1 datasets (nested ``states``, no rewards/dones) stay readable.
+robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets (nested ``states``, no
+rewards / dones / next_obs) stay readable.
 
 Every ``append_episode`` is durable (fsync) and crash safe before it returns: a writer killed at
 any time leaves a dataset holding every episode whose append returned. HDF5 writes go through a
@@ -49,7 +50,7 @@ from ._common import (FORMAT_VERSION, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, Datas
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
 """Storage module of each format."""
-TIME_ALIGNED = ("obs", "states", "rewards", "dones")  # every array under these has T rows
+TIME_ALIGNED = ("obs", "next_obs", "states", "rewards", "dones")  # every array under these has T rows
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
            "delete_demos", "set_dataset_attrs", "read_filter_keys", "set_filter_keys", "SUFFIXES", "FORMAT_VERSION",

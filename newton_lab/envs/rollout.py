@@ -60,6 +60,7 @@ class EpisodeRecorder:
         col += env.action_dim
         self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
         self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
+        self._next_obs = torch.zeros(n, max_steps, env.final_obs.shape[1], device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
 
     def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
@@ -67,20 +68,26 @@ class EpisodeRecorder:
         frame = torch.cat([v.float() for v in self._views.values()] + [actions], dim=1)
         self._frames[self._rows, t.clamp(max=self.max_steps - 1)] = frame
 
-    def record_reward(self, t: torch.Tensor, reward: torch.Tensor) -> None:
-        """Store every row's reward of the step taken at its episode step ``t`` (N,)."""
-        self._rewards[self._rows, t.clamp(max=self.max_steps - 1)] = reward.float()
+    def record_outcome(self, t: torch.Tensor, reward: torch.Tensor) -> None:
+        """Store every row's reward of the step taken at its episode step ``t`` (N,) and the observation of the
+        state it reached (``env.final_obs``: before an automatic reset)."""
+        t = t.clamp(max=self.max_steps - 1)
+        self._rewards[self._rows, t] = reward.float()
+        self._next_obs[self._rows, t] = self.env.final_obs.float()
 
     def episode(self, row: int, length: int) -> dict[str, Any]:
         """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
-        ``obs/*``, flat ``states`` (T, joint_q + joint_qd; named by ``env_args`` ``state_layout``),
-        ``rewards`` (T,) the env's reward of each step, ``dones`` (T,) zeros (``collect`` sets the last step
-        of a successful episode to 1, as robomimic does), ``initial_state`` (1, D) and ``datagen/*``."""
+        ``obs/*``, ``next_obs/*`` (the observation after each step), flat ``states`` (T, joint_q + joint_qd;
+        named by ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step, ``dones``
+        (T,) zeros (``collect`` sets the last step of a successful episode to 1, as robomimic does),
+        ``initial_state`` (1, D) and ``datagen/*``."""
         data = self._frames[row, :length].cpu().numpy()
         flat = {key: data[:, sl] for key, sl in self._slices.items()}
         states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
         dones = np.zeros(length, dtype=np.int64)
+        nxt = self._next_obs[row, :length].cpu().numpy()
         tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
+                                "next_obs": {k: nxt[:, sl] for k, sl in self.env.obs_terms.items()},
                                 "rewards": self._rewards[row, :length].cpu().numpy(), "dones": dones}
         for key, arr in flat.items():
             node = tree
@@ -220,7 +227,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             _, reward, terminated, truncated, info = env.step(actions)
             vector_steps += 1
             if recorder is not None:
-                recorder.record_reward(eps.step_in_ep, reward)
+                recorder.record_outcome(eps.step_in_ep, reward)
             if on_step is not None:
                 on_step(reward, info)
             eps.add_step(reward, info)
