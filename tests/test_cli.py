@@ -84,7 +84,7 @@ LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the data
     "train": {"--dataset-path": REQ, "--output-dir": "outputs/policy", "--preset": "default", "--epochs": None,
               "--max-steps": None, "--batch-size": None, "--lr": None, "--obs-keys": None, "--init-checkpoint": None,
               "--time-budget-s": None, "--device": "cpu", "--seed": 0},
-    "split": {"--dataset-path": REQ, "--out": REQ},
+    "split": {"--dataset-path": REQ, "--out": None, "--val-ratio": 0.1, "--filter-key": None, "--seed": 0},
     "export": {"--dataset-path": REQ, "--root": REQ, "--include-failed": False},
     "pipeline": {"--task": "GalbotG1-PickCube-v0", "--demos": 4, "--mimic-episodes": 40, "--train-steps": None,
                  "--eval-episodes": 10, "--num-envs": 4, "--device": None, "--seed": 0, "--out": "outputs/pipeline",
