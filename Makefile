@@ -10,6 +10,8 @@ $(STAMP): pyproject.toml setup.py
 	$(VENV)/bin/pip install -qq --upgrade pip
 	$(VENV)/bin/pip install -qq torch==2.13.0
 	$(VENV)/bin/pip install -qq -e '.[test]'
+	# robomimic's data loader only (its training extras pin packages that don't install here): the layout test
+	$(VENV)/bin/pip install -qq --no-deps robomimic==0.3.0 termcolor==3.3.0
 	touch $(STAMP)
 
 .PHONY: demo test bench
