@@ -1,29 +1,34 @@
 """Prefect flows: ``collect``, ``mimic``, ``train``, ``evaluate`` and ``pipeline`` chaining them.
 
 Each stage is a Prefect task over artifacts (path + content hash) cached on its inputs, so a re-run of
-the same pipeline is answered from the cache (task state ``Cached``) and a failed stage is retried alone.
-With ``runner="dask"``, collection, Mimic and evaluation are split into shards with disjoint seed ranges,
-mapped over a Dask cluster (a local one, or the scheduler ``address`` given), and shard datasets are
-merged into one.
+the same pipeline is answered from the cache (task state ``Cached``) and a failed stage is retried alone
+(transient errors only: input errors fail at once). Stages log to Prefect's run logger and each publishes
+its artifact (``runlog``). Every stage is submitted to the flow's task runner: with ``runner="dask"``,
+collection, Mimic and evaluation are split into shards with disjoint seed ranges, mapped over a Dask
+cluster (a local one sized by ``cluster.cluster_options``, or the scheduler ``address`` given), and shard
+datasets are merged into one; ``pipeline`` runs the stages itself (no sub-flows), so all of them share its
+task runner and its one cluster.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import socket
+import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
-from prefect import flow, task, unmapped
-from prefect.artifacts import create_markdown_artifact
+from prefect import flow, get_run_logger, task, unmapped
 from prefect.cache_policies import INPUTS
 
 from ..commands import CollectArgs, EvaluateArgs, MimicArgs, PipelineArgs
 from ..task_api.registry import lookup
-from . import stages
+from . import runlog, stages
 from .artifacts import artifact
+from .cluster import cluster_options, pins_gpus, quiet_shutdown
 from .settings import check_api_reachable
 
 SEED_STRIDE = 100_000
@@ -49,7 +54,21 @@ def retry_transient(task, task_run, state) -> bool:
 
 
 def _stage_task(fn, name: str):
-    return task(fn, name=name, cache_policy=INPUTS, persist_result=True, retries=1, retry_delay_seconds=1,
+    """``fn`` as a cached, retried Prefect task that logs what it does to the run logger."""
+
+    @functools.wraps(fn)
+    def run(**kwargs):
+        runlog.quiet_console(INPUT_ERRORS)
+        runlog.fault_point(name)
+        log = get_run_logger()
+        log.info("%s: %s", name, runlog.describe_inputs(kwargs))
+        t0 = time.perf_counter()
+        result = fn(**kwargs)
+        for line in runlog.describe_result(result, time.perf_counter() - t0):
+            log.info("%s: %s", name, line)
+        return result
+
+    return task(run, name=name, cache_policy=INPUTS, persist_result=True, retries=1, retry_delay_seconds=1,
                 retry_condition_fn=retry_transient)
 
 
@@ -68,14 +87,13 @@ def merge_task(shards: list[dict[str, Any]], out_dir: str, name: str) -> dict[st
     if path.exists():
         path.unlink()  # a partial merge of an interrupted run; merges are recomputed from their shards
     ref = merge_datasets([s["path"] for s in shards], path)
-    return artifact(path, "dataset", episodes=ref["episodes"],
-                    **{k: sum(s["metrics"].get(k, 0) for s in shards) for k in ("attempts", "successes")})
-
-
-def _with_state(state, shard_states: list[str] | None = None):
-    """(artifact, task state names): the artifact goes downstream unchanged (it is the next stage's cache
-    key); the state names ("Completed", "Cached", ...) are reported by the pipeline."""
-    return state.result(), [*(shard_states or []), state.name]
+    total = {"attempts": sum(s["metrics"].get("attempts", 0) for s in shards),  # Mimic shards keep successes only
+             "successes": sum(s["metrics"].get("successes", s["metrics"]["episodes"]) for s in shards)}
+    rates = ({"generation_success_rate": total["successes"] / max(total["attempts"], 1)} if total["attempts"]
+             else {"success_rate": total["successes"] / max(ref["episodes"], 1)})
+    get_run_logger().info("merge: %d shards -> %s (%d episodes)", len(shards), path, ref["episodes"])
+    return artifact(path, "dataset", episodes=ref["episodes"], samples=stages.dataset_samples(path), **total,
+                    **rates)
 
 
 def _split(total: int, parts: int) -> list[int]:
@@ -111,53 +129,81 @@ def _shards(args, shards: int, out: str | None = None, stage: str = "", path_fie
     return parts
 
 
-def _sharded(task, args, *, shards: int, out: str, stage: str, name: str, path_field: str, **fixed) -> dict[str, Any]:
-    """Map ``task`` over the shards of ``args`` and merge the shard datasets into ``<out>/<name>.hdf5``;
-    returns the merged artifact with the shard states."""
-    futures = task.map(args=_shards(args, shards, out, stage, path_field), **{k: unmapped(v) for k, v in fixed.items()})
-    return _with_state(merge_task(shards=[f.result() for f in futures], out_dir=out, name=name,
-                                  return_state=True), [f.state.name for f in futures])
+def _results(futures, stage: str) -> tuple[list[Any], list[str]]:
+    """(results, task state names) of submitted stage runs, once all have ended (the finished ones are cached
+    for a re-run); raises the first failure. A run that Dask had to re-run because its worker died is named
+    ``<state> (re-run after N lost worker(s))`` and logged as a warning (Prefect's own retries are in each task
+    run's state history)."""
+    for f in futures:
+        f.wait()
+    results = [f.result() for f in futures]
+    states = []
+    for i, f in enumerate(futures):
+        lost = _lost_workers(f)
+        states.append(f.state.name + (f" (re-run after {lost} lost worker{'s' * (lost > 1)})" if lost else ""))
+        if lost:
+            get_run_logger().warning("%s run %d of %d: its Dask worker died %d time(s); Dask re-ran it on another "
+                                     "worker", stage, i + 1, len(futures), lost)
+    return results, states
 
 
-@flow(name="collect")
-def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, device: str | None = None,
-            out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
-    """Expert demos of ``task_id`` (randomised) -> dataset artifact (``shards`` > 1: disjoint seeds, merged)."""
+def _lost_workers(future) -> int:
+    """Times the Dask worker running ``future``'s task died under it (0 off Dask)."""
+    inner = getattr(future, "wrapped_future", None)
+    client = getattr(inner, "client", None)
+    if client is None or not hasattr(client, "run_on_scheduler"):
+        return 0
+    return client.run_on_scheduler(_suspicious, key=inner.key)
+
+
+def _suspicious(key, dask_scheduler=None) -> int:
+    """On the Dask scheduler: how often ``key`` was running on a worker that died."""
+    ts = dask_scheduler.tasks.get(key)
+    return 0 if ts is None else ts.suspicious
+
+
+def _run_dataset_stage(stage_task, args, *, shards: int, out: str, stage: str, name: str, path_field: str,
+                       **fixed) -> tuple[dict[str, Any], list[str]]:
+    """Submit a dataset stage (one run, or ``shards`` runs merged into ``<out>/<name>.hdf5``); returns
+    (artifact, state names: shards, then the merge). The artifact goes downstream unchanged (it is the next
+    stage's cache key) and is published as the stage's artifact."""
+    if shards <= 1:
+        (art,), states = _results([stage_task.submit(args=args, **fixed)], stage)
+    else:
+        parts, states = _results(stage_task.map(args=_shards(args, shards, out, stage, path_field),
+                                                **{k: unmapped(v) for k, v in fixed.items()}), stage)
+        (art,), merged = _results([merge_task.submit(shards=parts, out_dir=out, name=name)], "merge")
+        states = states + merged
+    runlog.publish_dataset(stage, art, shards)
+    return art, states
+
+
+def _collect(task_id, episodes, num_envs, seed, device, out, shards):
     args = CollectArgs(task=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device, randomize=True,
                        dataset_path=str(Path(out) / "demos.hdf5"))
-    if shards <= 1:
-        return _with_state(collect_task(args=args, return_state=True))
-    return _sharded(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
-                    path_field="dataset_path")
+    return _run_dataset_stage(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
+                              path_field="dataset_path")
 
 
-@flow(name="mimic")
-def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: int = 1, device: str | None = None,
-          out: str = "outputs/pipeline", shards: int = 1) -> dict[str, Any]:
-    """Mimic expansion of a dataset artifact -> dataset artifact."""
+def _mimic(source, episodes, num_envs, seed, device, out, shards):
     args = MimicArgs(dataset_path=source["path"], output_path=str(Path(out) / "mimic.hdf5"), episodes=episodes,
                      num_envs=num_envs, seed=seed, device=device)
-    if shards <= 1:
-        return _with_state(mimic_task(source=source, args=args, return_state=True))
-    return _sharded(mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic", path_field="output_path",
-                    source=source)
+    return _run_dataset_stage(mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic",
+                              path_field="output_path", source=source)
 
 
-@flow(name="train")
-def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None, out: str = "outputs/pipeline") -> dict[str, Any]:
-    """Diffusion policy on a dataset artifact -> checkpoint artifact."""
-    return _with_state(train_task(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out, return_state=True))
+def _train(dataset, train_cfg, out):
+    (ckpt,), states = _results([train_task.submit(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out)],
+                               "train")
+    runlog.publish_loss_curve(ckpt)
+    return ckpt, states
 
 
-@flow(name="evaluate")
-def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_envs: int = 5, seed: int = 10_000,
-             device: str | None = None, shards: int = 1, max_steps: int = 600) -> dict[str, Any]:
-    """Success rate of a checkpoint artifact (randomised; ``shards`` > 1: disjoint seeds, summed)."""
+def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps):
     args = EvaluateArgs(task=task_id, checkpoint=checkpoint["path"], episodes=episodes, num_envs=num_envs, seed=seed,
                         device=device, randomize=True, max_steps=max_steps)
-    futures = evaluate_task.map(checkpoint=unmapped(checkpoint), args=_shards(args, shards))
-    parts = [f.result() for f in futures]
-    states = [f.state.name for f in futures]
+    parts, states = _results(evaluate_task.map(checkpoint=unmapped(checkpoint), args=_shards(args, shards)),
+                             "evaluate")
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
     reasons: dict[str, int] = {}
@@ -167,23 +213,41 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
             reasons[k] = reasons.get(k, 0) + v
         for k, v in p.get("subtask_signals", {}).items():
             signals[k] = signals.get(k, 0) + v
-    return {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
-            "subtask_signals": signals,
-            "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}, states
+    metrics = {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
+               "subtask_signals": signals,
+               "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}
+    runlog.publish_evaluation(metrics)
+    return metrics, states
 
 
-def _markdown(task_id: str, demos, gen, ckpt, metrics, out: Path) -> str:
-    rows = [
-        ("expert demos", f"{demos['metrics'].get('episodes')} ({demos['metrics'].get('success_rate', 1.0):.0%} success)"),
-        ("mimic demos", f"{gen['metrics'].get('episodes')} (generation rate "
-                        f"{gen['metrics'].get('generation_success_rate', gen['metrics'].get('successes', 0) / max(gen['metrics'].get('attempts', 1), 1)):.0%})"),
-        ("final training loss", f"{ckpt['metrics'].get('final_loss')}"),
-        ("evaluation success rate", f"{metrics['success_rate']:.1%} of {metrics['episodes']} episodes"),
-    ]
-    table = "\n".join(f"| {k} | {v} |" for k, v in rows)
-    paths = "\n".join(f"- {k}: `{a['path']}` (sha256 {a['sha256'][:12]})" for k, a in
-                      (("demos", demos), ("mimic", gen), ("checkpoint", ckpt)))
-    return f"# newton_lab pipeline: {task_id}\n\n| metric | value |\n|---|---|\n{table}\n\n{paths}\n- metrics: `{out / 'metrics.json'}`\n"
+@flow(name="collect")
+def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, device: str | None = None,
+            out: str = "outputs/pipeline", shards: int = 1) -> tuple[dict[str, Any], list[str]]:
+    """Expert demos of ``task_id`` (randomised) -> (dataset artifact, task states); ``shards`` > 1: disjoint
+    seeds, merged."""
+    return _collect(task_id, episodes, num_envs, seed, device, out, shards)
+
+
+@flow(name="mimic")
+def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: int = 1, device: str | None = None,
+          out: str = "outputs/pipeline", shards: int = 1) -> tuple[dict[str, Any], list[str]]:
+    """Mimic expansion of a dataset artifact -> (dataset artifact, task states)."""
+    return _mimic(source, episodes, num_envs, seed, device, out, shards)
+
+
+@flow(name="train")
+def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None,
+          out: str = "outputs/pipeline") -> tuple[dict[str, Any], list[str]]:
+    """Diffusion policy on a dataset artifact -> (checkpoint artifact, task states)."""
+    return _train(dataset, train_cfg, out)
+
+
+@flow(name="evaluate")
+def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_envs: int = 5, seed: int = 10_000,
+             device: str | None = None, shards: int = 1, max_steps: int = 600) -> tuple[dict[str, Any], list[str]]:
+    """Success rate of a checkpoint artifact (randomised; ``shards`` > 1: disjoint seeds, summed) -> (metrics,
+    task states)."""
+    return _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps)
 
 
 @flow(name="pipeline")
@@ -191,24 +255,29 @@ def pipeline(task_id: str = _P.task, demos: int = _P.demos, mimic_episodes: int 
              train_cfg: dict[str, Any] | None = None, eval_episodes: int = _P.eval_episodes,
              num_envs: int = _P.num_envs, device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
              workers: int = _P.workers, eval_max_steps: int = 600) -> dict[str, Any]:
-    """collect -> mimic -> train -> evaluate for ``task_id``; publishes a markdown artifact with the metrics
-    table and writes ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation.
+    """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
+    runner for all); publishes one artifact per stage and a markdown summary (``runlog``) and writes
+    ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation.
     Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
+    runlog.quiet_console(INPUT_ERRORS)
+    log = get_run_logger()
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
-    demo_art, s_collect = collect(task_id, episodes=demos, num_envs=num_envs, seed=seed, device=device, out=out,
-                                  shards=workers)
-    gen_art, s_mimic = mimic(demo_art, episodes=mimic_episodes, num_envs=num_envs, seed=seed + 1, device=device,
-                             out=out, shards=workers)
-    ckpt_art, s_train = train(gen_art, train_cfg=train_cfg, out=out)
-    metrics, s_eval = evaluate(ckpt_art, task_id, episodes=eval_episodes, num_envs=num_envs, seed=seed + 10_000,
-                               device=device, shards=workers, max_steps=eval_max_steps)
+    demo_art, s_collect = _collect(task_id, demos, num_envs, seed, device, out, workers)
+    log.info("collect: %s", "/".join(s_collect))
+    gen_art, s_mimic = _mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers)
+    log.info("mimic: %s", "/".join(s_mimic))
+    ckpt_art, s_train = _train(gen_art, train_cfg, out)
+    log.info("train: %s", "/".join(s_train))
+    metrics, s_eval = _evaluate(ckpt_art, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
+                                eval_max_steps)
+    log.info("evaluate: %s; success rate %.1f%% over %d episodes", "/".join(s_eval), 100 * metrics["success_rate"],
+             metrics["episodes"])
     summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
                "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art},
                "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval}}
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
-    create_markdown_artifact(markdown=_markdown(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir),
-                             key="newton-lab-pipeline", description=f"newton_lab pipeline metrics for {task_id}")
+    runlog.publish_summary(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir)
     return summary
 
 
@@ -229,10 +298,14 @@ def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address:
             _check_scheduler(address)
             options["task_runner"] = DaskTaskRunner(address=address)
         else:
-            options["task_runner"] = DaskTaskRunner(cluster_kwargs={
-                "n_workers": workers, "processes": True, "threads_per_worker": 1, "dashboard_address": None})
+            cluster = cluster_options(workers, kwargs.get("device"))
+            quiet_shutdown()
+            options["task_runner"] = DaskTaskRunner(**cluster)
+            if "workers" in cluster["cluster_kwargs"] and pins_gpus(kwargs.get("device")):
+                kwargs["device"] = "cuda"  # each worker's own GPU
     for t in (collect_task, mimic_task, train_task, evaluate_task):
         t.retries = retries
+    runlog.quiet_console(INPUT_ERRORS)
     return pipeline.with_options(**options)(workers=workers if runner == "dask" else 1, **kwargs)
 
 

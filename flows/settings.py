@@ -11,8 +11,10 @@ from pathlib import Path
 
 DEFAULTS = {
     "PREFECT_SERVER_ANALYTICS_ENABLED": "false",
-    "PREFECT_LOGGING_TO_API_ENABLED": "false",
     "PREFECT_LOGGING_LEVEL": "WARNING",
+    # run logs (stage lines) reach the API at INFO; the console shows PREFECT_LOGGING_LEVEL and above
+    "PREFECT_LOGGING_LOGGERS_PREFECT_FLOW_RUNS_LEVEL": "INFO",
+    "PREFECT_LOGGING_LOGGERS_PREFECT_TASK_RUNS_LEVEL": "INFO",
     "PREFECT_SERVER_UI_ENABLED": "false",
     "PREFECT_TELEMETRY_ENABLE_RESOURCE_METRICS": "false",
     "PREFECT_CLOUD_ENABLE_ORCHESTRATION_TELEMETRY": "false",
@@ -21,9 +23,13 @@ DEFAULTS = {
 
 
 def configure(home: str | os.PathLike | None = None) -> None:
-    """Set the defaults above where the user has not set them (call before importing prefect)."""
+    """Set the defaults above where the user has not set them (call before importing prefect). Run logs are
+    sent to the user's own server (``PREFECT_API_URL`` set: its UI shows them), not to the embedded one."""
     for key, value in DEFAULTS.items():
         os.environ.setdefault(key, value)
+    os.environ.setdefault("PREFECT_LOGGING_HANDLERS_CONSOLE_LEVEL", os.environ["PREFECT_LOGGING_LEVEL"])
+    if not os.environ.get("PREFECT_API_URL"):
+        os.environ.setdefault("PREFECT_LOGGING_TO_API_ENABLED", "false")
     if "PREFECT_HOME" not in os.environ:
         os.environ["PREFECT_HOME"] = str(Path(home or "outputs/.prefect").resolve())
     Path(os.environ["PREFECT_HOME"]).mkdir(parents=True, exist_ok=True)

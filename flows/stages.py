@@ -41,6 +41,13 @@ def _finish(out_dir: Path, name: str, inputs: dict[str, Any], art: dict[str, Any
     return art
 
 
+def dataset_samples(path: str | Path) -> int:
+    """Steps (samples) summed over the dataset's episodes."""
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr
+
+    return read_dataset_info(path)["total"]
+
+
 def _fresh(path: Path) -> Path:
     """Remove a leftover partial output of an interrupted run (never a finished one: those have manifests)."""
     if path.exists():
@@ -65,7 +72,7 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
     env = make_env(args.task, **args.env_kwargs())
     ref = env.collect(agent=expert_agent(env), **args.collect_kwargs())
     art = artifact(path, "dataset", episodes=ref["episodes"], successes=ref["successes"],
-                   success_rate=ref["success_rate"])
+                   success_rate=ref["success_rate"], samples=dataset_samples(path))
     return _finish(out, name, inputs, art)
 
 
@@ -85,7 +92,7 @@ def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic")
     ref = mimic(args.dataset_path, **args.mimic_kwargs())
     m = ref.metadata
     art = artifact(path, "dataset", episodes=m["successes"], attempts=m["attempts"],
-                   generation_success_rate=m["generation_success_rate"])
+                   generation_success_rate=m["generation_success_rate"], samples=dataset_samples(path))
     return _finish(out, name, inputs, art)
 
 
@@ -107,8 +114,10 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
     ckpt = Policy.from_backend(BACKEND).train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)},
                                               resume=resume)
     log_path = Path(ckpt).parent / "train_log.json"
-    final_loss = json.loads(log_path.read_text()).get("final_loss") if log_path.exists() else None
-    return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=final_loss))
+    log = json.loads(log_path.read_text()) if log_path.exists() else {}
+    curve = [{k: e[k] for k in ("epoch", "steps", "loss", "lr")} for e in log.get("epoch_log", [])]
+    return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=log.get("final_loss"),
+                                               steps=log.get("steps"), loss_curve=curve))
 
 
 def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[str, Any]:

@@ -258,7 +258,8 @@ class PipelineArgs:
     runner: str = "local"
     """local or dask"""
     workers: int = 1
-    """Dask worker processes: collection, Mimic and evaluation are split into this many shards."""
+    """Dask shards of collection, Mimic and evaluation, and local worker processes (on a CUDA host with no
+    --device or --device cuda: one worker per GPU, at most this many)."""
     address: str | None = None
     """Dask scheduler address (default: start a local cluster)"""
     retries: int = 1
@@ -360,7 +361,7 @@ def check_args(args: Any) -> None:
     """Refuse bad arguments in one line before anything is imported, built or written (``ValueError`` /
     ``FileNotFoundError`` naming the field and the fix)."""
     names = {f for f in getattr(args, "__dataclass_fields__", {})}
-    if "task" in names:
+    if "task" in names and args.task is not None:  # (an example's optional --task)
         check_task_id(args.task)  # first: it needs no import at all (typo'd ids answer at once)
     for name in names & set(COUNT_FIELDS):
         value = getattr(args, name)

@@ -1,0 +1,70 @@
+"""The pipeline's Dask task runner: a local cluster of worker processes, or the scheduler at ``address``.
+
+How the local cluster is sized:
+
+- ``device`` None or ``"cuda"`` on a host with CUDA devices: one worker process per GPU, at most ``workers``
+  of them; worker ``i`` sees only the ``i``-th visible GPU (``CUDA_VISIBLE_DEVICES``, so its ``cuda`` /
+  ``cuda:0`` is that GPU). ``workers`` beyond the GPU count add shards, not workers: the extra shards wait
+  for a free GPU.
+- any other device (``cpu``, a named ``cuda:N``) or no CUDA device: ``workers`` processes, all on that device.
+
+Each worker runs one stage at a time (one thread); the GPUs seen are those of ``CUDA_VISIBLE_DEVICES`` when
+it is set, else all that Warp finds.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from typing import Any
+
+
+def visible_gpus() -> list[str]:
+    """CUDA device ids this process may use: ``CUDA_VISIBLE_DEVICES``'s entries, else ``0..n-1`` for Warp's
+    CUDA device count (empty without a driver)."""
+    env = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if env is not None:
+        ids = [d.strip() for d in env.split(",") if d.strip()]
+        return [] if not ids or ids[0].startswith("-") else ids
+    import warp as wp  # deferred: Warp is slow to import (already loaded by the task registry here)
+
+    return [str(i) for i in range(wp.get_cuda_device_count())]
+
+
+def pins_gpus(device: str | None) -> bool:
+    """Whether stages on ``device`` take one GPU per worker (None and ``"cuda"``: any GPU will do)."""
+    return device is None or device == "cuda"
+
+
+def cluster_options(workers: int, device: str | None, gpus: list[str] | None = None) -> dict[str, Any]:
+    """``DaskTaskRunner`` keywords of a local cluster sized as the module docstring says (``gpus``: the
+    visible CUDA device ids, looked up when None)."""
+    if pins_gpus(device):
+        gpus = visible_gpus() if gpus is None else gpus
+    if gpus and pins_gpus(device):
+        from distributed import Nanny, Scheduler, SpecCluster  # deferred: Dask is slow to import
+
+        spec = {f"gpu-{gpu}": {"cls": Nanny, "options": {"nthreads": 1, "env": {"CUDA_VISIBLE_DEVICES": gpu},
+                                                         "silence_logs": logging.WARNING, "dashboard": False}}
+                for gpu in gpus[:workers]}
+        return {"cluster_class": SpecCluster, "cluster_kwargs": {
+            "workers": spec, "scheduler": {"cls": Scheduler, "options": {"dashboard": False}},
+            "silence_logs": logging.WARNING}}
+    return {"cluster_kwargs": {"n_workers": workers, "processes": True, "threads_per_worker": 1,
+                               "dashboard_address": None}}
+
+
+class _SlowExit(logging.Filter):
+    """Drops the nanny's 'Worker process still alive after 4.0 seconds, killing' at cluster shutdown: a worker
+    that imported torch, Warp and Prefect can take longer than that to exit on a busy host, and by then its
+    results are back."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Worker process still alive after")
+
+
+def quiet_shutdown() -> None:
+    """Install ``_SlowExit`` on the ``distributed.nanny`` logger of this process (once)."""
+    nanny = logging.getLogger("distributed.nanny")
+    if not any(isinstance(f, _SlowExit) for f in nanny.filters):
+        nanny.addFilter(_SlowExit())

@@ -1,0 +1,83 @@
+"""The whole pipeline on a local Dask cluster of 2 worker processes (``--runner dask --workers 2``) at tiny sizes.
+
+One run serves the module; on its way a collect shard hits a transient I/O error (Prefect retries it) and a
+Mimic shard's worker process is SIGKILLed (Dask re-runs the shard on a live worker): it must still complete,
+with both retries recorded. An input error on Dask fails at once, is not retried and prints one line.
+"""
+
+from __future__ import annotations
+
+import pytest
+from test_flows import (ARTIFACT_KEYS, FAULT_ENV, RETRY_STATES, TINY, TINY_CLI, artifacts,  # noqa: F401
+                        assert_input_error_reported_once, harness, run_cli, stale_manifest, task_runs)
+
+from newton_lab.datasets import read_dataset_info, read_episode
+from newton_lab.flows.cluster import cluster_options, visible_gpus
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def dask_run(harness, tmp_path_factory):
+    from newton_lab.flows.orchestration import run_pipeline  # deferred: imports Prefect (after the harness)
+
+    tmp = tmp_path_factory.mktemp("dask")
+    patch = pytest.MonkeyPatch()
+    patch.setenv(FAULT_ENV, f"collect:oserror:{tmp / 'collect.fault'},mimic:kill:{tmp / 'mimic.fault'}")
+    try:
+        state = run_pipeline(runner="dask", workers=2, out=str(tmp / "out"), return_state=True, **TINY)
+    finally:
+        patch.undo()
+    return {"out": tmp / "out", "tmp": tmp, "summary": state.result(), "id": state.state_details.flow_run_id}
+
+
+def test_pipeline_runs_on_dask(dask_run):
+    summary = dask_run["summary"]
+    states = summary["stage_states"]
+    assert states["collect"] == ["Completed"] * 3 and states["train"] == ["Completed"]  # 2 shards + the merge
+    assert states["evaluate"] == ["Completed"] * 2 and len(states["mimic"]) == 3
+    assert summary["evaluation"]["episodes"] == 2 and 0.0 <= summary["success_rate"] <= 1.0
+    for name, source in (("demos", "demos.hdf5"), ("mimic", "mimic.hdf5")):
+        info = read_dataset_info(summary["artifacts"][name]["path"])
+        assert info["num_demos"] == 2 and info["demo_ids"] == [0, 1]  # one episode per shard, renumbered
+        assert info["provenance"][-1]["operation"] == "merge"
+        for demo in info["demo_ids"]:
+            ep = read_episode(info["path"], demo)
+            assert ep["actions"].shape[0] == ep["attrs"]["num_samples"] and ep["attrs"]["source"].startswith(source)
+    assert set(artifacts(dask_run["id"])) == set(ARTIFACT_KEYS.values())
+
+
+def test_lost_worker_and_transient_error_are_retried(dask_run):
+    tmp, states = dask_run["tmp"], dask_run["summary"]["stage_states"]
+    assert (tmp / "collect.fault").exists() and (tmp / "mimic.fault").exists(), "the fault seam did not fire"
+    # the Mimic shard whose worker was killed was re-run by Dask on a live worker; the flow records it
+    assert sorted(states["mimic"]) == ["Completed", "Completed", "Completed (re-run after 1 lost worker)"], states
+    runs = task_runs(dask_run["id"])
+    retried = [(run, history) for run, history in runs["collect"] if RETRY_STATES & set(history)]
+    assert len(runs["collect"]) == 2 and len(retried) == 1, runs["collect"]  # Prefect retried the I/O error
+    assert retried[0][0].run_count == 2 and all(run.state_name == "Completed" for run, _ in runs["collect"])
+
+
+def test_input_error_on_dask_is_not_retried_and_prints_one_line(harness, tmp_path):
+    out = tmp_path / "out"
+    for shard in (0, 1):
+        stale_manifest(out / "shards" / f"collect_{shard}")
+    proc = run_cli(["pipeline", *TINY_CLI, "--runner", "dask", "--workers", "2", "--out", str(out)], tmp_path)
+    assert_input_error_reported_once(proc, out, shards=2)
+
+
+def test_one_worker_per_gpu(monkeypatch):
+    """With CUDA devices and no named device, the local cluster has one worker per GPU (at most ``workers``),
+    each seeing only its GPU; a named device (cpu, cuda:N) or no GPU gives ``workers`` plain processes."""
+    for workers, gpus in ((4, ["0", "1"]), (1, ["0", "1"]), (2, ["3", "5", "6"])):
+        opts = cluster_options(workers, None, gpus=gpus)
+        spec = opts["cluster_kwargs"]["workers"]
+        assert [w["options"]["env"]["CUDA_VISIBLE_DEVICES"] for w in spec.values()] == gpus[:workers]
+        assert all(w["options"]["nthreads"] == 1 for w in spec.values())
+    assert cluster_options(2, "cuda", gpus=["0", "1"])["cluster_kwargs"]["workers"].keys() == {"gpu-0", "gpu-1"}
+    for device, gpus in (("cpu", ["0", "1"]), ("cuda:1", ["0", "1"]), (None, [])):
+        kwargs = cluster_options(3, device, gpus=gpus)["cluster_kwargs"]
+        assert kwargs["n_workers"] == 3 and kwargs["threads_per_worker"] == 1, (device, gpus)
+    for env, ids in (("2,3", ["2", "3"]), ("", []), ("-1", []), (" 1 ", ["1"])):
+        monkeypatch.setenv("CUDA_VISIBLE_DEVICES", env)
+        assert visible_gpus() == ids
