@@ -209,6 +209,10 @@ def test_input_error_is_not_retried_and_prints_one_line(harness, tmp_path):
     stale_manifest(out)
     proc = run_cli(["pipeline", *TINY_CLI, "--out", str(out)], tmp_path)
     assert_input_error_reported_once(proc, out, shards=1)
+    # on a user's own server (PREFECT_API_URL set) the run logs are shipped by default: the UI shows the error
+    flow_run = latest_flow_run(out)
+    records = logs(flow_run.id, until="another pipeline's demos")
+    assert any("ValueError" in r.message and r.task_run_id is not None for r in records), records
 
 
 # ----------------------------------------------------------------------------- inputs checked up front
