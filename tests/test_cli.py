@@ -107,9 +107,12 @@ def test_generated_parser_keeps_every_flag_and_default():
         assert all(a.help for a in actions.values()), command  # every flag documented (its field docstring)
 
 
-def test_parse_args_builds_the_dataclass():
+def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "c.pt").write_bytes(b"")
     a = parse_args(CollectArgs, ["--num-envs", "2", "--sorting-object", "red_cube", "--randomize"])
     assert isinstance(a, CollectArgs) and a.num_envs == 2 and a.randomize and a.episodes == 1
+    assert (tmp_path / "data").is_dir()  # the example's output folder is made, as the CLI makes it
     assert a.env_kwargs()["task_options"] == {"sorting_object": "red_cube"}
     t = parse_args(TrainArgs, ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys", "x, y"])
     cfg = t.train_cfg({"default": {"epochs": 7}})
@@ -122,6 +125,9 @@ def test_parse_args_builds_the_dataclass():
     with pytest.raises(SystemExit) as exit_:
         parse_args(EvaluateArgs, [], defaults=example)
     assert exit_.value.code == 2
+    with pytest.raises(SystemExit) as exit_:  # checked as the CLI checks it
+        parse_args(CollectArgs, ["--task", "GalbotG1-Reach-v1"])
+    assert exit_.value.code == 2 and "(did you mean GalbotG1-Reach-v0?)" in capsys.readouterr().err
 
 
 def test_train_reports_an_unknown_preset_in_one_line(capsys):

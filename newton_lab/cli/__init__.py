@@ -11,12 +11,11 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
-from pathlib import Path
 
 from .. import commands as c
 from . import run
 from .parsing import REQUIRED, HelpFormatter, add_arguments, add_verbose, apply_verbose, from_namespace, parse_args
-from .parsing import unrecognized
+from .parsing import make_output_dirs, unrecognized
 
 
 @dataclass(frozen=True)
@@ -47,11 +46,6 @@ COMMANDS: dict[str, Command] = {
 }
 """Subcommands in ``--help`` order."""
 
-OUTPUT_FIELDS = {c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_save"), c.EvaluateArgs: ("rerun_save",),
-                 c.MimicArgs: ("output_path",), c.ExportArgs: ("root",), c.ViewArgs: ("save",)}
-"""Fields naming an output file (or new folder), per command: the command creates their parent folder
-(``collect --dataset-path data/demos.hdf5`` into a missing ``data/``)."""
-
 ERRORS = (ValueError, FileNotFoundError, FileExistsError, KeyError, ConnectionError)
 """Exceptions reported as one ``newton-lab <command>: error: ...`` line and exit status 2."""
 
@@ -77,13 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
         add_verbose(cmd_parser)
         cmd_parser.set_defaults(command_parser=cmd_parser)
     return parser
-
-
-def make_output_dirs(args: object) -> None:
-    """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``)."""
-    for name in OUTPUT_FIELDS.get(type(args), ()):
-        if (value := getattr(args, name)) is not None:
-            Path(value).parent.mkdir(parents=True, exist_ok=True)
 
 
 def _write_error() -> type[Exception]:

@@ -17,8 +17,10 @@ import textwrap
 import types
 import typing
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any, Literal
 
+from .. import commands as c
 from ..kernels.runtime import set_verbose
 from ..task_api.catalog import did_you_mean
 
@@ -45,6 +47,20 @@ def unrecognized(parser: argparse.ArgumentParser, extra: list[str]) -> str:
     flags = [s for a in parser._actions for s in a.option_strings]
     hints = [f"{x}{did_you_mean(x.split('=')[0], flags)}" for x in extra]
     return "unrecognized arguments: " + " ".join(hints)
+
+
+OUTPUT_FIELDS = {c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_save"), c.EvaluateArgs: ("rerun_save",),
+                 c.MimicArgs: ("output_path",), c.ExportArgs: ("root",), c.ViewArgs: ("save",)}
+"""Fields naming an output file (or new folder), per argument class (and its subclasses): the command or
+example creates their parent folder (``collect --dataset-path data/demos.hdf5`` into a missing ``data/``)."""
+
+
+def make_output_dirs(args: object) -> None:
+    """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``)."""
+    for cls, names in OUTPUT_FIELDS.items():
+        for name in names if isinstance(args, cls) else ():
+            if (value := getattr(args, name)) is not None:
+                Path(value).parent.mkdir(parents=True, exist_ok=True)
 
 
 def add_verbose(parser: argparse.ArgumentParser) -> None:
@@ -148,8 +164,9 @@ def from_namespace(cls: type, ns: argparse.Namespace, *, defaults: Mapping[str, 
 def parse_args(cls: type, argv: list[str] | None = None, *, description: str | None = None,
                defaults: Mapping[str, Any] | None = None, exclude: Iterable[str] = (),
                choices: Mapping[str, Iterable[Any]] | None = None):
-    """Parse ``argv`` (default ``sys.argv[1:]``) into a ``cls``; bad input exits 2 with argparse's message
-    (an unknown flag names the closest one). ``--verbose`` shows Warp's output."""
+    """Parse ``argv`` (default ``sys.argv[1:]``) into a ``cls``, checked as the CLI checks it (``check_args``)
+    and with its output folders created; bad input exits 2 with argparse's message (an unknown flag names the
+    closest one). ``--verbose`` shows Warp's output."""
     parser = argparse.ArgumentParser(description=description, formatter_class=HelpFormatter)
     add_arguments(parser, cls, defaults=defaults, exclude=exclude, choices=choices)
     add_verbose(parser)
@@ -157,4 +174,10 @@ def parse_args(cls: type, argv: list[str] | None = None, *, description: str | N
     if extra:
         parser.error(unrecognized(parser, extra))
     apply_verbose(ns)
-    return from_namespace(cls, ns, defaults=defaults)
+    args = from_namespace(cls, ns, defaults=defaults)
+    try:
+        c.check_args(args)
+    except (ValueError, FileNotFoundError) as exc:
+        parser.error(exc.args[0] if exc.args else str(exc))
+    make_output_dirs(args)
+    return args
