@@ -1,5 +1,5 @@
 # Two entry points; both create / reuse .venv and install the pinned versions first.
-#   make demo   the Prefect pipeline on PickCube (collect -> mimic -> train -> evaluate) on the CPU
+#   make demo   the Prefect pipeline on PickCube (collect -> mimic -> train -> evaluate); CPU, or CUDA if present
 #   make test   run the test suite (real Newton physics on CPU Warp)
 PY ?= python3
 VENV := .venv
@@ -15,8 +15,12 @@ $(STAMP): pyproject.toml setup.py
 	touch $(STAMP)
 
 .PHONY: demo test bench
+# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 2000 training steps, 20 evaluation episodes; about
+# 10 min on 2 CPU cores) or, when torch sees a CUDA device, the full-size gpu recipe on it.
+# DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
+DEMO_ARGS ?=
 demo: $(STAMP)
-	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --device cpu --out outputs/demo
+	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --out outputs/demo $(DEMO_ARGS)
 
 # Tests run on both cores: one pytest worker per core, each test module kept on one worker (its fixtures
 # build envs once). TEST_WORKERS=0 runs them in this process.

@@ -29,7 +29,7 @@ from ..task_api.registry import lookup
 from . import runlog, stages
 from .artifacts import artifact
 from .cluster import cluster_options, pins_gpus, quiet_shutdown
-from .settings import check_api_reachable
+from .settings import DEMO_RECIPES, check_api_reachable
 
 SEED_STRIDE = 100_000
 """Seed distance between shards: each shard draws from its own seed range."""
@@ -38,6 +38,8 @@ VALID_RUNNERS = ("local", "dask")
 
 _P = PipelineArgs()
 """The pipeline's defaults: the ones of ``newton-lab pipeline``."""
+_R = DEMO_RECIPES["cpu"]
+"""The flow's default counts: the cpu demo recipe's (``newton-lab pipeline`` resolves its recipe itself)."""
 
 
 INPUT_ERRORS = (ValueError, TypeError, KeyError, FileNotFoundError, FileExistsError)
@@ -251,9 +253,9 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
 
 
 @flow(name="pipeline")
-def pipeline(task_id: str = _P.task, demos: int = _P.demos, mimic_episodes: int = _P.mimic_episodes,
-             train_cfg: dict[str, Any] | None = None, eval_episodes: int = _P.eval_episodes,
-             num_envs: int = _P.num_envs, device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
+def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: int = _R["mimic_episodes"],
+             train_cfg: dict[str, Any] | None = None, eval_episodes: int = _R["eval_episodes"],
+             num_envs: int = _R["num_envs"], device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
              workers: int = _P.workers, eval_max_steps: int = 600) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
     runner for all); publishes one artifact per stage and a markdown summary (``runlog``) and writes

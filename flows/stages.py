@@ -117,7 +117,8 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
     log = json.loads(log_path.read_text()) if log_path.exists() else {}
     curve = [{k: e[k] for k in ("epoch", "steps", "loss", "lr")} for e in log.get("epoch_log", [])]
     return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=log.get("final_loss"),
-                                               steps=log.get("steps"), loss_curve=curve))
+                                               steps=log.get("steps"), wall_time_s=log.get("wall_time_s"),
+                                               loss_curve=curve))
 
 
 def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[str, Any]:

@@ -13,7 +13,8 @@ from pathlib import Path
 from ..commands import RenderArgs
 from ..commands import (BenchArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
                         RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
-from ..flows.settings import configure
+from ..flows.report import summary_lines
+from ..flows.settings import configure, demo_recipe
 from ..task_api.registry import list_tasks, lookup
 
 COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
@@ -128,13 +129,10 @@ def pipeline(args: PipelineArgs) -> int:
     configure(Path(args.out) / ".prefect")  # before Prefect is imported
     from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
 
-    summary = run_pipeline(**args.pipeline_kwargs())
-    arts = summary["artifacts"]
+    recipe = demo_recipe(args.recipe, args.device)
+    summary = run_pipeline(**args.pipeline_kwargs(recipe))
     metrics = Path(args.out).resolve() / "metrics.json"
-    print(f"success rate: {summary['success_rate']:.1%} over {summary['evaluation']['episodes']} evaluation episodes")
-    for name in ("demos", "mimic", "checkpoint"):
-        print(f"{name}: {arts[name]['path']}")
-    print(f"metrics: {metrics}")
+    print("\n".join(summary_lines(summary, args.out, recipe["name"])))
     print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
     print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"], "metrics": str(metrics)}))
     return 0

@@ -16,7 +16,7 @@ from torch import nn
 from .ema import EMA
 from .model import ConditionalUnet1D
 from .normalize import MinMaxNormalizer
-from .scheduler import NoiseScheduler
+from .scheduler import PREDICTION_TYPES, NoiseScheduler
 
 PRESETS: dict[str, dict[str, Any]] = {
     "default": {},
@@ -27,7 +27,8 @@ PRESETS: dict[str, dict[str, Any]] = {
 """Named training settings; explicit fields override a preset's."""
 
 ARCHITECTURE_FIELDS = ("obs_horizon", "action_horizon", "pred_horizon", "down_dims", "kernel_size", "n_groups",
-                       "diffusion_step_embed_dim", "num_train_timesteps", "num_inference_steps", "obs_keys")
+                       "diffusion_step_embed_dim", "num_train_timesteps", "num_inference_steps", "prediction_type",
+                       "obs_keys")
 """Config fields a checkpoint fixes: fine-tuning from it keeps them."""
 
 CHECKPOINT_FORMAT = "newton_lab.policies.diffusion"
@@ -53,9 +54,12 @@ class DiffusionPolicyConfig:
     diffusion_step_embed_dim: int = 128
     """Width of the sinusoidal diffusion-step embedding (then an MLP)."""
     num_train_timesteps: int = 100
-    """DDPM noising steps (squaredcos_cap_v2 betas, epsilon prediction, samples clipped to [-1, 1])."""
+    """DDPM noising steps (squaredcos_cap_v2 betas, samples clipped to [-1, 1])."""
     num_inference_steps: int = 10
     """DDIM denoising steps at inference (eta 0)."""
+    prediction_type: str = "epsilon"
+    """What the U-Net predicts: "epsilon" (the noise, Chi et al.) or "sample" (the clean actions x0; on
+    PickCube it succeeds after 3k steps where epsilon needs about 10k, see the README)."""
     lr: float = 1e-4
     """AdamW peak learning rate."""
     weight_decay: float = 1e-6
@@ -123,6 +127,8 @@ class DiffusionPolicyConfig:
             (1 <= self.num_inference_steps <= self.num_train_timesteps,
              f"num_inference_steps must be in 1..num_train_timesteps={self.num_train_timesteps}, "
              f"got {self.num_inference_steps}"),
+            (self.prediction_type in PREDICTION_TYPES,
+             f"prediction_type must be one of {', '.join(PREDICTION_TYPES)}, got {self.prediction_type!r}"),
             (len(self.betas) == 2, f"betas must be a pair, got {self.betas}"),
             (self.batch_size >= 1 and self.epochs >= 1,
              f"batch_size and epochs must be >= 1, got {self.batch_size} and {self.epochs}"),
@@ -220,13 +226,15 @@ class DiffusionPolicy(nn.Module):
         return self.info.get("task_id")
 
     def compute_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
-        """Epsilon-prediction MSE on a batch {"obs": (B, To, Do), "actions": (B, Tp, A)} in raw units."""
+        """MSE of the predicted noise (or clean actions, ``prediction_type="sample"``) on a batch
+        {"obs": (B, To, Do), "actions": (B, Tp, A)} in raw units."""
         obs = batch["obs"].to(self.device, torch.float32)
         x0 = self.action_normalizer.normalize(batch["actions"].to(self.device, torch.float32))
         cond = self.obs_normalizer.normalize(obs).flatten(1)
         noise = torch.randn_like(x0)
         t = self.scheduler.sample_timesteps(x0.shape[0], device=x0.device)
-        return F.mse_loss(self.model(self.scheduler.add_noise(x0, noise, t), t, cond), noise)
+        target = x0 if self.cfg.prediction_type == "sample" else noise
+        return F.mse_loss(self.model(self.scheduler.add_noise(x0, noise, t), t, cond), target)
 
     @torch.no_grad()
     def predict_action(self, obs_history: torch.Tensor, *, generator: torch.Generator | None = None) -> torch.Tensor:
@@ -247,7 +255,8 @@ class DiffusionPolicy(nn.Module):
         noise_device = generator.device if generator is not None else self.device
         x_T = torch.randn(shape, generator=generator, device=noise_device).to(self.device)
         net = self.ema.averaged.eval()
-        x0 = self.scheduler.sample(lambda x, t: net(x, t, cond), x_T, num_inference_steps=cfg.num_inference_steps)
+        x0 = self.scheduler.sample(lambda x, t: net(x, t, cond), x_T, num_inference_steps=cfg.num_inference_steps,
+                                   prediction_type=cfg.prediction_type)
         start = cfg.obs_horizon - 1
         return self.action_normalizer.unnormalize(x0[:, start:start + cfg.action_horizon]).to(out_device)
 

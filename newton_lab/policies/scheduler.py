@@ -6,6 +6,7 @@ another library's scheduler config format.
 
 Conventions: ``alphas_cumprod[t]`` is the signal fraction after ``t + 1`` noising steps
 (``t = 0 .. T-1``); samples live in [-1, 1] (``clip_sample``), so actions are min-max normalised.
+The network predicts the noise (``"epsilon"``) or the clean sample (``"sample"``, x0); DDIM takes either.
 """
 
 from __future__ import annotations
@@ -14,6 +15,9 @@ import math
 from collections.abc import Callable
 
 import torch
+
+PREDICTION_TYPES = ("epsilon", "sample")
+"""What the denoising network outputs: the added noise, or the clean sample x0."""
 
 
 def squaredcos_cap_v2(num_steps: int, max_beta: float = 0.999) -> torch.Tensor:
@@ -70,13 +74,20 @@ class NoiseScheduler:
         return [int(round(self.num_train_timesteps - i * ratio)) - 1 for i in range(num_inference_steps)]
 
     def ddim_step(self, eps: torch.Tensor, t: int, t_prev: int, x_t: torch.Tensor, *, eta: float = 0.0,
-                  generator: torch.Generator | None = None) -> torch.Tensor:
-        """One DDIM update x_t -> x_{t_prev} (``t_prev < 0`` means the clean sample)."""
+                  generator: torch.Generator | None = None, prediction_type: str = "epsilon") -> torch.Tensor:
+        """One DDIM update x_t -> x_{t_prev} (``t_prev < 0`` means the clean sample); ``eps`` is the model
+        output: the noise, or with ``prediction_type="sample"`` the clean sample x0."""
         a_t, a_prev = self._abar(torch.tensor(t), x_t), self._abar(torch.tensor(t_prev), x_t)
-        x0 = (x_t - (1 - a_t).sqrt() * eps) / a_t.sqrt()
-        if self.clip_sample:
-            # The model's eps stays the direction term: re-deriving it from the clipped x0 sampled worse in tests.
-            x0 = x0.clamp(-1.0, 1.0)
+        if prediction_type == "sample":  # direction term from the (clipped) predicted x0
+            x0 = eps.clamp(-1.0, 1.0) if self.clip_sample else eps
+            eps = (x_t - a_t.sqrt() * x0) / (1 - a_t).sqrt()
+        elif prediction_type == "epsilon":
+            x0 = (x_t - (1 - a_t).sqrt() * eps) / a_t.sqrt()
+            if self.clip_sample:
+                # The model's eps stays the direction term: re-deriving it from the clipped x0 sampled worse in tests.
+                x0 = x0.clamp(-1.0, 1.0)
+        else:
+            raise ValueError(f"prediction_type must be one of {PREDICTION_TYPES}, got {prediction_type!r}")
         sigma = eta * ((1 - a_prev) / (1 - a_t) * (1 - a_t / a_prev)).sqrt()
         x_prev = a_prev.sqrt() * x0 + (1 - a_prev - sigma**2).clamp(min=0).sqrt() * eps
         if eta > 0:
@@ -84,12 +95,14 @@ class NoiseScheduler:
         return x_prev
 
     def sample(self, denoise: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], x_T: torch.Tensor, *,
-               num_inference_steps: int = 10, eta: float = 0.0,
-               generator: torch.Generator | None = None) -> torch.Tensor:
-        """DDIM from ``x_T`` (usually N(0, I)); ``denoise(x_t, t (B,)) -> eps``. Returns x_0."""
+               num_inference_steps: int = 10, eta: float = 0.0, generator: torch.Generator | None = None,
+               prediction_type: str = "epsilon") -> torch.Tensor:
+        """DDIM from ``x_T`` (usually N(0, I)); ``denoise(x_t, t (B,))`` -> eps (or x0 for ``"sample"``).
+        Returns x_0."""
         steps = self.ddim_timesteps(num_inference_steps)
         x = x_T
         for t, t_prev in zip(steps, steps[1:] + [-1]):
             tt = torch.full((x.shape[0],), t, dtype=torch.long, device=x.device)
-            x = self.ddim_step(denoise(x, tt), t, t_prev, x, eta=eta, generator=generator)
+            x = self.ddim_step(denoise(x, tt), t, t_prev, x, eta=eta, generator=generator,
+                               prediction_type=prediction_type)
         return x
