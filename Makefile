@@ -15,8 +15,8 @@ $(STAMP): pyproject.toml setup.py
 	touch $(STAMP)
 
 .PHONY: demo test bench
-# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 2000 training steps, 20 evaluation episodes; about
-# 10 min on 2 CPU cores) or, when torch sees a CUDA device, the full-size gpu recipe on it.
+# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 3000 training steps, 20 evaluation episodes; about
+# 11 min on 2 CPU cores) or, when torch sees a CUDA device, the full-size gpu recipe on it.
 # DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
 DEMO_ARGS ?=
 demo: $(STAMP)
