@@ -5,13 +5,8 @@ PY ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-$(STAMP): pyproject.toml setup.py
-	$(PY) -m venv $(VENV)
-	$(VENV)/bin/pip install -qq --upgrade pip
-	$(VENV)/bin/pip install -qq torch==2.13.0
-	$(VENV)/bin/pip install -qq -e '.[test]'
-	# robomimic's data loader only (its training extras pin packages that don't install here): the layout test
-	$(VENV)/bin/pip install -qq --no-deps robomimic==0.3.0 termcolor==3.3.0
+$(STAMP): pyproject.toml setup.py tools/install_venv.sh
+	tools/install_venv.sh $(PY) $(VENV)
 	touch $(STAMP)
 
 .PHONY: demo test bench

@@ -33,6 +33,8 @@ from .settings import DEMO_RECIPES, check_api_reachable
 
 SEED_STRIDE = 100_000
 """Seed distance between shards: each shard draws from its own seed range."""
+EVAL_RECORDED_EPISODES = 2
+"""Evaluation episodes the pipeline records to ``<out>/evaluation.rrd`` (the first one of each of as many rows)."""
 
 VALID_RUNNERS = ("local", "dask")
 
@@ -201,11 +203,13 @@ def _train(dataset, train_cfg, out):
     return ckpt, states
 
 
-def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps):
+def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps, recording=None):
     args = EvaluateArgs(task=task_id, checkpoint=checkpoint["path"], episodes=episodes, num_envs=num_envs, seed=seed,
                         device=device, randomize=True, max_steps=max_steps)
-    parts, states = _results(evaluate_task.map(checkpoint=unmapped(checkpoint), args=_shards(args, shards)),
-                             "evaluate")
+    shard_args = _shards(args, shards)
+    if recording is not None:  # two episodes of the first shard, for the viewer
+        shard_args[0] = replace(shard_args[0], rerun_save=str(recording), rerun_worlds=EVAL_RECORDED_EPISODES)
+    parts, states = _results(evaluate_task.map(checkpoint=unmapped(checkpoint), args=shard_args), "evaluate")
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
     reasons: dict[str, int] = {}
@@ -218,6 +222,9 @@ def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max
     metrics = {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
                "subtask_signals": signals,
                "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}
+    recorded = [p["recording"] for p in parts if p.get("recording")]
+    if recorded:
+        metrics["recording"] = recorded[0]
     runlog.publish_evaluation(metrics)
     return metrics, states
 
@@ -272,7 +279,7 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     ckpt_art, s_train = _train(gen_art, train_cfg, out)
     log.info("train: %s", "/".join(s_train))
     metrics, s_eval = _evaluate(ckpt_art, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
-                                eval_max_steps)
+                                eval_max_steps, recording=Path(out) / "evaluation.rrd")
     log.info("evaluate: %s; success rate %.1f%% over %d episodes", "/".join(s_eval), 100 * metrics["success_rate"],
              metrics["episodes"])
     summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,

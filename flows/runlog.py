@@ -109,7 +109,9 @@ def publish_summary(task_id: str, demos, gen, ckpt, metrics, out: Path) -> None:
                       (("demos", demos), ("mimic", gen), ("checkpoint", ckpt)))
     create_markdown_artifact(
         markdown=f"# newton_lab pipeline: {task_id}\n\n| metric | value |\n|---|---|\n{table}\n\n{paths}\n"
-                 f"- metrics: `{out / 'metrics.json'}`\n",
+                 f"- metrics: `{out / 'metrics.json'}`\n"
+                 + (f"- evaluation recording: `{metrics['recording']}` (open it with `rerun`)\n"
+                    if metrics.get("recording") else ""),
         key=ARTIFACT_KEYS["pipeline"], description=f"newton_lab pipeline metrics for {task_id}")
 
 

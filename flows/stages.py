@@ -122,7 +122,9 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
 
 
 def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[str, Any]:
-    """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``."""
+    """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``; with
+    ``args.rerun_save``, the first episode of each of the first ``args.rerun_worlds`` rows is recorded there
+    (``recording`` in the result)."""
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies import Policy  # deferred: torch is slow to import
@@ -130,5 +132,18 @@ def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[st
 
     env = make_env(args.task, **args.env_kwargs())
     agent = PolicyAgent(Policy.from_backend(BACKEND).load_policy(args.checkpoint))
-    s = env.evaluate(agent=agent, **args.rollout_kwargs())
-    return {k: s[k] for k in EVAL_REPORT_KEYS if k != "task"}
+    logger = None
+    if args.rerun_save:  # the first episode of each of the first ``rerun_worlds`` rows, to a fresh .rrd
+        from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
+
+        logger = RerunLogger(env, save=_fresh(Path(args.rerun_save)), max_worlds=args.rerun_worlds,
+                             episodes_per_row=1, app_id="newton_lab_evaluation")
+    try:
+        s = env.evaluate(agent=agent, **args.rollout_kwargs(), on_step=None if logger is None else logger.on_step)
+    finally:
+        if logger is not None:
+            logger.close()
+    report = {k: s[k] for k in EVAL_REPORT_KEYS if k != "task"}
+    if logger is not None:
+        report["recording"] = str(logger.path)
+    return report

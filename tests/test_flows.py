@@ -162,6 +162,8 @@ def test_pipeline_runs_then_is_cached(run):
     assert set(first["artifacts"]) == {"demos", "mimic", "checkpoint"}
     assert first["evaluation"]["episodes"] == 2 and 0.0 <= first["success_rate"] <= 1.0
     assert json.loads((out / "metrics.json").read_text())["task"] == "GalbotG1-PickCube-v0"
+    rec = Path(first["evaluation"]["recording"])  # two evaluation episodes, for the viewer
+    assert rec == out / "evaluation.rrd" and rec.stat().st_size > 0
     assert first["stage_states"] == {s: ["Completed"] for s in STAGES}
     second = pipeline(out=str(out), **TINY)
     assert second["artifacts"] == first["artifacts"]

@@ -134,3 +134,20 @@ def test_view_replays_recorded_states_and_logs_episode_events(pick_env, tmp_path
     with pytest.raises(ValueError) as e:
         replay_episode(ref.path, 7)
     assert "no episode 7" in str(e.value)
+
+
+def test_episodes_per_row_records_only_the_first_episodes(pick_env, tmp_path):
+    """The pipeline's evaluation recording: rows 0 and 1, one episode each, nothing after."""
+    from newton_lab.agents.base import ZeroAgent
+
+    rrd = tmp_path / "eval.rrd"
+    logger = RerunLogger(pick_env, save=rrd, max_worlds=2, episodes_per_row=1)
+    s = pick_env.evaluate(agent=ZeroAgent(), episodes=6, max_steps=4, progress=False, on_step=logger.on_step)
+    logger.close()
+    assert s["episodes"] == 6 and logger.finished
+    ended = [t for t in _texts(rrd) if " succeeded (" in t or " failed (" in t]
+    assert sorted(t.split(" episode")[0] for t in ended) == ["row 0", "row 1"], ended
+    assert all(" episode 1 " in t for t in ended), ended
+    assert _rows(rrd)["/world/0/cube"] == 4 and _rows(rrd)["/world/1/cube"] == 4  # one 4-step episode each
+    with pytest.raises(ValueError, match="episodes_per_row"):
+        RerunLogger(pick_env, save=tmp_path / "x.rrd", episodes_per_row=0)

@@ -28,14 +28,19 @@ class RerunLogger:
     """Streams ``env`` to a rerun sink: ``save`` (a ``.rrd`` file; its folder is created), ``spawn`` (a
     local viewer) or ``connect`` (a viewer's gRPC url), with the default blueprint. Call ``on_step(reward,
     info)`` (or ``log_step``) after each env step; ``close()`` at the end. ``path`` is the ``.rrd`` written
-    (absolute) or None; ``shape_paths`` maps each logged model shape index to its entity path."""
+    (absolute) or None; ``shape_paths`` maps each logged model shape index to its entity path.
+    ``episodes_per_row``: a row is no longer drawn once that many of its episodes have ended (None: all)."""
 
     def __init__(self, env, *, save: str | Path | None = None, spawn: bool = False, connect: str | None = None,
-                 max_worlds: int = 4, app_id: str = "newton_lab", row_spacing: float = 2.5):
+                 max_worlds: int = 4, app_id: str = "newton_lab", row_spacing: float = 2.5,
+                 episodes_per_row: int | None = None):
         if save is None and connect is None and not spawn:
             raise ValueError("RerunLogger needs a sink: save='file.rrd', spawn=True or connect='rerun+http://...'")
         if not isinstance(max_worlds, int) or max_worlds < 1:
             raise ValueError(f"max_worlds must be an integer >= 1, got {max_worlds!r}")
+        if episodes_per_row is not None and (not isinstance(episodes_per_row, int) or episodes_per_row < 1):
+            raise ValueError(f"episodes_per_row must be None or an integer >= 1, got {episodes_per_row!r}")
+        self.episodes_per_row = episodes_per_row
         self.env = env
         self.rows = min(max_worlds, env.num_envs)
         self._bpw = env.layout.bodies_per_world
@@ -57,7 +62,9 @@ class RerunLogger:
             self.rec.spawn(default_blueprint=self.blueprint)
         self._step = 0
         self._episodes = self._episode_count()
-        self._ended = [0] * self.rows
+        self._ended = [0] * self.rows  # episodes ended per row, in this recording
+        self._open = [True] * self.rows  # the row's episode has not been logged as ended
+        self._frames = [0] * self.rows  # frames logged of the row's episode
 
     def body_path(self, row: int, body: int) -> str:
         """Entity path of ``body`` (index within a world) of ``row``."""
@@ -72,26 +79,42 @@ class RerunLogger:
     def _episode_count(self) -> np.ndarray:
         return self.env.episode_count[: self.rows].cpu().numpy().copy()
 
-    def _log_events(self, info) -> None:
-        """``events/<row>``: an episode's end (success or failure, reason, length; episodes numbered from 1 per
-        row in this recording) and each reset that starts a new one."""
-        if info is not None:
-            done = info["done"][: self.rows].cpu().numpy()
-            success = info["success"][: self.rows].cpu().numpy()
-            reason = info["termination_reason"][: self.rows].cpu().numpy()
-            length = info["episode_length"][: self.rows].cpu().numpy()
-            for w in np.nonzero(done)[0]:
-                ok = bool(success[w])
+    def _drawn(self, row: int) -> bool:
+        return self.episodes_per_row is None or self._ended[row] < self.episodes_per_row
+
+    def _log_resets(self, rows) -> None:
+        """Rows reset since the last call: an episode the env did not end itself (the loop's step limit) is
+        logged as stopped; every reset logs the start of the next episode."""
+        for w in rows:
+            if not self._drawn(w):
+                continue
+            if self._open[w] and self._frames[w] > 0:  # (a reset before any frame starts the first episode)
                 self._ended[w] += 1
-                why = self.env.termination_reasons[int(reason[w])]
                 self.rec.log(f"events/{w}", rr.TextLog(
-                    f"row {w} episode {self._ended[w]} {'succeeded' if ok else 'failed'} ({why}) after "
-                    f"{int(length[w])} steps", level="INFO" if ok else "WARN"))
-        count = self._episode_count()
-        for w in np.nonzero(count != self._episodes)[0]:
-            self.rec.log(f"events/{w}", rr.TextLog(f"row {w} reset: episode {self._ended[w] + 1} starts",
-                                                   level="DEBUG"))
-        self._episodes = count
+                    f"row {w} episode {self._ended[w]} failed (stopped by the loop) after {self._frames[w]} steps",
+                    level="WARN"))
+            self._open[w], self._frames[w] = True, 0
+            if self._drawn(w):
+                self.rec.log(f"events/{w}", rr.TextLog(f"row {w} reset: episode {self._ended[w] + 1} starts",
+                                                       level="DEBUG"))
+
+    def _log_ends(self, info) -> None:
+        """``events/<row>``: an episode's end (success or failure, reason, length; episodes numbered from 1 per
+        row in this recording)."""
+        done = info["done"][: self.rows].cpu().numpy()
+        success = info["success"][: self.rows].cpu().numpy()
+        reason = info["termination_reason"][: self.rows].cpu().numpy()
+        length = info["episode_length"][: self.rows].cpu().numpy()
+        for w in np.nonzero(done)[0]:
+            if not self._drawn(w):
+                continue
+            ok = bool(success[w])
+            self._ended[w] += 1
+            self._open[w] = False
+            why = self.env.termination_reasons[int(reason[w])]
+            self.rec.log(f"events/{w}", rr.TextLog(
+                f"row {w} episode {self._ended[w]} {'succeeded' if ok else 'failed'} ({why}) after "
+                f"{int(length[w])} steps", level="INFO" if ok else "WARN"))
 
     def log_step(self, *, reward=None, success=None, body_q: np.ndarray | None = None, info=None) -> None:
         """Log the current body poses of the first rows (or ``body_q`` given (rows * bodies, 7)), the TCP
@@ -103,7 +126,15 @@ class RerunLogger:
         q = body_q if body_q is not None else env.state.body_q.numpy()[: self.rows * self._bpw]
         q = np.asarray(q)[: self.rows * self._bpw].reshape(self.rows, self._bpw, 7)
         tcp = env.tcp_pose[: self.rows, :3].cpu().numpy()
+        done = info["done"][: self.rows].cpu().numpy() if info is not None else np.zeros(self.rows, dtype=bool)
+        count = self._episode_count()
+        reset = count != self._episodes  # this step's auto-resets (done) or the loop's resets since the last call
+        self._episodes = count
+        self._log_resets(np.nonzero(reset & ~done)[0])
         for w in range(self.rows):
+            if not self._drawn(w):
+                continue
+            self._frames[w] += 1
             for b in range(self._bpw):
                 self.rec.log(self.body_path(w, b),
                              rr.Transform3D(translation=q[w, b, :3], quaternion=rr.Quaternion(xyzw=q[w, b, 3:7])))
@@ -113,11 +144,20 @@ class RerunLogger:
                 self.rec.log(f"metrics/{w}/reward", rr.Scalars(float(reward[w])))
             if success is not None:
                 self.rec.log(f"metrics/{w}/success", rr.Scalars(float(success[w])))
-        self._log_events(info)
+        if info is not None:
+            self._log_ends(info)
+        self._log_resets(np.nonzero(reset & done)[0])
         self._step += 1
+
+    @property
+    def finished(self) -> bool:
+        """Every drawn row has shown its ``episodes_per_row`` episodes (never, without a limit)."""
+        return not any(self._drawn(w) for w in range(self.rows))
 
     def on_step(self, reward, info) -> None:
         """The ``on_step(reward, info)`` hook of ``env.collect`` / ``env.evaluate``."""
+        if self.finished:
+            return
         self.log_step(reward=reward, success=info["success"], info=info)
 
     def close(self) -> None:
