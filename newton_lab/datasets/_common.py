@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import errno
 import fcntl
 import json
@@ -18,6 +19,7 @@ FORMAT_VERSION = 2  # 2: flat (T, D) ``states`` / ``initial_state``, ``rewards``
 DEMO_RE = re.compile(r"^demo_(\d+)$")
 PARTIAL_PREFIX = "_partial_"
 RESERVED_DEMO_ATTRS = ("num_samples", "success")
+NEXT_ID = "next_demo_id"  # root attr: the id the next appended demo gets (ids are never reused)
 CHUNK_BYTES = 1 << 20  # target bytes per time chunk
 LOCK_WAIT_S = 10.0  # bounded wait for the writer lock (both formats)
 TURNSTILE = 1 << 62  # byte offset of the writers' fairness lock
@@ -90,6 +92,27 @@ def fsync_path(path: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+_syncfs = getattr(ctypes.CDLL(None, use_errno=True), "syncfs", None)
+
+
+def sync_tree(top: Path) -> None:
+    """Make every file written under ``top`` durable: one ``syncfs`` of its filesystem (Linux), else an
+    fsync of each file and directory. A refused flush raises ``OSError`` (EIO, ENOSPC, ...)."""
+    if _syncfs is not None:
+        fd = os.open(top, os.O_RDONLY)
+        try:
+            if _syncfs(fd) != 0:
+                err = ctypes.get_errno()
+                raise OSError(err, os.strerror(err))
+        finally:
+            os.close(fd)
+        return
+    for dirpath, _, files in os.walk(top):
+        for name in files:
+            fsync_path(Path(dirpath, name))
+        fsync_path(Path(dirpath))
 
 
 # ----------------------------------------------------------------------------- writer protocol

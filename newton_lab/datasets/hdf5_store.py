@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _common as common
 from . import _journal as journal
-from ._common import (PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
+from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
                       locked_error, time_chunks)
 
 # Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
@@ -119,23 +119,48 @@ def read_root(path: Path) -> dict[str, Any]:
         return _attrs(_data(f, path))
 
 
-def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples: int, fsync: bool) -> int:
-    """In one journaled session: write ``data/_partial_demo_<i>``, rename to ``data/demo_<i>``, refresh totals."""
+def _counters(data: h5py.Group) -> tuple[int, int, int]:
+    """(next demo id, total samples, num_demos) from the ``data`` attrs; a dataset written before
+    ``next_demo_id`` existed is walked once (the caller stores the result)."""
+    a = data.attrs
+    if NEXT_ID in a:
+        return int(a[NEXT_ID]), int(a.get("total", 0)), int(a.get("num_demos", 0))
+    demos = _committed(data)
+    return (max(demos, default=-1) + 1, sum(int(d.attrs["num_samples"]) for d in demos.values()), len(demos))
+
+
+def _free_id(data: h5py.Group, i: int) -> int:
+    """First id from ``i`` whose ``demo_<i>`` is not a committed demo; a stale group of that name (no
+    ``num_samples``, or a ``_partial_`` one of an older writer) is removed. Looks up names, walks nothing."""
+    while True:
+        g = data.get(demo_name(i))
+        if isinstance(g, h5py.Group) and "num_samples" in g.attrs:
+            i += 1  # written by another tool without next_demo_id: never overwrite it
+            continue
+        for name in (demo_name(i), f"{PARTIAL_PREFIX}{demo_name(i)}"):
+            if name in data:
+                del data[name]
+        return i
+
+
+def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool) -> list[int]:
+    """Write ``items`` ((tree, attrs, num_samples), ...) as ``data/demo_<i>`` and advance the ``data`` attrs
+    ``next_demo_id`` / ``total`` / ``num_demos``, all in one journaled session: every demo lands or none.
+    The cost does not depend on how many demos the dataset holds (no walk over them)."""
     with _open_write(path, fsync) as f:
         data = _data(f, path)
-        for name in [n for n in data if n.startswith(PARTIAL_PREFIX)]:
-            del data[name]  # leftovers of a killed append
-        demos = _committed(data)
-        demo_id = max(demos, default=-1) + 1
-        tmp = f"{PARTIAL_PREFIX}{demo_name(demo_id)}"
-        g = data.create_group(tmp)
-        _write_tree(g, tree)
-        g.attrs.update(attrs)
-        g.attrs["num_samples"] = int(num_samples)
-        data.move(tmp, demo_name(demo_id))
-        total = sum(int(d.attrs["num_samples"]) for d in demos.values()) + int(num_samples)
-        data.attrs.update({"total": total, "num_demos": len(demos) + 1})
-    return demo_id
+        next_id, total, count = _counters(data)
+        ids = []
+        for tree, attrs, num_samples in items:
+            next_id = _free_id(data, next_id)
+            g = data.create_group(demo_name(next_id))
+            _write_tree(g, tree)
+            g.attrs.update(attrs)
+            g.attrs["num_samples"] = int(num_samples)
+            ids.append(next_id)
+            next_id, total = next_id + 1, total + int(num_samples)
+        data.attrs.update({NEXT_ID: next_id, "total": total, "num_demos": count + len(ids)})
+    return ids
 
 
 def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> None:
@@ -167,11 +192,12 @@ def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
     """Delete demos, drop them from the filter keys and refresh totals (space is reclaimed only by h5repack)."""
     with _open_write(path, fsync) as f:
         data = _data(f, path)
+        next_id = _counters(data)[0]  # before deleting: ids are never reused
         for i in ids:
             del data[demo_name(i)]
         demos = _committed(data)
         data.attrs.update({"total": sum(int(d.attrs["num_samples"]) for d in demos.values()),
-                           "num_demos": len(demos)})
+                           "num_demos": len(demos), NEXT_ID: next_id})
         gone = {demo_name(i) for i in ids}
         _write_masks(f, {k: [n for n in names if n not in gone] for k, names in _read_masks(f).items()})
 

@@ -2,7 +2,7 @@
 
 Layout (both formats)::
 
-    data/            attrs: env_args (JSON), total, num_demos, task_id, format_version
+    data/            attrs: env_args (JSON), total, num_demos, next_demo_id, task_id, format_version
     data/demo_<i>/   attrs: num_samples, success, extra scalars
         actions (T, A) float32, obs/<term> (T, ...), next_obs/<term> (the observation after each step),
         rewards (T,) float32, dones (T,) int (1 on the last step of a successful episode), states (T, D)
@@ -14,16 +14,19 @@ Layout (both formats)::
 robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets (nested ``states``, no
 rewards / dones / next_obs) stay readable.
 
-Every ``append_episode`` is durable (fsync) and crash safe before it returns: a writer killed at
-any time leaves a dataset holding every episode whose append returned. HDF5 writes go through a
-rollback journal (``<file>-journal``, rolled back by the next reader/writer); zarr demos are
-written under a temporary name (``num_samples`` attr last) and committed by renaming them into
-place. Half-written demos are invisible to readers and removed by the next append.
+Every ``append_episode`` / ``append_episodes`` batch is durable (one fsync) and crash safe before it
+returns: a writer killed at any time leaves a dataset holding every episode whose append returned, and
+none of a batch cut short. HDF5 writes go through a rollback journal (``<file>-journal``, rolled back
+by the next reader/writer); zarr demos are staged, renamed into place and committed by advancing
+``next_demo_id``. Half-written demos are invisible to readers and removed by the next append. An append
+reads and updates only the root attrs (``next_demo_id``, ``total``, ``num_demos``): its cost does not
+grow with the dataset (one written before ``next_demo_id`` existed is walked once, on its first append).
+``background.BackgroundWriter`` runs a writer in a thread beside the simulation.
 
 One writer protocol for both formats: every write session (append, delete, attrs) holds an
 exclusive ``flock`` (HDF5: on the file; zarr: on the store's root ``zarr.json``), queued fairly and
 waited for at most ``_common.LOCK_WAIT_S`` (10 s), else a one-line :class:`DatasetLockedError`
-naming the holder's pid; the demo id is allocated under that lock from the committed demos, so
+naming the holder's pid; demo ids are allocated under that lock from ``next_demo_id``, so
 writers in several processes interleave their appends and ids never collide. A write the disk
 refuses (ENOSPC, EIO, ...) rolls the session back and raises one line, :class:`DatasetWriteError`
 (an ``OSError``): ``disk full after N episodes; <path> holds M finished episodes``.
@@ -44,13 +47,15 @@ from typing import Any
 import numpy as np
 
 from . import hdf5_store, zarr_store
-from ._common import (FORMAT_VERSION, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
+from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
                       DatasetWriteError, damaged, demo_id_of, dumps_env_args, inject_write_fault, py_scalar)
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
 """Storage module of each format."""
 TIME_ALIGNED = ("obs", "next_obs", "states", "rewards", "dones")  # every array under these has T rows
+EpisodeItem = tuple[Mapping[str, Any], bool, Mapping[str, Any] | None]
+"""One entry of :meth:`EpisodeWriter.append_episodes`: (episode, success, attrs or None)."""
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
            "delete_demos", "set_dataset_attrs", "read_filter_keys", "set_filter_keys", "SUFFIXES", "FORMAT_VERSION",
@@ -229,7 +234,7 @@ class EpisodeWriter:
             raise ValueError(f"env_args['env_name']={env['env_name']!r} differs from task_id={task_id!r}")
         env.setdefault("type", 2)
         env.setdefault("env_kwargs", {})
-        root = {"env_args": dumps_env_args(env), "total": 0, "num_demos": 0,
+        root = {"env_args": dumps_env_args(env), "total": 0, "num_demos": 0, NEXT_ID: 0,
                 "task_id": task_id, "format_version": FORMAT_VERSION}
         if not p.exists():
             try:
@@ -244,16 +249,35 @@ class EpisodeWriter:
                              f"choose another path for {task_id!r}")
         return cls(p, backend, fmt, task_id, fsync)
 
+    def prepare(self, episode: Mapping[str, Any], *, success: bool,
+                attrs: Mapping[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any], int]:
+        """Check one episode (one-line errors) and convert it for :meth:`append_prepared`: (tree, attrs, steps).
+        The arrays are not copied where they already fit: do not change them until they are written."""
+        tree, steps = _normalize_episode(episode)
+        return tree, _demo_attrs(success, attrs), steps
+
+    def append_episodes(self, episodes: Iterable[EpisodeItem]) -> list[int]:
+        """Write ``[(episode, success, attrs), ...]`` in one durable write session (one fsync): all of them
+        land or none (also on SIGKILL); returns their demo ids. Every episode is checked before any is written."""
+        return self.append_prepared([self.prepare(ep, success=ok, attrs=attrs) for ep, ok, attrs in episodes])
+
+    def append_prepared(self, batch: list[tuple[dict[str, Any], dict[str, Any], int]]) -> list[int]:
+        """Write episodes returned by :meth:`prepare` as one batch (see :meth:`append_episodes`)."""
+        if self._closed:
+            raise RuntimeError(f"EpisodeWriter for {self.path} is closed")
+        if not batch:
+            return []
+        with _medium_errors(self.path, self._backend, f"after {_episodes(self.appended)}"):
+            ids = self._backend.append(self.path, list(batch), self._fsync)
+        self.appended += len(ids)
+        return ids
+
     def append_episode(self, episode: Mapping[str, Any], *, success: bool,
                        attrs: Mapping[str, Any] | None = None) -> int:
         """Write one episode; returns its demo id once it is durable on disk."""
         if self._closed:
             raise RuntimeError(f"EpisodeWriter for {self.path} is closed")
-        tree, steps = _normalize_episode(episode)
-        with _medium_errors(self.path, self._backend, f"after {_episodes(self.appended)}"):
-            demo_id = self._backend.append(self.path, tree, _demo_attrs(success, attrs), steps, self._fsync)
-        self.appended += 1
-        return demo_id
+        return self.append_prepared([self.prepare(episode, success=success, attrs=attrs)])[0]
 
     def close(self) -> None:
         """Mark the writer closed (every append is already on disk)."""

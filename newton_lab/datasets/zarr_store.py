@@ -1,9 +1,10 @@
-"""zarr v3 backend (directory store): a demo is written under a temporary name, ``num_samples`` attr last,
-and committed by renaming it to ``demo_<i>``; a ``demo_<i>`` without ``num_samples`` is a leftover.
+"""zarr v3 backend (directory store): a batch of demos is written under a staging folder, renamed to
+``demo_<i>`` and committed by advancing the ``data`` attr ``next_demo_id``; a ``demo_<i>`` without
+``num_samples`` or with ``i >= next_demo_id`` is a leftover (readers skip it, the next append removes it).
 
 Writers (append, delete, root attrs) hold the writer lock of both formats (``_common.lock_exclusive``)
 on the store's root ``zarr.json``, a file written once at creation and never replaced, so they are
-serialised and a demo id is allocated from what is committed. Readers take no lock.
+serialised and demo ids come from ``next_demo_id``. Readers take no lock.
 """
 
 from __future__ import annotations
@@ -23,8 +24,10 @@ import numpy as np
 import zarr
 from zarr.storage import LocalStore
 
-from ._common import (PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path, lock_exclusive,
-                      time_chunks, write_fault_point)
+from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
+                      lock_exclusive, sync_tree, time_chunks, write_fault_point)
+
+STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written
 
 
 _io = threading.Condition()
@@ -91,8 +94,9 @@ def _node_attrs(node_dir: Path) -> dict[str, Any] | None:
         return None
 
 
-def _scan(path: Path) -> tuple[dict[int, dict[str, Any]], list[Path]]:
-    """(committed demo id -> attrs, leftovers of killed appends/deletes: dirs and ``*.partial`` files)."""
+def _scan(path: Path, limit: int | None = None) -> tuple[dict[int, dict[str, Any]], list[Path]]:
+    """(committed demo id -> attrs, leftovers of killed appends/deletes: dirs and ``*.partial`` files). With
+    ``limit`` (the ``next_demo_id`` attr) a ``demo_<i>``, ``i >= limit``, is a leftover of a killed batch."""
     committed, leftovers = {}, []
     for entry in os.scandir(path / "data"):
         if not entry.is_dir():
@@ -101,7 +105,7 @@ def _scan(path: Path) -> tuple[dict[int, dict[str, Any]], list[Path]]:
             continue
         i = demo_id_of(entry.name)
         attrs = _node_attrs(Path(entry.path)) if i is not None else None
-        if attrs is not None and "num_samples" in attrs:
+        if attrs is not None and "num_samples" in attrs and (limit is None or i < int(limit)):
             committed[i] = attrs
         elif i is not None or entry.name.startswith(PARTIAL_PREFIX):
             leftovers.append(Path(entry.path))
@@ -191,58 +195,82 @@ def _clean(path: Path) -> dict[int, dict[str, Any]]:
     return committed
 
 
-def _write_demo(data: zarr.Group, tmp_dir: Path, tree: dict[str, Any], attrs: dict[str, Any],
-                num_samples: int, fsync: bool) -> None:
-    g = data.create_group(tmp_dir.name, attributes=attrs)
-    _write_tree(g, tree)
-    if fsync:
-        _fsync_tree(tmp_dir)
-    g.attrs["num_samples"] = int(num_samples)  # complete marker (atomic zarr.json replace)
-    if fsync:
-        fsync_path(tmp_dir / "zarr.json")
-        fsync_path(tmp_dir)
+def _counters(data: zarr.Group, path: Path) -> tuple[int, int, int]:
+    """(next demo id, total samples, num_demos) from the ``data`` attrs (under the lock). A dataset written
+    before ``next_demo_id`` existed is scanned once (and its leftovers removed); the caller stores the result."""
+    a = data.attrs.asdict()
+    if NEXT_ID in a:
+        return int(a[NEXT_ID]), int(a.get("total", 0)), int(a.get("num_demos", 0))
+    committed = _clean(path)
+    return max(committed, default=-1) + 1, _totals(committed)["total"], len(committed)
 
 
-def append(path: Path, tree: dict[str, Any], attrs: dict[str, Any], num_samples: int, fsync: bool) -> int:
-    """Under the lock: write the demo under a name used once (``_partial_demo_<i>_<uuid>``) with
-    ``num_samples`` last, rename it to ``demo_<i>`` (commit), then refresh totals.
+def _clean_tail(path: Path, next_id: int) -> None:
+    """Remove what a killed batch left (under the lock): its staging folder and the ``demo_<i>`` it had
+    renamed into place, ``i >= next_id`` (never committed: readers ignore them). Looks only at those names."""
+    staging = path / "data" / STAGING
+    if staging.exists():
+        shutil.rmtree(staging, ignore_errors=True)
+    while (path / "data" / demo_name(next_id)).exists():
+        _remove(path / "data" / demo_name(next_id))
+        next_id += 1
 
-    On any error the demo is taken out again (a failed append leaves the dataset as it was). zarr does
-    not cancel the sibling writes of a failed one: they can only land in the unique temporary name.
-    """
+
+def _commit(data: zarr.Group, counters: dict[str, int]) -> None:
+    """The commit point of a batch: ``data/zarr.json`` (replaced atomically) gets the new ``next_demo_id``."""
+    data.attrs.update(counters)
+
+
+def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool) -> list[int]:
+    """Under the lock, write ``items`` ((tree, attrs, num_samples), ...) as one batch: each demo into
+    ``data/_partial_batches/<uuid>/demo_<i>``, one ``syncfs``, rename each to ``data/demo_<i>``, then commit
+    by advancing ``next_demo_id`` (and ``total`` / ``num_demos``) in ``data/zarr.json``. Readers list only
+    ``demo_<i>`` with ``i < next_demo_id``: a batch is visible entirely or not at all, also after SIGKILL.
+
+    On any error the batch is taken out again (the dataset stays as it was). zarr does not cancel the
+    sibling writes of a failed one: they can only land in the batch's unique staging folder. The cost per
+    demo does not depend on how many the dataset holds (no scan of ``data/``)."""
     with _locked(path) as data:
-        committed = _clean(path)
-        demo_id = max(committed, default=-1) + 1
-        demo_dir = path / "data" / demo_name(demo_id)
-        tmp_dir = demo_dir.with_name(f"{PARTIAL_PREFIX}{demo_dir.name}_{uuid.uuid4().hex}")
-        totals_written = False
+        next_id, total, count = _counters(data, path)
+        _clean_tail(path, next_id)
+        ids = list(range(next_id, next_id + len(items)))
+        stage = path / "data" / STAGING / uuid.uuid4().hex
+        before = {NEXT_ID: next_id, "total": total, "num_demos": count}
+        attempted = False
         try:
-            _write_demo(data, tmp_dir, tree, attrs, num_samples, fsync)
-            os.rename(tmp_dir, demo_dir)  # commit point
+            group = data.require_group(STAGING).create_group(stage.name)
+            for i, (tree, attrs, num_samples) in zip(ids, items):
+                _write_tree(group.create_group(demo_name(i), attributes={**attrs, "num_samples": int(num_samples)}),
+                            tree)
+            if fsync:
+                sync_tree(stage)
+            for i in ids:
+                os.rename(stage / demo_name(i), path / "data" / demo_name(i))
             if fsync:
                 fsync_path(path / "data")
-            data.attrs.update(_totals({**committed, demo_id: {"num_samples": int(num_samples)}}))
-            totals_written = True
+            attempted = True
+            _commit(data, {NEXT_ID: next_id + len(ids), "total": total + sum(int(n) for _, _, n in items),
+                           "num_demos": count + len(ids)})
             if fsync:
                 fsync_path(path / "data" / "zarr.json")
                 fsync_path(path / "data")
         except BaseException:
-            _drain(path, tmp_dir)
-            _undo_append(data, (demo_dir, tmp_dir), committed, totals_written)
+            _drain(path, stage)
+            _undo_append(data, path, ids, before if attempted else None)
             raise
-    return demo_id
+        shutil.rmtree(path / "data" / STAGING, ignore_errors=True)
+    return ids
 
 
-def _undo_append(data: zarr.Group, dirs: tuple[Path, ...], committed: dict[int, dict[str, Any]],
-                 totals: bool) -> None:
+def _undo_append(data: zarr.Group, path: Path, ids: list[int], counters: dict[str, int] | None) -> None:
     try:
-        for d in dirs:
+        if counters is not None:
+            data.attrs.update(counters)
+        for d in [path / "data" / demo_name(i) for i in ids] + [path / "data" / STAGING]:
             if d.exists():
                 _remove(d)
-        if totals:
-            data.attrs.update(_totals(committed))
     except OSError:
-        pass  # what is left is uncommitted or recounted: the next append cleans it
+        pass  # what is left is uncommitted: the next append removes it
 
 
 def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> None:
@@ -255,7 +283,7 @@ def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> Non
 
 def info(path: Path) -> dict[str, Any]:
     root = read_root(path)
-    committed, _ = _scan(path)
+    committed, _ = _scan(path, root.get(NEXT_ID))
     demos = {i: {"num_samples": int(a["num_samples"]), "success": bool(a.get("success", False))}
              for i, a in committed.items()}
     return {"root": root, "demos": demos}
@@ -263,8 +291,9 @@ def info(path: Path) -> dict[str, Any]:
 
 def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
     data = _data(_root(path), path)
-    committed, _ = _scan(path)
-    if demo_id not in committed:
+    limit = data.attrs.get(NEXT_ID)
+    attrs = _node_attrs(path / "data" / demo_name(demo_id))
+    if attrs is None or "num_samples" not in attrs or (limit is not None and demo_id >= int(limit)):
         raise KeyError(demo_id)
     try:
         g = data[demo_name(demo_id)]
@@ -277,10 +306,11 @@ def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
     """Delete demos under the lock (atomic rename out of the tree, then rmtree), refresh totals and drop
     them from the filter keys."""
     with _locked(path) as data:
+        next_id = _counters(data, path)[0]  # before deleting: ids are never reused
         for i in ids:
             _remove(path / "data" / demo_name(i))
-        committed, _ = _scan(path)
-        data.attrs.update(_totals(committed))
+        committed, _ = _scan(path, next_id)
+        data.attrs.update({**_totals(committed), NEXT_ID: next_id})
         if fsync:
             fsync_path(path / "data")
         gone = {demo_name(i) for i in ids}
