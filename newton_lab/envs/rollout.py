@@ -1,10 +1,10 @@
 """Episode loops over a batched env: ``collect`` (record to HDF5 / zarr) and ``evaluate``.
 
 Rows run episodes independently; a row's episode ends when the task terminates or truncates it (the env
-resets it inside the step) or when it reaches ``max_steps`` (reset here). Each finished episode is
-written and durable before the next step runs. A row whose physics diverged ends with reason ``diverged``
-(the env's divergence guard); ``collect`` never writes such an episode, nor any episode holding a non-finite
-value, and both summaries count them (``diverged``).
+resets it inside the step) or when it reaches ``max_steps`` (reset here). ``collect`` copies the episodes that
+end in one step to the host together and hands them to a background writer (``envs.saver``). A row whose
+physics diverged ends with reason ``diverged`` (the env's divergence guard); ``collect`` never writes such an
+episode, nor any episode holding a non-finite value, and both summaries count them (``diverged``).
 """
 
 from __future__ import annotations
@@ -19,8 +19,10 @@ import warp as wp
 from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
+from ..datasets.background import BackgroundWriter
 from ..datasets.states import state_layout
 from ..task_api.cfg import DIVERGED
+from .saver import EpisodeSaver, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
 
 REASON_MAX_STEPS = "max_steps"
@@ -62,6 +64,7 @@ class EpisodeRecorder:
         self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
         self._next_obs = torch.zeros(n, max_steps, env.final_obs.shape[1], device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
+        self._host: dict[int, tuple[torch.Tensor, ...]] = {}  # row -> host copies made by `episodes`
 
     def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
         """Store the pre-step frame of every row at its episode step ``t`` (N,)."""
@@ -75,20 +78,36 @@ class EpisodeRecorder:
         self._rewards[self._rows, t] = reward.float()
         self._next_obs[self._rows, t] = self.env.final_obs.float()
 
+    def episodes(self, rows, lengths) -> dict[int, dict[str, Any]]:
+        """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
+        buffers: row -> :meth:`episode`."""
+        rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
+        span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
+        parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
+        host = torch.cat(parts, dim=2).cpu()
+        cuts = np.cumsum([0] + [p.shape[2] for p in parts])
+        self._host = {r: (host[k, :, cuts[0]:cuts[1]], host[k, :, cuts[1]], host[k, :, cuts[2]:cuts[3]])
+                      for k, r in enumerate(rows)}
+        try:
+            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}
+        finally:
+            self._host = {}
+
     def episode(self, row: int, length: int) -> dict[str, Any]:
         """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
         ``obs/*``, ``next_obs/*`` (the observation after each step), flat ``states`` (T, joint_q + joint_qd;
         named by ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step, ``dones``
         (T,) zeros (``collect`` sets the last step of a successful episode to 1, as robomimic does),
         ``initial_state`` (1, D) and ``datagen/*``."""
-        data = self._frames[row, :length].cpu().numpy()
+        frames, rewards, nxt = self._host.get(row) or (self._frames[row], self._rewards[row], self._next_obs[row])
+        data = frames[:length].cpu().numpy()
         flat = {key: data[:, sl] for key, sl in self._slices.items()}
         states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
         dones = np.zeros(length, dtype=np.int64)
-        nxt = self._next_obs[row, :length].cpu().numpy()
+        nxt = nxt[:length].cpu().numpy()
         tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
                                 "next_obs": {k: nxt[:, sl] for k, sl in self.env.obs_terms.items()},
-                                "rewards": self._rewards[row, :length].cpu().numpy(), "dones": dones}
+                                "rewards": rewards[:length].cpu().numpy(), "dones": dones}
         for key, arr in flat.items():
             node = tree
             parts = key.split("/")
@@ -101,17 +120,6 @@ class EpisodeRecorder:
         tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
         tree["initial_state"] = states[:1]
         return tree
-
-
-def all_finite(tree: dict[str, Any]) -> bool:
-    """Every floating-point array of a nested episode dict holds only finite values."""
-    for v in tree.values():
-        if isinstance(v, dict):
-            if not all_finite(v):
-                return False
-        elif np.issubdtype(np.asarray(v).dtype, np.floating) and not np.isfinite(v).all():
-            return False
-    return True
 
 
 def env_args(env) -> dict[str, Any]:
@@ -159,6 +167,7 @@ class _Episodes:
         self.reached = torch.zeros((n, len(env.signal_names)), dtype=torch.bool, device=dev)
         self.records: list[dict[str, Any]] = []
         self.successes = 0
+        self.host: dict[str, np.ndarray] = {}
 
     def enough(self) -> bool:
         if self.until_successes:
@@ -172,15 +181,21 @@ class _Episodes:
         self.latched |= info["success"].cpu().numpy()
         self.reached |= info["step_signals"] > 0.5
 
+    def snapshot(self) -> None:
+        """Host copies of the per-row counters, read by :meth:`record` (call once per step, before it)."""
+        self.host = {"length": self.step_in_ep.cpu().numpy(), "reward": self.reward_total.cpu().numpy(),
+                     "reached": self.reached.cpu().numpy()}
+
     def record(self, row: int, reason: str) -> dict[str, Any]:
-        """The finished episode of ``row``; frees or retires the row."""
+        """The finished episode of ``row`` (from the step's :meth:`snapshot`); frees or retires the row."""
+        h = self.host
         rec = {
             "env_index": int(row),
-            "length": int(self.step_in_ep[row]),
+            "length": int(h["length"][row]),
             "success": bool(self.latched[row]) and reason != DIVERGED,
-            "reward_total": float(self.reward_total[row]),
+            "reward_total": float(h["reward"][row]),
             "termination_reason": reason,
-            "signals_reached": [name for name, hit in zip(self.env.signal_names, self.reached[row].tolist()) if hit],
+            "signals_reached": [name for name, hit in zip(self.env.signal_names, h["reached"][row].tolist()) if hit],
         }
         if self.quota is None or self.launched < self.quota:
             self.launched += 1
@@ -197,7 +212,7 @@ class _Episodes:
             self.reached[idx] = False
 
 
-def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, on_episode=None,
+def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, saver=None,
          until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
          on_step=None):
     """Shared loop; returns per-episode records, vector steps and wall time.
@@ -205,7 +220,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
     ones (at most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the
     agent reports it has nothing more to do (Mimic generation), with reason ``agent_done``.
-    ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger).
+    ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
+    (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
     """
     if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -240,18 +256,25 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             reasons = info["termination_reason"].cpu().numpy()
             if (cut | agent_done).any():
                 env.reset(np.nonzero(cut | agent_done)[0])
+            if len(ended):
+                eps.snapshot()  # one device->host copy of the per-row counters
+            if saver is not None and len(ended):
+                keep = ended[eps.latched[ended]] if until_successes else ended
+                saver.fetch(keep, eps.host["length"][keep])
             for row in ended:
                 reason = (REASON_MAX_STEPS if cut[row] else "agent_done" if agent_done[row]
                           else env.termination_reasons[reasons[row]])
                 rec = eps.record(row, reason)
-                if on_episode is not None:
-                    rec.update(on_episode(row, rec) or {})
+                if saver is not None:
+                    rec.update(saver.save(row, rec))
                 eps.records.append(rec)
                 eps.successes += rec["success"]
                 bar.update(1 if not until_successes else int(rec["success"]))
                 bar.set_postfix(success=f"{eps.successes}/{len(eps.records)}")
                 if eps.enough():
                     break
+            if saver is not None:
+                saver.submit()
             eps.clear(done | cut | agent_done)
     finally:
         bar.close()
@@ -287,9 +310,16 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
 def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
             only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
             dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
-            on_step=None, save_end_scenario=None):
+            on_step=None, save_end_scenario=None, max_queued: int = 256):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
+
+    The episodes that end in one step are copied to the host together and written by a background thread
+    (``datasets.background``), many per write session, while the simulation goes on; ``collect`` waits for
+    it before returning (also on Ctrl-C or an error, so every finished episode is written). An episode is
+    durable once written: a run killed (SIGKILL) keeps every episode written before and loses at most the
+    batch being written (all of it or none lands) and those queued behind it (at most ``max_queued``; the
+    simulation waits while that many are queued).
 
     ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML
     (``newton_lab.envs.scenario``) that a following component task can start from; the file must not exist.
@@ -309,39 +339,18 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
             raise FileExistsError(f"scenario file {save_end_scenario} already exists; choose a new path")
     args = env_args(env)
     args["env_name"] = task_id
-    writer = open_writer(Path(path), task_id=task_id, env_args=args)
-    recorder = EpisodeRecorder(env, max_steps)
-    saved: list[int] = []
-
-    def write(row: int, rec: dict[str, Any]) -> dict[str, Any]:
-        if rec["termination_reason"] == DIVERGED or (only_successes and not rec["success"]):
-            return {}
-        episode = recorder.episode(row, rec["length"])
-        episode["dones"][-1:] = int(rec["success"])
-        if not all_finite(episode):  # diverged without tripping the guard: dropped and counted as diverged
-            return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
-        demo = writer.append_episode(
-            episode,
-            success=rec["success"],
-            attrs={
-                "termination_reason": rec["termination_reason"],
-                "env_index": rec["env_index"],
-                "episode_length": rec["length"],
-                "seed": env.seed,
-            },
-        )
-        saved.append(demo)
-        return {"demo_id": demo}
-
+    writer = BackgroundWriter(open_writer(Path(path), task_id=task_id, env_args=args), max_queued=max_queued)
+    saver = EpisodeSaver(writer, EpisodeRecorder(env, max_steps), seed=env.seed, only_successes=only_successes)
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
-                                    recorder=recorder, on_episode=write, until_successes=only_successes,
+                                    recorder=saver.recorder, saver=saver, until_successes=only_successes,
                                     max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
                                     on_step=on_step)
     finally:
-        writer.close()
+        saver.close()  # waits for the writer: what finished is written, also on Ctrl-C or an error
     summary = _summary(env, records, steps, wall)
-    summary.update(task=task_id, path=str(path), saved_demo_ids=saved, attempts=len(records))
+    summary.update(task=task_id, path=str(path), saved_demo_ids=saver.saved_ids(), attempts=len(records),
+                   writer_batches=writer.batches)
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
