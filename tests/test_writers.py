@@ -7,6 +7,7 @@ import os
 import re
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -15,7 +16,8 @@ import numpy as np
 import pytest
 import zarr
 
-from newton_lab.datasets import _common, list_demos, open_writer, read_dataset_info, read_episode
+from newton_lab.datasets import _common, delete_demos, list_demos, open_writer, read_dataset_info, read_episode
+from newton_lab.datasets.background import BackgroundWriter
 from newton_lab.datasets.storage import DatasetLockedError, DatasetWriteError, inject_write_fault
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -200,3 +202,189 @@ def test_fault_seam_reaches_subprocesses(tmp_path, suffix):
     held = len(list_demos(path))
     assert held >= 2 and list_demos(path) == list(range(held))
     assert last.endswith(f"DatasetWriteError: disk full after {held} episodes; {path} holds {held} finished episodes")
+
+
+# ----------------------------------------------------------------------------- batches (issue 14)
+BATCH_CHILD = """
+import os, signal, sys
+from test_writers import episode
+from newton_lab.datasets import _journal, hdf5_store, open_writer, zarr_store
+path, point = sys.argv[1], sys.argv[2]
+store = zarr_store if path.endswith(".zarr") else hdf5_store
+w = open_writer(path, task_id="pick_cube", env_args={})
+for b in range(2):
+    print("BATCH", *w.append_episodes([(episode(10 * b + k), True, {"seed": 10 * b + k}) for k in range(3)]), flush=True)
+def die(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGKILL)
+if point == "mid_write":  # inside the 4th of 6 episodes (each tree: 4 nested _write_tree calls)
+    real, calls = store._write_tree, [0]
+    def write_tree(g, tree):
+        calls[0] += 1
+        if calls[0] == 14:
+            die()
+        real(g, tree)
+    store._write_tree = write_tree
+elif path.endswith(".zarr"):  # every demo renamed into place, the commit (next_demo_id) not written
+    store._commit = die
+else:  # every byte written, the journal closed: killed just before the commit (journal deletion)
+    real_close = _journal.JournaledFile.close_journal
+    _journal.JournaledFile.close_journal = lambda self: (real_close(self), die())
+w.append_episodes([(episode(100 + k), True, {"seed": 100 + k}) for k in range(6)])
+print("NOT KILLED", flush=True)
+"""
+
+
+@pytest.mark.parametrize("point", ["mid_write", "before_commit"])
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_sigkill_mid_batch_keeps_earlier_batches_and_none_of_the_killed_one(tmp_path, suffix, point):
+    path = tmp_path / f"ds{suffix}"
+    proc = subprocess.run([sys.executable, "-c", BATCH_CHILD, str(path), point], env=child_env(),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == -9, proc.stderr
+    assert proc.stdout.split("\n")[:2] == ["BATCH 0 1 2", "BATCH 3 4 5"], proc.stdout
+    seeds = [0, 1, 2, 10, 11, 12]
+    if suffix == ".hdf5":  # really torn: the killed session left its journal
+        assert Path(f"{path}-journal").exists()
+    elif point == "before_commit":  # really torn: the killed batch's demos are in place, uncommitted
+        assert all((path / "data" / f"demo_{i}" / "zarr.json").exists() for i in range(6, 12))
+    info = read_dataset_info(path)  # HDF5: rolls the killed session back first
+    assert info["demo_ids"] == list(range(6)) and info["num_demos"] == 6 and info["total"] == 6 * STEPS
+    for demo_id, seed in enumerate(seeds):
+        assert_episode(path, demo_id, seed)
+    with open_writer(path, task_id=TASK, env_args={}) as w:  # the killed batch's ids are given again
+        assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (7, 8)]) == [6, 7]
+    assert list_demos(path) == list(range(8)) and read_dataset_info(path)["total"] == 8 * STEPS
+    assert_episode(path, 6, 7)
+    assert_episode(path, 7, 8)
+    if suffix == ".zarr":  # the killed batch's staged and renamed demos were removed
+        assert sorted(os.listdir(path / "data")) == sorted([f"demo_{i}" for i in range(8)] + ["zarr.json"])
+    else:
+        assert not Path(f"{path}-journal").exists()
+        with h5py.File(path, "r") as f:
+            assert sorted(f["data"]) == sorted(f"demo_{i}" for i in range(8))
+            assert f["data"].attrs["next_demo_id"] == 8
+
+
+def _forbid_walks(monkeypatch) -> None:
+    """Fail the test if an append walks the demos already stored (HDF5 ``_committed``, zarr ``_scan``)."""
+    from newton_lab.datasets import hdf5_store, zarr_store
+
+    def walk(*args, **kwargs):
+        raise AssertionError("append walked the existing demos")
+
+    monkeypatch.setattr(hdf5_store, "_committed", walk)
+    monkeypatch.setattr(zarr_store, "_scan", walk)
+
+
+def _drop_next_id(path: Path) -> None:
+    """Make ``path`` look written by a version without ``next_demo_id`` (totals present)."""
+    if path.suffix == ".zarr":
+        zarr.open_group(str(path), mode="r+", zarr_format=3)["data"].attrs.__delitem__("next_demo_id")
+    else:
+        with h5py.File(path, "r+") as f:
+            del f["data"].attrs["next_demo_id"]
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_append_reads_only_the_root_attrs(tmp_path, suffix, monkeypatch):
+    """No walk over existing demos on append, so its cost does not grow with the dataset; a dataset of the
+    older layout (no next_demo_id) is walked once, on its first append, and then keeps the attr."""
+    path = tmp_path / f"ds{suffix}"
+    with open_writer(path, task_id=TASK, env_args={}, fsync=False) as w:
+        w.append_episodes([(episode(s), True, {"seed": s}) for s in range(3)])
+    _drop_next_id(path)
+    with open_writer(path, task_id=TASK, env_args={}, fsync=False) as w:
+        assert w.append_episode(episode(3), success=True, attrs={"seed": 3}) == 3  # derived once, stored
+    with monkeypatch.context() as m:
+        _forbid_walks(m)
+        with open_writer(path, task_id=TASK, env_args={}, fsync=False) as w:
+            assert w.append_episodes([(episode(s), s % 2 == 0, {"seed": s}) for s in range(4, 9)]) == [4, 5, 6, 7, 8]
+            assert w.append_episode(episode(9), success=True, attrs={"seed": 9}) == 9
+            assert w.append_episodes([]) == []
+    info = read_dataset_info(path)
+    assert info["demo_ids"] == list(range(10)) and info["total"] == 10 * STEPS and info["num_demos"] == 10
+    assert info["demos"][5] == {"num_samples": STEPS, "success": False}
+    for seed in (0, 3, 4, 9):
+        assert_episode(path, seed, seed)
+    delete_demos(path, [9])  # ids are never reused, also after deleting the last one
+    with open_writer(path, task_id=TASK, env_args={}, fsync=False) as w:
+        assert w.append_episode(episode(10), success=True, attrs={"seed": 10}) == 10
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_bad_episode_in_a_batch_writes_none(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    with open_writer(path, task_id=TASK, env_args={}) as w:
+        with pytest.raises(ValueError, match="actions"):
+            w.append_episodes([(episode(0), True, None), ({"obs": {"x": np.zeros((3, 1))}}, True, None)])
+    assert list_demos(path) == []
+
+
+# ----------------------------------------------------------------------------- background writer
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_background_writer_round_trip(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    with BackgroundWriter(open_writer(path, task_id=TASK, env_args={}), max_queued=8) as bg:
+        futures = bg.put_many([(episode(s), True, {"seed": s}) for s in range(3)])
+        futures += [bg.put(episode(s), success=True, attrs={"seed": s}) for s in range(3, 12)]
+        with pytest.raises(ValueError, match="actions"):  # checked in the caller, nothing queued
+            bg.put({"obs": {"x": np.zeros((3, 1))}}, success=True)
+        bg.flush()
+        assert all(f.done() for f in futures)
+    assert [f.result() for f in futures] == list(range(12)) and 1 <= bg.batches <= 12
+    assert list_demos(path) == list(range(12))
+    for seed in range(12):
+        assert_episode(path, seed, seed)
+    with pytest.raises(RuntimeError, match="closed"):
+        bg.put(episode(0), success=True)
+
+
+def test_background_writer_blocks_when_the_queue_is_full(tmp_path, monkeypatch):
+    path = tmp_path / "ds.hdf5"
+    writer = open_writer(path, task_id=TASK, env_args={}, fsync=False)
+    release, real = threading.Event(), writer.append_prepared
+
+    def slow(batch):
+        release.wait(60)
+        return real(batch)
+
+    monkeypatch.setattr(writer, "append_prepared", slow)
+    bg = BackgroundWriter(writer, max_queued=2)
+    first = bg.put(episode(0), success=True, attrs={"seed": 0})  # taken by the thread: it waits on `release`
+    while not bg._busy:
+        time.sleep(0.001)
+    queued = bg.put_many([(episode(s), True, {"seed": s}) for s in (1, 2)])  # fills the queue
+    blocked = threading.Thread(target=lambda: queued.append(bg.put(episode(3), success=True, attrs={"seed": 3})))
+    blocked.start()
+    blocked.join(0.3)
+    assert blocked.is_alive() and len(queued) == 2  # back-pressure: the put waits for room
+    release.set()
+    blocked.join(60)
+    bg.close()
+    assert [f.result() for f in [first, *queued]] == [0, 1, 2, 3] and bg.batches == 3
+    assert list_demos(path) == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_background_disk_full_raises_in_the_caller_with_the_one_line(tmp_path, suffix, capfd):
+    path = tmp_path / f"ds{suffix}"
+    bg = BackgroundWriter(open_writer(path, task_id=TASK, env_args={}))
+    bg.put_many([(episode(s), True, {"seed": s}) for s in range(3)])
+    bg.flush()
+    capfd.readouterr()
+    inject_write_fault(5)
+    futures = []
+    with pytest.raises(DatasetWriteError) as exc:
+        for seed in range(3, 200):
+            futures.append(bg.put(episode(seed), success=True, attrs={"seed": seed}))
+        bg.flush()
+    bg.close()  # the error was raised once: close does not raise it again
+    inject_write_fault(None)
+    assert re.fullmatch(rf"disk full after (\d+) episodes?; {re.escape(str(path))} holds \1 finished episodes?",
+                        str(exc.value)), str(exc.value)
+    held = int(str(exc.value).split()[3])
+    assert held >= 3 and list_demos(path) == list(range(held)) and capfd.readouterr().err == ""
+    written = [f for f in futures if f.exception() is None]
+    assert [f.result() for f in written] == list(range(3, held)) and all(f.done() for f in futures)
+    with open_writer(path, task_id=TASK, env_args={}) as w:  # space again: appending goes on
+        assert w.append_episode(episode(99), success=True, attrs={"seed": 99}) == held
