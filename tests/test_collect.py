@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from newton_lab.agents import PlannerAgent
+from newton_lab.agents import PlannerAgent, ZeroAgent
 from newton_lab.datasets import read_dataset_info, read_episode, state_tree
 
 
@@ -88,3 +88,32 @@ def test_sigkill_mid_collection_keeps_finished_episodes(tmp_path):
         ep = read_episode(path, demo)
         assert ep["actions"].shape[0] == ep["attrs"]["num_samples"] > 0
     assert json.dumps(info["env_args"])  # metadata intact
+
+
+def test_collect_writes_episodes_that_end_together_as_one_batch(pick_env, tmp_path):
+    """Both rows end at the step limit together: one device->host copy, one batch each time."""
+    path = tmp_path / "batched.zarr"
+    ref = pick_env.collect(agent=ZeroAgent(), episodes=4, path=path, max_steps=2, progress=False)
+    assert ref["saved_demo_ids"] == [0, 1, 2, 3] and 1 <= ref["writer_batches"] <= 2
+    info = read_dataset_info(path)
+    assert info["demo_ids"] == [0, 1, 2, 3] and info["total"] == 8
+    assert sorted(read_episode(path, i)["attrs"]["env_index"] for i in (0, 1)) == [0, 1]
+
+
+@pytest.mark.parametrize("error", [KeyboardInterrupt, RuntimeError])
+def test_interrupted_collect_still_writes_the_finished_episodes(pick_env, tmp_path, error):
+    path = tmp_path / "interrupted.hdf5"
+    steps = {"n": 0}
+
+    def stop_after_five(reward, info):
+        steps["n"] += 1
+        if steps["n"] == 5:
+            raise error("stop")
+
+    with pytest.raises(error):
+        pick_env.collect(agent=ZeroAgent(), episodes=20, path=path, max_steps=2, progress=False,
+                         on_step=stop_after_five)
+    info = read_dataset_info(path)  # two steps of two rows ended twice before the interrupt
+    assert info["demo_ids"] == [0, 1, 2, 3] and info["total"] == 8
+    for demo in info["demo_ids"]:
+        assert read_episode(path, demo)["actions"].shape == (2, 8)

@@ -238,7 +238,7 @@ print("NOT KILLED", flush=True)
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_sigkill_mid_batch_keeps_earlier_batches_and_none_of_the_killed_one(tmp_path, suffix, point):
     path = tmp_path / f"ds{suffix}"
-    proc = subprocess.run([sys.executable, "-c", BATCH_CHILD, str(path), point], env=child_env(),
+    proc = subprocess.run([sys.executable, "-c", BATCH_CHILD, str(path), point], check=False, env=child_env(),
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == -9, proc.stderr
     assert proc.stdout.split("\n")[:2] == ["BATCH 0 1 2", "BATCH 3 4 5"], proc.stdout
@@ -314,9 +314,8 @@ def test_append_reads_only_the_root_attrs(tmp_path, suffix, monkeypatch):
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_bad_episode_in_a_batch_writes_none(tmp_path, suffix):
     path = tmp_path / f"ds{suffix}"
-    with open_writer(path, task_id=TASK, env_args={}) as w:
-        with pytest.raises(ValueError, match="actions"):
-            w.append_episodes([(episode(0), True, None), ({"obs": {"x": np.zeros((3, 1))}}, True, None)])
+    with open_writer(path, task_id=TASK, env_args={}) as w, pytest.raises(ValueError, match="actions"):
+        w.append_episodes([(episode(0), True, None), ({"obs": {"x": np.zeros((3, 1))}}, True, None)])
     assert list_demos(path) == []
 
 
