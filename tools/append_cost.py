@@ -40,7 +40,10 @@ def run(path: Path, episodes: int, batch: int, steps: int, fsync: bool) -> dict:
             n = min(batch, episodes - start)
             items = [(pool[(start + k) % len(pool)], True, {"k": start + k}) for k in range(n)]
             t0 = time.perf_counter()
-            ids = w.append_episodes(items)
+            if hasattr(w, "append_episodes"):
+                ids = w.append_episodes(items)
+            else:  # a newton_lab from before batches (for a before/after figure): one append per episode
+                ids = [w.append_episode(ep, success=ok, attrs=attrs) for ep, ok, attrs in items]
             per_episode[start:start + n] = 1e3 * (time.perf_counter() - t0) / n
             assert ids == list(range(start, start + n))
         total_s = time.perf_counter() - t_all

@@ -67,9 +67,9 @@ class BackgroundWriter:
         size = sum(_nbytes(tree) for (tree, _, _), _ in items)
         with self._cv:
             self._raise(always=True)
-            self._cv.wait_for(lambda: self._error is not None or not self._queue
-                              or (len(self._queue) + len(items) <= self.max_queued
-                                  and self._bytes + size <= self.max_queued_bytes))
+            self._wait(lambda: self._error is not None or not self._queue or not self._thread.is_alive()
+                       or (len(self._queue) + len(items) <= self.max_queued
+                           and self._bytes + size <= self.max_queued_bytes))
             self._raise(always=True)
             self._queue.extend(items)
             self._bytes += size
@@ -79,7 +79,7 @@ class BackgroundWriter:
     def flush(self) -> None:
         """Wait until every queued episode is written; raises the write error, if one happened."""
         with self._cv:
-            self._cv.wait_for(lambda: not (self._queue or self._busy))
+            self._wait(self._idle)
             self._raise(always=True)
 
     def close(self) -> None:
@@ -88,7 +88,7 @@ class BackgroundWriter:
             return
         try:
             with self._cv:
-                self._cv.wait_for(lambda: not (self._queue or self._busy))
+                self._wait(self._idle)
                 self._raise(always=False)
         finally:
             with self._cv:
@@ -96,6 +96,14 @@ class BackgroundWriter:
                 self._cv.notify_all()
             self._thread.join()
             self.writer.close()
+
+    def _wait(self, ready) -> None:
+        """Wait (holding the lock) until ``ready()``; re-checked twice a second in case the thread died."""
+        while not ready():
+            self._cv.wait(0.5)
+
+    def _idle(self) -> bool:
+        return not (self._queue or self._busy) or not self._thread.is_alive()
 
     def _raise(self, always: bool) -> None:
         if self._error is not None and (always or not self._raised):
@@ -105,7 +113,7 @@ class BackgroundWriter:
     def _loop(self) -> None:
         while True:
             with self._cv:
-                self._cv.wait_for(lambda: self._queue or self._stop)
+                self._wait(lambda: self._queue or self._stop)
                 if not self._queue:
                     return
                 batch = list(self._queue)
