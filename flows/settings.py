@@ -15,7 +15,7 @@ from typing import Any
 DEMO_TRAIN_CFG: dict[str, Any] = {
     "down_dims": [32, 64, 128], "diffusion_step_embed_dim": 64, "prediction_type": "sample",
     "num_inference_steps": 5, "batch_size": 64, "lr": 6e-4, "warmup_steps": 300, "epochs": 1000, "max_steps": 3000,
-    "seed": 0}
+    "seed": 0, "compile": True}
 """The demo's diffusion policy: the ``cpu`` preset's quarter-width U-Net predicting the clean action chunk (x0)
 instead of the noise (3000 steps on 200 Mimic demos: 38/40 episodes succeed; epsilon prediction: 0-5 % after
 3000-5000 steps), 5 DDIM steps at inference; 3000 steps take about 5 min on 2 CPU cores."""

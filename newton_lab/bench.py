@@ -11,6 +11,7 @@ from typing import Any
 
 import torch
 import warp as wp
+from newton.sensors import SensorCamera
 
 from .envs import make_env
 from .policies.data import SequenceDataset
@@ -29,9 +30,14 @@ def _time_graph(launch, steps: int, device) -> float:
     return (time.perf_counter() - t0) / steps
 
 
-def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | None = None) -> dict[str, Any]:
-    """Env-steps/s, bare world-steps/s and their per-step time ratio (env step / decimation solver steps)."""
-    env = make_env(task_id, num_envs=num_envs, device=device, seed=0)
+def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | None = None,
+          camera: str | None = None, resolution: tuple[int, int] = (128, 128),
+          camera_data: tuple[str, ...] = ("rgb",)) -> dict[str, Any]:
+    """Env-steps/s, bare world-steps/s and their per-step time ratio (env step / decimation solver steps).
+    With ``camera``: also env-steps/s with that camera rendered every step (``resolution`` (w, h) [px],
+    ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it (``_ceiling``)."""
+    cams = False if camera is None else {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
+    env = make_env(task_id, num_envs=num_envs, device=device, seed=0, cameras=cams)
     if env._graph is None:
         raise RuntimeError(f"step capture is unavailable on {env.device}; benchmark needs Warp graph capture")
     env.actions.copy_(env.current_action())
@@ -45,7 +51,7 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
     a = env.current_action()
     t_api = _time_graph(lambda: env.step(a), max(steps // 4, 1), env.device)
     dec = env.cfg.decimation
-    return {
+    out = {
         "task": task_id,
         "device": str(env.device),
         "device_name": torch.cuda.get_device_name() if env.device.is_cuda else "cpu",
@@ -56,6 +62,56 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
         "bare_world_steps_per_s": num_envs * dec / t_bare,
         "ratio_env_step_to_bare": t_env / t_bare,
     }
+    if camera is not None:
+        out.update(_camera_figures(env, bare_graph, camera, steps))
+    return out
+
+
+def _camera_figures(env, bare_graph, camera: str, steps: int) -> dict[str, Any]:
+    """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
+    reading ``env.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of one
+    view per world at the same poses and resolution (BVH refit + render, captured)."""
+    env.render()  # builds and captures the render graph
+    cams = env.cameras
+    render_graph = cams._graph
+    if render_graph is None:
+        raise RuntimeError(f"camera render capture is unavailable on {env.device}")
+    spec = cams.specs[camera]
+    with wp.ScopedDevice(env.device):
+        sensor = SensorCamera(env.model)
+        sensor.create_default_light(enable_shadows=False)
+        rays = next(g.rays for g in cams._groups if camera in g.cameras)  # the env's pinhole rays
+        n = env.num_envs
+        color = sensor.allocate_image_color(n, spec.width, spec.height) if "rgb" in spec.data else None
+        depth = sensor.allocate_image_depth(n, spec.width, spec.height) if "depth" in spec.data else None
+        seg = sensor.allocate_image_shape_index(n, spec.width, spec.height) if "segmentation" in spec.data else None
+        poses = wp.from_torch(cams.poses(camera).contiguous(), dtype=wp.transformf)
+
+        def bare_render():
+            env.model.bvh_refit_shapes(env.state)
+            sensor.update(env.state, poses, rays, color_image=color, depth_image=depth, shape_index_image=seg)
+
+        bare_render()  # compiles before the capture
+        with wp.ScopedCapture(device=env.device) as cap:
+            wp.capture_launch(bare_graph)
+            bare_render()
+    ceiling_graph = cap.graph
+
+    def env_with_camera():
+        wp.capture_launch(env._graph)
+        wp.capture_launch(render_graph)
+
+    t_cam = _time_graph(env_with_camera, steps, env.device)
+    t_ceiling = _time_graph(lambda: wp.capture_launch(ceiling_graph), steps, env.device)
+    mem = None
+    if env.device.is_cuda:
+        free, total = torch.cuda.mem_get_info(env.device.ordinal)
+        mem = (total - free) / 2**20 / env.num_envs
+    return {"camera": camera, "resolution": [spec.width, spec.height], "camera_data": list(spec.data),
+            "env_steps_per_s_with_camera": env.num_envs / t_cam,
+            "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
+            "ratio_camera_env_to_ceiling": t_ceiling / t_cam,
+            "gpu_mem_used_mib_per_env": mem}
 
 
 def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, device: str = "cpu",

@@ -222,6 +222,19 @@ def test_unet_output_shape_and_horizon_check():
         DiffusionPolicyConfig(pred_horizon=18)
 
 
+def test_compiled_training_net_shares_the_model():
+    """compile=True routes compute_loss through torch.compile of the same U-Net: parameters, state dict and EMA
+    are the model's own (torch.compile is lazy: nothing is compiled here)."""
+    cfg = DiffusionPolicyConfig(down_dims=(16, 32, 64), diffusion_step_embed_dim=32, compile=True)
+    policy = DiffusionPolicy(cfg, obs_normalizer=MinMaxNormalizer(torch.zeros(7), torch.ones(7)),
+                             action_normalizer=MinMaxNormalizer(torch.zeros(3), torch.ones(3)))
+    keys = list(policy.state_dict())
+    assert policy.train_net is policy.model
+    policy.compile_for_training()
+    assert policy.train_net is not policy.model and list(policy.state_dict()) == keys
+    assert list(policy.train_net.parameters())[0] is list(policy.model.parameters())[0]
+
+
 # ----------------------------------------------------------------------------- training / checkpoints
 def test_tiny_policy_overfits_one_demo(trained, dataset):
     """300 steps: the denoiser reconstructs the demo's action windows from noised copies, and DDIM samples

@@ -14,6 +14,7 @@ from importlib import metadata
 
 from .. import commands as c
 from . import run
+from .checks import check_args
 from .parsing import REQUIRED, HelpFormatter, add_arguments, add_verbose, apply_verbose, from_namespace, parse_args
 from .parsing import make_output_dirs, unrecognized
 
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd = COMMANDS[ns.command]
     try:
         args = from_namespace(cmd.args, ns)
-        c.check_args(args)  # before Warp, Newton or torch is imported and before any file is created
+        check_args(args)  # before Warp, Newton or torch is imported and before any file is created
         make_output_dirs(args)
         return cmd.run(args)
     except ERRORS as exc:

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from .. import commands as c
+from .checks import check_args
 from ..kernels.runtime import set_verbose
 from ..task_api.catalog import did_you_mean
 
@@ -176,7 +177,7 @@ def parse_args(cls: type, argv: list[str] | None = None, *, description: str | N
     apply_verbose(ns)
     args = from_namespace(cls, ns, defaults=defaults)
     try:
-        c.check_args(args)
+        check_args(args)
     except (ValueError, FileNotFoundError) as exc:
         parser.error(exc.args[0] if exc.args else str(exc))
     make_output_dirs(args)

@@ -153,7 +153,9 @@ def view(args: ViewArgs) -> int:
 def bench(args: BenchArgs) -> int:
     from ..bench import bench as measure  # deferred: Warp/Newton are slow to import
 
-    print(json.dumps(measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device)))
+    cam = {} if args.camera is None else {"camera": args.camera, "resolution": tuple(args.resolution or (128, 128)),
+                                          "camera_data": tuple(args.camera_data or ("rgb",))}
+    print(json.dumps(measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)))
     return 0
 
 

@@ -85,6 +85,10 @@ class DiffusionPolicyConfig:
     cuda_graph: bool = True
     """On CUDA, capture the whole training step once and replay it (1.7x the eager steps/s on an H100 at batch
     1024); off = the eager step."""
+    compile: bool = False
+    """The eager step (CPU, or CUDA with cuda_graph off) runs the network through ``torch.compile``: about a minute
+    of compiling on 2 CPU cores, then each step takes ~0.55x the time (the quarter-width U-Net on CPU is bound
+    by per-op overhead, which the compiled kernels fuse away). Weights, checkpoints and RNG draws are unchanged."""
     num_workers: int = 0
     """DataLoader worker processes (data is in memory: 0 is usually fastest)."""
     seed: int = 0
@@ -198,6 +202,17 @@ class DiffusionPolicy(nn.Module):
         self.ema = EMA(self.model, power=cfg.ema_power)
         self.scheduler = NoiseScheduler(cfg.num_train_timesteps, clip_sample=True)
 
+    @property
+    def train_net(self) -> nn.Module:
+        """The network ``compute_loss`` calls: the U-Net, or its ``torch.compile`` wrapper (same parameters)."""
+        compiled = self.__dict__.get("_compiled_net")
+        return self.model if compiled is None else compiled
+
+    def compile_for_training(self) -> None:
+        """Route ``compute_loss`` through ``torch.compile(self.model)`` (kept out of the module tree: the state
+        dict, EMA and checkpoints see only ``self.model``)."""
+        self.__dict__["_compiled_net"] = torch.compile(self.model)
+
     @classmethod
     def from_dataset(cls, dataset, cfg: DiffusionPolicyConfig) -> DiffusionPolicy:
         """Fresh policy with normalisers fitted on a ``SequenceDataset``'s frames."""
@@ -234,7 +249,7 @@ class DiffusionPolicy(nn.Module):
         noise = torch.randn_like(x0)
         t = self.scheduler.sample_timesteps(x0.shape[0], device=x0.device)
         target = x0 if self.cfg.prediction_type == "sample" else noise
-        return F.mse_loss(self.model(self.scheduler.add_noise(x0, noise, t), t, cond), target)
+        return F.mse_loss(self.train_net(self.scheduler.add_noise(x0, noise, t), t, cond), target)
 
     @torch.no_grad()
     def predict_action(self, obs_history: torch.Tensor, *, generator: torch.Generator | None = None) -> torch.Tensor:

@@ -90,7 +90,9 @@ class EagerTrainStep(ResumableOrder):
     def __init__(self, policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig) -> None:
         self.policy = policy
         self._init_order()
-        fused = {"fused": True} if policy.device.type == "cuda" else {}
+        fused = {"fused": True} if policy.device.type in ("cuda", "cpu") else {}  # one kernel for all tensors
+        if cfg.compile:
+            policy.compile_for_training()
         self.optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas,
                                            weight_decay=cfg.weight_decay, **fused)
         # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh

@@ -1,0 +1,56 @@
+"""Argument checks shared by the console script and the examples: each bad value is refused in one line, naming
+the flag and the fix, before Warp, Newton or torch is imported and before any file is created."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs
+from ..task_api.catalog import check_task_id
+
+COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
+                "batch_size", "rerun_worlds", "max_attempts", "train_steps", "epochs", "checkpoint_every_steps")
+"""Fields that count something: an integer >= 1 when given."""
+DATASET_FIELDS = ("dataset_path", "output_path")
+"""Fields naming a dataset file: its suffix picks the format."""
+EXISTING_FIELDS = {MimicArgs: ("dataset_path",), EvaluateArgs: ("checkpoint",), ViewArgs: ("dataset",),
+                   BenchTrainArgs: ("dataset_path",)}
+"""Fields naming an input that must exist, per command."""
+
+
+def _label(args: Any, name: str) -> str:
+    """How the command line spells field ``name``: ``--flag-name``, or the bare name of a positional."""
+    if args.__dataclass_fields__[name].metadata.get("positional"):
+        return name
+    return f"--{name.replace('_', '-')}"
+
+
+def check_args(args: Any) -> None:
+    """Refuse bad arguments in one line before anything is imported, built or written (``ValueError`` /
+    ``FileNotFoundError`` naming the field and the fix)."""
+    names = {f for f in getattr(args, "__dataclass_fields__", {})}
+    if "task" in names and args.task is not None:  # (an example's optional --task)
+        check_task_id(args.task)  # first: it needs no import at all (typo'd ids answer at once)
+    for name in names & set(COUNT_FIELDS):
+        value = getattr(args, name)
+        if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
+            raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
+    for name in names & {"checkpoint_every_s", "time_budget_s"}:
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise ValueError(f"{_label(args, name)} must be > 0 [s], got {value!r}")
+    from ..datasets.storage import SUFFIXES  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    for name in names & set(DATASET_FIELDS):
+        value = getattr(args, name)
+        paths = value if isinstance(value, list) else [value]
+        for path in (p for p in paths if p is not None):
+            if Path(path).suffix.lower() not in SUFFIXES:
+                raise ValueError(f"{_label(args, name)} {path}: unknown dataset suffix; use one of "
+                                 f"{', '.join(SUFFIXES)}")
+    for name in EXISTING_FIELDS.get(type(args), ()):
+        value = getattr(args, name)
+        if value is not None and not Path(value).exists():
+            raise FileNotFoundError(f"{_label(args, name)} {value} does not exist; check the path")
+
