@@ -63,11 +63,11 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
         "ratio_env_step_to_bare": t_env / t_bare,
     }
     if camera is not None:
-        out.update(_camera_figures(env, bare_graph, camera, steps))
+        out.update(_camera_figures(env, camera, steps))
     return out
 
 
-def _camera_figures(env, bare_graph, camera: str, steps: int) -> dict[str, Any]:
+def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
     """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
     reading ``env.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of one
     view per world at the same poses and resolution (BVH refit + render, captured)."""
@@ -93,7 +93,7 @@ def _camera_figures(env, bare_graph, camera: str, steps: int) -> dict[str, Any]:
 
         bare_render()  # compiles before the capture
         with wp.ScopedCapture(device=env.device) as cap:
-            wp.capture_launch(bare_graph)
+            env._simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
             bare_render()
     ceiling_graph = cap.graph
 

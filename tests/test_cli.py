@@ -64,9 +64,13 @@ def test_version_and_defaults_in_help(capsys):
 
 @pytest.mark.slow
 def test_bench_prints_side_by_side_figures(capsys):
-    assert main(["bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "1", "--steps", "10", "--device", "cpu"]) == 0
+    assert main(["bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "1", "--steps", "10", "--device", "cpu",
+                 "--camera", "front_head", "--resolution", "32", "24", "--camera-data", "rgb", "depth"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["env_steps_per_s"] > 0 and out["bare_world_steps_per_s"] > 0 and out["ratio_env_step_to_bare"] > 0
+    assert out["resolution"] == [32, 24] and out["camera_data"] == ["rgb", "depth"]
+    assert out["env_steps_per_s_with_camera"] > 0 and out["ceiling_env_steps_per_s"] > 0
+    assert out["ratio_camera_env_to_ceiling"] > 0
 
 
 REQ = "<required>"
