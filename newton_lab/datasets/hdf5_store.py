@@ -79,6 +79,8 @@ def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
             _write_tree(g.create_group(key), value)
         elif value.ndim == 0 or value.size == 0:
             g.create_dataset(key, data=value)
+        elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, gzip 4 (README: Image datasets)
+            g.create_dataset(key, data=value, chunks=(1, *value.shape[1:]), compression="gzip", compression_opts=4)
         else:
             g.create_dataset(key, data=value, chunks=time_chunks(value.shape, value.itemsize),
                              compression="gzip", compression_opts=4)

@@ -22,12 +22,15 @@ from typing import Any
 
 import numpy as np
 import zarr
+from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
 from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
                       lock_exclusive, sync_tree, time_chunks, write_fault_point)
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written
+IMAGE_CODEC = ZstdCodec(level=3)
+"""Codec of image arrays (one frame per chunk); the other arrays keep zarr's default (zstd level 0)."""
 
 
 _io = threading.Condition()
@@ -116,6 +119,9 @@ def _write_tree(g: zarr.Group, tree: dict[str, Any]) -> None:
     for key, value in tree.items():
         if isinstance(value, dict):
             _write_tree(g.create_group(key), value)
+        elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, zstd (README: Image datasets)
+            g.create_array(key, data=value, chunks=(1, *value.shape[1:]), compressors=IMAGE_CODEC,
+                           chunk_key_encoding={"name": "default", "separator": "."})  # c.<t>.0.0.0: one folder
         else:
             chunks = time_chunks(value.shape, value.itemsize) if value.ndim else "auto"
             g.create_array(key, data=value, chunks=chunks)

@@ -15,13 +15,12 @@ from typing import Any
 
 import numpy as np
 import torch
-import warp as wp
 from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
 from ..datasets.background import BackgroundWriter
-from ..datasets.states import state_layout
 from ..task_api.cfg import DIVERGED
+from .recorder import EpisodeRecorder, env_args  # noqa: F401 - env_args: re-exported (bench, callers)
 from .saver import EpisodeSaver, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
 
@@ -29,126 +28,6 @@ REASON_MAX_STEPS = "max_steps"
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
                     "diverged", "subtask_signals")
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
-
-
-class EpisodeRecorder:
-    """Per-row device buffers holding each running episode's frames: the observation and full state
-    before the step, the action taken, and the Mimic datagen signals (TCP / object poses, subtask
-    signals, phase)."""
-
-    def __init__(self, env, max_steps: int):
-        self.env = env
-        self.max_steps = max_steps
-        n = env.num_envs
-        q = wp.to_torch(env.state.joint_q).view(n, -1)
-        qd = wp.to_torch(env.state.joint_qd).view(n, -1)
-        self._views: dict[str, torch.Tensor] = {}
-        for name, sl in env.obs_terms.items():
-            self._views[f"obs/{name}"] = env.obs[:, sl]
-        self._views["states/joint_q"] = q
-        self._views["states/joint_qd"] = qd
-        self._views["datagen/tcp_pose"] = env.tcp_pose
-        for name, e in env.entities.items():
-            self._views[f"datagen/object_poses/{name}"] = env.entity_poses[:, e.slot]
-        for k, name in enumerate(env.signal_names):
-            self._views[f"datagen/subtask_signals/{name}"] = env.info["signals"][:, k : k + 1]
-        self._views["datagen/phase"] = env.info["phase"].view(n, 1)
-        self._slices: dict[str, slice] = {}
-        col = 0
-        for key, v in self._views.items():
-            self._slices[key] = slice(col, col + v.shape[1])
-            col += v.shape[1]
-        self._slices["actions"] = slice(col, col + env.action_dim)
-        col += env.action_dim
-        self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
-        self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
-        self._next_obs = torch.zeros(n, max_steps, env.final_obs.shape[1], device=env.torch_device)
-        self._rows = torch.arange(n, device=env.torch_device)
-        self._host: dict[int, tuple[torch.Tensor, ...]] = {}  # row -> host copies made by `episodes`
-
-    def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
-        """Store the pre-step frame of every row at its episode step ``t`` (N,)."""
-        frame = torch.cat([v.float() for v in self._views.values()] + [actions], dim=1)
-        self._frames[self._rows, t.clamp(max=self.max_steps - 1)] = frame
-
-    def record_outcome(self, t: torch.Tensor, reward: torch.Tensor) -> None:
-        """Store every row's reward of the step taken at its episode step ``t`` (N,) and the observation of the
-        state it reached (``env.final_obs``: before an automatic reset)."""
-        t = t.clamp(max=self.max_steps - 1)
-        self._rewards[self._rows, t] = reward.float()
-        self._next_obs[self._rows, t] = self.env.final_obs.float()
-
-    def episodes(self, rows, lengths) -> dict[int, dict[str, Any]]:
-        """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
-        buffers: row -> :meth:`episode`."""
-        rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
-        span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
-        parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
-        host = torch.cat(parts, dim=2).cpu()
-        cuts = np.cumsum([0] + [p.shape[2] for p in parts])
-        self._host = {r: (host[k, :, cuts[0]:cuts[1]], host[k, :, cuts[1]], host[k, :, cuts[2]:cuts[3]])
-                      for k, r in enumerate(rows)}
-        try:
-            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}
-        finally:
-            self._host = {}
-
-    def episode(self, row: int, length: int) -> dict[str, Any]:
-        """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
-        ``obs/*``, ``next_obs/*`` (the observation after each step), flat ``states`` (T, joint_q + joint_qd;
-        named by ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step, ``dones``
-        (T,) zeros (``collect`` sets the last step of a successful episode to 1, as robomimic does),
-        ``initial_state`` (1, D) and ``datagen/*``."""
-        frames, rewards, nxt = self._host.get(row) or (self._frames[row], self._rewards[row], self._next_obs[row])
-        data = frames[:length].cpu().numpy()
-        flat = {key: data[:, sl] for key, sl in self._slices.items()}
-        states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
-        dones = np.zeros(length, dtype=np.int64)
-        nxt = nxt[:length].cpu().numpy()
-        tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
-                                "next_obs": {k: nxt[:, sl] for k, sl in self.env.obs_terms.items()},
-                                "rewards": rewards[:length].cpu().numpy(), "dones": dones}
-        for key, arr in flat.items():
-            node = tree
-            parts = key.split("/")
-            for p in parts[:-1]:
-                node = node.setdefault(p, {})
-            node[parts[-1]] = arr
-        tree["datagen"]["subtask_signals"] = {
-            k: v[:, 0].astype(bool) for k, v in tree["datagen"].get("subtask_signals", {}).items()
-        }
-        tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
-        tree["initial_state"] = states[:1]
-        return tree
-
-
-def env_args(env) -> dict[str, Any]:
-    """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
-    lay, n = env.layout, env.num_envs
-    q, qd = wp.to_torch(env.state.joint_q).view(n, -1), wp.to_torch(env.state.joint_qd).view(n, -1)
-    return {
-        "env_name": env.task_id,
-        "type": 2,
-        "env_kwargs": {
-            "num_envs": env.num_envs,
-            "seed": env.seed,
-            "randomize": env.randomize,
-            "task_options": env.cfg.options,
-        },
-        "newton_lab": {
-            "sim_dt": env.cfg.sim_dt,
-            "decimation": env.cfg.decimation,
-            "action_joint_names": list(env.action_joint_names),
-            "obs_terms": {k: [s.start, s.stop] for k, s in env.obs_terms.items()},
-            "entities": list(env.entities),
-            "signals": list(env.signal_names),
-            "termination_reasons": list(env.termination_reasons),
-            "state_layout": state_layout(
-                q.shape[1], qd.shape[1], lay.robot_coords, lay.robot_dofs,
-                {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.entities.items()
-                 if e.dynamic}),
-        },
-    }
 
 
 class _Episodes:

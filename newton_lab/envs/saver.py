@@ -11,12 +11,15 @@ from ..datasets.background import BackgroundWriter
 from ..task_api.cfg import DIVERGED
 
 
-def all_finite(tree: dict[str, Any]) -> bool:
-    """Every floating-point array of a nested episode dict holds only finite values."""
-    for v in tree.values():
+def all_finite(tree: dict[str, Any], skip: Any = ()) -> bool:
+    """Every floating-point array of a nested episode dict holds only finite values (arrays named in ``skip``
+    aside: depth images hold inf where nothing is hit)."""
+    for k, v in tree.items():
         if isinstance(v, dict):
-            if not all_finite(v):
+            if not all_finite(v, skip):
                 return False
+        elif k in skip:
+            continue
         elif np.issubdtype(np.asarray(v).dtype, np.floating) and not np.isfinite(v).all():
             return False
     return True
@@ -43,7 +46,8 @@ class EpisodeSaver:
             return {}
         episode = self._fetched.pop(row, None) or self.recorder.episode(row, rec["length"])
         episode["dones"][-1:] = int(rec["success"])
-        if not all_finite(episode):  # diverged without tripping the guard: dropped and counted as diverged
+        # diverged without tripping the guard: dropped and counted as diverged (images aside: depth holds inf)
+        if not all_finite(episode, skip=self.recorder.image_terms):
             return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
         attrs = {"termination_reason": rec["termination_reason"], "env_index": rec["env_index"],
                  "episode_length": rec["length"], "seed": self.seed}

@@ -1,0 +1,194 @@
+"""Per-row episode buffers of ``collect`` (``EpisodeRecorder``) and the dataset's ``env_args`` record.
+
+Image terms (``env.image_terms``) are recorded only when the env has them: each recorded step reads
+``env.images`` (which renders, once, through the captured render) and copies every term into per-row device
+buffers that grow along time in chunks of ``IMAGE_CHUNK_STEPS`` steps. A full-length buffer would be
+(N, max_steps, H, W, 3): at 298x224 RGB and max_steps 1000 that is 200 MB per row, 800 GB at 4096 rows; grown
+by chunks it holds N x (longest running episode, rounded up to a chunk) frames, e.g. 38 MB per row (192 steps) for
+PickCube's ~170-step expert episodes at 298x224. Staging frames on the host instead would add a device->host
+copy of every row's images to every step (the simulation would wait for it); the chunked device buffers keep
+the step on the device and copy only finished episodes (``episodes``), together with their other arrays.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+import warp as wp
+
+from ..datasets.states import state_layout
+
+IMAGE_CHUNK_STEPS = 64
+"""Steps by which the per-row image buffers grow (their time capacity is a multiple of it, capped at
+``max_steps``)."""
+
+
+def _nest(tree: dict[str, Any], key: str, value: Any) -> None:
+    node = tree
+    parts = key.split("/")
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+    node[parts[-1]] = value
+
+
+class EpisodeRecorder:
+    """Per-row device buffers holding each running episode's frames: the observation and full state
+    before the step, the action taken, and the Mimic datagen signals (TCP / object poses, subtask
+    signals, phase); with cameras also every image term and each camera's pose (``datagen/camera_poses``)."""
+
+    def __init__(self, env, max_steps: int):
+        self.env = env
+        self.max_steps = max_steps
+        n = env.num_envs
+        q = wp.to_torch(env.state.joint_q).view(n, -1)
+        qd = wp.to_torch(env.state.joint_qd).view(n, -1)
+        self._views: dict[str, torch.Tensor] = {}
+        for name, sl in env.obs_terms.items():
+            self._views[f"obs/{name}"] = env.obs[:, sl]
+        self._views["states/joint_q"] = q
+        self._views["states/joint_qd"] = qd
+        self._views["datagen/tcp_pose"] = env.tcp_pose
+        for name, e in env.entities.items():
+            self._views[f"datagen/object_poses/{name}"] = env.entity_poses[:, e.slot]
+        for k, name in enumerate(env.signal_names):
+            self._views[f"datagen/subtask_signals/{name}"] = env.info["signals"][:, k : k + 1]
+        self._views["datagen/phase"] = env.info["phase"].view(n, 1)
+        self.image_terms = dict(getattr(env, "image_terms", {}) or {})
+        """Image term name -> ``envs.cameras.ImageTerm`` recorded each step (empty: nothing is rendered)."""
+        if self.image_terms:
+            env.render()  # builds the cameras: their pose buffers are fixed views from here on
+            for cam in env.camera_specs:
+                self._views[f"datagen/camera_poses/{cam}"] = env.cameras.poses(cam)
+        self._slices: dict[str, slice] = {}
+        col = 0
+        for key, v in self._views.items():
+            self._slices[key] = slice(col, col + v.shape[1])
+            col += v.shape[1]
+        self._slices["actions"] = slice(col, col + env.action_dim)
+        col += env.action_dim
+        self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
+        self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
+        self._next_obs = torch.zeros(n, max_steps, env.final_obs.shape[1], device=env.torch_device)
+        self._rows = torch.arange(n, device=env.torch_device)
+        self._images = {name: torch.zeros((n, 0, *term.shape), dtype=term.dtype, device=env.torch_device)
+                        for name, term in self.image_terms.items()}
+        self._host: dict[int, tuple[Any, ...]] = {}  # row -> host copies made by `episodes`
+
+    def _grow_images(self, last: int) -> None:
+        """Make the image buffers hold step ``last`` (grown by whole ``IMAGE_CHUNK_STEPS`` chunks)."""
+        cap = next(iter(self._images.values())).shape[1]
+        if last < cap:
+            return
+        new_cap = min(self.max_steps, (last // IMAGE_CHUNK_STEPS + 1) * IMAGE_CHUNK_STEPS)
+        for name, buf in self._images.items():
+            grown = torch.zeros((buf.shape[0], new_cap, *buf.shape[2:]), dtype=buf.dtype, device=buf.device)
+            grown[:, :cap] = buf
+            self._images[name] = grown
+
+    def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
+        """Store the pre-step frame of every row at its episode step ``t`` (N,)."""
+        t = t.clamp(max=self.max_steps - 1)
+        if self._images:
+            images = self.env.render()  # first: the camera poses in the frame are those of this render
+            self._grow_images(int(t.max()))
+            for name, buf in self._images.items():
+                buf[self._rows, t] = images[name]
+        frame = torch.cat([v.float() for v in self._views.values()] + [actions], dim=1)
+        self._frames[self._rows, t] = frame
+
+    def record_outcome(self, t: torch.Tensor, reward: torch.Tensor) -> None:
+        """Store every row's reward of the step taken at its episode step ``t`` (N,) and the observation of the
+        state it reached (``env.final_obs``: before an automatic reset)."""
+        t = t.clamp(max=self.max_steps - 1)
+        self._rewards[self._rows, t] = reward.float()
+        self._next_obs[self._rows, t] = self.env.final_obs.float()
+
+    def episodes(self, rows, lengths) -> dict[int, dict[str, Any]]:
+        """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
+        buffers (and one per image term): row -> :meth:`episode`."""
+        rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
+        span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
+        parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
+        host = torch.cat(parts, dim=2).cpu()
+        images = {name: buf[idx, :span].cpu() for name, buf in self._images.items()}
+        cuts = np.cumsum([0] + [p.shape[2] for p in parts])
+        self._host = {r: (host[k, :, cuts[0]:cuts[1]], host[k, :, cuts[1]], host[k, :, cuts[2]:cuts[3]],
+                          {name: img[k] for name, img in images.items()}) for k, r in enumerate(rows)}
+        try:
+            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}
+        finally:
+            self._host = {}
+
+    def episode(self, row: int, length: int) -> dict[str, Any]:
+        """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
+        ``obs/*`` (image terms too: (T, H, W, 3) uint8 RGB, (T, H, W) float32 depth [m], (T, H, W) int32
+        segmentation), ``next_obs/*`` (the low-dim observation after each step), flat ``states`` (T, joint_q +
+        joint_qd; named by ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step,
+        ``dones`` (T,) zeros (``collect`` sets the last step of a successful episode to 1, as robomimic does),
+        ``initial_state`` (1, D) and ``datagen/*`` (with cameras: ``camera_poses/<camera>`` (T, 7) world pose,
+        xyz + quaternion xyzw, pinhole frame)."""
+        frames, rewards, nxt, images = self._host.get(row) or (
+            self._frames[row], self._rewards[row], self._next_obs[row],
+            {name: buf[row] for name, buf in self._images.items()})
+        data = frames[:length].cpu().numpy()
+        flat = {key: data[:, sl] for key, sl in self._slices.items()}
+        states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
+        dones = np.zeros(length, dtype=np.int64)
+        nxt = nxt[:length].cpu().numpy()
+        tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
+                                "next_obs": {k: nxt[:, sl] for k, sl in self.env.obs_terms.items()},
+                                "rewards": rewards[:length].cpu().numpy(), "dones": dones}
+        for key, arr in flat.items():
+            _nest(tree, key, arr)
+        for name, img in images.items():
+            tree["obs"][name] = img[:length].cpu().numpy()
+        tree["datagen"]["subtask_signals"] = {
+            k: v[:, 0].astype(bool) for k, v in tree["datagen"].get("subtask_signals", {}).items()
+        }
+        tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
+        tree["initial_state"] = states[:1]
+        return tree
+
+
+def camera_args(env) -> dict[str, Any]:
+    """The ``env_args["newton_lab"]["cameras"]`` record: per rendered camera its resolution [px], data,
+    3x3 intrinsics [px] and the segmentation id names (empty without cameras)."""
+    specs = getattr(env, "camera_specs", None) or {}
+    if not specs:
+        return {}
+    names = list(env.cameras.segmentation_names)
+    return {cam: {"width": c.width, "height": c.height, "data": list(c.data),
+                  "intrinsics": env.cameras.intrinsics(cam).tolist(), "segmentation_names": names}
+            for cam, c in specs.items()}
+
+
+def env_args(env) -> dict[str, Any]:
+    """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
+    lay, n = env.layout, env.num_envs
+    q, qd = wp.to_torch(env.state.joint_q).view(n, -1), wp.to_torch(env.state.joint_qd).view(n, -1)
+    return {
+        "env_name": env.task_id,
+        "type": 2,
+        "env_kwargs": {
+            "num_envs": env.num_envs,
+            "seed": env.seed,
+            "randomize": env.randomize,
+            "task_options": env.cfg.options,
+        },
+        "newton_lab": {
+            "sim_dt": env.cfg.sim_dt,
+            "decimation": env.cfg.decimation,
+            "action_joint_names": list(env.action_joint_names),
+            "obs_terms": {k: [s.start, s.stop] for k, s in env.obs_terms.items()},
+            "entities": list(env.entities),
+            "signals": list(env.signal_names),
+            "termination_reasons": list(env.termination_reasons),
+            "state_layout": state_layout(
+                q.shape[1], qd.shape[1], lay.robot_coords, lay.robot_dofs,
+                {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.entities.items()
+                 if e.dynamic}),
+            "cameras": camera_args(env),
+        },
+    }
