@@ -1,5 +1,6 @@
-"""The default rerun layout of a newton_lab recording: a large 3D view of the scene looking at row 0, the
-per-row scalars (one time-series tab per row) and the episode events in a narrower column."""
+"""The default rerun layout of a newton_lab recording: a large 3D view of the scene looking at row 0, a 2D panel
+per camera of row 0 (one tab per image stream: RGB, depth, segmentation), the per-row scalars (one time-series
+tab per row) and the episode events in a narrower column."""
 
 from __future__ import annotations
 
@@ -24,14 +25,26 @@ def eye_for(robot_xyz, scene_xyz) -> rrb.EyeControls3D:
                              look_target=target, eye_up=[0.0, 0.0, 1.0])
 
 
-def default_blueprint(rows: int, *, eye: rrb.EyeControls3D | None = None, hidden=()) -> rrb.Blueprint:
-    """The layout: 3D ``world`` view (3/4 of the width, ``hidden`` entity paths switched off), then per-row
-    ``metrics/<row>`` plots as tabs over the ``events`` log."""
+def camera_panel(camera: str, data) -> rrb.Tabs:
+    """Row 0's ``camera``: one 2D view per image stream of ``data`` (in the camera's image space)."""
+    origin = f"world/0/cameras/{camera}"
+    return rrb.Tabs(*(rrb.Spatial2DView(origin=origin, contents=f"$origin/{d}", name=f"{camera} {d}") for d in data),
+                    name=camera)
+
+
+def default_blueprint(rows: int, *, eye: rrb.EyeControls3D | None = None, hidden=(),
+                      cameras: dict | None = None) -> rrb.Blueprint:
+    """The layout: 3D ``world`` view (``hidden`` entity paths switched off), a column of camera panels
+    (``cameras``: {camera: image data}, none without), then per-row ``metrics/<row>`` plots as tabs over the
+    ``events`` log."""
     scene = rrb.Spatial3DView(origin="world", name="scene", eye_controls=eye,
                               overrides={path: rrb.EntityBehavior(visible=False) for path in hidden})
     plots = rrb.Tabs(*(rrb.TimeSeriesView(origin=f"metrics/{w}", name=f"row {w}") for w in range(rows)),
                      name="scalars per row")
     side = rrb.Vertical(plots, rrb.TextLogView(origin="events", name="episode events"), row_shares=[2, 1])
-    return rrb.Blueprint(rrb.Horizontal(scene, side, column_shares=[3, 1]),
+    columns, shares = [scene, side], [3, 1]
+    if cameras:
+        columns, shares = [scene, rrb.Vertical(*(camera_panel(c, d) for c, d in cameras.items())), side], [3, 2, 1]
+    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=shares),
                          rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
                          rrb.TimePanel(state="collapsed"))
