@@ -29,7 +29,7 @@ from ..task_api.registry import lookup
 from . import runlog, stages
 from .artifacts import artifact
 from .cluster import cluster_options, pins_gpus, quiet_shutdown
-from .settings import DEMO_RECIPES, check_api_reachable
+from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, check_api_reachable
 
 SEED_STRIDE = 100_000
 """Seed distance between shards: each shard draws from its own seed range."""
@@ -184,14 +184,14 @@ def _run_dataset_stage(stage_task, args, *, shards: int, out: str, stage: str, n
 
 def _collect(task_id, episodes, num_envs, seed, device, out, shards):
     args = CollectArgs(task=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device, randomize=True,
-                       dataset_path=str(Path(out) / "demos.hdf5"))
+                       dataset_path=str(Path(out) / "demos.hdf5"), cameras=PIPELINE_CAMERAS)
     return _run_dataset_stage(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
                               path_field="dataset_path")
 
 
 def _mimic(source, episodes, num_envs, seed, device, out, shards):
     args = MimicArgs(dataset_path=source["path"], output_path=str(Path(out) / "mimic.hdf5"), episodes=episodes,
-                     num_envs=num_envs, seed=seed, device=device)
+                     num_envs=num_envs, seed=seed, device=device, cameras=PIPELINE_CAMERAS)
     return _run_dataset_stage(mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic",
                               path_field="output_path", source=source)
 
@@ -205,7 +205,7 @@ def _train(dataset, train_cfg, out):
 
 def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps, recording=None):
     args = EvaluateArgs(task=task_id, checkpoint=checkpoint["path"], episodes=episodes, num_envs=num_envs, seed=seed,
-                        device=device, randomize=True, max_steps=max_steps)
+                        device=device, randomize=True, max_steps=max_steps, cameras=PIPELINE_CAMERAS)
     shard_args = _shards(args, shards)
     if recording is not None:  # two episodes of the first shard, for the viewer
         shard_args[0] = replace(shard_args[0], rerun_save=str(recording), rerun_worlds=EVAL_RECORDED_EPISODES)

@@ -28,6 +28,9 @@ DEMO_RECIPES: dict[str, dict[str, Any]] = {
             "train": {**DEMO_TRAIN_CFG, "num_inference_steps": 10, "max_steps": 10000}},
 }
 """Counts and training config of ``newton-lab pipeline`` / ``make demo`` for every flag left unset."""
+PIPELINE_CAMERAS = "none"
+"""``--cameras`` of the pipeline's collect, Mimic and evaluation envs: its policy observes state, so nothing is
+rendered or recorded (image terms would cost a render per step and ~0.9 MB per 298x224 demo)."""
 
 
 def _sees_cuda() -> bool:

@@ -81,13 +81,35 @@ class RerunArgs:
     """rows drawn in rerun"""
 
 
+def camera_option(value: str | None) -> bool | dict[str, tuple[int, int]] | None:
+    """``--cameras`` as ``make_env(cameras=...)``: ``default`` -> None (the task's cameras), ``none`` -> False (no
+    rendering), ``<camera>=<W>x<H>[,...]`` -> {camera: (W, H)} [px]; a bad spelling raises a one-line error."""
+    if value in (None, "default", "none"):
+        return None if value != "none" else False
+    parts = [(cam, res.partition("x")) for cam, _, res in (p.partition("=") for p in value.split(","))]
+    if not all(cam and w.isdigit() and h.isdigit() for cam, (w, _, h) in parts):
+        raise ValueError(f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[,...], e.g. front_head=96x72")
+    return {cam: (int(w), int(h)) for cam, (w, _, h) in parts}
+
+
+@dataclass(kw_only=True)
+class CameraArgs:
+    cameras: str = "default"
+    """image terms: default (the task's cameras; mimic: the source dataset's), none (state only: nothing is
+    rendered) or <camera>=<W>x<H>[,...] (e.g. front_head=96x72)"""
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """``EnvArgs.env_kwargs`` plus ``cameras``."""
+        return {**super().env_kwargs(), "cameras": camera_option(self.cameras)}  # type: ignore[misc]
+
+
 @dataclass(kw_only=True)
 class TasksArgs:
     """``newton-lab tasks``: no arguments."""
 
 
 @dataclass(kw_only=True)
-class CollectArgs(RerunArgs, RolloutArgs):
+class CollectArgs(CameraArgs, RerunArgs, RolloutArgs):
     """``newton-lab collect``: expert episodes of a task into a dataset."""
 
     dataset_path: str = "data/pick_cube_demos.hdf5"
@@ -101,7 +123,7 @@ class CollectArgs(RerunArgs, RolloutArgs):
 
 
 @dataclass(kw_only=True)
-class EvaluateArgs(RerunArgs, RolloutArgs):
+class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     """``newton-lab evaluate``: success rate of a policy checkpoint, or of the task's expert."""
 
     checkpoint: str | None = None
@@ -109,7 +131,7 @@ class EvaluateArgs(RerunArgs, RolloutArgs):
 
 
 @dataclass(kw_only=True)
-class MimicArgs:
+class MimicArgs(CameraArgs):
     """``newton-lab mimic``: expand source demos with Mimic (successes only)."""
 
     dataset_path: str
@@ -135,7 +157,7 @@ class MimicArgs:
         """Keywords of ``mimic(self.dataset_path, **...)``."""
         return {"episodes": self.episodes, "num_envs": self.num_envs, "output_path": self.output_path,
                 "seed": self.seed, "device": self.device, "max_attempts": self.max_attempts,
-                "progress": not self.no_progress}
+                "progress": not self.no_progress, "cameras": camera_option(self.cameras)}
 
 
 TRAIN_OVERRIDES = ("epochs", "batch_size", "max_steps", "lr", "weight_decay", "num_workers", "time_budget_s",

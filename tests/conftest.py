@@ -18,7 +18,7 @@ def _quiet_warp():
 def pick_env():
     from newton_lab.envs import make_env
 
-    return make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True)
+    return make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, cameras=False)
 
 
 @pytest.fixture(scope="session")

@@ -63,7 +63,8 @@ def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
 def test_sigkill_mid_collection_keeps_finished_episodes(tmp_path):
     path = tmp_path / "killed.hdf5"
     cmd = [sys.executable, "-m", "newton_lab.cli", "collect", "--task", "GalbotG1-PickCube-v0", "--episodes", "200",
-           "--num-envs", "1", "--randomize", "--device", "cpu", "--no-progress", "--dataset-path", str(path)]
+           "--num-envs", "1", "--randomize", "--device", "cpu", "--no-progress", "--cameras", "none",
+           "--dataset-path", str(path)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     seen = 0
     try:

@@ -313,7 +313,7 @@ def collected(tmp_path_factory) -> dict[str, Any]:
     folder = tmp_path_factory.mktemp("crash_collect")
     path = folder / "demos.hdf5"
     args = ["collect", "--task", TASK, "--num-envs", "2", "--episodes", "6", "--max-steps", "300", "--seed", "0",
-            "--randomize", "--no-progress", "--dataset-path", str(path)]
+            "--randomize", "--no-progress", "--cameras", "none", "--dataset-path", str(path)]
     return append_campaign("collect", args, path, folder, added=lambda run: run.last_json()["episodes"])
 
 

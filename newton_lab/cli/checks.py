@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs
+from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs, camera_option
 from ..task_api.catalog import check_task_id
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
@@ -36,6 +36,8 @@ def check_args(args: Any) -> None:
         value = getattr(args, name)
         if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
             raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
+    if "cameras" in names:
+        camera_option(args.cameras)
     for name in names & {"checkpoint_every_s", "time_budget_s"}:
         value = getattr(args, name)
         if value is not None and not value > 0:

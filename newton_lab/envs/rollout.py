@@ -20,7 +20,7 @@ from tqdm import tqdm
 from ..datasets import DatasetRef, open_writer
 from ..datasets.background import BackgroundWriter
 from ..task_api.cfg import DIVERGED
-from .recorder import EpisodeRecorder, env_args  # noqa: F401 - env_args: re-exported (bench, callers)
+from .recorder import EpisodeRecorder, env_args
 from .saver import EpisodeSaver, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
 

@@ -13,14 +13,16 @@ from .source import load_sources
 
 
 def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: int = 1, device=None,
-          max_attempts: int | None = None, max_steps: int = 1000, progress: bool = True) -> DatasetRef:
+          max_attempts: int | None = None, max_steps: int = 1000, progress: bool = True,
+          cameras: bool | dict | None = None) -> DatasetRef:
     """Generate ``episodes`` successful demos from the source demos of ``dataset`` (a path or a
     ``DatasetRef``) and append them to ``output_path`` (default ``<stem>_mimic<suffix>`` beside the source).
 
     Each attempt re-randomises the scene (seeded), picks a source segment per subtask (nearest object
     pose, top-k), replays it in the current object frame, and keeps the attempt only if the task's success
     fired at some step. Returns a ``DatasetRef``; its metadata holds ``attempts``, ``successes`` and
-    ``success_rate`` (also stored as provenance in the dataset).
+    ``success_rate`` (also stored as provenance in the dataset). ``cameras`` (``make_env``'s): ``None`` renders
+    and records the cameras the source dataset recorded (none for a state-only source).
     """
     src = dataset if isinstance(dataset, DatasetRef) else DatasetRef.open(dataset)
     path = Path(src.path)
@@ -32,7 +34,11 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
     out = Path(output_path) if output_path is not None else path.with_name(f"{path.stem}_mimic{path.suffix}")
     if out.resolve() == path.resolve():
         raise ValueError(f"output_path {out} is the source dataset; choose another path")
-    env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True)
+    if cameras is None:  # the source's cameras (env_args newton_lab.cameras), at its resolutions and data
+        recorded = src.info()["env_args"].get("newton_lab", {}).get("cameras") or {}
+        cameras = {cam: {"resolution": (c["width"], c["height"]), "data": tuple(c["data"])}
+                   for cam, c in recorded.items()} or False
+    env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras)
     sources = load_sources(path, cfg, TcpKinematics(256, device=env.device, arm=cfg.arm), task_id=task_id)
     agent = MimicAgent(sources, cfg, seed=seed)
     ref = env.collect(
