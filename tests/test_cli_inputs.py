@@ -61,7 +61,7 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
 
     env = {**os.environ, "NEWTON_LAB_TEST_WRITE_FAULT": "200"}
     argv = ["collect", "--episodes", "4", "--num-envs", "1", "--max-steps", "5", "--dataset-path", "d.hdf5",
-            "--no-progress"]
+            "--no-progress", "--cameras", "none"]
     out = subprocess.run([sys.executable, "-m", "newton_lab.cli", *argv], cwd=tmp_path, capture_output=True,
                          text=True, env=env)
     errors = [line for line in out.stderr.splitlines() if "CUDA driver" not in line]

@@ -43,7 +43,7 @@ def work(tmp_path_factory) -> Path:
 def collected(work):
     path = work / "demos.hdf5"
     out = last_json(run_example("01_collect.py", "--task", "GalbotG1-PickCube-v0", "--episodes", "2", "--num-envs", "2",
-                                "--randomize", "--dataset-path", path, *SMALL))
+                                "--randomize", "--cameras", "none", "--dataset-path", path, *SMALL))
     return path, out
 
 
@@ -102,7 +102,8 @@ def test_05_custom_agent_runs_its_episodes():
 def test_06_component_task_saves_its_end_scenario(tmp_path):
     path, scenario = tmp_path / "pick.hdf5", tmp_path / "pick_end.yaml"
     out = last_json(run_example("06_collect_component_task.py", "--episodes", "1", "--num-envs", "1",
-                                "--dataset-path", path, "--save-end-scenario", scenario, *SMALL))
+                                "--dataset-path", path, "--save-end-scenario", scenario, "--cameras", "none",
+                                *SMALL))
     assert out["task"] == "GalbotG1-PickToShelf-Pick-v0" and out["episodes"] == 1 and num_demos(path) == 1
     assert out["saved_end_scenario_path"] == str(scenario) and scenario.read_text().strip()
 
@@ -110,7 +111,7 @@ def test_06_component_task_saves_its_end_scenario(tmp_path):
 def test_07_coherent_task_collects_an_episode(tmp_path):
     path = tmp_path / "coherent.hdf5"
     out = last_json(run_example("07_coherent_task.py", "--mode", "collect", "--episodes", "1", "--num-envs", "1",
-                                "--max-steps", "40", "--dataset-path", path, *SMALL))
+                                "--max-steps", "40", "--dataset-path", path, "--cameras", "none", *SMALL))
     assert out["task"] == "GalbotG1-PickToShelf-v0" and out["episodes"] == 1 and num_demos(path) == 1
 
 
