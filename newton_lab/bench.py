@@ -7,13 +7,17 @@ steps -> task kernel -> masked resets -> observations) and a graph of just ``dec
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Any
 
 import torch
 import warp as wp
 from newton.sensors import SensorCamera
 
+from .datasets import list_demos, open_writer, read_episode
+from .datasets.storage import EpisodeWriter
 from .envs import make_env
+from .envs.rollout import env_args
 from .policies.data import SequenceDataset
 from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
 from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
@@ -145,3 +149,87 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
     if len(kinds) == 2:
         out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]
     return out
+
+
+class _Clock:
+    """Seconds spent inside wrapped calls; each call waits for the device so queued work is charged to it."""
+
+    def __init__(self, device) -> None:
+        self.device, self.seconds = device, 0.0
+
+    def wrap(self, fn):
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            out = fn(*args, **kwargs)
+            wp.synchronize_device(self.device)
+            self.seconds += time.perf_counter() - t0
+            return out
+        return timed
+
+
+def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dict[str, Any]:
+    """One ``env.collect`` with physics (``env.step``), agent (``agent.act``) and writer (the background thread's
+    ``append_prepared`` calls) seconds measured; the loop's own time is the rest."""
+    physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
+    original = EpisodeWriter.append_prepared
+    env.step, agent.act = physics.wrap(env.step), acting.wrap(agent.act)
+    EpisodeWriter.append_prepared = writing.wrap(original)
+    t0 = time.perf_counter()
+    try:
+        ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
+                          only_successes=True, max_attempts=2 * episodes)
+    finally:
+        del env.step, agent.act
+        EpisodeWriter.append_prepared = original
+    wall = time.perf_counter() - t0
+    ok = ref.metadata["successes"]
+    return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
+            "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
+            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds,
+            "loop_s": wall - physics.seconds - acting.seconds, "vector_steps": ref.metadata.get("vector_steps"),
+            "writer_batches": ref.metadata.get("writer_batches")}
+
+
+def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
+                  dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
+                  max_steps: int = 1000) -> dict[str, Any]:
+    """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
+    and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
+    to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches)."""
+    from .agents import expert_agent  # deferred: the agents import the planner's IK
+
+    path = Path(dataset_path)
+    if path.exists():
+        raise FileExistsError(f"{path} exists; bench-collect writes a fresh dataset (choose a new --dataset-path)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    env = make_env(task_id, num_envs=num_envs, device=device, seed=0, randomize=True, cameras=False)
+    agent = expert_agent(env)
+    warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
+    _collect_timed(env, agent, min(num_envs, episodes), warm, max_steps)
+    first_use = time.perf_counter() - t0
+    out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
+                           "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
+                           else "cpu", "first_use_s": first_use, "format": path.suffix}
+    out.update(_collect_timed(env, agent, episodes, path, max_steps))
+    out["bytes_per_demo"] = _size(path) / max(out["successful_demos"], 1)
+    out["physics_s_per_step"] = out["physics_s"] / max(out["vector_steps"] or 1, 1)
+    out["agent_plus_writer_s_per_step"] = (out["agent_s"] + out["writer_s"]) / max(out["vector_steps"] or 1, 1)
+    if prefill > 0:
+        demo = read_episode(warm, list_demos(warm)[0])
+        full = path.with_name(f"{path.stem}_prefilled{path.suffix}")
+        t1 = time.perf_counter()
+        with open_writer(full, task_id=task_id, env_args=env_args(env)) as w:
+            item = ({k: v for k, v in demo.items() if k != "attrs"}, True, None)
+            for start in range(0, prefill, 512):
+                w.append_episodes([item] * min(512, prefill - start))
+        out["prefill_episodes"], out["prefill_s"] = prefill, time.perf_counter() - t1
+        again = _collect_timed(env, agent, episodes, full, max_steps)
+        out["prefilled_demos_per_s"] = again["demos_per_s"]
+        out["prefilled_writer_s"] = again["writer_s"]
+    return out
+
+
+def _size(path: Path) -> int:
+    """Bytes of a dataset file or folder."""
+    return path.stat().st_size if path.is_file() else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())

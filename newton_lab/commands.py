@@ -344,6 +344,24 @@ class BenchArgs:
 
 
 @dataclass(kw_only=True)
+class BenchCollectArgs:
+    """``newton-lab bench-collect``: expert collection throughput, seconds split into physics / agent / writer."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    num_envs: int = 4
+    """Parallel env rows."""
+    episodes: int = 16
+    """Successful demos to collect (after a first-use run of one episode per row)."""
+    device: str | None = None
+    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+    dataset_path: str = "outputs/bench_collect.zarr"
+    """Fresh dataset to write (.zarr or .hdf5); the first-use and prefilled runs write beside it."""
+    prefill: int = 10_000
+    """Episodes stored before the second run, which appends to that full dataset (0: skip it)."""
+
+
+@dataclass(kw_only=True)
 class BenchTrainArgs:
     """``newton-lab bench-train``: diffusion-policy training steps/s, eager vs CUDA-graph step."""
 

@@ -73,6 +73,20 @@ def test_bench_prints_side_by_side_figures(capsys):
     assert out["ratio_camera_env_to_ceiling"] > 0
 
 
+@pytest.mark.slow
+def test_bench_collect_splits_the_time(capsys, tmp_path):
+    path = tmp_path / "b.hdf5"
+    assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "20", "--device", "cpu",
+                 "--dataset-path", str(path)]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["successful_demos"] == 2 and out["demos_per_hour"] == pytest.approx(3600 * out["demos_per_s"])
+    assert min(out["physics_s"], out["agent_s"], out["writer_s"], out["first_use_s"]) > 0
+    assert out["physics_s"] + out["agent_s"] <= out["wall_s"] and out["bytes_per_demo"] > 1000
+    assert out["prefill_episodes"] == 20 and out["prefilled_demos_per_s"] > 0
+    assert main(["bench-collect", "--dataset-path", str(path), "--device", "cpu"]) == 2  # never overwrites
+    assert "exists" in capsys.readouterr().err
+
+
 REQ = "<required>"
 LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the dataclass-generated one replaced
     "collect": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
@@ -103,7 +117,7 @@ LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the data
 
 def test_generated_parser_keeps_every_flag_and_default():
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    assert set(LEGACY_FLAGS) | {"tasks", "render"} == set(sub.choices)
+    assert set(LEGACY_FLAGS) | {"tasks", "render", "bench-collect"} <= set(sub.choices)  # later commands are new
     for command, flags in LEGACY_FLAGS.items():
         actions = {s: a for a in sub.choices[command]._actions for s in (a.option_strings or [a.dest])}
         for flag, default in flags.items():

@@ -41,6 +41,8 @@ COMMANDS: dict[str, Command] = {
     "pipeline": Command(c.PipelineArgs, run.pipeline, "Prefect flow: collect -> mimic -> train -> evaluate"),
     "view": Command(c.ViewArgs, run.view, "replay a recorded episode into rerun by re-applying its states"),
     "bench": Command(c.BenchArgs, run.bench, "env-steps/s of the captured step vs the bare solver on the same model"),
+    "bench-collect": Command(c.BenchCollectArgs, run.bench_collect,
+                             "expert collection demos/s and per hour: physics / agent / writer seconds"),
     "bench-train": Command(c.BenchTrainArgs, run.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
     "render": Command(c.RenderArgs, run.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),

@@ -36,6 +36,8 @@ def check_args(args: Any) -> None:
         value = getattr(args, name)
         if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
             raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
+    if "prefill" in names and (not isinstance(args.prefill, int) or isinstance(args.prefill, bool) or args.prefill < 0):
+        raise ValueError(f"--prefill must be an integer >= 0, got {args.prefill!r}")
     if "cameras" in names:
         camera_option(args.cameras)
     for name in names & {"checkpoint_every_s", "time_budget_s"}:

@@ -11,8 +11,8 @@ import json
 from pathlib import Path
 
 from ..commands import RenderArgs
-from ..commands import (BenchArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
-                        RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
+from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
+                        PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
 from ..flows.settings import configure, demo_recipe
 from ..task_api.registry import list_tasks, lookup
@@ -156,6 +156,14 @@ def bench(args: BenchArgs) -> int:
     cam = {} if args.camera is None else {"camera": args.camera, "resolution": tuple(args.resolution or (128, 128)),
                                           "camera_data": tuple(args.camera_data or ("rgb",))}
     print(json.dumps(measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)))
+    return 0
+
+
+def bench_collect(args: BenchCollectArgs) -> int:
+    from ..bench import bench_collect as measure  # deferred: Warp/Newton are slow to import
+
+    print(json.dumps(measure(args.task, num_envs=args.num_envs, episodes=args.episodes, device=args.device,
+                             dataset_path=args.dataset_path, prefill=args.prefill)))
     return 0
 
 

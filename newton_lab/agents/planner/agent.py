@@ -98,14 +98,11 @@ class PlannerAgent(BaseAgent):
         return quat_mul(turn, top)
 
     def _solve(self, q_seed: np.ndarray, rows: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """IK for the given rows (others ride along unchanged); returns all (N, 34) coordinates and the
-        rows' TCP error [m] from forward kinematics of the solutions."""
-        n = self._env.num_envs
-        p_all = np.zeros((n, 3))
-        q_all = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float64), (n, 1))
-        p_all[rows], q_all[rows] = pos, quat
-        q = self._kin.solve(q_seed, p_all, q_all, iterations=self.ik_iterations)
-        tcp = self._kin.tcp_poses(q)[rows]
+        """IK for the given rows only (the other rows of ``q_seed`` are returned unchanged); returns all (N, 34)
+        coordinates and the rows' TCP error [m] from forward kinematics of the solutions."""
+        q = q_seed.copy()
+        q[rows] = self._kin.solve(q_seed[rows], pos, quat, iterations=self.ik_iterations)
+        tcp = self._kin.tcp_poses(q[rows])
         return q, np.linalg.norm(tcp[:, :3] - pos, axis=1)
 
     def _plan_rows(self, env, rows: np.ndarray) -> None:

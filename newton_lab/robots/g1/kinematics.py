@@ -7,6 +7,8 @@ Poses are (x, y, z, qx, qy, qz, qw), world frame.
 
 from __future__ import annotations
 
+from typing import Any
+
 import newton
 import newton.ik as ik
 import numpy as np
@@ -45,6 +47,49 @@ def _robot_builder() -> tuple[newton.ModelBuilder, JointIndex]:
     return b, JointIndex.from_builder(b)
 
 
+class _Solve:
+    """One IK problem size: target and seed buffers, and the solve (targets copied in, ``iterations`` LM steps)
+    captured as a graph per iteration count after its first eager run. The LM solver launches ~16 small
+    kernels per iteration, so an eager 48-iteration solve is ~800 launches, bound by launch overhead."""
+
+    def __init__(self, pos, rot, solver, k: int, coords: int) -> None:
+        self.pos, self.rot, self.solver = pos, rot, solver
+        self.pos_in, self.rot_in = wp.zeros(k, dtype=wp.vec3), wp.zeros(k, dtype=wp.vec4)
+        self.q = wp.zeros((k, coords), dtype=wp.float32)
+        self.graphs: dict[int, Any] = {}
+
+    def _body(self, iterations: int) -> None:
+        self.pos.set_target_positions(self.pos_in)
+        self.rot.set_target_rotations(self.rot_in)
+        self.solver.step(self.q, self.q, iterations=iterations)
+
+    def run(self, q_seed: np.ndarray, pos: np.ndarray, quat: np.ndarray, iterations: int) -> np.ndarray:
+        def inputs() -> None:
+            self.pos_in.assign(pos)
+            self.rot_in.assign(quat)
+            self.q.assign(q_seed)
+
+        inputs()
+        if iterations not in self.graphs:
+            self._body(iterations)  # compiles the kernels before the capture
+            self.graphs[iterations] = self._capture(iterations)
+            inputs()  # the result comes from one run from the seed, whatever the capture executed
+        graph = self.graphs[iterations]
+        if graph is not None:
+            wp.capture_launch(graph)
+        else:
+            self._body(iterations)
+        return self.q.numpy().copy()  # (on the CPU numpy() is a view of the buffer the next solve overwrites)
+
+    def _capture(self, iterations: int):
+        try:
+            with wp.ScopedCapture() as cap:
+                self._body(iterations)
+        except Exception:  # pragma: no cover - depends on the Warp build; eager solves stay correct
+            return None
+        return cap.graph
+
+
 class TcpKinematics:
     """IK and FK of one arm's TCP for ``n`` problems on ``device``."""
 
@@ -59,45 +104,49 @@ class TcpKinematics:
             self.arm_coords = [self.joints.coord[j] for j in arm_joints]
             self._link = self.joints.body[spec.END_EFFECTOR_LINK[arm]]
             self._bodies = b.body_count
-            model = b.finalize(device=self.device)
-            self._pos = ik.IKObjectivePosition(
-                link_index=self._link,
-                link_offset=wp.vec3(*spec.TCP_OFFSET_POS),
-                target_positions=wp.zeros(n, dtype=wp.vec3),
-            )
-            self._rot = ik.IKObjectiveRotation(
-                link_index=self._link,
-                link_offset_rotation=wp.quat(*spec.TCP_OFFSET_QUAT),
-                target_rotations=wp.array(np.tile(spec.TOP_DOWN_TCP_QUAT, (n, 1)), dtype=wp.vec4),
-            )
-            limits = ik.IKObjectiveJointLimit(
-                joint_limit_lower=model.joint_limit_lower, joint_limit_upper=model.joint_limit_upper, weight=10.0
-            )
-            mask = np.zeros(model.joint_dof_count, dtype=bool)
-            mask[[self.joints.dof[j] for j in arm_joints]] = True
-            self._ik = ik.IKSolver(
-                model=model,
-                n_problems=n,
-                objectives=[self._pos, self._rot, limits],
-                lambda_initial=0.1,
-                jacobian_mode=ik.IKJacobianType.ANALYTIC,
-                joint_dof_mask=wp.array(mask, dtype=wp.bool),
-            )
-            self._q = wp.zeros((n, self.robot_coords), dtype=wp.float32)
+            self._model = b.finalize(device=self.device)
+            self._mask = np.zeros(self._model.joint_dof_count, dtype=bool)
+            self._mask[[self.joints.dof[j] for j in arm_joints]] = True
+            self._solvers: dict[int, tuple] = {}
             fk = newton.ModelBuilder()
             newton.solvers.SolverMuJoCo.register_custom_attributes(fk)
             fk.replicate(b, n)
             self._fk_model = fk.finalize(device=self.device)
             self._fk_state = self._fk_model.state()
 
+    def _solver(self, k: int) -> tuple:
+        """(position objective, rotation objective, IK solver, coordinate buffer) for ``k`` problems, built on
+        first use (every size shares the compiled kernels: the problem count is a launch dimension)."""
+        if k not in self._solvers:
+            with wp.ScopedDevice(self.device):
+                pos = ik.IKObjectivePosition(link_index=self._link, link_offset=wp.vec3(*spec.TCP_OFFSET_POS),
+                                             target_positions=wp.zeros(k, dtype=wp.vec3))
+                rot = ik.IKObjectiveRotation(
+                    link_index=self._link, link_offset_rotation=wp.quat(*spec.TCP_OFFSET_QUAT),
+                    target_rotations=wp.array(np.tile(spec.TOP_DOWN_TCP_QUAT, (k, 1)), dtype=wp.vec4))
+                limits = ik.IKObjectiveJointLimit(joint_limit_lower=self._model.joint_limit_lower,
+                                                  joint_limit_upper=self._model.joint_limit_upper, weight=10.0)
+                solver = ik.IKSolver(model=self._model, n_problems=k, objectives=[pos, rot, limits],
+                                     lambda_initial=0.1, jacobian_mode=ik.IKJacobianType.ANALYTIC,
+                                     joint_dof_mask=wp.array(self._mask, dtype=wp.bool))
+                self._solvers[k] = _Solve(pos, rot, solver, k, self.robot_coords)
+        return self._solvers[k]
+
     def solve(self, q_seed: np.ndarray, pos: np.ndarray, quat: np.ndarray, *, iterations: int = 48) -> np.ndarray:
-        """Arm IK for every problem: ``q_seed`` (n, 34) robot coordinates (base / legs / other joints are
-        kept), target TCP ``pos`` (n, 3) and ``quat`` (n, 4) xyzw. Returns the solved (n, 34) coordinates."""
-        self._pos.set_target_positions(wp.array(np.asarray(pos, np.float32), dtype=wp.vec3, device=self.device))
-        self._rot.set_target_rotations(wp.array(np.asarray(quat, np.float32), dtype=wp.vec4, device=self.device))
-        self._q.assign(np.asarray(q_seed, dtype=np.float32))
-        self._ik.step(self._q, self._q, iterations=iterations)
-        return self._q.numpy()
+        """Arm IK for ``m <= n`` problems: ``q_seed`` (m, 34) robot coordinates (base / legs / other joints are
+        kept), target TCP ``pos`` (m, 3) and ``quat`` (m, 4) xyzw. Returns the solved (m, 34) coordinates. Fewer
+        problems than ``n`` are solved by a solver of the next power-of-two size (padded with copies of the first
+        problem), so the work follows the rows that need it."""
+        q_seed, pos, quat = (np.asarray(a, dtype=np.float32) for a in (q_seed, pos, quat))
+        m = q_seed.shape[0]
+        if not 1 <= m <= self.n:
+            raise ValueError(f"IK takes 1..{self.n} problems, got {m}")
+        k = self.n if m == self.n else min(self.n, 1 << (m - 1).bit_length())
+        if k > m:
+            pad = lambda a: np.concatenate([a, np.repeat(a[:1], k - m, axis=0)])  # noqa: E731
+            q_seed, pos, quat = pad(q_seed), pad(pos), pad(quat)
+        with wp.ScopedDevice(self.device):
+            return self._solver(k).run(q_seed, pos, quat, iterations)[:m]
 
     def tcp_poses(self, q: np.ndarray) -> np.ndarray:
         """TCP poses (m, 7) of ``m <= n`` robot coordinate rows ``q`` (m, 34)."""
