@@ -66,7 +66,8 @@ def dataset_streams(obs: Mapping[str, np.ndarray], env_args: Mapping) -> list[Ca
         h, w = np.asarray(obs[f"{cam}_{data[0]}"]).shape[1:3]
         meta = block.get(cam, {})
         k = np.asarray(meta.get("intrinsics", mounts.intrinsics(w, h)), dtype=float).reshape(3, 3)
-        out.append(CameraStream(cam, int(w), int(h), data, k, tuple(meta.get("segmentation_names", ()))))
+        names = tuple(meta.get("segmentation_names", ())) if "segmentation" in data else ()
+        out.append(CameraStream(cam, int(w), int(h), data, k, names))
     return out
 
 
