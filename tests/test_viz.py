@@ -230,6 +230,12 @@ def test_each_camera_is_a_pinhole_with_its_image_streams(cam_env, cam_run):
     one RGB / depth / segmentation frame per logged step, equal to the env's images."""
     rrd, names = cam_run["rrd"], list(cam_env.cameras.segmentation_names)
     assert [c.name for c in cam_run["logger"].cameras] == [CAMERA]
+    views, stack = [], [cam_run["logger"].blueprint.root_container]  # the blueprint's 2D panels: row 0's camera
+    while stack:
+        node = stack.pop()
+        views += [(node.origin, node.name)] if type(node).__name__ == "Spatial2DView" else []
+        stack += [c for c in getattr(node, "contents", None) or [] if hasattr(c, "origin") or hasattr(c, "contents")]
+    assert sorted(views) == [(f"world/0/cameras/{CAMERA}", f"{CAMERA} {d}") for d in sorted(CAM_DATA)]
     rows = _rows(rrd)
     for w in range(2):
         path = f"/world/{w}/cameras/{CAMERA}"
