@@ -195,8 +195,9 @@ for seed in range(100):
 def test_fault_seam_reaches_subprocesses(tmp_path, suffix):
     """``NEWTON_LAB_TEST_WRITE_FAULT`` (honoured under pytest only) lets CLI tests fill the disk."""
     path = tmp_path / f"ds{suffix}"
+    # 400 writes: a zarr episode takes ~105 (its rgb frames are one chunk each)
     proc = subprocess.run([sys.executable, "-c", FULL_CHILD, str(path)], check=False, capture_output=True, text=True,
-                          env=dict(child_env(), NEWTON_LAB_TEST_WRITE_FAULT="200"), timeout=120)
+                          env=dict(child_env(), NEWTON_LAB_TEST_WRITE_FAULT="400"), timeout=120)
     assert proc.returncode == 1 and "Segmentation" not in proc.stderr
     last = proc.stderr.strip().splitlines()[-1]
     held = len(list_demos(path))
