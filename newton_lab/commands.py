@@ -79,6 +79,8 @@ class RerunArgs:
     """record the run to this .rrd file (headless)"""
     rerun_worlds: int = 4
     """rows drawn in rerun"""
+    rerun_image_every: int = 1
+    """log the cameras' images to rerun every n-th step (each logged image step renders: CPU time)"""
 
 
 def camera_option(value: str | None) -> bool | dict[str, tuple[int, int]] | None:

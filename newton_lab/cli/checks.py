@@ -10,7 +10,8 @@ from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs, camera
 from ..task_api.catalog import check_task_id
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
-                "batch_size", "rerun_worlds", "max_attempts", "train_steps", "epochs", "checkpoint_every_steps")
+                "batch_size", "rerun_worlds", "rerun_image_every", "max_attempts", "train_steps", "epochs",
+                "checkpoint_every_steps")
 """Fields that count something: an integer >= 1 when given."""
 DATASET_FIELDS = ("dataset_path", "output_path")
 """Fields naming a dataset file: its suffix picks the format."""

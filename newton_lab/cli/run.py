@@ -28,7 +28,8 @@ def _logger(args: RerunArgs, env):
         return None, lambda: None
     from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
 
-    lg = RerunLogger(env, save=args.rerun_save, spawn=args.rerun and not args.rerun_save, max_worlds=args.rerun_worlds)
+    lg = RerunLogger(env, save=args.rerun_save, spawn=args.rerun and not args.rerun_save, max_worlds=args.rerun_worlds,
+                     image_every=args.rerun_image_every)
 
     def close() -> None:
         lg.close()
