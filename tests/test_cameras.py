@@ -176,7 +176,11 @@ def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
         cube_u = _centroid(seg[row] == names.index("cube"))[0]
         block_u = _centroid(seg[row] == names.index("blue_block"))[0]
         assert cube_u < W / 2 and cube_u < block_u
-    rgb = env.images["front_head_rgb"].numpy()
+    env.cameras.randomize = False  # the model's own colours (randomize=True also randomises the look)
+    try:
+        rgb = env.images["front_head_rgb"].numpy()
+    finally:
+        env.cameras.randomize = True
     red = rgb[0][seg[0] == names.index("cube")].astype(int)
     assert (red[:, 0] > red[:, 1] + 40).all()  # the cube renders red
 
@@ -269,3 +273,58 @@ def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err, err
     assert not (tmp_path / "x.png").exists()
+
+
+# ---------------------------------------------------------------- vision randomisation
+def _cube_colour(env, row):
+    seg = env.images["front_head_segmentation"][row].numpy()
+    return env.images["front_head_rgb"][row].numpy()[seg == env.cameras.segmentation_names.index("cube")].mean(0)
+
+
+def test_vision_randomisation_changes_per_reset_and_replays(cam_env):
+    """randomize=True: each reset gives a row's cube another colour (and rows differ); the same seed and episode
+    give bit-identical images; switched off, the model's colours come back."""
+    env = cam_env
+    env.reseed(21)
+    first = {k: v.clone() for k, v in env.render().items()}
+    c0 = [_cube_colour(env, r) for r in range(2)]
+    assert np.abs(c0[0] - c0[1]).max() > 10  # rows look different
+    env.reset()
+    c1 = [_cube_colour(env, r) for r in range(2)]
+    assert all(np.abs(a - b).max() > 10 for a, b in zip(c0, c1))  # a new episode, a new look
+    env.reseed(21)  # the same seed and episodes: the same pictures
+    for name, img in env.render().items():
+        assert torch.equal(img, first[name]), name
+    env.cameras.randomize = False
+    try:
+        red = _cube_colour(env, 0)
+        assert red[0] > red[1] + 40  # the cube's own red
+        assert np.array_equal(env.model.shape_color.numpy(), env.cameras._base_color.numpy())
+    finally:
+        env.cameras.randomize = True
+
+
+def _angle_deg(q1, q2):
+    return math.degrees(2 * math.acos(min(1.0, abs(float(np.dot(q1, q2))))))
+
+
+def test_camera_jitter_is_bounded(cam_env):
+    """Each view's pose is its nominal mount pose moved by <= 1 cm and turned by <= 1 deg, not zero, and new per
+    reset."""
+    env = cam_env
+    moved = []
+    for _ in range(3):
+        env.reset()
+        jittered = {c: env.cameras.poses(c).numpy().copy() for c in ("front_head", "left_wrist")}
+        env.cameras.randomize = False
+        try:
+            nominal = {c: env.cameras.poses(c).numpy().copy() for c in jittered}
+        finally:
+            env.cameras.randomize = True
+        for c in jittered:
+            for row in range(env.num_envs):
+                d = float(np.linalg.norm(jittered[c][row, :3] - nominal[c][row, :3]))
+                a = _angle_deg(jittered[c][row, 3:], nominal[c][row, 3:])
+                assert d <= 0.01 + 1e-5 and a <= 1.0 + 1e-3, (c, row, d, a)
+                moved.append((round(d, 6), round(a, 4)))
+    assert len(set(moved)) == len(moved) and all(d > 0 and a > 0 for d, a in moved)

@@ -9,6 +9,13 @@ images nobody reads renders nothing, and an env without cameras does no camera w
 Images are torch views of the Warp buffers: RGB uint8 (N, H, W, 3) (a view of the renderer's packed RGBA),
 depth float32 (N, H, W) [m] along the view axis (inf where nothing is hit within 15 m), segmentation int32
 (N, H, W) with ids named by ``segmentation_names``.
+
+Vision randomisation (``randomize=True``, the env's reset randomisation): per row and episode, seeded (kernels
+``shape_colors`` / ``mount_transforms`` key a counter-based RNG on (seed, row, ``episode_count[row]``), so a row's
+look changes exactly when it resets and replays for the same seed): the objects' and table's colours, a brightness
+gain on all of the row's shapes (the row's light intensity) and a camera-pose jitter (<= 1 cm, <= 1 deg) of each
+view. Newton 1.8's ``SensorCamera`` has one light list for all worlds, so the light direction is not randomised
+(per-row direction is not possible in one render); the ground is one global shape and keeps its colour.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ import torch
 import warp as wp
 from newton.sensors import SensorCamera
 
-from ..kernels.camera import mount_transforms, segmentation_ids
+from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
 from ..robots.g1 import cameras as mounts
 from ..robots.g1 import spec
 from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg
@@ -160,13 +167,18 @@ class Cameras:
     the ``SensorCamera``, the buffers and the captured render graph."""
 
     def __init__(self, specs: Mapping[str, CameraCfg], *, model: newton.Model, state: newton.State, num_envs: int,
-                 bodies_per_world: int, entity_names: list[str], capture: bool = True):
+                 bodies_per_world: int, entity_names: list[str], capture: bool = True, randomize: bool = False,
+                 seed=lambda: 0, episode: wp.array | None = None):
         self.specs = dict(specs)
         self.terms = image_terms(self.specs)
         self.model, self.state, self.num_envs = model, state, num_envs
         self.bodies_per_world = bodies_per_world
         self.entity_names = list(entity_names)
         self.capture = capture
+        self.randomize = bool(randomize)
+        """Vision randomisation on (switchable at any time; the render graph reads it from ``_params``)."""
+        self._seed, self._episode = seed, episode if episode is not None else wp.zeros(num_envs, dtype=int)
+        self._params, self._set = wp.zeros(2, dtype=int, device=model.device), (0, 0)
         self.stale = True
         """Set by every step / reset; the next read renders."""
         self._images: dict[str, torch.Tensor] | None = None
@@ -217,6 +229,7 @@ class Cameras:
                                    load_textures=False)
         self.sensor.create_default_light(enable_shadows=False)
         self._shape_to_id = wp.array(self._shape_ids, dtype=wp.int32)
+        self._base_color = wp.clone(self.model.shape_color)
         by_res: dict[tuple[int, int], list[str]] = {}
         for name, c in self.specs.items():
             by_res.setdefault((c.width, c.height), []).append(name)
@@ -271,9 +284,15 @@ class Cameras:
 
     # ------------------------------------------------------------------ render
     def _render_body(self) -> None:
+        wp.launch(shape_colors, dim=self.model.shape_count,
+                  inputs=[self._base_color, self.model.shape_world, self._shape_to_id, 2 + len(self.entity_names),
+                          self._episode, self._params, self.model.shape_color])
+        first = 0
         for g in self._groups:
             wp.launch(mount_transforms, dim=g.poses.shape[0],
-                      inputs=[self.state.body_q, g.view_body, g.view_offset, g.poses])
+                      inputs=[self.state.body_q, g.view_body, g.view_offset, g.world, self._episode, self._params,
+                              first, g.poses])
+            first += len(g.cameras)
         self.model.bvh_refit_shapes(self.state)
         for g in self._groups:
             self.sensor.update(self.state, g.poses, g.rays, color_image=g.color, forward_depth_image=g.depth,
@@ -286,6 +305,10 @@ class Cameras:
         """Render every view if the state changed since the last render; returns the image views by term name."""
         if not self.specs:
             return {}
+        params = (int(self.randomize), int(self._seed()) & 0x7FFFFFFF)
+        if params != self._set:  # written in place: the captured render reads it
+            self._params.assign(np.array(params, dtype=np.int32))
+            self._set, self.stale = params, True
         with wp.ScopedDevice(self.model.device):
             if self._images is None:
                 self._build()
