@@ -388,7 +388,7 @@ class RenderArgs(EnvArgs):
     resolution: list[int] | None = None
     """image width and height [px] (default: the task's, else 298 224)"""
     randomize: bool = True
-    """turn on the task's reset randomisation (seeded by --seed)"""
+    """turn on the task's reset randomisation and the cameras' (colours, brightness, pose jitter), seeded by --seed"""
     expert_steps: int = 0
     """run the task's expert this many control steps before the frame"""
     out: str = "render.png"
