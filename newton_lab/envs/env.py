@@ -78,6 +78,9 @@ class NewtonEnv:
                 nconmax=cfg.contacts_per_world,
                 njmax=cfg.constraints_per_world,
             )
+            # mujoco_warp prints a line from inside its kernels whenever a world overflows a buffer or the line
+            # search hits its cap; the per-world bitmask (solver_overflows) is reported by the loops instead
+            self.solver.mjw_model.opt.warn_overflow = 0
             self._build_actions()
             self._build_buffers()
             self._build_kernels()

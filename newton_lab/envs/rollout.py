@@ -160,6 +160,11 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     return eps.records, vector_steps, time.perf_counter() - t0
 
 
+def _overflow_worlds(env) -> int:
+    overflow = getattr(getattr(env.solver, "mjw_data", None), "overflow", None)
+    return int((overflow.numpy() != 0).sum()) if overflow is not None else 0
+
+
 def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
     successes = sum(r["success"] for r in records)
     reasons: dict[str, int] = {}
@@ -180,6 +185,8 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
         "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.signal_names},
         "vector_steps": vector_steps,
+        # worlds whose mujoco_warp overflow bitmask is set (buffer overflow or line-search cap; prints are off)
+        "solver_overflow_worlds": _overflow_worlds(env),
         "row_steps": row_steps,
         "wall_time_s": wall,
         "env_steps_per_s": vector_steps * env.num_envs / max(wall, 1e-9),
