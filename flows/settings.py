@@ -18,10 +18,10 @@ DEMO_TRAIN_CFG: dict[str, Any] = {
     "seed": 0, "compile": True}
 """The demo's diffusion policy: the ``cpu`` preset's quarter-width U-Net predicting the clean action chunk (x0)
 instead of the noise (3000 steps on 200 Mimic demos: 38/40 episodes succeed; epsilon prediction: 0-5 % after
-3000-5000 steps), 5 DDIM steps at inference; 3000 steps take about 5 min on 2 CPU cores."""
+3000-5000 steps), 5 DDIM steps at inference; 3000 steps take about 7.5 min on 2 CPU cores (torch.compile'd)."""
 
 DEMO_RECIPES: dict[str, dict[str, Any]] = {
-    # ~10 min on 2 CPU cores from a cold Warp cache (README: figures and what was tried)
+    # ~14 min on 2 CPU cores from a fresh clone (README: figures)
     "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 20, "num_envs": 4, "train": DEMO_TRAIN_CFG},
     # full size on a CUDA device: more Mimic data, the cpu preset's 10k steps, 100 evaluation episodes
     "gpu": {"demos": 10, "mimic_episodes": 500, "eval_episodes": 100, "num_envs": 50,
