@@ -15,13 +15,14 @@ from typing import Any
 DEMO_TRAIN_CFG: dict[str, Any] = {
     "down_dims": [32, 64, 128], "diffusion_step_embed_dim": 64, "prediction_type": "sample",
     "num_inference_steps": 5, "batch_size": 64, "lr": 6e-4, "warmup_steps": 300, "epochs": 1000, "max_steps": 3000,
-    "seed": 0, "compile": True}
+    "seed": 0}
 """The demo's diffusion policy: the ``cpu`` preset's quarter-width U-Net predicting the clean action chunk (x0)
 instead of the noise (3000 steps on 200 Mimic demos: 38/40 episodes succeed; epsilon prediction: 0-5 % after
-3000-5000 steps), 5 DDIM steps at inference; 3000 steps take about 7.5 min on 2 CPU cores (torch.compile'd)."""
+3000-5000 steps), 5 DDIM steps at inference; 3000 steps take about 8.5 min on 2 CPU cores. (``compile=True`` runs them in ~7.5 min once torch's compile
+cache is warm, but the first compile costs that much again on a fresh machine.)"""
 
 DEMO_RECIPES: dict[str, dict[str, Any]] = {
-    # ~14 min on 2 CPU cores from a fresh clone (README: figures)
+    # ~14.5 min on 2 CPU cores from a fresh clone (README: figures)
     "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 20, "num_envs": 4, "train": DEMO_TRAIN_CFG},
     # full size on a CUDA device: more Mimic data, the cpu preset's 10k steps, 100 evaluation episodes
     "gpu": {"demos": 10, "mimic_episodes": 500, "eval_episodes": 100, "num_envs": 50,
