@@ -59,7 +59,7 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     the dataset holds, and that episode stays readable."""
     from newton_lab.datasets import read_dataset_info, read_episode
 
-    env = {**os.environ, "NEWTON_LAB_TEST_WRITE_FAULT": "200"}
+    env = {**os.environ, "NEWTON_LAB_TEST_WRITE_FAULT": "140"}  # inside the second episode's writes
     argv = ["collect", "--episodes", "4", "--num-envs", "1", "--max-steps", "5", "--dataset-path", "d.hdf5",
             "--no-progress", "--cameras", "none"]
     out = subprocess.run([sys.executable, "-m", "newton_lab.cli", *argv], cwd=tmp_path, capture_output=True,
