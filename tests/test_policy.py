@@ -222,6 +222,20 @@ def test_unet_output_shape_and_horizon_check():
         DiffusionPolicyConfig(pred_horizon=18)
 
 
+
+def test_activation_is_part_of_the_architecture(dataset, tmp_path):
+    """activation="silu" swaps every Mish of the U-Net; the checkpoint keeps it (an older checkpoint without the
+    field loads as Mish); an unknown name is a one-line error naming the valid ones."""
+    cfg = DiffusionPolicyConfig(**TINY, activation="silu", max_steps=2, warmup_steps=1, batch_size=8,
+                                output_dir=str(tmp_path))
+    policy = DiffusionPolicy.load(Policy.from_backend("diffusion").train(dataset, cfg))
+    acts = {type(m).__name__ for m in policy.model.modules() if isinstance(m, (torch.nn.Mish, torch.nn.SiLU))}
+    assert policy.cfg.activation == "silu" and acts == {"SiLU"}
+    old = {k: v for k, v in cfg.to_dict().items() if k != "activation"}
+    assert DiffusionPolicyConfig.from_dict(old).activation == "mish"
+    with pytest.raises(ValueError, match="activation must be one of mish, silu, got 'relu'"):
+        DiffusionPolicyConfig(activation="relu")
+
 def test_compiled_training_net_shares_the_model():
     """compile=True routes compute_loss through torch.compile of the same U-Net: parameters, state dict and EMA
     are the model's own (torch.compile is lazy: nothing is compiled here)."""

@@ -14,7 +14,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from .ema import EMA
-from .model import ConditionalUnet1D
+from .model import ACTIVATIONS, ConditionalUnet1D
 from .normalize import MinMaxNormalizer
 from .scheduler import PREDICTION_TYPES, NoiseScheduler
 
@@ -27,8 +27,8 @@ PRESETS: dict[str, dict[str, Any]] = {
 """Named training settings; explicit fields override a preset's."""
 
 ARCHITECTURE_FIELDS = ("obs_horizon", "action_horizon", "pred_horizon", "down_dims", "kernel_size", "n_groups",
-                       "diffusion_step_embed_dim", "num_train_timesteps", "num_inference_steps", "prediction_type",
-                       "obs_keys")
+                       "diffusion_step_embed_dim", "activation", "num_train_timesteps", "num_inference_steps",
+                       "prediction_type", "obs_keys")
 """Config fields a checkpoint fixes: fine-tuning from it keeps them."""
 
 CHECKPOINT_FORMAT = "newton_lab.policies.diffusion"
@@ -53,6 +53,8 @@ class DiffusionPolicyConfig:
     """GroupNorm groups in every conv block."""
     diffusion_step_embed_dim: int = 128
     """Width of the sinusoidal diffusion-step embedding (then an MLP)."""
+    activation: str = "mish"
+    """Activation of every U-Net block: "mish" (Chi et al.) or "silu" (cheaper on CPU, see ``model.ACTIVATIONS``)."""
     num_train_timesteps: int = 100
     """DDPM noising steps (squaredcos_cap_v2 betas, samples clipped to [-1, 1])."""
     num_inference_steps: int = 10
@@ -131,6 +133,8 @@ class DiffusionPolicyConfig:
             (1 <= self.num_inference_steps <= self.num_train_timesteps,
              f"num_inference_steps must be in 1..num_train_timesteps={self.num_train_timesteps}, "
              f"got {self.num_inference_steps}"),
+            (self.activation in ACTIVATIONS,
+             f"activation must be one of {', '.join(ACTIVATIONS)}, got {self.activation!r}"),
             (self.prediction_type in PREDICTION_TYPES,
              f"prediction_type must be one of {', '.join(PREDICTION_TYPES)}, got {self.prediction_type!r}"),
             (len(self.betas) == 2, f"betas must be a pair, got {self.betas}"),
@@ -198,7 +202,8 @@ class DiffusionPolicy(nn.Module):
         self.info: dict[str, Any] = dict(info or {})
         self.model = ConditionalUnet1D(self.action_dim, self.obs_dim * cfg.obs_horizon, down_dims=cfg.down_dims,
                                        diffusion_step_embed_dim=cfg.diffusion_step_embed_dim,
-                                       kernel_size=cfg.kernel_size, n_groups=cfg.n_groups)
+                                       kernel_size=cfg.kernel_size, n_groups=cfg.n_groups,
+                                       activation=cfg.activation)
         self.ema = EMA(self.model, power=cfg.ema_power)
         self.scheduler = NoiseScheduler(cfg.num_train_timesteps, clip_sample=True)
 
