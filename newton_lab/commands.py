@@ -253,6 +253,8 @@ class ExportArgs:
     """new LeRobot dataset folder (must not exist)"""
     include_failed: bool = False
     """Export failed episodes too."""
+    no_video: bool = False
+    """Camera streams as lossless PNG image features instead of mp4 (AV1) video features."""
 
 
 RECIPE_FIELDS = ("demos", "mimic_episodes", "eval_episodes", "num_envs")

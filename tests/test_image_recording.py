@@ -72,6 +72,11 @@ def test_cli_collect_writes_full_size_rgb_frames_one_per_chunk(tmp_path, suffix)
         assert set(ep["obs"]) - {"front_head_rgb"} == set(ep["next_obs"])  # images: obs only
     chunks, codec = image_chunks(path, "obs/front_head_rgb")
     assert chunks == (1, 224, 298, 3) and codec == ("zstd" if suffix == ".zarr" else "gzip")
+    from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3  # deferred: pyarrow, PyAV
+
+    export_lerobot(path, tmp_path / "lerobot", include_failed=True)  # the 6-step episodes did not succeed
+    report = validate_lerobot_v3(tmp_path / "lerobot")  # decodes the mp4 of the camera stream
+    assert report["video_keys"] == ["observation.images.front_head_rgb"] and report["episodes"] == 2
 
 
 class Capture:

@@ -55,14 +55,19 @@ class Ref:  # stands in for a DatasetRef
     path: Path
 
 
-def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None) -> dict:
+def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, noisy: bool = False) -> dict:
     rng = np.random.default_rng(seed)
     actions = rng.standard_normal((steps, 8)).astype(np.float32)
     obs = {name: rng.standard_normal((steps, w)).astype(np.float32) for name, w in OBS.items() if name != "actions"}
     obs["cube_pose"] = rng.standard_normal((steps, 7))  # float64 on purpose: exported as float32
     obs["actions"] = actions.copy()
-    if image is not None:
+    if image is not None and noisy:  # incompressible frames
         obs[IMAGE] = rng.integers(0, 256, (steps, *image, 3), dtype=np.uint8)
+    elif image is not None:  # a smooth moving gradient (video codecs are lossy on noise), per-episode offset
+        t, y, x = np.meshgrid(np.arange(steps), np.arange(image[0]), np.arange(image[1]), indexing="ij")
+        base = rng.integers(0, 100, 3)
+        obs[IMAGE] = np.stack([np.clip(base[c] + 3 * x + 2 * y + t + 40 * c, 0, 255) for c in range(3)],
+                              axis=-1).astype(np.uint8)
     return {
         "actions": actions,
         "obs": obs,
@@ -74,11 +79,12 @@ def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None) ->
     }
 
 
-def make_dataset(path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int] | None = None) -> Path:
+def make_dataset(path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int] | None = None,
+                 noisy: bool = False) -> Path:
     with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
         for i, steps in enumerate(lengths):
             ok = i not in failed
-            w.append_episode(make_episode(i, steps, image), success=ok,
+            w.append_episode(make_episode(i, steps, image, noisy), success=ok,
                              attrs={"termination_reason": "success" if ok else "timeout"})
     return path
 
@@ -328,10 +334,10 @@ def test_crash_mid_export_leaves_no_root(tmp_path, monkeypatch):
     assert not root.exists() and no_partials(tmp_path)
 
 
-def test_image_obs_become_image_features(tmp_path):
+def test_image_obs_become_image_features_without_video(tmp_path):
     src = make_dataset(tmp_path / "src.zarr", image=(6, 10))
     root = tmp_path / "img"
-    summary = export_lerobot(src, root)
+    summary = export_lerobot(src, root, video=False)
     key = f"observation.images.{IMAGE}"
     assert summary["image_keys"] == [key] and IMAGE not in summary["state_keys"]
     validate_lerobot_v3(root)
@@ -356,10 +362,45 @@ def test_image_obs_become_image_features(tmp_path):
     np.testing.assert_allclose(np.asarray(stats["max"]).ravel(), allframes.max(0) / 255)
 
 
+def test_image_obs_become_video_features(tmp_path):
+    """Camera terms become mp4 video features: LeRobot's feature and episode columns, each episode's
+    [from_timestamp, to_timestamp) span of the file decodes to its frames (lossy: small mean error), the
+    validator decodes the files, and a truncated mp4 is a one-line error."""
+    from newton_lab.datasets.lerobot.video import decode_frames, video_codec
+
+    src = make_dataset(tmp_path / "src.hdf5", image=(72, 96))
+    root = tmp_path / "vid"
+    summary = export_lerobot(src, root)
+    key = f"observation.images.{IMAGE}"
+    report = validate_lerobot_v3(root)
+    assert report["video_keys"] == [key] and summary["video_files"] == [f"videos/{key}/chunk-000/file-000.mp4"]
+    info = json.loads((root / "meta/info.json").read_text())
+    feature = info["features"][key]
+    assert feature["dtype"] == "video" and feature["shape"] == [72, 96, 3]
+    assert feature["info"]["video.codec"] == video_codec()[0].removeprefix("lib") and feature["info"]["video.fps"] == 20
+    assert info["video_path"] == "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
+    assert key not in read_data(root).schema.names  # frames live in the mp4, not the parquet
+    frames, meta = decode_frames(root / summary["video_files"][0])
+    assert (meta["width"], meta["height"], meta["fps"]) == (96, 72, 20.0) and len(frames) == summary["frames"]
+    eps = read_episodes(root)
+    for e, demo in enumerate(summary["demo_ids"]):
+        lo = round(eps.column(f"videos/{key}/from_timestamp")[e].as_py() * 20)
+        hi = round(eps.column(f"videos/{key}/to_timestamp")[e].as_py() * 20)
+        source = read_episode(src, demo)["obs"][IMAGE]
+        assert hi - lo == len(source)
+        error = np.abs(frames[lo:hi].astype(np.int16) - source).mean()
+        print(f"episode {e}: mean abs error {error:.2f} / 255")
+        assert error < 6
+    video = root / summary["video_files"][0]
+    video.write_bytes(video.read_bytes()[: video.stat().st_size // 2])
+    with pytest.raises(ValueError, match="video .*file-000.mp4 .*export the dataset again") as err:
+        validate_lerobot_v3(root)
+    assert "\n" not in str(err.value)
+
 def test_data_files_roll_over(tmp_path):
-    src = make_dataset(tmp_path / "src.hdf5", lengths=(40, 40, 40, 40), failed=(), image=(48, 64))
+    src = make_dataset(tmp_path / "src.hdf5", lengths=(40, 40, 40, 40), failed=(), image=(48, 64), noisy=True)
     root = tmp_path / "rolled"
-    summary = export_lerobot(src, root, data_files_size_in_mb=1)
+    summary = export_lerobot(src, root, data_files_size_in_mb=1, video=False)  # PNG columns fill the files
     assert len(summary["data_files"]) > 1
     report = validate_lerobot_v3(root)
     assert report["data_files"] == summary["data_files"] and report["frames"] == 160

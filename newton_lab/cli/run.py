@@ -121,8 +121,9 @@ def split(args: SplitArgs) -> int:
 def export(args: ExportArgs) -> int:
     from ..datasets.lerobot import export_lerobot  # deferred: pyarrow, Warp/Newton are slow
 
-    out = export_lerobot(args.dataset_path, args.root, include_failed=args.include_failed)
-    print(json.dumps({k: out[k] for k in ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps")}))
+    out = export_lerobot(args.dataset_path, args.root, include_failed=args.include_failed, video=not args.no_video)
+    keys = ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps", "image_keys", "video_files")
+    print(json.dumps({k: out[k] for k in keys}))
     return 0
 
 

@@ -1,4 +1,4 @@
-"""Export newton_lab datasets to the LeRobot v3.0 layout (pyarrow only) and check such layouts.
+"""Export newton_lab datasets to the LeRobot v3.0 layout (pyarrow, and PyAV for the camera streams) and check such layouts.
 
 ``export_lerobot(dataset, root)`` turns the committed demos of an HDF5 / zarr dataset into::
 
@@ -8,10 +8,13 @@
     root/meta/episodes/chunk-000/file-000.parquet        one row per episode: offsets, tasks, stats/...
     root/meta/newton_lab_source.json                     provenance: source path, exported demo ids
     root/data/chunk-000/file-000.parquet                 one row per frame, one row group per episode
+    root/videos/observation.images.<term>/chunk-000/file-000.mp4   camera stream, episodes one after another
 
 Per frame: ``observation.state`` (float32, the concatenated low-dim obs terms), ``action`` (float32),
-``observation.images.<term>`` for every uint8 (T, H, W, 3) obs term (PNG bytes in a ``{bytes, path}``
-struct: LeRobot's "image" feature, no video), ``timestamp`` (frame_index / fps), ``frame_index``,
+``observation.images.<term>`` for every uint8 (T, H, W, 3) obs term (a "video" feature: mp4 files written
+with PyAV, AV1 / yuv420p, located per episode by ``videos/<key>/{chunk_index, file_index, from_timestamp,
+to_timestamp}`` in meta/episodes; ``video=False``: lossless PNG "image" structs in the data files),
+``timestamp`` (frame_index / fps), ``frame_index``,
 ``episode_index``, ``index`` and ``task_index``. Data files roll over past ``data_files_size_in_mb``
 (uncompressed bytes, like LeRobot); an episode never spans two files.
 
@@ -20,7 +23,8 @@ place at the end, so ``root`` either holds a complete dataset or does not exist 
 leave the hidden sibling behind; delete it).
 
 ``validate_lerobot_v3(root)`` checks a v3.0 layout structurally (files, info.json, schemas, offsets,
-index / frame_index / timestamp consistency) and raises a one-line ``ValueError`` on the first problem.
+index / frame_index / timestamp consistency, every mp4 decoded and its episode spans checked) and raises a
+one-line ``ValueError`` on the first problem.
 """
 
 from __future__ import annotations

@@ -178,7 +178,8 @@ def write_episodes(path: Path, rows: list[dict[str, Any]], ep_stats: list[dict[s
     columns: dict[str, pa.Array] = {}
     for key in rows[0]:
         values = [r[key] for r in rows]
-        columns[key] = pa.array(values, pa.list_(pa.string()) if key == "tasks" else pa.int64())
+        typ = pa.list_(pa.string()) if key == "tasks" else pa.float64() if isinstance(values[0], float) else pa.int64()
+        columns[key] = pa.array(values, typ)
     for feat, stats in ep_stats[0].items():
         for stat, value in stats.items():
             typ: pa.DataType = pa.int64() if stat == "count" else pa.float64()

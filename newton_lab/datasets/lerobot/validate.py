@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 
 from ..contained import OutsidePathError, contained
 from .tables import CODEBASE_VERSION, EPISODE_COLUMNS, INDEX_FEATURES, PNG_SIGNATURE, STATS, TIMESTAMP_TOLERANCE_S
+from .video import VIDEO_COLUMNS, probe
 
 
 class _Invalid(Exception):
@@ -47,7 +48,8 @@ def validate_lerobot_v3(root: str | os.PathLike) -> dict[str, Any]:
     data parquet columns against the features (dtypes, shapes, image structs), contiguous ``index``
     0..N-1, ``frame_index`` restarting at 0 in every episode, episode offsets and file references
     matching the data, ``timestamp`` == frame_index / fps (within 1e-4 s) and, for video features,
-    that the referenced video files exist (their content is not decoded).
+    that every referenced mp4 decodes with the declared size and fps and holds each episode's
+    [from_timestamp, to_timestamp) span.
 
     Returns ``{"root", "codebase_version", "fps", "episodes", "frames", "tasks", "features",
     "image_keys", "video_keys", "data_files"}``; raises a one-line ``ValueError`` naming the first problem.
@@ -243,7 +245,7 @@ def _read_episodes(root: Path, video_keys: list[str]) -> _Episodes:
     """All meta/episodes parquet files, checked for the required columns, as one table."""
     ep_files = sorted((root / "meta/episodes").glob("*/*.parquet"))
     _need(ep_files, "meta/episodes/chunk-*/file-*.parquet is missing")
-    video_cols = [f"videos/{k}/{c}" for k in video_keys for c in ("chunk_index", "file_index")]
+    video_cols = [f"videos/{k}/{c}" for k in video_keys for c in VIDEO_COLUMNS]
     ep_tables = []
     for p in ep_files:
         rel = str(p.relative_to(root))
@@ -281,6 +283,34 @@ def _check_episodes(root: Path, info: dict[str, Any], eps: _Episodes, video_keys
                                             chunk_index=int(eps.table.column(f"videos/{k}/chunk_index")[e].as_py()),
                                             file_index=int(eps.table.column(f"videos/{k}/file_index")[e].as_py()))
             _need(_inside(root, rel, "info.json video_path").is_file(), f"episode {e} video {rel} is missing")
+    _check_videos(root, info, eps, video_keys)
+
+
+def _check_videos(root: Path, info: dict[str, Any], eps: _Episodes, video_keys: list[str]) -> None:
+    """Each referenced mp4 decodes, has the feature's width / height and the dataset's fps, and holds every
+    episode's [from_timestamp, to_timestamp) span, which is ``length / fps`` long."""
+    fps, probed = info["fps"], {}
+    for k in video_keys:
+        h, w = info["features"][k]["shape"][:2]
+        column = {c: eps.table.column(f"videos/{k}/{c}").to_pylist() for c in VIDEO_COLUMNS}
+        for e in range(eps.n):
+            rel = info["video_path"].format(video_key=k, chunk_index=int(column["chunk_index"][e]),
+                                            file_index=int(column["file_index"][e]))
+            if rel not in probed:
+                try:
+                    probed[rel] = probe(root / rel)
+                except ValueError as exc:
+                    raise _Invalid(f"video {rel} {exc}; export the dataset again") from None
+                got = probed[rel]
+                _need((got["height"], got["width"]) == (h, w),
+                      f"video {rel} is {got['width']}x{got['height']}, feature {k!r} says {w}x{h}")
+                _need(abs(got["fps"] - fps) < 1e-3, f"video {rel} runs at {got['fps']} fps, info.json fps is {fps}")
+            lo, hi = float(column["from_timestamp"][e]), float(column["to_timestamp"][e])
+            _need(abs((hi - lo) * fps - eps.col["length"][e]) < 1e-3 * fps,
+                  f"episode {e} video span [{lo}, {hi}) s of {k!r} is not its length {eps.col['length'][e]} / {fps} fps")
+            _need(0 <= lo and hi * fps <= probed[rel]["frames"] + 1e-3,
+                  f"episode {e} video span [{lo}, {hi}) s lies outside {rel} ({probed[rel]['frames']} frames): "
+                  "the file is truncated; export the dataset again")
 
 
 def _check_data_paths(root: Path, info: dict[str, Any],

@@ -20,8 +20,9 @@ import numpy as np
 from .._common import fsync_path
 from ..storage import read_dataset_info, read_episode
 from .tables import (CHUNKS_SIZE, CODEBASE_VERSION, DATA_FILES_SIZE_IN_MB, DATA_PATH, EPISODES_PATH, IMAGE_NAMES,
-                     IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, DataFiles,
-                     aggregate, episode_table, image_stats, vector_stats, write_episodes, write_tasks)
+                     IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, VIDEO_PATH,
+                     DataFiles, aggregate, episode_table, image_stats, vector_stats, write_episodes, write_tasks)
+from .video import VideoFiles, even_shape, video_info
 
 
 @dataclass
@@ -42,6 +43,7 @@ class _Plan:
     action_names: list[str]
     image_terms: list[tuple[str, tuple[int, int, int]]]  # (obs term, (H, W, 3))
     ignored_terms: list[str] = field(default_factory=list)
+    video: bool = True  # image terms as mp4 "video" features (else PNG "image" features in the data files)
 
     @property
     def state_dim(self) -> int:
@@ -54,7 +56,10 @@ class _Plan:
             "action": {"dtype": "float32", "shape": [self.action_dim], "names": list(self.action_names)},
         }
         for term, shape in self.image_terms:
-            feats[IMAGE_PREFIX + term] = {"dtype": "image", "shape": list(shape), "names": list(IMAGE_NAMES)}
+            feats[IMAGE_PREFIX + term] = (
+                {"dtype": "video", "shape": list(even_shape(shape)), "names": list(IMAGE_NAMES),
+                 "info": video_info(shape, self.fps)} if self.video else
+                {"dtype": "image", "shape": list(shape), "names": list(IMAGE_NAMES)})
         for key, dtype in INDEX_FEATURES.items():
             feats[key] = {"dtype": dtype, "shape": [1], "names": None}
         return feats
@@ -62,8 +67,8 @@ class _Plan:
 
 def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None = None, fps: int | None = None,
                    include_failed: bool = False, state_keys: Sequence[str] | None = None,
-                   task_description: str | None = None,
-                   data_files_size_in_mb: int = DATA_FILES_SIZE_IN_MB) -> dict[str, Any]:
+                   task_description: str | None = None, data_files_size_in_mb: int = DATA_FILES_SIZE_IN_MB,
+                   video: bool = True) -> dict[str, Any]:
     """Write the demos of ``dataset`` as a LeRobot v3.0 dataset at ``root`` (which must not exist).
 
     Args:
@@ -77,10 +82,12 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
             (T, d) obs term except ``actions``, in the env's obs order (``env_args`` ``obs_terms``).
         task_description: the task string of every frame; default the task id.
         data_files_size_in_mb: start a new data parquet file once the current one would exceed this.
+        video: camera terms (uint8 (T, H, W, 3) obs) as mp4 video features (``video.py``: AV1, yuv420p, lossy);
+            False: as lossless PNG "image" features inside the data files.
 
     Returns:
         ``{"root", "repo_id", "episodes", "frames", "skipped_failed", "fps", "task", "demo_ids",
-        "skipped_empty", "state_keys", "image_keys", "data_files"}``; ``demo_ids[i]`` is the source
+        "skipped_empty", "state_keys", "image_keys", "data_files", "video_files"}``; ``demo_ids[i]`` is the source
         demo of LeRobot episode ``i``.
     """
     root = Path(root).expanduser()
@@ -93,12 +100,13 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
     _refuse_nested(root, Path(info["path"]))
     plan, first = _make_plan(info, repo_id=repo_id, fps=fps, include_failed=include_failed,
                              state_keys=state_keys, task_description=task_description)
+    plan.video = bool(video)
 
     root.parent.mkdir(parents=True, exist_ok=True)
     tmp = root.parent / f".{root.name}.partial-{uuid.uuid4().hex}"
     tmp.mkdir()  # not mkdtemp: the renamed root should get the usual (umask) permissions
     try:
-        data_files, frames = _write_all(tmp, plan, first, data_files_size_in_mb * 1024 * 1024,
+        data_files, video_files, frames = _write_all(tmp, plan, first, data_files_size_in_mb * 1024 * 1024,
                                         data_files_size_in_mb)
         _fsync_tree(tmp)
         _refuse_existing(root)  # created by someone else meanwhile: keep theirs, drop ours
@@ -111,7 +119,8 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
             "skipped_failed": len(plan.skipped_failed), "fps": plan.fps, "task": plan.task,
             "demo_ids": list(plan.demo_ids), "skipped_empty": len(plan.skipped_empty),
             "state_keys": [t for t, _ in plan.state_terms],
-            "image_keys": [IMAGE_PREFIX + t for t, _ in plan.image_terms], "data_files": data_files}
+            "image_keys": [IMAGE_PREFIX + t for t, _ in plan.image_terms], "data_files": data_files,
+            "video_files": video_files}
 
 
 # ----------------------------------------------------------------------------- argument checks
@@ -276,9 +285,11 @@ def _episode_arrays(ep: Mapping[str, Any], plan: _Plan, demo_id: int) -> tuple[n
 
 # ----------------------------------------------------------------------------- writing
 def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
-               limit_mb: int) -> tuple[list[str], int]:
-    """Write data files and meta/ into ``tmp``; returns (data file paths, total frames)."""
+               limit_mb: int) -> tuple[list[str], list[str], int]:
+    """Write data files, videos and meta/ into ``tmp``; returns (data file paths, video file paths, frames)."""
     files = DataFiles(tmp, limit_bytes)
+    limit = VIDEO_FILES_SIZE_IN_MB << 20
+    videos = {t: VideoFiles(tmp, IMAGE_PREFIX + t, plan.fps, limit) for t, _ in plan.image_terms} if plan.video else {}
     rows: list[dict[str, Any]] = []
     ep_stats: list[dict[str, dict[str, np.ndarray]]] = []
     start = 0
@@ -287,8 +298,10 @@ def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
             ep = first if episode_index == 0 else read_episode(plan.source, demo_id)
             state, actions, images = _episode_arrays(ep, plan, demo_id)
             del ep
-            table, scalars = episode_table(state, actions, images, plan.fps, episode_index, start)
+            in_table = {} if plan.video else images  # PNG columns in the data file, or mp4 files beside it
+            table, scalars = episode_table(state, actions, in_table, plan.fps, episode_index, start)
             chunk, file = files.write(table)
+            located = {k: v for t, frames in images.items() if plan.video for k, v in videos[t].write(frames).items()}
             del table
             stats = {"observation.state": vector_stats(state), "action": vector_stats(actions)}
             stats.update({IMAGE_PREFIX + t: image_stats(images[t]) for t, _ in plan.image_terms})
@@ -297,14 +310,16 @@ def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
             rows.append({"episode_index": episode_index, "tasks": [plan.task], "length": steps,
                          "data/chunk_index": chunk, "data/file_index": file,
                          "dataset_from_index": start, "dataset_to_index": start + steps,
-                         "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0})
+                         "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0, **located})
             ep_stats.append(stats)
             start += steps
         first.clear()
     finally:
         files.close()
+        for v in videos.values():
+            v.close()
     _write_meta(tmp, plan, rows, ep_stats, start, limit_mb)
-    return files.paths, start
+    return files.paths, [p for v in videos.values() for p in v.paths], start
 
 
 def _write_meta(tmp: Path, plan: _Plan, rows: list[dict[str, Any]],
@@ -321,7 +336,8 @@ def _write_meta(tmp: Path, plan: _Plan, rows: list[dict[str, Any]],
         "total_episodes": len(rows), "total_frames": frames, "total_tasks": 1,
         "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": limit_mb,
         "video_files_size_in_mb": VIDEO_FILES_SIZE_IN_MB, "fps": plan.fps,
-        "splits": {"train": f"0:{len(rows)}"}, "data_path": DATA_PATH, "video_path": None,
+        "splits": {"train": f"0:{len(rows)}"}, "data_path": DATA_PATH,
+        "video_path": VIDEO_PATH if plan.image_terms and plan.video else None,
         "features": plan.features(),
     }
     _write_json(meta / "info.json", info)
