@@ -10,8 +10,8 @@ $(STAMP): pyproject.toml setup.py tools/install_venv.sh
 	touch $(STAMP)
 
 .PHONY: demo test bench
-# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 3000 training steps, 20 evaluation episodes; about
-# 14.5 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
+# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 2500 training steps, 20 evaluation episodes; about
+# 11 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
 # DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
 DEMO_ARGS ?=
 demo: $(STAMP)

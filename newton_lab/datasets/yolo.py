@@ -1,0 +1,151 @@
+"""YOLO segmentation datasets (Ultralytics layout) from rendered frames and their segmentation masks.
+
+    <root>/data.yaml                       path, train / val / test folders, names {class id: name}
+    <root>/images/{train,val,test}/*.png   RGB frames
+    <root>/labels/{train,val,test}/*.txt   one line per visible object: class id, then x1 y1 x2 y2 ... (polygon
+                                           of the mask's outer contour, normalised to [0, 1] by width / height)
+    <root>/preview/*.png                   optional: frames with their polygons drawn, for a person to check
+
+Written into a hidden sibling folder renamed into place at the end: the root is complete or absent.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import uuid
+from collections.abc import Sequence
+from pathlib import Path
+
+import contourpy
+import numpy as np
+import yaml
+from PIL import Image, ImageDraw
+
+SPLITS = ("train", "val", "test")
+MIN_AREA_PX = 12
+"""An object covering fewer mask pixels than this is not labelled (a sliver at the border or behind the gripper)."""
+SIMPLIFY_PX = 0.75
+"""Douglas-Peucker tolerance [px] of the label polygons."""
+
+
+def mask_polygon(mask: np.ndarray, tolerance: float = SIMPLIFY_PX) -> np.ndarray | None:
+    """Outer contour of the largest region of a boolean (H, W) mask as (K, 2) float (x, y) in pixel units (pixel
+    k spans [k, k + 1)), simplified to ``tolerance`` px; None when the mask has fewer than ``MIN_AREA_PX`` px."""
+    if int(mask.sum()) < MIN_AREA_PX:
+        return None
+    padded = np.pad(mask.astype(np.float64), 1)  # regions touching the border get closed contours
+    lines = contourpy.contour_generator(z=padded, line_type=contourpy.LineType.Separate).lines(0.5)
+    if not lines:
+        return None
+    outer = max(lines, key=lambda line: abs(_area(line)))  # holes and small islands are inside or smaller
+    outer = outer - 1.0 + 0.5  # undo the padding; contour at pixel centres +- 0.5 -> pixel edges
+    h, w = mask.shape
+    outer = np.clip(outer, 0.0, [w, h])
+    simplified = _douglas_peucker(outer[:-1] if np.allclose(outer[0], outer[-1]) else outer, tolerance)
+    return simplified if len(simplified) >= 3 else None
+
+
+def _area(line: np.ndarray) -> float:
+    x, y = line[:, 0], line[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _douglas_peucker(points: np.ndarray, tolerance: float) -> np.ndarray:
+    """Polyline simplification (no maintained library here does it without OpenCV / shapely, neither of which
+    installs beside the pins: a dozen lines of the textbook algorithm, iterative)."""
+    keep = np.zeros(len(points), bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, len(points) - 1)]
+    while stack:
+        lo, hi = stack.pop()
+        if hi <= lo + 1:
+            continue
+        a, b = points[lo], points[hi]
+        seg = b - a
+        rel = points[lo + 1:hi] - a
+        norm = float(np.hypot(*seg))
+        dist = np.abs(seg[0] * rel[:, 1] - seg[1] * rel[:, 0]) / norm if norm > 0 else np.hypot(rel[:, 0], rel[:, 1])
+        k = int(np.argmax(dist))
+        if dist[k] > tolerance:
+            mid = lo + 1 + k
+            keep[mid] = True
+            stack += [(lo, mid), (mid, hi)]
+    return points[keep]
+
+
+def label_lines(segmentation: np.ndarray, class_ids: dict[int, int]) -> list[tuple[int, np.ndarray]]:
+    """(class id, normalised (K, 2) polygon) of every object visible in an (H, W) id image; ``class_ids`` maps
+    segmentation ids to YOLO class ids."""
+    h, w = segmentation.shape
+    out = []
+    for seg_id, cls in class_ids.items():
+        poly = mask_polygon(segmentation == seg_id)
+        if poly is not None:
+            out.append((cls, poly / [w, h]))
+    return out
+
+
+def assign_splits(n: int, fractions: Sequence[float], seed: int) -> list[str]:
+    """Split name of each of ``n`` images: a seeded shuffle cut at the cumulative ``fractions``."""
+    counts = np.floor(np.asarray(fractions, float) * n).astype(int)
+    counts[int(np.argmax(fractions))] += n - int(counts.sum())  # rounding leftovers go to the largest split
+    names = np.repeat(np.array(SPLITS), counts)
+    return list(np.random.default_rng(seed).permutation(names))
+
+
+class YoloWriter:
+    """Writes images and labels of a YOLO-seg dataset into a partial folder; ``close`` renames it to ``root``."""
+
+    def __init__(self, root: str | os.PathLike, names: Sequence[str], splits: list[str], preview: int = 0) -> None:
+        self.root = Path(root).expanduser()
+        if self.root.exists() and (not self.root.is_dir() or any(self.root.iterdir())):
+            raise FileExistsError(f"--output-dir {self.root} exists and is not empty; choose a new folder")
+        self.names, self.splits, self.preview = list(names), splits, preview
+        self.tmp = self.root.parent / f".{self.root.name}.partial-{uuid.uuid4().hex}"
+        for split in SPLITS:
+            (self.tmp / "images" / split).mkdir(parents=True)
+            (self.tmp / "labels" / split).mkdir(parents=True)
+        if preview:
+            (self.tmp / "preview").mkdir()
+        self.count = 0
+        self.seen = np.zeros(len(self.names), np.int64)  # labelled instances per class
+
+    def add(self, rgb: np.ndarray, labels: list[tuple[int, np.ndarray]]) -> None:
+        """One (H, W, 3) uint8 frame and its labels, into the next image's split."""
+        split, stem = self.splits[self.count], f"{self.count:06d}"
+        Image.fromarray(rgb).save(self.tmp / "images" / split / f"{stem}.png")
+        text = "".join(f"{cls} " + " ".join(f"{v:.6f}" for v in poly.reshape(-1)) + "\n" for cls, poly in labels)
+        (self.tmp / "labels" / split / f"{stem}.txt").write_text(text)
+        for cls, _ in labels:
+            self.seen[cls] += 1
+        if self.count < self.preview:
+            self._draw(rgb, labels).save(self.tmp / "preview" / f"{stem}.png")
+        self.count += 1
+
+    def _draw(self, rgb: np.ndarray, labels: list[tuple[int, np.ndarray]]) -> Image.Image:
+        """The frame at 3x size with each polygon outlined and named."""
+        scale = 3
+        h, w = rgb.shape[:2]
+        image = Image.fromarray(rgb).resize((w * scale, h * scale), Image.NEAREST)
+        draw = ImageDraw.Draw(image)
+        for cls, poly in labels:
+            pts = [(float(x) * w * scale, float(y) * h * scale) for x, y in poly]
+            draw.line(pts + [pts[0]], fill=(255, 0, 255), width=2)
+            draw.text(pts[0], self.names[cls], fill=(255, 255, 0))
+        return image
+
+    def close(self) -> dict[str, object]:
+        """Write data.yaml and move the dataset into place; returns a summary."""
+        spec = {"path": str(self.root.resolve()), **{s: f"images/{s}" for s in SPLITS},
+                "names": dict(enumerate(self.names))}
+        (self.tmp / "data.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+        if self.root.exists():
+            self.root.rmdir()  # an empty folder (checked at the start)
+        os.rename(self.tmp, self.root)
+        return {"output_dir": str(self.root), "images": self.count,
+                "splits": {s: self.splits[:self.count].count(s) for s in SPLITS},
+                "instances": dict(zip(self.names, self.seen.tolist()))}
+
+    def abort(self) -> None:
+        shutil.rmtree(self.tmp, ignore_errors=True)
