@@ -7,6 +7,7 @@ from typing import Any
 from .. import tasks  # noqa: F401  (registers every task id: the one place the core imports the task packages)
 from ..task_api.registry import lookup
 from .env import NewtonEnv
+from .prefetch import prefetch_kernels
 
 
 def make_env(
@@ -32,6 +33,7 @@ def make_env(
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     cfg = spec.make_cfg(task_options)
+    prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
     return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture,
                      cameras=cameras)
 
