@@ -25,7 +25,7 @@ with 3000 steps 90-95 % on 20. Epsilon prediction: 0-5 % after 3000-5000 steps. 
 compile on a fresh machine costs about what it saves)."""
 
 DEMO_RECIPES: dict[str, dict[str, Any]] = {
-    # about 11 min on 2 CPU cores from a fresh clone (README: figures)
+    # 10:57 on 2 CPU cores from a fresh clone, 85 % (README: figures)
     "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 20, "num_envs": 4, "train": DEMO_TRAIN_CFG},
     # full size on a CUDA device: more Mimic data, the cpu preset's 10k steps, 100 evaluation episodes
     "gpu": {"demos": 10, "mimic_episodes": 500, "eval_episodes": 100, "num_envs": 50,
