@@ -13,7 +13,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from newton_lab.datasets.yolo import SPLITS, assign_splits, mask_polygon
+from newton_lab.datasets.yolo import SPLITS, assign_splits, color_segmentation, mask_polygon
 
 NAMES = ["red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"]
 
@@ -85,6 +85,7 @@ def test_polygons_trace_masks_of_known_shape():
     (["--task", "GalbotG1-PickCube-v0"], "use a SortToShelf task"),
     (["--resolution", "0", "72"], "--resolution takes width and height"),
     (["--num-images", "0"], "--num-images must be"),
+    (["--mask-source", "depth"], "--mask-source 'depth' is unknown; use one of segmentation, rgb-color"),
 ])
 def test_bad_input_is_one_line(tmp_path, args, words):
     proc = cli(*args, "--output-dir", str(tmp_path / "ds"))
@@ -98,3 +99,24 @@ def test_a_non_empty_output_dir_is_refused(tmp_path):
     proc = cli("--num-images", "1", "--output-dir", str(tmp_path / "ds"), "--device", "cpu")
     assert proc.returncode == 2 and "exists and is not empty" in proc.stderr
     assert [p.name for p in (tmp_path / "ds").iterdir()] == ["keep.txt"]
+
+
+def test_rgb_color_masks_match_the_segmentation():
+    """--mask-source rgb-color: with the task's own colours, the masks found from the RGB frame by hue are the
+    segmentation's for every visible sorting object (a real render, 96x72)."""
+    from newton_lab.envs import make_env
+
+    env = make_env("GalbotG1-SortToShelf-Pick-v0", num_envs=1, device="cpu", seed=1,
+                   cameras={"front_head": {"resolution": (96, 72), "data": ("rgb", "segmentation")}})
+    images = env.render()
+    rgb, seg = images["front_head_rgb"][0].cpu().numpy(), images["front_head_segmentation"][0].cpu().numpy()
+    names = env.cameras.segmentation_names
+    ids = [names.index(n) for n in NAMES]
+    colors = np.full_like(env.cameras.id_colors()[0], np.nan)
+    colors[ids] = env.cameras.id_colors()[0][ids]
+    found = color_segmentation(rgb, colors)
+    visible = [i for i in ids if (seg == i).sum() >= 12]
+    assert len(visible) >= 3
+    for i in visible:
+        iou = ((seg == i) & (found == i)).sum() / ((seg == i) | (found == i)).sum()
+        assert iou > 0.9, (names[i], iou)

@@ -12,6 +12,7 @@ from ..commands import EnvArgs
 YOLO_TASK = "GalbotG1-SortToShelf-Pick-v0"
 SPLIT = [0.7, 0.2, 0.1]
 RESOLUTION = [298, 224]
+MASK_SOURCES = ("segmentation", "rgb-color")
 CAPTURE_EVERY = 8
 """Control steps between two captured frames of a row: the expert moves arm and objects in between."""
 
@@ -34,6 +35,8 @@ class YoloExportArgs(EnvArgs):
     """also draw the polygons of the first K images into preview/*.png"""
     num_envs: int = 4
     """Parallel env rows (worlds) rendered as one batch."""
+    mask_source: str = "segmentation"
+    """object masks from the segmentation image (exact) or rgb-color (the RGB frame and each object's drawn colour)"""
 
 
 def check(args: YoloExportArgs) -> None:
@@ -53,16 +56,19 @@ def check(args: YoloExportArgs) -> None:
     if len(res) != 2 or not all(MIN_RESOLUTION <= v <= MAX_RESOLUTION for v in res):
         raise ValueError(f"--resolution takes width and height in [{MIN_RESOLUTION}, {MAX_RESOLUTION}] px, got "
                          f"{' '.join(map(str, res))}; e.g. --resolution 298 224")
+    if args.mask_source not in MASK_SOURCES:
+        raise ValueError(f"--mask-source {args.mask_source!r} is unknown; use one of {', '.join(MASK_SOURCES)}")
     if args.preview < 0:
         raise ValueError(f"--preview must be >= 0, got {args.preview}")
 
 
 def yolo_export(args: YoloExportArgs) -> int:
     check(args)
+    import numpy as np  # deferred: only this command's body needs it
     from tqdm import tqdm  # deferred: only the long commands show progress
 
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
-    from ..datasets.yolo import YoloWriter, assign_splits, label_lines  # deferred: contourpy, PIL
+    from ..datasets.yolo import YoloWriter, assign_splits, color_segmentation, label_lines  # deferred: contourpy
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..tasks.sort_to_shelf.objects import OBJECTS  # deferred: registering the tasks imports Warp
 
@@ -81,6 +87,10 @@ def yolo_export(args: YoloExportArgs) -> int:
                     images = env.render()
                     rgb = images["front_head_rgb"].cpu().numpy()
                     seg = images["front_head_segmentation"].cpu().numpy()
+                    if args.mask_source == "rgb-color":
+                        colors = np.full_like(env.cameras.id_colors(), np.nan)  # the objects' colours only
+                        colors[:, list(class_ids)] = env.cameras.id_colors()[:, list(class_ids)]
+                        seg = [color_segmentation(rgb[r], colors[r]) for r in range(env.num_envs)]
                     for row in range(min(env.num_envs, args.num_images - writer.count)):
                         writer.add(rgb[row], label_lines(seg[row], class_ids))
                         bar.update()

@@ -25,6 +25,10 @@ from PIL import Image, ImageDraw
 SPLITS = ("train", "val", "test")
 MIN_AREA_PX = 12
 """An object covering fewer mask pixels than this is not labelled (a sliver at the border or behind the gripper)."""
+HUE_TOLERANCE_DEG = 12.0
+"""``--mask-source rgb-color``: largest hue difference [deg] of a pixel from its object's drawn colour."""
+MIN_SATURATION = 0.35
+"""``--mask-source rgb-color``: pixels and colours less saturated than this are no object's (greys)."""
 SIMPLIFY_PX = 0.75
 """Douglas-Peucker tolerance [px] of the label polygons."""
 
@@ -84,6 +88,35 @@ def label_lines(segmentation: np.ndarray, class_ids: dict[int, int]) -> list[tup
         if poly is not None:
             out.append((cls, poly / [w, h]))
     return out
+
+
+def _hue_saturation(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """HSV hue [deg] and saturation of (..., 3) colours (any scale)."""
+    hi, lo = rgb.max(axis=-1), rgb.min(axis=-1)
+    span = np.maximum(hi - lo, 1e-9)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    hue = np.where(hi == r, (g - b) / span % 6, np.where(hi == g, (b - r) / span + 2, (r - g) / span + 4)) * 60.0
+    return hue, (hi - lo) / np.maximum(hi, 1e-9)
+
+
+def color_segmentation(rgb: np.ndarray, id_colors: np.ndarray, hue_tolerance: float = HUE_TOLERANCE_DEG) -> np.ndarray:
+    """An (H, W) id image from an (H, W, 3) uint8 frame alone: a saturated pixel (``MIN_SATURATION``) takes the id
+    whose drawn colour (``id_colors`` (ids, 3), NaN = none) is saturated and nearest in hue, within
+    ``hue_tolerance`` degrees (shading darkens a flat colour but keeps its hue); other pixels are -1. Grey
+    shapes (table, robot) are never objects; two objects of one hue cannot be told apart (the vision
+    randomisation can draw such pairs: use the segmentation source there)."""
+    hue, sat = _hue_saturation(rgb.reshape(-1, 3).astype(np.float64))
+    ref_hue, ref_sat = _hue_saturation(np.nan_to_num(id_colors, nan=0.0))
+    known = np.flatnonzero(~np.isnan(id_colors).any(axis=1) & (ref_sat >= MIN_SATURATION))
+    if not len(known):
+        return np.full(rgb.shape[:2], -1, np.int64)
+    diff = np.abs(hue[:, None] - ref_hue[None, known])
+    diff = np.minimum(diff, 360.0 - diff)
+    best = diff.argmin(axis=1)
+    ids = known[best]
+    dark = rgb.reshape(-1, 3).max(axis=1) < 20
+    ids[(diff[np.arange(len(best)), best] > hue_tolerance) | (sat < MIN_SATURATION) | dark] = -1
+    return ids.reshape(rgb.shape[:2])
 
 
 def assign_splits(n: int, fractions: Sequence[float], seed: int) -> list[str]:

@@ -193,6 +193,20 @@ class Cameras:
             self._names, self._shape_ids = segmentation_table(self.model, self.entity_names)
         return self._names
 
+    def id_colors(self) -> np.ndarray:
+        """(N, ids, 3) float RGB in [0, 1] each segmentation id is drawn with in each row at the last render (its
+        shapes' mean colour, after the vision randomisation); NaN for ids with no shape (background)."""
+        self.render()
+        colors = self.model.shape_color.numpy()[:, :3].astype(np.float64)
+        world, ids = self.model.shape_world.numpy(), np.asarray(self._shape_ids)
+        out = np.full((self.num_envs, len(self.segmentation_names), 3), np.nan)
+        for i in np.unique(ids[ids > 0]):
+            for row in range(self.num_envs):
+                mine = (ids == i) & ((world == row) | (world < 0))
+                if mine.any():
+                    out[row, i] = colors[mine].mean(axis=0)
+        return out
+
     def intrinsics(self, camera: str) -> np.ndarray:
         """3x3 pinhole matrix K [px] of ``camera`` at its resolution (u right, v down, centre principal point)."""
         c = self._spec(camera)
