@@ -1,6 +1,6 @@
 """Agents: ``act(env, env_ids=None) -> (num_envs, action_dim)`` actions; agents never step, build or
 reset envs. ``PlannerAgent`` executes a task's motion plan for every row at once; nav agents drive the
-base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row."""
+base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row; ``TeleopAgent`` maps an operator's device."""
 
 from .base import BaseAgent, ZeroAgent
 from .experts import agent_for_expert, task_expert
@@ -9,6 +9,7 @@ from .nav import BaseNavAgent, GoalNavAgent, ProportionalNavAgent, TrajectoryNav
 from .planner.agent import PlannerAgent
 from .sequence import SequenceAgent, SequenceStep
 from .task_flow import TaskFlowAgent, default_agent, expert_agent
+from .teleop import TeleopAgent
 
 __all__ = [
     "BaseAgent",
@@ -20,6 +21,7 @@ __all__ = [
     "SequenceAgent",
     "SequenceStep",
     "TaskFlowAgent",
+    "TeleopAgent",
     "TrajectoryNavAgent",
     "ZeroAgent",
     "agent_for_expert",

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from importlib import metadata
 
 from .. import commands as c
-from . import run, yolo
+from . import run, teleop, yolo
 from .checks import check_args
 from .parsing import REQUIRED, HelpFormatter, add_arguments, add_verbose, apply_verbose, from_namespace, parse_args
 from .parsing import make_output_dirs, unrecognized
@@ -46,6 +46,8 @@ COMMANDS: dict[str, Command] = {
     "bench-train": Command(c.BenchTrainArgs, run.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
     "render": Command(c.RenderArgs, run.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),
+    "teleop": Command(teleop.TeleopArgs, teleop.teleop,
+                      "drive a task from a teleop device (keyboard, replay, gp001, ...); keep / drop / exit each demo"),
     "yolo-export": Command(yolo.YoloExportArgs, yolo.yolo_export,
                            "YOLO-seg dataset (images, polygon labels, data.yaml) of the sorting objects"),
 }

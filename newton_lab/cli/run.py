@@ -22,7 +22,7 @@ COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", 
 """Keys of the collect summary printed by ``newton-lab collect`` (then ``wall_time_s``)."""
 
 
-def _logger(args: RerunArgs, env):
+def rerun_hook(args: RerunArgs, env):
     """A rerun ``on_step`` hook when --rerun / --rerun-save is given, else None (and a closer)."""
     if not (args.rerun or args.rerun_save):
         return None, lambda: None
@@ -53,7 +53,7 @@ def collect(args: CollectArgs) -> int:
 
     env = make_env(args.task, **args.env_kwargs())
     agent = expert_agent(env)
-    hook, close = _logger(args, env)
+    hook, close = rerun_hook(args, env)
     try:
         summary = env.collect(agent=agent, on_step=hook, **args.collect_kwargs())
     finally:
@@ -77,7 +77,7 @@ def evaluate(args: EvaluateArgs) -> int:
                         if args.checkpoint else None)
     env = make_env(args.task, **args.env_kwargs())
     agent = checkpoint_agent or expert_agent(env)
-    hook, close = _logger(args, env)
+    hook, close = rerun_hook(args, env)
     try:
         summary = env.evaluate(agent=agent, on_step=hook, **args.rollout_kwargs())
     finally:

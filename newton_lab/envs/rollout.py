@@ -98,7 +98,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
 
     Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
     ones (at most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the
-    agent reports it has nothing more to do (Mimic generation), with reason ``agent_done``.
+    agent reports it has nothing more to do (Mimic generation), with reason ``agent.done_reason`` (default
+    ``agent_done``; a teleop operator's ``done`` is ``user_exit``).
     ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
     (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
     """
@@ -107,6 +108,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     if not isinstance(max_steps, int) or max_steps < 1:
         raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
     n = env.num_envs
+    done_reason = getattr(agent, "done_reason", "agent_done")  # e.g. a teleop operator's ``user_exit``
     env.reset()
     agent.reset()
     eps = _Episodes(env, episodes=episodes, until_successes=until_successes, max_attempts=max_attempts)
@@ -141,7 +143,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 keep = ended[eps.latched[ended]] if until_successes else ended
                 saver.fetch(keep, eps.host["length"][keep])
             for row in ended:
-                reason = (REASON_MAX_STEPS if cut[row] else "agent_done" if agent_done[row]
+                reason = (REASON_MAX_STEPS if cut[row] else done_reason if agent_done[row]
                           else env.termination_reasons[reasons[row]])
                 rec = eps.record(row, reason)
                 if saver is not None:

@@ -50,6 +50,9 @@ class TaskSpec:
     """Subtask decomposition for Mimic generation (Mimic variants only)."""
     source_task: str | None = None
     """The task whose demos a Mimic variant expands."""
+    teleop: str | None = None
+    """Teleop contract (``agents.teleop.contracts.CONTRACTS``: the joint groups an operator drives); ``None``:
+    no teleop device drives this task."""
 
     @property
     def option_names(self) -> list[str]:

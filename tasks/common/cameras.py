@@ -13,3 +13,9 @@ def front_head_rgb() -> dict[str, CameraCfg]:
 def front_head_rgb_depth_segmentation() -> dict[str, CameraCfg]:
     """The SortToShelf family (reference mode ``rgbd_semantic``): ``front_head`` RGB + depth + segmentation."""
     return {"front_head": CameraCfg(width=298, height=224, data=("rgb", "depth", "segmentation"))}
+
+
+def teleop_rgb() -> dict[str, CameraCfg]:
+    """PickCube-Teleop: the operator's views, ``left_wrist`` and ``front_head`` RGB at 640 x 480."""
+    return {"left_wrist": CameraCfg(width=640, height=480, data=("rgb",)),
+            "front_head": CameraCfg(width=640, height=480, data=("rgb",))}

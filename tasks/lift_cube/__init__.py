@@ -10,4 +10,5 @@ SPEC = register(TaskSpec(
     cfg=lift_cube_cfg,
     expert=plan,
     description="Grasp the 5 cm cube and lift it 10 cm above its start (held 5 steps).",
+    teleop="left_arm_manipulation",
 ))

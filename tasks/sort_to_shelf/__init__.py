@@ -24,4 +24,5 @@ register(TaskSpec(id="GalbotG1-SortToShelf-Place-v0", cfg=place_cfg, expert=plac
                   options=(_OBJECT, _INIT_SCENARIO),
                   description="Place the carried object in its shelf cell and retract the arm."))
 register(TaskSpec(id="GalbotG1-SortToShelf-v0", cfg=coherent_cfg, options=(_OBJECT,),
-                  description="Pick -> nav -> place of one sorting object in one episode (coherent task)."))
+                  description="Pick -> nav -> place of one sorting object in one episode (coherent task).",
+                  teleop="mobile_full_body"))

@@ -11,5 +11,6 @@ SPEC = register(TaskSpec(
     cfg=stack_cube_cfg,
     expert=plan,
     description="Stack three 5 cm cubes: cube_2 on cube_1, cube_3 on cube_2.",
+    teleop="left_arm_manipulation",
 ))
 MIMIC_SPEC = register(mimic_variant(SPEC, id="GalbotG1-StackCube-Mimic-v0", mimic=MIMIC))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import cameras, postures
 
@@ -32,3 +34,10 @@ def pick_cube_cfg() -> TaskCfg:
         cameras=cameras.front_head_rgb(),
         constraints_per_world=128,  # policy rollouts pressing the cube into the table exceeded the default 64 rows
     )
+
+
+def pick_cube_teleop_cfg() -> TaskCfg:
+    """PickCube for an operator: the teleop camera set (left wrist + front head RGB, 640 x 480) and the same
+    success logic, latched but not ending the episode: the operator ends it (``done``) and reviews it."""
+    return dataclasses.replace(pick_cube_cfg(), task_id="GalbotG1-PickCube-Teleop-v0", cameras=cameras.teleop_rgb(),
+                               terminate_on_success=False)
