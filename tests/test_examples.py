@@ -19,10 +19,10 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SMALL = ["--device", "cpu", "--no-progress"]
 
 
-def run_example(name: str, *args: str | Path) -> list[str]:
-    """Run ``examples/<name>`` (must exit 0); its stdout lines."""
+def run_example(name: str, *args: str | Path, stdin: str = "") -> list[str]:
+    """Run ``examples/<name>`` (must exit 0) with ``stdin`` as its input; its stdout lines."""
     proc = subprocess.run([sys.executable, str(EXAMPLES / name), *map(str, args)], check=True, capture_output=True,
-                          text=True, timeout=300)
+                          text=True, timeout=300, input=stdin)
     return proc.stdout.strip().splitlines()
 
 
@@ -113,6 +113,14 @@ def test_07_coherent_task_collects_an_episode(tmp_path):
     out = last_json(run_example("07_coherent_task.py", "--mode", "collect", "--episodes", "1", "--num-envs", "1",
                                 "--max-steps", "40", "--dataset-path", path, "--cameras", "none", *SMALL))
     assert out["task"] == "GalbotG1-PickToShelf-v0" and out["episodes"] == 1 and num_demos(path) == 1
+
+
+def test_08_teleop_keeps_a_replayed_episode(collected, tmp_path):
+    path = tmp_path / "teleop.hdf5"
+    out = last_json(run_example("08_teleop.py", "--device", "replay", "--replay-dataset", collected[0], "--seed", "0",
+                                "--randomize", "--no-realtime", "--cameras", "none", "--sim-device", "cpu",
+                                "--dataset-path", path, stdin="keep\nexit\n"))
+    assert out["kept_demo_ids"] == [0] and out["dropped_demo_ids"] == [1] and num_demos(path) == 1
 
 
 def test_every_example_is_smoke_tested():

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..commands import CameraArgs, EnvArgs, RerunArgs
+from .run import rerun_hook
 
 TELEOP_TASK = "GalbotG1-PickCube-Teleop-v0"
 DEVICE_NAMES = ("keyboard", "replay", "gp001", "galbot_remote", "remote", "spacemouse", "gamepad")
@@ -64,7 +65,6 @@ def teleop(args: TeleopArgs) -> int:
     check(args)
     from ..agents.teleop import TeleopAgent, teleop_session  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
-    from .run import rerun_hook
 
     kwargs = {"path": args.replay_dataset, "demo": args.replay_demo} if args.device == "replay" else {}
     agent = TeleopAgent.from_device(args.device, task=args.task, no_frame_policy=args.no_frame_policy, **kwargs)

@@ -41,7 +41,7 @@ class TeleopAgent(BaseAgent):
         """Check that device ``name`` can drive ``task`` (one line naming the tasks it can, before the device
         is opened), then open it. ``device_kwargs`` go to the device (e.g. ``transport=`` for gp001,
         ``path=`` for replay)."""
-        from ... import tasks as _registered  # noqa: F401  the contracts are declared by the task packages
+        from ... import tasks as _registered  # noqa: F401  deferred: the task packages declare the contracts (imports every task)
 
         cls_ = device_class(name)
         contract = check_task(task, name, cls_.contracts)

@@ -15,6 +15,7 @@ import torch
 
 from ...robots.g1 import spec
 from ...robots.g1.packers import base_twist_to_wheel_velocities
+from ...task_api.registry import list_tasks, lookup
 from .frames import TeleopFrame
 
 CONTRACTS: dict[str, tuple[str, ...]] = {
@@ -34,8 +35,6 @@ NO_FRAME_POLICIES = ("hold", "zero")
 
 def teleop_tasks(contracts: Sequence[str] | None = None) -> dict[str, str]:
     """Registered task id -> contract, for the tasks that declare one of ``contracts`` (all when ``None``)."""
-    from ...task_api.registry import list_tasks, lookup  # the registry is filled by importing newton_lab.tasks
-
     out = {}
     for task_id in list_tasks():
         contract = lookup(task_id).teleop
@@ -46,8 +45,6 @@ def teleop_tasks(contracts: Sequence[str] | None = None) -> dict[str, str]:
 
 def check_task(task_id: str, device: str, contracts: Sequence[str]) -> str:
     """The contract of ``task_id`` if ``device`` drives it; else one line naming the tasks it does drive."""
-    from ...task_api.registry import lookup
-
     contract = lookup(task_id).teleop
     if contract not in contracts:
         supported = ", ".join(teleop_tasks(contracts)) or "none"

@@ -39,7 +39,7 @@ class VendorTransport:
 
     def open(self) -> None:
         try:
-            import remote_control_lite  # noqa: PLC0415  optional vendor driver (x86_64 binary)
+            import remote_control_lite  # noqa: PLC0415  deferred: the optional vendor driver (x86_64 binary)
         except ImportError:
             raise ValueError("gp001: the vendor driver remote_control_lite is not installed; install Galbot's "
                              "remote SDK, or pass a transport (TeleopAgent.from_device('gp001', transport=...))") from None

@@ -70,7 +70,7 @@ class SpaceMouseDevice(_JogDevice):
 
     def open(self) -> None:
         try:
-            import hid  # noqa: PLC0415  optional extra (hidapi)
+            import hid  # noqa: PLC0415  deferred: an optional extra (hidapi)
         except ImportError:
             raise ValueError("spacemouse: the hidapi package is not installed; pip install 'newton_lab[teleop]' "
                              "(or use --device keyboard)") from None
@@ -106,7 +106,7 @@ class GamepadDevice(_JogDevice):
 
     def open(self) -> None:
         try:
-            import evdev  # noqa: PLC0415  optional extra (Linux input events)
+            import evdev  # noqa: PLC0415  deferred: an optional extra (Linux input events)
         except ImportError:
             raise ValueError("gamepad: the evdev package is not installed; pip install 'newton_lab[teleop]' "
                              "(or use --device keyboard)") from None
