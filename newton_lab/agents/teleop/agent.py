@@ -57,6 +57,7 @@ class TeleopAgent(BaseAgent):
         self.mapper = FrameMapper(self.contract, env.action_joint_names, no_frame_policy=self.no_frame_policy,
                                   twist_scale=self.twist_scale)
         self._tracker = EpisodeTracker(env.num_envs)
+        self._jogs = {arm: TcpJog(env, arm) for arm in self.device.jog_arms}  # IK captured before the operator moves
 
     def reset(self, env_ids=None) -> None:
         """A new episode: the device restarts its jog and starts reading the operator (``resume``)."""

@@ -16,6 +16,8 @@ class TeleopDevice:
     name = "device"
     contracts: tuple[str, ...] = ()
     """Teleop contracts (``contracts.CONTRACTS``) this device can drive."""
+    jog_arms: tuple[str, ...] = ()
+    """Arms this device moves by Cartesian jog (the agent prepares their IK when it binds to an env)."""
 
     def __init__(self) -> None:
         self.frames = LatestFrame()

@@ -26,7 +26,7 @@ class _JogDevice(TeleopDevice):
 
     def __init__(self, *, speed: float = 0.1, yaw_speed: float = 0.5, arm: str = "left"):
         super().__init__()
-        self.speed, self.yaw_speed, self.arm = float(speed), float(yaw_speed), arm
+        self.speed, self.yaw_speed, self.arm, self.jog_arms = float(speed), float(yaw_speed), arm, (arm,)
         self.offset = np.zeros(4)
         self.gripper_open = True
         self.twist = (0.0, 0.0, 0.0)
