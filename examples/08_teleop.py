@@ -23,7 +23,8 @@ DEFAULTS = {"task": "GalbotG1-PickCube-Teleop-v0", "dataset_path": "data/pick_cu
 def main() -> None:
     args = parse_args(TeleopArgs, description=__doc__, defaults=DEFAULTS)
     check(args)
-    device_kwargs = {"path": args.replay_dataset, "demo": args.replay_demo} if args.device == "replay" else {}
+    device_kwargs = ({"path": args.replay_dataset, "demo": args.replay_demo, "mode": args.replay_mode}
+                     if args.device == "replay" else {})
     # the task's contract is checked before the device opens: an unsupported task fails here, in one line
     agent = TeleopAgent.from_device(args.device, task=args.task, no_frame_policy=args.no_frame_policy, **device_kwargs)
     try:

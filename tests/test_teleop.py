@@ -238,18 +238,21 @@ def expert_demo(tmp_path_factory):
     return path
 
 
-def test_replay_device_redrives_an_expert_demo_to_success(expert_demo):
+@pytest.mark.parametrize("mode", ["actions", "tcp"])
+def test_replay_device_redrives_an_expert_demo_to_success(expert_demo, mode):
+    """Recorded joint targets, or the recorded TCP path through the agent's IK, on a new env with the same seed."""
     from newton_lab.agents.teleop import TeleopAgent
     from newton_lab.datasets.storage import read_episode
     from newton_lab.envs import make_env
 
     steps = len(read_episode(expert_demo, 0)["actions"])
     env = make_env("GalbotG1-PickCube-v0", num_envs=1, device="cpu", seed=0, cameras=False)
-    agent = TeleopAgent.from_device("replay", task=env.task_id, path=expert_demo)
+    agent = TeleopAgent.from_device("replay", task=env.task_id, path=expert_demo, mode=mode)
     summary = env.evaluate(agent=agent, episodes=1, max_steps=steps + 20, progress=False)
     assert summary["success_rate"] == 1.0 and summary["termination_reasons"] == {"success": 1}
     assert summary["episode_lengths"] == [steps]
     assert agent.latency()["frames"] == steps
+    assert agent.jog_error() < 1e-3 if mode == "tcp" else agent.jog_error() == 0.0
 
 
 def test_review_loop_keeps_drops_and_exits(expert_demo, tmp_path):

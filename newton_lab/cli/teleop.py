@@ -36,6 +36,8 @@ class TeleopArgs(CameraArgs, RerunArgs, EnvArgs):
     """--device replay: the dataset whose demo is played back"""
     replay_demo: int | None = None
     """--device replay: the demo id (default: the first)"""
+    replay_mode: str = "actions"
+    """--device replay: actions (the recorded joint targets) or tcp (the recorded TCP path, through the IK)"""
     no_realtime: bool = False
     """step as fast as the simulation goes instead of at the control rate (20 Hz)"""
     sim_device: str | None = None
@@ -55,6 +57,8 @@ def check(args: TeleopArgs) -> None:
     if args.device == "replay" and (args.replay_dataset is None or not Path(args.replay_dataset).exists()):
         raise FileNotFoundError(f"--device replay needs --replay-dataset naming an existing dataset, got "
                                 f"{args.replay_dataset!r}")
+    if args.replay_mode not in ("actions", "tcp"):
+        raise ValueError(f"--replay-mode {args.replay_mode!r} is unknown; use actions or tcp")
     if args.num_envs != 1:
         raise ValueError(f"--num-envs {args.num_envs}: one operator drives one env; use --num-envs 1")
     if args.keep is not None and args.keep < 1:
@@ -66,7 +70,8 @@ def teleop(args: TeleopArgs) -> int:
     from ..agents.teleop import TeleopAgent, teleop_session  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
 
-    kwargs = {"path": args.replay_dataset, "demo": args.replay_demo} if args.device == "replay" else {}
+    kwargs = ({"path": args.replay_dataset, "demo": args.replay_demo, "mode": args.replay_mode}
+              if args.device == "replay" else {})
     agent = TeleopAgent.from_device(args.device, task=args.task, no_frame_policy=args.no_frame_policy, **kwargs)
     try:
         env = make_env(args.task, **args.env_kwargs())
