@@ -56,6 +56,7 @@ class PolicyAgent(BaseAgent):
                  if k in dims and dims[k] != env.obs_terms[k].stop - env.obs_terms[k].start}
         if wrong:
             raise ValueError(f"checkpoint observation sizes (checkpoint, env) {wrong} do not match {env.task_id}")
+        self._image_keys = self._check_images(env)
         names = list(p.info.get("action_joint_names", [])) or list(env.action_joint_names)
         if not set(names) <= set(env.action_joint_names):
             raise ValueError(f"checkpoint actions {names} differ from the env's {list(env.action_joint_names)}")
@@ -66,11 +67,33 @@ class PolicyAgent(BaseAgent):
         self._cols = torch.as_tensor(cols, device=env.torch_device)
         n, h, a = env.num_envs, p.cfg.obs_horizon, p.cfg.action_horizon
         self._history = torch.zeros(n, h, len(cols), device=env.torch_device)
+        shapes = p.info.get("image_shapes", {})
+        self._frames = {k: torch.zeros((n, h, *shapes[k]), dtype=torch.uint8, device=env.torch_device)
+                        for k in self._image_keys}
         self._queue = torch.zeros(n, a, len(names), device=env.torch_device)
         self._cursor = np.full(n, a, dtype=np.int64)
         self._tracker = EpisodeTracker(n)
         self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
         self._env = env
+
+    def _check_images(self, env) -> list[str]:
+        """The policy's image keys after checking the env renders them at the trained size (one line otherwise)."""
+        keys = list(getattr(self.policy.cfg, "image_keys", None) or ())
+        if not keys:
+            return []
+        terms = getattr(env, "image_terms", {}) or {}
+        missing = [k for k in keys if k not in terms]
+        if missing:
+            raise ValueError(f"checkpoint sees cameras {missing} that this {env.task_id} env does not render "
+                             f"(its image terms: {sorted(terms) or 'none'}); make the env with its cameras on")
+        shapes = self.policy.info.get("image_shapes", {})
+        wrong = {k: (tuple(shapes[k]), tuple(env.images[k].shape[1:])) for k in keys
+                 if tuple(shapes[k]) != tuple(env.images[k].shape[1:])}
+        if wrong:
+            fix = ", ".join(f"'{k.rsplit('_', 1)[0]}': ({s[0][1]}, {s[0][0]})" for k, s in wrong.items())
+            raise ValueError(f"checkpoint image sizes (trained, env) {wrong} differ (H, W, C); make the env with "
+                             f"cameras={{{fix}}}")
+        return keys
 
     def reset(self, env_ids=None) -> None:
         """Forget the history of ``env_ids`` (all rows when ``None``); they refill at the next ``act``."""
@@ -84,15 +107,21 @@ class PolicyAgent(BaseAgent):
         fresh = self._tracker.fresh_rows(env)
         self._history[:, :-1] = self._history[:, 1:].clone()
         self._history[:, -1] = obs
+        for k, hist in self._frames.items():  # reading env.images renders this step's frames
+            hist[:, :-1] = hist[:, 1:].clone()
+            hist[:, -1] = env.images[k]
         if fresh.size:
             rows = torch.as_tensor(fresh, device=env.torch_device)
             self._history[rows] = obs[rows].unsqueeze(1).expand(-1, self._history.shape[1], -1)
+            for hist in self._frames.values():
+                hist[rows] = hist[rows, -1:].expand_as(hist[rows]).clone()
             self._cursor[fresh] = self._queue.shape[1]
         replan = np.nonzero(self._cursor >= self._queue.shape[1])[0]
         if replan.size:
             rows = torch.as_tensor(replan, device=env.torch_device)
-            self._queue[rows] = self.policy.predict_action(self._history[rows], generator=self._generator).to(
-                self._queue.device)
+            images = {"images": {k: hist[rows] for k, hist in self._frames.items()}} if self._frames else {}
+            self._queue[rows] = self.policy.predict_action(self._history[rows], generator=self._generator,
+                                                           **images).to(self._queue.device)
             self._cursor[replan] = 0
         idx = torch.as_tensor(self._cursor, device=env.torch_device)
         actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()

@@ -36,11 +36,23 @@ def default_obs_keys(obs: dict[str, Any], obs_terms: dict[str, Any] | None = Non
     return sorted(keys, key=lambda k: (k not in order, order.get(k, 0), k))
 
 
+def _check_trained_together(infos: list[dict[str, Any]]) -> None:
+    """Datasets trained together share the task and the action columns (one line naming the odd one)."""
+    first = infos[0]
+    for info in infos[1:]:
+        names = [i["env_args"].get("newton_lab", {}).get("action_joint_names") for i in (first, info)]
+        if info["task_id"] != first["task_id"] or names[0] != names[1]:
+            raise ValueError(f"{info['path']} ({info['task_id']}) does not match {first['path']} ({first['task_id']}): "
+                             "datasets trained together need the same task and action columns")
+
+
 class SequenceDataset(Dataset):
-    """``ds[i] -> {"obs": (obs_horizon, obs_dim), "actions": (pred_horizon, action_dim)}`` float32, raw units."""
+    """``ds[i] -> {"obs": (obs_horizon, obs_dim), "actions": (pred_horizon, action_dim)}`` float32, raw units;
+    with ``image_keys`` also ``"images": {key: (obs_horizon, H, W, 3)}`` uint8 (RGB frames, held in memory)."""
 
     def __init__(self, path: str | Path | Sequence[str | Path], *, obs_keys: Sequence[str] | None = None,
-                 obs_horizon: int = 2, pred_horizon: int = 16, success_only: bool = True) -> None:
+                 obs_horizon: int = 2, pred_horizon: int = 16, success_only: bool = True,
+                 image_keys: Sequence[str] | None = None) -> None:
         if obs_horizon < 1 or pred_horizon < obs_horizon:
             raise ValueError(f"need 1 <= obs_horizon <= pred_horizon, got {obs_horizon} and {pred_horizon}")
         infos = [read_dataset_info(p) for p in ([path] if isinstance(path, (str, Path)) else path)]
@@ -51,11 +63,7 @@ class SequenceDataset(Dataset):
         self.task_id: str = infos[0]["task_id"]
         self.env_args: dict[str, Any] = infos[0]["env_args"]
         meta = self.env_args.get("newton_lab", {})
-        for info in infos[1:]:
-            other = info["env_args"].get("newton_lab", {})
-            if info["task_id"] != self.task_id or other.get("action_joint_names") != meta.get("action_joint_names"):
-                raise ValueError(f"{info['path']} ({info['task_id']}) does not match {self.path} ({self.task_id}): "
-                                 "datasets trained together need the same task and action columns")
+        _check_trained_together(infos)
         self.obs_horizon, self.pred_horizon = obs_horizon, pred_horizon
         self.demos: list[tuple[Path, int]] = [(Path(info["path"]), i) for info in infos for i in info["demo_ids"]
                                               if info["demos"][i]["success"] or not success_only]
@@ -68,6 +76,8 @@ class SequenceDataset(Dataset):
             raise ValueError(f"{self.path} has no demos to train on")
 
         obs_rows, act_rows, obs_index, act_index, start = [], [], [], [], 0
+        self.image_keys: tuple[str, ...] = tuple([image_keys] if isinstance(image_keys, str) else image_keys or ())
+        frames: dict[str, list[np.ndarray]] = {k: [] for k in self.image_keys}
         self.obs_keys: tuple[str, ...] = ()
         self.obs_dims: dict[str, int] = {}
         for file, demo in self.demos:
@@ -87,6 +97,8 @@ class SequenceDataset(Dataset):
                     raise ValueError(f"demo {demo} of {file} has no obs/{k}")
                 parts.append(np.asarray(obs[k], dtype=np.float32).reshape(n, -1))
             obs_rows.append(np.concatenate(parts, axis=1))
+            for k in self.image_keys:
+                frames[k].append(self._frames(obs, k, n, file, demo))
             act_rows.append(np.asarray(ep["actions"], dtype=np.float32))
             steps = np.arange(n)[:, None]
             obs_index.append(start + np.clip(steps + np.arange(-obs_horizon + 1, 1), 0, n - 1))
@@ -105,12 +117,30 @@ class SequenceDataset(Dataset):
             self.actions = torch.from_numpy(np.concatenate(act_rows))
         except ValueError:
             raise ValueError(f"demos of {self.path} have different action dims") from None
+        try:
+            self.images = {k: torch.from_numpy(np.concatenate(v)) for k, v in frames.items()}
+        except ValueError:
+            raise ValueError(f"demos of {self.path} have image frames of different sizes") from None
+        self.image_shapes = {k: tuple(v.shape[1:]) for k, v in self.images.items()}
+        """(H, W, C) of every image key."""
         self.obs_index = torch.from_numpy(np.concatenate(obs_index))
         self.action_index = torch.from_numpy(np.concatenate(act_index))
         names = meta.get("action_joint_names") or [f"action_{i}" for i in range(self.action_dim)]
         if len(names) != self.action_dim:
             raise ValueError(f"{self.path}: {len(names)} action_joint_names but actions have {self.action_dim} columns")
         self.action_joint_names: tuple[str, ...] = tuple(names)
+
+    def _frames(self, obs: dict[str, Any], key: str, n: int, file: Path, demo: int) -> np.ndarray:
+        """(n, H, W, 3) uint8 RGB frames of ``obs/<key>``; one-line errors for what is not."""
+        images = [k for k, v in obs.items() if not isinstance(v, dict) and np.asarray(v).ndim == 4]
+        if key not in obs:
+            raise ValueError(f"demo {demo} of {file} has no image obs/{key}; image terms there: "
+                             f"{', '.join(images) or 'none (collect with --cameras)'}")
+        arr = np.asarray(obs[key])
+        if arr.dtype != np.uint8 or arr.ndim != 4 or arr.shape[0] != n or arr.shape[-1] != 3:
+            raise ValueError(f"obs/{key} of demo {demo} in {file} is {arr.dtype} {arr.shape}; image keys must be "
+                             f"RGB frames (T, H, W, 3) uint8, e.g. front_head_rgb")
+        return arr
 
     def _check_keys(self, keys: list[str], obs: dict[str, Any], demo: int) -> list[str]:
         low_dim = [k for k, v in obs.items() if not isinstance(v, dict) and not is_image_like(k, np.asarray(v))]
@@ -136,13 +166,19 @@ class SequenceDataset(Dataset):
     def __len__(self) -> int:
         return self.obs_index.shape[0]
 
-    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
-        return {"obs": self.obs[self.obs_index[i]], "actions": self.actions[self.action_index[i]]}
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        return self._window(torch.as_tensor(i))
 
-    def __getitems__(self, indices: Sequence[int]) -> dict[str, torch.Tensor]:
+    def __getitems__(self, indices: Sequence[int]) -> dict[str, Any]:
         """A whole batch by fancy indexing (DataLoader uses it; pair with ``collate_fn=collate_batch``)."""
-        idx = torch.as_tensor(indices, dtype=torch.long)
-        return {"obs": self.obs[self.obs_index[idx]], "actions": self.actions[self.action_index[idx]]}
+        return self._window(torch.as_tensor(indices, dtype=torch.long))
+
+    def _window(self, idx: torch.Tensor) -> dict[str, Any]:
+        frames = self.obs_index[idx]
+        out: dict[str, Any] = {"obs": self.obs[frames], "actions": self.actions[self.action_index[idx]]}
+        if self.images:
+            out["images"] = {k: v[frames] for k, v in self.images.items()}
+        return out
 
     def __repr__(self) -> str:
         return (f"SequenceDataset({self.source!r}, demos={len(self.demos)}, windows={len(self)}, "

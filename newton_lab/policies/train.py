@@ -242,7 +242,7 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
     data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
-                           pred_horizon=cfg.pred_horizon, success_only=cfg.success_only)
+                           pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
     if state is not None:
         check_resumable(state, cfg, data, out_dir)
         policy = restore_policy(state, cfg)

@@ -133,6 +133,7 @@ class CudaGraphTrainStep(ResumableOrder):
                                            betas=cfg.betas, weight_decay=cfg.weight_decay, fused=True,
                                            capturable=True)
         self.obs, self.actions = data.obs.to(device), data.actions.to(device)
+        self.images = {k: v.to(device) for k, v in data.images.items()}  # uint8 frames: the whole set on the GPU
         self.obs_index, self.action_index = data.obs_index.to(device), data.action_index.to(device)
         self.num_windows, self.steps = len(data), steps_per_epoch(data, cfg.batch_size)
         self.generator = torch.Generator(device=device).manual_seed(cfg.seed)  # batch order
@@ -141,7 +142,10 @@ class CudaGraphTrainStep(ResumableOrder):
         self.calls, self.graph, self.loss = 0, None, None
 
     def _body(self) -> torch.Tensor:
-        batch = {"obs": self.obs[self.obs_index[self.index]], "actions": self.actions[self.action_index[self.index]]}
+        frames = self.obs_index[self.index]
+        batch = {"obs": self.obs[frames], "actions": self.actions[self.action_index[self.index]]}
+        if self.images:
+            batch["images"] = {k: v[frames] for k, v in self.images.items()}
         loss = self.policy.compute_loss(batch)
         loss.backward()
         self.optimizer.step()

@@ -1,0 +1,118 @@
+"""The visuomotor diffusion policy at 96x72 on CPU: the ResNet-18/GroupNorm + spatial-softmax encoder, image
+windows from a real image dataset, shape / key mismatch errors, the checkpoint round trip, and a policy that
+overfits two PickCube demos from the front-head camera plus proprioception (no object pose) and replays them."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from newton_lab.policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
+from newton_lab.policies.vision import ImageEncoder, SpatialSoftmax, crop_frames
+
+CAMERAS = {"front_head": (96, 72)}
+PROPRIO = ("robot_joint_pos", "gripper_pos")
+
+
+def test_spatial_softmax_finds_the_hot_pixel():
+    pool = SpatialSoftmax(1, keypoints=1)
+    with torch.no_grad():
+        pool.keypoints.weight.fill_(1.0)
+        pool.keypoints.bias.zero_()
+    x = torch.zeros(1, 1, 9, 17)
+    x[0, 0, 2, 12] = 50.0
+    xy = pool(x)[0]
+    assert xy.tolist() == pytest.approx([12 / 16 * 2 - 1, 2 / 8 * 2 - 1], abs=1e-3)
+
+
+def test_crops_stay_inside_and_centre_at_inference():
+    x = torch.arange(2 * 10 * 12 * 3, dtype=torch.int32).reshape(2, 10, 12, 3).to(torch.uint8)
+    c = crop_frames(x, (8, 10), random=False)
+    assert torch.equal(c, x[:, 1:9, 1:11])
+    for _ in range(20):
+        r = crop_frames(x, (8, 10), random=True)
+        assert r.shape == (2, 8, 10, 3)
+        for n in range(2):  # every crop is a window of its own frame
+            hits = [(i, j) for i in range(3) for j in range(3) if torch.equal(r[n], x[n, i:i + 8, j:j + 10])]
+            assert hits
+
+
+def test_encoder_shapes_and_errors():
+    enc = ImageEncoder({"front_head_rgb": (72, 96, 3)}, crop=0.9, feature_dim=8, width=16)
+    frames = torch.randint(0, 255, (3, 2, 72, 96, 3), dtype=torch.uint8)
+    assert enc({"front_head_rgb": frames}).shape == (3, 2, 8)
+    with pytest.raises(ValueError, match=r"images \['front_head_rgb'\] are missing"):
+        enc.check({"left_wrist_rgb": frames})
+    with pytest.raises(ValueError, match=r"frames are \(224, 298, 3\), the policy was trained on \(72, 96, 3\)"):
+        enc.check({"front_head_rgb": torch.zeros(1, 2, 224, 298, 3, dtype=torch.uint8)})
+
+
+# ---------------------------------------------------------------- on a real image dataset (CPU physics)
+@pytest.fixture(scope="module")
+def image_demos(tmp_path_factory):
+    """Two PickCube expert demos with the front-head camera at 96x72 (seed 0, randomised)."""
+    from newton_lab.agents import PlannerAgent
+    from newton_lab.envs import make_env
+
+    env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, cameras=CAMERAS)
+    path = tmp_path_factory.mktemp("vision") / "demos.hdf5"
+    ref = env.collect(agent=PlannerAgent.from_task(env.task_id), episodes=2, path=path, progress=False)
+    assert ref["successes"] == 2
+    return path
+
+
+def _cfg(tmp_path, **kw) -> DiffusionPolicyConfig:
+    preset = {**PRESETS["vision_cpu"], "max_steps": 2, "batch_size": 4}
+    return DiffusionPolicyConfig(**{**preset, "output_dir": str(tmp_path / "policy"), "progress": False,
+                                    "checkpoint_every_steps": None, "checkpoint_every_s": None, **kw})
+
+
+def test_image_windows_and_checkpoint_round_trip(image_demos, tmp_path):
+    from newton_lab.policies import Policy
+    from newton_lab.policies.data import SequenceDataset
+
+    data = SequenceDataset(image_demos, obs_keys=PROPRIO, image_keys=("front_head_rgb",))
+    batch = data.__getitems__([0, 5, 7])
+    assert batch["images"]["front_head_rgb"].shape == (3, 2, 72, 96, 3)
+    assert batch["images"]["front_head_rgb"].dtype == torch.uint8 and batch["obs"].shape[:2] == (3, 2)
+    with pytest.raises(ValueError, match="has no image obs/left_wrist_rgb; image terms there: front_head_rgb"):
+        SequenceDataset(image_demos, obs_keys=PROPRIO, image_keys=("left_wrist_rgb",))
+
+    path = Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path))
+    policy = DiffusionPolicy.load(path)
+    assert policy.info["image_keys"] == ["front_head_rgb"] and policy.info["image_shapes"] == {
+        "front_head_rgb": [72, 96, 3]}
+    assert policy.obs_keys == list(PROPRIO) and policy.cfg.crop == 0.9
+    again = DiffusionPolicy.load(path)
+    obs, images = batch["obs"][:1], {"front_head_rgb": batch["images"]["front_head_rgb"][:1]}
+    a = policy.predict_action(obs, images=images, generator=torch.Generator().manual_seed(0))
+    b = again.predict_action(obs, images=images, generator=torch.Generator().manual_seed(0))
+    assert torch.equal(a, b)
+    with pytest.raises(ValueError, match="this policy sees images"):
+        policy.predict_action(obs)
+
+
+def test_policy_agent_refuses_other_cameras(image_demos, tmp_path):
+    from newton_lab.envs import make_env
+    from newton_lab.policies import Policy
+    from newton_lab.policies.agent import PolicyAgent
+
+    path = Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path))
+    for cameras, match in ((False, "does not render"), ({"front_head": (128, 96)}, r"cameras=\{'front_head': \(96, 72\)\}")):
+        env = make_env("GalbotG1-PickCube-v0", num_envs=1, device="cpu", cameras=cameras)
+        with pytest.raises(ValueError, match=match):
+            PolicyAgent.from_checkpoint(path).act(env)
+
+
+@pytest.mark.slow
+def test_visuomotor_policy_overfits_two_demos_and_replays_them(image_demos, tmp_path):
+    """Front-head RGB + joints + gripper (no cube pose): trained on the two demos, run from their start states."""
+    from newton_lab.envs import make_env
+    from newton_lab.policies import Policy
+    from newton_lab.policies.agent import PolicyAgent
+
+    cfg = _cfg(tmp_path, max_steps=PRESETS["vision_cpu"]["max_steps"], batch_size=PRESETS["vision_cpu"]["batch_size"])
+    path = Policy.from_backend("diffusion").train(image_demos, cfg)
+    env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, cameras=CAMERAS)
+    summary = env.evaluate(agent=PolicyAgent.from_checkpoint(path), episodes=2, max_steps=300, progress=False)
+    assert summary["successes"] >= 1, summary
