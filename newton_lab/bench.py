@@ -124,12 +124,14 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
     side in one process on fresh policies of the same architecture."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
-    data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon)
+    data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon, obs_keys=cfg.obs_keys,
+                           image_keys=cfg.image_keys)
     on_cuda = torch.device(device).type == "cuda"
     kinds = [EagerTrainStep] + ([CudaGraphTrainStep] if on_cuda else [])
     out: dict[str, Any] = {"dataset": dataset, "device": device, "batch_size": batch_size, "preset": preset,
                            "device_name": torch.cuda.get_device_name(device) if on_cuda else "cpu",
-                           "windows": len(data)}
+                           "windows": len(data), "image_keys": list(data.image_keys),
+                           "image_shapes": {k: list(v) for k, v in data.image_shapes.items()}}
     for kind in kinds:
         torch.manual_seed(0)
         policy = DiffusionPolicy.from_dataset(data, cfg).to(device)
@@ -145,6 +147,7 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
                     break
         final = loss.item()  # waits for the queued steps
         out[f"{kind.__name__}_steps_per_s"] = steps / (time.perf_counter() - t0)
+        out[f"{kind.__name__}_samples_per_s"] = out[f"{kind.__name__}_steps_per_s"] * batch_size
         out[f"{kind.__name__}_final_loss"] = final
     if len(kinds) == 2:
         out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]

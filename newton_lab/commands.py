@@ -375,7 +375,7 @@ class BenchTrainArgs:
     """Windows per training step."""
     steps: int = 200
     """Training steps timed per variant."""
-    preset: Literal["default", "cpu"] = "default"
+    preset: Literal["default", "cpu", "vision", "vision_cpu"] = "default"
     """Named training settings (network size)."""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""

@@ -15,6 +15,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     # A 2-core CPU budget (~18 min): a quarter-width U-Net, small batches, a higher learning rate, 10k steps.
     "cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 64, "lr": 6e-4,
             "warmup_steps": 300, "max_steps": 10000, "epochs": 1000},
+    # Visuomotor (front-head RGB + proprioception, no object pose): the full ResNet-18/GroupNorm trunk, on a GPU.
+    "vision": {"image_keys": ("front_head_rgb",), "obs_keys": ("robot_joint_pos", "tcp_pose", "gripper_pos"),
+               "prediction_type": "sample", "num_inference_steps": 5},
     # Visuomotor on 2 CPU cores (96x72 frames): a quarter-width ResNet-18 trunk, proprioception only.
     "vision_cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 32, "lr": 6e-4,
                    "warmup_steps": 100, "max_steps": 3000, "epochs": 1000, "encoder_width": 16,
