@@ -6,6 +6,7 @@ steps -> task kernel -> masked resets -> observations) and a graph of just ``dec
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 from typing import Any
@@ -119,9 +120,10 @@ def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
 
 
 def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, device: str = "cpu",
-                preset: str = "default") -> dict[str, Any]:
+                preset: str = "default", bf16: bool = False) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
-    side in one process on fresh policies of the same architecture."""
+    side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
+    autocast (keys ``..._bf16``)."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
     data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon, obs_keys=cfg.obs_keys,
@@ -132,10 +134,12 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
                            "device_name": torch.cuda.get_device_name(device) if on_cuda else "cpu",
                            "windows": len(data), "image_keys": list(data.image_keys),
                            "image_shapes": {k: list(v) for k, v in data.image_shapes.items()}}
-    for kind in kinds:
+    for kind, precision in [(k, p) for p in ([False, True] if bf16 else [False]) for k in kinds]:
         torch.manual_seed(0)
-        policy = DiffusionPolicy.from_dataset(data, cfg).to(device)
-        stepper, done, t0, loss = kind(policy, data, cfg), 0, 0.0, None
+        run_cfg = dataclasses.replace(cfg, bf16=precision)
+        name = kind.__name__ + ("_bf16" if precision else "")
+        policy = DiffusionPolicy.from_dataset(data, run_cfg).to(device)
+        stepper, done, t0, loss = kind(policy, data, run_cfg), 0, 0.0, None
         while done < steps + 10:  # 10 untimed steps: allocation, autotuning, capture
             for loss in stepper.epoch():
                 done += 1
@@ -146,9 +150,9 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
                 if done == steps + 10:
                     break
         final = loss.item()  # waits for the queued steps
-        out[f"{kind.__name__}_steps_per_s"] = steps / (time.perf_counter() - t0)
-        out[f"{kind.__name__}_samples_per_s"] = out[f"{kind.__name__}_steps_per_s"] * batch_size
-        out[f"{kind.__name__}_final_loss"] = final
+        out[f"{name}_steps_per_s"] = steps / (time.perf_counter() - t0)
+        out[f"{name}_samples_per_s"] = out[f"{name}_steps_per_s"] * batch_size
+        out[f"{name}_final_loss"] = final
     if len(kinds) == 2:
         out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]
     return out

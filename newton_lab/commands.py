@@ -377,6 +377,8 @@ class BenchTrainArgs:
     """Training steps timed per variant."""
     preset: Literal["default", "cpu", "vision", "vision_cpu"] = "default"
     """Named training settings (network size)."""
+    bf16: bool = False
+    """also time the steps under bfloat16 autocast (float32 and bf16 side by side)"""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""
 

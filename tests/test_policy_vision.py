@@ -92,6 +92,17 @@ def test_image_windows_and_checkpoint_round_trip(image_demos, tmp_path):
         policy.predict_action(obs)
 
 
+def test_bf16_training_keeps_float32_weights(image_demos, tmp_path):
+    from newton_lab.policies import Policy
+
+    path = Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path, bf16=True))
+    ckpt = torch.load(path, weights_only=True)
+    assert ckpt["config"]["bf16"] is True
+    assert {v.dtype for v in ckpt["weights"].values() if v.is_floating_point()} == {torch.float32}
+    assert torch.isfinite(torch.tensor(__import__("json").loads((path.parent / "train_log.json").read_text())[
+        "final_loss"]))
+
+
 def test_policy_agent_refuses_other_cameras(image_demos, tmp_path):
     from newton_lab.envs import make_env
     from newton_lab.policies import Policy

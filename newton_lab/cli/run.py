@@ -173,7 +173,7 @@ def bench_train(args: BenchTrainArgs) -> int:
     from ..bench import bench_train as measure  # deferred: torch is slow to import
 
     print(json.dumps(measure(args.dataset_path, batch_size=args.batch_size, steps=args.steps, device=args.device,
-                             preset=args.preset)))
+                             preset=args.preset, bf16=args.bf16)))
     return 0
 
 

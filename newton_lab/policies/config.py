@@ -83,6 +83,9 @@ class DiffusionPolicyConfig:
     cuda_graph: bool = True
     """On CUDA, capture the whole training step once and replay it (1.7x the eager steps/s on an H100 at batch
     1024); off = the eager step."""
+    bf16: bool = False
+    """Run the networks' forward and backward under bfloat16 autocast (encoder convolutions, U-Net); weights,
+    optimiser state, normalisers and the loss stay float32."""
     compile: bool = False
     """The eager step (CPU, or CUDA with cuda_graph off) runs the network through ``torch.compile``: about a minute
     of compiling on 2 CPU cores, then each step takes ~0.55x the time (the quarter-width U-Net on CPU is bound

@@ -139,11 +139,13 @@ class DiffusionPolicy(nn.Module):
         {"obs": (B, To, Do), "actions": (B, Tp, A)[, "images": {key: (B, To, H, W, 3)}]} in raw units."""
         obs = batch["obs"].to(self.device, torch.float32)
         x0 = self.action_normalizer.normalize(batch["actions"].to(self.device, torch.float32))
-        cond = self.condition(obs, batch.get("images"), self.model)
         noise = torch.randn_like(x0)
         t = self.scheduler.sample_timesteps(x0.shape[0], device=x0.device)
         target = x0 if self.cfg.prediction_type == "sample" else noise
-        return F.mse_loss(self.train_net(self.scheduler.add_noise(x0, noise, t), t, cond), target)
+        with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.cfg.bf16):
+            cond = self.condition(obs, batch.get("images"), self.model)
+            pred = self.train_net(self.scheduler.add_noise(x0, noise, t), t, cond)
+        return F.mse_loss(pred.float(), target)
 
     @torch.no_grad()
     def predict_action(self, obs_history: torch.Tensor, *, images=None,
