@@ -72,8 +72,10 @@ def _steps(tmux: Tmux, n: int) -> None:
 
 
 def _session(tmp_path: Path, name: str, dataset: Path) -> Tmux:
-    return Tmux(name, [CLI, "teleop", "--device", "keyboard", "--cameras", "none", "--no-realtime", "--dataset-path",
-                       str(dataset)], tmp_path)
+    # paced at the control rate (20 Hz), as an operator meets it: unpaced, a slow machine could run the episode
+    # into its step limit (6000 steps) between two of the script's keys
+    return Tmux(name, [CLI, "teleop", "--device", "keyboard", "--cameras", "none", "--dataset-path", str(dataset)],
+                tmp_path)
 
 
 def test_keyboard_teleop_in_a_terminal_keep_drop_and_end_of_input(tmp_path):
@@ -106,7 +108,7 @@ def test_keyboard_teleop_in_a_terminal_keep_drop_and_end_of_input(tmp_path):
         tmux.keys("keep")
         tmux.keys("Enter", literal=False)
         tmux.wait_for(lambda s: "kept demo [0]" in s, "kept")
-        tmux.wait_for(lambda s: _status(s.split("kept demo")[-1]), "the next episode")
+        tmux.wait_for(lambda s: "kept demo" in s and _status(s.split("kept demo")[-1]), "the next episode")
         tmux.keys("done")
         tmux.keys("Enter", literal=False)
         tmux.wait_for(lambda s: s.count("keep / drop / exit?") >= 2, "the second review prompt")
@@ -135,7 +137,7 @@ def test_keyboard_teleop_in_a_terminal_keep_drop_and_end_of_input(tmp_path):
             else:
                 tmux.keys(answer)
                 tmux.keys("Enter", literal=False)
-                tmux.wait_for(lambda s: _status(s.split("dropped demo")[-1]), "the next episode")
+                tmux.wait_for(lambda s: "dropped demo" in s and _status(s.split("dropped demo")[-1]), "the next episode")
                 tmux.keys("done")  # then end the input at the next prompt
                 tmux.keys("Enter", literal=False)
                 tmux.wait_for(lambda s: s.count("keep / drop / exit?") >= 2, "the second review prompt")
