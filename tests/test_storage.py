@@ -498,14 +498,18 @@ def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
     path = tmp_path / f"ds{suffix}"
     write_demos(path, [0])
     before = fingerprint(path)
-    store = __import__(f"newton_lab.datasets.{suffix[1:]}_store", fromlist=["_write_tree"])
-    real = store._write_tree
+    store = __import__(f"newton_lab.datasets.{suffix[1:]}_store", fromlist=["append"])
+    name = "write_demo" if suffix == ".zarr" else "_write_tree"  # each store's per-demo writer
+    real = getattr(store, name)
 
-    def failing(g, tree):
-        real(g, {k: v for k, v in tree.items() if k == "actions"})
+    def failing(*args, **kwargs):  # the demo's first array lands, then the disk is full
+        tree = args[-1] if name == "_write_tree" else args[2]
+        args = (*args[:-1], {"actions": tree["actions"]}) if name == "_write_tree" else \
+            (*args[:2], {"actions": tree["actions"]})
+        real(*args, **kwargs)
         raise OSError("disk full")
 
-    monkeypatch.setattr(store, "_write_tree", failing)
+    monkeypatch.setattr(store, name, failing)
     with pytest.raises(OSError, match="disk full"):
         write_demos(path, [1])
     monkeypatch.undo()
@@ -513,3 +517,34 @@ def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
         assert fingerprint(path) == before and not (tmp_path / "ds.hdf5-journal").exists()
     assert list_demos(path) == [0] and read_dataset_info(path)["total"] == 200
     assert write_demos(path, [1]) == [1]
+
+
+def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
+    """The zarr append path writes nodes with plain file writes (``zarr_nodes``): every array's metadata equals
+    zarr-python's for the same array, and zarr-python reads back the values (edge chunks, byte order, 0-d)."""
+    from zarr.storage import LocalStore
+
+    from newton_lab.datasets import zarr_nodes
+
+    rng = np.random.default_rng(3)
+    tree = {"long": rng.standard_normal((5000, 64)).astype(np.float32),  # 1.28 MB: two time chunks, the last padded
+            "big_endian": rng.standard_normal((7, 3)).astype(">f8"), "ints": rng.integers(-9, 9, (11,), np.int16),
+            "flags": rng.random(13) > 0.5, "frames": rng.integers(0, 255, (3, 6, 5, 3), np.uint8),
+            "nested": {"scalar": np.float64(2.5), "empty": np.zeros((0, 4), np.float32)}}
+    (tmp_path / "ours").mkdir()
+    zarr.open_group(store=LocalStore(tmp_path / "ours"), mode="w", zarr_format=3)
+    left = []
+    zarr_nodes.write_demo(tmp_path / "ours" / "demo", {"num_samples": 5, "success": True}, tree,
+                          fallback=lambda rel, v: left.append(rel))
+    assert sorted(left) == ["nested/empty", "nested/scalar"]  # 0-d and empty arrays are zarr-python's
+    ours = zarr.open_group(str(tmp_path / "ours"), mode="r", zarr_format=3)["demo"]
+    assert ours.attrs.asdict() == {"num_samples": 5, "success": True}
+    theirs = zarr.open_group(store=LocalStore(tmp_path / "theirs"), mode="w", zarr_format=3)
+    for key in ("long", "big_endian", "ints", "flags", "frames"):
+        value = tree[key]
+        theirs.create_array(key, data=value, **zarr_nodes.array_kwargs(value))
+        meta = json.loads((tmp_path / "ours" / "demo" / key / "zarr.json").read_text())
+        assert meta == json.loads((tmp_path / "theirs" / key / "zarr.json").read_text()), key
+        np.testing.assert_array_equal(ours[key][...], value, err_msg=key)
+        assert ours[key].dtype == theirs[key].dtype
+    assert sorted(os.listdir(tmp_path / "ours" / "demo" / "long")) == ["c.0.0", "c.1.0", "zarr.json"]

@@ -10,27 +10,27 @@ serialised and demo ids come from ``next_demo_id``. Readers take no lock.
 from __future__ import annotations
 
 import errno
+import functools
 import json
 import os
 import shutil
 import threading
 import uuid
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import zarr
-from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
 from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
                       lock_exclusive, sync_tree, time_chunks, write_fault_point)
+from .zarr_nodes import array_kwargs, write_demo, write_group
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written
-IMAGE_CODEC = ZstdCodec(level=3)
-"""Codec of image arrays (one frame per chunk); the other arrays keep zarr's default (zstd level 0)."""
 
 
 _io = threading.Condition()
@@ -115,16 +115,27 @@ def _scan(path: Path, limit: int | None = None) -> tuple[dict[int, dict[str, Any
     return committed, leftovers
 
 
-def _write_tree(g: zarr.Group, tree: dict[str, Any]) -> None:
-    for key, value in tree.items():
-        if isinstance(value, dict):
-            _write_tree(g.create_group(key), value)
-        elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, zstd (README: Image datasets)
-            g.create_array(key, data=value, chunks=(1, *value.shape[1:]), compressors=IMAGE_CODEC,
-                           chunk_key_encoding={"name": "default", "separator": "."})  # c.<t>.0.0.0: one folder
-        else:
-            chunks = time_chunks(value.shape, value.itemsize) if value.ndim else "auto"
-            g.create_array(key, data=value, chunks=chunks)
+WRITE_THREADS = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_THREADS", "4"))
+"""Threads writing a batch's demos (file creation waits on the filesystem, not on the GIL)."""
+
+
+def _parallel(fn, jobs: list) -> None:
+    """``fn(job)`` for every job on ``WRITE_THREADS`` threads; the first error is raised once all stopped."""
+    if len(jobs) < 2 or WRITE_THREADS < 2:
+        for job in jobs:
+            fn(job)
+        return
+    with ThreadPoolExecutor(min(WRITE_THREADS, len(jobs)), thread_name_prefix="zarr-write") as pool:
+        for future in [pool.submit(fn, job) for job in jobs]:
+            future.result()
+
+
+def _write_with_zarr(path: Path, demo: Path, rel: str, value: np.ndarray) -> None:
+    """One array of a staged demo written by zarr-python (what ``zarr_nodes`` leaves to it)."""
+    parent, _, name = rel.rpartition("/")
+    node = (demo / parent).relative_to(path).as_posix()
+    group = zarr.open_group(store=_Store(path), path=node, mode="r+", zarr_format=3)
+    group.create_array(name, data=value, **array_kwargs(value))
 
 
 def _read_tree(g: zarr.Group) -> dict[str, Any]:
@@ -244,10 +255,11 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
         before = {NEXT_ID: next_id, "total": total, "num_demos": count}
         attempted = False
         try:
-            group = data.require_group(STAGING).create_group(stage.name)
-            for i, (tree, attrs, num_samples) in zip(ids, items):
-                _write_tree(group.create_group(demo_name(i), attributes={**attrs, "num_samples": int(num_samples)}),
-                            tree)
+            data.require_group(STAGING)
+            write_group(stage, {})
+            jobs = [(stage / demo_name(i), {**attrs, "num_samples": int(num_samples)}, tree)
+                    for i, (tree, attrs, num_samples) in zip(ids, items)]
+            _parallel(lambda job: write_demo(*job, fallback=functools.partial(_write_with_zarr, path, job[0])), jobs)
             if fsync:
                 sync_tree(stage)
             for i in ids:

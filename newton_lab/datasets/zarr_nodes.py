@@ -1,0 +1,126 @@
+"""A batch of demos written as zarr v3 nodes with plain file writes (the zarr store's append path).
+
+Why not ``group.create_array``: zarr-python spends ~3 ms of Python per array (metadata objects, a round trip
+through its event loop), concurrent or not, which bounds a demo of ~25 arrays at a few demos/s. Here each
+array's ``zarr.json`` is a template that zarr-python itself wrote for the same dtype, rank and codecs (only
+``shape`` and ``chunk_shape`` are filled in), and each chunk is that codec chain's output: the C-order
+little-endian bytes of the full chunk (edge chunks padded with the fill value, as zarr does), zstd-compressed
+by numcodecs as zarr's ``ZstdCodec`` does. Arrays whose template has any other codec chain, and 0-d or empty
+arrays, are written by zarr-python. Readers use zarr-python only (``tests/test_storage.py`` compares both).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zarr
+from numcodecs import Zstd
+from zarr.storage import LocalStore
+
+from ._common import time_chunks, write_fault_point
+
+IMAGE_ZSTD_LEVEL = 3
+"""zstd level of image arrays (one frame per chunk); the other arrays keep zarr's default codecs."""
+
+
+def array_kwargs(value: np.ndarray) -> dict[str, Any]:
+    """``create_array`` keywords of a demo array: image frames (T, H, W[, 3]) one frame per chunk, zstd 3; the
+    rest split along time (README: Image datasets). Chunk files sit in the array's folder (``c.<t>.0``)."""
+    from zarr.codecs import ZstdCodec
+
+    flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}  # one directory per array, not per chunk row
+    if value.ndim >= 3:
+        return {"chunks": (1, *value.shape[1:]), "compressors": ZstdCodec(level=IMAGE_ZSTD_LEVEL), **flat}
+    return {"chunks": time_chunks(value.shape, value.itemsize) if value.ndim else "auto", **flat}
+
+
+@functools.lru_cache(maxsize=None)
+def _template(dtype: str, ndim: int) -> tuple[str, Zstd | None, str] | None:
+    """(zarr.json text with ``%SHAPE%`` / ``%CHUNKS%`` holes, the chunk compressor, the chunk key separator)
+    as zarr-python writes an array of this dtype and rank; None when its codec chain is not bytes -> zstd."""
+    probe = np.zeros((1,) * ndim, dtype=np.dtype(dtype))
+    with tempfile.TemporaryDirectory() as tmp:
+        zarr.create_array(LocalStore(tmp), data=probe, **array_kwargs(probe))
+        meta = json.loads(Path(tmp, "zarr.json").read_text())
+    codecs = meta.get("codecs", [])
+    if ([c.get("name") for c in codecs] != ["bytes", "zstd"] or meta.get("attributes")
+            or meta.get("chunk_key_encoding", {}).get("name") != "default"
+            or meta.get("storage_transformers") or meta.get("chunk_grid", {}).get("name") != "regular"):
+        return None
+    zstd = codecs[1].get("configuration", {})
+    compressor = Zstd(level=int(zstd.get("level", 0)), checksum=bool(zstd.get("checksum", False)))
+    meta["shape"], meta["chunk_grid"]["configuration"]["chunk_shape"] = "%SHAPE%", "%CHUNKS%"
+    sep = meta["chunk_key_encoding"].get("configuration", {}).get("separator", "/")
+    return json.dumps(meta, indent=2), compressor, sep
+
+
+def _write(path: Path, data: bytes) -> None:
+    write_fault_point()
+    with open(path, "wb") as f:
+        f.write(data)
+
+
+def _write_array(node: Path, value: np.ndarray) -> bool:
+    """Write ``value`` as the array ``node``; False when it needs zarr-python (see the module docstring)."""
+    if value.ndim == 0 or value.size == 0:
+        return False
+    template = _template(value.dtype.str, value.ndim)
+    if template is None:
+        return False
+    text, compressor, sep = template
+    chunks = array_kwargs(value)["chunks"]
+    node.mkdir()
+    _write(node / "zarr.json", text.replace('"%SHAPE%"', json.dumps(list(value.shape)))
+           .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode())
+    value = np.asarray(value, dtype=value.dtype.newbyteorder("<"))
+    grid = [math.ceil(s / c) for s, c in zip(value.shape, chunks)]
+    made: set[Path] = set()
+    for index in np.ndindex(*grid):
+        block = value[tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, chunks))]
+        if block.shape != tuple(chunks):  # edge chunk: stored whole, padded with the fill value (0 / false)
+            block = np.pad(block, [(0, c - s) for s, c in zip(block.shape, chunks)])
+        key = node / sep.join(["c", *map(str, index)])
+        if key.parent != node and key.parent not in made:
+            key.parent.mkdir(parents=True, exist_ok=True)
+            made.add(key.parent)
+        _write(key, compressor.encode(np.ascontiguousarray(block).tobytes()))
+    return True
+
+
+def _write_group(node: Path, attrs: dict[str, Any]) -> None:
+    node.mkdir()
+    _write(node / "zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"},
+                                          indent=2).encode())
+
+
+def write_group(node: Path, attrs: dict[str, Any]) -> None:
+    """An empty group ``node`` (a new directory) with ``attrs``."""
+    _write_group(node, attrs)
+
+
+def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
+               fallback: Callable[[str, np.ndarray], None]) -> None:
+    """Demo group ``node`` with ``attrs`` and every array of the nested ``tree``; ``fallback(relpath, value)``
+    writes an array this module does not (with zarr-python), after the groups exist. Not durable until the
+    caller syncs (one ``syncfs`` per batch)."""
+    _write_group(node, attrs)
+    rest: list[tuple[str, np.ndarray]] = []
+
+    def walk(at: Path, sub: dict[str, Any], rel: str) -> None:
+        for key, value in sub.items():
+            if isinstance(value, dict):
+                _write_group(at / key, {})
+                walk(at / key, value, f"{rel}{key}/")
+            elif not _write_array(at / key, np.asarray(value)):
+                rest.append((f"{rel}{key}", np.asarray(value)))
+
+    walk(node, tree, "")
+    for rel, value in rest:
+        fallback(rel, value)
