@@ -184,3 +184,18 @@ def test_mimic_of_an_image_source_writes_images(tmp_path):
     ep = read_episode(ref.path, info["demo_ids"][0])
     assert ep["obs"]["front_head_rgb"].shape == (len(ep["actions"]), SMALL[1], SMALL[0], 3)
     assert ep["datagen"]["camera_poses"]["front_head"].shape == (len(ep["actions"]), 7)
+
+
+def test_image_buffers_too_large_for_the_device_end_in_one_line():
+    """Growing the per-row image buffers past the device's memory (e.g. 298x224 frames at thousands of rows) is
+    a one-line MemoryError naming the fixes, not an allocator traceback."""
+    import torch
+
+    from newton_lab.envs.recorder import EpisodeRecorder
+
+    rec = EpisodeRecorder.__new__(EpisodeRecorder)  # only the image buffers: no env needed
+    rec.max_steps = 1000
+    rec._images = {"front_head_rgb": torch.zeros((10**9, 0, 224, 298, 3), dtype=torch.uint8)}
+    with pytest.raises(MemoryError, match=r"front_head_rgb of 1000000000 rows for 64 steps needs 11936187\.7 GiB "
+                                          r"on cpu, .*--cameras none"):
+        rec._grow_images(0)

@@ -53,7 +53,7 @@ COMMANDS: dict[str, Command] = {
 }
 """Subcommands in ``--help`` order."""
 
-ERRORS = (ValueError, FileNotFoundError, FileExistsError, KeyError, ConnectionError)
+ERRORS = (ValueError, FileNotFoundError, FileExistsError, KeyError, ConnectionError, MemoryError)
 """Exceptions reported as one ``newton-lab <command>: error: ...`` line and exit status 2."""
 
 

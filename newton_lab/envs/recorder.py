@@ -12,6 +12,7 @@ the step on the device and copy only finished episodes (``episodes``), together 
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -83,7 +84,16 @@ class EpisodeRecorder:
             return
         new_cap = min(self.max_steps, (last // IMAGE_CHUNK_STEPS + 1) * IMAGE_CHUNK_STEPS)
         for name, buf in self._images.items():
-            grown = torch.zeros((buf.shape[0], new_cap, *buf.shape[2:]), dtype=buf.dtype, device=buf.device)
+            try:
+                grown = torch.zeros((buf.shape[0], new_cap, *buf.shape[2:]), dtype=buf.dtype, device=buf.device)
+            except (torch.OutOfMemoryError, RuntimeError) as e:  # CUDA: OutOfMemoryError; CPU: RuntimeError
+                if not isinstance(e, torch.OutOfMemoryError) and "allocate" not in str(e):
+                    raise
+                need = buf.shape[0] * new_cap * math.prod(buf.shape[2:]) * buf.element_size() / 2**30
+                raise MemoryError(
+                    f"recording {name} of {buf.shape[0]} rows for {new_cap} steps needs {need:.1f} GiB on "
+                    f"{buf.device}, more than is free; record fewer rows (--num-envs), smaller frames "
+                    f"(--cameras name=WxH) or no images (--cameras none)") from None
             grown[:, :cap] = buf
             self._images[name] = grown
 
