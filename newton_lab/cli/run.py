@@ -91,8 +91,10 @@ def mimic(args: MimicArgs) -> int:
 
     ref = generate(args.dataset_path, **args.mimic_kwargs())
     m = ref.metadata
+    wall = m.get("wall_time_s") or 0.0  # the generation loop (env and sources built before it)
     print(json.dumps({"task": ref.task_id, "successes": m["successes"], "attempts": m["attempts"],
-                      "generation_success_rate": m["generation_success_rate"], "path": str(ref.path)}))
+                      "generation_success_rate": m["generation_success_rate"], "path": str(ref.path),
+                      "wall_time_s": wall, "demos_per_hour": m["successes"] / wall * 3600.0 if wall else None}))
     return 0
 
 

@@ -15,17 +15,15 @@ from .source import SourceDemo
 
 
 class _RowPlan:
-    """One row's generation state for the current attempt."""
+    """One row's plan for the current attempt: its subtask, the segment planned last, the sources used (the
+    step state, cursor and last target, is in the agent's per-row arrays)."""
 
     def __init__(self):
         self.subtask = -1
         self.poses = np.zeros((0, 7))
         self.gripper = np.zeros(0)
         self.noisy = np.zeros(0, dtype=bool)
-        self.cursor = 0
-        self.last_target: np.ndarray | None = None
         self.sources: list[int] = []
-        self.settle = 0
         self.done = False
 
 
@@ -55,6 +53,16 @@ class MimicAgent(BaseAgent):
         self._tracker = EpisodeTracker(n)
         self._q = np.zeros((n, self._kin.robot_coords))
         self._actions = env.current_action().clone()
+        # per-row step state, indexed for every row at once (planned per row only at subtask starts)
+        self._poses = np.zeros((n, 0, 7))
+        """(N, L, 7) TCP waypoints of each row's current segment (interpolation + transformed source)."""
+        self._gripper, self._noisy = np.zeros((n, 0)), np.zeros((n, 0), dtype=bool)
+        self._cursor, self._length = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        self._done, self._settle = np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64)
+        self._subtask = np.zeros(n, dtype=np.int64)
+        self._last_target, self._has_last = np.zeros((n, 7)), np.zeros(n, dtype=bool)
+        self._last_grip = np.zeros(n)
+        self._noise_of = np.array([sub.action_noise for sub in self.cfg.subtasks], dtype=np.float64)
 
     def reset(self, env_ids=None) -> None:
         if self._env is not None:
@@ -74,20 +82,18 @@ class MimicAgent(BaseAgent):
             return None
         if sub.object_ref is None or cur_obj is None:
             return cands[int(self.rng.integers(len(cands)))]
-        dist = np.array([
-            np.linalg.norm(src.objects[sub.object_ref][s, :3] - cur_obj[:3])
-            + self.cfg.rot_weight * rotation_angle(src.objects[sub.object_ref][s, 3:7],
-                                                   self._frame(sub, cur_obj, src.objects[sub.object_ref][s])[3:7])
-            for src, s, _ in cands
-        ])
+        src_obj = np.stack([src.objects[sub.object_ref][s] for src, s, _ in cands])  # (K, 7) at each segment start
+        dist = (np.linalg.norm(src_obj[:, :3] - cur_obj[:3], axis=1)
+                + self.cfg.rot_weight * rotation_angle(src_obj[:, 3:7], self._frame(sub, cur_obj, src_obj)[:, 3:7]))
         top = np.argsort(dist)[: max(sub.nn_k, 1)]
         return cands[int(self.rng.choice(top))]
 
     @staticmethod
     def _frame(sub, cur_obj: np.ndarray, src_obj: np.ndarray) -> np.ndarray:
-        """The current object frame to replay in (turned by the object's yaw symmetry toward the source)."""
+        """The current object frame to replay in (turned by the object's yaw symmetry toward the source pose
+        ``src_obj`` (7,) or each of (K, 7))."""
         if sub.yaw_symmetry is None:
-            return cur_obj
+            return np.broadcast_to(cur_obj, np.shape(src_obj))
         return closest_symmetric_pose(cur_obj, src_obj, sub.yaw_symmetry)
 
     def _start_subtask(self, r: int, plan: _RowPlan, env_poses: dict[str, np.ndarray], tcp_now: np.ndarray) -> None:
@@ -97,6 +103,7 @@ class MimicAgent(BaseAgent):
         pick = self._select(plan.subtask, cur_obj)
         if pick is None:
             plan.subtask = len(self.cfg.subtasks)
+            plan.poses, plan.gripper, plan.noisy = np.zeros((0, 7)), np.zeros(0), np.zeros(0, dtype=bool)
             return
         src, start, end = pick
         plan.sources.append(src.demo_id)
@@ -104,7 +111,7 @@ class MimicAgent(BaseAgent):
         if sub.object_ref is not None:
             src_obj = src.objects[sub.object_ref][start]
             seg = transform_segment(seg, src_obj, self._frame(sub, cur_obj, src_obj))
-        first = plan.last_target if (self.cfg.interpolate_from_last_target_pose and plan.last_target is not None) else tcp_now
+        first = self._last_target[r] if (self.cfg.interpolate_from_last_target_pose and self._has_last[r]) else tcp_now
         interp = interpolate_poses(first, seg[0], sub.num_interpolation_steps)
         grip = src.gripper[start:end]
         plan.poses = np.concatenate([interp, seg])
@@ -113,6 +120,39 @@ class MimicAgent(BaseAgent):
         plan.cursor = 0
 
     # ------------------------------------------------------------------ the agent contract
+    def _plan_rows(self, rows, fresh: set[int], q_env: np.ndarray, env_poses: dict[str, np.ndarray],
+                   tcp_now: np.ndarray) -> None:
+        """Per-row Python only where a row starts an attempt or a subtask: plan its next segment and copy it into
+        the padded step buffers that :meth:`act` indexes for every row at once."""
+        for r in rows:
+            plan = self._rows[r]
+            if r in fresh:
+                plan = self._rows[r] = _RowPlan()
+                self._q[r] = q_env[r]
+                self._cursor[r], self._length[r], self._done[r], self._settle[r] = 0, 0, False, 0
+                self._has_last[r], self._last_grip[r] = False, 0.0
+            while not plan.done and self._cursor[r] >= self._length[r]:
+                if plan.subtask + 1 >= len(self.cfg.subtasks):
+                    plan.done = self._done[r] = True
+                    break
+                self._start_subtask(r, plan, env_poses, tcp_now[r])
+                self._load(r, plan)
+
+    def _load(self, r: int, plan: _RowPlan) -> None:
+        """Row ``r``'s new segment into the step buffers (grown to the longest segment so far)."""
+        length = len(plan.poses)
+        if length > self._poses.shape[1]:
+            grow = length - self._poses.shape[1]
+            self._poses = np.pad(self._poses, ((0, 0), (0, grow), (0, 0)))
+            self._gripper = np.pad(self._gripper, ((0, 0), (0, grow)))
+            self._noisy = np.pad(self._noisy, ((0, 0), (0, grow)))
+        self._poses[r, :length], self._gripper[r, :length] = plan.poses, plan.gripper
+        self._noisy[r, :length] = plan.noisy
+        self._cursor[r], self._length[r] = 0, length
+        self._subtask[r] = min(max(plan.subtask, 0), len(self.cfg.subtasks) - 1)
+        if length:
+            self._last_grip[r] = plan.gripper[-1]
+
     def act(self, env, env_ids=None) -> torch.Tensor:
         if self._env is not env:
             self._bind(env)
@@ -120,39 +160,33 @@ class MimicAgent(BaseAgent):
         fresh = set(self._tracker.fresh_rows(env).tolist())  # new attempt on these rows
         q_env = wp.to_torch(env.state.joint_q).view(n, -1)[:, : self._kin.robot_coords].cpu().numpy()
         tcp_now = env.tcp_pose.cpu().numpy().astype(np.float64)
-        ent = env.entity_poses.cpu().numpy().astype(np.float64)
-        env_poses = {name: ent[:, e.slot] for name, e in env.entities.items()}
+        due = sorted(fresh | set(np.nonzero(~self._done & (self._cursor >= self._length))[0].tolist()))
+        if due:
+            ent = env.entity_poses.cpu().numpy().astype(np.float64)
+            self._plan_rows(due, fresh, q_env, {name: ent[:, e.slot] for name, e in env.entities.items()}, tcp_now)
+        # every row at once: the next waypoint of a playing row; a finished row holds its last target
+        playing = ~self._done
+        rows = np.arange(n)
+        cursor = np.minimum(self._cursor, self._poses.shape[1] - 1) if self._poses.shape[1] else self._cursor * 0
         targets = tcp_now.copy()
         grip = np.zeros(n)
         noisy = np.zeros(n, dtype=bool)
-        for r in range(n):
-            plan = self._rows[r]
-            if r in fresh:
-                plan = self._rows[r] = _RowPlan()
-                self._q[r] = q_env[r]
-            while not plan.done and plan.cursor >= len(plan.poses):
-                if plan.subtask + 1 >= len(self.cfg.subtasks):
-                    plan.done = True
-                    break
-                self._start_subtask(r, plan, env_poses, tcp_now[r])
-            if plan.done:
-                plan.settle += 1
-                targets[r] = plan.last_target if plan.last_target is not None else tcp_now[r]
-                grip[r] = plan.gripper[-1] if len(plan.gripper) else 0.0
-                continue
-            targets[r] = plan.poses[plan.cursor]
-            grip[r] = plan.gripper[plan.cursor]
-            noisy[r] = plan.noisy[plan.cursor]
-            plan.last_target = targets[r]
-            plan.cursor += 1
+        if self._poses.shape[1]:
+            targets[playing] = self._poses[rows[playing], cursor[playing]]
+            grip[playing] = self._gripper[rows[playing], cursor[playing]]
+            noisy[playing] = self._noisy[rows[playing], cursor[playing]]
+        held = ~playing & self._has_last
+        targets[held] = self._last_target[held]
+        grip[~playing] = self._last_grip[~playing]
+        self._settle[~playing] += 1
+        self._last_target[playing], self._has_last[playing] = targets[playing], True
+        self._cursor[playing] += 1
         seed = q_env.copy()
         seed[:, self._kin.arm_coords] = self._q[:, self._kin.arm_coords]
         q = self._kin.solve(seed, targets[:, :3], targets[:, 3:7], iterations=self.ik_iterations)
         self._q = q.astype(np.float64)
         arm = q[:, self._kin.arm_coords]
-        noise = np.array([self.cfg.subtasks[min(max(p.subtask, 0), len(self.cfg.subtasks) - 1)].action_noise
-                          for p in self._rows])
-        arm = arm + noisy[:, None] * noise[:, None] * self.rng.standard_normal(arm.shape)
+        arm = arm + noisy[:, None] * self._noise_of[self._subtask][:, None] * self.rng.standard_normal(arm.shape)
         out = self._actions
         out[:, self._arm_cols] = torch.as_tensor(arm, dtype=torch.float32, device=out.device)
         if self._grip_col is not None:
@@ -161,5 +195,6 @@ class MimicAgent(BaseAgent):
 
     def done(self, env) -> torch.Tensor:
         """Rows whose attempt played every segment and held the last target for ``settle_steps``."""
-        flags = [p.done and p.settle >= self.cfg.settle_steps for p in self._rows] if self._env is env else []
-        return torch.as_tensor(flags or [False] * env.num_envs, device=env.torch_device)
+        if self._env is not env:
+            return torch.zeros(env.num_envs, dtype=torch.bool, device=env.torch_device)
+        return torch.as_tensor(self._done & (self._settle >= self.cfg.settle_steps), device=env.torch_device)

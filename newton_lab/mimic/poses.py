@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..task_api.motion_plan import yaw_of
+
 
 def quat_to_mat(q: np.ndarray) -> np.ndarray:
     """(..., 4) xyzw -> (..., 3, 3)."""
@@ -25,23 +27,21 @@ def mat_to_quat(m: np.ndarray) -> np.ndarray:
     m = np.asarray(m, dtype=np.float64)
     t = np.trace(m, axis1=-2, axis2=-1)
     q = np.empty(m.shape[:-2] + (4,))
-    # largest-component branch for numerical safety
-    cand = np.stack([t, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], -1)
+    # largest-component branch for numerical safety, every matrix at once
+    r = {(i, j): m[..., i, j] for i in range(3) for j in range(3)}
+    cand = np.stack([t, r[0, 0], r[1, 1], r[2, 2]], -1)
     k = np.argmax(cand, axis=-1)
-    for idx in np.ndindex(m.shape[:-2]):
-        r = m[idx]
-        if k[idx] == 0:
-            s = np.sqrt(1.0 + t[idx]) * 2
-            q[idx] = [(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s]
-        elif k[idx] == 1:
-            s = np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2
-            q[idx] = [0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s, (r[2, 1] - r[1, 2]) / s]
-        elif k[idx] == 2:
-            s = np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2
-            q[idx] = [(r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s, (r[0, 2] - r[2, 0]) / s]
-        else:
-            s = np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2
-            q[idx] = [(r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s, (r[1, 0] - r[0, 1]) / s]
+    with np.errstate(invalid="ignore", divide="ignore"):  # the branches not taken may be sqrt(<0) or /0
+        s = np.stack([np.sqrt(1.0 + t), np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]),
+                      np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]), np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])], -1) * 2
+        s0, s1, s2, s3 = (s[..., i] for i in range(4))
+        branches = np.stack([
+            np.stack([(r[2, 1] - r[1, 2]) / s0, (r[0, 2] - r[2, 0]) / s0, (r[1, 0] - r[0, 1]) / s0, 0.25 * s0], -1),
+            np.stack([0.25 * s1, (r[0, 1] + r[1, 0]) / s1, (r[0, 2] + r[2, 0]) / s1, (r[2, 1] - r[1, 2]) / s1], -1),
+            np.stack([(r[0, 1] + r[1, 0]) / s2, 0.25 * s2, (r[1, 2] + r[2, 1]) / s2, (r[0, 2] - r[2, 0]) / s2], -1),
+            np.stack([(r[0, 2] + r[2, 0]) / s3, (r[1, 2] + r[2, 1]) / s3, 0.25 * s3, (r[1, 0] - r[0, 1]) / s3], -1),
+        ], -2)
+    q[...] = np.take_along_axis(branches, k[..., None, None], axis=-2)[..., 0, :]
     q *= np.where(q[..., 3:4] < 0, -1.0, 1.0)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
@@ -99,19 +99,12 @@ def rotation_angle(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     return 2.0 * np.arccos(np.clip(d, -1.0, 1.0))
 
 
-def yaw_of(q: np.ndarray) -> float:
-    """Yaw [rad] of one xyzw quaternion."""
-    x, y, z, w = q
-    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
-
-
 def closest_symmetric_pose(cur: np.ndarray, ref: np.ndarray, period: float) -> np.ndarray:
     """``cur`` (7,) turned about its own z by the multiple of ``period`` [rad] that brings its yaw closest
-    to ``ref``'s (for objects that look the same after that turn)."""
-    d = yaw_of(ref[3:7]) - yaw_of(cur[3:7])
-    k = np.round(d / period)
-    half = 0.5 * k * period
-    turn = np.array([0.0, 0.0, np.sin(half), np.cos(half)])
-    out = cur.copy()
-    out[3:7] = mat_to_quat(quat_to_mat(cur[3:7]) @ quat_to_mat(turn))
+    to ``ref``'s (for objects that look the same after that turn); ``ref`` (..., 7) gives (..., 7)."""
+    ref = np.asarray(ref, dtype=np.float64)
+    half = 0.5 * np.round((yaw_of(ref[..., 3:7]) - yaw_of(cur[3:7])) / period) * period
+    turn = np.stack([np.zeros_like(half), np.zeros_like(half), np.sin(half), np.cos(half)], -1)
+    out = np.broadcast_to(np.asarray(cur, dtype=np.float64), ref.shape).copy()
+    out[..., 3:7] = mat_to_quat(quat_to_mat(cur[3:7]) @ quat_to_mat(turn))
     return out

@@ -35,7 +35,7 @@ class WorldTarget:
         p = np.broadcast_to(np.asarray(self.pos, dtype=np.float64), poses["base"][:, :3].shape).copy()
         if self.frame == "base":
             base = poses["base"]
-            yaw = _yaw(base[:, 3:7])
+            yaw = yaw_of(base[:, 3:7])
             c, s = np.cos(yaw), np.sin(yaw)
             x, y = p[:, 0].copy(), p[:, 1].copy()
             p[:, 0] = base[:, 0] + c * x - s * y
@@ -76,14 +76,11 @@ class MotionPlan:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def _yaw(quat_xyzw: np.ndarray) -> np.ndarray:
-    x, y, z, w = (quat_xyzw[:, i] for i in range(4))
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
 def yaw_of(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Yaw [rad] of (R, 4) xyzw quaternions."""
-    return _yaw(np.asarray(quat_xyzw, dtype=np.float64))
+    """Yaw [rad] of xyzw quaternions (..., 4) -> (...)."""
+    q = np.asarray(quat_xyzw, dtype=np.float64)
+    x, y, z, w = (q[..., i] for i in range(4))
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def _step_from_dict(d: dict) -> MotionStep:
