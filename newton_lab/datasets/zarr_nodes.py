@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import zarr
 from numcodecs import Zstd
+from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
 from ._common import time_chunks, write_fault_point
@@ -33,8 +34,6 @@ IMAGE_ZSTD_LEVEL = 3
 def array_kwargs(value: np.ndarray) -> dict[str, Any]:
     """``create_array`` keywords of a demo array: image frames (T, H, W[, 3]) one frame per chunk, zstd 3; the
     rest split along time (README: Image datasets). Chunk files sit in the array's folder (``c.<t>.0``)."""
-    from zarr.codecs import ZstdCodec
-
     flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}  # one directory per array, not per chunk row
     if value.ndim >= 3:
         return {"chunks": (1, *value.shape[1:]), "compressors": ZstdCodec(level=IMAGE_ZSTD_LEVEL), **flat}
