@@ -41,9 +41,9 @@ def array_kwargs(value: np.ndarray) -> dict[str, Any]:
 
 
 @functools.lru_cache(maxsize=None)
-def _template(dtype: str, ndim: int) -> tuple[str, Zstd | None, str] | None:
-    """(zarr.json text with ``%SHAPE%`` / ``%CHUNKS%`` holes, the chunk compressor, the chunk key separator)
-    as zarr-python writes an array of this dtype and rank; None when its codec chain is not bytes -> zstd."""
+def _template(dtype: str, ndim: int) -> tuple[str, Zstd] | None:
+    """(zarr.json text with ``%SHAPE%`` / ``%CHUNKS%`` holes, the chunk compressor) as zarr-python writes an
+    array of this dtype and rank; None unless its codec chain is bytes -> zstd with flat ``c.<i>.<j>`` keys."""
     probe = np.zeros((1,) * ndim, dtype=np.dtype(dtype))
     with tempfile.TemporaryDirectory() as tmp:
         zarr.create_array(LocalStore(tmp), data=probe, **array_kwargs(probe))
@@ -51,13 +51,13 @@ def _template(dtype: str, ndim: int) -> tuple[str, Zstd | None, str] | None:
     codecs = meta.get("codecs", [])
     if ([c.get("name") for c in codecs] != ["bytes", "zstd"] or meta.get("attributes")
             or meta.get("chunk_key_encoding", {}).get("name") != "default"
-            or meta.get("storage_transformers") or meta.get("chunk_grid", {}).get("name") != "regular"):
+            or meta.get("storage_transformers") or meta.get("chunk_grid", {}).get("name") != "regular"
+            or meta["chunk_key_encoding"].get("configuration", {}).get("separator") != "."):
         return None
     zstd = codecs[1].get("configuration", {})
     compressor = Zstd(level=int(zstd.get("level", 0)), checksum=bool(zstd.get("checksum", False)))
     meta["shape"], meta["chunk_grid"]["configuration"]["chunk_shape"] = "%SHAPE%", "%CHUNKS%"
-    sep = meta["chunk_key_encoding"].get("configuration", {}).get("separator", "/")
-    return json.dumps(meta, indent=2), compressor, sep
+    return json.dumps(meta, indent=2), compressor
 
 
 def _write(path: Path, data: bytes) -> None:
@@ -73,35 +73,26 @@ def _write_array(node: Path, value: np.ndarray) -> bool:
     template = _template(value.dtype.str, value.ndim)
     if template is None:
         return False
-    text, compressor, sep = template
+    text, compressor = template
     chunks = array_kwargs(value)["chunks"]
     node.mkdir()
     _write(node / "zarr.json", text.replace('"%SHAPE%"', json.dumps(list(value.shape)))
            .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode())
     value = np.asarray(value, dtype=value.dtype.newbyteorder("<"))
     grid = [math.ceil(s / c) for s, c in zip(value.shape, chunks)]
-    made: set[Path] = set()
     for index in np.ndindex(*grid):
         block = value[tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, chunks))]
         if block.shape != tuple(chunks):  # edge chunk: stored whole, padded with the fill value (0 / false)
             block = np.pad(block, [(0, c - s) for s, c in zip(block.shape, chunks)])
-        key = node / sep.join(["c", *map(str, index)])
-        if key.parent != node and key.parent not in made:
-            key.parent.mkdir(parents=True, exist_ok=True)
-            made.add(key.parent)
-        _write(key, compressor.encode(np.ascontiguousarray(block).tobytes()))
+        _write(node / ".".join(["c", *map(str, index)]), compressor.encode(np.ascontiguousarray(block).tobytes()))
     return True
-
-
-def _write_group(node: Path, attrs: dict[str, Any]) -> None:
-    node.mkdir()
-    _write(node / "zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"},
-                                          indent=2).encode())
 
 
 def write_group(node: Path, attrs: dict[str, Any]) -> None:
     """An empty group ``node`` (a new directory) with ``attrs``."""
-    _write_group(node, attrs)
+    node.mkdir()
+    _write(node / "zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"},
+                                          indent=2).encode())
 
 
 def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
@@ -109,13 +100,13 @@ def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
     """Demo group ``node`` with ``attrs`` and every array of the nested ``tree``; ``fallback(relpath, value)``
     writes an array this module does not (with zarr-python), after the groups exist. Not durable until the
     caller syncs (one ``syncfs`` per batch)."""
-    _write_group(node, attrs)
+    write_group(node, attrs)
     rest: list[tuple[str, np.ndarray]] = []
 
     def walk(at: Path, sub: dict[str, Any], rel: str) -> None:
         for key, value in sub.items():
             if isinstance(value, dict):
-                _write_group(at / key, {})
+                write_group(at / key, {})
                 walk(at / key, value, f"{rel}{key}/")
             elif not _write_array(at / key, np.asarray(value)):
                 rest.append((f"{rel}{key}", np.asarray(value)))

@@ -27,7 +27,7 @@ import zarr
 from zarr.storage import LocalStore
 
 from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
-                      lock_exclusive, sync_tree, time_chunks, write_fault_point)
+                      lock_exclusive, sync_tree, write_fault_point)
 from .zarr_nodes import array_kwargs, write_demo, write_group
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written

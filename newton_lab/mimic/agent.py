@@ -16,7 +16,7 @@ from .source import SourceDemo
 
 class _RowPlan:
     """One row's plan for the current attempt: its subtask, the segment planned last, the sources used (the
-    step state, cursor and last target, is in the agent's per-row arrays)."""
+    step state, cursor, done flag and last target, is in the agent's per-row arrays)."""
 
     def __init__(self):
         self.subtask = -1
@@ -24,7 +24,6 @@ class _RowPlan:
         self.gripper = np.zeros(0)
         self.noisy = np.zeros(0, dtype=bool)
         self.sources: list[int] = []
-        self.done = False
 
 
 class MimicAgent(BaseAgent):
@@ -117,7 +116,6 @@ class MimicAgent(BaseAgent):
         plan.poses = np.concatenate([interp, seg])
         plan.gripper = np.concatenate([np.full(len(interp), grip[0]), grip])
         plan.noisy = np.concatenate([np.zeros(len(interp), dtype=bool), np.ones(len(seg), dtype=bool)])
-        plan.cursor = 0
 
     # ------------------------------------------------------------------ the agent contract
     def _plan_rows(self, rows, fresh: set[int], q_env: np.ndarray, env_poses: dict[str, np.ndarray],
@@ -131,9 +129,9 @@ class MimicAgent(BaseAgent):
                 self._q[r] = q_env[r]
                 self._cursor[r], self._length[r], self._done[r], self._settle[r] = 0, 0, False, 0
                 self._has_last[r], self._last_grip[r] = False, 0.0
-            while not plan.done and self._cursor[r] >= self._length[r]:
+            while not self._done[r] and self._cursor[r] >= self._length[r]:
                 if plan.subtask + 1 >= len(self.cfg.subtasks):
-                    plan.done = self._done[r] = True
+                    self._done[r] = True
                     break
                 self._start_subtask(r, plan, env_poses, tcp_now[r])
                 self._load(r, plan)
@@ -166,15 +164,13 @@ class MimicAgent(BaseAgent):
             self._plan_rows(due, fresh, q_env, {name: ent[:, e.slot] for name, e in env.entities.items()}, tcp_now)
         # every row at once: the next waypoint of a playing row; a finished row holds its last target
         playing = ~self._done
-        rows = np.arange(n)
-        cursor = np.minimum(self._cursor, self._poses.shape[1] - 1) if self._poses.shape[1] else self._cursor * 0
         targets = tcp_now.copy()
         grip = np.zeros(n)
         noisy = np.zeros(n, dtype=bool)
-        if self._poses.shape[1]:
-            targets[playing] = self._poses[rows[playing], cursor[playing]]
-            grip[playing] = self._gripper[rows[playing], cursor[playing]]
-            noisy[playing] = self._noisy[rows[playing], cursor[playing]]
+        if playing.any():  # a playing row's cursor is inside its segment (planned just above)
+            rows, cursor = np.nonzero(playing)[0], self._cursor[playing]
+            targets[rows], grip[rows], noisy[rows] = (self._poses[rows, cursor], self._gripper[rows, cursor],
+                                                      self._noisy[rows, cursor])
         held = ~playing & self._has_last
         targets[held] = self._last_target[held]
         grip[~playing] = self._last_grip[~playing]
