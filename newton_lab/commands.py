@@ -1,7 +1,6 @@
 """The argument model: one ``@dataclass`` per command, shared by the console script (``newton_lab.cli``
-generates its argparse parser from these classes: fields -> flags, field docstrings -> help), the numbered
-examples (``newton_lab.cli.parse_args`` with their own defaults) and the Prefect stages (``newton_lab.flows``
-pass these objects to the stages).
+generates its argparse parser from these classes: fields -> flags, field docstrings -> help), the examples
+(``newton_lab.cli.parse_args`` with their own defaults) and the Prefect stages (``newton_lab.flows``).
 
 A field ``num_envs`` is the flag ``--num-envs``; ``bool`` fields are switches; ``X | None`` fields are
 optional; fields without a default are required; ``list[str]`` fields take one or more values; field
@@ -163,7 +162,7 @@ class MimicArgs(CameraArgs):
 
 
 TRAIN_OVERRIDES = ("epochs", "batch_size", "max_steps", "lr", "weight_decay", "num_workers", "time_budget_s",
-                   "init_checkpoint", "prediction_type", "compile")
+                   "init_checkpoint", "prediction_type", "compile", "bf16")
 """``TrainArgs`` fields that override the preset only when given."""
 
 
@@ -176,7 +175,7 @@ class TrainArgs:
     output_dir: str = "outputs/policy"
     """Folder for checkpoint.pt and train_log.json."""
     preset: str = "default"
-    """named settings: default (GPU-sized) or cpu (2-core budget)"""
+    """named settings: default (state, GPU), cpu (state, 2 cores), vision (RGB + proprioception), vision_cpu"""
     epochs: int | None = None
     """passes over the data (default 100)"""
     max_steps: int | None = None
@@ -198,6 +197,8 @@ class TrainArgs:
     """continue training this checkpoint (its architecture and normalisers are kept)"""
     compile: bool | None = None
     """run the network through torch.compile (CPU: about a minute of compiling, then faster steps)"""
+    bf16: bool | None = None
+    """forward and backward under bfloat16 autocast (weights, optimiser state stay float32)"""
     time_budget_s: float | None = None
     """wall-clock budget [s]: the run is shortened to fit (LR schedule re-planned)"""
     device: str = "cpu"

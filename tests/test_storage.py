@@ -548,3 +548,75 @@ def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
         np.testing.assert_array_equal(ours[key][...], value, err_msg=key)
         assert ours[key].dtype == theirs[key].dtype
     assert sorted(os.listdir(tmp_path / "ours" / "demo" / "long")) == ["c.0.0", "c.1.0", "zarr.json"]
+
+
+def _to_processes(monkeypatch, processes: int = 2) -> None:
+    """Send every zarr batch of >= 2 demos to ``processes`` fresh writer processes."""
+    from newton_lab.datasets import zarr_workers
+
+    monkeypatch.setattr(zarr_workers, "PROCESS_MIN_BATCH", 2)
+    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", processes)
+    monkeypatch.setattr(zarr_workers, "_shared", None)
+
+
+def _close_pool() -> None:
+    from newton_lab.datasets import zarr_workers
+
+    if zarr_workers._shared is not None:
+        zarr_workers._shared.close()
+
+
+def test_zarr_batch_on_writer_processes_matches_the_thread_path(tmp_path, monkeypatch):
+    """A large zarr batch is written by worker processes; its demos read back as written, like a small batch's."""
+    _to_processes(monkeypatch)
+    try:
+        with EpisodeWriter.open(tmp_path / "p.zarr", task_id=TASK, env_args=ENV_ARGS) as w:
+            ids = w.append_episodes([(make_episode(s), True, {"seed": s}) for s in range(6)])
+        from newton_lab.datasets import zarr_workers
+        assert ids == list(range(6)) and len(zarr_workers.shared().pids) == 2  # the processes wrote it
+    finally:
+        _close_pool()
+    assert read_dataset_info(tmp_path / "p.zarr")["total"] == 1200
+    for s in range(6):
+        assert_tree_equal({k: v for k, v in read_episode(tmp_path / "p.zarr", s).items() if k != "attrs"},
+                          make_episode(s))
+
+
+def test_zarr_writer_process_killed_mid_batch_commits_nothing_of_it(tmp_path, monkeypatch):
+    """SIGKILL of a writer process while a batch is being written: the append fails in one line, the dataset
+    holds exactly the demos before it, and the next append (on new processes) continues the ids."""
+    from newton_lab.datasets import zarr_store, zarr_workers
+
+    path = tmp_path / "k.zarr"
+    write_demos(path, [0, 1])
+    _to_processes(monkeypatch)
+    stage = path / "data" / zarr_store.STAGING
+    big = [(make_episode(s), True, {"seed": s}) for s in range(2, 26)]  # ~20k chunk files: seconds of writing
+    result: dict = {}
+
+    def append():
+        try:
+            with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+                result["ids"] = w.append_episodes(big)
+        except Exception as e:  # noqa: BLE001 - checked below
+            result["error"] = e
+
+    thread = threading.Thread(target=append)
+    thread.start()
+    try:
+        deadline = time.monotonic() + 120
+        while not any(stage.glob("*/demo_*/actions")) and time.monotonic() < deadline and thread.is_alive():
+            time.sleep(0.01)  # wait until the writer processes are writing demos
+        assert thread.is_alive(), result
+        os.kill(zarr_workers.shared().pids[0], signal.SIGKILL)
+        thread.join(120)
+        assert "ids" not in result
+        message = str(result["error"])
+        assert "writer process died" in message and "none of the batch was committed" in message
+        assert "\n" not in message
+        assert list_demos(path) == [0, 1] and read_dataset_info(path)["total"] == 400
+        with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+            assert w.append_episodes([(make_episode(s), True, None) for s in (2, 3)]) == [2, 3]
+    finally:
+        _close_pool()
+    assert_tree_equal({k: v for k, v in read_episode(path, 3).items() if k != "attrs"}, make_episode(3))

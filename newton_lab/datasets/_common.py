@@ -205,6 +205,12 @@ def inject_write_fault(fail_at: int | None, err: int = errno.ENOSPC) -> None:
         _fault.update(left=None if fail_at is None else fail_at - 1, errno=err)
 
 
+def fault_injected() -> bool:
+    """Whether a test fault is armed (writes then stay in this process, where the fault lives)."""
+    with _fault_lock:
+        return _fault["left"] is not None
+
+
 def write_fault_point() -> None:
     """Called before every low-level write of both stores; raises the injected fault, if any."""
     with _fault_lock:

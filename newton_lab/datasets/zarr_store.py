@@ -17,7 +17,7 @@ import shutil
 import threading
 import uuid
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -26,9 +26,10 @@ import numpy as np
 import zarr
 from zarr.storage import LocalStore
 
-from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
-                      lock_exclusive, sync_tree, write_fault_point)
+from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, fault_injected, from_stored,
+                      fsync_path, lock_exclusive, sync_tree, write_fault_point)
 from .zarr_nodes import array_kwargs, write_demo, write_group
+from . import zarr_workers
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written
 
@@ -116,17 +117,31 @@ def _scan(path: Path, limit: int | None = None) -> tuple[dict[int, dict[str, Any
 
 
 WRITE_THREADS = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_THREADS", "4"))
-"""Threads writing a batch's demos (file creation waits on the filesystem, not on the GIL)."""
+"""Threads writing a small batch's demos (file creation waits on the filesystem, not on the GIL)."""
+def _write_job(path: Path, job: tuple[Path, dict[str, Any], dict[str, Any]]) -> None:
+    node, attrs, tree = job
+    write_demo(node, attrs, tree, fallback=functools.partial(_write_with_zarr, path, node))
 
 
-def _parallel(fn, jobs: list) -> None:
-    """``fn(job)`` for every job on ``WRITE_THREADS`` threads; the first error is raised once all stopped."""
-    if len(jobs) < 2 or WRITE_THREADS < 2:
+def _parallel(path: Path, jobs: list) -> None:
+    """Write every (demo folder, attrs, tree) of ``jobs``: a large batch on the writer processes, a small one (or
+    any under an injected test fault, which lives in this process) on ``WRITE_THREADS`` threads. Returns when
+    every writer stopped; raises the first error."""
+    if len(jobs) >= zarr_workers.PROCESS_MIN_BATCH and zarr_workers.WRITE_PROCESSES >= 1 and not fault_injected():
+        try:
+            leftovers = zarr_workers.shared().write(jobs)
+        except zarr_workers.WriterDied as e:
+            raise RuntimeError(f"{e} to {path}; none of the batch was committed") from None
+        for node, rel, value in leftovers:
+            _write_with_zarr(path, node, rel, value)
+    elif len(jobs) < 2 or WRITE_THREADS < 2:
         for job in jobs:
-            fn(job)
-        return
-    with ThreadPoolExecutor(min(WRITE_THREADS, len(jobs)), thread_name_prefix="zarr-write") as pool:
-        for future in [pool.submit(fn, job) for job in jobs]:
+            _write_job(path, job)
+    else:
+        with ThreadPoolExecutor(min(WRITE_THREADS, len(jobs)), thread_name_prefix="zarr-write") as pool:
+            futures = [pool.submit(_write_job, path, job) for job in jobs]
+            wait(futures)  # nothing may still be writing when the caller removes the staging folder
+        for future in futures:
             future.result()
 
 
@@ -259,7 +274,7 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
             write_group(stage, {})
             jobs = [(stage / demo_name(i), {**attrs, "num_samples": int(num_samples)}, tree)
                     for i, (tree, attrs, num_samples) in zip(ids, items)]
-            _parallel(lambda job: write_demo(*job, fallback=functools.partial(_write_with_zarr, path, job[0])), jobs)
+            _parallel(path, jobs)
             if fsync:
                 sync_tree(stage)
             for i in ids:

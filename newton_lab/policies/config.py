@@ -10,19 +10,22 @@ from typing import Any
 from .model import ACTIVATIONS
 from .scheduler import PREDICTION_TYPES
 
+PROPRIOCEPTION = ("robot_joint_pos", "gripper_pos")
+"""The privileged-free low-dim terms of the visuomotor presets: what the robot itself measures (joint positions,
+gripper opening), no object or target pose; the scene reaches the policy only through its cameras."""
+
 PRESETS: dict[str, dict[str, Any]] = {
     "default": {},
     # A 2-core CPU budget (~18 min): a quarter-width U-Net, small batches, a higher learning rate, 10k steps.
     "cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 64, "lr": 6e-4,
             "warmup_steps": 300, "max_steps": 10000, "epochs": 1000},
     # Visuomotor (front-head RGB + proprioception, no object pose): the full ResNet-18/GroupNorm trunk, on a GPU.
-    "vision": {"image_keys": ("front_head_rgb",), "obs_keys": ("robot_joint_pos", "tcp_pose", "gripper_pos"),
-               "prediction_type": "sample", "num_inference_steps": 5},
+    "vision": {"image_keys": ("front_head_rgb",), "obs_keys": PROPRIOCEPTION, "prediction_type": "sample",
+               "num_inference_steps": 5},
     # Visuomotor on 2 CPU cores (96x72 frames): a quarter-width ResNet-18 trunk, proprioception only.
     "vision_cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 32, "lr": 6e-4,
                    "warmup_steps": 100, "max_steps": 3000, "epochs": 1000, "encoder_width": 16,
-                   "image_feature_dim": 32, "image_keys": ("front_head_rgb",), "obs_keys": ("robot_joint_pos",
-                                                                                            "gripper_pos")},
+                   "image_feature_dim": 32, "image_keys": ("front_head_rgb",), "obs_keys": PROPRIOCEPTION},
 }
 """Named training settings; explicit fields override a preset's."""
 

@@ -1,0 +1,138 @@
+"""Writer processes of the zarr store: a large batch's demos are encoded and written by ``WRITE_PROCESSES`` child
+processes, so the ~10 ms of Python per PickCube demo no longer shares the GIL with the simulation loop.
+
+Hand-written on ``subprocess`` pipes rather than ``multiprocessing``: its spawn and forkserver starts re-import
+the user's ``__main__`` (a script without a main guard would start writers recursively), and a fork would copy
+a parent that holds CUDA, zarr's event-loop thread and the simulation's threads half-way.
+
+Protocol: the parent pickles ``(store path, [(demo folder, attrs, tree), ...])`` to a child's stdin; the child
+writes them with ``zarr_nodes.write_demo`` and answers ``("ok", leftovers)`` (the arrays that need zarr-python,
+written by the parent) or ``("error", exception)``. A child whose parent died reads EOF and exits.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .zarr_nodes import write_demo
+
+Job = tuple[Path, dict[str, Any], dict[str, Any]]
+"""(demo folder in the staging folder, demo attrs, nested tree of arrays)."""
+Leftover = tuple[Path, str, np.ndarray]
+"""(demo folder, array path inside it, value): an array ``zarr_nodes`` leaves to zarr-python."""
+
+
+WRITE_PROCESSES = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_PROCESSES", str(min(8, (os.cpu_count() or 2) // 2))))
+"""Writer processes of a large batch (0: the store writes every batch on threads)."""
+PROCESS_MIN_BATCH = 32
+"""Batches of at least this many demos go to the writer processes."""
+_shared: WriterProcesses | None = None
+_shared_lock = threading.Lock()
+
+
+def shared() -> WriterProcesses:
+    """This process's writer processes (``WRITE_PROCESSES`` of them), made on first use."""
+    global _shared
+    with _shared_lock:
+        if _shared is None or _shared.n != WRITE_PROCESSES:
+            _shared = WriterProcesses(WRITE_PROCESSES)
+        return _shared
+
+
+class WriterDied(RuntimeError):
+    """A writer process ended without answering (killed, out of memory)."""
+
+
+def write_jobs(jobs: list[Job]) -> list[Leftover]:
+    """Write each job's demo; returns the arrays left to zarr-python."""
+    leftovers: list[Leftover] = []
+    for node, attrs, tree in jobs:
+        write_demo(node, attrs, tree, fallback=lambda rel, value, node=node: leftovers.append((node, rel, value)))
+    return leftovers
+
+
+class WriterProcesses:
+    """``n`` long-lived writer processes, started on first use. One batch at a time (a lock serialises callers)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self._procs: list[subprocess.Popen] = []
+        self._lock = threading.Lock()
+
+    @property
+    def pids(self) -> list[int]:
+        return [p.pid for p in self._procs]
+
+    def _start(self) -> None:
+        if len(self._procs) == self.n and all(p.poll() is None for p in self._procs):
+            return
+        self.close()
+        command = [sys.executable, "-c", f"from {__name__} import serve; serve()"]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+        self._procs = [subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+                       for _ in range(self.n)]
+
+    def write(self, jobs: list[Job]) -> list[Leftover]:
+        """Write ``jobs`` spread over the processes; returns every process's leftovers. Raises the first error
+        once every process answered (nothing is still writing), :class:`WriterDied` if one ended."""
+        with self._lock:
+            self._start()
+            procs = self._procs[:min(self.n, len(jobs))]
+            died, answers = False, []
+            for i, proc in enumerate(procs):
+                try:
+                    pickle.dump(jobs[i::len(procs)], proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+                    proc.stdin.flush()
+                except (BrokenPipeError, OSError):
+                    died = True
+                    procs = procs[:i]
+                    break
+            for proc in procs:
+                try:
+                    answers.append(pickle.load(proc.stdout))
+                except (EOFError, OSError, pickle.UnpicklingError):
+                    died = True
+            if died:
+                self.close()
+                raise WriterDied(f"a zarr writer process died while writing a batch of {len(jobs)} demos")
+            errors = [value for kind, value in answers if kind == "error"]
+            if errors:
+                raise errors[0]
+            return [item for _, value in answers for item in value]
+
+    def close(self) -> None:
+        """Stop the processes (they exit on EOF; a stuck one is killed)."""
+        procs, self._procs = self._procs, []
+        for proc in procs:
+            try:
+                proc.stdin.close()
+                proc.wait(10)
+            except (OSError, subprocess.TimeoutExpired):
+                proc.kill()
+                proc.wait()
+
+
+def serve() -> None:
+    """Child side: answer one pickled job list after another until stdin closes. The answers go to the original
+    stdout; anything printed goes to stderr."""
+    src, dst = sys.stdin.buffer, os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    while True:
+        try:
+            jobs = pickle.load(src)
+        except EOFError:
+            return
+        try:
+            answer: tuple[str, Any] = ("ok", write_jobs(jobs))
+        except Exception as e:  # noqa: BLE001 - handed to the parent, which raises it
+            answer = ("error", e)
+        pickle.dump(answer, dst, protocol=pickle.HIGHEST_PROTOCOL)
+        dst.flush()
