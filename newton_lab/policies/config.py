@@ -25,7 +25,8 @@ PRESETS: dict[str, dict[str, Any]] = {
     # Visuomotor on 2 CPU cores (96x72 frames): a quarter-width ResNet-18 trunk, proprioception only.
     "vision_cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 32, "lr": 6e-4,
                    "warmup_steps": 100, "max_steps": 3000, "epochs": 1000, "encoder_width": 16,
-                   "image_feature_dim": 32, "image_keys": ("front_head_rgb",), "obs_keys": PROPRIOCEPTION},
+                   "image_feature_dim": 32, "image_keys": ("front_head_rgb",), "obs_keys": PROPRIOCEPTION,
+                   "prediction_type": "sample", "num_inference_steps": 5},
 }
 """Named training settings; explicit fields override a preset's."""
 
