@@ -16,6 +16,8 @@ JITTER_M = wp.constant(0.01)
 """Largest camera position jitter [m]."""
 JITTER_RAD = wp.constant(0.017453292519943295)
 """Largest camera rotation jitter [rad] (1 deg)."""
+HUE_JITTER = wp.constant(0.2)
+"""Largest relative change of each colour channel of an object that keeps its hue (``EntityCfg.keep_hue``)."""
 
 
 @wp.func
@@ -57,14 +59,17 @@ def shape_colors(
     shape_world: wp.array(dtype=wp.int32),
     shape_to_id: wp.array(dtype=wp.int32),
     first_robot_id: int,
+    keep_hue: wp.array(dtype=wp.int32),
     episode: wp.array(dtype=int),
     params: wp.array(dtype=int),
     out: wp.array(dtype=wp.vec3),
 ):
     """Shape colours (sRGB in [0, 1]): the model's (``base``) when ``params[0]`` is 0 or the shape is global (the
     ground); else per (seed ``params[1]``, row, episode): every object and the table (segmentation ids 2 ..
-    ``first_robot_id - 1``) a uniform random colour, and all of the row's shapes scaled by one brightness in
-    [0.6, 1.3] (the row's light intensity: Newton's light is global, shading per row comes from the albedo)."""
+    ``first_robot_id - 1``) a uniform random colour, except ids flagged in ``keep_hue`` (objects named by their
+    colour), whose model colour only has each channel scaled by [1 - HUE_JITTER, 1 + HUE_JITTER]; and all of the
+    row's shapes scaled by one brightness in [0.6, 1.3] (the row's light intensity: Newton's light is global,
+    shading per row comes from the albedo)."""
     s = wp.tid()
     w = int(shape_world[s])
     if params[0] == 0 or w < 0:
@@ -76,7 +81,12 @@ def shape_colors(
     sid = int(shape_to_id[s])
     if sid >= 2 and sid < first_robot_id:
         rc = draw(params[1], w, episode[w], 1 + sid % 31)
-        c = wp.vec3(0.05 + 0.9 * wp.randf(rc), 0.05 + 0.9 * wp.randf(rc), 0.05 + 0.9 * wp.randf(rc))
+        if keep_hue[sid] != 0:
+            lo = 1.0 - HUE_JITTER
+            c = wp.vec3(c[0] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)), c[1] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)),
+                        c[2] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)))
+        else:
+            c = wp.vec3(0.05 + 0.9 * wp.randf(rc), 0.05 + 0.9 * wp.randf(rc), 0.05 + 0.9 * wp.randf(rc))
     out[s] = wp.vec3(wp.min(c[0] * gain, 1.0), wp.min(c[1] * gain, 1.0), wp.min(c[2] * gain, 1.0))
 
 

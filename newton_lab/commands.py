@@ -82,22 +82,32 @@ class RerunArgs:
     """log the cameras' images to rerun every n-th step (each logged image step renders: CPU time)"""
 
 
-def camera_option(value: str | None) -> bool | dict[str, tuple[int, int]] | None:
+def camera_option(value: str | None) -> bool | dict[str, tuple[int, int] | dict[str, Any]] | None:
     """``--cameras`` as ``make_env(cameras=...)``: ``default`` -> None (the task's cameras), ``none`` -> False (no
-    rendering), ``<camera>=<W>x<H>[,...]`` -> {camera: (W, H)} [px]; a bad spelling raises a one-line error."""
+    rendering), ``<camera>=<W>x<H>[:<data>+...][,...]`` -> {camera: (W, H)} [px], or with a data list
+    (``front_head=96x72:rgb``, ``front_head=96x72:rgb+depth``) {camera: {"resolution": (W, H), "data": (...)}};
+    a bad spelling raises a one-line error."""
     if value in (None, "default", "none"):
         return None if value != "none" else False
-    parts = [(cam, res.partition("x")) for cam, _, res in (p.partition("=") for p in value.split(","))]
-    if not all(cam and w.isdigit() and h.isdigit() for cam, (w, _, h) in parts):
-        raise ValueError(f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[,...], e.g. front_head=96x72")
-    return {cam: (int(w), int(h)) for cam, (w, _, h) in parts}
+    usage = (f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[:<data>+...][,...], e.g. front_head=96x72"
+             " or front_head=96x72:rgb (data: rgb, depth, segmentation)")
+    out: dict[str, Any] = {}
+    for part in value.split(","):
+        cam, _, rest = part.partition("=")
+        res, colon, data = rest.partition(":")
+        w, _, h = res.partition("x")
+        if not (cam and w.isdigit() and h.isdigit()) or (colon and not all(data.split("+"))):
+            raise ValueError(usage)
+        out[cam] = {"resolution": (int(w), int(h)), "data": tuple(data.split("+"))} if colon else (int(w), int(h))
+    return out
 
 
 @dataclass(kw_only=True)
 class CameraArgs:
     cameras: str = "default"
     """image terms: default (the task's cameras; mimic: the source dataset's), none (state only: nothing is
-    rendered) or <camera>=<W>x<H>[,...] (e.g. front_head=96x72)"""
+    rendered) or <camera>=<W>x<H>[:<data>+...][,...] (e.g. front_head=96x72, or front_head=96x72:rgb to record
+    RGB only; data: rgb, depth, segmentation)"""
 
     def env_kwargs(self) -> dict[str, Any]:
         """``EnvArgs.env_kwargs`` plus ``cameras``."""

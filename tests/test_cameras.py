@@ -328,3 +328,28 @@ def test_camera_jitter_is_bounded(cam_env):
                 assert d <= 0.01 + 1e-5 and a <= 1.0 + 1e-3, (c, row, d, a)
                 moved.append((round(d, 6), round(a, 4)))
     assert len(set(moved)) == len(moved) and all(d > 0 and a > 0 for d, a in moved)
+
+
+def test_objects_named_by_their_colour_keep_its_hue():
+    """SortToShelf's objects are named by colour (``EntityCfg.keep_hue``): vision randomisation scales each of
+    their channels by at most +-20 % (times the row's brightness), while the table gets a new colour per reset."""
+    env = make_env("GalbotG1-SortToShelf-Pick-v0", num_envs=2, device="cpu", seed=3, randomize=True,
+                   cameras={"front_head": {"resolution": (32, 24), "data": ("rgb",)}})
+    names = env.cameras.segmentation_names
+    objects = [names.index(n) for n in ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")]
+    env.cameras.randomize = False
+    try:
+        base = env.cameras.id_colors()[0]
+    finally:
+        env.cameras.randomize = True
+    tables = []
+    for _ in range(3):
+        env.reset()
+        colors = env.cameras.id_colors()
+        for row in range(env.num_envs):
+            for i in objects:
+                ratio = colors[row, i] / base[i]
+                assert ratio.max() / ratio.min() <= 1.2 / 0.8 + 1e-3, (names[i], colors[row, i], base[i])
+                assert not np.allclose(ratio, 1.0), names[i]
+        tables.append(colors[:, names.index("table")])
+    assert np.abs(tables[0] - tables[1]).max() > 0.1 and np.abs(tables[1] - tables[2]).max() > 0.1

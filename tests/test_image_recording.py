@@ -138,6 +138,18 @@ def test_bad_cameras_option_is_one_line(capsys):
     assert len(err) == 1 and "--cameras 'front_head=96'" in err[0] and "front_head=96x72" in err[0]
 
 
+def test_cameras_option_takes_a_data_list():
+    from newton_lab.commands import camera_option
+
+    assert camera_option("front_head=96x72") == {"front_head": (96, 72)}
+    assert camera_option("front_head=96x72:rgb,left_wrist=64x48:rgb+depth") == {
+        "front_head": {"resolution": (96, 72), "data": ("rgb",)},
+        "left_wrist": {"resolution": (64, 48), "data": ("rgb", "depth")}}
+    for bad in ("front_head=96x72:", "front_head=96x72:rgb+", "front_head=96:rgb"):
+        with pytest.raises(ValueError, match="front_head=96x72:rgb"):
+            camera_option(bad)
+
+
 @pytest.mark.slow
 def test_sigkill_mid_image_collection_keeps_finished_episodes(tmp_path):
     path = tmp_path / "killed.zarr"

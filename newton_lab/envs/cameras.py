@@ -12,7 +12,8 @@ depth float32 (N, H, W) [m] along the view axis (inf where nothing is hit within
 
 Vision randomisation (``randomize=True``, the env's reset randomisation): per row and episode, seeded (kernels
 ``shape_colors`` / ``mount_transforms`` key a counter-based RNG on (seed, row, ``episode_count[row]``), so a row's
-look changes exactly when it resets and replays for the same seed): the objects' and table's colours, a brightness
+look changes exactly when it resets and replays for the same seed): the objects' and table's colours (objects
+named by their colour, ``EntityCfg.keep_hue``, keep it within +-20 % per channel), a brightness
 gain on all of the row's shapes (the row's light intensity) and a camera-pose jitter (<= 1 cm, <= 1 deg) of each
 view. Newton 1.8's ``SensorCamera`` has one light list for all worlds, so the light direction is not randomised
 (per-row direction is not possible in one render); the ground is one global shape and keeps its colour.
@@ -21,7 +22,7 @@ view. Newton 1.8's ``SensorCamera`` has one light list for all worlds, so the li
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -168,12 +169,14 @@ class Cameras:
 
     def __init__(self, specs: Mapping[str, CameraCfg], *, model: newton.Model, state: newton.State, num_envs: int,
                  bodies_per_world: int, entity_names: list[str], capture: bool = True, randomize: bool = False,
-                 seed=lambda: 0, episode: wp.array | None = None):
+                 seed=lambda: 0, episode: wp.array | None = None, keep_hue: Collection[str] = ()):
         self.specs = dict(specs)
         self.terms = image_terms(self.specs)
         self.model, self.state, self.num_envs = model, state, num_envs
         self.bodies_per_world = bodies_per_world
         self.entity_names = list(entity_names)
+        self.keep_hue = frozenset(keep_hue)
+        """Objects whose colour vision randomisation only jitters (``EntityCfg.keep_hue``)."""
         self.capture = capture
         self.randomize = bool(randomize)
         """Vision randomisation on (switchable at any time; the render graph reads it from ``_params``)."""
@@ -243,6 +246,7 @@ class Cameras:
                                    load_textures=False)
         self.sensor.create_default_light(enable_shadows=False)
         self._shape_to_id = wp.array(self._shape_ids, dtype=wp.int32)
+        self._keep_hue = wp.array([int(n in self.keep_hue) for n in self.segmentation_names], dtype=wp.int32)
         self._base_color = wp.clone(self.model.shape_color)
         by_res: dict[tuple[int, int], list[str]] = {}
         for name, c in self.specs.items():
@@ -300,7 +304,7 @@ class Cameras:
     def _render_body(self) -> None:
         wp.launch(shape_colors, dim=self.model.shape_count,
                   inputs=[self._base_color, self.model.shape_world, self._shape_to_id, 2 + len(self.entity_names),
-                          self._episode, self._params, self.model.shape_color])
+                          self._keep_hue, self._episode, self._params, self.model.shape_color])
         first = 0
         for g in self._groups:
             wp.launch(mount_transforms, dim=g.poses.shape[0],

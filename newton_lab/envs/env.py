@@ -181,7 +181,8 @@ class NewtonEnv:
         self.cameras = Cameras(self.camera_specs, model=self.model, state=self.state,
                                num_envs=self.num_envs, bodies_per_world=lay.bodies_per_world,
                                entity_names=lay.entity_names, capture=capture, randomize=self.randomize,
-                               seed=lambda: self.seed, episode=self._episode_count)
+                               seed=lambda: self.seed, episode=self._episode_count,
+                               keep_hue=[e.name for e in self.cfg.entities if e.keep_hue])
         """The rendered cameras (``envs.cameras``): specs, intrinsics, poses, segmentation names."""
         self.image_terms = self.cameras.terms
         """Image observations by name (``front_head_rgb``, ...): camera, data, per-row shape, dtype."""

@@ -24,6 +24,9 @@ class EntityCfg:
     dynamic: bool = True
     """Dynamic bodies get a free joint; others are static colliders (kinematic, gravity off)."""
     color: tuple[float, float, float] = (0.7, 0.7, 0.7)
+    keep_hue: bool = False
+    """The colour names the object (SortToShelf's ``red_cube``): vision randomisation only scales each channel by
+    up to +-20 % instead of drawing a new colour, so the object stays recognisable by its colour."""
     friction: float = 1.0
 
 

@@ -23,7 +23,8 @@ def _entities() -> list[EntityCfg]:
     items = [EntityCfg(name="table", size=(0.8, 0.9, 0.50), pos=(-0.30, 0.0, 0.075), dynamic=False,
                        color=(0.42, 0.44, 0.40))]
     for o in OBJECTS.values():
-        items.append(EntityCfg(name=o.name, shape=o.shape, size=o.size, pos=o.pos, mass=0.05, color=o.color))
+        items.append(EntityCfg(name=o.name, shape=o.shape, size=o.size, pos=o.pos, mass=0.05, color=o.color,
+                               keep_hue=True))
     items += [
         EntityCfg(name="shelf_deck", size=(0.80, 0.40, 0.02), pos=(-1.7, -2.2, 0.335), dynamic=False,
                   color=(0.08, 0.22, 0.85)),
