@@ -19,7 +19,7 @@ import pytest
 import zarr
 
 from newton_lab.datasets import (FORMAT_VERSION, EpisodeWriter, delete_demos, list_demos, open_writer,
-                                 read_dataset_info, read_episode, read_filter_keys, set_filter_keys,
+                                 read_dataset_info, read_episode, read_episodes, read_filter_keys, set_filter_keys,
                                  split_train_val, state_tree)
 from newton_lab.datasets._common import inject_write_fault
 
@@ -223,6 +223,21 @@ def test_unknown_demo_id_lists_range(tmp_path, suffix):
     write_demos(path, range(3))
     with pytest.raises(KeyError, match=r"0\.\.2"):
         read_episode(path, 9)
+
+
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_read_episodes_reads_many_and_only_the_keys_asked(tmp_path, suffix):
+    path = tmp_path / f"ds{suffix}"
+    write_demos(path, range(4))
+    for seed, ep in zip((2, 0, 3), read_episodes(path, [2, "demo_0", 3])):
+        assert_tree_equal(ep, make_episode(seed))
+    keys = ["actions", "obs/rgb", "states/robot/qpos", "obs/absent"]
+    for seed, ep in zip((1, 2), read_episodes(path, [1, 2], keys=keys)):
+        full = make_episode(seed)
+        assert_tree_equal(ep, {"actions": full["actions"], "obs": {"rgb": full["obs"]["rgb"]},
+                               "states": {"robot": {"qpos": full["states"]["robot"]["qpos"]}}})
+    with pytest.raises(KeyError, match=r"0\.\.3"):
+        list(read_episodes(path, [0, 9]))
 
 
 @pytest.mark.parametrize("suffix", FORMATS)

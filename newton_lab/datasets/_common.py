@@ -29,6 +29,23 @@ def demo_name(demo_id: int) -> str:
     return f"demo_{int(demo_id)}"
 
 
+def nest(flat: dict[str, Any]) -> dict[str, Any]:
+    """``{"obs/rgb": a, "actions": b}`` -> ``{"obs": {"rgb": a}, "actions": b}``."""
+    tree: dict[str, Any] = {}
+    for key, value in flat.items():
+        put(tree, key, value)
+    return tree
+
+
+def put(tree: dict[str, Any], key: str, value: Any) -> None:
+    """Set ``tree[a][b][c] = value`` for ``key`` "a/b/c" (making the groups on the way)."""
+    node = tree
+    parts = key.split("/")
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+    node[parts[-1]] = value
+
+
 def demo_id_of(name: str) -> int | None:
     """Demo id encoded in a group name, or None for anything else."""
     m = DEMO_RE.match(name)

@@ -90,6 +90,13 @@ def _read_tree(g: h5py.Group) -> dict[str, Any]:
     return {k: _read_tree(v) if isinstance(v, h5py.Group) else np.asarray(v[()]) for k, v in g.items()}
 
 
+def _read_keys(g: h5py.Group, keys: tuple[str, ...] | None) -> dict[str, Any]:
+    """``_read_tree`` of only the arrays named by ``keys`` ("actions", "obs/front_head_rgb"; all when None)."""
+    if keys is None:
+        return _read_tree(g)
+    return common.nest({k: np.asarray(g[k][()]) for k in keys if isinstance(g.get(k), h5py.Dataset)})
+
+
 def _attrs(obj: h5py.HLObject) -> dict[str, Any]:
     return {k: from_stored(v) for k, v in obj.attrs.items()}
 
@@ -188,6 +195,20 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
             return _read_tree(g), _attrs(g)
         except (OSError, RuntimeError) as e:
             raise damaged(path, f"{demo_name(demo_id)}: {e}") from None
+
+
+def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None) -> Iterator[dict[str, Any]]:
+    """``read`` of many demos through one open file and one walk of the demo list (``keys``: see ``_read_keys``)."""
+    with _open_read(path) as f:
+        committed = _committed(_data(f, path))
+        for i in demo_ids:
+            g = committed.get(i)
+            if g is None:
+                raise KeyError(i)
+            try:
+                yield _read_keys(g, keys)
+            except (OSError, RuntimeError) as e:
+                raise damaged(path, f"{demo_name(i)}: {e}") from None
 
 
 def delete(path: Path, ids: list[int], fsync: bool = True) -> None:

@@ -57,7 +57,7 @@ TIME_ALIGNED = ("obs", "next_obs", "states", "rewards", "dones")  # every array 
 EpisodeItem = tuple[Mapping[str, Any], bool, Mapping[str, Any] | None]
 """One entry of :meth:`EpisodeWriter.append_episodes`: (episode, success, attrs or None)."""
 
-__all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "list_demos",
+__all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "read_episodes", "list_demos",
            "delete_demos", "set_dataset_attrs", "read_filter_keys", "set_filter_keys", "SUFFIXES", "FORMAT_VERSION",
            "DatasetLockedError", "DatasetWriteError", "inject_write_fault"]
 
@@ -334,6 +334,19 @@ def read_episode(path: str | Path, demo_id: int | str) -> dict[str, Any]:
     except KeyError:
         raise _missing_id(p, demo_id, sorted(backend.info(p)["demos"])) from None
     return {**tree, "attrs": attrs}
+
+
+def read_episodes(path: str | Path, demo_ids: Iterable[int | str],
+                  keys: Iterable[str] | None = None) -> Iterator[dict[str, Any]]:
+    """``read_episode`` of each of ``demo_ids`` in turn, through one open dataset (one walk of its demo list, not
+    one per episode), without ``"attrs"``; ``keys`` ("actions", "obs/front_head_rgb", ...) limits what is read to
+    those arrays (a key a demo lacks is left out; all arrays when None)."""
+    p, backend, _ = _existing(path)
+    ids = [_as_id(i) for i in demo_ids]
+    try:
+        yield from backend.read_many(p, ids, None if keys is None else tuple(keys))
+    except KeyError as e:
+        raise _missing_id(p, e.args[0], sorted(backend.info(p)["demos"])) from None
 
 
 def delete_demos(path: str | Path, ids: Iterable[int | str]) -> list[int]:

@@ -27,7 +27,7 @@ import zarr
 from zarr.storage import LocalStore
 
 from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, fault_injected, from_stored,
-                      fsync_path, lock_exclusive, sync_tree, write_fault_point)
+                      fsync_path, lock_exclusive, nest, sync_tree, write_fault_point)
 from .zarr_nodes import array_kwargs, write_demo, write_group
 from . import zarr_workers
 
@@ -333,6 +333,35 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
         return _read_tree(g), {k: from_stored(v) for k, v in g.attrs.asdict().items()}
     except Exception as e:  # noqa: BLE001
         raise damaged(path, f"{demo_name(demo_id)}: {type(e).__name__}: {e}") from None
+
+
+def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None) -> Iterator[dict[str, Any]]:
+    """``read`` of many demos, opening the store once; ``keys`` ("actions", "obs/front_head_rgb") limits what is
+    read (all when None)."""
+    data = _data(_root(path), path)
+    limit = data.attrs.get(NEXT_ID)
+    for i in demo_ids:
+        attrs = _node_attrs(path / "data" / demo_name(i))
+        if attrs is None or "num_samples" not in attrs or (limit is not None and i >= int(limit)):
+            raise KeyError(i)
+        try:
+            g = data[demo_name(i)]
+            if keys is None:
+                yield _read_tree(g)
+                continue
+            present = {}
+            for k in keys:
+                try:
+                    node = g[k]
+                except KeyError:
+                    continue
+                if isinstance(node, zarr.Array):
+                    present[k] = np.asarray(node[...])
+            yield nest(present)
+        except KeyError:
+            raise
+        except Exception as e:  # noqa: BLE001
+            raise damaged(path, f"{demo_name(i)}: {type(e).__name__}: {e}") from None
 
 
 def delete(path: Path, ids: list[int], fsync: bool = True) -> None:

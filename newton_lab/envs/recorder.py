@@ -19,19 +19,12 @@ import numpy as np
 import torch
 import warp as wp
 
+from ..datasets._common import put
 from ..datasets.states import state_layout
 
 IMAGE_CHUNK_STEPS = 64
 """Steps by which the per-row image buffers grow (their time capacity is a multiple of it, capped at
 ``max_steps``)."""
-
-
-def _nest(tree: dict[str, Any], key: str, value: Any) -> None:
-    node = tree
-    parts = key.split("/")
-    for p in parts[:-1]:
-        node = node.setdefault(p, {})
-    node[parts[-1]] = value
 
 
 class EpisodeRecorder:
@@ -151,7 +144,7 @@ class EpisodeRecorder:
                                 "next_obs": {k: nxt[:, sl] for k, sl in self.env.obs_terms.items()},
                                 "rewards": rewards[:length].cpu().numpy(), "dones": dones}
         for key, arr in flat.items():
-            _nest(tree, key, arr)
+            put(tree, key, arr)
         for name, img in images.items():
             tree["obs"][name] = img[:length].cpu().numpy()
         tree["datagen"]["subtask_signals"] = {

@@ -9,7 +9,8 @@ means "hold the final pose" (delta-action datasets would pad with zeros instead)
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import itertools
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from newton_lab.datasets import read_dataset_info, read_episode
+from newton_lab.datasets import read_dataset_info, read_episode, read_episodes
 
 EXCLUDED_OBS_KEYS = ("actions",)  # the last-action obs term would leak the label
 IMAGE_TAGS = ("rgb", "image", "depth", "camera")
@@ -78,16 +79,14 @@ class SequenceDataset(Dataset):
         obs_rows, act_rows, obs_index, act_index, start = [], [], [], [], 0
         self.image_keys: tuple[str, ...] = tuple([image_keys] if isinstance(image_keys, str) else image_keys or ())
         frames: dict[str, list[np.ndarray]] = {k: [] for k in self.image_keys}
-        self.obs_keys: tuple[str, ...] = ()
         self.obs_dims: dict[str, int] = {}
-        for file, demo in self.demos:
-            ep = read_episode(file, demo)
+        first = read_episode(*self.demos[0]).get("obs", {})
+        if isinstance(obs_keys, str):
+            obs_keys = [obs_keys]
+        keys = list(obs_keys) if obs_keys is not None else default_obs_keys(first, meta.get("obs_terms"))
+        self.obs_keys: tuple[str, ...] = tuple(self._check_keys(keys, first, self.demos[0][1]))
+        for file, demo, ep in self._episodes():
             obs = ep.get("obs", {})
-            if not self.obs_keys:
-                if isinstance(obs_keys, str):
-                    obs_keys = [obs_keys]
-                keys = list(obs_keys) if obs_keys is not None else default_obs_keys(obs, meta.get("obs_terms"))
-                self.obs_keys = tuple(self._check_keys(keys, obs, demo))
             n = len(ep["actions"])
             if n == 0:
                 continue
@@ -129,6 +128,18 @@ class SequenceDataset(Dataset):
         if len(names) != self.action_dim:
             raise ValueError(f"{self.path}: {len(names)} action_joint_names but actions have {self.action_dim} columns")
         self.action_joint_names: tuple[str, ...] = tuple(names)
+
+    def _episodes(self) -> Iterator[tuple[Path, int, dict[str, Any]]]:
+        """(file, demo, episode) of every selected demo, holding only the actions and the trained obs terms: one
+        open dataset per file (an episode missing one of them is read whole, for the error that names it)."""
+        wanted = ("actions", *(f"obs/{k}" for k in (*self.obs_keys, *self.image_keys)))
+        for file, group in itertools.groupby(self.demos, key=lambda fd: fd[0]):
+            ids = [demo for _, demo in group]
+            for demo, ep in zip(ids, read_episodes(file, ids, keys=wanted)):
+                obs = ep.get("obs", {})
+                if "actions" not in ep or any(k not in obs for k in (*self.obs_keys, *self.image_keys)):
+                    ep = read_episode(file, demo)
+                yield file, demo, ep
 
     def _frames(self, obs: dict[str, Any], key: str, n: int, file: Path, demo: int) -> np.ndarray:
         """(n, H, W, 3) uint8 RGB frames of ``obs/<key>``; one-line errors for what is not."""
