@@ -340,6 +340,19 @@ def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):
     assert log["steps"] == 2 and log["epochs"] == 1 and log["config"]["max_steps"] == 2
 
 
+def test_training_to_a_log_prints_progress_lines(dataset, tmp_path, monkeypatch, capsys):
+    """stderr not a terminal (a log file, Prefect): no tqdm bar, but a read line and plain step lines."""
+    monkeypatch.setattr(sys.modules["newton_lab.policies.train"], "LOG_EVERY_S", 0.0)
+    cfg = {**TINY, "max_steps": 3, "warmup_steps": 1, "batch_size": 8, "output_dir": str(tmp_path),
+           "progress": True}
+    Policy.from_backend("diffusion").train(dataset, cfg)
+    err = capsys.readouterr().err.splitlines()
+    assert any(" demos, " in line and " windows read in " in line for line in err), err
+    steps = [line for line in err if " samples/s, " in line]
+    assert len(steps) == 3 and steps[-1].split(": step ")[1].startswith("3/3, loss "), steps
+    assert not any("\r" in line for line in err)
+
+
 def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
     start = DiffusionPolicy.load(trained)
     # another architecture and obs keys asked for: the checkpoint's win; lr 0 keeps the weights unchanged

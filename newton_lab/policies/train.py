@@ -13,6 +13,7 @@ import dataclasses
 import json
 import math
 import os
+import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -30,6 +31,9 @@ from .resume import (RESUME_FORMAT, RESUME_VERSION, capture_rng, check_resumable
                      resumed_config, write_atomic)
 from .train_step import (CudaGraphTrainStep, EagerTrainStep, load_optimizer_state, make_train_step, set_lr,
                          steps_per_epoch)
+
+LOG_EVERY_S = 30.0
+"""Seconds between the plain progress lines of a run whose stderr is not a terminal."""
 
 
 def as_config(cfg: DiffusionPolicyConfig | dict[str, Any] | None) -> DiffusionPolicyConfig:
@@ -182,11 +186,18 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
     set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
     with tqdm(total=run.total, initial=run.step, desc=f"diffusion policy {task_id}", unit="step",
               disable=None if cfg.progress else True) as bar:  # None: a terminal only (no \r bars in logs)
+        lines = cfg.progress and bar.disable  # not a terminal (a log file, Prefect): a plain line every LOG_EVERY_S
+        last_line = time.perf_counter()
         while run.step < run.total:
             for loss in stepper.epoch():
                 run.losses.append(loss)  # no host sync per step: read back every 50 steps
                 run.step += 1
                 bar.update()
+                if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
+                    last_line = time.perf_counter()
+                    rate = run.step * cfg.batch_size / max(last_line - t0, 1e-9)
+                    print(f"diffusion policy {task_id}: step {run.step}/{run.total}, loss {loss.item():.4f}, "
+                          f"{rate:,.0f} samples/s, {last_line - t0:.0f} s", file=sys.stderr, flush=True)
                 if cfg.time_budget_s is not None:
                     elapsed = time.perf_counter() - t0
                     run.total = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
@@ -241,8 +252,12 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     elif cfg.init_checkpoint is not None:
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
+    read_from = time.perf_counter()
     data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
+    if cfg.progress:
+        print(f"diffusion policy {data.task_id}: {len(data.demos)} demos, {len(data):,} windows read in "
+              f"{time.perf_counter() - read_from:.1f} s", file=sys.stderr, flush=True)
     if state is not None:
         check_resumable(state, cfg, data, out_dir)
         policy = restore_policy(state, cfg)
