@@ -312,7 +312,7 @@ def collected(tmp_path_factory) -> dict[str, Any]:
     """The collect campaign on an HDF5 dataset (full-length expert episodes: the Mimic source and training data)."""
     folder = tmp_path_factory.mktemp("crash_collect")
     path = folder / "demos.hdf5"
-    args = ["collect", "--task", TASK, "--num-envs", "2", "--episodes", "6", "--max-steps", "300", "--seed", "0",
+    args = ["collect", "--task", TASK, "--num-envs", "2", "--episodes", "4", "--max-steps", "300", "--seed", "0",
             "--randomize", "--no-progress", "--cameras", "none", "--dataset-path", str(path)]
     return append_campaign("collect", args, path, folder, added=lambda run: run.last_json()["episodes"])
 
