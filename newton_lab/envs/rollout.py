@@ -9,6 +9,7 @@ episode, nor any episode holding a non-finite value, and both summaries count th
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,8 @@ from .saver import EpisodeSaver, all_finite  # noqa: F401 - all_finite: re-expor
 from .scenario import capture_scenario
 
 REASON_MAX_STEPS = "max_steps"
+LOG_EVERY_S = 30.0
+"""Seconds between the plain progress lines of a rollout whose stderr is not a terminal."""
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
                     "diverged", "subtask_signals")
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
@@ -116,6 +119,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     bar = tqdm(total=episodes, desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
                unit="ep", disable=None if progress else True, leave=False)  # None: a terminal only
     t0 = time.perf_counter()
+    lines, last_line = progress and bar.disable, t0  # not a terminal (a log, Prefect): a line every LOG_EVERY_S
     try:
         while not eps.enough():
             actions = agent.act(env)
@@ -157,6 +161,10 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             if saver is not None:
                 saver.submit()
             eps.clear(done | cut | agent_done)
+            if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
+                last_line = time.perf_counter()
+                print(f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "
+                      f"successes, {last_line - t0:.0f} s", file=sys.stderr, flush=True)
     finally:
         bar.close()
     return eps.records, vector_steps, time.perf_counter() - t0
