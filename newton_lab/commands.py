@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from .task_api.cfg import parse_cameras
 from .task_api.registry import DEFAULT_TASK_ID
 
 TASK_OPTION_FIELDS = ("sorting_object", "init_scenario")
@@ -82,24 +83,10 @@ class RerunArgs:
     """log the cameras' images to rerun every n-th step (each logged image step renders: CPU time)"""
 
 
-def camera_option(value: str | None) -> bool | dict[str, tuple[int, int] | dict[str, Any]] | None:
+def camera_option(value: str | None) -> bool | dict[str, Any] | None:
     """``--cameras`` as ``make_env(cameras=...)``: ``default`` -> None (the task's cameras), ``none`` -> False (no
-    rendering), ``<camera>=<W>x<H>[:<data>+...][,...]`` -> {camera: (W, H)} [px], or with a data list
-    (``front_head=96x72:rgb``, ``front_head=96x72:rgb+depth``) {camera: {"resolution": (W, H), "data": (...)}};
-    a bad spelling raises a one-line error."""
-    if value in (None, "default", "none"):
-        return None if value != "none" else False
-    usage = (f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[:<data>+...][,...], e.g. front_head=96x72"
-             " or front_head=96x72:rgb (data: rgb, depth, segmentation)")
-    out: dict[str, Any] = {}
-    for part in value.split(","):
-        cam, _, rest = part.partition("=")
-        res, colon, data = rest.partition(":")
-        w, _, h = res.partition("x")
-        if not (cam and w.isdigit() and h.isdigit()) or (colon and not all(data.split("+"))):
-            raise ValueError(usage)
-        out[cam] = {"resolution": (int(w), int(h)), "data": tuple(data.split("+"))} if colon else (int(w), int(h))
-    return out
+    rendering), else ``task_api.cfg.parse_cameras(value)``; a bad spelling raises a one-line error."""
+    return None if value in (None, "default") else False if value == "none" else parse_cameras(value)
 
 
 @dataclass(kw_only=True)

@@ -317,49 +317,28 @@ def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> Non
 def info(path: Path) -> dict[str, Any]:
     root = read_root(path)
     committed, _ = _scan(path, root.get(NEXT_ID))
-    demos = {i: {"num_samples": int(a["num_samples"]), "success": bool(a.get("success", False))}
-             for i, a in committed.items()}
-    return {"root": root, "demos": demos}
+    return {"root": root, "demos": {i: {"num_samples": int(a["num_samples"]), "success": bool(a.get("success", False))}
+                                    for i, a in committed.items()}}
 
 
 def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
-    data = _data(_root(path), path)
-    limit = data.attrs.get(NEXT_ID)
-    attrs = _node_attrs(path / "data" / demo_name(demo_id))
-    if attrs is None or "num_samples" not in attrs or (limit is not None and demo_id >= int(limit)):
-        raise KeyError(demo_id)
-    try:
-        g = data[demo_name(demo_id)]
-        return _read_tree(g), {k: from_stored(v) for k, v in g.attrs.asdict().items()}
-    except Exception as e:  # noqa: BLE001
-        raise damaged(path, f"{demo_name(demo_id)}: {type(e).__name__}: {e}") from None
+    return next(read_many(path, [demo_id], None, attrs=True))
 
 
-def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None) -> Iterator[dict[str, Any]]:
-    """``read`` of many demos, opening the store once; ``keys`` ("actions", "obs/front_head_rgb") limits what is
-    read (all when None)."""
+def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, attrs: bool = False) -> Iterator[Any]:
+    """Each demo's tree (with ``attrs``: and its attrs), opening the store once; ``keys`` ("actions",
+    "obs/front_head_rgb") limits what is read (all when None). A demo not committed raises ``KeyError``."""
     data = _data(_root(path), path)
     limit = data.attrs.get(NEXT_ID)
     for i in demo_ids:
-        attrs = _node_attrs(path / "data" / demo_name(i))
-        if attrs is None or "num_samples" not in attrs or (limit is not None and i >= int(limit)):
+        stored = _node_attrs(path / "data" / demo_name(i))
+        if stored is None or "num_samples" not in stored or (limit is not None and i >= int(limit)):
             raise KeyError(i)
         try:
             g = data[demo_name(i)]
-            if keys is None:
-                yield _read_tree(g)
-                continue
-            present = {}
-            for k in keys:
-                try:
-                    node = g[k]
-                except KeyError:
-                    continue
-                if isinstance(node, zarr.Array):
-                    present[k] = np.asarray(node[...])
-            yield nest(present)
-        except KeyError:
-            raise
+            tree = _read_tree(g) if keys is None else nest(
+                {k: np.asarray(g[k][...]) for k in keys if k in g and isinstance(g[k], zarr.Array)})
+            yield (tree, {k: from_stored(v) for k, v in g.attrs.asdict().items()}) if attrs else tree
         except Exception as e:  # noqa: BLE001
             raise damaged(path, f"{demo_name(i)}: {type(e).__name__}: {e}") from None
 
@@ -399,8 +378,7 @@ def _write_masks(path: Path, masks: dict[str, list[str]], fsync: bool) -> None:
     """Each key is written under a temporary name, then renamed over the old one (under the writer lock)."""
     if not masks:
         return
-    group = _root(path, writable=True).require_group("mask")
-    mdir = path / "mask"
+    group, mdir = _root(path, writable=True).require_group("mask"), path / "mask"
     for entry in mdir.iterdir():
         if entry.name.startswith(PARTIAL_PREFIX):  # leftovers of a killed session
             shutil.rmtree(entry, ignore_errors=True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -86,6 +87,22 @@ class CameraCfg:
     """Image height [px]."""
     data: tuple[str, ...] = ("rgb",)
     """Images it gives, of ``IMAGE_DATA``."""
+
+
+CAMERAS_TEXT = re.compile(r"(\w+)=(\d+)x(\d+)(?::(\w+(?:\+\w+)*))?")
+"""One camera of the text form: ``<camera>=<W>x<H>[:<data>+...]``."""
+
+
+def parse_cameras(value: str) -> dict[str, Any]:
+    """The text form of a ``make_env(cameras=...)`` dict (the CLI's ``--cameras``): ``front_head=96x72`` ->
+    {"front_head": (96, 72)} [px]; with a data list, ``front_head=96x72:rgb+depth`` -> {"front_head":
+    {"resolution": (96, 72), "data": ("rgb", "depth")}}; cameras separated by commas. One-line error if not."""
+    found = [CAMERAS_TEXT.fullmatch(part) for part in value.split(",")]
+    if not all(found):
+        raise ValueError(f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[:<data>+...][,...], e.g. "
+                         f"front_head=96x72 or front_head=96x72:rgb (data: {', '.join(IMAGE_DATA)})")
+    return {m[1]: (int(m[2]), int(m[3])) if m[4] is None else
+            {"resolution": (int(m[2]), int(m[3])), "data": tuple(m[4].split("+"))} for m in found}
 
 
 ACTION_DIM = "action_dim"
