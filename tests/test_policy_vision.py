@@ -134,7 +134,12 @@ def test_image_policy_overfits_two_demos_and_replays_one(image_demos, tmp_path):
     for seed in (3, 0):
         cfg = _cfg(tmp_path / f"seed{seed}", max_steps=600, batch_size=16, lr=2e-3, warmup_steps=30, crop=1.0,
                    seed=seed, obs_keys=(*PROPRIO, "actions"))
-        path = Policy.from_backend("diffusion").train(image_demos, cfg)
+        threads = torch.get_num_threads()
+        torch.set_num_threads(1)  # one core: under two pytest workers, two threads only contend with the other
+        try:
+            path = Policy.from_backend("diffusion").train(image_demos, cfg)
+        finally:
+            torch.set_num_threads(threads)
         env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, cameras=CAMERAS)
         cube, first_cubes = env.layout.entity_names.index("cube"), []
 
