@@ -116,7 +116,7 @@ class DiffusionPolicyConfig:
     output_dir: str = "outputs/policies/diffusion"
     """Where train() writes checkpoint.pt and train_log.json."""
     progress: bool = True
-    """Show a tqdm progress bar while training."""
+    """Show progress while training: a tqdm bar in a terminal, else a plain line every 30 s."""
     checkpoint_every_steps: int | None = 500
     """Write the resume file ``<output_dir>/resume.pt`` every this many optimiser steps (None: not by steps)."""
     checkpoint_every_s: float | None = 300.0
