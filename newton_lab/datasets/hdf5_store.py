@@ -6,7 +6,7 @@ import os
 import time
 import uuid
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import closing, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -187,18 +187,13 @@ def info(path: Path) -> dict[str, Any]:
 
 
 def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
-    with _open_read(path) as f:
-        g = _committed(_data(f, path)).get(demo_id)
-        if g is None:
-            raise KeyError(demo_id)
-        try:
-            return _read_tree(g), _attrs(g)
-        except (OSError, RuntimeError) as e:
-            raise damaged(path, f"{demo_name(demo_id)}: {e}") from None
+    with closing(read_many(path, [demo_id], None, attrs=True)) as one:  # closing: the file is closed on return
+        return next(one)
 
 
-def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None) -> Iterator[dict[str, Any]]:
-    """``read`` of many demos through one open file and one walk of the demo list (``keys``: see ``_read_keys``)."""
+def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, attrs: bool = False) -> Iterator[Any]:
+    """Each demo's tree (with ``attrs``: and its attrs) through one open file and one walk of the demo list
+    (``keys``: see ``_read_keys``). A demo not committed raises ``KeyError``."""
     with _open_read(path) as f:
         committed = _committed(_data(f, path))
         for i in demo_ids:
@@ -206,9 +201,11 @@ def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None) -> 
             if g is None:
                 raise KeyError(i)
             try:
-                yield _read_keys(g, keys)
+                tree = _read_keys(g, keys)
+                item = (tree, _attrs(g)) if attrs else tree
             except (OSError, RuntimeError) as e:
                 raise damaged(path, f"{demo_name(i)}: {e}") from None
+            yield item
 
 
 def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
