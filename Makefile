@@ -18,10 +18,11 @@ demo: $(STAMP)
 	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --out outputs/demo $(DEMO_ARGS)
 
 # Tests run on both cores: one pytest worker per core, each test module kept on one worker (its fixtures
-# build envs once). TEST_WORKERS=0 runs them in this process.
+# build envs once), the longest modules handed out first (tests/conftest.py). TEST_WORKERS=0 runs them in this
+# process.
 TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: $(STAMP)
 	$(VENV)/bin/newton-lab bench --task GalbotG1-PickCube-v0 --num-envs 4 --steps 200 --device cpu

@@ -14,9 +14,14 @@ it is set, else all that Warp finds.
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 from typing import Any
+
+NANNY_CLOSE_S = 30.0
+"""Seconds a worker process gets to stop at cluster shutdown (killed after 0.8x, then as long again to be reaped).
+distributed's 5 s ran out on a loaded 2-core host, and its TimeoutError then replaced the run's own result."""
 
 
 def visible_gpus() -> list[str]:
@@ -42,16 +47,30 @@ def cluster_options(workers: int, device: str | None, gpus: list[str] | None = N
     if pins_gpus(device):
         gpus = visible_gpus() if gpus is None else gpus
     if gpus and pins_gpus(device):
-        from distributed import Nanny, Scheduler, SpecCluster  # deferred: Dask is slow to import
+        from distributed import Scheduler, SpecCluster  # deferred: Dask is slow to import
 
-        spec = {f"gpu-{gpu}": {"cls": Nanny, "options": {"nthreads": 1, "env": {"CUDA_VISIBLE_DEVICES": gpu},
-                                                         "silence_logs": logging.WARNING, "dashboard": False}}
+        nanny = _patient_nanny()
+        spec = {f"gpu-{gpu}": {"cls": nanny, "options": {"nthreads": 1, "env": {"CUDA_VISIBLE_DEVICES": gpu},
+                                                       "silence_logs": logging.WARNING, "dashboard": False}}
                 for gpu in gpus[:workers]}
         return {"cluster_class": SpecCluster, "cluster_kwargs": {
             "workers": spec, "scheduler": {"cls": Scheduler, "options": {"dashboard": False}},
             "silence_logs": logging.WARNING}}
     return {"cluster_kwargs": {"n_workers": workers, "processes": True, "threads_per_worker": 1,
-                               "dashboard_address": None}}
+                               "worker_class": _patient_nanny(), "dashboard_address": None}}
+
+
+@functools.cache
+def _patient_nanny() -> type:
+    """distributed's ``Nanny`` whose ``close`` waits at least ``NANNY_CLOSE_S`` (a class made on first use: Dask is
+    slow to import)."""
+    from distributed import Nanny  # deferred: Dask is slow to import
+
+    class PatientNanny(Nanny):
+        async def close(self, timeout: float = NANNY_CLOSE_S, reason: str = "nanny-close"):
+            return await super().close(timeout=max(timeout, NANNY_CLOSE_S), reason=reason)
+
+    return PatientNanny
 
 
 class _SlowExit(logging.Filter):

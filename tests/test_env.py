@@ -121,3 +121,18 @@ def test_time_out_truncates_and_auto_resets(reach_env):
     assert [env.termination_reasons[int(r)] for r in info["termination_reason"]] == ["time_out", "time_out"]
     assert info["episode_length"].tolist() == [limit, limit]
     assert wp.to_torch(env._ctx.episode_step).tolist() == [0, 0]
+
+
+def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
+    """The prefetch thread once imported mujoco_warp itself; racing the solver's import on another thread, Python's
+    import-deadlock breaker handed a Dask worker a half-initialised module (no ``OverflowType``). The caller's
+    thread now imports it before the thread starts (here the thread never starts)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, threading\nfrom newton_lab.envs import prefetch\n"
+            "assert 'mujoco_warp' not in sys.modules, 'imported earlier: the test would prove nothing'\n"
+            "threading.Thread.start = lambda self: None\nprefetch.prefetch_kernels('cpu')\n"
+            "assert hasattr(sys.modules['mujoco_warp'], 'OverflowType')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]

@@ -39,12 +39,16 @@ def prefetch_kernels(device: str | None) -> None:
         if key in _started:
             return
         _started.add(key)
+    # Imported here, on the caller's thread: an import on the prefetch thread raced the solver's own import of
+    # mujoco_warp, and Python's import-deadlock breaker then handed one thread a half-initialised module
+    # ("module 'mujoco_warp' has no attribute 'OverflowType'" in a Dask worker). Importing defines kernels and
+    # compiles nothing, so the thread below still takes all the compile time.
+    import mujoco_warp  # noqa: F401  deferred: only an env build needs it
+
     threading.Thread(target=_load_all, args=(key,), name="newton_lab-kernel-prefetch", daemon=True).start()
 
 
 def _load_all(device: str) -> None:
-    import mujoco_warp  # noqa: F401  deferred: Newton imports it only when the solver is built
-
     for name in PREFETCH_MODULES:
         try:
             wp.load_module(name, device=device, max_workers=0)
