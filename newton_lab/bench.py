@@ -19,6 +19,7 @@ from .datasets import list_demos, open_writer, read_episode
 from .datasets.storage import EpisodeWriter
 from .envs import make_env
 from .envs.rollout import env_args
+from .flows.cluster import cluster_options, pins_gpus, quiet_shutdown, visible_gpus
 from .policies.data import SequenceDataset
 from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
 from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
@@ -199,10 +200,11 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
 
 def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
                   dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
-                  max_steps: int = 1000) -> dict[str, Any]:
+                  max_steps: int = 1000, seed: int = 0) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
-    to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches)."""
+    to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
+    ``started_at`` / ``ended_at`` (Unix seconds) bound the timed run, for ``bench_collect_on_workers``."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -210,7 +212,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
         raise FileExistsError(f"{path} exists; bench-collect writes a fresh dataset (choose a new --dataset-path)")
     path.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    env = make_env(task_id, num_envs=num_envs, device=device, seed=0, randomize=True, cameras=False)
+    env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=False)
     agent = expert_agent(env)
     warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
     _collect_timed(env, agent, 1, warm, max_steps)  # compiles the step, the IK solves and the writer path
@@ -218,7 +220,9 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
                            "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
                            else "cpu", "first_use_s": first_use, "format": path.suffix}
+    out["started_at"] = time.time()
     out.update(_collect_timed(env, agent, episodes, path, max_steps))
+    out["ended_at"] = time.time()
     out["bytes_per_demo"] = _size(path) / max(out["successful_demos"], 1)
     out["physics_s_per_step"] = out["physics_s"] / max(out["vector_steps"] or 1, 1)
     out["agent_plus_writer_s_per_step"] = (out["agent_s"] + out["writer_s"]) / max(out["vector_steps"] or 1, 1)
@@ -235,6 +239,47 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
         out["prefilled_demos_per_s"] = again["demos_per_s"]
         out["prefilled_writer_s"] = again["writer_s"]
     return out
+
+
+def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, episodes: int = 16,
+                             device: str | None = None, dataset_path: str | Path = "outputs/bench_collect.zarr",
+                             max_steps: int = 1000) -> dict[str, Any]:
+    """``bench_collect`` on ``workers`` Dask worker processes at once, the way ``--runner dask`` shards collection:
+    one worker per GPU on a CUDA host when ``device`` is None or ``"cuda"`` (each sees only its GPU), else
+    processes on ``device``. Worker ``i`` collects its share of ``episodes`` with seed ``i`` into its own shard
+    ``<stem>_w<i><suffix>`` (no prefilled run). The aggregate rate is every worker's successful demos over the
+    span from the first timed run's start to the last one's end, so workers that did not overlap are not
+    counted as parallel."""
+    from distributed import Client, LocalCluster  # deferred: Dask is slow to import
+
+    if workers < 1 or episodes < workers:
+        raise ValueError(f"--workers {workers} with --episodes {episodes}: give 1 <= workers <= episodes")
+    gpus = visible_gpus() if pins_gpus(device) else []
+    if gpus and len(gpus) < workers:
+        raise ValueError(f"--workers {workers} needs {workers} GPUs, this host shows {len(gpus)}; "
+                         f"use --workers {len(gpus)} or a --device to share")
+    path = Path(dataset_path)
+    shards = [path.with_name(f"{path.stem}_w{i}{path.suffix}") for i in range(workers)]
+    for p in shards + [s.with_name(f"{s.stem}_warmup{s.suffix}") for s in shards]:
+        if p.exists():
+            raise FileExistsError(f"{p} exists; bench-collect writes fresh shards (choose a new --dataset-path)")
+    opts = cluster_options(workers, device, gpus=gpus)
+    quiet_shutdown()
+    with opts.get("cluster_class", LocalCluster)(**opts["cluster_kwargs"]) as cluster, Client(cluster) as client:
+        futures = [client.submit(bench_collect, task_id, num_envs=num_envs, device="cuda" if gpus else device,
+                                 episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
+                                 prefill=0, max_steps=max_steps, seed=i, pure=False)
+                   for i, shard in enumerate(shards)]
+        parts = client.gather(futures)
+    ok = sum(p["successful_demos"] for p in parts)
+    span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
+    keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
+            "agent_s", "writer_s", "bytes_per_demo")
+    return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
+            "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
+            "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
+            "first_use_s": max(p["first_use_s"] for p in parts),
+            "per_worker": [{k: p[k] for k in keep} | {"dataset_path": str(s)} for p, s in zip(parts, shards)]}
 
 
 def _size(path: Path) -> int:

@@ -7,6 +7,8 @@ with both retries recorded. An input error on Dask fails at once, is not retried
 
 from __future__ import annotations
 
+import json
+
 import pytest
 from test_flows import (ARTIFACT_KEYS, FAULT_ENV, RETRY_STATES, TINY, TINY_CLI, artifacts,  # noqa: F401
                         assert_input_error_reported_once, harness, run_cli, stale_manifest, task_runs)
@@ -81,3 +83,26 @@ def test_one_worker_per_gpu(monkeypatch):
     for env, ids in (("2,3", ["2", "3"]), ("", []), ("-1", []), (" 1 ", ["1"])):
         monkeypatch.setenv("CUDA_VISIBLE_DEVICES", env)
         assert visible_gpus() == ids
+
+
+def test_bench_collect_on_two_workers(tmp_path, capsys):
+    """``bench-collect --workers 2``: two Dask worker processes collect at once, each into its own shard; the
+    aggregate counts every demo over the span of both timed runs."""
+    from newton_lab.cli import main
+
+    path = tmp_path / "bc.zarr"
+    assert main(["bench-collect", "--workers", "2", "--num-envs", "1", "--episodes", "2", "--device", "cpu",
+                 "--dataset-path", str(path)]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["workers"] == 2 and out["successful_demos"] == 2 and out["device_names"] == ["cpu", "cpu"]
+    parts = out["per_worker"]
+    assert [p["successful_demos"] for p in parts] == [1, 1]
+    assert out["wall_s"] >= max(p["wall_s"] for p in parts) * 0.99  # the span holds each worker's timed run
+    assert out["demos_per_hour"] == pytest.approx(3600 * 2 / out["wall_s"])
+    for p in parts:
+        assert read_dataset_info(p["dataset_path"])["num_demos"] == 1 and p["physics_s"] > 0
+    assert main(["bench-collect", "--workers", "2", "--device", "cpu", "--dataset-path", str(path)]) == 2
+    assert "exists" in capsys.readouterr().err  # never overwrites a shard
+    assert main(["bench-collect", "--workers", "3", "--episodes", "2", "--device", "cpu",
+                 "--dataset-path", str(tmp_path / "x.zarr")]) == 2
+    assert "--workers 3 with --episodes 2" in capsys.readouterr().err

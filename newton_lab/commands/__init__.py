@@ -1,0 +1,24 @@
+"""The argument model: one ``@dataclass`` per command, shared by the console script (``newton_lab.cli``
+generates its argparse parser from these classes: fields -> flags, field docstrings -> help), the examples
+(``newton_lab.cli.parse_args`` with their own defaults) and the Prefect stages (``newton_lab.flows``).
+
+A field ``num_envs`` is the flag ``--num-envs``; ``bool`` fields are switches; ``X | None`` fields are
+optional; fields without a default are required; ``list[str]`` fields take one or more values; field
+metadata may set ``flags`` (the spellings, default ``--field-name``) or ``positional``. Methods turn an
+argument object into the keywords of the library call it drives (``make_env``, ``env.collect``, ``mimic``,
+``Policy.train``, ``run_pipeline``), so no caller re-lists them.
+"""
+
+
+from __future__ import annotations
+
+from .bench import BenchArgs, BenchCollectArgs, BenchTrainArgs
+from .env import (TASK_OPTION_FIELDS, CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksArgs,
+                  camera_option)
+from .workflow import (RECIPE_FIELDS, TRAIN_OVERRIDES, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
+                       PipelineArgs, SplitArgs, TrainArgs, ViewArgs)
+
+__all__ = ["BenchArgs", "BenchCollectArgs", "BenchTrainArgs", "TASK_OPTION_FIELDS", "CameraArgs", "EnvArgs",
+           "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option", "RECIPE_FIELDS",
+           "TRAIN_OVERRIDES", "CollectArgs", "EvaluateArgs", "ExportArgs", "MimicArgs", "PipelineArgs",
+           "SplitArgs", "TrainArgs", "ViewArgs"]

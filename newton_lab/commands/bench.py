@@ -1,0 +1,67 @@
+"""Arguments of the benchmarks: ``bench``, ``bench-collect``, ``bench-train``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from ..task_api.registry import DEFAULT_TASK_ID
+
+
+@dataclass(kw_only=True)
+class BenchArgs:
+    """``newton-lab bench``: env-steps/s of the captured step vs the bare solver on the same model."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    num_envs: int = 4
+    """Parallel env rows."""
+    steps: int = 200
+    """Env steps timed."""
+    device: str | None = None
+    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+    camera: str | None = None
+    """also time the step with this G1 camera rendered every step (front_head, left_wrist, right_wrist)"""
+    resolution: list[int] | None = None
+    """camera image width and height [px] (default 128 128)"""
+    camera_data: list[str] | None = None
+    """camera outputs: rgb, depth, segmentation (default rgb)"""
+
+
+@dataclass(kw_only=True)
+class BenchCollectArgs:
+    """``newton-lab bench-collect``: expert collection throughput, seconds split into physics / agent / writer."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    num_envs: int = 4
+    """Parallel env rows."""
+    episodes: int = 16
+    """Successful demos to collect (after a first-use run of one episode per row)."""
+    device: str | None = None
+    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+    dataset_path: str = "outputs/bench_collect.zarr"
+    """Fresh dataset to write (.zarr or .hdf5); the first-use and prefilled runs write beside it."""
+    prefill: int = 10_000
+    """Episodes stored before the second run, which appends to that full dataset (0: skip it)."""
+    workers: int = 1
+    """Dask worker processes collecting at once (one per GPU with no --device or --device cuda), each into its own
+    shard <stem>_w<i>; no prefilled run. Compare with --workers 1 on the same machine."""
+
+
+@dataclass(kw_only=True)
+class BenchTrainArgs:
+    """``newton-lab bench-train``: diffusion-policy training steps/s, eager vs CUDA-graph step."""
+
+    dataset_path: str
+    """Dataset the batches are drawn from."""
+    batch_size: int = 1024
+    """Windows per training step."""
+    steps: int = 200
+    """Training steps timed per variant."""
+    preset: Literal["default", "cpu", "vision", "vision_cpu"] = "default"
+    """Named training settings (network size)."""
+    bf16: bool = False
+    """also time the steps under bfloat16 autocast (float32 and bf16 side by side)"""
+    device: str = "cpu"
+    """Torch device (cpu, cuda, cuda:1, ...)."""
