@@ -17,11 +17,13 @@ DEMO_ARGS ?=
 demo: $(STAMP)
 	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --out outputs/demo $(DEMO_ARGS)
 
-# Tests run on both cores: one pytest worker per core, each test module kept on one worker (its fixtures
-# build envs once), the longest modules handed out first (tests/conftest.py). TEST_WORKERS=0 runs them in this
-# process.
+# Tests run on both cores: one pytest worker per core, each test module kept on one worker (its fixtures build
+# envs once), the longest modules handed out first (tests/conftest.py). The project is byte-compiled first: with
+# PYTHONDONTWRITEBYTECODE set, each of the suite's ~50 subprocesses would compile it again. TEST_WORKERS=0 runs
+# the tests in this process.
 TEST_WORKERS ?= 2
 test: $(STAMP)
+	$(VENV)/bin/python -m compileall -q newton_lab kernels tasks flows tests examples > /dev/null
 	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: $(STAMP)
