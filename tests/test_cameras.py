@@ -228,7 +228,8 @@ def test_state_only_envs_do_no_camera_work(stack_env):
     (PICK, {"front_head": (96.0, 72)}, "resolution must be"),
     (PICK, {"front_head": {"data": ("rgb", "infrared")}}, "data must be"),
     (PICK, {"front_head": {"fov": 1.0}}, "unknown keys"),
-    (PICK, "front_head", "cameras must be"),
+    (PICK, "front_head", "use none, default or <camera>="),
+    (PICK, 3, "cameras must be"),
     ("GalbotG1-StackCube-v0", {"front_head": (96, 72)}, "has no cameras"),
     ("GalbotG1-Reach-v0", {"left_wrist": (96, 72)}, "has no cameras"),
 ])
@@ -254,6 +255,9 @@ def test_camera_sets_per_task_and_overrides():
     small = cams(PICK, {"front_head": (96, 72)})["front_head"]
     assert (small.width, small.height, small.data) == (96, 72, ("rgb",))
     assert set(cams(PICK, {"left_wrist": (64, 48)})) == {"front_head", "left_wrist"}
+    assert cams(PICK, "none") == {} and cams(PICK, "default") == cams(PICK)  # the CLI's text form, as make_env takes it
+    text = cams(PICK, "front_head=96x72:rgb+depth")["front_head"]
+    assert (text.width, text.height, text.data) == (96, 72, ("rgb", "depth"))
 
 
 

@@ -7,6 +7,7 @@ with both retries recorded. An input error on Dask fails at once, is not retried
 
 from __future__ import annotations
 
+import inspect
 import json
 
 import pytest
@@ -14,7 +15,7 @@ from test_flows import (ARTIFACT_KEYS, FAULT_ENV, RETRY_STATES, TINY, TINY_CLI, 
                         assert_input_error_reported_once, harness, run_cli, stale_manifest, task_runs)
 
 from newton_lab.datasets import read_dataset_info, read_episode
-from newton_lab.flows.cluster import cluster_options, visible_gpus
+from newton_lab.flows.cluster import NANNY_CLOSE_S, cluster_options, visible_gpus
 
 pytestmark = pytest.mark.slow
 
@@ -80,6 +81,10 @@ def test_one_worker_per_gpu(monkeypatch):
     for device, gpus in (("cpu", ["0", "1"]), ("cuda:1", ["0", "1"]), (None, [])):
         kwargs = cluster_options(3, device, gpus=gpus)["cluster_kwargs"]
         assert kwargs["n_workers"] == 3 and kwargs["threads_per_worker"] == 1, (device, gpus)
+    # workers get NANNY_CLOSE_S to stop at shutdown (distributed's 5 s timed out on a loaded host)
+    nanny = cluster_options(2, "cpu")["cluster_kwargs"]["worker_class"]
+    assert nanny is next(iter(cluster_options(1, None, gpus=["0"])["cluster_kwargs"]["workers"].values()))["cls"]
+    assert inspect.signature(nanny.close).parameters["timeout"].default == NANNY_CLOSE_S >= 30
     for env, ids in (("2,3", ["2", "3"]), ("", []), ("-1", []), (" 1 ", ["1"])):
         monkeypatch.setenv("CUDA_VISIBLE_DEVICES", env)
         assert visible_gpus() == ids

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..task_api.cfg import parse_cameras
+from ..task_api.cfg import camera_option
 from ..task_api.registry import DEFAULT_TASK_ID
 
 TASK_OPTION_FIELDS = ("sorting_object", "init_scenario")
@@ -72,12 +72,6 @@ class RerunArgs:
     """rows drawn in rerun"""
     rerun_image_every: int = 1
     """log the cameras' images to rerun every n-th step (each logged image step renders: CPU time)"""
-
-
-def camera_option(value: str | None) -> bool | dict[str, Any] | None:
-    """``--cameras`` as ``make_env(cameras=...)``: ``default`` -> None (the task's cameras), ``none`` -> False (no
-    rendering), else ``task_api.cfg.parse_cameras(value)``; a bad spelling raises a one-line error."""
-    return None if value in (None, "default") else False if value == "none" else parse_cameras(value)
 
 
 @dataclass(kw_only=True)

@@ -19,7 +19,7 @@ def make_env(
     task_options: dict[str, Any] | None = None,
     *,
     capture: bool = True,
-    cameras: bool | dict[str, Any] | None = None,
+    cameras: bool | dict[str, Any] | str | None = None,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
 
@@ -27,7 +27,8 @@ def make_env(
     ``task_options`` are the task's own options (unknown keys raise with the valid ones).
     ``cameras``: ``None`` renders the task's cameras (``TaskCfg.cameras``), ``False`` none (state-only speed),
     ``{"front_head": (96, 72)}`` changes a camera's resolution [px] (or ``{"front_head": {"resolution": (w, h),
-    "data": ("rgb", "depth", "segmentation")}}``; a G1 mount the task lacks is added).
+    "data": ("rgb", "depth", "segmentation")}}``; a G1 mount the task lacks is added), or the CLI's text for any
+    of these (``"none"``, ``"front_head=96x72:rgb"``).
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:

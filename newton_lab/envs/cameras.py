@@ -35,7 +35,7 @@ from newton.sensors import SensorCamera
 from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
 from ..robots.g1 import cameras as mounts
 from ..robots.g1 import spec
-from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg
+from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg, camera_option
 
 SKY_RGBA = (178, 190, 204, 0)
 """Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
@@ -85,11 +85,13 @@ def _override(name: str, base: CameraCfg, value: Any) -> CameraCfg:
     return CameraCfg(width=w, height=h, data=base.data)
 
 
-def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | None) -> dict[str, CameraCfg]:
+def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None) -> dict[str, CameraCfg]:
     """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
     ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a G1 mount the task does
-    not declare is added). Raises a one-line ``ValueError`` on an unknown mount, a bad resolution or data, or
-    cameras asked of a task that declares none."""
+    not declare is added), or any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``). Raises a
+    one-line ``ValueError`` on an unknown mount, a bad resolution or data, or cameras asked of a task without any."""
+    if isinstance(cameras, str):
+        cameras = camera_option(cameras)
     if cameras is None or cameras is True:
         chosen = dict(cfg.cameras)
     elif cameras is False:
@@ -104,7 +106,8 @@ def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | None) -> d
                 raise ValueError(f"unknown camera {name!r}; the G1's cameras are {list(spec.CAMERA_MOUNTS)}")
             chosen[name] = _override(name, chosen.get(name, CameraCfg()), value)
     else:
-        raise ValueError(f"cameras must be None, True, False or a dict {{camera: (width, height)}}, got {cameras!r}")
+        raise ValueError(f"cameras must be None, True, False, a dict {{camera: (width, height)}} or its text form, "
+                         f"got {cameras!r}")
     for name, cam in chosen.items():
         if name not in spec.CAMERA_MOUNTS:
             raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the G1's are {list(spec.CAMERA_MOUNTS)}")

@@ -48,7 +48,7 @@ class NewtonEnv:
         seed: int | None = None,
         randomize: bool = False,
         capture: bool = True,
-        cameras: bool | dict | None = None,
+        cameras: bool | dict | str | None = None,
     ):
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
