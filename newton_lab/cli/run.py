@@ -164,13 +164,12 @@ def bench(args: BenchArgs) -> int:
 
 
 def bench_collect(args: BenchCollectArgs) -> int:
-    from ..bench import bench_collect as measure  # deferred: Warp/Newton are slow to import
-    from ..bench import bench_collect_on_workers  # deferred: Warp/Newton are slow to import
+    from ..bench import bench_collect, bench_collect_on_workers  # deferred: Warp/Newton are slow to import
 
     common = {"num_envs": args.num_envs, "episodes": args.episodes, "device": args.device,
               "dataset_path": args.dataset_path}
     if args.workers == 1:
-        print(json.dumps(measure(args.task, prefill=args.prefill, **common)))
+        print(json.dumps(bench_collect(args.task, prefill=args.prefill, **common)))
     else:
         print(json.dumps(bench_collect_on_workers(args.task, workers=args.workers, **common)))
     return 0

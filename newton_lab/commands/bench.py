@@ -9,17 +9,23 @@ from ..task_api.registry import DEFAULT_TASK_ID
 
 
 @dataclass(kw_only=True)
-class BenchArgs:
-    """``newton-lab bench``: env-steps/s of the captured step vs the bare solver on the same model."""
+class BenchEnvArgs:
+    """The env a benchmark times: task, rows and device."""
 
     task: str = DEFAULT_TASK_ID
     """task id (see `newton-lab tasks`)"""
     num_envs: int = 4
     """Parallel env rows."""
-    steps: int = 200
-    """Env steps timed."""
     device: str | None = None
     """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
+
+
+@dataclass(kw_only=True)
+class BenchArgs(BenchEnvArgs):
+    """``newton-lab bench``: env-steps/s of the captured step vs the bare solver on the same model."""
+
+    steps: int = 200
+    """Env steps timed."""
     camera: str | None = None
     """also time the step with this G1 camera rendered every step (front_head, left_wrist, right_wrist)"""
     resolution: list[int] | None = None
@@ -29,17 +35,11 @@ class BenchArgs:
 
 
 @dataclass(kw_only=True)
-class BenchCollectArgs:
+class BenchCollectArgs(BenchEnvArgs):
     """``newton-lab bench-collect``: expert collection throughput, seconds split into physics / agent / writer."""
 
-    task: str = DEFAULT_TASK_ID
-    """task id (see `newton-lab tasks`)"""
-    num_envs: int = 4
-    """Parallel env rows."""
     episodes: int = 16
     """Successful demos to collect (after a first-use run of one episode per row)."""
-    device: str | None = None
-    """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
     dataset_path: str = "outputs/bench_collect.zarr"
     """Fresh dataset to write (.zarr or .hdf5); the first-use and prefilled runs write beside it."""
     prefill: int = 10_000

@@ -105,12 +105,12 @@ def parse_cameras(value: str) -> dict[str, Any]:
             {"resolution": (int(m[2]), int(m[3])), "data": tuple(m[4].split("+"))} for m in found}
 
 
-
 def camera_option(value: str | None) -> bool | dict[str, Any] | None:
     """A ``make_env(cameras=...)`` value from its text form (``--cameras``): ``default`` -> None (the task's
     cameras), ``none`` -> False (no rendering), else ``parse_cameras(value)``; a bad spelling raises a one-line
     error."""
     return None if value in (None, "default") else False if value == "none" else parse_cameras(value)
+
 
 ACTION_DIM = "action_dim"
 """Observation width the env derives: the task's action columns."""
