@@ -23,6 +23,10 @@ NANNY_CLOSE_S = 30.0
 """Seconds a worker process gets to stop at cluster shutdown (killed after 0.8x, then as long again to be reaped).
 distributed's 5 s ran out on a loaded 2-core host, and its TimeoutError then replaced the run's own result."""
 
+SCHEDULER_HTTP = "127.0.0.1:0"
+"""Where the scheduler's HTTP endpoint (health and metrics; the dashboard is off) listens: a free local port, so a
+second cluster on the host, or a dashboard already on distributed's 8787, neither clashes nor warns."""
+
 
 def visible_gpus() -> list[str]:
     """CUDA device ids this process may use: ``CUDA_VISIBLE_DEVICES``'s entries, else ``0..n-1`` for Warp's
@@ -54,10 +58,12 @@ def cluster_options(workers: int, device: str | None, gpus: list[str] | None = N
                                                        "silence_logs": logging.WARNING, "dashboard": False}}
                 for gpu in gpus[:workers]}
         return {"cluster_class": SpecCluster, "cluster_kwargs": {
-            "workers": spec, "scheduler": {"cls": Scheduler, "options": {"dashboard": False}},
+            "workers": spec,
+            "scheduler": {"cls": Scheduler, "options": {"dashboard": False, "dashboard_address": SCHEDULER_HTTP}},
             "silence_logs": logging.WARNING}}
     return {"cluster_kwargs": {"n_workers": workers, "processes": True, "threads_per_worker": 1,
-                               "worker_class": _patient_nanny(), "dashboard_address": None}}
+                               "worker_class": _patient_nanny(), "dashboard_address": None,
+                               "scheduler_kwargs": {"dashboard_address": SCHEDULER_HTTP}}}
 
 
 @functools.cache

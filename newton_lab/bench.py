@@ -15,7 +15,8 @@ import torch
 import warp as wp
 from newton.sensors import SensorCamera
 
-from .datasets import list_demos, open_writer, read_episode
+from .datasets import list_demos, open_writer, read_episode, zarr_store
+from .datasets._common import sync_tree
 from .datasets.storage import EpisodeWriter
 from .envs import make_env
 from .envs.rollout import env_args
@@ -175,13 +176,23 @@ class _Clock:
         return timed
 
 
+ZARR_WRITER_PARTS = {"writer_files_s": "_parallel", "writer_sync_s": "sync_tree"}
+"""A zarr batch's seconds split: encoding and writing its demos' files (writer processes or threads), and the one
+``syncfs`` that makes them durable (disk-bound where the files are many); the rest of ``writer_s`` is the lock,
+the renames and the commit."""
+
+
 def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dict[str, Any]:
     """One ``env.collect`` with physics (``env.step``), agent (``agent.act``) and writer (the background thread's
-    ``append_prepared`` calls) seconds measured; the loop's own time is the rest."""
+    ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured; the loop's own time
+    is the rest."""
     physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
+    parts = {name: (_Clock("cpu"), getattr(zarr_store, fn)) for name, fn in ZARR_WRITER_PARTS.items()}
     original = EpisodeWriter.append_prepared
     env.step, agent.act = physics.wrap(env.step), acting.wrap(agent.act)
     EpisodeWriter.append_prepared = writing.wrap(original)
+    for name, (clock, fn) in parts.items():
+        setattr(zarr_store, ZARR_WRITER_PARTS[name], clock.wrap(fn))
     t0 = time.perf_counter()
     try:
         ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
@@ -189,11 +200,14 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
     finally:
         del env.step, agent.act
         EpisodeWriter.append_prepared = original
+        for name, (_, fn) in parts.items():
+            setattr(zarr_store, ZARR_WRITER_PARTS[name], fn)
     wall = time.perf_counter() - t0
     ok = ref.metadata["successes"]
+    split = {name: clock.seconds for name, (clock, _) in parts.items()} if path.suffix == ".zarr" else {}
     return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
             "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
-            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds,
+            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds, **split,
             "loop_s": wall - physics.seconds - acting.seconds, "vector_steps": ref.metadata.get("vector_steps"),
             "writer_batches": ref.metadata.get("writer_batches")}
 
@@ -204,7 +218,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
-    ``started_at`` / ``ended_at`` (Unix seconds) bound the timed run, for ``bench_collect_on_workers``."""
+    ``started_at`` / ``ended_at`` (Unix seconds) bound the timed run, for ``bench_collect_on_workers``; one
+    ``syncfs`` of the dataset's filesystem (``presync_s``) comes before it."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -220,6 +235,9 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
                            "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
                            else "cpu", "first_use_s": first_use, "format": path.suffix}
+    t1 = time.perf_counter()
+    sync_tree(path.parent)  # earlier writes (a deleted dataset's millions of files) are not charged to this run
+    out["presync_s"] = time.perf_counter() - t1
     out["started_at"] = time.time()
     out.update(_collect_timed(env, agent, episodes, path, max_steps))
     out["ended_at"] = time.time()
@@ -274,12 +292,12 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     ok = sum(p["successful_demos"] for p in parts)
     span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
     keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
-            "agent_s", "writer_s", "bytes_per_demo")
+            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo")
     return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
             "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
             "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
             "first_use_s": max(p["first_use_s"] for p in parts),
-            "per_worker": [{k: p[k] for k in keep} | {"dataset_path": str(s)} for p, s in zip(parts, shards)]}
+            "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)]}
 
 
 def _size(path: Path) -> int:

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import inspect
 import json
+import socket
 
 import pytest
 from test_flows import (ARTIFACT_KEYS, FAULT_ENV, RETRY_STATES, TINY, TINY_CLI, artifacts,  # noqa: F401
                         assert_input_error_reported_once, harness, run_cli, stale_manifest, task_runs)
 
 from newton_lab.datasets import read_dataset_info, read_episode
-from newton_lab.flows.cluster import NANNY_CLOSE_S, cluster_options, visible_gpus
+from newton_lab.flows.cluster import NANNY_CLOSE_S, SCHEDULER_HTTP, cluster_options, visible_gpus
 
 pytestmark = pytest.mark.slow
 
@@ -85,19 +86,29 @@ def test_one_worker_per_gpu(monkeypatch):
     nanny = cluster_options(2, "cpu")["cluster_kwargs"]["worker_class"]
     assert nanny is next(iter(cluster_options(1, None, gpus=["0"])["cluster_kwargs"]["workers"].values()))["cls"]
     assert inspect.signature(nanny.close).parameters["timeout"].default == NANNY_CLOSE_S >= 30
+    # the scheduler's HTTP endpoint takes a free local port, not distributed's 8787
+    assert cluster_options(2, "cpu")["cluster_kwargs"]["scheduler_kwargs"]["dashboard_address"] == SCHEDULER_HTTP
+    scheduler = cluster_options(1, None, gpus=["0"])["cluster_kwargs"]["scheduler"]["options"]
+    assert scheduler["dashboard_address"] == SCHEDULER_HTTP == "127.0.0.1:0"
     for env, ids in (("2,3", ["2", "3"]), ("", []), ("-1", []), (" 1 ", ["1"])):
         monkeypatch.setenv("CUDA_VISIBLE_DEVICES", env)
         assert visible_gpus() == ids
 
 
-def test_bench_collect_on_two_workers(tmp_path, capsys):
+def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
     """``bench-collect --workers 2``: two Dask worker processes collect at once, each into its own shard; the
     aggregate counts every demo over the span of both timed runs."""
     from newton_lab.cli import main
 
     path = tmp_path / "bc.zarr"
-    assert main(["bench-collect", "--workers", "2", "--num-envs", "1", "--episodes", "2", "--device", "cpu",
-                 "--dataset-path", str(path)]) == 0
+    with socket.socket() as taken:  # a dashboard already on distributed's port: no clash, no warning
+        try:
+            taken.bind(("127.0.0.1", 8787))
+        except OSError:
+            pass  # something else holds it already
+        assert main(["bench-collect", "--workers", "2", "--num-envs", "1", "--episodes", "2", "--device", "cpu",
+                     "--dataset-path", str(path)]) == 0
+    assert not [w for w in recwarn if "8787" in str(w.message)]
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["workers"] == 2 and out["successful_demos"] == 2 and out["device_names"] == ["cpu", "cpu"]
     parts = out["per_worker"]
@@ -106,6 +117,7 @@ def test_bench_collect_on_two_workers(tmp_path, capsys):
     assert out["demos_per_hour"] == pytest.approx(3600 * 2 / out["wall_s"])
     for p in parts:
         assert read_dataset_info(p["dataset_path"])["num_demos"] == 1 and p["physics_s"] > 0
+        assert 0 < p["writer_files_s"] + p["writer_sync_s"] <= p["writer_s"] and p["presync_s"] >= 0
     assert main(["bench-collect", "--workers", "2", "--device", "cpu", "--dataset-path", str(path)]) == 2
     assert "exists" in capsys.readouterr().err  # never overwrites a shard
     assert main(["bench-collect", "--workers", "3", "--episodes", "2", "--device", "cpu",
