@@ -562,6 +562,9 @@ def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
         assert meta == json.loads((tmp_path / "theirs" / key / "zarr.json").read_text()), key
         np.testing.assert_array_equal(ours[key][...], value, err_msg=key)
         assert ours[key].dtype == theirs[key].dtype
+        for chunk in sorted(c for c in os.listdir(tmp_path / "theirs" / key) if c != "zarr.json"):  # same bytes
+            assert (tmp_path / "ours" / "demo" / key / chunk).read_bytes() == \
+                (tmp_path / "theirs" / key / chunk).read_bytes(), (key, chunk)
     assert sorted(os.listdir(tmp_path / "ours" / "demo" / "long")) == ["c.0.0", "c.1.0", "zarr.json"]
 
 
