@@ -10,6 +10,7 @@ import os
 import re
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,16 @@ TURNSTILE = 1 << 62  # byte offset of the writers' fairness lock
 
 def demo_name(demo_id: int) -> str:
     return f"demo_{int(demo_id)}"
+
+
+@dataclass(frozen=True)
+class StoredDemo:
+    """A committed demo of another dataset of the same format, appended as stored: its arrays are copied (HDF5:
+    ``H5Ocopy``; zarr: the demo's files), not decoded and encoded again. The copy keeps the source's attrs,
+    updated with the item's."""
+
+    path: Path
+    demo_id: int
 
 
 def nest(flat: dict[str, Any]) -> dict[str, Any]:

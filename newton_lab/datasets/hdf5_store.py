@@ -6,7 +6,7 @@ import os
 import time
 import uuid
 from collections.abc import Iterator
-from contextlib import closing, contextmanager
+from contextlib import ExitStack, closing, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _common as common
 from . import _journal as journal
-from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, from_stored, fsync_path,
+from ._common import (NEXT_ID, PARTIAL_PREFIX, StoredDemo, damaged, demo_id_of, demo_name, from_stored, fsync_path,
                       locked_error)
 
 # Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
@@ -154,16 +154,26 @@ def _free_id(data: h5py.Group, i: int) -> int:
 
 def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool) -> list[int]:
     """Write ``items`` ((tree, attrs, num_samples), ...) as ``data/demo_<i>`` and advance the ``data`` attrs
-    ``next_demo_id`` / ``total`` / ``num_demos``, all in one journaled session: every demo lands or none.
+    ``next_demo_id`` / ``total`` / ``num_demos``, all in one journaled session: every demo lands or none. A
+    ``StoredDemo`` tree (a demo of another HDF5 dataset) is copied with its attrs, then ``attrs`` update them.
     The cost does not depend on how many demos the dataset holds (no walk over them)."""
-    with _open_write(path, fsync) as f:
+    with _open_write(path, fsync) as f, ExitStack() as sources:
         data = _data(f, path)
         next_id, total, count = _counters(data)
         ids = []
+        opened: dict[Path, dict[int, h5py.Group]] = {}
         for tree, attrs, num_samples in items:
             next_id = _free_id(data, next_id)
-            g = data.create_group(demo_name(next_id))
-            _write_tree(g, tree)
+            if isinstance(tree, StoredDemo):  # copied as stored (H5Ocopy: no decode, no Python per array)
+                if tree.path not in opened:
+                    opened[tree.path] = _committed(_data(sources.enter_context(_open_read(tree.path)), tree.path))
+                if tree.demo_id not in opened[tree.path]:
+                    raise KeyError(tree.demo_id)
+                data.copy(opened[tree.path][tree.demo_id], data, name=demo_name(next_id))
+                g = data[demo_name(next_id)]
+            else:
+                g = data.create_group(demo_name(next_id))
+                _write_tree(g, tree)
             g.attrs.update(attrs)
             g.attrs["num_samples"] = int(num_samples)
             ids.append(next_id)

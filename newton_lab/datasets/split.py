@@ -17,7 +17,8 @@ import numpy as np
 from ..robots.g1 import spec
 from ..task_api.registry import lookup
 from .ref import DatasetRef
-from .storage import open_writer, read_dataset_info, read_episode, read_filter_keys, set_filter_keys
+from .filter_keys import read_filter_keys, set_filter_keys
+from .storage import open_writer, read_dataset_info, read_episode
 
 
 def _slice(node: Any, sel: np.ndarray, steps: int) -> Any:

@@ -48,7 +48,8 @@ import numpy as np
 
 from . import hdf5_store, zarr_store
 from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
-                      DatasetWriteError, damaged, demo_id_of, dumps_env_args, inject_write_fault, py_scalar)
+                      DatasetWriteError, StoredDemo, damaged, demo_id_of, dumps_env_args, inject_write_fault,
+                      py_scalar)
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
@@ -58,7 +59,7 @@ EpisodeItem = tuple[Mapping[str, Any], bool, Mapping[str, Any] | None]
 """One entry of :meth:`EpisodeWriter.append_episodes`: (episode, success, attrs or None)."""
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "read_episodes", "list_demos",
-           "delete_demos", "set_dataset_attrs", "read_filter_keys", "set_filter_keys", "SUFFIXES", "FORMAT_VERSION",
+           "delete_demos", "set_dataset_attrs", "SUFFIXES", "FORMAT_VERSION",
            "DatasetLockedError", "DatasetWriteError", "inject_write_fault"]
 
 
@@ -272,6 +273,31 @@ class EpisodeWriter:
         self.appended += len(ids)
         return ids
 
+    def append_copies(self, source: str | Path, demo_ids: Iterable[int | str],
+                      attrs: Mapping[int, Mapping[str, Any]] | None = None) -> list[int]:
+        """Append demos of ``source``, a dataset of the same task and format, as stored: one durable batch (see
+        :meth:`append_episodes`) whose arrays are copied, not decoded and encoded again. Each copy keeps its
+        source attrs, updated with ``attrs[demo_id]``; returns the new ids. Datasets of another format: read
+        them with ``read_episodes`` and ``append_episodes``."""
+        p, backend, fmt = _existing(source)
+        if fmt != self.format:
+            raise ValueError(f"{p} is {fmt} and {self.path} is {self.format}: copies need one format; "
+                             f"read_episodes + append_episodes convert between them")
+        if p.resolve() == self.path.resolve():
+            raise ValueError(f"cannot copy demos of {p} into itself")
+        info = read_dataset_info(p)
+        if info["task_id"] != self.task_id:
+            raise ValueError(f"{p} holds task {info['task_id']!r}, not {self.task_id!r}")
+        ids = [_as_id(i) for i in demo_ids]
+        for i in ids:
+            if i not in info["demos"]:
+                raise _missing_id(p, i, info["demo_ids"])
+        extra = {i: {str(k): py_scalar(v, k) for k, v in (attrs or {}).get(i, {}).items()} for i in ids}
+        for i in ids:
+            if RESERVED_DEMO_ATTRS[0] in extra[i]:
+                raise ValueError(f"attr {RESERVED_DEMO_ATTRS[0]!r} is set by the writer")
+        return self.append_prepared([(StoredDemo(p, i), extra[i], info["demos"][i]["num_samples"]) for i in ids])
+
     def append_episode(self, episode: Mapping[str, Any], *, success: bool,
                        attrs: Mapping[str, Any] | None = None) -> int:
         """Write one episode; returns its demo id once it is durable on disk."""
@@ -336,14 +362,17 @@ def read_episode(path: str | Path, demo_id: int | str) -> dict[str, Any]:
     return {**tree, "attrs": attrs}
 
 
-def read_episodes(path: str | Path, demo_ids: Iterable[int | str],
-                  keys: Iterable[str] | None = None) -> Iterator[dict[str, Any]]:
+def read_episodes(path: str | Path, demo_ids: Iterable[int | str], keys: Iterable[str] | None = None, *,
+                  attrs: bool = False) -> Iterator[dict[str, Any]]:
     """``read_episode`` of each of ``demo_ids`` in turn, through one open dataset (one walk of its demo list, not
-    one per episode), without ``"attrs"``; ``keys`` ("actions", "obs/front_head_rgb", ...) limits what is read to
-    those arrays (a key a demo lacks is left out; all arrays when None)."""
+    one per episode), with ``"attrs"`` only when ``attrs``; ``keys`` ("actions", "obs/front_head_rgb", ...) limits
+    what is read to those arrays (a key a demo lacks is left out; all arrays when None)."""
     p, backend, _ = _existing(path)
     ids = [_as_id(i) for i in demo_ids]
     try:
+        if attrs:
+            yield from ({**tree, "attrs": a} for tree, a in backend.read_many(p, ids, None, attrs=True))
+            return
         yield from backend.read_many(p, ids, None if keys is None else tuple(keys))
     except KeyError as e:
         raise _missing_id(p, e.args[0], sorted(backend.info(p)["demos"])) from None
@@ -361,28 +390,3 @@ def delete_demos(path: str | Path, ids: Iterable[int | str]) -> list[int]:
         with _medium_errors(p, backend, "while deleting demos"):
             backend.delete(p, wanted)
     return [i for i in present if i not in wanted]
-
-
-def read_filter_keys(path: str | Path) -> dict[str, list[str]]:
-    """robomimic filter keys of a dataset: ``{key: [demo names]}`` (``mask/<key>``; empty when none)."""
-    p, backend, _ = _existing(path)
-    return backend.read_masks(p)
-
-
-def set_filter_keys(path: str | Path, keys: Mapping[str, Iterable[int | str]]) -> dict[str, list[str]]:
-    """Write (or replace) robomimic filter keys ``mask/<key>``, each a list of demo ids or names of
-    committed demos; other keys are kept. Crash safe like every write. Returns the names written."""
-    p, backend, _ = _existing(path)
-    present = sorted(backend.info(p)["demos"])
-    masks: dict[str, list[str]] = {}
-    for key, ids in keys.items():
-        if not isinstance(key, str) or not key or "/" in key or key.startswith(("_", ".")):
-            raise ValueError(f"filter key {key!r} must be a non-empty str without '/' or a leading '_' / '.'")
-        wanted = [_as_id(i) for i in ids]
-        for i in wanted:
-            if i not in present:
-                raise _missing_id(p, i, present)
-        masks[key] = [f"demo_{i}" for i in sorted(set(wanted))]
-    with _medium_errors(p, backend, "while writing filter keys"):
-        backend.set_masks(p, masks)
-    return masks

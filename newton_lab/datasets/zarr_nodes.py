@@ -15,6 +15,7 @@ import functools
 import json
 import math
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -26,7 +27,7 @@ from numcodecs import Zstd
 from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
-from ._common import time_chunks, write_fault_point
+from ._common import StoredDemo, demo_name, time_chunks, write_fault_point
 
 IMAGE_ZSTD_LEVEL = 3
 """zstd level of image arrays (one frame per chunk); the other arrays keep zarr's default codecs."""
@@ -115,7 +116,10 @@ def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
                fallback: Callable[[str, np.ndarray], None]) -> None:
     """Demo group ``node`` with ``attrs`` and every array of the nested ``tree``; ``fallback(relpath, value)``
     writes an array this module does not (with zarr-python), after the groups exist. Not durable until the
-    caller syncs (one ``syncfs`` per batch)."""
+    caller syncs (one ``syncfs`` per batch). A ``StoredDemo`` tree is copied (``copy_demo``)."""
+    if isinstance(tree, StoredDemo):
+        copy_demo(node, attrs, tree)
+        return
     write_group(node, attrs)
     rest: list[tuple[str, np.ndarray]] = []
 
@@ -130,3 +134,17 @@ def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
     walk(os.fspath(node), tree, "")
     for rel, value in rest:
         fallback(rel, value)
+
+
+def _copy_file(src: str, dst: str) -> None:
+    write_fault_point()
+    shutil.copyfile(src, dst)
+
+
+def copy_demo(node: str | Path, attrs: dict[str, Any], src: StoredDemo) -> None:
+    """Demo group ``node`` as a file copy of the committed demo ``src`` (same layout, same codecs: nothing is
+    decoded), its attrs the source's updated with ``attrs``."""
+    shutil.copytree(src.path / "data" / demo_name(src.demo_id), node, copy_function=_copy_file)
+    meta = json.loads(Path(node, "zarr.json").read_bytes())
+    meta["attributes"] = {**meta.get("attributes", {}), **attrs}
+    _write(f"{node}/zarr.json", json.dumps(meta, indent=2).encode())
