@@ -94,7 +94,7 @@ def _write_array(node: str, value: np.ndarray) -> bool:
     _write(f"{node}/zarr.json", meta)
     value = np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("<"))
     if chunks == value.shape:  # one chunk (most arrays of a demo)
-        _write(f"{node}/c.{'.'.join('0' * value.ndim)}", compressor.encode(value))
+        _write(f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor.encode(value))
         return True
     grid = [math.ceil(s / c) for s, c in zip(value.shape, chunks)]
     for index in np.ndindex(*grid):
