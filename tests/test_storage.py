@@ -568,6 +568,45 @@ def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
     assert sorted(os.listdir(tmp_path / "ours" / "demo" / "long")) == ["c.0.0", "c.1.0", "zarr.json"]
 
 
+def test_zarr_plain_reader_matches_zarr_python(tmp_path):
+    """``zarr_nodes.read_tree`` reads arrays of the plain layout from their files, chunks zarr left out as the fill
+    value, and hands every other array (another codec, 0-d, empty, a NaN fill value) to zarr-python."""
+    from zarr.codecs import BloscCodec
+    from zarr.storage import LocalStore
+
+    from newton_lab.datasets import zarr_nodes
+
+    rng = np.random.default_rng(5)
+    g = zarr.open_group(store=LocalStore(tmp_path / "z"), mode="w", zarr_format=3)
+    flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}
+    sparse = np.zeros((9, 4), np.float32)
+    sparse[6:] = rng.standard_normal((3, 4))  # rows 0..5 stay zero: zarr writes no file for chunks 0 and 1
+    values = {"sparse": (sparse, {"chunks": (3, 4), "fill_value": 0.0, **flat}),
+              "flags": (rng.random(7) > 0.5, {"chunks": (7,), **flat}),
+              "ints": (rng.integers(-5, 5, (4, 3, 2), np.int64), {"chunks": (3, 3, 2), "fill_value": 7, **flat}),
+              "blosc": (rng.standard_normal((5, 2)), {"chunks": (5, 2), "compressors": BloscCodec(), **flat}),
+              "nan_fill": (rng.standard_normal(3).astype(np.float32), {"chunks": (3,), "fill_value": np.nan, **flat}),
+              "scalar": (np.float64(1.5), {}), "empty": (np.zeros((0, 2), np.float32), {"chunks": (1, 2), **flat})}
+    sub = g.create_group("nested")
+    for name, (value, kwargs) in values.items():
+        (sub if name == "ints" else g).create_array(name, data=value, **kwargs)
+    assert sorted(os.listdir(tmp_path / "z" / "sparse")) == ["c.2.0", "zarr.json"]
+    handed = []
+
+    def fallback(rel):
+        handed.append(rel)
+        return np.asarray(g[rel][...])
+
+    tree = zarr_nodes.read_tree(tmp_path / "z", None, fallback)
+    assert sorted(handed) == ["blosc", "empty", "nan_fill", "scalar"]
+    assert sorted(tree) == sorted(set(values) - {"ints"} | {"nested"}) and sorted(tree["nested"]) == ["ints"]
+    for name, (value, _) in values.items():
+        got = tree["nested"][name] if name == "ints" else tree[name]
+        assert got.dtype == np.asarray(value).dtype and got.shape == np.shape(value), name
+        np.testing.assert_array_equal(got, value, err_msg=name)
+    assert zarr_nodes.read_tree(tmp_path / "z", ("nested/ints", "nested", "missing"), fallback).keys() == {"nested"}
+
+
 def _to_processes(monkeypatch, processes: int = 2) -> None:
     """Send every zarr batch of >= 2 demos to ``processes`` fresh writer processes."""
     from newton_lab.datasets import zarr_workers

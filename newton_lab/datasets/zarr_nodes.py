@@ -1,4 +1,5 @@
-"""A batch of demos written as zarr v3 nodes with plain file writes (the zarr store's append path).
+"""A batch of demos written as zarr v3 nodes with plain file writes (the zarr store's append path), and read back
+the same way (``read_tree``).
 
 Why not ``group.create_array``: zarr-python spends ~3 ms of Python per array (metadata objects, a round trip
 through its event loop), concurrent or not, which bounds a demo of ~25 arrays at a few demos/s. Here each
@@ -6,7 +7,9 @@ array's ``zarr.json`` is a template that zarr-python itself wrote for the same d
 ``shape`` and ``chunk_shape`` are filled in), and each chunk is that codec chain's output: the C-order
 little-endian bytes of the full chunk (edge chunks padded with the fill value, as zarr does), zstd-compressed
 by numcodecs as zarr's ``ZstdCodec`` does. Arrays whose template has any other codec chain, and 0-d or empty
-arrays, are written by zarr-python. Readers use zarr-python only (``tests/test_storage.py`` compares both).
+arrays, are written by zarr-python. ``read_tree`` reads arrays of that layout from their files (a missing chunk
+is the fill value, as zarr leaves chunks out) and hands any other array to zarr-python, whose ~2 ms per array
+made a PickCube demo a 50 ms read. ``tests/test_storage.py`` compares both ways with zarr-python's.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from numcodecs import Zstd
 from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
-from ._common import StoredDemo, demo_name, time_chunks, write_fault_point
+from ._common import StoredDemo, demo_name, nest, time_chunks, write_fault_point
 
 IMAGE_ZSTD_LEVEL = 3
 """zstd level of image arrays (one frame per chunk); the other arrays keep zarr's default codecs."""
@@ -148,3 +151,81 @@ def copy_demo(node: str | Path, attrs: dict[str, Any], src: StoredDemo) -> None:
     meta = json.loads(Path(node, "zarr.json").read_bytes())
     meta["attributes"] = {**meta.get("attributes", {}), **attrs}
     _write(f"{node}/zarr.json", json.dumps(meta, indent=2).encode())
+
+
+_PLAIN_DTYPES = {"bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "float16",
+                 "float32", "float64"}
+_DECODER = Zstd()
+
+
+def _meta(node: str) -> dict[str, Any] | None:
+    """A node's parsed ``zarr.json`` (None: not a node)."""
+    try:
+        with open(f"{node}/zarr.json", "rb") as f:
+            return json.loads(f.read())
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+
+
+def _plain_dtype(meta: dict[str, Any]) -> np.dtype | None:
+    """The dtype of an array stored as ``_write_array`` stores it (regular grid, ``c.<i>.<j>`` keys, little-endian
+    bytes -> zstd, a numeric fill value, rank >= 1); None for any other array."""
+    codecs = meta.get("codecs", [])
+    key = meta.get("chunk_key_encoding", {})
+    if (meta.get("data_type") not in _PLAIN_DTYPES or not meta.get("shape") or 0 in meta["shape"]
+            or meta.get("storage_transformers") or meta.get("chunk_grid", {}).get("name") != "regular"
+            or key.get("name") != "default" or key.get("configuration", {}).get("separator") != "."
+            or [c.get("name") for c in codecs] != ["bytes", "zstd"]
+            or (codecs[0].get("configuration") or {}).get("endian", "little") != "little"
+            or not isinstance(meta.get("fill_value"), (bool, int, float))):
+        return None
+    return np.dtype(meta["data_type"]).newbyteorder("<")
+
+
+def read_array(node: str, meta: dict[str, Any]) -> np.ndarray | None:
+    """The array ``node`` (its parsed ``zarr.json`` is ``meta``) read from its chunk files; None when its layout is
+    not the plain one (``_plain_dtype``)."""
+    dtype = _plain_dtype(meta)
+    if dtype is None:
+        return None
+    shape, chunks = tuple(meta["shape"]), tuple(meta["chunk_grid"]["configuration"]["chunk_shape"])
+    out = np.empty(shape, dtype) if chunks == shape else np.full(shape, meta["fill_value"], dtype)
+    for index in np.ndindex(*[math.ceil(s / c) for s, c in zip(shape, chunks)]):
+        try:
+            with open(f"{node}/c.{'.'.join(map(str, index))}", "rb") as f:
+                raw = f.read()
+        except FileNotFoundError:  # zarr leaves out a chunk that holds only the fill value
+            if chunks == shape:
+                out.fill(meta["fill_value"])
+            continue
+        block = np.frombuffer(_DECODER.decode(raw), dtype).reshape(chunks)
+        at = tuple(slice(i * c, min((i + 1) * c, s)) for i, c, s in zip(index, chunks, shape))
+        out[at] = block[tuple(slice(0, a.stop - a.start) for a in at)]
+    return out
+
+
+def read_tree(node: str | Path, keys: tuple[str, ...] | None,
+              fallback: Callable[[str], np.ndarray]) -> dict[str, Any]:
+    """Every array under the group ``node`` nested as stored (sorted), or only those named by ``keys``
+    ("actions", "obs/front_head_rgb"; a key that is not an array is left out); ``fallback(relpath)`` reads an array
+    ``read_array`` does not (with zarr-python)."""
+    node = os.fspath(node)
+
+    def array(rel: str, meta: dict[str, Any]) -> np.ndarray:
+        value = read_array(f"{node}/{rel}", meta)
+        return fallback(rel) if value is None else value
+
+    def walk(rel: str) -> dict[str, Any]:
+        tree = {}
+        for name in sorted(os.listdir(f"{node}/{rel}")):
+            meta = _meta(f"{node}/{rel}{name}")
+            if meta is not None and meta.get("node_type") == "group":
+                tree[name] = walk(f"{rel}{name}/")
+            elif meta is not None and meta.get("node_type") == "array":
+                tree[name] = array(f"{rel}{name}", meta)
+        return tree
+
+    if keys is None:
+        return walk("")
+    metas = {k: _meta(f"{node}/{k}") for k in keys}
+    return nest({k: array(k, m) for k, m in metas.items() if m is not None and m.get("node_type") == "array"})

@@ -27,8 +27,8 @@ import zarr
 from zarr.storage import LocalStore
 
 from ._common import (NEXT_ID, PARTIAL_PREFIX, damaged, demo_id_of, demo_name, fault_injected, from_stored,
-                      fsync_path, lock_exclusive, nest, sync_tree, write_fault_point)
-from .zarr_nodes import array_kwargs, write_demo, write_group
+                      fsync_path, lock_exclusive, sync_tree, write_fault_point)
+from .zarr_nodes import array_kwargs, read_tree, write_demo, write_group
 from . import zarr_workers
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written
@@ -151,10 +151,6 @@ def _write_with_zarr(path: Path, demo: Path, rel: str, value: np.ndarray) -> Non
     node = (demo / parent).relative_to(path).as_posix()
     group = zarr.open_group(store=_Store(path), path=node, mode="r+", zarr_format=3)
     group.create_array(name, data=value, **array_kwargs(value))
-
-
-def _read_tree(g: zarr.Group) -> dict[str, Any]:
-    return {k: _read_tree(v) if isinstance(v, zarr.Group) else np.asarray(v[...]) for k, v in sorted(g.members())}
 
 
 def _fsync_tree(top: Path) -> None:
@@ -335,10 +331,9 @@ def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, att
         if stored is None or "num_samples" not in stored or (limit is not None and i >= int(limit)):
             raise KeyError(i)
         try:
-            g = data[demo_name(i)]
-            tree = _read_tree(g) if keys is None else nest(
-                {k: np.asarray(g[k][...]) for k in keys if k in g and isinstance(g[k], zarr.Array)})
-            yield (tree, {k: from_stored(v) for k, v in g.attrs.asdict().items()}) if attrs else tree
+            tree = read_tree(path / "data" / demo_name(i), keys,
+                             fallback=lambda rel, i=i: np.asarray(data[f"{demo_name(i)}/{rel}"][...]))
+            yield (tree, {k: from_stored(v) for k, v in stored.items()}) if attrs else tree
         except Exception as e:  # noqa: BLE001
             raise damaged(path, f"{demo_name(i)}: {type(e).__name__}: {e}") from None
 
