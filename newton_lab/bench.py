@@ -187,12 +187,13 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
     ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured; the loop's own time
     is the rest."""
     physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
-    parts = {name: (_Clock("cpu"), getattr(zarr_store, fn)) for name, fn in ZARR_WRITER_PARTS.items()}
+    parts = {name: _Clock("cpu") for name in ZARR_WRITER_PARTS}
+    store_fns = {fn: getattr(zarr_store, fn) for fn in ZARR_WRITER_PARTS.values()}
     original = EpisodeWriter.append_prepared
     env.step, agent.act = physics.wrap(env.step), acting.wrap(agent.act)
     EpisodeWriter.append_prepared = writing.wrap(original)
-    for name, (clock, fn) in parts.items():
-        setattr(zarr_store, ZARR_WRITER_PARTS[name], clock.wrap(fn))
+    for name, fn in ZARR_WRITER_PARTS.items():
+        setattr(zarr_store, fn, parts[name].wrap(store_fns[fn]))
     t0 = time.perf_counter()
     try:
         ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
@@ -200,11 +201,11 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
     finally:
         del env.step, agent.act
         EpisodeWriter.append_prepared = original
-        for name, (_, fn) in parts.items():
-            setattr(zarr_store, ZARR_WRITER_PARTS[name], fn)
+        for fn, original_fn in store_fns.items():
+            setattr(zarr_store, fn, original_fn)
     wall = time.perf_counter() - t0
     ok = ref.metadata["successes"]
-    split = {name: clock.seconds for name, (clock, _) in parts.items()} if path.suffix == ".zarr" else {}
+    split = {name: clock.seconds for name, clock in parts.items()} if path.suffix == ".zarr" else {}
     return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
             "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
             "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds, **split,

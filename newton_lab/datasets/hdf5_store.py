@@ -64,6 +64,12 @@ def _data(f: h5py.File, path: Path) -> h5py.Group:
     return g
 
 
+def _committed_demo(data: h5py.Group, i: int) -> h5py.Group | None:
+    """The committed demo ``i`` (a group with ``num_samples``), looked up by name; None when there is none."""
+    g = data.get(demo_name(i))
+    return g if isinstance(g, h5py.Group) and "num_samples" in g.attrs else None
+
+
 def _committed(data: h5py.Group) -> dict[int, h5py.Group]:
     out = {}
     for name, g in data.items():
@@ -161,15 +167,16 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
         data = _data(f, path)
         next_id, total, count = _counters(data)
         ids = []
-        opened: dict[Path, dict[int, h5py.Group]] = {}
+        opened: dict[Path, h5py.Group] = {}
         for tree, attrs, num_samples in items:
             next_id = _free_id(data, next_id)
             if isinstance(tree, StoredDemo):  # copied as stored (H5Ocopy: no decode, no Python per array)
                 if tree.path not in opened:
-                    opened[tree.path] = _committed(_data(sources.enter_context(_open_read(tree.path)), tree.path))
-                if tree.demo_id not in opened[tree.path]:
+                    opened[tree.path] = _data(sources.enter_context(_open_read(tree.path)), tree.path)
+                source = _committed_demo(opened[tree.path], tree.demo_id)
+                if source is None:
                     raise KeyError(tree.demo_id)
-                data.copy(opened[tree.path][tree.demo_id], data, name=demo_name(next_id))
+                data.copy(source, data, name=demo_name(next_id))
                 g = data[demo_name(next_id)]
             else:
                 g = data.create_group(demo_name(next_id))
@@ -202,12 +209,12 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, attrs: bool = False) -> Iterator[Any]:
-    """Each demo's tree (with ``attrs``: and its attrs) through one open file and one walk of the demo list
+    """Each demo's tree (with ``attrs``: and its attrs) through one open file, each demo looked up by name
     (``keys``: see ``_read_keys``). A demo not committed raises ``KeyError``."""
     with _open_read(path) as f:
-        committed = _committed(_data(f, path))
+        data = _data(f, path)
         for i in demo_ids:
-            g = committed.get(i)
+            g = _committed_demo(data, i)
             if g is None:
                 raise KeyError(i)
             try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .ref import DatasetRef
-from .storage import SUFFIXES, open_writer, read_dataset_info, read_episodes
+from .storage import open_writer, read_dataset_info, read_episodes
 
 MERGE_BATCH = 256
 """Demos per write session (one durable batch each). One session per demo made a merge cost 30-80 ms a demo
@@ -33,7 +33,7 @@ def merge_datasets(paths, out, *, progress=None) -> DatasetRef:
             ids = info["demo_ids"]
             for start in range(0, len(ids), MERGE_BATCH):
                 batch = ids[start:start + MERGE_BATCH]
-                if SUFFIXES.get(p.suffix) == writer.format:
+                if info["format"] == writer.format:
                     saved += writer.append_copies(p, batch, attrs={i: {"source": f"{p.name}:{i}"} for i in batch})
                 else:
                     saved += writer.append_episodes(_converted(p, batch))

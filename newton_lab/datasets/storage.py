@@ -285,18 +285,19 @@ class EpisodeWriter:
                              f"read_episodes + append_episodes convert between them")
         if p.resolve() == self.path.resolve():
             raise ValueError(f"cannot copy demos of {p} into itself")
-        info = read_dataset_info(p)
-        if info["task_id"] != self.task_id:
-            raise ValueError(f"{p} holds task {info['task_id']!r}, not {self.task_id!r}")
+        task_id = _root_meta(p, backend.read_root(p))["task_id"]
+        if task_id != self.task_id:
+            raise ValueError(f"{p} holds task {task_id!r}, not {self.task_id!r}")
         ids = [_as_id(i) for i in demo_ids]
-        for i in ids:
-            if i not in info["demos"]:
-                raise _missing_id(p, i, info["demo_ids"])
+        try:  # the batch's own attrs, each demo looked up by id: no walk over the source per batch
+            samples = [stored["num_samples"] for _, stored in backend.read_many(p, ids, (), attrs=True)]
+        except KeyError as e:
+            raise _missing_id(p, e.args[0], sorted(backend.info(p)["demos"])) from None
         extra = {i: {str(k): py_scalar(v, k) for k, v in (attrs or {}).get(i, {}).items()} for i in ids}
         for i in ids:
             if RESERVED_DEMO_ATTRS[0] in extra[i]:
                 raise ValueError(f"attr {RESERVED_DEMO_ATTRS[0]!r} is set by the writer")
-        return self.append_prepared([(StoredDemo(p, i), extra[i], info["demos"][i]["num_samples"]) for i in ids])
+        return self.append_prepared([(StoredDemo(p, i), extra[i], n) for i, n in zip(ids, samples)])
 
     def append_episode(self, episode: Mapping[str, Any], *, success: bool,
                        attrs: Mapping[str, Any] | None = None) -> int:

@@ -72,14 +72,16 @@ def _write(path: str, data) -> None:
 
 
 @functools.lru_cache(maxsize=4096)
-def _array_meta(dtype: str, shape: tuple[int, ...], chunks: tuple[int, ...]) -> bytes | None:
-    """An array's ``zarr.json`` bytes (None: zarr-python writes it): the template with its holes filled in,
-    kept per (dtype, shape, chunks) because a batch repeats them (its demos share lengths and layouts)."""
+def _array_meta(dtype: str, shape: tuple[int, ...], chunks: tuple[int, ...]) -> tuple[bytes, Zstd] | None:
+    """(an array's ``zarr.json`` bytes, its chunk compressor), None where zarr-python writes it: the template with
+    its holes filled in, kept per (dtype, shape, chunks) because a batch repeats them (its demos share lengths and
+    layouts)."""
     template = _template(dtype, len(shape))
     if template is None:
         return None
-    return (template[0].replace('"%SHAPE%"', json.dumps(list(shape)))
-            .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode())
+    text, compressor = template
+    return (text.replace('"%SHAPE%"', json.dumps(list(shape)))
+            .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode(), compressor)
 
 
 def _write_array(node: str, value: np.ndarray) -> bool:
@@ -89,10 +91,10 @@ def _write_array(node: str, value: np.ndarray) -> bool:
     if value.ndim == 0 or value.size == 0:
         return False
     chunks = tuple(array_kwargs(value)["chunks"])
-    meta = _array_meta(value.dtype.str, value.shape, chunks)
-    if meta is None:
+    found = _array_meta(value.dtype.str, value.shape, chunks)
+    if found is None:
         return False
-    compressor = _template(value.dtype.str, value.ndim)[1]
+    meta, compressor = found
     os.mkdir(node)
     _write(f"{node}/zarr.json", meta)
     value = np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("<"))
