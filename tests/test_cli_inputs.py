@@ -62,7 +62,11 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     env = {**os.environ, "NEWTON_LAB_TEST_WRITE_FAULT": "140"}  # inside the second episode's writes
     argv = ["collect", "--episodes", "4", "--num-envs", "1", "--max-steps", "5", "--dataset-path", "d.hdf5",
             "--no-progress", "--cameras", "none"]
-    out = subprocess.run([sys.executable, "-m", "newton_lab.cli", *argv], cwd=tmp_path, capture_output=True,
+    # A writer queue of one episode makes every batch one episode: with the default queue, a writer thread that
+    # the OS schedules late takes episodes 1 and 2 as one batch, and the fault then rolls both back.
+    one_per_batch = ("import sys; from newton_lab.envs import rollout; rollout.collect.__kwdefaults__['max_queued'] = 1;"
+                     " from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))")
+    out = subprocess.run([sys.executable, "-c", one_per_batch, *argv], cwd=tmp_path, capture_output=True,
                          text=True, env=env)
     errors = [line for line in out.stderr.splitlines() if "CUDA driver" not in line]
     assert out.returncode == 1 and len(errors) == 1, out.stderr
