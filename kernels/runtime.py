@@ -1,4 +1,13 @@
-"""Warp's start-up output, quiet by default.
+"""Warp's process-wide settings for newton_lab: no adjoint kernels, and quiet start-up output.
+
+No backward kernels: newton_lab never differentiates through Warp (the planner's IK uses analytic Jacobians,
+policies train in torch), yet Warp generates and compiles every kernel's adjoint unless told otherwise, and
+Newton's modules take Warp's global default. ``install()`` sets ``wp.config.enable_backward = False`` as soon as
+Warp is imported, so every module created after it (Newton's, mujoco_warp's generated ones, the fused task
+kernels) compiles forward code only. The fused StackCube task kernel's CUDA build went from more than ten
+minutes to seconds (NVRTC, sm_90). ``NEWTON_LAB_WARP_BACKWARD=1`` keeps Warp's default, for users who
+differentiate their own kernels next to newton_lab; a module created before ``import newton_lab`` keeps the
+setting it was created with.
 
 Without it a run prints Warp's init banner, one ``Module ... load on device ... took ...`` line per kernel
 module (~70 before an example starts) and, on a machine without an NVIDIA driver, ``Warp CUDA warning:
@@ -25,6 +34,15 @@ VERBOSE_ENV = "NEWTON_LAB_VERBOSE"
 DRIVER_LINE = "Could not find or load the NVIDIA CUDA driver"
 """The part of Warp's no-driver warning that identifies it."""
 _DRIVER_LIBS = ("libcuda.so", "libcuda.so.1", "nvcuda.dll")
+
+
+BACKWARD_ENV = "NEWTON_LAB_WARP_BACKWARD"
+"""Environment variable: ``1`` keeps Warp's default of compiling every kernel's adjoint (backward) code."""
+
+
+def keep_backward() -> bool:
+    """Whether the user asked to keep Warp's adjoint kernels (``NEWTON_LAB_WARP_BACKWARD`` set to 1/true/yes)."""
+    return os.environ.get(BACKWARD_ENV, "").strip().lower() in ("1", "true", "yes")
 
 
 def verbose() -> bool:
@@ -90,9 +108,17 @@ def set_verbose() -> None:
         wp.config.log_level = wp.LOG_INFO
 
 
-class _QuietOnImport(importlib.abc.MetaPathFinder):
-    """Finds ``warp`` once, through the normal path finder, and runs ``quiet_warp`` right after Warp's
-    ``__init__`` has executed (before any project code touches Warp)."""
+def configure_warp(wp) -> None:
+    """Apply newton_lab's settings to the imported ``warp`` module: no adjoint kernels (unless
+    ``NEWTON_LAB_WARP_BACKWARD=1``), and quiet (unless ``NEWTON_LAB_VERBOSE=1``)."""
+    if not keep_backward():
+        wp.config.enable_backward = False
+    quiet_warp(wp)
+
+
+class _ConfigureOnImport(importlib.abc.MetaPathFinder):
+    """Finds ``warp`` once, through the normal path finder, and runs ``configure_warp`` right after Warp's
+    ``__init__`` has executed (before Newton or any project code creates a kernel module)."""
 
     def find_spec(self, fullname, path, target=None):
         if fullname != "warp":
@@ -105,17 +131,15 @@ class _QuietOnImport(importlib.abc.MetaPathFinder):
 
         def exec_module(module):
             loader_exec(module)
-            quiet_warp(module)
+            configure_warp(module)
 
         spec.loader.exec_module = exec_module
         return spec
 
 
 def install() -> None:
-    """Quiet Warp now if it is imported already, else as soon as it is (once per process)."""
-    if verbose():
-        return
+    """Configure Warp now if it is imported already, else as soon as it is (once per process)."""
     if "warp" in sys.modules:
-        quiet_warp(sys.modules["warp"])
-    elif not any(isinstance(f, _QuietOnImport) for f in sys.meta_path):
-        sys.meta_path.insert(0, _QuietOnImport())
+        configure_warp(sys.modules["warp"])
+    elif not any(isinstance(f, _ConfigureOnImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _ConfigureOnImport())

@@ -2,4 +2,4 @@
 
 from .kernels import runtime as _warp_runtime
 
-_warp_runtime.install()  # Warp quiet from its import on (NEWTON_LAB_VERBOSE=1 keeps its output)
+_warp_runtime.install()  # Warp without adjoint kernels and quiet, from its import on (kernels/runtime.py)
