@@ -4,12 +4,12 @@ No backward kernels: newton_lab never differentiates through Warp (the planner's
 policies train in torch), yet Warp generates and compiles every kernel's adjoint unless told otherwise, and
 Newton's modules take Warp's global default. ``install()`` sets ``wp.config.enable_backward = False`` as soon as
 Warp is imported, so every module created after it (Newton's, mujoco_warp's generated ones, the fused task
-kernels) compiles forward code only. The fused StackCube task kernel's CUDA build went from more than ten
-minutes to seconds (NVRTC, sm_90). ``NEWTON_LAB_WARP_BACKWARD=1`` keeps Warp's default, for users who
-differentiate their own kernels next to newton_lab; a module created before ``import newton_lab`` keeps the
-setting it was created with.
+kernels) compiles forward code only. The fused StackCube task kernel's CUDA build (NVRTC, sm_90) went from
+more than 25 minutes to 24 s (``tools/cuda_compile_cost.py``). ``NEWTON_LAB_WARP_BACKWARD=1`` keeps Warp's
+default, for users who differentiate their own kernels next to newton_lab; a module created before
+``import newton_lab`` keeps the setting it was created with.
 
-Without it a run prints Warp's init banner, one ``Module ... load on device ... took ...`` line per kernel
+Quiet: without it a run prints Warp's init banner, one ``Module ... load on device ... took ...`` line per kernel
 module (~70 before an example starts) and, on a machine without an NVIDIA driver, ``Warp CUDA warning:
 Could not find or load the NVIDIA CUDA driver`` (printed by Warp's C library on stderr). ``install()``
 (called by ``import newton_lab``) makes Warp quiet as soon as Warp is imported, in every process that
