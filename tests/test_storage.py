@@ -396,6 +396,33 @@ def test_state_tree_names_flat_states_and_passes_nested_ones():
         state_tree(flat[:, :2], {"newton_lab": {"state_layout": layout}})
 
 
+def test_hdf5_tree_writer_makes_the_file_h5py_create_dataset_makes(tmp_path):
+    """The HDF5 writer creates plain arrays through h5py's low-level API: the file is byte for byte the one that
+    ``create_dataset`` writes (types incl. bool and non-contiguous input, layout, no filters, no times)."""
+    from newton_lab.datasets import hdf5_store
+
+    rng = np.random.default_rng(0)
+    tree = {"f32": rng.random((17, 7), dtype=np.float32), "f64": rng.random(5), "i64": np.arange(9),
+            "bool": np.array([True, False, True]), "u8": np.arange(12, dtype=np.uint8).reshape(3, 4),
+            "fortran": np.asfortranarray(rng.random((4, 3))), "strided": np.arange(6, dtype=np.int32)[::2],
+            "nested": {"x": np.ones((2, 2), np.float32), "empty": np.zeros((0, 3)), "scalar": np.array(2.5)}}
+
+    def high_level(g, t):
+        for k, v in t.items():
+            if isinstance(v, dict):
+                high_level(g.create_group(k), v)
+            else:
+                g.create_dataset(k, data=v)
+
+    for name, write in (("ours.h5", hdf5_store._write_tree), ("h5py.h5", high_level)):
+        with h5py.File(tmp_path / name, "w", libver=hdf5_store.LIBVER) as f:
+            write(f.create_group("demo"), tree)
+    assert (tmp_path / "ours.h5").read_bytes() == (tmp_path / "h5py.h5").read_bytes()
+    with h5py.File(tmp_path / "ours.h5") as f:
+        for key in ("f32", "bool", "fortran", "strided"):
+            assert f["demo"][key].dtype == tree[key].dtype and np.array_equal(f["demo"][key][()], tree[key])
+
+
 # ----------------------------------------------------------------------------- SIGKILL crash safety
 CHILD = f"""
 import sys
