@@ -396,9 +396,10 @@ def test_state_tree_names_flat_states_and_passes_nested_ones():
         state_tree(flat[:, :2], {"newton_lab": {"state_layout": layout}})
 
 
-def test_hdf5_tree_writer_makes_the_file_h5py_create_dataset_makes(tmp_path):
+def test_hdf5_tree_writer_and_reader_match_h5py_high_level(tmp_path):
     """The HDF5 writer creates plain arrays through h5py's low-level API: the file is byte for byte the one that
-    ``create_dataset`` writes (types incl. bool and non-contiguous input, layout, no filters, no times)."""
+    ``create_dataset`` writes (types incl. bool and non-contiguous input, layout, no filters, no times); the reader
+    returns what h5py's ``Group.items`` / ``Dataset[()]`` return (gzip chunks, byte strings, 0-d, empty)."""
     from newton_lab.datasets import hdf5_store
 
     rng = np.random.default_rng(0)
@@ -418,9 +419,26 @@ def test_hdf5_tree_writer_makes_the_file_h5py_create_dataset_makes(tmp_path):
         with h5py.File(tmp_path / name, "w", libver=hdf5_store.LIBVER) as f:
             write(f.create_group("demo"), tree)
     assert (tmp_path / "ours.h5").read_bytes() == (tmp_path / "h5py.h5").read_bytes()
-    with h5py.File(tmp_path / "ours.h5") as f:
-        for key in ("f32", "bool", "fortran", "strided"):
-            assert f["demo"][key].dtype == tree[key].dtype and np.array_equal(f["demo"][key][()], tree[key])
+
+    def high_level_read(g):
+        return {k: high_level_read(v) if isinstance(v, h5py.Group) else np.asarray(v[()]) for k, v in g.items()}
+
+    with h5py.File(tmp_path / "ours.h5", "a") as f:  # the reader too: h5py's own reading, key order included
+        f["demo"].create_dataset("rgb", data=np.arange(2 * 4 * 4 * 3, dtype=np.uint8).reshape(2, 4, 4, 3),
+                                 chunks=(1, 4, 4, 3), compression="gzip")
+        f["demo"]["nested"].create_dataset("names", data=np.array([b"a", b"bc"]))
+        ours, theirs = hdf5_store._read_tree(f["demo"]), high_level_read(f["demo"])
+
+    def same(a, b):
+        assert list(a) == list(b)
+        for k in a:
+            if isinstance(a[k], dict):
+                same(a[k], b[k])
+            else:
+                assert a[k].dtype == b[k].dtype and a[k].shape == b[k].shape and np.array_equal(a[k], b[k]), k
+
+    same(ours, theirs)
+    same({k: ours[k] for k in tree if k != "nested"}, {k: v for k, v in tree.items() if k != "nested"})
 
 
 # ----------------------------------------------------------------------------- SIGKILL crash safety

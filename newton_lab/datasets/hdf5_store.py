@@ -118,15 +118,35 @@ def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
             _write_plain(g, key, value)
 
 
+def _read_array(dset: h5py.h5d.DatasetID) -> np.ndarray:
+    """A dataset's whole array: numeric ones read into a new array through ``h5py.h5d`` (h5py's high-level
+    ``Group.items`` and ``Dataset[()]`` cost more Python than HDF5 spends reading a PickCube demo's small
+    arrays); 0-d, empty and other types through ``Dataset[()]``."""
+    dtype = dset.dtype
+    if dtype.kind not in _PLAIN_KINDS or not dset.shape or 0 in dset.shape:
+        return np.asarray(h5py.Dataset(dset)[()])
+    out = np.empty(dset.shape, dtype)
+    dset.read(h5py.h5s.ALL, h5py.h5s.ALL, out)
+    return out
+
+
+def _read_node(gid: h5py.h5g.GroupID) -> dict[str, Any]:
+    out = {}
+    for name in gid:  # link names in the group's name order, as h5py's Group.items()
+        obj = h5py.h5o.open(gid, name)
+        out[name.decode()] = _read_node(obj) if isinstance(obj, h5py.h5g.GroupID) else _read_array(obj)
+    return out
+
+
 def _read_tree(g: h5py.Group) -> dict[str, Any]:
-    return {k: _read_tree(v) if isinstance(v, h5py.Group) else np.asarray(v[()]) for k, v in g.items()}
+    return _read_node(g.id)
 
 
 def _read_keys(g: h5py.Group, keys: tuple[str, ...] | None) -> dict[str, Any]:
     """``_read_tree`` of only the arrays named by ``keys`` ("actions", "obs/front_head_rgb"; all when None)."""
     if keys is None:
         return _read_tree(g)
-    return common.nest({k: np.asarray(g[k][()]) for k in keys if isinstance(g.get(k), h5py.Dataset)})
+    return common.nest({k: _read_array(g[k].id) for k in keys if isinstance(g.get(k), h5py.Dataset)})
 
 
 def _attrs(obj: h5py.HLObject) -> dict[str, Any]:
