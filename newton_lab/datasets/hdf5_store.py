@@ -109,13 +109,16 @@ def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
     for key, value in tree.items():
         if isinstance(value, dict):
             _write_tree(g.create_group(key), value)
-        elif value.ndim == 0 or value.size == 0 or value.dtype.kind not in _PLAIN_KINDS or not key.isascii():
+        elif value.ndim == 0 or value.size == 0:
             g.create_dataset(key, data=value)
         elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, gzip 4 (README: Image datasets)
             g.create_dataset(key, data=value, chunks=(1, *value.shape[1:]), compression="gzip", compression_opts=4)
-        else:  # state arrays: contiguous and uncompressed. Physics floats barely compress (a PickCube demo: 162 KB
-            # raw, 183 KB as gzip-4 chunks, 176 KB contiguous) and gzip doubled the append time (19 vs 9 ms/demo)
+        elif value.dtype.kind in _PLAIN_KINDS and key.isascii():  # state arrays: contiguous and uncompressed.
+            # Physics floats barely compress (a PickCube demo: 162 KB raw, 183 KB as gzip-4 chunks, 176 KB
+            # contiguous) and gzip doubled the append time (19 vs 9 ms/demo)
             _write_plain(g, key, value)
+        else:  # other types and names: h5py's own conversions
+            g.create_dataset(key, data=value)
 
 
 def _read_array(dset: h5py.h5d.DatasetID) -> np.ndarray:
