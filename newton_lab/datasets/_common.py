@@ -6,6 +6,7 @@ import ctypes
 import errno
 import fcntl
 import json
+import math
 import os
 import re
 import threading
@@ -73,7 +74,7 @@ def damaged(path: Path, reason: str) -> ValueError:
 
 def time_chunks(shape: tuple[int, ...], itemsize: int) -> tuple[int, ...]:
     """Chunk shape that splits along time (axis 0) only, ~CHUNK_BYTES per chunk."""
-    row = max(1, itemsize * int(np.prod(shape[1:], dtype=np.int64)))
+    row = max(1, itemsize * math.prod(shape[1:]))
     t = max(1, min(shape[0], CHUNK_BYTES // row))
     return (t, *(max(1, s) for s in shape[1:]))
 
