@@ -7,6 +7,7 @@ steps -> task kernel -> masked resets -> observations) and a graph of just ``dec
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from pathlib import Path
 from typing import Any
@@ -262,13 +263,15 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
 
 def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, episodes: int = 16,
                              device: str | None = None, dataset_path: str | Path = "outputs/bench_collect.zarr",
-                             max_steps: int = 1000) -> dict[str, Any]:
+                             max_steps: int = 1000, baseline: bool = False) -> dict[str, Any]:
     """``bench_collect`` on ``workers`` Dask worker processes at once, the way ``--runner dask`` shards collection:
     one worker per GPU on a CUDA host when ``device`` is None or ``"cuda"`` (each sees only its GPU), else
     processes on ``device``. Worker ``i`` collects its share of ``episodes`` with seed ``i`` into its own shard
     ``<stem>_w<i><suffix>`` (no prefilled run). The aggregate rate is every worker's successful demos over the
     span from the first timed run's start to the last one's end, so workers that did not overlap are not
-    counted as parallel."""
+    counted as parallel. With ``baseline`` worker 0 first collects one worker's share alone into
+    ``<stem>_alone<suffix>`` (same cluster, same demos per GPU), and ``scaling`` is the aggregate demos/s over
+    that lone run's."""
     from distributed import Client, LocalCluster  # deferred: Dask is slow to import
 
     if workers < 1 or episodes < workers:
@@ -279,15 +282,24 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
                          f"use --workers {len(gpus)} or a --device to share")
     path = Path(dataset_path)
     shards = [path.with_name(f"{path.stem}_w{i}{path.suffix}") for i in range(workers)]
-    for p in shards + [s.with_name(f"{s.stem}_warmup{s.suffix}") for s in shards]:
+    alone = path.with_name(f"{path.stem}_alone{path.suffix}")
+    written = shards + [alone] * baseline
+    for p in written + [s.with_name(f"{s.stem}_warmup{s.suffix}") for s in written]:
         if p.exists():
             raise FileExistsError(f"{p} exists; bench-collect writes fresh shards (choose a new --dataset-path)")
     opts = cluster_options(workers, device, gpus=gpus)
     quiet_shutdown()
+    run = functools.partial(bench_collect, task_id, num_envs=num_envs, device="cuda" if gpus else device, prefill=0,
+                            max_steps=max_steps)
     with opts.get("cluster_class", LocalCluster)(**opts["cluster_kwargs"]) as cluster, Client(cluster) as client:
-        futures = [client.submit(bench_collect, task_id, num_envs=num_envs, device="cuda" if gpus else device,
-                                 episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
-                                 prefill=0, max_steps=max_steps, seed=i, pure=False)
+        client.wait_for_workers(workers)
+        lone = None
+        if baseline:  # worker 0 alone (its GPU, its process), with the share each worker gets below
+            first = min(client.scheduler_info()["workers"].items(), key=lambda kv: str(kv[1].get("name")))[0]
+            lone = client.submit(run, episodes=episodes // workers, dataset_path=str(alone), seed=0, pure=False,
+                                 workers=[first], allow_other_workers=False).result()
+        futures = [client.submit(run, episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
+                                 seed=i, pure=False)
                    for i, shard in enumerate(shards)]
         parts = client.gather(futures)
     ok = sum(p["successful_demos"] for p in parts)
@@ -298,7 +310,10 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
             "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
             "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
             "first_use_s": max(p["first_use_s"] for p in parts),
-            "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)]}
+            "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)],
+            **({} if lone is None else {
+                "scaling": ok / span / lone["demos_per_s"],
+                "baseline": {k: lone[k] for k in (*keep, "demos_per_s") if k in lone} | {"dataset_path": str(alone)}})}
 
 
 def _size(path: Path) -> int:

@@ -96,8 +96,9 @@ def test_one_worker_per_gpu(monkeypatch):
 
 
 def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
-    """``bench-collect --workers 2``: two Dask worker processes collect at once, each into its own shard; the
-    aggregate counts every demo over the span of both timed runs."""
+    """``bench-collect --workers 2 --baseline``: worker 0 first collects one share alone, then two Dask worker
+    processes collect at once, each into its own shard; the aggregate counts every demo over the span of both
+    timed runs and ``scaling`` divides it by the lone run's rate."""
     from newton_lab.cli import main
 
     path = tmp_path / "bc.zarr"
@@ -107,7 +108,7 @@ def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
         except OSError:
             pass  # something else holds it already
         assert main(["bench-collect", "--workers", "2", "--num-envs", "1", "--episodes", "2", "--device", "cpu",
-                     "--dataset-path", str(path)]) == 0
+                     "--dataset-path", str(path), "--baseline"]) == 0
     assert not [w for w in recwarn if "8787" in str(w.message)]
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["workers"] == 2 and out["successful_demos"] == 2 and out["device_names"] == ["cpu", "cpu"]
@@ -118,8 +119,15 @@ def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
     for p in parts:
         assert read_dataset_info(p["dataset_path"])["num_demos"] == 1 and p["physics_s"] > 0
         assert 0 < p["writer_files_s"] + p["writer_sync_s"] <= p["writer_s"] and p["presync_s"] >= 0
+    lone = out["baseline"]
+    assert lone["successful_demos"] == 1 and read_dataset_info(lone["dataset_path"])["num_demos"] == 1
+    assert lone["dataset_path"].endswith("bc_alone.zarr") and lone["physics_s"] > 0
+    assert out["scaling"] == pytest.approx(out["demos_per_s"] / lone["demos_per_s"])
+    assert lone["wall_s"] > 0 and min(p["wall_s"] for p in parts) > 0
     assert main(["bench-collect", "--workers", "2", "--device", "cpu", "--dataset-path", str(path)]) == 2
     assert "exists" in capsys.readouterr().err  # never overwrites a shard
+    assert main(["bench-collect", "--baseline", "--device", "cpu", "--dataset-path", str(tmp_path / "y.zarr")]) == 2
+    assert "--baseline compares --workers W" in capsys.readouterr().err
     assert main(["bench-collect", "--workers", "3", "--episodes", "2", "--device", "cpu",
                  "--dataset-path", str(tmp_path / "x.zarr")]) == 2
     assert "--workers 3 with --episodes 2" in capsys.readouterr().err

@@ -169,9 +169,12 @@ def bench_collect(args: BenchCollectArgs) -> int:
     common = {"num_envs": args.num_envs, "episodes": args.episodes, "device": args.device,
               "dataset_path": args.dataset_path}
     if args.workers == 1:
+        if args.baseline:
+            raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")
         print(json.dumps(bench_collect(args.task, prefill=args.prefill, **common)))
     else:
-        print(json.dumps(bench_collect_on_workers(args.task, workers=args.workers, **common)))
+        print(json.dumps(bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline,
+                                                  **common)))
     return 0
 
 

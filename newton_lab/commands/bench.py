@@ -46,7 +46,10 @@ class BenchCollectArgs(BenchEnvArgs):
     """Episodes stored before the second run, which appends to that full dataset (0: skip it)."""
     workers: int = 1
     """Dask worker processes collecting at once (one per GPU with no --device or --device cuda), each into its own
-    shard <stem>_w<i>; no prefilled run. Compare with --workers 1 on the same machine."""
+    shard <stem>_w<i>; no prefilled run."""
+    baseline: bool = False
+    """with --workers: first time worker 0 alone on one worker's share (<stem>_alone) and print the scaling, the
+    workers' demos/s over that lone run's (same cluster, same demos per GPU)"""
 
 
 @dataclass(kw_only=True)
