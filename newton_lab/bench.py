@@ -9,6 +9,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -216,12 +218,13 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
 
 def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
                   dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
-                  max_steps: int = 1000, seed: int = 0) -> dict[str, Any]:
+                  max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
     ``started_at`` / ``ended_at`` (Unix seconds) bound the timed run, for ``bench_collect_on_workers``; one
-    ``syncfs`` of the dataset's filesystem (``presync_s``) comes before it."""
+    ``syncfs`` of the dataset's filesystem (``presync_s``) comes before it, and ``start_gate()``, when given, right
+    after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it)."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -237,6 +240,9 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
                            "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
                            else "cpu", "first_use_s": first_use, "format": path.suffix}
+    if start_gate is not None:
+        out["ready_at"] = time.time()
+        start_gate()
     t1 = time.perf_counter()
     sync_tree(path.parent)  # earlier writes (a deleted dataset's millions of files) are not charged to this run
     out["presync_s"] = time.perf_counter() - t1
@@ -269,7 +275,8 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     processes on ``device``. Worker ``i`` collects its share of ``episodes`` with seed ``i`` into its own shard
     ``<stem>_w<i><suffix>`` (no prefilled run). The aggregate rate is every worker's successful demos over the
     span from the first timed run's start to the last one's end, so workers that did not overlap are not
-    counted as parallel. With ``baseline`` worker 0 first collects one worker's share alone into
+    counted as parallel; the timed runs start together (each worker waits at a gate after its first use, which
+    takes longer on the worker that compiles). With ``baseline`` worker 0 first collects one worker's share alone into
     ``<stem>_alone<suffix>`` (same cluster, same demos per GPU), and ``scaling`` is the aggregate demos/s over
     that lone run's."""
     from distributed import Client, LocalCluster  # deferred: Dask is slow to import
@@ -298,22 +305,56 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
             first = min(client.scheduler_info()["workers"].items(), key=lambda kv: str(kv[1].get("name")))[0]
             lone = client.submit(run, episodes=episodes // workers, dataset_path=str(alone), seed=0, pure=False,
                                  workers=[first], allow_other_workers=False).result()
+        gate = f"bench-collect-{uuid.uuid4().hex}"
         futures = [client.submit(run, episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
-                                 seed=i, pure=False)
+                                 seed=i, start_gate=_StartGate(gate, i), pure=False)
                    for i, shard in enumerate(shards)]
+        _open_gate(client, gate, futures)
         parts = client.gather(futures)
     ok = sum(p["successful_demos"] for p in parts)
     span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
     keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
-            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo")
+            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo", "ready_at", "started_at")
     return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
             "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
             "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
             "first_use_s": max(p["first_use_s"] for p in parts),
+            "start_skew_s": max(p["started_at"] for p in parts) - min(p["started_at"] for p in parts),
             "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)],
             **({} if lone is None else {
                 "scaling": ok / span / lone["demos_per_s"],
                 "baseline": {k: lone[k] for k in (*keep, "demos_per_s") if k in lone} | {"dataset_path": str(alone)}})}
+
+
+GATE_TIMEOUT_S = 3600.0
+"""How long a worker waits at the start gate for the others (their first use: compiling, loading kernels)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _StartGate:
+    """Worker ``index``'s side of a start gate: announce readiness (its first use is done), wait for the go."""
+
+    key: str
+    index: int
+
+    def __call__(self) -> None:
+        from distributed import Event  # deferred: Dask is slow to import
+
+        Event(f"{self.key}-ready-{self.index}").set()
+        if not Event(f"{self.key}-go").wait(GATE_TIMEOUT_S):
+            raise TimeoutError(f"bench-collect worker {self.index} waited {GATE_TIMEOUT_S:.0f} s for the others")
+
+
+def _open_gate(client, key: str, futures: list) -> None:
+    """Open the start gate once every worker is ready; returns early if a worker failed (gather raises its error)."""
+    from distributed import Event  # deferred: Dask is slow to import
+
+    for i in range(len(futures)):
+        ready = Event(f"{key}-ready-{i}", client=client)
+        while not ready.wait(0.5):
+            if any(f.status in ("error", "cancelled") for f in futures):
+                return
+    Event(f"{key}-go", client=client).set()
 
 
 def _size(path: Path) -> int:

@@ -123,7 +123,9 @@ def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
     assert lone["successful_demos"] == 1 and read_dataset_info(lone["dataset_path"])["num_demos"] == 1
     assert lone["dataset_path"].endswith("bc_alone.zarr") and lone["physics_s"] > 0
     assert out["scaling"] == pytest.approx(out["demos_per_s"] / lone["demos_per_s"])
-    assert lone["wall_s"] > 0 and min(p["wall_s"] for p in parts) > 0
+    assert lone["wall_s"] > 0 and "ready_at" not in lone  # the lone run has no gate
+    assert max(p["ready_at"] for p in parts) <= min(p["started_at"] for p in parts)  # timed runs start together
+    assert out["start_skew_s"] == pytest.approx(max(p["started_at"] for p in parts) - min(p["started_at"] for p in parts))
     assert main(["bench-collect", "--workers", "2", "--device", "cpu", "--dataset-path", str(path)]) == 2
     assert "exists" in capsys.readouterr().err  # never overwrites a shard
     assert main(["bench-collect", "--baseline", "--device", "cpu", "--dataset-path", str(tmp_path / "y.zarr")]) == 2
