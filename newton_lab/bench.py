@@ -300,14 +300,16 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
                             max_steps=max_steps)
     with opts.get("cluster_class", LocalCluster)(**opts["cluster_kwargs"]) as cluster, Client(cluster) as client:
         client.wait_for_workers(workers)
+        # one task per worker, by name (a restarted worker keeps it): two gated runs on one worker would wait forever
+        names = sorted((w["name"] for w in client.scheduler_info()["workers"].values()), key=str)
         lone = None
         if baseline:  # worker 0 alone (its GPU, its process), with the share each worker gets below
-            first = min(client.scheduler_info()["workers"].items(), key=lambda kv: str(kv[1].get("name")))[0]
             lone = client.submit(run, episodes=episodes // workers, dataset_path=str(alone), seed=0, pure=False,
-                                 workers=[first], allow_other_workers=False).result()
+                                 workers=[names[0]], allow_other_workers=False).result()
         gate = f"bench-collect-{uuid.uuid4().hex}"
         futures = [client.submit(run, episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
-                                 seed=i, start_gate=_StartGate(gate, i), pure=False)
+                                 seed=i, start_gate=_StartGate(gate, i), pure=False, workers=[names[i]],
+                                 allow_other_workers=False)
                    for i, shard in enumerate(shards)]
         _open_gate(client, gate, futures)
         parts = client.gather(futures)
