@@ -206,7 +206,7 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
 def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
             only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
             dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
-            on_step=None, save_end_scenario=None, max_queued: int = 256):
+            on_step=None, save_end_scenario=None, max_queued: int | None = None):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
 
@@ -214,8 +214,10 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     (``datasets.background``), many per write session, while the simulation goes on; ``collect`` waits for
     it before returning (also on Ctrl-C or an error, so every finished episode is written). An episode is
     durable once written: a run killed (SIGKILL) keeps every episode written before and loses at most the
-    batch being written (all of it or none lands) and those queued behind it (at most ``max_queued``; the
-    simulation waits while that many are queued).
+    batch being written (all of it or none lands) and those queued behind it (at most ``max_queued``, by default
+    256 or one per env row, whichever is more, and 1 GiB of arrays; the simulation waits while the queue is full).
+    A queue that holds one episode per row lets the rows' next episodes run while the writer writes the ones that
+    ended together (on a GPU thousands end within a few steps; a queue of 256 held the loop until they were written).
 
     ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML
     (``newton_lab.envs.scenario``) that a following component task can start from; the file must not exist.
@@ -235,7 +237,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
             raise FileExistsError(f"scenario file {save_end_scenario} already exists; choose a new path")
     args = env_args(env)
     args["env_name"] = task_id
-    writer = BackgroundWriter(open_writer(Path(path), task_id=task_id, env_args=args), max_queued=max_queued)
+    writer = BackgroundWriter(open_writer(Path(path), task_id=task_id, env_args=args),
+                              max_queued=max(256, env.num_envs) if max_queued is None else max_queued)
     saver = EpisodeSaver(writer, EpisodeRecorder(env, max_steps), seed=env.seed, only_successes=only_successes)
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
