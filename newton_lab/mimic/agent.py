@@ -10,7 +10,7 @@ import warp as wp
 from ..agents.base import BaseAgent, EpisodeTracker
 from ..robots.g1.kinematics import TcpKinematics
 from ..task_api.mimic_cfg import MimicCfg
-from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segment
+from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segments
 from .source import SourceDemo
 
 
@@ -68,7 +68,8 @@ class MimicAgent(BaseAgent):
             self._tracker.forget(env_ids)
 
     # ------------------------------------------------------------------ segments
-    def _select(self, sub_idx: int, cur_obj: np.ndarray | None) -> tuple[SourceDemo, int, int] | None:
+    def _select(self, sub_idx: int, cur_obj: np.ndarray | None) -> tuple[SourceDemo, int, int, np.ndarray | None] | None:
+        """(source, segment start, segment end, the current object frame for it or None without an object)."""
         sub = self.cfg.subtasks[sub_idx]
         cands = []
         for src in self.sources:
@@ -80,12 +81,14 @@ class MimicAgent(BaseAgent):
         if not cands:
             return None
         if sub.object_ref is None or cur_obj is None:
-            return cands[int(self.rng.integers(len(cands)))]
+            return *cands[int(self.rng.integers(len(cands)))], None
         src_obj = np.stack([src.objects[sub.object_ref][s] for src, s, _ in cands])  # (K, 7) at each segment start
+        frames = self._frame(sub, cur_obj, src_obj)
         dist = (np.linalg.norm(src_obj[:, :3] - cur_obj[:3], axis=1)
-                + self.cfg.rot_weight * rotation_angle(src_obj[:, 3:7], self._frame(sub, cur_obj, src_obj)[:, 3:7]))
+                + self.cfg.rot_weight * rotation_angle(src_obj[:, 3:7], frames[:, 3:7]))
         top = np.argsort(dist)[: max(sub.nn_k, 1)]
-        return cands[int(self.rng.choice(top))]
+        k = int(self.rng.choice(top))
+        return *cands[k], frames[k]
 
     @staticmethod
     def _frame(sub, cur_obj: np.ndarray, src_obj: np.ndarray) -> np.ndarray:
@@ -95,7 +98,10 @@ class MimicAgent(BaseAgent):
             return np.broadcast_to(cur_obj, np.shape(src_obj))
         return closest_symmetric_pose(cur_obj, src_obj, sub.yaw_symmetry)
 
-    def _start_subtask(self, r: int, plan: _RowPlan, env_poses: dict[str, np.ndarray], tcp_now: np.ndarray) -> None:
+    def _pick(self, r: int, plan: _RowPlan, env_poses: dict[str, np.ndarray]):
+        """Row ``r``'s next subtask and its source segment (``_select``: the row's random draws): (subtask, source,
+        start, end, (source object pose, current object frame) or None); None when no source fits (the attempt
+        ends with an empty plan)."""
         plan.subtask += 1
         sub = self.cfg.subtasks[plan.subtask]
         cur_obj = env_poses[sub.object_ref][r] if sub.object_ref else None
@@ -103,25 +109,45 @@ class MimicAgent(BaseAgent):
         if pick is None:
             plan.subtask = len(self.cfg.subtasks)
             plan.poses, plan.gripper, plan.noisy = np.zeros((0, 7)), np.zeros(0), np.zeros(0, dtype=bool)
-            return
-        src, start, end = pick
+            return None
+        src, start, end, frame = pick
         plan.sources.append(src.demo_id)
-        seg = src.target_tcp[start:end]
-        if sub.object_ref is not None:
-            src_obj = src.objects[sub.object_ref][start]
-            seg = transform_segment(seg, src_obj, self._frame(sub, cur_obj, src_obj))
-        first = self._last_target[r] if (self.cfg.interpolate_from_last_target_pose and self._has_last[r]) else tcp_now
-        interp = interpolate_poses(first, seg[0], sub.num_interpolation_steps)
-        grip = src.gripper[start:end]
-        plan.poses = np.concatenate([interp, seg])
-        plan.gripper = np.concatenate([np.full(len(interp), grip[0]), grip])
-        plan.noisy = np.concatenate([np.zeros(len(interp), dtype=bool), np.ones(len(seg), dtype=bool)])
+        return sub, src, start, end, None if frame is None else (src.objects[sub.object_ref][start], frame)
+
+    def _start_subtasks(self, rows: list[int], env_poses: dict[str, np.ndarray], tcp_now: np.ndarray) -> None:
+        """Rows ``rows`` start their next subtask: per row the source pick (in row order, so the random draws
+        do not depend on batching), then every picked segment moved into its object frame at once."""
+        picks = [(r, self._pick(r, self._rows[r], env_poses)) for r in rows]
+        picked = [(r, p) for r, p in picks if p is not None]
+        segs = [src.target_tcp[start:end] for _, (_, src, start, end, _) in picked]
+        moved = [i for i, (_, p) in enumerate(picked) if p[4] is not None]
+        if moved:
+            frames = [picked[i][1][4] for i in moved]
+            out = transform_segments([segs[i] for i in moved], np.stack([f[0] for f in frames]),
+                                     np.stack([f[1] for f in frames]))
+            for i, seg in zip(moved, out):
+                segs[i] = seg
+        for (r, (sub, src, start, end, _)), seg in zip(picked, segs):
+            plan = self._rows[r]
+            use_last = self.cfg.interpolate_from_last_target_pose and self._has_last[r]
+            interp = interpolate_poses(self._last_target[r] if use_last else tcp_now[r], seg[0],
+                                       sub.num_interpolation_steps)
+            grip = src.gripper[start:end]
+            plan.poses = np.concatenate([interp, seg])
+            plan.gripper = np.concatenate([np.full(len(interp), grip[0]), grip])
+            plan.noisy = np.concatenate([np.zeros(len(interp), dtype=bool), np.ones(len(seg), dtype=bool)])
+        for r, _ in picks:
+            self._load(r, self._rows[r])
+            if not self._length[r]:  # no source fitted: the attempt is over
+                self._done[r] = True
 
     # ------------------------------------------------------------------ the agent contract
     def _plan_rows(self, rows, fresh: set[int], q_env: np.ndarray, env_poses: dict[str, np.ndarray],
                    tcp_now: np.ndarray) -> None:
-        """Per-row Python only where a row starts an attempt or a subtask: plan its next segment and copy it into
-        the padded step buffers that :meth:`act` indexes for every row at once."""
+        """Per-row Python only where a row starts an attempt or a subtask (bookkeeping and the source pick); the
+        segments are moved for all those rows at once and copied into the padded step buffers that :meth:`act`
+        indexes for every row at once."""
+        starting = []
         for r in rows:
             plan = self._rows[r]
             if r in fresh:
@@ -129,12 +155,14 @@ class MimicAgent(BaseAgent):
                 self._q[r] = q_env[r]
                 self._cursor[r], self._length[r], self._done[r], self._settle[r] = 0, 0, False, 0
                 self._has_last[r], self._last_grip[r] = False, 0.0
-            while not self._done[r] and self._cursor[r] >= self._length[r]:
-                if plan.subtask + 1 >= len(self.cfg.subtasks):
-                    self._done[r] = True
-                    break
-                self._start_subtask(r, plan, env_poses, tcp_now[r])
-                self._load(r, plan)
+            if self._done[r] or self._cursor[r] < self._length[r]:
+                continue
+            if plan.subtask + 1 >= len(self.cfg.subtasks):
+                self._done[r] = True
+            else:
+                starting.append(r)
+        if starting:
+            self._start_subtasks(starting, env_poses, tcp_now)
 
     def _load(self, r: int, plan: _RowPlan) -> None:
         """Row ``r``'s new segment into the step buffers (grown to the longest segment so far)."""

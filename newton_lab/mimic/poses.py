@@ -64,8 +64,16 @@ def mat_to_pose(m: np.ndarray) -> np.ndarray:
 def transform_segment(src_eef: np.ndarray, src_obj: np.ndarray, cur_obj: np.ndarray) -> np.ndarray:
     """Object-centric replay: ``T_new = T_obj_cur · T_obj_src^-1 · T_src_eef`` for every pose of the
     segment. ``src_eef`` (T, 7); ``src_obj`` / ``cur_obj`` (7,) object poses at the segment start."""
+    return transform_segments([src_eef], np.asarray(src_obj)[None], np.asarray(cur_obj)[None])[0]
+
+
+def transform_segments(src_eef: list[np.ndarray], src_obj: np.ndarray, cur_obj: np.ndarray) -> list[np.ndarray]:
+    """``transform_segment`` of many segments at once (the rows that start a subtask in one step): segment ``i``
+    (T_i, 7) with object poses ``src_obj[i]`` / ``cur_obj[i]`` ((R, 7) each); one matrix product for every pose."""
+    lengths = [len(seg) for seg in src_eef]
     delta = pose_to_mat(cur_obj) @ np.linalg.inv(pose_to_mat(src_obj))
-    return mat_to_pose(delta[None] @ pose_to_mat(src_eef))
+    moved = mat_to_pose(np.repeat(delta, lengths, axis=0) @ pose_to_mat(np.concatenate(src_eef)))
+    return np.split(moved, np.cumsum(lengths)[:-1])
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarray:
