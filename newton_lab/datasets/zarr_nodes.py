@@ -35,8 +35,8 @@ from ._common import StoredDemo, demo_name, nest, time_chunks, write_fault_point
 IMAGE_ZSTD_LEVEL = 3
 """zstd level of image arrays (one frame per chunk)."""
 STATE_ZSTD_LEVEL = 1
-"""zstd level of the other arrays (states, actions, signals): level 1 stores a PickCube demo's state arrays in
-1.4 % more bytes than zarr's default (level 3) at about half the compression time, the largest CPU share of a
+"""zstd level of the other arrays (states, actions, signals): level 1 stores a PickCube demo's arrays in
+1.3 % more bytes than zarr's default (level 3) at about half the compression time, the largest CPU share of a
 writer process."""
 
 
@@ -107,7 +107,7 @@ def _array_meta(dtype: str, shape: tuple[int, ...]) -> tuple[bytes, Zstd, tuple[
 def _write_array(node: str, value: np.ndarray) -> bool:
     """Write ``value`` as the array ``node`` (a path); False when it needs zarr-python (see the module docstring).
     Plain ``os`` paths and the cached metadata keep the Python per array to a few microseconds: a writer
-    process spends most of its ~5 ms per PickCube demo on file creation (about 80 files and folders) and zstd."""
+    process spends most of its ~3 ms per PickCube demo on file creation (about 80 files and folders) and zstd."""
     if value.ndim == 0 or value.size == 0:
         return False
     found = _array_meta(value.dtype.str, value.shape)
