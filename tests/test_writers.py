@@ -60,18 +60,28 @@ from pathlib import Path
 from test_writers import episode
 from newton_lab.datasets import open_writer
 path, first, go = sys.argv[1], int(sys.argv[2]), Path(sys.argv[3])
+mine, peer = go.with_name(f"appended_{first}"), go.with_name(f"appended_{100 - first}")
 print("READY", flush=True)
 while not go.exists():
     time.sleep(0.005)
 with open_writer(path, task_id="pick_cube", env_args={}) as w:
     for seed in range(first, first + 6):
+        if seed == first + 3:  # half-way, with this writer open: the other process must get its appends in
+            t0 = time.monotonic()
+            while not peer.exists():
+                if time.monotonic() - t0 > 60:
+                    sys.exit("the other process appended nothing while this writer was open")
+                time.sleep(0.005)
         print("APPENDED", w.append_episode(episode(seed), success=True, attrs={"seed": seed}), seed, flush=True)
+        mine.touch()
 """
 
 
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_two_processes_append_to_one_dataset(tmp_path, suffix):
-    """Both create the dataset at once, then interleave appends: 12 episodes, unique ids, none lost."""
+    """Both create the dataset at once, then interleave appends: 12 episodes, unique ids, none lost. Each
+    appender waits half-way, its writer open, until the other has appended (the lock is held per write, not per
+    open writer), so the interleaving does not depend on how the OS schedules the two processes."""
     path, go = tmp_path / f"ds{suffix}", tmp_path / "go"
     procs = [subprocess.Popen([sys.executable, "-c", APPENDER, str(path), str(first), str(go)], env=child_env(),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for first in (0, 100)]
@@ -87,7 +97,7 @@ def test_two_processes_append_to_one_dataset(tmp_path, suffix):
     ids = sorted(i for i, _ in reported)
     assert len(reported) == 12 and ids == list(range(12))
     first, second = ([i for i, seed in reported if (seed >= 100) == k] for k in (False, True))
-    assert min(first) < max(second) and min(second) < max(first)  # fair: neither waited for all of the other
+    assert min(first) < max(second) and min(second) < max(first)  # interleaved: neither waited for all of the other
     info = read_dataset_info(path)
     assert info["demo_ids"] == ids and info["num_demos"] == 12 and info["total"] == 12 * STEPS
     for demo_id, seed in reported:
