@@ -3,6 +3,8 @@ frames, stitches them with interpolation and tracks the resulting TCP waypoints 
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import numpy as np
 import torch
 import warp as wp
@@ -12,6 +14,18 @@ from ..robots.g1.kinematics import TcpKinematics
 from ..task_api.mimic_cfg import MimicCfg
 from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segments
 from .source import SourceDemo
+
+
+class _Pick(NamedTuple):
+    """A row's source segment for its next subtask: steps ``[start, end)`` of ``src``; for a subtask tied to an
+    object, the object's pose in the source at ``start`` and the current object frame to replay in."""
+
+    sub: Any
+    src: SourceDemo
+    start: int
+    end: int
+    src_obj: np.ndarray | None
+    frame: np.ndarray | None
 
 
 class _RowPlan:
@@ -68,8 +82,7 @@ class MimicAgent(BaseAgent):
             self._tracker.forget(env_ids)
 
     # ------------------------------------------------------------------ segments
-    def _select(self, sub_idx: int, cur_obj: np.ndarray | None) -> tuple[SourceDemo, int, int, np.ndarray | None] | None:
-        """(source, segment start, segment end, the current object frame for it or None without an object)."""
+    def _select(self, sub_idx: int, cur_obj: np.ndarray | None) -> _Pick | None:
         sub = self.cfg.subtasks[sub_idx]
         cands = []
         for src in self.sources:
@@ -81,14 +94,14 @@ class MimicAgent(BaseAgent):
         if not cands:
             return None
         if sub.object_ref is None or cur_obj is None:
-            return *cands[int(self.rng.integers(len(cands)))], None
+            return _Pick(sub, *cands[int(self.rng.integers(len(cands)))], None, None)
         src_obj = np.stack([src.objects[sub.object_ref][s] for src, s, _ in cands])  # (K, 7) at each segment start
         frames = self._frame(sub, cur_obj, src_obj)
         dist = (np.linalg.norm(src_obj[:, :3] - cur_obj[:3], axis=1)
                 + self.cfg.rot_weight * rotation_angle(src_obj[:, 3:7], frames[:, 3:7]))
         top = np.argsort(dist)[: max(sub.nn_k, 1)]
         k = int(self.rng.choice(top))
-        return *cands[k], frames[k]
+        return _Pick(sub, *cands[k], src_obj[k], frames[k])
 
     @staticmethod
     def _frame(sub, cur_obj: np.ndarray, src_obj: np.ndarray) -> np.ndarray:
@@ -98,41 +111,37 @@ class MimicAgent(BaseAgent):
             return np.broadcast_to(cur_obj, np.shape(src_obj))
         return closest_symmetric_pose(cur_obj, src_obj, sub.yaw_symmetry)
 
-    def _pick(self, r: int, plan: _RowPlan, env_poses: dict[str, np.ndarray]):
-        """Row ``r``'s next subtask and its source segment (``_select``: the row's random draws): (subtask, source,
-        start, end, (source object pose, current object frame) or None); None when no source fits (the attempt
-        ends with an empty plan)."""
+    def _pick(self, r: int, plan: _RowPlan, env_poses: dict[str, np.ndarray]) -> _Pick | None:
+        """Row ``r``'s next subtask and its source segment (``_select``: the row's random draws); None when no
+        source fits (the attempt ends with an empty plan)."""
         plan.subtask += 1
         sub = self.cfg.subtasks[plan.subtask]
-        cur_obj = env_poses[sub.object_ref][r] if sub.object_ref else None
-        pick = self._select(plan.subtask, cur_obj)
+        pick = self._select(plan.subtask, env_poses[sub.object_ref][r] if sub.object_ref else None)
         if pick is None:
             plan.subtask = len(self.cfg.subtasks)
             plan.poses, plan.gripper, plan.noisy = np.zeros((0, 7)), np.zeros(0), np.zeros(0, dtype=bool)
             return None
-        src, start, end, frame = pick
-        plan.sources.append(src.demo_id)
-        return sub, src, start, end, None if frame is None else (src.objects[sub.object_ref][start], frame)
+        plan.sources.append(pick.src.demo_id)
+        return pick
 
     def _start_subtasks(self, rows: list[int], env_poses: dict[str, np.ndarray], tcp_now: np.ndarray) -> None:
         """Rows ``rows`` start their next subtask: per row the source pick (in row order, so the random draws
         do not depend on batching), then every picked segment moved into its object frame at once."""
         picks = [(r, self._pick(r, self._rows[r], env_poses)) for r in rows]
         picked = [(r, p) for r, p in picks if p is not None]
-        segs = [src.target_tcp[start:end] for _, (_, src, start, end, _) in picked]
-        moved = [i for i, (_, p) in enumerate(picked) if p[4] is not None]
+        segs = [p.src.target_tcp[p.start:p.end] for _, p in picked]
+        moved = [i for i, (_, p) in enumerate(picked) if p.frame is not None]
         if moved:
-            frames = [picked[i][1][4] for i in moved]
-            out = transform_segments([segs[i] for i in moved], np.stack([f[0] for f in frames]),
-                                     np.stack([f[1] for f in frames]))
+            out = transform_segments([segs[i] for i in moved], np.stack([picked[i][1].src_obj for i in moved]),
+                                     np.stack([picked[i][1].frame for i in moved]))
             for i, seg in zip(moved, out):
                 segs[i] = seg
-        for (r, (sub, src, start, end, _)), seg in zip(picked, segs):
+        for (r, p), seg in zip(picked, segs):
             plan = self._rows[r]
             use_last = self.cfg.interpolate_from_last_target_pose and self._has_last[r]
             interp = interpolate_poses(self._last_target[r] if use_last else tcp_now[r], seg[0],
-                                       sub.num_interpolation_steps)
-            grip = src.gripper[start:end]
+                                       p.sub.num_interpolation_steps)
+            grip = p.src.gripper[p.start:p.end]
             plan.poses = np.concatenate([interp, seg])
             plan.gripper = np.concatenate([np.full(len(interp), grip[0]), grip])
             plan.noisy = np.concatenate([np.zeros(len(interp), dtype=bool), np.ones(len(seg), dtype=bool)])
