@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 import time
 import uuid
 from collections.abc import Callable
@@ -239,7 +240,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     first_use = time.perf_counter() - t0
     out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
                            "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
-                           else "cpu", "first_use_s": first_use, "format": path.suffix}
+                           else "cpu", "first_use_s": first_use, "format": path.suffix,
+                           "gpu": os.environ.get("CUDA_VISIBLE_DEVICES")}  # the host's GPU id behind a pinned cuda:0
     if start_gate is not None:
         out["ready_at"] = time.time()
         start_gate()
@@ -276,9 +278,10 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     ``<stem>_w<i><suffix>`` (no prefilled run). The aggregate rate is every worker's successful demos over the
     span from the first timed run's start to the last one's end, so workers that did not overlap are not
     counted as parallel; the timed runs start together (each worker waits at a gate after its first use, which
-    takes longer on the worker that compiles). With ``baseline`` worker 0 first collects one worker's share alone into
-    ``<stem>_alone<suffix>`` (same cluster, same demos per GPU), and ``scaling`` is the aggregate demos/s over
-    that lone run's."""
+    takes longer on the worker that compiles). With ``baseline`` worker 0 also collects one worker's share alone, once
+    before the workers' run (``<stem>_alone<suffix>``) and once after it (``<stem>_alone2<suffix>``; same cluster,
+    same demos per GPU), and ``scaling`` is the aggregate demos/s over the mean of the two lone rates: a shared
+    disk or a busy host drifts within a lease, and bracketing the parallel run cancels a linear drift."""
     from distributed import Client, LocalCluster  # deferred: Dask is slow to import
 
     if workers < 1 or episodes < workers:
@@ -289,8 +292,8 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
                          f"use --workers {len(gpus)} or a --device to share")
     path = Path(dataset_path)
     shards = [path.with_name(f"{path.stem}_w{i}{path.suffix}") for i in range(workers)]
-    alone = path.with_name(f"{path.stem}_alone{path.suffix}")
-    written = shards + [alone] * baseline
+    alone = [path.with_name(f"{path.stem}_alone{n}{path.suffix}") for n in ("", "2")] if baseline else []
+    written = shards + alone
     for p in written + [s.with_name(f"{s.stem}_warmup{s.suffix}") for s in written]:
         if p.exists():
             raise FileExistsError(f"{p} exists; bench-collect writes fresh shards (choose a new --dataset-path)")
@@ -302,10 +305,11 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
         client.wait_for_workers(workers)
         # one task per worker, by name (a restarted worker keeps it): two gated runs on one worker would wait forever
         names = sorted((w["name"] for w in client.scheduler_info()["workers"].values()), key=str)
-        lone = None
-        if baseline:  # worker 0 alone (its GPU, its process), with the share each worker gets below
-            lone = client.submit(run, episodes=episodes // workers, dataset_path=str(alone), seed=0, pure=False,
+        def alone_run(shard: Path) -> dict[str, Any]:  # worker 0 alone (its GPU, its process), one worker's share
+            return client.submit(run, episodes=episodes // workers, dataset_path=str(shard), seed=0, pure=False,
                                  workers=[names[0]], allow_other_workers=False).result()
+
+        lone = [alone_run(alone[0])] if baseline else []
         gate = f"bench-collect-{uuid.uuid4().hex}"
         futures = [client.submit(run, episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
                                  seed=i, start_gate=_StartGate(gate, i), pure=False, workers=[names[i]],
@@ -313,19 +317,21 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
                    for i, shard in enumerate(shards)]
         _open_gate(client, gate, futures)
         parts = client.gather(futures)
+        lone += [alone_run(alone[1])] if baseline else []
     ok = sum(p["successful_demos"] for p in parts)
     span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
     keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
-            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo", "ready_at", "started_at")
+            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo", "gpu", "ready_at", "started_at")
     return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
             "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
             "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
             "first_use_s": max(p["first_use_s"] for p in parts),
             "start_skew_s": max(p["started_at"] for p in parts) - min(p["started_at"] for p in parts),
             "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)],
-            **({} if lone is None else {
-                "scaling": ok / span / lone["demos_per_s"],
-                "baseline": {k: lone[k] for k in (*keep, "demos_per_s") if k in lone} | {"dataset_path": str(alone)}})}
+            **({} if not lone else {
+                "scaling": ok / span / (sum(r["demos_per_s"] for r in lone) / len(lone)),
+                "baseline": [{k: r[k] for k in (*keep, "demos_per_s") if k in r} | {"dataset_path": str(a)}
+                             for r, a in zip(lone, alone)]})}
 
 
 GATE_TIMEOUT_S = 3600.0

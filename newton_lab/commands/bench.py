@@ -48,8 +48,9 @@ class BenchCollectArgs(BenchEnvArgs):
     """Dask worker processes collecting at once (one per GPU with no --device or --device cuda), each into its own
     shard <stem>_w<i>; no prefilled run."""
     baseline: bool = False
-    """with --workers: first time worker 0 alone on one worker's share (<stem>_alone) and print the scaling, the
-    workers' demos/s over that lone run's (same cluster, same demos per GPU)"""
+    """with --workers: also time worker 0 alone on one worker's share, before (<stem>_alone) and after (<stem>_alone2)
+    the workers' run, and print the scaling, the workers' demos/s over the mean lone rate (same cluster, same demos
+    per GPU)"""
 
 
 @dataclass(kw_only=True)
