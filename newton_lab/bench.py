@@ -251,7 +251,9 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     out["started_at"] = time.time()
     out.update(_collect_timed(env, agent, episodes, path, max_steps))
     out["ended_at"] = time.time()
-    out["bytes_per_demo"] = _size(path) / max(out["successful_demos"], 1)
+    size, inodes = _footprint(path)
+    out["bytes_per_demo"] = size / max(out["successful_demos"], 1)
+    out["inodes_per_demo"] = inodes / max(out["successful_demos"], 1)  # what a zarr dataset spends of an ext4 disk
     out["physics_s_per_step"] = out["physics_s"] / max(out["vector_steps"] or 1, 1)
     out["agent_plus_writer_s_per_step"] = (out["agent_s"] + out["writer_s"]) / max(out["vector_steps"] or 1, 1)
     if prefill > 0:
@@ -321,7 +323,8 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     ok = sum(p["successful_demos"] for p in parts)
     span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
     keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
-            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo", "gpu", "ready_at", "started_at")
+            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo",
+            "inodes_per_demo", "gpu", "ready_at", "started_at")
     return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
             "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
             "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
@@ -365,6 +368,9 @@ def _open_gate(client, key: str, futures: list) -> None:
     Event(f"{key}-go", client=client).set()
 
 
-def _size(path: Path) -> int:
-    """Bytes of a dataset file or folder."""
-    return path.stat().st_size if path.is_file() else sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+def _footprint(path: Path) -> tuple[int, int]:
+    """Bytes and inodes (files and folders) of a dataset file or folder."""
+    if path.is_file():
+        return path.stat().st_size, 1
+    nodes = list(path.rglob("*"))
+    return sum(p.stat().st_size for p in nodes if p.is_file()), len(nodes) + 1

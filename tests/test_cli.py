@@ -82,6 +82,7 @@ def test_bench_collect_splits_the_time(capsys, tmp_path):
     assert out["successful_demos"] == 2 and out["demos_per_hour"] == pytest.approx(3600 * out["demos_per_s"])
     assert min(out["physics_s"], out["agent_s"], out["writer_s"], out["first_use_s"]) > 0
     assert out["physics_s"] + out["agent_s"] <= out["wall_s"] and out["bytes_per_demo"] > 1000
+    assert out["inodes_per_demo"] == 0.5  # one HDF5 file for the two demos
     assert out["prefill_episodes"] == 20 and out["prefilled_demos_per_s"] > 0 and out["presync_s"] >= 0
     assert "writer_sync_s" not in out  # the split is zarr's
     assert main(["bench-collect", "--dataset-path", str(path), "--device", "cpu"]) == 2  # never overwrites

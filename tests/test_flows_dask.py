@@ -119,6 +119,7 @@ def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
     for p in parts:
         assert read_dataset_info(p["dataset_path"])["num_demos"] == 1 and p["physics_s"] > 0
         assert 0 < p["writer_files_s"] + p["writer_sync_s"] <= p["writer_s"] and p["presync_s"] >= 0
+        assert p["inodes_per_demo"] > 50  # a zarr demo is a folder of array folders and files
     before, after = out["baseline"]
     for lone, name in ((before, "bc_alone.zarr"), (after, "bc_alone2.zarr")):
         assert lone["successful_demos"] == 1 and read_dataset_info(lone["dataset_path"])["num_demos"] == 1

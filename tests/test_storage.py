@@ -345,6 +345,30 @@ def test_failed_filter_key_write_keeps_the_old_keys(tmp_path, suffix):
     assert list_demos(path) == [0, 1, 2]
 
 
+def test_out_of_inodes_is_told_apart_from_a_full_disk(tmp_path, monkeypatch):
+    """ENOSPC with bytes left but no free inode (a zarr dataset of many demos on ext4): the one line says so,
+    how much space is still free, and what to do; the dataset keeps what it held."""
+    import newton_lab.datasets._common as common
+
+    path = tmp_path / "ds.zarr"
+    write_small(path, 2)
+    real = os.statvfs(tmp_path)
+    stats = dict(zip(("f_bsize", "f_frsize", "f_blocks", "f_bfree", "f_bavail", "f_files", "f_ffree", "f_favail"),
+                     real[:8]))
+    monkeypatch.setattr(common.os, "statvfs", lambda p: type("Stat", (), {**stats, "f_favail": 0, "f_ffree": 0}))
+    inject_write_fault(1)
+    try:
+        with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w, pytest.raises(OSError) as exc:
+            w.append_episode({"actions": np.zeros((3, 2), np.float32)}, success=True)
+    finally:
+        inject_write_fault(None)
+    line = str(exc.value)
+    assert line.startswith("out of inodes") and f"{path} holds 2 finished episodes" in line and "\n" not in line
+    assert "GiB still free" in line and "write .hdf5" in line
+    monkeypatch.undo()
+    assert list_demos(path) == [0, 1]
+
+
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_split_train_val_matches_robomimic(tmp_path, suffix):
     path = tmp_path / f"ds{suffix}"

@@ -49,7 +49,7 @@ import numpy as np
 from . import hdf5_store, zarr_store
 from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
                       DatasetWriteError, StoredDemo, damaged, demo_id_of, dumps_env_args, inject_write_fault,
-                      py_scalar)
+                      out_of_room, py_scalar)
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
@@ -147,8 +147,12 @@ def _medium_errors(p: Path, backend: ModuleType, done: str) -> Iterator[None]:
             holds = f"nothing was written to {p}"
         except (OSError, ValueError):
             holds = f"{p} could not be read back"
-        words = "disk full" if err in (errno.ENOSPC, errno.EDQUOT) else os.strerror(err).lower()
-        raise DatasetWriteError(f"{words} {done}; {holds}", err) from None
+        words, hint = os.strerror(err).lower(), ""
+        if err == errno.EDQUOT:
+            words = "disk full"
+        elif err == errno.ENOSPC:
+            words, hint = out_of_room(p)
+        raise DatasetWriteError(f"{words} {done}; {holds}{hint}", err) from None
 
 
 def _missing_id(p: Path, demo_id: Any, ids: list[int]) -> KeyError:
