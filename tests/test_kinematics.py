@@ -38,3 +38,24 @@ def test_subset_solves_match_the_full_batch_and_reach_the_targets(kin):
     assert err.max() < 5e-3, err
     with pytest.raises(ValueError, match="IK takes 1..4 problems"):
         kin.solve(np.zeros((5, kin.robot_coords)), np.zeros((5, 3)), np.zeros((5, 4)))
+
+
+def test_planner_refines_only_the_rows_left_off(kin, monkeypatch):
+    """The expert's IK: ``ik_iterations`` (16) LM steps for every row, ``refine_iterations`` (32) more only for rows
+    still off by over 1 mm; reachable rows come out as a 48-step solve's, an unreachable one ends no worse."""
+    from newton_lab.agents.planner.agent import PlannerAgent
+    from newton_lab.task_api.motion_plan import MotionPlan
+
+    q, pos, quat = _problems(kin, 4)
+    pos[3] += 0.3  # out of the arm's reach: 87 mm short after any number of steps
+    full = kin.solve(q, pos, quat, iterations=48)
+    agent = PlannerAgent(MotionPlan(steps=()))
+    agent._kin = kin
+    calls = []
+    solve = kin.solve
+    monkeypatch.setattr(kin, "solve", lambda q, *a, **k: calls.append((len(q), k["iterations"])) or solve(q, *a, **k))
+    out, err = agent._solve(q, np.arange(4), pos, quat)
+    assert calls == [(4, 16), (1, 32)]
+    np.testing.assert_allclose(out[:3], full[:3], atol=1e-4)
+    full_err = np.linalg.norm(kin.tcp_poses(full)[:, :3] - pos, axis=1)
+    assert err[:3].max() < 1e-3 and 0.05 < err[3] <= full_err[3] + 1e-4
