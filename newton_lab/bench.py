@@ -307,6 +307,7 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
         client.wait_for_workers(workers)
         # one task per worker, by name (a restarted worker keeps it): two gated runs on one worker would wait forever
         names = sorted((w["name"] for w in client.scheduler_info()["workers"].values()), key=str)
+
         def alone_run(shard: Path) -> dict[str, Any]:  # worker 0 alone (its GPU, its process), one worker's share
             return client.submit(run, episodes=episodes // workers, dataset_path=str(shard), seed=0, pure=False,
                                  workers=[names[0]], allow_other_workers=False).result()

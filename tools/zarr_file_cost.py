@@ -1,10 +1,10 @@
 """What file creation costs the zarr writer on one filesystem, and whether two writers at once share it.
 
 Takes one stored demo (``--source``, any dataset), has the zarr writer processes write it ``--demos`` times into
-``--dir`` as the store does in a batch (``zarr_workers.WriterProcesses``, ``--processes`` of them, started
-before the clock), then one ``syncfs``; beside it the same bytes as one file per demo and as one file, each also synced. ``--copies 2`` runs
-two such writers at once (two processes, as two Dask workers on one host would), each in its own folder. One JSON
-line per writer; the folders are removed afterwards.
+``--dir`` as the store does in a batch (``zarr_workers.WriterProcesses``, ``--processes`` of them, started before
+the clock), then one ``syncfs``; beside it the same bytes as one file per demo and as one file, each also synced.
+``--copies 2`` runs two such writers at once (two processes, as two Dask workers on one host would), each in its
+own folder. One JSON line per writer; the folders are removed afterwards.
 
     .venv/bin/python tools/zarr_file_cost.py --source D.zarr --dir /path/on/disk [--demos 4096] [--processes 8]
         [--copies 2]

@@ -163,8 +163,8 @@ STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, 
 
 def out_of_room(path: Path) -> tuple[str, str]:
     """What a write refused with ENOSPC ran out of, and a hint: ``("disk full", "")``, or the filesystem's inodes
-    while bytes are left (a stored zarr PickCube demo takes 81 inodes: 52 files, 29 folders; ext4 gives one inode per 16 KiB
-    of disk by default, so a zarr dataset can use up the inodes long before the bytes)."""
+    while bytes are left (a stored zarr PickCube demo takes 81 inodes: 52 files, 29 folders; ext4 gives one inode
+    per 16 KiB of disk by default, so a zarr dataset can use up the inodes long before the bytes)."""
     try:
         st = os.statvfs(path if path.exists() else path.parent)
     except OSError:
