@@ -14,6 +14,7 @@ import pytest
 
 from newton_lab.agents import PlannerAgent, ZeroAgent
 from newton_lab.datasets import read_dataset_info, read_episode, state_tree
+from newton_lab.datasets.zarr_nodes import inodes_of
 
 
 @pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
@@ -107,6 +108,27 @@ def test_collect_writes_episodes_that_end_together_as_one_batch(pick_env, tmp_pa
     info = read_dataset_info(path)
     assert info["demo_ids"] == [0, 1, 2, 3] and info["total"] == 8
     assert sorted(read_episode(path, i)["attrs"]["env_index"] for i in (0, 1)) == [0, 1]
+    tree = {k: v for k, v in read_episode(path, 0).items() if k != "attrs"}
+    assert inodes_of(tree) == sum(1 for _ in (path / "data" / "demo_0").rglob("*")) + 1  # the room check's count
+
+
+def test_collect_refuses_a_zarr_run_the_inodes_cannot_hold(pick_env, tmp_path, monkeypatch):
+    """Before anything is written: a zarr collection whose demos need more inodes than the filesystem has free
+    is refused in one line with the numbers and the fix; HDF5 (one file) is not affected."""
+    import newton_lab.datasets.room as room
+
+    real = os.statvfs(tmp_path)
+    free = type("Stat", (), {"f_files": 10_000, "f_favail": 500, "f_ffree": 500, "f_bavail": real.f_bavail,
+                             "f_frsize": real.f_frsize})
+    monkeypatch.setattr(room.os, "statvfs", lambda p: free)
+    path = tmp_path / "big.zarr"
+    with pytest.raises(ValueError) as exc:
+        pick_env.collect(agent=ZeroAgent(), episodes=20, path=path, max_steps=2, progress=False)
+    line = str(exc.value)
+    assert "20 zarr demos need at least" in line and "500 free" in line and "write .hdf5" in line
+    assert "\n" not in line and not path.exists()
+    ref = pick_env.collect(agent=ZeroAgent(), episodes=2, path=tmp_path / "small.hdf5", max_steps=2, progress=False)
+    assert ref["saved_demo_ids"] == [0, 1]
 
 
 @pytest.mark.parametrize("error", [KeyboardInterrupt, RuntimeError])

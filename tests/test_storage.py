@@ -348,14 +348,14 @@ def test_failed_filter_key_write_keeps_the_old_keys(tmp_path, suffix):
 def test_out_of_inodes_is_told_apart_from_a_full_disk(tmp_path, monkeypatch):
     """ENOSPC with bytes left but no free inode (a zarr dataset of many demos on ext4): the one line says so,
     how much space is still free, and what to do; the dataset keeps what it held."""
-    import newton_lab.datasets._common as common
+    import newton_lab.datasets.room as room
 
     path = tmp_path / "ds.zarr"
     write_small(path, 2)
     real = os.statvfs(tmp_path)
     stats = dict(zip(("f_bsize", "f_frsize", "f_blocks", "f_bfree", "f_bavail", "f_files", "f_ffree", "f_favail"),
                      real[:8]))
-    monkeypatch.setattr(common.os, "statvfs", lambda p: type("Stat", (), {**stats, "f_favail": 0, "f_ffree": 0}))
+    monkeypatch.setattr(room.os, "statvfs", lambda p: type("Stat", (), {**stats, "f_favail": 0, "f_ffree": 0}))
     inject_write_fault(1)
     try:
         with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w, pytest.raises(OSError) as exc:

@@ -161,21 +161,6 @@ STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, 
 """OS errors of the medium that end a write session as a :class:`DatasetWriteError`."""
 
 
-def out_of_room(path: Path) -> tuple[str, str]:
-    """What a write refused with ENOSPC ran out of, and a hint: ``("disk full", "")``, or the filesystem's inodes
-    while bytes are left (a stored zarr PickCube demo takes 81 inodes: 52 files, 29 folders; ext4 gives one inode
-    per 16 KiB of disk by default, so a zarr dataset can use up the inodes long before the bytes)."""
-    try:
-        st = os.statvfs(path if path.exists() else path.parent)
-    except OSError:
-        return "disk full", ""
-    if st.f_files == 0 or st.f_favail > 0:
-        return "disk full", ""
-    free = st.f_bavail * st.f_frsize / 2**30
-    return "out of inodes", (f" ({free:.1f} GiB still free, no file can be made: write .hdf5, one file per dataset, "
-                             "or use a filesystem with more inodes)")
-
-
 def lock_holder(st: os.stat_result) -> int | None:
     """Pid holding the writer ``flock`` on the file of ``st`` (from ``/proc/locks``; None where unknown)."""
     key = (os.major(st.st_dev), os.minor(st.st_dev), st.st_ino)

@@ -47,9 +47,10 @@ from typing import Any
 import numpy as np
 
 from . import hdf5_store, zarr_store
+from .room import out_of_room
 from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
                       DatasetWriteError, StoredDemo, damaged, demo_id_of, dumps_env_args, inject_write_fault,
-                      out_of_room, py_scalar)
+                      py_scalar)
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}

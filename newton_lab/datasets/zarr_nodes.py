@@ -129,6 +129,21 @@ def _write_array(node: str, value: np.ndarray) -> bool:
     return True
 
 
+def inodes_of(tree: dict[str, Any]) -> int:
+    """Files and folders ``write_demo`` makes for the demo ``tree``: two per group (its own included: the folder and
+    ``zarr.json``), per array its folder, ``zarr.json`` and chunk files (a PickCube demo: 81)."""
+    count = 2
+    for value in tree.values():
+        if isinstance(value, dict):
+            count += inodes_of(value)
+            continue
+        value = np.asarray(value)
+        count += 2
+        if value.ndim and value.size:
+            count += math.prod(math.ceil(s / c) for s, c in zip(value.shape, _chunks(value.shape, value.itemsize)))
+    return count
+
+
 def write_group(node: str | Path, attrs: dict[str, Any]) -> None:
     """An empty group ``node`` (a new directory) with ``attrs``."""
     os.mkdir(node)

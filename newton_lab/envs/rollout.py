@@ -20,6 +20,7 @@ from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
 from ..datasets.background import BackgroundWriter
+from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
 from .recorder import EpisodeRecorder, env_args
 from .saver import EpisodeSaver, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
@@ -237,9 +238,11 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
             raise FileExistsError(f"scenario file {save_end_scenario} already exists; choose a new path")
     args = env_args(env)
     args["env_name"] = task_id
+    recorder = EpisodeRecorder(env, max_steps)
+    check_room(path, episodes, recorder.episode(0, 1))  # a zarr run the filesystem's inodes cannot hold: refused now
     writer = BackgroundWriter(open_writer(Path(path), task_id=task_id, env_args=args),
                               max_queued=max(256, env.num_envs) if max_queued is None else max_queued)
-    saver = EpisodeSaver(writer, EpisodeRecorder(env, max_steps), seed=env.seed, only_successes=only_successes)
+    saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
                                     recorder=saver.recorder, saver=saver, until_successes=only_successes,
