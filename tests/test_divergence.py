@@ -115,16 +115,16 @@ def test_collect_drops_and_counts_the_diverged_episode(pick_env, tmp_path):
 
 
 def test_collect_skips_an_episode_with_a_non_finite_frame(pick_env, tmp_path, monkeypatch):
-    """A non-finite frame the guard did not catch is dropped too, and counted as diverged."""
-    real = rollout.EpisodeRecorder.episode
+    """A non-finite frame the guard did not catch is dropped too, and counted as diverged (the recorded frame
+    itself is poisoned: the finiteness check runs on the copied buffers of all rows that ended together)."""
+    real = rollout.EpisodeRecorder.episodes
 
-    def poisoned(self, row, length):
-        ep = real(self, row, length)
-        if row == 0:
-            ep["obs"]["cube_pose"][-1, 0] = np.nan
-        return ep
+    def poisoned(self, rows, lengths):
+        if 0 in list(rows):
+            self._frames[0, int(lengths[list(rows).index(0)]) - 1, self._slices["obs/cube_pose"].start] = float("nan")
+        return real(self, rows, lengths)
 
-    monkeypatch.setattr(rollout.EpisodeRecorder, "episode", poisoned)
+    monkeypatch.setattr(rollout.EpisodeRecorder, "episodes", poisoned)
     path = tmp_path / "poisoned.zarr"
     ref = pick_env.collect(agent=ZeroAgent(), episodes=2, path=path, max_steps=3, progress=False)
     assert ref["diverged"] == 1 and ref["termination_reasons"] == {DIVERGED: 1, "max_steps": 1}
@@ -136,3 +136,15 @@ def test_evaluate_counts_the_diverged_episode(pick_env):
     summary = pick_env.evaluate(agent=FaultyAgent(row=0, at=1), episodes=2, max_steps=5, progress=False)
     assert summary["diverged"] == 1 and summary["termination_reasons"][DIVERGED] == 1
     assert summary["success_masks"].count(True) == 0 and set(rollout.EVAL_REPORT_KEYS) <= set(summary)
+
+
+def test_finiteness_is_checked_over_each_episode_steps_only(pick_env):
+    """The batched check looks at each row's own steps: a NaN left past a shorter episode's end (a stale step of
+    an earlier episode in that row's buffer) does not drop it; one inside an episode does."""
+    recorder = rollout.EpisodeRecorder(pick_env, 10)
+    col = recorder._slices["obs/cube_pose"].start
+    recorder._frames[0, 3, col] = float("nan")  # row 0 ends after 2 steps: stale
+    recorder._frames[1, 1, col] = float("nan")  # row 1 runs 4 steps: inside
+    trees, finite = recorder.episodes([0, 1], [2, 4])
+    assert finite == {0: True, 1: False}
+    assert rollout.all_finite(trees[0]) and not rollout.all_finite(trees[1])  # the per-tree check agrees

@@ -108,19 +108,25 @@ class EpisodeRecorder:
         self._rewards[self._rows, t] = reward.float()
         self._next_obs[self._rows, t] = self.env.final_obs.float()
 
-    def episodes(self, rows, lengths) -> dict[int, dict[str, Any]]:
+    def episodes(self, rows, lengths) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
         """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
-        buffers (and one per image term): row -> :meth:`episode`."""
+        buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
+        steps (frames, rewards, next observations; images aside) is finite, checked for all rows in one pass."""
         rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
         span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
         parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
-        host = torch.cat(parts, dim=2).cpu()
+        stacked = torch.cat(parts, dim=2)
+        steps = torch.arange(span, device=idx.device)
+        past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
+        ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)  # on the env's device: free on a GPU
+        host = stacked.cpu()
+        finite = dict(zip(rows, ok.tolist()))
         images = {name: buf[idx, :span].cpu() for name, buf in self._images.items()}
         cuts = np.cumsum([0] + [p.shape[2] for p in parts])
         self._host = {r: (host[k, :, cuts[0]:cuts[1]], host[k, :, cuts[1]], host[k, :, cuts[2]:cuts[3]],
                           {name: img[k] for name, img in images.items()}) for k, r in enumerate(rows)}
         try:
-            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}
+            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}, finite
         finally:
             self._host = {}
 

@@ -32,22 +32,28 @@ class EpisodeSaver:
     def __init__(self, writer: BackgroundWriter, recorder, *, seed: int, only_successes: bool) -> None:
         self.writer, self.recorder, self.seed, self.only_successes = writer, recorder, seed, only_successes
         self._fetched: dict[int, dict[str, Any]] = {}
+        self._finite: dict[int, bool] = {}
         self._batch: list[tuple[dict[str, Any], bool, dict[str, Any]]] = []
         self._futures: list = []
 
     def fetch(self, rows: np.ndarray, lengths: np.ndarray) -> None:
-        """Copy the episodes of ``rows`` (``lengths`` steps each) to the host in one go."""
-        self._fetched = self.recorder.episodes(rows, lengths) if len(rows) else {}
+        """Copy the episodes of ``rows`` (``lengths`` steps each) to the host in one go (and check them finite)."""
+        self._fetched, self._finite = self.recorder.episodes(rows, lengths) if len(rows) else ({}, {})
 
     def save(self, row: int, rec: dict[str, Any]) -> dict[str, Any]:
         """Queue the finished episode of ``row`` (its loop record ``rec``) for writing unless it diverged, holds a
         non-finite value or (``only_successes``) failed; returns the updates to ``rec``."""
         if rec["termination_reason"] == DIVERGED or (self.only_successes and not rec["success"]):
             return {}
-        episode = self._fetched.pop(row, None) or self.recorder.episode(row, rec["length"])
+        episode = self._fetched.pop(row, None)
+        if episode is not None:
+            finite = self._finite.pop(row)
+        else:
+            episode = self.recorder.episode(row, rec["length"])
+            finite = all_finite(episode, skip=self.recorder.image_terms)
         episode["dones"][-1:] = int(rec["success"])
         # diverged without tripping the guard: dropped and counted as diverged (images aside: depth holds inf)
-        if not all_finite(episode, skip=self.recorder.image_terms):
+        if not finite:
             return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
         attrs = {"termination_reason": rec["termination_reason"], "env_index": rec["env_index"],
                  "episode_length": rec["length"], "seed": self.seed}
@@ -56,7 +62,7 @@ class EpisodeSaver:
 
     def submit(self) -> None:
         """Hand the step's episodes to the writer (blocks while its queue is full)."""
-        self._fetched = {}
+        self._fetched, self._finite = {}, {}
         if self._batch:
             batch, self._batch = self._batch, []
             self._futures += self.writer.put_many(batch)
