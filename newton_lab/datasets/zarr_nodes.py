@@ -55,6 +55,11 @@ def _chunks(shape: tuple[int, ...], itemsize: int) -> tuple[int, ...]:
     return (1, *shape[1:]) if len(shape) >= 3 else time_chunks(shape, itemsize)
 
 
+def _grid(shape: tuple[int, ...], chunks: tuple[int, ...]) -> list[int]:
+    """Chunks along each axis of an array of ``shape`` cut into ``chunks``."""
+    return [math.ceil(s / c) for s, c in zip(shape, chunks)]
+
+
 @functools.lru_cache(maxsize=None)
 def _template(dtype: str, ndim: int) -> tuple[str, Zstd] | None:
     """(zarr.json text with ``%SHAPE%`` / ``%CHUNKS%`` holes, the chunk compressor) as zarr-python writes an
@@ -120,8 +125,7 @@ def _write_array(node: str, value: np.ndarray) -> bool:
     if chunks == value.shape:  # one chunk (most arrays of a demo)
         _write(f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor.encode(value))
         return True
-    grid = [math.ceil(s / c) for s, c in zip(value.shape, chunks)]
-    for index in np.ndindex(*grid):
+    for index in np.ndindex(*_grid(value.shape, chunks)):
         block = value[tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, chunks))]
         if block.shape != chunks:  # edge chunk: stored whole, padded with the fill value (0 / false)
             block = np.pad(block, [(0, c - s) for s, c in zip(block.shape, chunks)])
@@ -140,7 +144,7 @@ def inodes_of(tree: dict[str, Any]) -> int:
         value = np.asarray(value)
         count += 2
         if value.ndim and value.size:
-            count += math.prod(math.ceil(s / c) for s, c in zip(value.shape, _chunks(value.shape, value.itemsize)))
+            count += math.prod(_grid(value.shape, _chunks(value.shape, value.itemsize)))
     return count
 
 

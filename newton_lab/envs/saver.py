@@ -31,23 +31,26 @@ class EpisodeSaver:
 
     def __init__(self, writer: BackgroundWriter, recorder, *, seed: int, only_successes: bool) -> None:
         self.writer, self.recorder, self.seed, self.only_successes = writer, recorder, seed, only_successes
-        self._fetched: dict[int, dict[str, Any]] = {}
-        self._finite: dict[int, bool] = {}
+        self._fetched: dict[int, tuple[dict[str, Any], bool]] = {}  # row -> (episode, every float finite)
         self._batch: list[tuple[dict[str, Any], bool, dict[str, Any]]] = []
         self._futures: list = []
 
     def fetch(self, rows: np.ndarray, lengths: np.ndarray) -> None:
         """Copy the episodes of ``rows`` (``lengths`` steps each) to the host in one go (and check them finite)."""
-        self._fetched, self._finite = self.recorder.episodes(rows, lengths) if len(rows) else ({}, {})
+        if len(rows):
+            trees, finite = self.recorder.episodes(rows, lengths)
+            self._fetched = {r: (tree, finite[r]) for r, tree in trees.items()}
+        else:
+            self._fetched = {}
 
     def save(self, row: int, rec: dict[str, Any]) -> dict[str, Any]:
         """Queue the finished episode of ``row`` (its loop record ``rec``) for writing unless it diverged, holds a
         non-finite value or (``only_successes``) failed; returns the updates to ``rec``."""
         if rec["termination_reason"] == DIVERGED or (self.only_successes and not rec["success"]):
             return {}
-        episode = self._fetched.pop(row, None)
-        if episode is not None:
-            finite = self._finite.pop(row)
+        fetched = self._fetched.pop(row, None)
+        if fetched is not None:
+            episode, finite = fetched
         else:
             episode = self.recorder.episode(row, rec["length"])
             finite = all_finite(episode, skip=self.recorder.image_terms)
@@ -62,7 +65,7 @@ class EpisodeSaver:
 
     def submit(self) -> None:
         """Hand the step's episodes to the writer (blocks while its queue is full)."""
-        self._fetched, self._finite = {}, {}
+        self._fetched = {}
         if self._batch:
             batch, self._batch = self._batch, []
             self._futures += self.writer.put_many(batch)
