@@ -19,7 +19,7 @@ import torch
 import warp as wp
 from newton.sensors import SensorCamera
 
-from .datasets import list_demos, open_writer, read_episode, zarr_store
+from .datasets import list_demos, open_writer, read_episode, zarr_store, zarr_workers
 from .datasets._common import sync_tree
 from .datasets.storage import EpisodeWriter
 from .envs import make_env
@@ -180,7 +180,7 @@ class _Clock:
         return timed
 
 
-ZARR_WRITER_PARTS = {"writer_files_s": "_parallel", "writer_sync_s": "sync_tree"}
+ZARR_WRITER_PARTS = {"writer_files_s": (zarr_workers, "write_batch"), "writer_sync_s": (zarr_store, "sync_tree")}
 """A zarr batch's seconds split: encoding and writing its demos' files (writer processes or threads), and the one
 ``syncfs`` that makes them durable (disk-bound where the files are many); the rest of ``writer_s`` is the lock,
 the renames and the commit."""
@@ -192,12 +192,12 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
     is the rest."""
     physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
     parts = {name: _Clock("cpu") for name in ZARR_WRITER_PARTS}
-    store_fns = {fn: getattr(zarr_store, fn) for fn in ZARR_WRITER_PARTS.values()}
+    store_fns = {place: getattr(*place) for place in ZARR_WRITER_PARTS.values()}
     original = EpisodeWriter.append_prepared
     env.step, agent.act = physics.wrap(env.step), acting.wrap(agent.act)
     EpisodeWriter.append_prepared = writing.wrap(original)
-    for name, fn in ZARR_WRITER_PARTS.items():
-        setattr(zarr_store, fn, parts[name].wrap(store_fns[fn]))
+    for name, (module, fn) in ZARR_WRITER_PARTS.items():
+        setattr(module, fn, parts[name].wrap(store_fns[module, fn]))
     t0 = time.perf_counter()
     try:
         ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
@@ -205,8 +205,8 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
     finally:
         del env.step, agent.act
         EpisodeWriter.append_prepared = original
-        for fn, original_fn in store_fns.items():
-            setattr(zarr_store, fn, original_fn)
+        for (module, fn), original_fn in store_fns.items():
+            setattr(module, fn, original_fn)
     wall = time.perf_counter() - t0
     ok = ref.metadata["successes"]
     split = {name: clock.seconds for name, clock in parts.items()} if path.suffix == ".zarr" else {}

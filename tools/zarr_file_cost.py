@@ -2,7 +2,8 @@
 
 Takes one stored demo (``--source``, any dataset), has the zarr writer processes write it ``--demos`` times into
 ``--dir`` as the store does in a batch (``zarr_workers.WriterProcesses``, ``--processes`` of them, started before
-the clock), then one ``syncfs``; beside it the same bytes as one file per demo and as one file, each also synced.
+the clock), then one ``syncfs``: once as one group per demo (``demo_<i>``), once packed (``zarr_packs``, one pack
+per process); beside it the same bytes as one file per demo and as one file, each also synced.
 ``--copies 2`` runs two such writers at once (two processes, as two Dask workers on one host would), each in its
 own folder. One JSON line per writer; the folders are removed afterwards.
 
@@ -25,6 +26,7 @@ import numpy as np
 
 from newton_lab.datasets import list_demos, read_episode
 from newton_lab.datasets._common import sync_tree
+from newton_lab.datasets.zarr_packs import batch_jobs
 from newton_lab.datasets.zarr_workers import WriterProcesses
 
 
@@ -54,7 +56,7 @@ def measure(source: str, root: Path, demos: int, processes: int) -> dict:
     tree = _arrays(read_episode(source, list_demos(source)[0]))
     num_samples = len(tree["actions"])
     shutil.rmtree(root, ignore_errors=True)
-    folders = {name: root / name for name in ("zarr", "per_demo", "single")}
+    folders = {name: root / name for name in ("zarr", "packed", "per_demo", "single")}
     for folder in folders.values():
         folder.mkdir(parents=True)
     sync_tree(root)
@@ -66,6 +68,8 @@ def measure(source: str, root: Path, demos: int, processes: int) -> dict:
         shutil.rmtree(warm)
         jobs = [(folders["zarr"] / f"demo_{i}", {"num_samples": num_samples}, tree) for i in range(demos)]
         zarr_s = _timed(lambda: writers.write(jobs), folders["zarr"])
+        packs = batch_jobs(folders["packed"], list(range(demos)), [(tree, {}, num_samples)] * demos, processes)
+        packed_s = _timed(lambda: writers.write(packs), folders["packed"])
     finally:
         writers.close()
     demo = list(folders["zarr"].glob("demo_0/**/*"))
@@ -73,11 +77,14 @@ def measure(source: str, root: Path, demos: int, processes: int) -> dict:
     blob = os.urandom(size)
     per_demo_s = _timed(lambda: _write_files(folders["per_demo"], blob, demos), folders["per_demo"])
     single_s = _timed(lambda: _write_files(folders["single"], blob * demos, 1), folders["single"])
+    out = {"dir": str(root), "demos": demos, "processes": processes, "bytes_per_demo": size,
+           "inodes_per_demo": len(demo) + 1, "zarr_write_s": zarr_s[0], "zarr_sync_s": zarr_s[1],
+           "packs": len(packs), "packed_inodes_per_demo": sum(1 for _ in folders["packed"].rglob("*")) / demos,
+           "packed_write_s": packed_s[0], "packed_sync_s": packed_s[1],
+           "one_file_per_demo_write_s": per_demo_s[0], "one_file_per_demo_sync_s": per_demo_s[1],
+           "one_file_write_s": single_s[0], "one_file_sync_s": single_s[1]}
     shutil.rmtree(root, ignore_errors=True)
-    return {"dir": str(root), "demos": demos, "processes": processes, "bytes_per_demo": size,
-            "inodes_per_demo": len(demo) + 1, "zarr_write_s": zarr_s[0], "zarr_sync_s": zarr_s[1],
-            "one_file_per_demo_write_s": per_demo_s[0], "one_file_per_demo_sync_s": per_demo_s[1],
-            "one_file_write_s": single_s[0], "one_file_sync_s": single_s[1]}
+    return out
 
 
 def main() -> None:

@@ -34,8 +34,8 @@ def demo_name(demo_id: int) -> str:
 @dataclass(frozen=True)
 class StoredDemo:
     """A committed demo of another dataset of the same format, appended as stored: its arrays are copied (HDF5:
-    ``H5Ocopy``; zarr: the demo's files), not decoded and encoded again. The copy keeps the source's attrs,
-    updated with the item's."""
+    ``H5Ocopy``; zarr: the demo's files, unless the source demo or the batch is packed), not decoded and encoded
+    again. The copy keeps the source's attrs, updated with the item's."""
 
     path: Path
     demo_id: int

@@ -11,8 +11,9 @@ Layout (both formats)::
     mask/<key>       robomimic filter keys: demo names (HDF5: byte strings; zarr: utf-8 strings), e.g.
                      train / valid written by ``split_train_val`` (``newton-lab split``)
 
-robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets (nested ``states``, no
-rewards / dones / next_obs) stay readable.
+robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets stay readable. zarr packs a
+large batch's demos (``zarr_packs``: ``data/pack_<first id>/<array>``, the demos one after another, their ids,
+rows and attrs in the pack's attrs); the readers here return the same trees and attrs for both layouts.
 
 Every ``append_episode`` / ``append_episodes`` batch is durable (one fsync) and crash safe before it
 returns: a writer killed at any time leaves a dataset holding every episode whose append returned, and
@@ -281,9 +282,10 @@ class EpisodeWriter:
     def append_copies(self, source: str | Path, demo_ids: Iterable[int | str],
                       attrs: Mapping[int, Mapping[str, Any]] | None = None) -> list[int]:
         """Append demos of ``source``, a dataset of the same task and format, as stored: one durable batch (see
-        :meth:`append_episodes`) whose arrays are copied, not decoded and encoded again. Each copy keeps its
-        source attrs, updated with ``attrs[demo_id]``; returns the new ids. Datasets of another format: read
-        them with ``read_episodes`` and ``append_episodes``."""
+        :meth:`append_episodes`) whose arrays are copied, not decoded and encoded again (zarr: a batch that is
+        packed, or a packed source demo, is read and written again). Each copy keeps its source attrs, updated
+        with ``attrs[demo_id]``; returns the new ids. Datasets of another format: read them with
+        ``read_episodes`` and ``append_episodes``."""
         p, backend, fmt = _existing(source)
         if fmt != self.format:
             raise ValueError(f"{p} is {fmt} and {self.path} is {self.format}: copies need one format; "

@@ -45,17 +45,17 @@ def array_kwargs(value: np.ndarray) -> dict[str, Any]:
     rest split along time, zstd 1 (README: Image datasets). Chunk files sit in the array's folder (``c.<t>.0``)."""
     flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}  # one directory per array, not per chunk row
     level = IMAGE_ZSTD_LEVEL if value.ndim >= 3 else STATE_ZSTD_LEVEL
-    return {"chunks": _chunks(value.shape, value.itemsize) if value.ndim else "auto",
+    return {"chunks": chunk_shape(value.shape, value.itemsize) if value.ndim else "auto",
             "compressors": ZstdCodec(level=level), **flat}
 
 
 @functools.lru_cache(maxsize=4096)
-def _chunks(shape: tuple[int, ...], itemsize: int) -> tuple[int, ...]:
+def chunk_shape(shape: tuple[int, ...], itemsize: int) -> tuple[int, ...]:
     """Chunk shape of an array of rank >= 1 (see ``array_kwargs``)."""
     return (1, *shape[1:]) if len(shape) >= 3 else time_chunks(shape, itemsize)
 
 
-def _grid(shape: tuple[int, ...], chunks: tuple[int, ...]) -> list[int]:
+def chunk_grid(shape: tuple[int, ...], chunks: tuple[int, ...]) -> list[int]:
     """Chunks along each axis of an array of ``shape`` cut into ``chunks``."""
     return [math.ceil(s / c) for s, c in zip(shape, chunks)]
 
@@ -83,7 +83,7 @@ def _template(dtype: str, ndim: int) -> tuple[str, Zstd] | None:
 _CREATE = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_CLOEXEC", 0)
 
 
-def _write(path: str, data) -> None:
+def write_file(path: str, data) -> None:
     """A new file ``path`` holding ``data`` (bytes-like), written with ``os`` calls: no Python file object."""
     write_fault_point()
     fd = os.open(path, _CREATE, 0o666)
@@ -104,12 +104,12 @@ def _array_meta(dtype: str, shape: tuple[int, ...]) -> tuple[bytes, Zstd, tuple[
     if template is None:
         return None
     text, compressor = template
-    chunks = _chunks(shape, np.dtype(dtype).itemsize)
+    chunks = chunk_shape(shape, np.dtype(dtype).itemsize)
     return (text.replace('"%SHAPE%"', json.dumps(list(shape)))
             .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode(), compressor, chunks)
 
 
-def _write_array(node: str, value: np.ndarray) -> bool:
+def write_array(node: str, value: np.ndarray) -> bool:
     """Write ``value`` as the array ``node`` (a path); False when it needs zarr-python (see the module docstring).
     Plain ``os`` paths and the cached metadata keep the Python per array to a few microseconds: a writer
     process spends most of its ~3 ms per PickCube demo on file creation (about 80 files and folders) and zstd."""
@@ -120,16 +120,16 @@ def _write_array(node: str, value: np.ndarray) -> bool:
         return False
     meta, compressor, chunks = found
     os.mkdir(node)
-    _write(f"{node}/zarr.json", meta)
+    write_file(f"{node}/zarr.json", meta)
     value = np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("<"))
     if chunks == value.shape:  # one chunk (most arrays of a demo)
-        _write(f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor.encode(value))
+        write_file(f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor.encode(value))
         return True
-    for index in np.ndindex(*_grid(value.shape, chunks)):
+    for index in np.ndindex(*chunk_grid(value.shape, chunks)):
         block = value[tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, chunks))]
         if block.shape != chunks:  # edge chunk: stored whole, padded with the fill value (0 / false)
             block = np.pad(block, [(0, c - s) for s, c in zip(block.shape, chunks)])
-        _write(f"{node}/c.{'.'.join(map(str, index))}", compressor.encode(np.ascontiguousarray(block)))
+        write_file(f"{node}/c.{'.'.join(map(str, index))}", compressor.encode(np.ascontiguousarray(block)))
     return True
 
 
@@ -144,14 +144,14 @@ def inodes_of(tree: dict[str, Any]) -> int:
         value = np.asarray(value)
         count += 2
         if value.ndim and value.size:
-            count += math.prod(_grid(value.shape, _chunks(value.shape, value.itemsize)))
+            count += math.prod(chunk_grid(value.shape, chunk_shape(value.shape, value.itemsize)))
     return count
 
 
 def write_group(node: str | Path, attrs: dict[str, Any]) -> None:
     """An empty group ``node`` (a new directory) with ``attrs``."""
     os.mkdir(node)
-    _write(f"{node}/zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"},
+    write_file(f"{node}/zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"},
                                            indent=2).encode())
 
 
@@ -171,7 +171,7 @@ def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
             if isinstance(value, dict):
                 write_group(f"{at}/{key}", {})
                 walk(f"{at}/{key}", value, f"{rel}{key}/")
-            elif not _write_array(f"{at}/{key}", np.asarray(value)):
+            elif not write_array(f"{at}/{key}", np.asarray(value)):
                 rest.append((f"{rel}{key}", np.asarray(value)))
 
     walk(os.fspath(node), tree, "")
@@ -190,15 +190,15 @@ def copy_demo(node: str | Path, attrs: dict[str, Any], src: StoredDemo) -> None:
     shutil.copytree(src.path / "data" / demo_name(src.demo_id), node, copy_function=_copy_file)
     meta = json.loads(Path(node, "zarr.json").read_bytes())
     meta["attributes"] = {**meta.get("attributes", {}), **attrs}
-    _write(f"{node}/zarr.json", json.dumps(meta, indent=2).encode())
+    write_file(f"{node}/zarr.json", json.dumps(meta, indent=2).encode())
 
 
 _PLAIN_DTYPES = {"bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "float16",
                  "float32", "float64"}
-_DECODER = Zstd()
+DECODER = Zstd()
 
 
-def _meta(node: str) -> dict[str, Any] | None:
+def node_meta(node: str) -> dict[str, Any] | None:
     """A node's parsed ``zarr.json`` (None: not a node)."""
     try:
         with open(f"{node}/zarr.json", "rb") as f:
@@ -207,8 +207,8 @@ def _meta(node: str) -> dict[str, Any] | None:
         return None
 
 
-def _plain_dtype(meta: dict[str, Any]) -> np.dtype | None:
-    """The dtype of an array stored as ``_write_array`` stores it (regular grid, ``c.<i>.<j>`` keys, little-endian
+def plain_dtype(meta: dict[str, Any]) -> np.dtype | None:
+    """The dtype of an array stored as ``write_array`` stores it (regular grid, ``c.<i>.<j>`` keys, little-endian
     bytes -> zstd, a numeric fill value, rank >= 1); None for any other array."""
     codecs = meta.get("codecs", [])
     key = meta.get("chunk_key_encoding", {})
@@ -224,8 +224,8 @@ def _plain_dtype(meta: dict[str, Any]) -> np.dtype | None:
 
 def read_array(node: str, meta: dict[str, Any]) -> np.ndarray | None:
     """The array ``node`` (its parsed ``zarr.json`` is ``meta``) read from its chunk files; None when its layout is
-    not the plain one (``_plain_dtype``)."""
-    dtype = _plain_dtype(meta)
+    not the plain one (``plain_dtype``)."""
+    dtype = plain_dtype(meta)
     if dtype is None:
         return None
     shape, chunks = tuple(meta["shape"]), tuple(meta["chunk_grid"]["configuration"]["chunk_shape"])
@@ -238,7 +238,7 @@ def read_array(node: str, meta: dict[str, Any]) -> np.ndarray | None:
             if chunks == shape:
                 out.fill(meta["fill_value"])
             continue
-        block = np.frombuffer(_DECODER.decode(raw), dtype).reshape(chunks)
+        block = np.frombuffer(DECODER.decode(raw), dtype).reshape(chunks)
         at = tuple(slice(i * c, min((i + 1) * c, s)) for i, c, s in zip(index, chunks, shape))
         out[at] = block[tuple(slice(0, a.stop - a.start) for a in at)]
     return out
@@ -258,7 +258,7 @@ def read_tree(node: str | Path, keys: tuple[str, ...] | None,
     def walk(rel: str) -> dict[str, Any]:
         tree = {}
         for name in sorted(os.listdir(f"{node}/{rel}")):
-            meta = _meta(f"{node}/{rel}{name}")
+            meta = node_meta(f"{node}/{rel}{name}")
             if meta is not None and meta.get("node_type") == "group":
                 tree[name] = walk(f"{rel}{name}/")
             elif meta is not None and meta.get("node_type") == "array":
@@ -267,5 +267,5 @@ def read_tree(node: str | Path, keys: tuple[str, ...] | None,
 
     if keys is None:
         return walk("")
-    metas = {k: _meta(f"{node}/{k}") for k in keys}
+    metas = {k: node_meta(f"{node}/{k}") for k in keys}
     return nest({k: array(k, m) for k, m in metas.items() if m is not None and m.get("node_type") == "array"})

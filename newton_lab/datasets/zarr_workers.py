@@ -5,29 +5,35 @@ Hand-written on ``subprocess`` pipes rather than ``multiprocessing``: its spawn 
 the user's ``__main__`` (a script without a main guard would start writers recursively), and a fork would copy
 a parent that holds CUDA, zarr's event-loop thread and the simulation's threads half-way.
 
-Protocol: the parent pickles ``(store path, [(demo folder, attrs, tree), ...])`` to a child's stdin; the child
-writes them with ``zarr_nodes.write_demo`` and answers ``("ok", leftovers)`` (the arrays that need zarr-python,
-written by the parent) or ``("error", exception)``. A child whose parent died reads EOF and exits.
+Protocol: the parent pickles a list of jobs (a demo ``(folder, attrs, tree)`` or a ``zarr_packs.PackJob``) to a
+child's stdin; the child writes them with ``zarr_packs.write_job`` and answers ``("ok", leftovers)`` (the arrays
+that need zarr-python, written by the parent) or ``("error", exception)``. A child whose parent died reads EOF and exits.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import pickle
 import subprocess
 import sys
 import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import zarr
 
-from .zarr_nodes import write_demo
+from ._common import fault_injected
+from .zarr_nodes import array_kwargs
+from .zarr_packs import PackJob, write_job
+from .zarr_session import FaultStore
 
-Job = tuple[Path, dict[str, Any], dict[str, Any]]
-"""(demo folder in the staging folder, demo attrs, nested tree of arrays)."""
+Job = tuple[Path, dict[str, Any], dict[str, Any]] | PackJob
+"""(demo folder in the staging folder, demo attrs, nested tree of arrays), or a pack of demos."""
 Leftover = tuple[Path, str, np.ndarray]
-"""(demo folder, array path inside it, value): an array ``zarr_nodes`` leaves to zarr-python."""
+"""(demo or pack folder, array path inside it, value): an array ``zarr_nodes`` leaves to zarr-python."""
 
 
 WRITE_PROCESSES = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_PROCESSES", str(min(8, (os.cpu_count() or 2) // 2))))
@@ -52,10 +58,10 @@ class WriterDied(RuntimeError):
 
 
 def write_jobs(jobs: list[Job]) -> list[Leftover]:
-    """Write each job's demo; returns the arrays left to zarr-python."""
+    """Write each job's demo or pack; returns the arrays left to zarr-python."""
     leftovers: list[Leftover] = []
-    for node, attrs, tree in jobs:
-        write_demo(node, attrs, tree, fallback=lambda rel, value, node=node: leftovers.append((node, rel, value)))
+    for job in jobs:
+        write_job(job, fallback=lambda node, rel, value: leftovers.append((node, rel, value)))
     return leftovers
 
 
@@ -118,6 +124,45 @@ class WriterProcesses:
             except (OSError, subprocess.TimeoutExpired):
                 proc.kill()
                 proc.wait()
+
+
+WRITE_THREADS = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_THREADS", "4"))
+"""Threads writing a small batch's demos (file creation waits on the filesystem, not on the GIL)."""
+
+
+def _write_job(path: Path, job: PackJob | tuple[Path, dict[str, Any], dict[str, Any]]) -> None:
+    write_job(job, fallback=functools.partial(write_with_zarr, path))
+
+
+def write_batch(path: Path, jobs: list[Job]) -> None:
+    """Write every job of ``jobs`` into the store ``path``: a large batch on the writer processes, a small one (or
+    any under an injected test fault, which lives in this process) on ``WRITE_THREADS`` threads. Returns when
+    every writer stopped; raises the first error."""
+    demos = sum(len(job.ids) if isinstance(job, PackJob) else 1 for job in jobs)
+    if demos >= PROCESS_MIN_BATCH and WRITE_PROCESSES >= 1 and not fault_injected():
+        try:
+            leftovers = shared().write(jobs)
+        except WriterDied as e:
+            raise RuntimeError(f"{e} to {path}; none of the batch was committed") from None
+        for node, rel, value in leftovers:
+            write_with_zarr(path, node, rel, value)
+    elif len(jobs) < 2 or WRITE_THREADS < 2:
+        for job in jobs:
+            _write_job(path, job)
+    else:
+        with ThreadPoolExecutor(min(WRITE_THREADS, len(jobs)), thread_name_prefix="zarr-write") as pool:
+            futures = [pool.submit(_write_job, path, job) for job in jobs]
+            wait(futures)  # nothing may still be writing when the caller removes the staging folder
+        for future in futures:
+            future.result()
+
+
+def write_with_zarr(path: Path, demo: Path, rel: str, value: np.ndarray) -> None:
+    """One array of a staged demo or pack written by zarr-python (what ``zarr_nodes`` leaves to it)."""
+    parent, _, name = rel.rpartition("/")
+    node = (demo / parent).relative_to(path).as_posix()
+    group = zarr.open_group(store=FaultStore(path), path=node, mode="r+", zarr_format=3)
+    group.create_array(name, data=value, **array_kwargs(value))
 
 
 def serve() -> None:

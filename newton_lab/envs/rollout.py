@@ -239,7 +239,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     args = env_args(env)
     args["env_name"] = task_id
     recorder = EpisodeRecorder(env, max_steps)
-    check_room(path, episodes, recorder.episode(0, 1))  # a zarr run the filesystem's inodes cannot hold: refused now
+    check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
     writer = BackgroundWriter(open_writer(Path(path), task_id=task_id, env_args=args),
                               max_queued=max(256, env.num_envs) if max_queued is None else max_queued)
     saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)

@@ -1,0 +1,259 @@
+"""Packed zarr demos: a large batch of demos written as a few groups ``data/pack_<first id>`` whose arrays hold the
+demos one after another along time, instead of one ``data/demo_<i>`` group (~80 files and folders) per demo.
+
+Why: on one ext4 disk the per-demo layout made file creation, not physics, bound collection (two GPUs writing
+330 k files per 4096 demos each thrashed the volume), and a filesystem's inodes ran out long before its bytes. A
+pack of 512 PickCube demos is ~150 files. The logical layout is unchanged: readers (``zarr_store.read_many``) map a
+demo id to its pack and rows and return the same tree a ``demo_<i>`` group gives.
+
+A pack group's attrs hold its index, ``{"pack": {"arrays": {path: rows}, "demos": {id: [k, start, attrs]}}}``:
+``rows`` is ``null`` for arrays with one row per step (demo ``k`` holds rows ``start .. start + num_samples``),
+``c >= 1`` for arrays of ``c`` rows per demo (rows ``k*c .. (k+1)*c``, e.g. ``initial_state``), ``0`` for one scalar
+per demo (row ``k``). The ids of a pack are ``first .. first + n - 1`` when written; a delete drops ids from the
+index (the rows stay until the pack is empty, then the pack goes). Arrays are stored as ``zarr_nodes`` stores a
+demo's (same codecs, ~1 MB time chunks, one image frame per chunk), so zarr-python reads them as well.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import uuid
+from bisect import bisect_right
+from collections import OrderedDict
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ._common import StoredDemo, demo_name, fsync_path, nest
+from .zarr_nodes import (DECODER, chunk_grid, chunk_shape, node_meta, plain_dtype, write_array, write_demo, write_file,
+                         write_group)
+
+PACK_RE = re.compile(r"^pack_(\d+)$")
+PACK_MIN_BATCH = int(os.environ.get("NEWTON_LAB_ZARR_PACK_MIN", "32"))
+"""Batches of at least this many demos (of one layout) are written as packs; smaller ones as ``demo_<i>`` groups."""
+PACK_MIN_PART = 64
+"""Demos per pack at least when a batch is split over several writers."""
+CACHE_BYTES = 64 << 20
+"""Decoded chunks a reader keeps (demos read one after another share their packs' chunks)."""
+
+
+def pack_name(first: int) -> str:
+    return f"pack_{int(first)}"
+
+
+def pack_first_of(name: str) -> int | None:
+    """First demo id of a pack folder name, or None for anything else."""
+    m = PACK_RE.match(name)
+    return int(m.group(1)) if m else None
+
+
+class PackJob(NamedTuple):
+    """One pack to write: its folder, and per demo its id, attrs (``num_samples`` included) and tree."""
+
+    node: Path
+    ids: list[int]
+    attrs: list[dict[str, Any]]
+    trees: list[dict[str, Any]]
+    layout: dict[str, int | None]
+
+
+def _flat(tree: dict[str, Any], prefix: str = "") -> dict[str, np.ndarray] | None:
+    """``{"obs/x": array, ...}`` of a demo tree; None if it has an empty group (a pack keeps no groups alone)."""
+    out: dict[str, np.ndarray] = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            sub = _flat(value, f"{prefix}{key}/")
+            if not sub:
+                return None
+            out.update(sub)
+        else:
+            out[f"{prefix}{key}"] = np.asarray(value)
+    return out
+
+
+def layout(items: list[tuple[Any, dict[str, Any], int]]) -> dict[str, int | None] | None:
+    """The pack index's ``arrays`` (see the module docstring) shared by every (tree, attrs, num_samples) of a batch;
+    None when the batch cannot be one pack layout (copies of stored demos, keys, dtypes or trailing shapes differ,
+    rows that follow neither the steps nor a constant)."""
+    if any(isinstance(tree, StoredDemo) for tree, _, _ in items):
+        return None
+    flats = [_flat(tree) for tree, _, _ in items]
+    if any(f is None or f.keys() != flats[0].keys() for f in flats):
+        return None
+    out: dict[str, int | None] = {}
+    for key, first in flats[0].items():
+        values = [f[key] for f in flats]
+        if any(v.dtype != first.dtype or v.shape[1:] != first.shape[1:] or v.ndim != first.ndim for v in values):
+            return None
+        if first.ndim == 0:
+            out[key] = 0
+        elif all(v.shape[0] == n for v, (_, _, n) in zip(values, items)):
+            out[key] = None
+        elif first.shape[0] >= 1 and all(v.shape[0] == first.shape[0] for v in values):
+            out[key] = first.shape[0]
+        else:
+            return None
+    return out
+
+
+def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any], int]], writers: int) -> list:
+    """The write jobs of a batch (``(tree, attrs, num_samples)`` per demo id): ``PackJob``s of consecutive ids, one
+    per writer with ``PACK_MIN_PART`` demos each at least, when it is large and of one layout; else one
+    ``(folder, attrs, tree)`` per demo. Folders go under ``stage``."""
+    attrs = [{**a, "num_samples": int(n)} for _, a, n in items]
+    shared = layout(items) if len(items) >= PACK_MIN_BATCH else None
+    if shared is None:
+        return [(stage / demo_name(i), a, tree) for i, a, (tree, _, _) in zip(ids, attrs, items)]
+    parts = max(1, min(writers, len(items) // PACK_MIN_PART))
+    bounds = [len(items) * k // parts for k in range(parts + 1)]
+    return [PackJob(stage / pack_name(ids[a]), ids[a:b], attrs[a:b], [tree for tree, _, _ in items[a:b]], shared)
+            for a, b in zip(bounds, bounds[1:])]
+
+
+def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None]) -> None:
+    """The pack group ``job.node`` with its index and every array of its demos one after another;
+    ``fallback(relpath, value)`` writes an array ``zarr_nodes`` does not. Not durable until the caller syncs."""
+    starts = np.cumsum([0] + [int(a["num_samples"]) for a in job.attrs[:-1]]).tolist()
+    demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
+    write_group(job.node, {"pack": {"arrays": job.layout, "demos": demos}})
+    flats = [_flat(tree) for tree in job.trees]
+    groups = sorted({key.rsplit("/", i)[0] for key in job.layout for i in range(1, key.count("/") + 1)})
+    for group in groups:
+        write_group(f"{job.node}/{group}", {})
+    for key, rows in job.layout.items():
+        parts = [f[key] for f in flats]
+        value = np.stack(parts) if rows == 0 else np.concatenate(parts)
+        if not write_array(f"{job.node}/{key}", value):
+            fallback(key, value)
+
+
+def write_job(job: PackJob | tuple[Path, dict[str, Any], dict[str, Any]],
+              fallback: Callable[[Path, str, np.ndarray], None]) -> None:
+    """Write a pack, or one demo group ``(folder, attrs, tree)``; ``fallback(node, relpath, value)`` as above."""
+    if isinstance(job, PackJob):
+        write_pack(job, fallback=lambda rel, value: fallback(job.node, rel, value))
+    else:
+        node, attrs, tree = job
+        write_demo(node, attrs, tree, fallback=lambda rel, value: fallback(node, rel, value))
+
+
+def read_index(node: str | Path) -> dict[str, Any] | None:
+    """A pack's index (``arrays``, ``demos``), or None if its ``zarr.json`` is missing or not a pack's."""
+    meta = node_meta(os.fspath(node))
+    pack = (meta or {}).get("attributes", {}).get("pack")
+    return pack if isinstance(pack, dict) and "demos" in pack and "arrays" in pack else None
+
+
+def drop(node: Path, ids: list[int], fsync: bool) -> int:
+    """Take ``ids`` out of the pack's index (its ``zarr.json`` replaced atomically); returns the demos left."""
+    meta = json.loads((node / "zarr.json").read_bytes())
+    demos = meta["attributes"]["pack"]["demos"]
+    for i in ids:
+        demos.pop(str(i), None)
+    if demos:
+        tmp = node / f".zarr.json.{uuid.uuid4().hex}"
+        write_file(os.fspath(tmp), json.dumps(meta, indent=2).encode())
+        if fsync:
+            fsync_path(tmp)
+        os.replace(tmp, node / "zarr.json")
+        if fsync:
+            fsync_path(node)
+    return len(demos)
+
+
+def inodes_of_pack(tree: dict[str, Any], demos: int) -> int:
+    """Files and folders of a pack of ``demos`` demos shaped like ``tree`` (rows scaled by ``demos``)."""
+    flat = _flat(tree) or {}
+    groups = {key.rsplit("/", i)[0] for key in flat for i in range(1, key.count("/") + 1)}
+    count = 2 + 2 * len(groups)
+    for value in flat.values():
+        shape = (demos,) if value.ndim == 0 else (demos * value.shape[0], *value.shape[1:])
+        count += 2 + (math.prod(chunk_grid(shape, chunk_shape(shape, value.itemsize))) if value.size else 0)
+    return count
+
+
+class PackReader:
+    """Demos read out of the committed packs of one dataset (``data`` folder ``data_dir``, packs whose first id is
+    below ``limit``); ``fallback(relpath, start, stop)`` reads rows of an array that is not of the plain layout
+    (with zarr-python). Pack list, indexes, array metadata and recent chunks are kept while it lives."""
+
+    def __init__(self, data_dir: Path, limit: int | None,
+                 fallback: Callable[[str, int, int], np.ndarray]) -> None:
+        self._dir, self._limit, self._fallback = data_dir, limit, fallback
+        self._firsts: list[int] | None = None
+        self._indexes: dict[int, dict[str, Any] | None] = {}
+        self._metas: dict[str, dict[str, Any] | None] = {}
+        self._cache: OrderedDict[tuple[str, int], np.ndarray] = OrderedDict()
+        self._cached = 0
+
+    def _packs(self) -> list[int]:
+        if self._firsts is None:
+            firsts = (pack_first_of(e.name) for e in os.scandir(self._dir))
+            self._firsts = sorted(f for f in firsts if f is not None and (self._limit is None or f < self._limit))
+        return self._firsts
+
+    def locate(self, demo_id: int) -> tuple[str, int, int, dict[str, Any], dict[str, Any]] | None:
+        """(pack name, k, start, attrs, arrays) of a committed packed demo, or None."""
+        firsts = self._packs()
+        j = bisect_right(firsts, demo_id) - 1
+        if j < 0:
+            return None
+        first = firsts[j]
+        if first not in self._indexes:
+            self._indexes[first] = read_index(self._dir / pack_name(first))
+        index = self._indexes[first]
+        entry = None if index is None else index["demos"].get(str(demo_id))
+        if entry is None:
+            return None
+        k, start, attrs = entry
+        return pack_name(first), int(k), int(start), attrs, index["arrays"]
+
+    def read(self, found: tuple[str, int, int, dict[str, Any], dict[str, Any]],
+             keys: tuple[str, ...] | None) -> dict[str, Any]:
+        """The demo's tree (only ``keys`` when given; a key it lacks is left out), nested and sorted."""
+        name, k, start, attrs, arrays = found
+        flat = {}
+        for key in sorted(arrays if keys is None else [key for key in keys if key in arrays]):
+            rows = arrays[key]
+            a, b = ((start, start + int(attrs["num_samples"])) if rows is None
+                    else (k, k + 1) if rows == 0 else (k * rows, (k + 1) * rows))
+            value = self._rows(f"{name}/{key}", a, b)
+            flat[key] = value.reshape(value.shape[1:]) if rows == 0 else value
+        return nest(flat)
+
+    def _rows(self, rel: str, a: int, b: int) -> np.ndarray:
+        node = os.fspath(self._dir / rel)
+        if node not in self._metas:
+            self._metas[node] = node_meta(node)
+        meta = self._metas[node]
+        dtype = None if meta is None else plain_dtype(meta)
+        if dtype is None or tuple(meta["chunk_grid"]["configuration"]["chunk_shape"][1:]) != tuple(meta["shape"][1:]):
+            return np.asarray(self._fallback(rel, a, b))
+        shape, c = tuple(meta["shape"]), int(meta["chunk_grid"]["configuration"]["chunk_shape"][0])
+        out = np.empty((b - a, *shape[1:]), dtype)
+        for ci in range(a // c, (b - 1) // c + 1):
+            block = self._chunk(node, ci, (c, *shape[1:]), dtype, meta["fill_value"])
+            lo, hi = max(a, ci * c), min(b, (ci + 1) * c)
+            out[lo - a:hi - a] = block[lo - ci * c:hi - ci * c]
+        return out
+
+    def _chunk(self, node: str, ci: int, shape: tuple[int, ...], dtype: np.dtype, fill: Any) -> np.ndarray:
+        key = (node, ci)
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        try:
+            with open(f"{node}/c.{'.'.join([str(ci)] + ['0'] * (len(shape) - 1))}", "rb") as f:
+                block = np.frombuffer(DECODER.decode(f.read()), dtype).reshape(shape)
+        except FileNotFoundError:  # zarr leaves out a chunk that holds only the fill value
+            block = np.full(shape, fill, dtype)
+        self._cache[key] = block
+        self._cached += block.nbytes
+        while self._cached > CACHE_BYTES and len(self._cache) > 1:
+            self._cached -= self._cache.popitem(last=False)[1].nbytes
+        return block

@@ -1,0 +1,150 @@
+"""Packed zarr demos (``datasets/zarr_packs``): a large batch lands as a few ``pack_<first id>`` groups and reads,
+deletes, merges and recovers from a kill like ``demo_<i>`` groups. Fast, no physics; the pack threshold is lowered
+so that small batches pack."""
+
+from __future__ import annotations
+
+import errno
+import shutil
+
+import numpy as np
+import pytest
+import zarr
+
+from newton_lab.datasets import (DatasetWriteError, EpisodeWriter, delete_demos, list_demos, read_dataset_info,
+                                 read_episode, read_episodes, read_filter_keys, set_filter_keys)
+from newton_lab.datasets import zarr_packs, zarr_workers
+from newton_lab.datasets._common import inject_write_fault
+from newton_lab.datasets.merge import merge_datasets
+from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
+
+
+@pytest.fixture(autouse=True)
+def small_packs(monkeypatch):
+    """Batches of 4 demos or more pack, at least 2 demos a pack."""
+    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 4)
+    monkeypatch.setattr(zarr_packs, "PACK_MIN_PART", 2)
+
+
+def episode(seed: int) -> dict:
+    return make_episode(seed, steps=20 + seed)  # lengths differ: rows per demo follow each demo's steps
+
+
+def append(path, seeds) -> list[int]:
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+        return w.append_episodes([(episode(s), s % 2 == 0, {"seed": s}) for s in seeds])
+
+
+def names(path) -> list[str]:
+    return sorted(p.name for p in (path / "data").iterdir() if p.is_dir())
+
+
+def without_attrs(ep: dict) -> dict:
+    return {k: v for k, v in ep.items() if k != "attrs"}
+
+
+def test_a_large_batch_is_packed_and_reads_back_as_written(tmp_path):
+    path = tmp_path / "p.zarr"
+    assert append(path, range(9)) == list(range(9))
+    assert append(path, [9, 10]) == [9, 10]  # a small batch: one group per demo
+    assert names(path) == ["demo_10", "demo_9", "pack_0"]
+    info = read_dataset_info(path)
+    assert info["demo_ids"] == list(range(11)) and info["total"] == sum(20 + s for s in range(11))
+    for s, ep in zip(range(11), read_episodes(path, range(11), attrs=True)):
+        assert ep["attrs"]["seed"] == s and ep["attrs"]["num_samples"] == 20 + s and ep["attrs"]["success"] == (s % 2 == 0)
+        assert_tree_equal(without_attrs(ep), episode(s), f"demo {s}")
+    picked = list(read_episodes(path, [5, 2], keys=["actions", "obs/rgb", "datagen/scale", "missing"]))
+    assert sorted(picked[0]) == ["actions", "datagen", "obs"] and picked[0]["datagen"]["scale"].shape == ()
+    np.testing.assert_array_equal(picked[1]["obs"]["rgb"], episode(2)["obs"]["rgb"])
+    # zarr-python reads a pack: the demos' rows one after another, initial_state one row each
+    data = zarr.open_group(str(path), mode="r")["data/pack_0"]
+    np.testing.assert_array_equal(data["actions"][...], np.concatenate([episode(s)["actions"] for s in range(9)]))
+    assert data["initial_state/robot/qpos"].shape == (9, 9) and data["datagen/scale"].shape == (9,)
+    tree = without_attrs(read_episode(path, 0))  # the room check's count of a pack: what is on disk
+    files = sum(1 for _ in (path / "data" / "pack_0").rglob("*")) + 1
+    assert zarr_packs.inodes_of_pack({k: v for k, v in tree.items()}, 1) <= files
+    assert files < 9 * sum(1 for _ in (path / "data" / "demo_9").rglob("*"))
+
+
+def test_a_batch_is_split_over_the_writer_processes(tmp_path, monkeypatch):
+    monkeypatch.setattr(zarr_workers, "PROCESS_MIN_BATCH", 2)
+    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 2)
+    monkeypatch.setattr(zarr_workers, "_shared", None)
+    try:
+        path = tmp_path / "w.zarr"
+        assert append(path, range(7)) == list(range(7))
+        assert len(zarr_workers.shared().pids) == 2 and names(path) == ["pack_0", "pack_3"]
+    finally:
+        zarr_workers.shared().close()
+    for s, ep in zip(range(7), read_episodes(path, range(7))):
+        assert_tree_equal(ep, episode(s))
+
+
+def test_demos_of_different_layouts_are_written_one_group_each(tmp_path):
+    path = tmp_path / "mixed.zarr"
+    odd = {**episode(4), "extra": np.zeros((24, 2), np.float32)}
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+        w.append_episodes([(episode(s), True, None) for s in range(4)] + [(odd, True, None)])
+    assert names(path) == [f"demo_{i}" for i in range(5)]
+    assert_tree_equal(without_attrs(read_episode(path, 4)), odd)
+
+
+def test_deleting_packed_demos(tmp_path):
+    path = tmp_path / "d.zarr"
+    append(path, range(6))
+    set_filter_keys(path, {"train": ["demo_0", "demo_1", "demo_4"], "valid": ["demo_5"]})
+    assert delete_demos(path, [1, 4]) == [0, 2, 3, 5]
+    assert read_filter_keys(path) == {"train": ["demo_0"], "valid": ["demo_5"]}
+    info = read_dataset_info(path)
+    assert info["demo_ids"] == [0, 2, 3, 5] and info["total"] == sum(20 + s for s in (0, 2, 3, 5))
+    with pytest.raises(KeyError, match="demo 4 not in"):
+        read_episode(path, 4)
+    assert_tree_equal(without_attrs(read_episode(path, 5)), episode(5))
+    delete_demos(path, [0, 2, 3, 5])  # the pack's last demos: the pack goes
+    assert names(path) == [] and list_demos(path) == []
+    assert append(path, range(4)) == [6, 7, 8, 9]  # ids are never reused
+
+
+@pytest.mark.parametrize("readable", [True, False])
+def test_a_pack_left_by_a_killed_append_is_skipped_then_removed(tmp_path, readable):
+    """A pack renamed into place but never committed (killed before ``next_demo_id`` advanced): readers skip it and
+    the next append removes it (also when its index cannot be read: then every name past the last id goes)."""
+    path = tmp_path / "k.zarr"
+    append(path, range(4))
+    shutil.copytree(path / "data" / "pack_0", path / "data" / "pack_4")  # as a killed batch would leave it
+    shutil.copytree(path / "data" / "pack_0", path / "data" / "pack_8")
+    if not readable:
+        (path / "data" / "pack_4" / "zarr.json").unlink()
+    assert list_demos(path) == [0, 1, 2, 3] and read_dataset_info(path)["total"] == sum(range(20, 24))
+    with pytest.raises(KeyError):
+        read_episode(path, 5)
+    assert append(path, range(10, 16)) == list(range(4, 10))
+    assert names(path) == ["pack_0", "pack_4"]
+    for s, ep in zip(range(10, 16), read_episodes(path, range(4, 10))):
+        assert_tree_equal(ep, episode(s))
+
+
+def test_a_failed_pack_write_leaves_the_dataset_as_it_was(tmp_path):
+    path = tmp_path / "f.zarr"
+    append(path, range(4))
+    inject_write_fault(30, errno.ENOSPC)  # part way through the pack's arrays
+    try:
+        with pytest.raises(DatasetWriteError, match="holds 4 finished episodes"):
+            append(path, range(4, 10))
+    finally:
+        inject_write_fault(None)
+    assert names(path) == ["pack_0"] and list_demos(path) == [0, 1, 2, 3]
+    assert append(path, range(4, 8)) == [4, 5, 6, 7]
+    assert_tree_equal(without_attrs(read_episode(path, 7)), episode(7))
+
+
+def test_merging_packed_shards_writes_packs(tmp_path):
+    a, b = tmp_path / "a.zarr", tmp_path / "b.zarr"
+    append(a, range(5))
+    append(b, range(5, 9))
+    merged = merge_datasets([a, b], tmp_path / "m.zarr").path
+    assert names(merged) == ["pack_0", "pack_5"]
+    for s, ep in zip(range(9), read_episodes(merged, range(9), attrs=True)):
+        assert ep["attrs"]["source"] == f"{'a' if s < 5 else 'b'}.zarr:{s if s < 5 else s - 5}"
+        assert ep["attrs"]["seed"] == s
+        assert_tree_equal(without_attrs(ep), episode(s))
