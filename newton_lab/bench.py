@@ -324,7 +324,7 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     ok = sum(p["successful_demos"] for p in parts)
     span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
     keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
-            "agent_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "bytes_per_demo",
+            "agent_s", "loop_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "writer_batches", "bytes_per_demo",
             "inodes_per_demo", "gpu", "ready_at", "started_at")
     return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
             "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,

@@ -219,7 +219,7 @@ def test_fault_seam_reaches_subprocesses(tmp_path, suffix):
 BATCH_CHILD = """
 import os, signal, sys
 from test_writers import episode
-from newton_lab.datasets import _journal, hdf5_store, open_writer, zarr_store
+from newton_lab.datasets import _journal, hdf5_store, open_writer, zarr_packs, zarr_store
 path, point = sys.argv[1], sys.argv[2]
 store = zarr_store if path.endswith(".zarr") else hdf5_store
 w = open_writer(path, task_id="pick_cube", env_args={})
@@ -228,14 +228,14 @@ for b in range(2):
 def die(*args, **kwargs):
     os.kill(os.getpid(), signal.SIGKILL)
 if point == "mid_write" and path.endswith(".zarr"):  # the 4th of 6 episodes: its first arrays written, then killed
-    real, calls = store.write_demo, [0]
+    real, calls = zarr_packs.write_demo, [0]  # the per-demo writer, as zarr_packs.write_job calls it
     def write_demo(node, attrs, tree, fallback):
         calls[0] += 1
         if calls[0] == 4:
             real(node, attrs, {"actions": tree["actions"]}, fallback)
             die()
         real(node, attrs, tree, fallback)
-    store.write_demo = write_demo
+    zarr_packs.write_demo = write_demo
 elif point == "mid_write":  # inside the 4th of 6 episodes (each tree: 4 nested _write_tree calls)
     real, calls = store._write_tree, [0]
     def write_tree(g, tree):

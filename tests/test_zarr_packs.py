@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import errno
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -148,3 +150,29 @@ def test_merging_packed_shards_writes_packs(tmp_path):
         assert ep["attrs"]["source"] == f"{'a' if s < 5 else 'b'}.zarr:{s if s < 5 else s - 5}"
         assert ep["attrs"]["seed"] == s
         assert_tree_equal(without_attrs(ep), episode(s))
+
+
+KILL_CHILD = """
+import os, signal, sys
+from test_zarr_packs import append
+from newton_lab.datasets import zarr_store
+print("BATCH", *append(sys.argv[1], range(5)), flush=True)
+zarr_store._commit = lambda *args: os.kill(os.getpid(), signal.SIGKILL)  # packs renamed into place, not committed
+append(sys.argv[1], range(5, 11))
+print("NOT KILLED", flush=True)
+"""
+
+
+def test_sigkill_before_a_pack_batch_commits(tmp_path):
+    from test_writers import child_env
+
+    path = tmp_path / "s.zarr"
+    proc = subprocess.run([sys.executable, "-c", KILL_CHILD, str(path)], check=False, capture_output=True, text=True,
+                          env=dict(child_env(), NEWTON_LAB_ZARR_PACK_MIN="4"), timeout=120)
+    assert proc.returncode == -9 and proc.stdout.splitlines() == ["BATCH 0 1 2 3 4"], proc.stderr
+    assert "pack_5" in names(path)  # really torn: the killed batch's pack is in place
+    assert list_demos(path) == [0, 1, 2, 3, 4] and read_dataset_info(path)["total"] == sum(range(20, 25))
+    assert append(path, range(20, 26)) == list(range(5, 11))
+    assert names(path) == ["pack_0", "pack_5"]
+    for s, ep in zip(list(range(5)) + list(range(20, 26)), read_episodes(path, range(11))):
+        assert_tree_equal(ep, episode(s))

@@ -34,6 +34,10 @@ def _arrays(tree: dict) -> dict:
     return {k: _arrays(v) if isinstance(v, dict) else np.asarray(v) for k, v in tree.items() if k != "attrs"}
 
 
+def _copied(tree: dict) -> dict:
+    return {k: _copied(v) if isinstance(v, dict) else v.copy() for k, v in tree.items()}
+
+
 def _write_files(folder: Path, blob: bytes, count: int) -> None:
     for i in range(count):
         fd = os.open(folder / f"demo_{i}", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
@@ -66,9 +70,10 @@ def measure(source: str, root: Path, demos: int, processes: int) -> dict:
         warm.mkdir()
         writers.write([(warm / f"demo_{i}", {"num_samples": num_samples}, tree) for i in range(processes)])
         shutil.rmtree(warm)
-        jobs = [(folders["zarr"] / f"demo_{i}", {"num_samples": num_samples}, tree) for i in range(demos)]
+        trees = [_copied(tree) for _ in range(demos)]  # each demo its own arrays, pickled to the processes in full
+        jobs = [(folders["zarr"] / f"demo_{i}", {"num_samples": num_samples}, t) for i, t in enumerate(trees)]
         zarr_s = _timed(lambda: writers.write(jobs), folders["zarr"])
-        packs = batch_jobs(folders["packed"], list(range(demos)), [(tree, {}, num_samples)] * demos, processes)
+        packs = batch_jobs(folders["packed"], list(range(demos)), [(t, {}, num_samples) for t in trees], processes)
         packed_s = _timed(lambda: writers.write(packs), folders["packed"])
     finally:
         writers.close()
