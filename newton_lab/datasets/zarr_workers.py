@@ -65,16 +65,6 @@ def write_jobs(jobs: list[Job]) -> list[Leftover]:
     return leftovers
 
 
-def _feed(proc: subprocess.Popen, jobs: list[Job]) -> bool:
-    """Pickle ``jobs`` to the process's stdin; False if it is gone."""
-    try:
-        pickle.dump(jobs, proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-        proc.stdin.flush()
-        return True
-    except (BrokenPipeError, OSError):
-        return False
-
-
 class WriterProcesses:
     """``n`` long-lived writer processes, started on first use. One batch at a time (a lock serialises callers)."""
 
@@ -82,9 +72,6 @@ class WriterProcesses:
         self.n = n
         self._procs: list[subprocess.Popen] = []
         self._lock = threading.Lock()
-        self._feeders = ThreadPoolExecutor(max(n, 1), thread_name_prefix="zarr-feed")
-        """One thread per process hands it its share: fed one after another, the last process started a batch
-        ~0.1 s per 100 MB of arrays after the first (pipe writes release the GIL)."""
 
     @property
     def pids(self) -> list[int]:
@@ -105,9 +92,16 @@ class WriterProcesses:
         with self._lock:
             self._start()
             procs = self._procs[:min(self.n, len(jobs))]
-            fed = list(self._feeders.map(_feed, procs, [jobs[i::len(procs)] for i in range(len(procs))]))
-            died, answers = not all(fed), []
-            for proc in [proc for proc, ok in zip(procs, fed) if ok]:  # those fed are writing: wait for each
+            died, answers = False, []
+            for i, proc in enumerate(procs):
+                try:
+                    pickle.dump(jobs[i::len(procs)], proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+                    proc.stdin.flush()
+                except (BrokenPipeError, OSError):
+                    died = True
+                    procs = procs[:i]
+                    break
+            for proc in procs:
                 try:
                     answers.append(pickle.load(proc.stdout))
                 except (EOFError, OSError, pickle.UnpicklingError):
