@@ -16,8 +16,8 @@ def merge_datasets(paths, out, *, progress=None) -> DatasetRef:
     """Append every demo of ``paths`` (in order) to the new dataset ``out``; demo ids are renumbered
     0..N-1, each demo's attrs gain ``source`` (``<file name>:<id>``), and each source's provenance is kept in the
     merged dataset's provenance. A source of ``out``'s format is copied as stored (``append_copies``: no
-    decode / encode, except into zarr packs); another is read and written again. Writes ``MERGE_BATCH`` demos per durable batch;
-    ``progress(done, total)`` is called after each."""
+    decode / encode, except into zarr packs); another is read and written again. Writes ``MERGE_BATCH`` demos per
+    durable batch; ``progress(done, total)`` is called after each."""
     paths = [Path(p) for p in paths]
     out = Path(out)
     if out.exists():

@@ -180,10 +180,11 @@ def inodes_of_pack(tree: dict[str, Any], demos: int) -> int:
 class PackReader:
     """Demos read out of the committed packs of one dataset (``data`` folder ``data_dir``, packs whose first id is
     below ``limit``); ``fallback(relpath, start, stop)`` reads rows of an array that is not of the plain layout
-    (with zarr-python). Pack list, indexes, array metadata and recent chunks are kept while it lives."""
+    (with zarr-python; None: ``locate`` only). Pack list, indexes, array metadata and recent chunks are kept while
+    it lives."""
 
     def __init__(self, data_dir: Path, limit: int | None,
-                 fallback: Callable[[str, int, int], np.ndarray]) -> None:
+                 fallback: Callable[[str, int, int], np.ndarray] | None) -> None:
         self._dir, self._limit, self._fallback = data_dir, limit, fallback
         self._firsts: list[int] | None = None
         self._indexes: dict[int, dict[str, Any] | None] = {}

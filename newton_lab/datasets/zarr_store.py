@@ -34,12 +34,13 @@ from . import zarr_packs, zarr_workers
 __all__ = ["create", "read_root", "append", "set_root_attrs", "info", "read", "read_many", "delete", "read_masks",
            "set_masks"]
 
-STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/demo_<i>: a batch being written
+STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/{demo,pack}_<i>: a batch being written
 
 
 def _scan(path: Path, limit: int | None = None) -> tuple[dict[int, dict[str, Any]], list[Path]]:
-    """(committed demo id -> attrs, leftovers of killed appends/deletes: dirs and ``*.partial`` files). With
-    ``limit`` (the ``next_demo_id`` attr) a ``demo_<i>``, ``i >= limit``, is a leftover of a killed batch."""
+    """(committed demo id -> attrs, leftovers of killed appends/deletes: dirs and ``*.partial`` files), packed
+    demos from their packs' indexes. With ``limit`` (the ``next_demo_id`` attr) a ``demo_<i>`` or ``pack_<i>``,
+    ``i >= limit``, is a leftover of a killed batch."""
     committed, leftovers = {}, []
     for entry in os.scandir(path / "data"):
         if not entry.is_dir():
@@ -147,10 +148,11 @@ def _commit(data: zarr.Group, counters: dict[str, int]) -> None:
 
 
 def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool) -> list[int]:
-    """Under the lock, write ``items`` ((tree, attrs, num_samples), ...) as one batch: each demo into
-    ``data/_partial_batches/<uuid>/demo_<i>``, one ``syncfs``, rename each to ``data/demo_<i>``, then commit
-    by advancing ``next_demo_id`` (and ``total`` / ``num_demos``) in ``data/zarr.json``. Readers list only
-    ``demo_<i>`` with ``i < next_demo_id``: a batch is visible entirely or not at all, also after SIGKILL.
+    """Under the lock, write ``items`` ((tree, attrs, num_samples), ...) as one batch: each demo (or each pack of
+    demos, ``zarr_packs.batch_jobs``) into ``data/_partial_batches/<uuid>/demo_<i>`` (``pack_<i>``), one
+    ``syncfs``, rename each into ``data/``, then commit by advancing ``next_demo_id`` (and ``total`` /
+    ``num_demos``) in ``data/zarr.json``. Readers list only ``demo_<i>`` / ``pack_<i>`` with ``i < next_demo_id``:
+    a batch is visible entirely or not at all, also after SIGKILL.
 
     On any error the batch is taken out again (the dataset stays as it was). zarr does not cancel the
     sibling writes of a failed one: they can only land in the batch's unique staging folder. The cost per

@@ -7,7 +7,8 @@ a parent that holds CUDA, zarr's event-loop thread and the simulation's threads 
 
 Protocol: the parent pickles a list of jobs (a demo ``(folder, attrs, tree)`` or a ``zarr_packs.PackJob``) to a
 child's stdin; the child writes them with ``zarr_packs.write_job`` and answers ``("ok", leftovers)`` (the arrays
-that need zarr-python, written by the parent) or ``("error", exception)``. A child whose parent died reads EOF and exits.
+that need zarr-python, written by the parent) or ``("error", exception)``. A child whose parent died reads EOF
+and exits.
 """
 
 from __future__ import annotations
