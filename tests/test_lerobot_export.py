@@ -19,7 +19,7 @@ import pytest
 pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
-from newton_lab.datasets import open_writer, read_episode  # noqa: E402
+from newton_lab.datasets import open_writer, read_episode, zarr_packs  # noqa: E402
 from newton_lab.datasets.lerobot import writer as lr  # noqa: E402  (the export reads episodes through it)
 from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3  # noqa: E402
 
@@ -89,9 +89,18 @@ def make_dataset(path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int
     return path
 
 
-@pytest.fixture(params=[".hdf5", ".zarr"])
-def dataset(request, tmp_path) -> Path:
-    return make_dataset(tmp_path / f"src{request.param}")
+@pytest.fixture(params=[".hdf5", ".zarr", "zarr packs"])
+def dataset(request, tmp_path, monkeypatch) -> Path:
+    if request.param != "zarr packs":
+        return make_dataset(tmp_path / f"src{request.param}")
+    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 2)  # the demos as one batch, packed
+    path = tmp_path / "src.zarr"
+    with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
+        w.append_episodes([(make_episode(i, steps, None, False), i != 1,
+                            {"termination_reason": "success" if i != 1 else "timeout"})
+                           for i, steps in enumerate(LENGTHS)])
+    assert (path / "data" / "pack_0").is_dir()
+    return path
 
 
 def fingerprint(path: Path) -> str:
@@ -320,15 +329,16 @@ def test_no_exportable_episodes(tmp_path):
 def test_crash_mid_export_leaves_no_root(tmp_path, monkeypatch):
     src = make_dataset(tmp_path / "src.hdf5", failed=())
     root = tmp_path / "crash"
-    calls = []
 
-    def flaky(path, demo_id):
-        calls.append(demo_id)
-        if len(calls) == 3:
-            raise RuntimeError("disk on fire")
-        return read_episode(path, demo_id)
+    real = lr.read_episodes
 
-    monkeypatch.setattr(lr, "read_episode", flaky)
+    def flaky(path, demo_ids, **kwargs):  # the demos after the first: the third read fails
+        for k, ep in enumerate(real(path, demo_ids, **kwargs)):
+            if k == 1:
+                raise RuntimeError("disk on fire")
+            yield ep
+
+    monkeypatch.setattr(lr, "read_episodes", flaky)
     with pytest.raises(RuntimeError, match="disk on fire"):
         export_lerobot(src, root)
     assert not root.exists() and no_partials(tmp_path)

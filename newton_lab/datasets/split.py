@@ -18,7 +18,7 @@ from ..robots.g1 import spec
 from ..task_api.registry import lookup
 from .ref import DatasetRef
 from .filter_keys import read_filter_keys, set_filter_keys
-from .storage import open_writer, read_dataset_info, read_episode
+from .storage import open_writer, read_dataset_info, read_episodes
 
 
 def _slice(node: Any, sel: np.ndarray, steps: int) -> Any:
@@ -58,8 +58,7 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
                 "newton_lab": {**env_args["newton_lab"], "action_joint_names": names}}
         saved = []
         with open_writer(outs[ph.name], task_id=ph.task_id, env_args=args) as writer:
-            for demo in info["demo_ids"]:
-                ep = read_episode(path, demo)
+            for demo, ep in zip(info["demo_ids"], read_episodes(path, info["demo_ids"], attrs=True)):
                 attrs = ep.pop("attrs")
                 phase = np.asarray(ep["datagen"]["phase"]).reshape(-1)
                 sel = np.nonzero(phase == p)[0]

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..datasets.states import state_tree
-from ..datasets.storage import read_dataset_info, read_episode
+from ..datasets.storage import read_dataset_info, read_episodes
 from ..task_api.mimic_cfg import MimicCfg
 
 
@@ -54,10 +54,8 @@ def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str) -> list
     grip_name = f"{cfg.arm}_gripper_joint"
     grip_col = names.index(grip_name) if grip_name in names else None
     sources: list[SourceDemo] = []
-    for demo in info["demo_ids"]:
-        if not info["demos"][demo]["success"]:
-            continue
-        ep = read_episode(path, demo)
+    ids = [demo for demo in info["demo_ids"] if info["demos"][demo]["success"]]
+    for demo, ep in zip(ids, read_episodes(path, ids, attrs=True)):
         signals = ep.get("datagen", {}).get("subtask_signals", {})
         missing = [s for s in cfg.signals if s not in signals]
         if missing:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._common import fsync_path
-from ..storage import read_dataset_info, read_episode
+from ..storage import read_dataset_info, read_episode, read_episodes
 from .tables import (CHUNKS_SIZE, CODEBASE_VERSION, DATA_FILES_SIZE_IN_MB, DATA_PATH, EPISODES_PATH, IMAGE_NAMES,
                      IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, VIDEO_PATH,
                      DataFiles, aggregate, episode_table, image_stats, vector_stats, write_episodes, write_tasks)
@@ -293,9 +293,10 @@ def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
     rows: list[dict[str, Any]] = []
     ep_stats: list[dict[str, dict[str, np.ndarray]]] = []
     start = 0
+    rest = read_episodes(plan.source, plan.demo_ids[1:], attrs=True)  # one open dataset (zarr packs: shared chunks)
     try:
         for episode_index, demo_id in enumerate(plan.demo_ids):
-            ep = first if episode_index == 0 else read_episode(plan.source, demo_id)
+            ep = first if episode_index == 0 else next(rest)
             state, actions, images = _episode_arrays(ep, plan, demo_id)
             del ep
             in_table = {} if plan.video else images  # PNG columns in the data file, or mp4 files beside it
