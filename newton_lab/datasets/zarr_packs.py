@@ -76,6 +76,11 @@ def _flat(tree: dict[str, Any], prefix: str = "") -> dict[str, np.ndarray] | Non
     return out
 
 
+def _groups(keys) -> list[str]:
+    """Every group above the array paths ``keys`` ("a/b/c" -> "a", "a/b"), parents first."""
+    return sorted({key.rsplit("/", i)[0] for key in keys for i in range(1, key.count("/") + 1)})
+
+
 def layout(items: list[tuple[Any, dict[str, Any], int]]) -> dict[str, int | None] | None:
     """The pack index's ``arrays`` (see the module docstring) shared by every (tree, attrs, num_samples) of a batch;
     None when the batch cannot be one pack layout (copies of stored demos, keys, dtypes or trailing shapes differ,
@@ -122,8 +127,7 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None]) -> Non
     demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
     write_group(job.node, {"pack": {"arrays": job.layout, "demos": demos}})
     flats = [_flat(tree) for tree in job.trees]
-    groups = sorted({key.rsplit("/", i)[0] for key in job.layout for i in range(1, key.count("/") + 1)})
-    for group in groups:
+    for group in _groups(job.layout):
         write_group(f"{job.node}/{group}", {})
     for key, rows in job.layout.items():
         parts = [f[key] for f in flats]
@@ -169,8 +173,7 @@ def drop(node: Path, ids: list[int], fsync: bool) -> int:
 def inodes_of_pack(tree: dict[str, Any], demos: int) -> int:
     """Files and folders of a pack of ``demos`` demos shaped like ``tree`` (rows scaled by ``demos``)."""
     flat = _flat(tree) or {}
-    groups = {key.rsplit("/", i)[0] for key in flat for i in range(1, key.count("/") + 1)}
-    count = 2 + 2 * len(groups)
+    count = 2 + 2 * len(_groups(flat))
     for value in flat.values():
         shape = (demos,) if value.ndim == 0 else (demos * value.shape[0], *value.shape[1:])
         count += 2 + (math.prod(chunk_grid(shape, chunk_shape(shape, value.itemsize))) if value.size else 0)
