@@ -53,12 +53,13 @@ def pack_first_of(name: str) -> int | None:
 
 
 class PackJob(NamedTuple):
-    """One pack to write: its folder, and per demo its id, attrs (``num_samples`` included) and tree."""
+    """One pack to write: its folder, per demo its id, attrs (``num_samples`` included) and arrays by path
+    (``{"obs/x": array}``), and the pack's ``layout``."""
 
     node: Path
     ids: list[int]
     attrs: list[dict[str, Any]]
-    trees: list[dict[str, Any]]
+    flats: list[dict[str, np.ndarray]]
     layout: dict[str, int | None]
 
 
@@ -81,10 +82,10 @@ def _groups(keys) -> list[str]:
     return sorted({key.rsplit("/", i)[0] for key in keys for i in range(1, key.count("/") + 1)})
 
 
-def layout(items: list[tuple[Any, dict[str, Any], int]]) -> dict[str, int | None] | None:
-    """The pack index's ``arrays`` (see the module docstring) shared by every (tree, attrs, num_samples) of a batch;
-    None when the batch cannot be one pack layout (copies of stored demos, keys, dtypes or trailing shapes differ,
-    rows that follow neither the steps nor a constant)."""
+def layout(items: list[tuple[Any, dict[str, Any], int]]) -> tuple[dict[str, int | None], list] | None:
+    """(the pack index's ``arrays``, see the module docstring, shared by every (tree, attrs, num_samples) of a batch;
+    each tree's arrays by path), or None when the batch cannot be one pack layout (copies of stored demos, keys,
+    dtypes or trailing shapes differ, rows that follow neither the steps nor a constant)."""
     if any(isinstance(tree, StoredDemo) for tree, _, _ in items):
         return None
     flats = [_flat(tree) for tree, _, _ in items]
@@ -103,7 +104,7 @@ def layout(items: list[tuple[Any, dict[str, Any], int]]) -> dict[str, int | None
             out[key] = first.shape[0]
         else:
             return None
-    return out
+    return out, flats
 
 
 def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any], int]], writers: int) -> list:
@@ -111,12 +112,13 @@ def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any
     per writer with ``PACK_MIN_PART`` demos each at least, when it is large and of one layout; else one
     ``(folder, attrs, tree)`` per demo. Folders go under ``stage``."""
     attrs = [{**a, "num_samples": int(n)} for _, a, n in items]
-    shared = layout(items) if len(items) >= PACK_MIN_BATCH else None
-    if shared is None:
+    found = layout(items) if len(items) >= PACK_MIN_BATCH else None
+    if found is None:
         return [(stage / demo_name(i), a, tree) for i, a, (tree, _, _) in zip(ids, attrs, items)]
+    shared, flats = found
     parts = max(1, min(writers, len(items) // PACK_MIN_PART))
     bounds = [len(items) * k // parts for k in range(parts + 1)]
-    return [PackJob(stage / pack_name(ids[a]), ids[a:b], attrs[a:b], [tree for tree, _, _ in items[a:b]], shared)
+    return [PackJob(stage / pack_name(ids[a]), ids[a:b], attrs[a:b], flats[a:b], shared)
             for a, b in zip(bounds, bounds[1:])]
 
 
@@ -126,11 +128,10 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None]) -> Non
     starts = np.cumsum([0] + [int(a["num_samples"]) for a in job.attrs[:-1]]).tolist()
     demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
     write_group(job.node, {"pack": {"arrays": job.layout, "demos": demos}})
-    flats = [_flat(tree) for tree in job.trees]
     for group in _groups(job.layout):
         write_group(f"{job.node}/{group}", {})
     for key, rows in job.layout.items():
-        parts = [f[key] for f in flats]
+        parts = [f[key] for f in job.flats]
         value = np.stack(parts) if rows == 0 else np.concatenate(parts)
         if not write_array(f"{job.node}/{key}", value):
             fallback(key, value)

@@ -131,7 +131,7 @@ WRITE_THREADS = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_THREADS", "4"))
 """Threads writing a small batch's demos (file creation waits on the filesystem, not on the GIL)."""
 
 
-def _write_job(path: Path, job: PackJob | tuple[Path, dict[str, Any], dict[str, Any]]) -> None:
+def _write_job(path: Path, job: Job) -> None:
     write_job(job, fallback=functools.partial(write_with_zarr, path))
 
 
