@@ -21,9 +21,8 @@ from newton.sensors import SensorCamera
 
 from .datasets import list_demos, open_writer, read_episode, zarr_store, zarr_workers
 from .datasets._common import sync_tree
-from .datasets.storage import EpisodeWriter
 from .envs import make_env
-from .envs.rollout import env_args
+from .envs.rollout import Timers, env_args
 from .flows.cluster import cluster_options, pins_gpus, quiet_shutdown, visible_gpus
 from .policies.data import SequenceDataset
 from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
@@ -49,14 +48,15 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
     ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it (``_ceiling``)."""
     cams = False if camera is None else {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
     env = make_env(task_id, num_envs=num_envs, device=device, seed=0, cameras=cams)
-    if env._graph is None:
+    step_graph = env.step_graph
+    if step_graph is None:
         raise RuntimeError(f"step capture is unavailable on {env.device}; benchmark needs Warp graph capture")
     env.actions.copy_(env.current_action())
     with wp.ScopedDevice(env.device):
         with wp.ScopedCapture(device=env.device) as cap:
-            env._simulate()
+            env.simulate()
     bare_graph = cap.graph
-    t_env = _time_graph(lambda: wp.capture_launch(env._graph), steps, env.device)
+    t_env = _time_graph(lambda: wp.capture_launch(step_graph), steps, env.device)
     t_bare = _time_graph(lambda: wp.capture_launch(bare_graph), steps, env.device)
     # the Python-facing step (validation + copy + launch) on the same env
     a = env.current_action()
@@ -84,14 +84,14 @@ def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
     view per world at the same poses and resolution (BVH refit + render, captured)."""
     env.render()  # builds and captures the render graph
     cams = env.cameras
-    render_graph = cams._graph
+    render_graph = cams.render_graph
     if render_graph is None:
         raise RuntimeError(f"camera render capture is unavailable on {env.device}")
     spec = cams.specs[camera]
     with wp.ScopedDevice(env.device):
         sensor = SensorCamera(env.model)
         sensor.create_default_light(enable_shadows=False)
-        rays = next(g.rays for g in cams._groups if camera in g.cameras)  # the env's pinhole rays
+        rays = next(g.rays for g in cams.view_groups if camera in g.cameras)  # the env's pinhole rays
         n = env.num_envs
         color = sensor.allocate_image_color(n, spec.width, spec.height) if "rgb" in spec.data else None
         depth = sensor.allocate_image_depth(n, spec.width, spec.height) if "depth" in spec.data else None
@@ -104,12 +104,14 @@ def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
 
         bare_render()  # compiles before the capture
         with wp.ScopedCapture(device=env.device) as cap:
-            env._simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
+            env.simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
             bare_render()
     ceiling_graph = cap.graph
 
+    step_graph = env.step_graph
+
     def env_with_camera():
-        wp.capture_launch(env._graph)
+        wp.capture_launch(step_graph)
         wp.capture_launch(render_graph)
 
     t_cam = _time_graph(env_with_camera, steps, env.device)
@@ -188,23 +190,20 @@ the renames and the commit."""
 
 def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dict[str, Any]:
     """One ``env.collect`` with physics (``env.step``), agent (``agent.act``) and writer (the background thread's
-    ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured; the loop's own time
-    is the rest."""
+    ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's
+    ``Timers``); the loop's own time is the rest."""
     physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
+    timers = Timers(step=physics.wrap, act=acting.wrap, write=writing.wrap)
     parts = {name: _Clock("cpu") for name in ZARR_WRITER_PARTS}
     store_fns = {place: getattr(*place) for place in ZARR_WRITER_PARTS.values()}
-    original = EpisodeWriter.append_prepared
-    env.step, agent.act = physics.wrap(env.step), acting.wrap(agent.act)
-    EpisodeWriter.append_prepared = writing.wrap(original)
+    # the zarr split times two functions of datasets.zarr_store's batch write, which has no timing hook yet
     for name, (module, fn) in ZARR_WRITER_PARTS.items():
         setattr(module, fn, parts[name].wrap(store_fns[module, fn]))
     t0 = time.perf_counter()
     try:
         ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
-                          only_successes=True, max_attempts=2 * episodes)
+                          only_successes=True, max_attempts=2 * episodes, timers=timers)
     finally:
-        del env.step, agent.act
-        EpisodeWriter.append_prepared = original
         for (module, fn), original_fn in store_fns.items():
             setattr(module, fn, original_fn)
     wall = time.perf_counter() - t0

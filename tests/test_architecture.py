@@ -13,6 +13,7 @@ module over 400 lines, no function over 80 lines except Warp kernels / funcs.
 from __future__ import annotations
 
 import ast
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -212,3 +213,110 @@ def test_tasks_declare_data_only(rule):
     bad = [f"{m} -> {t}" for m, ts in GRAPH.items() if _unit(m) == "tasks"
            for t in ts if _unit(t) in ("agents", "datasets", "envs", "mimic", "policies")]
     assert not bad, rule + ":\n" + "\n".join(bad)
+
+
+# ---------------------------------------------------------------- the env's narrow surface
+ENV_SURFACE_FOLDERS = ("newton_lab", "flows", "kernels", "tasks", "examples", "tests", "tools")
+"""Source scanned for private access to env objects (every ``.py`` file, ``newton_lab/envs/`` aside)."""
+ENV_OWNER = "newton_lab/envs/"
+"""The one place that may touch the env's private attributes (and those of its cameras / actuation objects)."""
+ENV_OBJECT_NAMES = r"^(.*_)?(env|envs|cams|cameras|actuation|launches|binding)$"
+"""How an env object is recognised without running anything: the name it is reached by, the last part of the
+expression before the dot (``env``, ``pick_env``, ``self._env``, ``env.cameras``, ``cams``, ``eager_env``...).
+The project names its envs and their parts so everywhere; a private attribute is ``_name`` (not a dunder)."""
+
+
+def _source_files(folders) -> dict[str, ast.Module]:
+    out = {}
+    for folder in folders:
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            rel = path.relative_to(ROOT).as_posix()
+            out[rel] = ast.parse(path.read_text(), filename=rel)
+    return out
+
+
+def _last_name(node: ast.AST) -> str | None:
+    """The name an expression ends in: ``env`` for ``env``, ``cameras`` for ``env.cameras``, ``f`` for ``f()``."""
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        return node.attr
+    if isinstance(node, (ast.Call, ast.Subscript)):
+        return _last_name(node.func if isinstance(node, ast.Call) else node.value)
+    return None
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def test_no_private_access_to_env_objects_outside_envs():
+    env_like = re.compile(ENV_OBJECT_NAMES)
+    bad = []
+    for rel, tree in _source_files(ENV_SURFACE_FOLDERS).items():
+        if rel.startswith(ENV_OWNER):
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and _private(node.attr):
+                owner = _last_name(node.value)
+            elif (isinstance(node, ast.Call) and _last_name(node.func) in ("getattr", "setattr", "hasattr")
+                  and len(node.args) > 1 and isinstance(node.args[1], ast.Constant)
+                  and isinstance(node.args[1].value, str) and _private(node.args[1].value)):
+                owner = _last_name(node.args[0])
+            else:
+                continue
+            if owner is not None and env_like.match(owner):
+                bad.append(f"{rel}:{node.lineno} {ast.unparse(node)}")
+    assert not bad, ("private attributes of env objects used outside newton_lab/envs/ (use the env's public surface, "
+                     "newton_lab/envs/env.py's docstring lists it):\n" + "\n".join(bad))
+
+
+MONKEYPATCH_ALLOWED = {
+    # temporary: the zarr writer split of bench-collect (files / syncfs seconds) wraps two module functions of
+    # datasets.zarr_workers / datasets.zarr_store, which offer no timing hook yet (datasets/ has its own owner)
+    ("newton_lab/bench.py", "setattr"),
+}
+"""(file, call) pairs that may still patch project code at run time, each with its reason."""
+
+
+def _project_names(tree: ast.Module) -> set[str]:
+    """Names a module binds by importing project modules or their members (classes, functions, modules)."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith("newton_lab")):
+            names |= {a.asname or a.name for a in node.names}
+        elif isinstance(node, ast.Import):
+            names |= {a.asname or a.name.split(".")[0] for a in node.names if a.name.startswith("newton_lab")}
+    return names
+
+
+def test_no_monkeypatching_in_the_library():
+    """Library code never rebinds attributes of project classes, modules or env objects at run time (a hook or an
+    argument does it): no ``Cls.method = ...`` / ``module.fn = ...`` on an imported project name, no
+    ``env.step = ...`` outside ``envs/``, no ``setattr`` / ``delattr`` on anything but ``self``."""
+    env_like = re.compile(ENV_OBJECT_NAMES)
+    bad = []
+    for rel, tree in _source_files(("newton_lab", "flows", "kernels", "tasks")).items():
+        imported = _project_names(tree)
+        for node in ast.walk(tree):
+            targets = []
+            if isinstance(node, (ast.Assign, ast.Delete)):
+                targets = node.targets
+            elif isinstance(node, (ast.AugAssign, ast.AnnAssign)):
+                targets = [node.target]
+            flat = [t for target in targets for t in (target.elts if isinstance(target, ast.Tuple) else [target])]
+            for t in flat:
+                if not isinstance(t, ast.Attribute):
+                    continue
+                base = t.value
+                if isinstance(base, ast.Name) and base.id in imported:
+                    bad.append(f"{rel}:{node.lineno} {ast.unparse(t)} (a project name)")
+                elif not rel.startswith(ENV_OWNER) and env_like.match(_last_name(base) or "") \
+                        and not (isinstance(base, ast.Name) and base.id == "self"):
+                    bad.append(f"{rel}:{node.lineno} {ast.unparse(t)} (an env object)")
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                    and node.func.id in ("setattr", "delattr") and node.args
+                    and not (isinstance(node.args[0], ast.Name) and node.args[0].id == "self")
+                    and (rel, node.func.id) not in MONKEYPATCH_ALLOWED):
+                bad.append(f"{rel}:{node.lineno} {ast.unparse(node)}")
+    assert not bad, "run-time patching of project code:\n" + "\n".join(bad)

@@ -57,7 +57,7 @@ def test_robot_context_from_joint_index(layout, pick_cfg):
 
 
 def test_env_context_is_the_binding(pick_env):
-    ctx, bound = pick_env._ctx, pick_env.binding.context
+    ctx, bound = pick_env.task_context, pick_env.binding.context
     assert ctx.robot_coords == bound.robot_coords == 34
     assert (ctx.base_coord, ctx.leg_coord, ctx.gripper_coord, ctx.tcp_body) == (
         bound.base_coord, bound.leg_coord, bound.gripper_coord, bound.tcp_body)
@@ -160,10 +160,9 @@ def _close_gripper(env, steps: int) -> tuple[list[float], float]:
     positions, peak = [], 0.0
     with wp.ScopedDevice(env.device):
         for _ in range(steps):
-            env._apply_actions()
+            env.apply_actions()
             for _ in range(env.cfg.decimation):
-                env._actuation.substep(env._actions, env._ctx.phase, env.state.joint_q)
-                env.solver.step(env.state, env.state, env.drive, None, env.cfg.sim_dt)
+                env.substep()
                 peak = max(peak, abs(float(qd[d])))
             positions.append(float(q[c]))
     return positions, peak
@@ -173,8 +172,8 @@ def test_gripper_velocity_limit_on_real_physics():
     env = make_env(PICK, num_envs=1, device="cpu", capture=False)
     limited, peak = _close_gripper(env, 16)
     # the same env with its setpoint limit switched off: the drive as it was before the limit
-    env._actuation.max_step.zero_()
-    env._actuation.dof_limited.zero_()
+    env.actuation.max_step.zero_()
+    env.actuation.dof_limited.zero_()
     free, free_peak = _close_gripper(env, 16)
     print(f"gripper closing: before peak {free_peak:.2f} rad/s (first step {free[0] / 0.05:.2f} rad/s), "
           f"after peak {peak:.2f} rad/s (first step {limited[0] / 0.05:.2f} rad/s)")

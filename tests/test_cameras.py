@@ -101,7 +101,7 @@ def test_image_terms_are_zero_copy_views(cam_env):
     assert (rgb.shape, rgb.dtype) == ((2, H, W, 3), torch.uint8)
     assert (depth.shape, depth.dtype) == ((2, H, W), torch.float32)
     assert (seg.shape, seg.dtype) == ((2, H, W), torch.int32)
-    group, = env.cameras._groups  # 2 cameras x 2 worlds: 4 views, camera-major
+    group, = env.cameras.view_groups  # 2 cameras x 2 worlds: 4 views, camera-major
     assert group.poses.shape == (4,)
     assert rgb.data_ptr() == wp.to_torch(group.color).data_ptr()
     assert env.images["left_wrist_rgb"].data_ptr() == rgb.data_ptr() + 2 * H * W * 4
@@ -121,10 +121,9 @@ def test_render_only_when_images_are_read_and_capture_matches_eager(cam_env):
     assert env.cameras.stale and torch.equal(view, before)  # stepping rendered nothing
     captured = {k: v.clone() for k, v in env.render().items()}
     assert not env.cameras.stale
-    assert env.cameras._graph is not None  # the render is one captured graph
+    assert env.cameras.render_graph is not None  # the render is one captured graph
     assert not torch.equal(captured["front_head_segmentation"], before)
-    with wp.ScopedDevice(env.device):
-        env.cameras._render_body()  # the same render, eager
+    env.cameras.render(force=True, eager=True)  # the same render, eager
     for name, img in env.images.items():
         assert torch.equal(img, captured[name]), name
 
@@ -211,7 +210,7 @@ def test_state_only_envs_do_no_camera_work(stack_env):
     stack_env.reset()
     stack_env.step(stack_env.current_action())
     assert stack_env.image_terms == {} and stack_env.render() == {}
-    assert stack_env.cameras._images is None  # no sensor, no buffers, no graph
+    assert not stack_env.cameras.built  # no sensor, no buffers, no graph
     with pytest.raises(KeyError, match="renders none") as err:
         stack_env.images["front_head_rgb"]
     assert "\n" not in str(err.value)
@@ -303,7 +302,7 @@ def test_vision_randomisation_changes_per_reset_and_replays(cam_env):
     try:
         red = _cube_colour(env, 0)
         assert red[0] > red[1] + 40  # the cube's own red
-        assert np.array_equal(env.model.shape_color.numpy(), env.cameras._base_color.numpy())
+        assert np.array_equal(env.model.shape_color.numpy(), env.cameras.base_shape_colors.numpy())
     finally:
         env.cameras.randomize = True
 

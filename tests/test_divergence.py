@@ -37,7 +37,7 @@ def test_reason_codes_match_their_names(pick_env):
 def _run(env, steps: int, fault_step: int | None, fault_row: int = 1):
     """Reset every row with fresh episode counters (same seeded draws) and step a fixed action sequence; the
     fault row gets ``FAULT`` in its first column at ``fault_step``. Returns the per-step history."""
-    env._episode_count.zero_()
+    env.episode_count.zero_()
     env.reset()
     base = env.current_action().clone()
     hist = {k: [] for k in ("obs", "q", "qd", "body_q", "reward", "reason", "count")}

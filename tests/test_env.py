@@ -31,20 +31,20 @@ def test_one_task_kernel_launch_per_step(eager_env, monkeypatch):
 
     monkeypatch.setattr(wp, "launch", counting)
     eager_env.step(eager_env.current_action())
-    assert sum(k is eager_env._task_kernel for k in launched) == 1
+    assert sum(k is eager_env.kernels.task for k in launched) == 1
     # the observation kernel runs twice: before the masked reset (``final_obs``, the terminal observation of rows
     # that finish) and after it (``obs``); the fused task logic still runs once
-    assert sum(k is eager_env._obs_kernel for k in launched) == 2
-    assert sum(k is eager_env._reset_kernel for k in launched) == 1
+    assert sum(k is eager_env.kernels.observe for k in launched) == 2
+    assert sum(k is eager_env.kernels.reset for k in launched) == 1
 
 
 def test_step_is_one_captured_graph(pick_env):
-    assert pick_env._graph is not None
+    assert pick_env.step_graph is not None
 
 
 def test_captured_step_matches_eager(pick_env, eager_env):
     for env in (pick_env, eager_env):  # same seed and episode counters -> same reset draws
-        env._episode_count.zero_()
+        env.episode_count.zero_()
         env.reset()
     torch.testing.assert_close(_q(pick_env), _q(eager_env))
     for t in range(15):
@@ -59,8 +59,8 @@ def test_captured_step_matches_eager(pick_env, eager_env):
 
 def test_step_returns_views_of_warp_buffers(pick_env):
     obs, reward, terminated, truncated, info = pick_env.step(pick_env.current_action())
-    assert obs.data_ptr() == wp.to_torch(pick_env._obs).data_ptr()
-    assert reward.data_ptr() == wp.to_torch(pick_env._reward).data_ptr()
+    assert obs.data_ptr() == wp.to_torch(pick_env.buffers.obs).data_ptr()
+    assert reward.data_ptr() == wp.to_torch(pick_env.buffers.reward).data_ptr()
     assert obs.shape == (2, pick_env.obs_dim) and terminated.dtype == torch.bool
     assert set(pick_env.obs_terms) == {"actions", "robot_joint_pos", "tcp_pose", "gripper_pos", "cube_pose",
                                        "blue_block_pos"}
@@ -74,20 +74,20 @@ def test_reset_touches_only_selected_rows(pick_env):
     for _ in range(10):
         env.step(a)
     q_before, body_before = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7).clone()
-    count_before = env._episode_count.numpy().copy()
+    count_before = env.episode_count.numpy().copy()
     env.reset([1])
     q_after, body_after = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7)
     assert torch.equal(q_after[0], q_before[0]) and torch.equal(body_after[0], body_before[0])
-    arm = [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]
+    arm = env.joint_coords(spec.LEFT_ARM_JOINTS)
     torch.testing.assert_close(q_after[1, arm], torch.tensor(postures.TABLE_TOP_LEFT_ARM), atol=1e-6, rtol=0)
     assert not torch.allclose(q_before[1, arm], q_after[1, arm])
-    assert (env._episode_count.numpy() - count_before).tolist() == [0, 1]
-    assert int(env.info["episode_length"][1]) >= 0 and int(wp.to_torch(env._ctx.episode_step)[1]) == 0
+    assert (env.episode_count.numpy() - count_before).tolist() == [0, 1]
+    assert int(env.info["episode_length"][1]) >= 0 and int(wp.to_torch(env.task_context.episode_step)[1]) == 0
 
 
 def test_randomisation_is_seeded_per_row_and_episode(pick_env, eager_env):
     for env in (pick_env, eager_env):  # same seed and episode counters -> same draws
-        env._episode_count.zero_()
+        env.episode_count.zero_()
         env.reset()
     cube = pick_env.entities["cube"].slot
     a, b = pick_env.entity_poses[:, cube, :3].clone(), eager_env.entity_poses[:, cube, :3].clone()
@@ -120,7 +120,7 @@ def test_time_out_truncates_and_auto_resets(reach_env):
     assert trunc.all() and not term.any()
     assert [env.termination_reasons[int(r)] for r in info["termination_reason"]] == ["time_out", "time_out"]
     assert info["episode_length"].tolist() == [limit, limit]
-    assert wp.to_torch(env._ctx.episode_step).tolist() == [0, 0]
+    assert wp.to_torch(env.task_context.episode_step).tolist() == [0, 0]
 
 
 def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():

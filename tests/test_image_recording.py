@@ -127,7 +127,7 @@ def test_state_only_env_records_and_renders_nothing(pick_env, tmp_path):
     ep = read_episode(path, 0)
     assert not [k for k in ep["obs"] if k.startswith("front_head")] and "camera_poses" not in ep["datagen"]
     assert read_dataset_info(path)["env_args"]["newton_lab"]["cameras"] == {}
-    assert pick_env.cameras._images is None  # no camera was ever built
+    assert not pick_env.cameras.built  # no camera was ever built
 
 
 def test_bad_cameras_option_is_one_line(capsys):

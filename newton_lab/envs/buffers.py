@@ -1,4 +1,5 @@
-"""What ``NewtonEnv`` builds its device buffers from: the entity table, the reset coordinates, the task context.
+"""``NewtonEnv``'s device buffers: the step's preallocated arrays (``StepBuffers``), the entity table, the reset
+coordinates and the task context.
 
 The task context has two halves: the simulation and task half filled here (state / control arrays, per-world
 sizes, entities, task command and per-row counters) and the robot half the binding fills
@@ -8,6 +9,7 @@ sizes, entities, task command and per-row counters) and the robot half the bindi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import newton
 import numpy as np
@@ -29,14 +31,88 @@ class Entity:
     body: int
     """World-local body index, -1 for a static collider."""
     dynamic: bool
+    coord: int = -1
+    """World-local first coordinate of a free body's pose (x, y, z, qx, qy, qz, qw in a row of ``joint_q``),
+    -1 for a static collider."""
 
 
 def entity_table(layout: SceneLayout) -> dict[str, Entity]:
     """The scene's entities by name, in slot order."""
     return {
-        name: Entity(name=name, slot=k, body=layout.entity_body[k], dynamic=layout.entity_body[k] >= 0)
+        name: Entity(name=name, slot=k, body=layout.entity_body[k], dynamic=layout.entity_body[k] >= 0,
+                     coord=layout.entity_coord[k])
         for k, name in enumerate(layout.entity_names)
     }
+
+
+@dataclass(frozen=True)
+class StepBuffers:
+    """The step's preallocated per-row Warp arrays (on the env's device); the env's torch views (``obs``,
+    ``reward``, ``info[...]``, ...) share their memory. Sizes that may be 0 are allocated with at least 1 column."""
+
+    actions: wp.array2d
+    """(num_envs, action_dim) the actions of the step (``env.actions``)."""
+    obs: wp.array2d
+    """(num_envs, obs_dim) observation after the step (and its resets)."""
+    final_obs: wp.array2d
+    """(num_envs, obs_dim) observation of the state the step reached, before its resets."""
+    reward: wp.array
+    terminated: wp.array
+    truncated: wp.array
+    done: wp.array
+    """Terminated or truncated (the rows the step reset)."""
+    success: wp.array
+    success_latched: wp.array
+    reason: wp.array
+    """Termination reason index (``env.termination_reasons``)."""
+    episode_length: wp.array
+    signals: wp.array2d
+    """(num_envs, signals) subtask signals of ``obs``'s state."""
+    step_signals: wp.array2d
+    """(num_envs, signals) subtask signals of the state the step reached."""
+    episode_count: wp.array
+    """(num_envs,) episodes started per row (keys the seeded reset draws)."""
+    reset_mask: wp.array
+    """(num_envs,) rows a ``reset`` call resets."""
+    articulation_mask: wp.array
+    """(articulations,) articulations of the rows being reset (forward kinematics)."""
+    tcp_pose: wp.array2d
+    entity_poses: wp.array3d
+    terminal_q: wp.array2d
+    """(num_envs, coords_per_world) coordinates of each row's last finished episode."""
+
+    @classmethod
+    def allocate(cls, *, num_envs: int, action_dim: int, obs_dim: int, signals: int, entities: int,
+                 articulations: int, coords_per_world: int) -> StepBuffers:
+        n, z = num_envs, wp.zeros
+        return cls(
+            actions=z((n, action_dim), dtype=float), obs=z((n, max(obs_dim, 1)), dtype=float),
+            final_obs=z((n, max(obs_dim, 1)), dtype=float), reward=z(n, dtype=float),
+            terminated=z(n, dtype=bool), truncated=z(n, dtype=bool), done=z(n, dtype=bool),
+            success=z(n, dtype=bool), success_latched=z(n, dtype=bool), reason=z(n, dtype=int),
+            episode_length=z(n, dtype=int), signals=z((n, max(signals, 1)), dtype=float),
+            step_signals=z((n, max(signals, 1)), dtype=float), episode_count=z(n, dtype=int),
+            reset_mask=z(n, dtype=bool), articulation_mask=z(articulations, dtype=bool),
+            tcp_pose=z((n, 7), dtype=float), entity_poses=z((n, max(entities, 1), 7), dtype=float),
+            terminal_q=z((n, coords_per_world), dtype=float),
+        )
+
+    def info(self, ctx: TaskContext, *, signals: int, command_dim: int) -> dict[str, Any]:
+        """The ``info`` dict of ``env.step`` / ``env.reset``: torch views of these arrays and of the context's
+        phase and command."""
+        t = wp.to_torch
+        return {
+            "success": t(self.success),
+            "success_latched": t(self.success_latched),
+            "done": t(self.done),
+            "termination_reason": t(self.reason),
+            "episode_length": t(self.episode_length),
+            "phase": t(ctx.phase),
+            "signals": t(self.signals)[:, :signals],
+            # the same signals on the state the step reached, before an automatic reset replaced it
+            "step_signals": t(self.step_signals)[:, :signals],
+            "command": t(ctx.command)[:, :command_dim],
+        }
 
 
 def reset_coordinates(cfg: TaskCfg, layout: SceneLayout) -> tuple[Scenario | None, np.ndarray, np.ndarray]:

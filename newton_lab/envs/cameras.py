@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import newton
 import numpy as np
@@ -35,7 +34,12 @@ from newton.sensors import SensorCamera
 from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
 from ..robots.g1 import cameras as mounts
 from ..robots.g1 import spec
-from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg, camera_option
+from ..task_api.cfg import CameraCfg
+from .camera_specs import ImageTerm, image_terms, resolve_cameras
+from .pictures import picture
+
+__all__ = ["Cameras", "ImageTerm", "ImageViews", "ViewGroup", "image_terms", "picture", "resolve_cameras",
+           "segmentation_table"]
 
 SKY_RGBA = (178, 190, 204, 0)
 """Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
@@ -43,89 +47,6 @@ RENDERED_SHAPES = newton.ShapeFlags.VISIBLE | newton.ShapeFlags.COLLIDE_SHAPES
 """Shapes the cameras see: visual and collision geometry (the G1 MJCF's collision geoms are its body; Newton
 marks them invisible because the MJCF also has visual geoms), not sites."""
 BACKGROUND, GROUND = "background", "ground"
-
-
-@dataclass(frozen=True)
-class ImageTerm:
-    """One image observation: ``<camera>_<data>``, per-row ``shape`` and torch ``dtype``."""
-
-    name: str
-    camera: str
-    data: str
-    shape: tuple[int, ...]
-    dtype: torch.dtype
-
-
-def _resolution(name: str, value: Any) -> tuple[int, int]:
-    ok = (isinstance(value, (tuple, list)) and len(value) == 2
-          and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
-          and all(mounts.MIN_RESOLUTION <= v <= mounts.MAX_RESOLUTION for v in value))
-    if not ok:
-        raise ValueError(f"camera {name!r} resolution must be (width, height) integers in [{mounts.MIN_RESOLUTION}, "
-                         f"{mounts.MAX_RESOLUTION}] px, got {value!r}; e.g. cameras={{'{name}': (96, 72)}}")
-    return int(value[0]), int(value[1])
-
-
-def _data(name: str, value: Any) -> tuple[str, ...]:
-    data = (value,) if isinstance(value, str) else tuple(value)
-    bad = [d for d in data if d not in IMAGE_DATA]
-    if not data or bad or len(set(data)) != len(data):
-        raise ValueError(f"camera {name!r} data must be distinct entries of {list(IMAGE_DATA)}, got {value!r}")
-    return data
-
-
-def _override(name: str, base: CameraCfg, value: Any) -> CameraCfg:
-    if isinstance(value, Mapping):
-        unknown = sorted(set(value) - {"resolution", "data"})
-        if unknown:
-            raise ValueError(f"camera {name!r} override has unknown keys {unknown}; use 'resolution' and/or 'data'")
-        w, h = _resolution(name, value.get("resolution", (base.width, base.height)))
-        return CameraCfg(width=w, height=h, data=_data(name, value.get("data", base.data)))
-    w, h = _resolution(name, value)
-    return CameraCfg(width=w, height=h, data=base.data)
-
-
-def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None) -> dict[str, CameraCfg]:
-    """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
-    ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a G1 mount the task does
-    not declare is added), or any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``). Raises a
-    one-line ``ValueError`` on an unknown mount, a bad resolution or data, or cameras asked of a task without any."""
-    if isinstance(cameras, str):
-        cameras = camera_option(cameras)
-    if cameras is None or cameras is True:
-        chosen = dict(cfg.cameras)
-    elif cameras is False:
-        return {}
-    elif isinstance(cameras, Mapping):
-        if not cfg.cameras:
-            raise ValueError(f"{cfg.task_id} has no cameras (a state-only task, as in the reference), so cameras="
-                             f"{dict(cameras)!r} cannot apply; leave cameras unset or pass cameras=False")
-        chosen = dict(cfg.cameras)
-        for name, value in cameras.items():
-            if name not in spec.CAMERA_MOUNTS:
-                raise ValueError(f"unknown camera {name!r}; the G1's cameras are {list(spec.CAMERA_MOUNTS)}")
-            chosen[name] = _override(name, chosen.get(name, CameraCfg()), value)
-    else:
-        raise ValueError(f"cameras must be None, True, False, a dict {{camera: (width, height)}} or its text form, "
-                         f"got {cameras!r}")
-    for name, cam in chosen.items():
-        if name not in spec.CAMERA_MOUNTS:
-            raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the G1's are {list(spec.CAMERA_MOUNTS)}")
-        _resolution(name, (cam.width, cam.height))
-        _data(name, cam.data)
-    return chosen
-
-
-def image_terms(specs: Mapping[str, CameraCfg]) -> dict[str, ImageTerm]:
-    """The image observations of ``specs``, in camera then ``IMAGE_DATA`` order."""
-    out = {}
-    for cam, c in specs.items():
-        for data in IMAGE_DATA:
-            if data in c.data:
-                shape = (c.height, c.width, 3) if data == "rgb" else (c.height, c.width)
-                dtype = {"rgb": torch.uint8, "depth": torch.float32, "segmentation": torch.int32}[data]
-                out[f"{cam}_{data}"] = ImageTerm(f"{cam}_{data}", cam, data, shape, dtype)
-    return out
 
 
 def segmentation_table(model: newton.Model, entity_names: list[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -149,21 +70,31 @@ def segmentation_table(model: newton.Model, entity_names: list[str]) -> tuple[tu
 
 
 @dataclass
-class _ViewGroup:
-    """The cameras of one resolution: one ``SensorCamera.update`` renders all their views in every world."""
+class ViewGroup:
+    """The cameras of one resolution: one ``SensorCamera.update`` renders all their views in every world (views
+    camera-major: view ``k * N + w`` is camera ``k`` in world ``w``)."""
 
     cameras: tuple[str, ...]
     width: int
     height: int
     rays: wp.array
+    """(height, width, 1, 2) pinhole camera rays of the group's resolution (``SensorCamera.update``'s)."""
     view_body: wp.array
+    """Mount body of each view (global body index)."""
     view_offset: wp.array
+    """Camera pose in its mount body, per view."""
     world: wp.array
+    """World of each view."""
     poses: wp.array
+    """World pose of each view at the last render (``wp.transformf``)."""
     color: wp.array | None
+    """Packed RGBA (uint32) per view and pixel; ``None`` when no camera of the group gives rgb."""
     depth: wp.array | None
+    """Depth [m] per view and pixel; ``None`` without depth."""
     shape_index: wp.array | None
+    """Shape hit per view and pixel; ``None`` without segmentation."""
     segmentation: wp.array | None
+    """Segmentation id per view and pixel (``segmentation_names``); ``None`` without segmentation."""
 
 
 class Cameras:
@@ -188,7 +119,7 @@ class Cameras:
         self.stale = True
         """Set by every step / reset; the next read renders."""
         self._images: dict[str, torch.Tensor] | None = None
-        self._groups: list[_ViewGroup] = []
+        self._groups: list[ViewGroup] = []
         self._names: tuple[str, ...] | None = None
         self._graph = None
 
@@ -238,6 +169,30 @@ class Cameras:
             return f"camera {camera!r}: this env renders no cameras (a state-only task or cameras=False)"
         return f"camera {camera!r} is not rendered by this env; its cameras are {list(self.specs)}"
 
+    @property
+    def built(self) -> bool:
+        """Whether the renderer, its buffers and its graph exist (the first ``render`` builds them; an env without
+        cameras never does)."""
+        return self._images is not None
+
+    @property
+    def view_groups(self) -> tuple[ViewGroup, ...]:
+        """The views by resolution, with their Warp buffers (the image views share their memory); empty until
+        built."""
+        return tuple(self._groups)
+
+    @property
+    def render_graph(self):
+        """The captured render (a Warp graph), ``None`` until built, with ``capture=False`` or where Warp cannot
+        capture."""
+        return self._graph
+
+    @property
+    def base_shape_colors(self) -> wp.array | None:
+        """The model's shape colours before vision randomisation (``None`` until built); the render recolours
+        ``model.shape_color`` from them."""
+        return self._base_color if self.built else None
+
     # ------------------------------------------------------------------ build
     def _build(self) -> None:
         self.segmentation_names  # noqa: B018  (fills the shape -> id table)
@@ -257,7 +212,7 @@ class Cameras:
         self._groups = [self._group(tuple(names), w, h) for (w, h), names in by_res.items()]
         self._images = self._views()
 
-    def _group(self, names: tuple[str, ...], width: int, height: int) -> _ViewGroup:
+    def _group(self, names: tuple[str, ...], width: int, height: int) -> ViewGroup:
         n, v = self.num_envs, len(names) * self.num_envs
         body, offset = [], []
         for name in names:
@@ -266,7 +221,7 @@ class Cameras:
             offset += [xf] * n
         wants = {d for name in names for d in self.specs[name].data}
         img = lambda dtype: wp.zeros((v, height, width), dtype=dtype)  # noqa: E731
-        return _ViewGroup(
+        return ViewGroup(
             cameras=names, width=width, height=height,
             rays=wp.array(mounts.pinhole_rays(width, height), dtype=wp.vec3f).reshape((height, width, 1, 2)),
             view_body=wp.array(body, dtype=int), view_offset=wp.array(offset, dtype=wp.transform),
@@ -322,8 +277,10 @@ class Cameras:
                 wp.launch(segmentation_ids, dim=g.segmentation.size,
                           inputs=[g.shape_index.flatten(), self._shape_to_id, g.segmentation.flatten()])
 
-    def render(self) -> dict[str, torch.Tensor]:
-        """Render every view if the state changed since the last render; returns the image views by term name."""
+    def render(self, *, force: bool = False, eager: bool = False) -> dict[str, torch.Tensor]:
+        """Render every view if the state changed since the last render (``force``: anyway); returns the image
+        views by term name. ``eager`` launches the render's kernels one by one instead of its captured graph
+        (the same pictures)."""
         if not self.specs:
             return {}
         params = (int(self.randomize), int(self._seed()) & 0x7FFFFFFF)
@@ -335,8 +292,8 @@ class Cameras:
                 self._build()
                 self._render_body()  # compiles the render kernels before any capture
                 self._graph = self._capture() if self.capture else None
-            elif self.stale:
-                if self._graph is not None:
+            elif self.stale or force:
+                if self._graph is not None and not eager:
                     wp.capture_launch(self._graph)
                 else:
                     self._render_body()
@@ -374,25 +331,3 @@ class ImageViews(Mapping):
 
     def __contains__(self, name: object) -> bool:
         return name in self._cameras.terms
-
-
-def picture(images: Mapping[str, torch.Tensor], camera: str, row: int = 0) -> np.ndarray:
-    """One row's frame of ``camera`` as an (H, k W, 3) uint8 picture: RGB | depth (near bright, far dark, nothing
-    hit black) | segmentation (one colour per id), each panel the camera gives."""
-    panels = []
-    if f"{camera}_rgb" in images:
-        panels.append(images[f"{camera}_rgb"][row].cpu().numpy())
-    if f"{camera}_depth" in images:
-        d = images[f"{camera}_depth"][row].cpu().numpy()
-        hit = np.isfinite(d)
-        lo, hi = (float(d[hit].min()), float(d[hit].max())) if hit.any() else (0.0, 1.0)
-        g = np.where(hit, 1.0 - 0.85 * (d - lo) / max(hi - lo, 1e-6), 0.0)
-        panels.append(np.repeat((255.0 * g).astype(np.uint8)[..., None], 3, axis=2))
-    if f"{camera}_segmentation" in images:
-        s = images[f"{camera}_segmentation"][row].cpu().numpy()
-        palette = np.random.default_rng(7).integers(40, 256, size=(max(int(s.max()) + 1, 1), 3), dtype=np.uint8)
-        palette[0] = 0
-        panels.append(palette[s])
-    if not panels:
-        raise ValueError(f"no images of camera {camera!r}; the images are {list(images)}")
-    return np.concatenate(panels, axis=1)

@@ -1,9 +1,16 @@
-"""The batched G1 env: transparent over Newton, one captured graph per env step.
+"""The batched env: transparent over Newton, one captured graph per env step.
 
-One step, as data (all on the env's device, nothing allocated, no host sync):
+One step, as data (all on the env's device; the captured step allocates nothing and never syncs to the host):
 actions -> ``apply_actions`` (the robot binding's action map, ``actuation``) -> (base twist, drive setpoints,
 ``solver.step``) x decimation -> fused task kernel -> masked reset of finished rows (+ seeded randomisation)
--> forward kinematics of reset rows -> fused observation kernel.
+-> forward kinematics of reset rows -> fused observation kernel (the launches: ``envs.launches``). ``step``
+checks its input first, which reads the actions' finiteness on the host.
+
+The public surface beyond ``step`` / ``reset``, for tools and tests: the step's parts (``step_graph``,
+``launch_step``, ``apply_actions``, ``substep``, ``simulate``, ``observe``), its arrays (``buffers``,
+``task_context``, ``kernels``, ``actuation``) and joint / entity views by name (``joint_coords``,
+``joint_positions``, ``entities``, ``robot_coords``, ``bodies_per_world``). Code outside ``envs/`` uses only these
+and the public attributes; ``tests/test_architecture.py`` checks it touches nothing private.
 """
 
 from __future__ import annotations
@@ -11,19 +18,18 @@ from __future__ import annotations
 from typing import Any
 
 import newton
-import numpy as np
 import torch
 import warp as wp
 
-from ..kernels import fuse
-from ..kernels.context import record_poses
 from ..robots.g1.binding import G1Binding
 from ..task_api.cfg import TaskCfg
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
 from . import rollout
 from .actuation import Actuation
-from .buffers import Entity, build_context, entity_table, reset_coordinates
+from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coordinates
 from .cameras import Cameras, ImageViews, resolve_cameras
+from .checks import check_actions, row_mask
+from .launches import StepLaunches
 from .scene import build_scene
 from .terms import build_task_kernels, observation_layout
 
@@ -83,10 +89,10 @@ class NewtonEnv:
             self.solver.mjw_model.opt.warn_overflow = 0
             self._build_actions()
             self._build_buffers()
-            self._build_kernels()
+            self._build_launches()
             self._build_cameras(capture)
             self.reset()
-            self._graph = self._capture() if capture else None
+            self._graph = self._launches.capture() if capture else None
 
     # ------------------------------------------------------------------ construction
     def _build_actions(self) -> None:
@@ -109,69 +115,43 @@ class NewtonEnv:
     def _build_buffers(self) -> None:
         n, lay, cfg = self.num_envs, self.layout, self.cfg
         self._build_observation_layout()
-        n_ent = len(lay.entity_names)
         self.entities = entity_table(lay)
+        """The scene's entities by name (``Entity``: slot in ``entity_poses``, body, first coordinate)."""
         self.signal_names = tuple(cfg.signals)
         self.termination_reasons = cfg.termination_reasons
-
-        z = wp.zeros
-        self._actions = z((n, self.action_dim), dtype=float)
-        self._obs = z((n, max(self.obs_dim, 1)), dtype=float)
-        self._reward = z(n, dtype=float)
-        self._terminated = z(n, dtype=bool)
-        self._truncated = z(n, dtype=bool)
-        self._done = z(n, dtype=bool)
-        self._success = z(n, dtype=bool)
-        self._success_latched = z(n, dtype=bool)
-        self._reason = z(n, dtype=int)
-        self._episode_length = z(n, dtype=int)
-        self._signals = z((n, max(len(self.signal_names), 1)), dtype=float)
-        self._step_signals = z((n, max(len(self.signal_names), 1)), dtype=float)
-        self._episode_count = z(n, dtype=int)
-        self._reset_mask = z(n, dtype=bool)
-        self._art_mask = z(self.model.articulation_count, dtype=bool)
-        self._tcp_pose = z((n, 7), dtype=float)
-        self._entity_poses = z((n, max(n_ent, 1), 7), dtype=float)
+        self._buf = buf = StepBuffers.allocate(
+            num_envs=n, action_dim=self.action_dim, obs_dim=self.obs_dim, signals=len(self.signal_names),
+            entities=len(lay.entity_names), articulations=self.model.articulation_count,
+            coords_per_world=lay.coords_per_world)
         self.scenario, default_q, default_target_q = reset_coordinates(cfg, lay)
         self._default_q = wp.array(default_q, dtype=float)
         self._default_target_q = wp.array(default_target_q, dtype=float)
-        self._terminal_q = z((n, lay.coords_per_world), dtype=float)
-        self._final_obs = z((n, max(self.obs_dim, 1)), dtype=float)
         self._ctx = build_context(cfg=cfg, layout=lay, binding=self.binding, state=self.state, control=self.control,
-                                  actions=self._actions, num_envs=n)
+                                  actions=buf.actions, num_envs=n)
         self._build_views()
 
     def _build_views(self) -> None:
         """The public torch views of the step buffers (they share memory with the Warp arrays)."""
-        cfg, ctx, n_ent = self.cfg, self._ctx, len(self.layout.entity_names)
+        buf, n_ent = self._buf, len(self.layout.entity_names)
         t = wp.to_torch
-        self.obs = t(self._obs)[:, : self.obs_dim]
-        self.reward = t(self._reward)
-        self.terminated = t(self._terminated)
-        self.truncated = t(self._truncated)
-        self.actions = t(self._actions)
-        self.info: dict[str, Any] = {
-            "success": t(self._success),
-            "success_latched": t(self._success_latched),
-            "done": t(self._done),
-            "termination_reason": t(self._reason),
-            "episode_length": t(self._episode_length),
-            "phase": t(ctx.phase),
-            "signals": t(self._signals)[:, : len(self.signal_names)],
-            # the same signals on the state the step reached, before an automatic reset replaced it
-            "step_signals": t(self._step_signals)[:, : len(self.signal_names)],
-            "command": t(ctx.command)[:, : cfg.command_dim],
-        }
-        self.tcp_pose = t(self._tcp_pose)
+        self.obs = t(buf.obs)[:, : self.obs_dim]
+        self.reward = t(buf.reward)
+        self.terminated = t(buf.terminated)
+        self.truncated = t(buf.truncated)
+        self.actions = t(buf.actions)
+        self.info: dict[str, Any] = buf.info(self._ctx, signals=len(self.signal_names),
+                                             command_dim=self.cfg.command_dim)
+        self.tcp_pose = t(buf.tcp_pose)
         """(num_envs, 7) TCP pose of the controlled arm, world frame, updated every step."""
-        self.entity_poses = t(self._entity_poses)[:, :n_ent]
+        self.entity_poses = t(buf.entity_poses)[:, :n_ent]
         """(num_envs, num_entities, 7) entity poses, world frame, updated every step."""
-        self.episode_count = t(self._episode_count)
-        """(num_envs,) episodes started per row (changes when a row resets; agents key per-row state on it)."""
-        self.terminal_joint_q = t(self._terminal_q)
+        self.episode_count = t(buf.episode_count)
+        """(num_envs,) episodes started per row (changes when a row resets; agents key per-row state on it;
+        zeroing it makes the rows' next resets draw what a fresh env's do)."""
+        self.terminal_joint_q = t(buf.terminal_q)
         """(num_envs, coords_per_world) coordinates of each row's last finished episode, taken just before
         its automatic reset (valid for rows whose ``info["done"]`` is set)."""
-        self.final_obs = t(self._final_obs)[:, : self.obs_dim]
+        self.final_obs = t(buf.final_obs)[:, : self.obs_dim]
         """(num_envs, obs_dim) observation of the state the last step reached, before an automatic reset
         replaced it: the last observation of a finished episode (rows whose ``info["done"]`` is set); equal to
         ``obs`` in the other rows."""
@@ -181,7 +161,7 @@ class NewtonEnv:
         self.cameras = Cameras(self.camera_specs, model=self.model, state=self.state,
                                num_envs=self.num_envs, bodies_per_world=lay.bodies_per_world,
                                entity_names=lay.entity_names, capture=capture, randomize=self.randomize,
-                               seed=lambda: self.seed, episode=self._episode_count,
+                               seed=lambda: self.seed, episode=self._buf.episode_count,
                                keep_hue=[e.name for e in self.cfg.entities if e.keep_hue])
         """The rendered cameras (``envs.cameras``): specs, intrinsics, poses, segmentation names."""
         self.image_terms = self.cameras.terms
@@ -195,93 +175,15 @@ class NewtonEnv:
         views by name (empty without cameras)."""
         return self.cameras.render()
 
-    def _build_kernels(self) -> None:
-        kernels = build_task_kernels(self.cfg, self.obs_terms)
-        self._task_kernel, self._obs_kernel = kernels.task, kernels.observe
-        self._signal_kernel, self._reset_kernel = kernels.signals, kernels.reset
-
-    def _capture(self):
-        """Record the whole step as one graph (CUDA graph on GPU, Warp's CPU graph on the CPU)."""
-        try:
-            with wp.ScopedCapture(device=self.device) as cap:
-                self._step_body()
-        except Exception:  # pragma: no cover - depends on the Warp build; eager stepping stays correct
-            return None
-        return cap.graph
+    def _build_launches(self) -> None:
+        self._kernels = build_task_kernels(self.cfg, self.obs_terms)
+        self._launches = StepLaunches(
+            cfg=self.cfg, model=self.model, state=self.state, solver=self.solver, drive=self.drive,
+            actuation=self._actuation, ctx=self._ctx, buffers=self._buf, kernels=self._kernels,
+            default_q=self._default_q, default_target_q=self._default_target_q, seed=lambda: self.seed,
+            randomize=lambda: self.randomize)
 
     # ------------------------------------------------------------------ the step
-    def _apply_actions(self) -> None:
-        self._actuation.apply(self._actions, self._ctx.phase)
-
-    def _simulate(self) -> None:
-        for _ in range(self.cfg.decimation):
-            # per substep: the world-frame base twist follows the turning base, limited setpoints advance
-            self._actuation.substep(self._actions, self._ctx.phase, self.state.joint_q)
-            self.solver.step(self.state, self.state, self.drive, None, self.cfg.sim_dt)
-
-    def _evaluate_task(self) -> None:
-        wp.launch(
-            self._task_kernel,
-            dim=self.num_envs,
-            inputs=[self._ctx, self.cfg.max_episode_steps, wp.vec3(*self.cfg.divergence_bounds)],
-            outputs=[
-                self._reward,
-                self._terminated,
-                self._truncated,
-                self._done,
-                self._success,
-                self._success_latched,
-                self._reason,
-                self._episode_length,
-            ],
-        )
-
-    def _reset_rows(self, mask: wp.array) -> None:
-        wp.launch(
-            self._reset_kernel,
-            dim=self.num_envs,
-            inputs=[
-                self._ctx,
-                mask,
-                self._default_q,
-                self._default_target_q,
-                self.seed,
-                int(self.randomize),
-                self._episode_count,
-                self._success_latched,
-            ],
-        )
-        self._actuation.sync(mask)  # the reset rows' drive setpoints jump to their reset targets
-        wp.launch(
-            fuse.world_to_articulation_mask,
-            dim=self.model.articulation_count,
-            inputs=[mask, self.model.articulation_world, self._art_mask],
-        )
-        newton.eval_fk(self.model, self.state.joint_q, self.state.joint_qd, self.state, mask=self._art_mask)
-        data = self.solver.mjw_data  # the reset worlds' solver history (NaN after a divergence) is cleared
-        wp.launch(fuse.clear_solver_warmstart, dim=data.qacc_warmstart.shape,
-                  inputs=[mask, data.qacc_warmstart, data.qacc, data.qvel])
-
-    def _write_signals(self, out: wp.array2d) -> None:
-        if self._signal_kernel is not None:
-            wp.launch(self._signal_kernel, dim=self.num_envs, inputs=[self._ctx, out])
-
-    def _observe(self) -> None:
-        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._obs])
-        self._write_signals(self._signals)
-        wp.launch(record_poses, dim=self.num_envs, inputs=[self._ctx, self._tcp_pose, self._entity_poses])
-
-    def _step_body(self) -> None:
-        self._apply_actions()
-        self._simulate()
-        self._evaluate_task()
-        self._write_signals(self._step_signals)
-        wp.launch(self._obs_kernel, dim=self.num_envs, inputs=[self._ctx, self._final_obs])
-        wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
-                  inputs=[self._done, self.state.joint_q, self._terminal_q])
-        self._reset_rows(self._done)
-        self._observe()
-
     def step(self, actions: torch.Tensor):
         """Advance every row one control step.
 
@@ -299,34 +201,14 @@ class NewtonEnv:
             physics diverged (non-finite or beyond ``cfg.divergence_bounds``) ends with reason ``diverged``.
         """
         self.actions.copy_(self.check_actions(actions))
-        if self._graph is not None:
-            wp.capture_launch(self._graph)
-        else:
-            with wp.ScopedDevice(self.device):
-                self._step_body()
-        self.cameras.stale = True
+        self.launch_step()
         return self.obs, self.reward, self.terminated, self.truncated, self.info
 
     def reset(self, env_ids=None):
         """Reset the given rows (all when ``None``); other rows are untouched. Returns ``(obs, info)``."""
-        mask = np.zeros(self.num_envs, dtype=bool)
-        if env_ids is None:
-            mask[:] = True
-        else:
-            given = torch.as_tensor(env_ids).cpu()
-            if given.numel() and (given.dtype.is_floating_point or given.dtype.is_complex or given.dtype == torch.bool):
-                raise ValueError(f"env_ids must be integer row indices, got dtype {given.dtype}; pass e.g. "
-                                 f"torch.nonzero(mask).flatten() for a boolean mask")
-            ids = given.numpy().astype(np.int64).reshape(-1)
-            if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
-                raise ValueError(f"env_ids must lie in [0, {self.num_envs}), got {ids.tolist()}")
-            mask[ids] = True
-        self._reset_mask.assign(mask)
+        self._buf.reset_mask.assign(row_mask(env_ids, self.num_envs))
         with wp.ScopedDevice(self.device):
-            wp.launch(fuse.keep_terminal_coords, dim=self._terminal_q.shape,
-                      inputs=[self._reset_mask, self.state.joint_q, self._terminal_q])
-            self._reset_rows(self._reset_mask)
-            self._observe()
+            self._launches.reset(self._buf.reset_mask)
         self.cameras.stale = True
         return self.obs, self.info
 
@@ -339,36 +221,99 @@ class NewtonEnv:
         self.seed = seed
         if self._graph is not None:
             with wp.ScopedDevice(self.device):
-                self._graph = self._capture()
+                self._graph = self._launches.capture()
         self.episode_count.zero_()
         return self.reset()
+
+    # ------------------------------------------------------------------ the step's parts (timing, inspection)
+    @property
+    def step_graph(self):
+        """The captured step (a Warp graph; ``wp.capture_launch(env.step_graph)`` steps ``env.actions`` as they
+        are, unchecked), ``None`` when built with ``capture=False`` or where Warp cannot capture."""
+        return self._graph
+
+    def launch_step(self) -> None:
+        """One step of the actions already in ``env.actions``, unchecked (the captured graph, else the same
+        launches eagerly); ``step`` is this after its input check."""
+        if self._graph is not None:
+            wp.capture_launch(self._graph)
+        else:
+            with wp.ScopedDevice(self.device):
+                self._launches.step()
+        self.cameras.stale = True
+
+    def apply_actions(self) -> None:
+        """The step's first part alone: ``env.actions`` into the ``control`` targets (the binding's action map)."""
+        with wp.ScopedDevice(self.device):
+            self._launches.apply_actions()
+
+    def substep(self) -> None:
+        """One physics substep alone: the base twist and drive setpoints (``actuation``), then ``solver.step`` by
+        ``cfg.sim_dt``."""
+        with wp.ScopedDevice(self.device):
+            self._launches.substep()
+
+    def simulate(self) -> None:
+        """The step's physics alone: ``cfg.decimation`` substeps, no actions applied, no task, reset or
+        observation. Inside a ``wp.ScopedCapture`` it records just them (``newton_lab.bench``'s bare solver)."""
+        with wp.ScopedDevice(self.device):
+            self._launches.simulate()
+
+    def observe(self) -> None:
+        """Recompute ``obs``, ``info["signals"]``, ``tcp_pose`` and ``entity_poses`` from the current state (after
+        the state was written by hand, e.g. a replayed frame)."""
+        with wp.ScopedDevice(self.device):
+            self._launches.observe()
+        self.cameras.stale = True
+
+    @property
+    def buffers(self) -> StepBuffers:
+        """The step's Warp arrays (``envs.buffers.StepBuffers``); ``obs``, ``reward``, ``info`` ... are their torch
+        views. Read them; the step writes them."""
+        return self._buf
+
+    @property
+    def task_context(self):
+        """The ``TaskContext`` struct every fused kernel reads (state arrays, robot indices, phase, per-row
+        counters such as ``episode_step``); for inspection: the step writes it."""
+        return self._ctx
+
+    @property
+    def kernels(self):
+        """The task's fused kernels (``envs.terms.TaskKernels``: ``task``, ``observe``, ``signals``, ``reset``);
+        ``envs.launches`` launches them."""
+        return self._kernels
+
+    @property
+    def actuation(self) -> Actuation:
+        """The action map and drive limits on the device (``envs.actuation.Actuation``)."""
+        return self._actuation
+
+    @property
+    def robot_coords(self) -> int:
+        """Coordinates of the robot at the start of each world's row of ``joint_q`` (its entities follow)."""
+        return self.layout.robot_coords
+
+    @property
+    def bodies_per_world(self) -> int:
+        """Bodies of one world (robot and entities); world ``w``'s bodies start at ``w * bodies_per_world``."""
+        return self.layout.bodies_per_world
+
+    def joint_coords(self, names) -> list[int]:
+        """World-local coordinate of each named robot joint (its column in a row of ``joint_q`` /
+        ``joint_target_q``, viewed as (num_envs, coords_per_world)); raises a one-line ``KeyError`` for a joint
+        the robot lacks."""
+        coord = self.layout.joints.coord
+        missing = [n for n in names if n not in coord]
+        if missing:
+            raise KeyError(f"no robot joint {missing[0]!r}; the robot's joints are {list(coord)}")
+        return [coord[n] for n in names]
 
     # ------------------------------------------------------------------ input checks
     def check_actions(self, actions) -> torch.Tensor:
         """Validate an action tensor; raises a one-line ``ValueError`` naming the problem and the fix."""
-        if not isinstance(actions, torch.Tensor):
-            raise ValueError(
-                f"actions must be a torch.Tensor, got {type(actions).__name__}; "
-                f"use torch.as_tensor(actions, dtype=torch.float32, device='{self.torch_device}')"
-            )
-        expected = (self.num_envs, self.action_dim)
-        if tuple(actions.shape) != expected:
-            raise ValueError(
-                f"actions must have shape (num_envs, action_dim) = {expected}, got {tuple(actions.shape)}; "
-                f"columns are {list(self.action_joint_names)}"
-            )
-        if actions.dtype != torch.float32:
-            raise ValueError(f"actions must be torch.float32, got {actions.dtype}; convert with actions.float()")
-        if actions.device != self.torch_device:
-            raise ValueError(
-                f"actions are on {actions.device} but the env runs on {self.torch_device}; "
-                f"move them with actions.to('{self.torch_device}')"
-            )
-        finite = torch.isfinite(actions)
-        if not bool(finite.all()):
-            rows = torch.nonzero(~finite.all(dim=1)).flatten().tolist()
-            raise ValueError(f"actions contain NaN or inf in rows {rows}; check the agent's output before stepping")
-        return actions
+        return check_actions(actions, num_envs=self.num_envs, action_dim=self.action_dim, device=self.torch_device,
+                             columns=self.action_joint_names)
 
     # ------------------------------------------------------------------ conveniences
     def contact_count(self) -> int:
@@ -382,7 +327,7 @@ class NewtonEnv:
     def joint_positions(self, names) -> torch.Tensor:
         """(num_envs, len(names)) current positions of the named robot joints [rad | m]."""
         q = wp.to_torch(self.state.joint_q).view(self.num_envs, -1)
-        return q[:, [self.layout.joints.coord[n] for n in names]]
+        return q[:, self.joint_coords(names)]
 
     def current_action(self) -> torch.Tensor:
         """An action that holds every commanded joint at its current target (absolute / binary columns: the

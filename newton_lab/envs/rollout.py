@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +25,7 @@ from ..datasets.background import BackgroundWriter
 from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
 from .recorder import EpisodeRecorder, env_args
-from .saver import EpisodeSaver, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
+from .saver import EpisodeSaver, WrappedWriter, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
 
 REASON_MAX_STEPS = "max_steps"
@@ -32,6 +34,23 @@ LOG_EVERY_S = 30.0
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
                     "diverged", "subtask_signals")
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
+
+
+def _same(fn: Callable) -> Callable:
+    return fn
+
+
+@dataclass(frozen=True)
+class Timers:
+    """Wrappers a rollout puts around its calls, to time them (``newton_lab.bench``'s collection split): each is
+    given the callable and returns the one to call in its place."""
+
+    step: Callable[[Callable], Callable] = _same
+    """Wraps ``env.step``."""
+    act: Callable[[Callable], Callable] = _same
+    """Wraps ``agent.act``."""
+    write: Callable[[Callable], Callable] = _same
+    """Wraps the dataset writer's batch write (``EpisodeWriter.append_prepared``, called on the writer's thread)."""
 
 
 class _Episodes:
@@ -97,7 +116,7 @@ class _Episodes:
 
 def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, saver=None,
          until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
-         on_step=None):
+         on_step=None, timers: Timers | None = None):
     """Shared loop; returns per-episode records, vector steps and wall time.
 
     Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
@@ -106,12 +125,15 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     ``agent_done``; a teleop operator's ``done`` is ``user_exit``).
     ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
     (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
+    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``).
     """
     if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if not isinstance(max_steps, int) or max_steps < 1:
         raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
     n = env.num_envs
+    timers = timers or Timers()
+    step, act = timers.step(env.step), timers.act(agent.act)
     done_reason = getattr(agent, "done_reason", "agent_done")  # e.g. a teleop operator's ``user_exit``
     env.reset()
     agent.reset()
@@ -123,10 +145,10 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     lines, last_line = progress and bar.disable, t0  # not a terminal (a log, Prefect): a line every LOG_EVERY_S
     try:
         while not eps.enough():
-            actions = agent.act(env)
+            actions = act(env)
             if recorder is not None:
                 recorder.record(eps.step_in_ep, actions)
-            _, reward, terminated, truncated, info = env.step(actions)
+            _, reward, terminated, truncated, info = step(actions)
             vector_steps += 1
             if recorder is not None:
                 recorder.record_outcome(eps.step_in_ep, reward)
@@ -207,7 +229,7 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
 def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
             only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
             dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
-            on_step=None, save_end_scenario=None, max_queued: int | None = None):
+            on_step=None, save_end_scenario=None, max_queued: int | None = None, timers: Timers | None = None):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
 
@@ -219,6 +241,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     256 or one per env row, whichever is more, and 1 GiB of arrays; the simulation waits while the queue is full).
     A queue that holds one episode per row lets the rows' next episodes run while the writer writes the ones that
     ended together (on a GPU thousands end within a few steps; a queue of 256 held the loop until they were written).
+
+    ``timers`` wrap the loop's ``env.step`` and ``agent.act`` and the writer's batch writes (``Timers``).
 
     ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML
     (``newton_lab.envs.scenario``) that a following component task can start from; the file must not exist.
@@ -240,14 +264,16 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     args["env_name"] = task_id
     recorder = EpisodeRecorder(env, max_steps)
     check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
-    writer = BackgroundWriter(open_writer(Path(path), task_id=task_id, env_args=args),
-                              max_queued=max(256, env.num_envs) if max_queued is None else max_queued)
+    store = open_writer(Path(path), task_id=task_id, env_args=args)
+    if timers is not None:
+        store = WrappedWriter(store, timers.write)
+    writer = BackgroundWriter(store, max_queued=max(256, env.num_envs) if max_queued is None else max_queued)
     saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
                                     recorder=saver.recorder, saver=saver, until_successes=only_successes,
                                     max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
-                                    on_step=on_step)
+                                    on_step=on_step, timers=timers)
     finally:
         saver.close()  # waits for the writer: what finished is written, also on Ctrl-C or an error
     summary = _summary(env, records, steps, wall)

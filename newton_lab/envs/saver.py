@@ -25,6 +25,18 @@ def all_finite(tree: dict[str, Any], skip: Any = ()) -> bool:
     return True
 
 
+class WrappedWriter:
+    """An ``EpisodeWriter`` whose batch writes go through ``wrap(writer.append_prepared)`` (e.g. a timer); every
+    other attribute is the writer's own."""
+
+    def __init__(self, writer, wrap) -> None:
+        self.writer = writer
+        self.append_prepared = wrap(writer.append_prepared)
+
+    def __getattr__(self, name: str):
+        return getattr(self.writer, name)
+
+
 class EpisodeSaver:
     """Per step: :meth:`fetch` the rows that ended (one copy), :meth:`save` each finished record, then
     :meth:`submit` the step's episodes to the writer as one batch. :meth:`close` waits for the writer."""

@@ -63,7 +63,7 @@ class RerunLogger:
         """The cameras logged (``camera_log.CameraStream``); empty without images or cameras."""
         self.env = env
         self.rows = min(max_worlds, env.num_envs)
-        self._bpw = env.layout.bodies_per_world
+        self._bpw = env.bodies_per_world
         taken = {"static", "tcp"}  # reserved names under world/<row>
         self._names = [entity_name(env.model.body_label[b] or f"b{b:02d}", taken) for b in range(self._bpw)]
         self.rec = rr.RecordingStream(app_id)
@@ -230,13 +230,13 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
     for t in range(len(robot)):
         q[: robot.shape[1]] = torch.as_tensor(robot[t], dtype=torch.float32)
         for name, rec in objects.items():
-            c = env.layout.entity_coord[env.entities[name].slot]
+            c = env.entities[name].coord
             q[c : c + 7] = torch.as_tensor(rec["root_pose"][t], dtype=torch.float32)
         newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
         body_q = env.state.body_q.numpy().copy()
         poses.append(body_q)
         if logger is not None:
-            env._observe()
+            env.observe()
             frames = {c.name: {d: np.asarray(obs[f"{c.name}_{d}"][t])[None] for d in c.data} for c in streams}
             at = {c.name: (np.asarray(cam_poses[c.name][t]) if c.name in cam_poses
                            else mount_poses(env.model, body_q, c.name))[None] for c in streams}

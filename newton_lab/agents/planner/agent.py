@@ -62,8 +62,8 @@ class PlannerAgent(BaseAgent):
         self._arm_cols = wp.array([names.index(j) for j in arm_joints], dtype=int, device=dev)
         gripper = f"{arm}_gripper_joint"
         self._gripper_col = names.index(gripper) if gripper in names else -1
-        self._arm_coords = [env.layout.joints.coord[j] for j in arm_joints]
-        self._robot_coords = env.layout.robot_coords
+        self._arm_coords = env.joint_coords(arm_joints)
+        self._robot_coords = env.robot_coords
         self._kin = TcpKinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
             k = max(self._num_waypoints(), 1)
@@ -88,10 +88,10 @@ class PlannerAgent(BaseAgent):
         poses["tcp"] = env.tcp_pose.detach().cpu().numpy()[rows].astype(np.float64)
         poses["command"] = env.info["command"].detach().cpu().numpy()[rows].astype(np.float64)
         q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1).cpu().numpy()[rows]
-        coord = env.layout.joints.coord
-        yaw = q[:, coord["base_yaw"]]
+        bx, by, byaw = env.joint_coords(spec.BASE_PLANAR_JOINTS)
+        yaw = q[:, byaw]
         poses["base"] = np.stack(
-            [q[:, coord["base_x"]], q[:, coord["base_y"]], np.zeros_like(yaw),
+            [q[:, bx], q[:, by], np.zeros_like(yaw),
              np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
         return poses
 

@@ -23,8 +23,8 @@ class TcpJog:
     def __init__(self, env, arm: str = "left", *, max_joint_step: float = 0.05, ik_iterations: int = 24):
         self.arm, self.max_joint_step, self.ik_iterations = arm, float(max_joint_step), ik_iterations
         joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
-        self._coords = [env.layout.joints.coord[j] for j in joints]
-        self._robot_coords = env.layout.robot_coords
+        self._coords = env.joint_coords(joints)
+        self._robot_coords = env.robot_coords
         self._kin = TcpKinematics(env.num_envs, device=env.device, arm=arm)
         self.start: np.ndarray | None = None
         """(N, 7) TCP pose at the episode start (world; xyzw)."""

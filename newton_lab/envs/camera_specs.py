@@ -1,0 +1,100 @@
+"""Which cameras an env renders: the task's views on the G1 mounts (``TaskCfg.cameras``), changed by a
+``make_env(..., cameras=...)`` request (a dict or the CLI's text), checked; and the image observation terms
+they give (``<camera>_<data>``: RGB uint8 (H, W, 3), depth float32 (H, W) [m], segmentation int32 (H, W)).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..robots.g1 import cameras as mounts
+from ..robots.g1 import spec
+from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg, camera_option
+
+
+@dataclass(frozen=True)
+class ImageTerm:
+    """One image observation: ``<camera>_<data>``, per-row ``shape`` and torch ``dtype``."""
+
+    name: str
+    camera: str
+    data: str
+    shape: tuple[int, ...]
+    dtype: torch.dtype
+
+
+def _resolution(name: str, value: Any) -> tuple[int, int]:
+    ok = (isinstance(value, (tuple, list)) and len(value) == 2
+          and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
+          and all(mounts.MIN_RESOLUTION <= v <= mounts.MAX_RESOLUTION for v in value))
+    if not ok:
+        raise ValueError(f"camera {name!r} resolution must be (width, height) integers in [{mounts.MIN_RESOLUTION}, "
+                         f"{mounts.MAX_RESOLUTION}] px, got {value!r}; e.g. cameras={{'{name}': (96, 72)}}")
+    return int(value[0]), int(value[1])
+
+
+def _data(name: str, value: Any) -> tuple[str, ...]:
+    data = (value,) if isinstance(value, str) else tuple(value)
+    bad = [d for d in data if d not in IMAGE_DATA]
+    if not data or bad or len(set(data)) != len(data):
+        raise ValueError(f"camera {name!r} data must be distinct entries of {list(IMAGE_DATA)}, got {value!r}")
+    return data
+
+
+def _override(name: str, base: CameraCfg, value: Any) -> CameraCfg:
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - {"resolution", "data"})
+        if unknown:
+            raise ValueError(f"camera {name!r} override has unknown keys {unknown}; use 'resolution' and/or 'data'")
+        w, h = _resolution(name, value.get("resolution", (base.width, base.height)))
+        return CameraCfg(width=w, height=h, data=_data(name, value.get("data", base.data)))
+    w, h = _resolution(name, value)
+    return CameraCfg(width=w, height=h, data=base.data)
+
+
+def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None) -> dict[str, CameraCfg]:
+    """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
+    ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a G1 mount the task does
+    not declare is added), or any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``). Raises a
+    one-line ``ValueError`` on an unknown mount, a bad resolution or data, or cameras asked of a task without any."""
+    if isinstance(cameras, str):
+        cameras = camera_option(cameras)
+    if cameras is None or cameras is True:
+        chosen = dict(cfg.cameras)
+    elif cameras is False:
+        return {}
+    elif isinstance(cameras, Mapping):
+        if not cfg.cameras:
+            raise ValueError(f"{cfg.task_id} has no cameras (a state-only task, as in the reference), so cameras="
+                             f"{dict(cameras)!r} cannot apply; leave cameras unset or pass cameras=False")
+        chosen = dict(cfg.cameras)
+        for name, value in cameras.items():
+            if name not in spec.CAMERA_MOUNTS:
+                raise ValueError(f"unknown camera {name!r}; the G1's cameras are {list(spec.CAMERA_MOUNTS)}")
+            chosen[name] = _override(name, chosen.get(name, CameraCfg()), value)
+    else:
+        raise ValueError(f"cameras must be None, True, False, a dict {{camera: (width, height)}} or its text form, "
+                         f"got {cameras!r}")
+    for name, cam in chosen.items():
+        if name not in spec.CAMERA_MOUNTS:
+            raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the G1's are {list(spec.CAMERA_MOUNTS)}")
+        _resolution(name, (cam.width, cam.height))
+        _data(name, cam.data)
+    return chosen
+
+
+def image_terms(specs: Mapping[str, CameraCfg]) -> dict[str, ImageTerm]:
+    """The image observations of ``specs``, in camera then ``IMAGE_DATA`` order."""
+    out = {}
+    for cam, c in specs.items():
+        for data in IMAGE_DATA:
+            if data in c.data:
+                shape = (c.height, c.width, 3) if data == "rgb" else (c.height, c.width)
+                dtype = {"rgb": torch.uint8, "depth": torch.float32, "segmentation": torch.int32}[data]
+                out[f"{cam}_{data}"] = ImageTerm(f"{cam}_{data}", cam, data, shape, dtype)
+    return out

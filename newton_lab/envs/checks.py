@@ -1,0 +1,56 @@
+"""Input checks of the env's public calls: one-line ``ValueError`` messages that name the problem and the fix."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+
+def check_actions(actions, *, num_envs: int, action_dim: int, device: torch.device,
+                  columns: Sequence[str]) -> torch.Tensor:
+    """``actions`` if it is a finite float32 ``(num_envs, action_dim)`` tensor on ``device``; raises otherwise
+    (``columns``: the action column names, quoted when the shape is wrong). The finiteness check reads the
+    tensor on the host (one sync per call)."""
+    if not isinstance(actions, torch.Tensor):
+        raise ValueError(
+            f"actions must be a torch.Tensor, got {type(actions).__name__}; "
+            f"use torch.as_tensor(actions, dtype=torch.float32, device='{device}')"
+        )
+    expected = (num_envs, action_dim)
+    if tuple(actions.shape) != expected:
+        raise ValueError(
+            f"actions must have shape (num_envs, action_dim) = {expected}, got {tuple(actions.shape)}; "
+            f"columns are {list(columns)}"
+        )
+    if actions.dtype != torch.float32:
+        raise ValueError(f"actions must be torch.float32, got {actions.dtype}; convert with actions.float()")
+    if actions.device != device:
+        raise ValueError(
+            f"actions are on {actions.device} but the env runs on {device}; "
+            f"move them with actions.to('{device}')"
+        )
+    finite = torch.isfinite(actions)
+    if not bool(finite.all()):
+        rows = torch.nonzero(~finite.all(dim=1)).flatten().tolist()
+        raise ValueError(f"actions contain NaN or inf in rows {rows}; check the agent's output before stepping")
+    return actions
+
+
+def row_mask(env_ids, num_envs: int) -> np.ndarray:
+    """(num_envs,) bool mask of the rows ``env_ids`` names (every row when ``None``); raises on boolean or
+    floating ids and on ids outside ``[0, num_envs)``."""
+    mask = np.zeros(num_envs, dtype=bool)
+    if env_ids is None:
+        mask[:] = True
+        return mask
+    given = torch.as_tensor(env_ids).cpu()
+    if given.numel() and (given.dtype.is_floating_point or given.dtype.is_complex or given.dtype == torch.bool):
+        raise ValueError(f"env_ids must be integer row indices, got dtype {given.dtype}; pass e.g. "
+                         f"torch.nonzero(mask).flatten() for a boolean mask")
+    ids = given.numpy().astype(np.int64).reshape(-1)
+    if ids.size and (ids.min() < 0 or ids.max() >= num_envs):
+        raise ValueError(f"env_ids must lie in [0, {num_envs}), got {ids.tolist()}")
+    mask[ids] = True
+    return mask

@@ -1,0 +1,137 @@
+"""The launches of one env step, in order, on arrays allocated once, so that the whole sequence records as one
+Warp graph (a CUDA graph on a GPU, Warp's CPU graph on the CPU).
+
+actions -> control targets (``Actuation.apply``) -> ``decimation`` x (base twist and drive setpoints, then
+``solver.step``) -> fused task kernel (phase, success, terminations, reward) -> subtask signals and observation
+of the state reached (``final_obs``) and the finished rows' coordinates -> masked reset of finished rows (+ seeded
+randomisation, setpoints synced, forward kinematics, solver warm start cleared) -> observation, signals, poses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import newton
+import warp as wp
+
+from ..kernels import fuse
+from ..kernels.context import TaskContext, record_poses
+from ..task_api.cfg import TaskCfg
+from .actuation import Actuation
+from .buffers import StepBuffers
+from .terms import TaskKernels
+
+
+class StepLaunches:
+    """Every launch of an env step and of a masked reset; ``capture`` records ``step`` as one graph. Warp arrays
+    live on the current device (callers hold a ``wp.ScopedDevice``). ``seed()`` and ``randomize()`` are read at
+    each launch (and baked into a captured graph when it is recorded)."""
+
+    def __init__(self, *, cfg: TaskCfg, model: newton.Model, state: newton.State, solver, drive: newton.Control,
+                 actuation: Actuation, ctx: TaskContext, buffers: StepBuffers, kernels: TaskKernels,
+                 default_q: wp.array, default_target_q: wp.array, seed: Callable[[], int],
+                 randomize: Callable[[], bool]):
+        self.cfg, self.model, self.state, self.solver, self.drive = cfg, model, state, solver, drive
+        self.actuation, self.ctx, self.buf, self.kernels = actuation, ctx, buffers, kernels
+        self.num_envs = buffers.reward.shape[0]
+        self.default_q, self.default_target_q = default_q, default_target_q
+        self.seed, self.randomize = seed, randomize
+
+    def capture(self):
+        """Record ``step`` as one graph; ``None`` where the Warp build cannot capture (eager stepping stays
+        correct)."""
+        try:
+            with wp.ScopedCapture(device=self.model.device) as cap:
+                self.step()
+        except Exception:  # pragma: no cover - depends on the Warp build
+            return None
+        return cap.graph
+
+    def apply_actions(self) -> None:
+        self.actuation.apply(self.buf.actions, self.ctx.phase)
+
+    def substep(self) -> None:
+        # the world-frame base twist follows the turning base, limited setpoints advance
+        self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q)
+        self.solver.step(self.state, self.state, self.drive, None, self.cfg.sim_dt)
+
+    def simulate(self) -> None:
+        for _ in range(self.cfg.decimation):
+            self.substep()
+
+    def evaluate_task(self) -> None:
+        buf = self.buf
+        wp.launch(
+            self.kernels.task,
+            dim=self.num_envs,
+            inputs=[self.ctx, self.cfg.max_episode_steps, wp.vec3(*self.cfg.divergence_bounds)],
+            outputs=[
+                buf.reward,
+                buf.terminated,
+                buf.truncated,
+                buf.done,
+                buf.success,
+                buf.success_latched,
+                buf.reason,
+                buf.episode_length,
+            ],
+        )
+
+    def keep_terminal_coords(self, mask: wp.array) -> None:
+        """The masked rows' coordinates into ``terminal_q`` (before their reset replaces them)."""
+        wp.launch(fuse.keep_terminal_coords, dim=self.buf.terminal_q.shape,
+                  inputs=[mask, self.state.joint_q, self.buf.terminal_q])
+
+    def reset_rows(self, mask: wp.array) -> None:
+        buf = self.buf
+        wp.launch(
+            self.kernels.reset,
+            dim=self.num_envs,
+            inputs=[
+                self.ctx,
+                mask,
+                self.default_q,
+                self.default_target_q,
+                self.seed(),
+                int(self.randomize()),
+                buf.episode_count,
+                buf.success_latched,
+            ],
+        )
+        self.actuation.sync(mask)  # the reset rows' drive setpoints jump to their reset targets
+        wp.launch(
+            fuse.world_to_articulation_mask,
+            dim=self.model.articulation_count,
+            inputs=[mask, self.model.articulation_world, buf.articulation_mask],
+        )
+        newton.eval_fk(self.model, self.state.joint_q, self.state.joint_qd, self.state, mask=buf.articulation_mask)
+        data = self.solver.mjw_data  # the reset worlds' solver history (NaN after a divergence) is cleared
+        wp.launch(fuse.clear_solver_warmstart, dim=data.qacc_warmstart.shape,
+                  inputs=[mask, data.qacc_warmstart, data.qacc, data.qvel])
+
+    def write_signals(self, out: wp.array2d) -> None:
+        if self.kernels.signals is not None:
+            wp.launch(self.kernels.signals, dim=self.num_envs, inputs=[self.ctx, out])
+
+    def observe(self) -> None:
+        buf = self.buf
+        wp.launch(self.kernels.observe, dim=self.num_envs, inputs=[self.ctx, buf.obs])
+        self.write_signals(buf.signals)
+        wp.launch(record_poses, dim=self.num_envs, inputs=[self.ctx, buf.tcp_pose, buf.entity_poses])
+
+    def step(self) -> None:
+        buf = self.buf
+        self.apply_actions()
+        self.simulate()
+        self.evaluate_task()
+        self.write_signals(buf.step_signals)
+        wp.launch(self.kernels.observe, dim=self.num_envs, inputs=[self.ctx, buf.final_obs])
+        self.keep_terminal_coords(buf.done)
+        self.reset_rows(buf.done)
+        self.observe()
+
+    def reset(self, mask: wp.array) -> None:
+        """Reset the masked rows (their last coordinates kept in ``terminal_q``) and observe."""
+        self.keep_terminal_coords(mask)
+        self.reset_rows(mask)
+        self.observe()
