@@ -37,7 +37,7 @@ def shelf_run(shelf_env):
     env = shelf_env
     env.reset()
     agent = TaskFlowAgent.from_env(env)
-    bar = env.entities["cube"].slot
+    bar = env.entities["bar"].slot
     phases, bars, tcps, done_at, results = [], [], [], [None] * 4, [None] * 4
     for t in range(700):
         pre_phase = env.info["phase"].clone()
@@ -174,13 +174,13 @@ def test_nav_failure_ends_episode(shelf_env):
     env = shelf_env
     env.reset()
     env.info["phase"][2] = 1
-    c = env.layout.entity_coord[env.entities["cube"].slot]
+    c = env.layout.entity_coord[env.entities["bar"].slot]
     q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
     q[2, c: c + 3] = torch.tensor([-1.0, -1.0, 0.1])  # the bar stands on the floor, away from the table
     newton_fk(env)
     _, _, term, _, info = env.step(env.current_action())
     assert bool(term[2]) and not bool(term[0])
-    assert env.termination_reasons[int(info["termination_reason"][2])] == "nav_cube_dropped"
+    assert env.termination_reasons[int(info["termination_reason"][2])] == "nav_bar_dropped"
     assert int(info["phase"][2]) == 0, "the row was reset"
 
 
@@ -266,7 +266,7 @@ def test_scenario_round_trip(tmp_path):
     back = load_scenario(path).overlay(env.layout, env.layout.default_q, task_id=env.task_id)
     robot = env.layout.robot_coords
     assert np.abs(back[:robot] - q[:robot]).max() < 1e-3
-    c = env.layout.entity_coord[env.entities["cube"].slot]
+    c = env.layout.entity_coord[env.entities["bar"].slot]
     assert np.abs(back[c:c + 3] - q[c:c + 3]).max() < 1e-3
     # the option path: an env started from the saved scenario resets to it
     env2 = make_env("GalbotG1-PickToShelf-Nav-v0", num_envs=1, device="cpu", task_options={"init_scenario": str(path)})
@@ -282,7 +282,7 @@ def test_scenario_round_trip(tmp_path):
         ({"schema": "newton_lab/scenario-v1", "articulations": {"robot": {"base_pose": [0, 0, 0]}}}, "7 numbers"),
         ({"schema": "newton_lab/scenario-v1", "articulations": {"robot": {"velocity": {}}}}, "unknown field"),
         ({"schema": "newton_lab/scenario-v1", "articulations": {"arm2": {}}}, r"\['arm2'\]"),
-        ({"schema": "newton_lab/scenario-v1", "rigid_objects": {"cube": {"root_pose": [0] * 7}}}, "non-zero quaternion"),
+        ({"schema": "newton_lab/scenario-v1", "rigid_objects": {"bar": {"root_pose": [0] * 7}}}, "non-zero quaternion"),
     ],
 )
 def test_bad_scenario_documents(doc, match):

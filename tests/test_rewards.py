@@ -75,7 +75,9 @@ def test_every_manipulation_task_declares_a_normalised_dense_reward():
 
 
 def test_bad_reward_declarations_fail_in_one_line():
-    from newton_lab.tasks.pick_cube.mdp.terminations import grasped_cube
+    from newton_lab.tasks.common.terminations import grasped
+
+    grasped_cube = grasped(entity="cube")
 
     with pytest.raises(ValueError, match="unique stage names"):
         staged_rewards(Stage("a", grasped_cube), Stage("a", grasped_cube))

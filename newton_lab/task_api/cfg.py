@@ -13,6 +13,7 @@ class EntityCfg:
     """A named rigid object of the scene (a box or cylinder)."""
 
     name: str
+    """The name terms, motion plans and Mimic address the object by."""
     shape: str = "box"
     """``box`` or ``cylinder`` (axis z)."""
     size: tuple[float, float, float]
@@ -20,15 +21,18 @@ class EntityCfg:
     pos: tuple[float, float, float]
     """Initial position, env frame [m]."""
     quat: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+    """Initial orientation, xyzw."""
     mass: float = 0.0
     """[kg]; used when ``dynamic``."""
     dynamic: bool = True
     """Dynamic bodies get a free joint; others are static colliders (kinematic, gravity off)."""
     color: tuple[float, float, float] = (0.7, 0.7, 0.7)
+    """Base colour, RGB in [0, 1] (cameras, rerun)."""
     keep_hue: bool = False
     """The colour names the object (SortToShelf's ``red_cube``): vision randomisation only scales each channel by
     up to +-20 % instead of drawing a new colour, so the object stays recognisable by its colour."""
     friction: float = 1.0
+    """Sliding friction coefficient of its collision shape."""
 
 
 class SceneCfg:
@@ -60,6 +64,7 @@ class ActionTermCfg:
     """One action term: a joint group's columns and how they drive it (``newton_lab.robots.g1.binding``)."""
 
     name: str
+    """Action term name (a dataset's action columns are named after it and its joints)."""
     group: str
     """Joint group of ``newton_lab.robots.g1.spec.JOINT_GROUPS``."""
     type: str = "absolute"
@@ -131,10 +136,15 @@ BUILTIN_TERMINATION_REASONS = ("none", "success", "time_out", DIVERGED)
 
 @dataclass(frozen=True, kw_only=True)
 class TermCfg:
-    """A task term: a ``@wp.func`` the task kernels call. Events: ``func(ctx, w, seed, stream, randomize)``
-    at reset; signals: ``func(ctx, w) -> bool`` recorded every step."""
+    """A task term: a ``@wp.func`` the task kernels call, or a generic term with its ``params``
+    (``newton_lab.task_api.terms``). Events: ``func(ctx, w, seed, stream, randomize)`` at reset; signals:
+    ``func(ctx, w) -> bool`` recorded every step."""
 
     func: Callable
+    """A ``@wp.func``, a ``@term_factory`` (with ``params``) or a bound ``Term``."""
+    params: dict[str, Any] = field(default_factory=dict)
+    """A generic term's parameters by name: scene objects by their names (``{"entity": "cube"}``) and
+    constants; the env resolves the names to slots and bakes everything into the compiled term."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -151,6 +161,7 @@ class RewardTermCfg(TermCfg):
     """A reward term ``func(ctx, w) -> float``; the step reward is the weighted sum."""
 
     weight: float = 1.0
+    """Factor of the term in the step reward."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -166,6 +177,7 @@ class PhaseCfg:
     """One phase of a multi-phase (coherent) task; see ``newton_lab.task_api.compose``."""
 
     name: str
+    """Phase name (``pick``, ``nav``, ``place``): the per-phase summary and phase policies use it."""
     task_id: str | None = None
     """The component task this phase runs (its success ends the phase), if any."""
     action_groups: tuple[str, ...] | None = None
@@ -178,18 +190,23 @@ class PhaseCfg:
 class TaskCfg:
     """Everything a task declares. Thresholds live as constants inside its ``@wp.func`` terms."""
 
-    task_id: str
+    task_id: str = ""
+    """The task id; the registry fills it from ``TaskSpec.id`` (a task writes its id once, in its spec)."""
     entities: list[EntityCfg]
+    """The scene's rigid objects in slot order (``SceneCfg.entities``); terms name them."""
     actions: list[ActionTermCfg]
+    """Action terms in column order."""
     observations: dict[str, ObsTermCfg]
     """Observation terms by name, in column order."""
     phase_success: list[Callable]
-    """One success predicate per phase (single-phase tasks list one)."""
+    """One success predicate per phase (single-phase tasks list one): a ``@wp.func (ctx, w) -> bool`` or a
+    generic term bound to its parameters (``common.terminations.held(...)``, ``grasped(entity="cube")``)."""
     terminations: dict[str, TerminationTermCfg] = field(default_factory=dict)
     """Failure terms by name (the name is the termination reason)."""
     phases: list[PhaseCfg] = field(default_factory=list)
     """Phase declarations matching ``phase_success`` (empty: one phase owning every action column)."""
     rewards: dict[str, RewardTermCfg] = field(default_factory=dict)
+    """Reward terms by name; the step reward is their weighted sum."""
     signals: dict[str, TermCfg] = field(default_factory=dict)
     """Subtask signals recorded every step (Mimic segments on them)."""
     events: dict[str, TermCfg] = field(default_factory=dict)
@@ -200,26 +217,37 @@ class TaskCfg:
     """Drive targets at reset that differ from the initial positions (e.g. a gripper commanded closed on a
     held object while its fingers rest on it) [rad | m]; applied after ``posture`` and ``scenario``."""
     root_pos: tuple[float, float, float] = (-1.0, 0.0, 0.0)
+    """Robot root position at reset, env frame [m]."""
     root_yaw: float = 0.0
+    """Robot root yaw at reset [rad]."""
     fixed_base: bool = True
     """Base twist held at zero (manipulation tasks); mobile tasks drive it from their wheel columns."""
     scenario: str | None = None
     """Reset overlay (``newton_lab.envs.scenario``): a YAML path or ``package:file.yaml`` resource."""
     arm: str = "left"
+    """The controlled arm (``left`` or ``right``): the TCP, gripper and arm coordinates terms read."""
     arm_home: tuple[float, ...] = (0.0,) * 7
+    """Reference posture of the controlled arm for carry / retract predicates (``ctx.arm_home``) [rad] (7)."""
     command_dim: int = 0
+    """Columns of the per-row task command (``ctx.command``, e.g. a Reach goal written by a reset event)."""
     hold_slots: int = 1
+    """Per-row consecutive-step counters (``ctx.hold``). Derived: resolving the terms sizes it to the counters
+    that ``held(...)`` terms ask for; a task does not set it."""
     episode_length_s: float = 3600.0
+    """Episode time limit [s]; ``max_episode_steps`` = this / ``control_dt`` (time-out truncates)."""
     sim_dt: float = 0.01
     """Physics step [s]."""
     decimation: int = 5
     """Physics steps per control step (control at 1 / (sim_dt * decimation) Hz)."""
     contacts_per_world: int | None = None
     """MuJoCo contact capacity per world (``nconmax``); ``None`` keeps Newton's default. Size it from
-    measured peak contact counts (``NewtonEnv.peak_contacts``): oversized capacities slow every step."""
+    measured peak contact counts (the solver's ``mjw_data.nacon`` over expert runs): oversized capacities slow
+    every step."""
     constraints_per_world: int | None = None
     """MuJoCo constraint-row capacity per world (``njmax``); ``None`` keeps Newton's default."""
     terminate_on_success: bool = True
+    """End the episode when the last phase succeeds (``False``: success is latched, e.g. for an operator who
+    ends the episode)."""
     max_body_distance: float = 50.0
     """Divergence guard: a body farther than this from its env origin ends the row (reason ``diverged``) [m]."""
     max_body_linear_speed: float = 100.0
@@ -235,14 +263,17 @@ class TaskCfg:
 
     @property
     def control_dt(self) -> float:
+        """Control period: ``sim_dt * decimation`` [s]."""
         return self.sim_dt * self.decimation
 
     @property
     def max_episode_steps(self) -> int:
+        """Episode step limit [control steps]."""
         return int(round(self.episode_length_s / self.control_dt))
 
     @property
     def phase_names(self) -> list[str]:
+        """Phase names (``["task"]`` for a single-phase task)."""
         return [p.name for p in self.phases] if self.phases else ["task"]
 
     @property

@@ -35,11 +35,10 @@ def task_sequence(*phases: PhaseCfg) -> tuple[PhaseCfg, ...]:
 
 def _component(task_id: str, options: dict[str, Any]) -> TaskCfg:
     spec_ = lookup(task_id)
-    return spec_.cfg(**spec_.accepted(options))
+    return dataclasses.replace(spec_.cfg(**spec_.accepted(options)), task_id=task_id)
 
 
 def coherent_task(
-    task_id: str,
     *,
     phases: tuple[PhaseCfg, ...],
     options: dict[str, Any] | None = None,
@@ -47,7 +46,7 @@ def coherent_task(
     terminations: dict[str, TerminationTermCfg] | None = None,
     **overrides: Any,
 ) -> TaskCfg:
-    """Build the coherent task ``task_id`` from its component phases.
+    """Build a coherent task from its component phases (its id comes from the ``TaskSpec`` registering it).
 
     Args:
         phases: from ``task_sequence``.
@@ -88,7 +87,7 @@ def coherent_task(
 
     cfg = dataclasses.replace(
         first,
-        task_id=task_id,
+        task_id="",
         actions=list(actions),
         observations=observations,
         phase_success=[c.phase_success[-1] for c in parts],

@@ -16,6 +16,7 @@ from .catalog import did_you_mean
 from .cfg import TaskCfg
 from .experts import Expert
 from .mimic_cfg import MimicCfg
+from .terms import resolve_cfg
 
 DEFAULT_TASK_ID = "GalbotG1-PickCube-v0"
 
@@ -79,9 +80,10 @@ class TaskSpec:
         return {k: v for k, v in (options or {}).items() if k in self.option_names}
 
     def make_cfg(self, options: Mapping[str, Any] | None = None) -> TaskCfg:
-        """The env configuration for ``options`` (checked); ``cfg.options`` records them."""
+        """The env configuration for ``options`` (checked): ``cfg.task_id`` is this spec's id, ``cfg.options``
+        records the options, and every generic term is resolved against the scene (``resolve_cfg``)."""
         options = self.check_options(options)
-        return dataclasses.replace(self.cfg(**options), options=options)
+        return resolve_cfg(dataclasses.replace(self.cfg(**options), task_id=self.id, options=options))
 
     def make_expert(self, options: Mapping[str, Any] | None = None) -> Expert:
         """The expert declaration for ``options``; raises when the task declares none."""
@@ -126,10 +128,7 @@ def mimic_variant(source: TaskSpec, *, id: str, mimic: MimicCfg) -> TaskSpec:
     """A Mimic generation variant of ``source``: the same scene, terms, randomisation and options, under its
     own id, with the subtask decomposition ``mimic``."""
 
-    def cfg(**options: Any) -> TaskCfg:
-        return dataclasses.replace(source.cfg(**options), task_id=id)
-
-    return TaskSpec(id=id, cfg=cfg, description=f"Mimic generation variant of {source.id}.", options=source.options,
+    return TaskSpec(id=id, cfg=source.cfg, description=f"Mimic generation variant of {source.id}.", options=source.options,
                     expert=source.expert, mimic=mimic, source_task=source.id)
 
 

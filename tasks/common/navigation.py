@@ -1,7 +1,7 @@
 """Navigation terms shared by the mobile tasks (BaseNav, the Nav phases of PickToShelf / SortToShelf).
 
-The goal is a task constant, so each task builds its terms with the factories below (Warp closures: the
-goal becomes a compile-time constant of the generated ``@wp.func``). Base pose = planar base coordinates
+The goal is a task constant: the terms are generic ones (``@term_factory``) taking it as a parameter, so it
+becomes a compile-time constant of the generated ``@wp.func``. Base pose = planar base coordinates
 (x, y [m], yaw [rad]) in the env frame.
 """
 
@@ -12,8 +12,11 @@ import warp as wp
 from newton_lab.kernels.context import TaskContext, base_pose2d
 from newton_lab.robots.g1 import spec
 from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, RewardTermCfg
+from newton_lab.task_api.terms import term_factory
 
 from .observations import LAST_ACTION
+from .rewards import indicator
+from .terminations import base_at
 
 
 def base_actions(*, clip: bool = True) -> list[ActionTermCfg]:
@@ -22,76 +25,77 @@ def base_actions(*, clip: bool = True) -> list[ActionTermCfg]:
     return [ActionTermCfg(name="base_action", group="base", type="velocity", clip=(-lim, lim) if clip else None)]
 
 
-def make_goal_reached(goal_xy: tuple[float, float], radius: float):
-    """``func(ctx, w) -> bool``: base within ``radius`` [m] of ``goal_xy`` (yaw not checked)."""
-    gx, gy, r = float(goal_xy[0]), float(goal_xy[1]), float(radius)
-
-    @wp.func
-    def goal_reached(ctx: TaskContext, w: int) -> bool:
-        b = base_pose2d(ctx, w)
-        return wp.length(wp.vec2(b[0] - gx, b[1] - gy)) <= r
-
-    return goal_reached
+def goal_reached(*, goal_xy: tuple[float, float], radius: float):
+    """Predicate term: base within ``radius`` [m] of ``goal_xy`` (yaw not checked)."""
+    return base_at(goal_xy=goal_xy, radius=radius)
 
 
 def nav_observations(goal_xy: tuple[float, float]) -> dict[str, ObsTermCfg]:
     """The BaseNav observation: last action, base_xy, goal_xy, vector_to_goal (2 each, env frame [m])."""
-    base_xy, goal_xy_obs, vector_to_goal = make_nav_observations(goal_xy)
+    goal = {"goal_xy": tuple(float(v) for v in goal_xy)}
     return {
         "actions": LAST_ACTION,
-        "base_xy": ObsTermCfg(func=base_xy, size=2),
-        "goal_xy": ObsTermCfg(func=goal_xy_obs, size=2),
-        "vector_to_goal": ObsTermCfg(func=vector_to_goal, size=2),
+        "base_xy": ObsTermCfg(func=base_xy_obs, size=2),
+        "goal_xy": ObsTermCfg(func=goal_xy_obs, params=goal, size=2),
+        "vector_to_goal": ObsTermCfg(func=vector_to_goal_obs, params=goal, size=2),
     }
 
 
 def nav_rewards(goal_xy: tuple[float, float], radius: float) -> dict[str, RewardTermCfg]:
     """The BaseNav rewards: -distance (weight 2), goal reached (10), squared actions (-0.02)."""
-    neg_distance, goal_reward = make_nav_rewards(goal_xy, radius)
-    return {"distance": RewardTermCfg(func=neg_distance, weight=2.0),
-            "goal_reached": RewardTermCfg(func=goal_reward, weight=10.0),
+    goal = {"goal_xy": tuple(float(v) for v in goal_xy)}
+    return {"distance": RewardTermCfg(func=neg_goal_distance, params=goal, weight=2.0),
+            "goal_reached": RewardTermCfg(func=indicator(term=goal_reached(goal_xy=goal_xy, radius=radius)),
+                                          weight=10.0),
             "action_l2": RewardTermCfg(func=action_l2, weight=-0.02)}
 
 
-def make_nav_observations(goal_xy: tuple[float, float]):
-    """Observation terms ``(base_xy, goal_xy, vector_to_goal)``, each 2 wide, env frame [m]."""
-    gx, gy = float(goal_xy[0]), float(goal_xy[1])
+@wp.func
+def base_xy_obs(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
+    """Base position (2), env frame [m]."""
+    b = base_pose2d(ctx, w)
+    out[w, col] = b[0]
+    out[w, col + 1] = b[1]
+
+
+@term_factory()
+def goal_xy_obs(*, goal_xy: tuple[float, float]):
+    """The goal position (2), env frame [m]."""
+    gx, gy = (float(v) for v in goal_xy)
 
     @wp.func
-    def base_xy(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
-        b = base_pose2d(ctx, w)
-        out[w, col] = b[0]
-        out[w, col + 1] = b[1]
-
-    @wp.func
-    def goal_xy_obs(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
+    def goal_position(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
         out[w, col] = gx
         out[w, col + 1] = gy
 
+    return goal_position
+
+
+@term_factory()
+def vector_to_goal_obs(*, goal_xy: tuple[float, float]):
+    """Goal minus base position (2), env frame [m]."""
+    gx, gy = (float(v) for v in goal_xy)
+
     @wp.func
-    def vector_to_goal(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
+    def to_goal(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
         b = base_pose2d(ctx, w)
         out[w, col] = gx - b[0]
         out[w, col + 1] = gy - b[1]
 
-    return base_xy, goal_xy_obs, vector_to_goal
+    return to_goal
 
 
-def make_nav_rewards(goal_xy: tuple[float, float], radius: float):
-    """Reward terms ``(neg_distance, goal_reached)``: -|goal - base| [m] and 1 inside ``radius``."""
-    gx, gy, r = float(goal_xy[0]), float(goal_xy[1]), float(radius)
+@term_factory()
+def neg_goal_distance(*, goal_xy: tuple[float, float]):
+    """-|goal - base| [m]."""
+    gx, gy = (float(v) for v in goal_xy)
 
     @wp.func
-    def neg_distance(ctx: TaskContext, w: int) -> float:
+    def minus_goal_distance(ctx: TaskContext, w: int) -> float:
         b = base_pose2d(ctx, w)
         return -wp.length(wp.vec2(b[0] - gx, b[1] - gy))
 
-    @wp.func
-    def goal_reached_reward(ctx: TaskContext, w: int) -> float:
-        b = base_pose2d(ctx, w)
-        return wp.where(wp.length(wp.vec2(b[0] - gx, b[1] - gy)) <= r, 1.0, 0.0)
-
-    return neg_distance, goal_reached_reward
+    return minus_goal_distance
 
 
 @wp.func

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.kernels.context import TaskContext, gripper_q, tcp_pose, write_transform
+from newton_lab.kernels.context import (
+    TaskContext, entity_pose, entity_pos, gripper_q, tcp_pose, write_transform, write_vec3,
+)
 from newton_lab.task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS, ObsTermCfg
+from newton_lab.task_api.terms import term_factory
 
 
 @wp.func
@@ -46,6 +49,65 @@ def gripper_pos(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int
 def tcp_pose_obs(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
     """TCP pose (7): x, y, z, qx, qy, qz, qw, world frame."""
     write_transform(out, w, col, tcp_pose(ctx, w))
+
+
+@term_factory(entities=("entity",))
+def entity_pose_obs(*, entity: int):
+    """``entity``'s pose (7): x, y, z, qx, qy, qz, qw, world frame."""
+
+    @wp.func
+    def pose_of_entity(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
+        write_transform(out, w, col, entity_pose(ctx, w, entity))
+
+    return pose_of_entity
+
+
+@term_factory(entities=("entities",))
+def entity_positions_obs(*, entities: tuple[int, ...]):
+    """The centres of ``entities`` (3 each), world frame [m]."""
+    n = len(entities)
+
+    @wp.func
+    def positions_of_entities(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
+        for i in range(wp.static(n)):
+            write_vec3(out, w, col + 3 * i, entity_pos(ctx, w, wp.static(entities[i])))
+
+    return positions_of_entities
+
+
+@term_factory(entities=("entities",))
+def entity_orientations_obs(*, entities: tuple[int, ...]):
+    """The quaternions of ``entities`` (4 each, xyzw), world frame."""
+    n = len(entities)
+
+    @wp.func
+    def orientations_of_entities(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
+        for i in range(wp.static(n)):
+            q = wp.transform_get_rotation(entity_pose(ctx, w, wp.static(entities[i])))
+            for j in range(4):
+                out[w, col + 4 * i + j] = q[j]
+
+    return orientations_of_entities
+
+
+def pose_of(entity: str) -> ObsTermCfg:
+    """Observation term: the pose (7) of the scene object ``entity``, world frame."""
+    return ObsTermCfg(func=entity_pose_obs, params={"entity": entity}, size=7)
+
+
+def position_of(entity: str) -> ObsTermCfg:
+    """Observation term: the centre (3) of the scene object ``entity``, world frame [m]."""
+    return ObsTermCfg(func=entity_positions_obs, params={"entities": (entity,)}, size=3)
+
+
+def positions_of(*entities: str) -> ObsTermCfg:
+    """Observation term: the centres (3 each) of the scene objects ``entities``, world frame [m]."""
+    return ObsTermCfg(func=entity_positions_obs, params={"entities": entities}, size=3 * len(entities))
+
+
+def orientations_of(*entities: str) -> ObsTermCfg:
+    """Observation term: the quaternions (4 each, xyzw) of the scene objects ``entities``."""
+    return ObsTermCfg(func=entity_orientations_obs, params={"entities": entities}, size=4 * len(entities))
 
 
 LAST_ACTION = ObsTermCfg(func=last_action, size=ACTION_DIM)

@@ -23,6 +23,9 @@ import warp as wp
 from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gripper_q, tcp_pos, wrap_angle
 from newton_lab.robots.g1 import spec
 from newton_lab.task_api.cfg import RewardTermCfg
+from newton_lab.task_api.terms import bind, term_factory
+
+from .terminations import all_of, base_at, lifted, posture_error
 
 DENSE_REWARD_MAX = 1.0
 """Upper bound of a staged dense reward (sum of its terms); its lower bound is 0."""
@@ -98,6 +101,17 @@ def no_shaping(ctx: TaskContext, w: int) -> float:
     return 0.0
 
 
+@term_factory()
+def indicator(*, term: Callable):
+    """1 while the predicate ``term`` holds, else 0 (a bonus term)."""
+
+    @wp.func
+    def holds(ctx: TaskContext, w: int) -> float:
+        return wp.where(term(ctx, w), 1.0, 0.0)
+
+    return holds
+
+
 # ---------------------------------------------------------------- staged dense reward
 @dataclass(frozen=True)
 class Stage:
@@ -106,14 +120,17 @@ class Stage:
     name: str
     """Reward term name."""
     done: Callable
-    """``@wp.func (ctx, w) -> bool``: the stage is accomplished (stateless)."""
+    """``@wp.func (ctx, w) -> bool`` or a bound generic term: the stage is accomplished (stateless)."""
     shaping: Callable = no_shaping
-    """``@wp.func (ctx, w) -> float`` in [0, 1]: progress toward ``done``, counted once the stage before is done."""
+    """``@wp.func (ctx, w) -> float`` in [0, 1] or a bound generic term: progress toward ``done``, counted once
+    the stage before is done."""
 
 
-def _stage_term(i: int, dones: tuple, shaping: Callable):
-    """Stage ``i``'s term: 1 if stage ``i`` or a later one is done, its shaping if stage ``i - 1`` is the last
-    done, else 0 (only stages ``i - 1 ..`` are evaluated)."""
+@term_factory()
+def stage_reward(*, index: int, dones: tuple, shaping: Callable):
+    """Stage ``index``'s term: 1 if stage ``index`` or a later one is done, its shaping if stage ``index - 1`` is
+    the last done, else 0 (only stages ``index - 1 ..`` are evaluated)."""
+    i = int(index)
     lo, n = max(i - 1, 0), len(dones)
 
     @wp.func
@@ -139,29 +156,26 @@ def staged_rewards(*stages: Stage) -> dict[str, RewardTermCfg]:
         raise ValueError(f"staged_rewards needs at least one stage and unique stage names, got {names}")
     dones = tuple(s.done for s in stages)
     weight = DENSE_REWARD_MAX / len(stages)
-    return {s.name: RewardTermCfg(func=_stage_term(i, dones, s.shaping), weight=weight) for i, s in enumerate(stages)}
-
-
-def _both(first: Callable, second: Callable):
-    @wp.func
-    def both(ctx: TaskContext, w: int) -> bool:
-        return first(ctx, w) and second(ctx, w)
-
-    return both
+    return {s.name: RewardTermCfg(func=stage_reward(index=i, dones=dones, shaping=s.shaping), weight=weight)
+            for i, s in enumerate(stages)}
 
 
 def gated(after: Callable, stages: list[Stage]) -> list[Stage]:
-    """``stages`` whose ``done`` also needs ``after`` (``@wp.func (ctx, w) -> bool``): a later subtask's stages
-    count only while an earlier subtask's result holds (e.g. cube_3's while cube_2 stays stacked)."""
-    return [dataclasses.replace(s, done=_both(after, s.done)) for s in stages]
+    """``stages`` whose ``done`` also needs ``after`` (a predicate term): a later subtask's stages count only
+    while an earlier subtask's result holds (e.g. cube_3's while cube_2 stays stacked)."""
+    return [dataclasses.replace(s, done=all_of(terms=(after, s.done))) for s in stages]
 
 
-def _phase_gated(phase: int, func: Callable):
+@term_factory()
+def phase_gated(*, phase: int, term: Callable):
+    """``term``'s value while the row is in phase ``phase``, else 0."""
+    phase = int(phase)
+
     @wp.func
     def in_phase(ctx: TaskContext, w: int) -> float:
         r = float(0.0)
         if ctx.phase[w] == wp.static(phase):
-            r = wp.static(func)(ctx, w)
+            r = wp.static(term)(ctx, w)
         return r
 
     return in_phase
@@ -186,62 +200,124 @@ def phased_rewards(phases: list[tuple[str, dict[str, RewardTermCfg]]]) -> dict[s
     out = {"phase": RewardTermCfg(func=phase_index, weight=DENSE_REWARD_MAX / n)}
     for i, (name, terms) in enumerate(phases):
         for term_name, t in terms.items():
-            out[f"{name}/{term_name}"] = RewardTermCfg(func=_phase_gated(i, t.func), weight=t.weight / n)
+            out[f"{name}/{term_name}"] = RewardTermCfg(func=phase_gated(phase=i, term=bind(t.func, t.params)),
+                                                       weight=t.weight / n)
     return out
 
 
 # ---------------------------------------------------------------- stage builders shared by the tasks
-def reach_stage(obj: int, name: str = "reaching") -> Stage:
-    """TCP within ``REACH_DONE_DIST`` [m] of entity ``obj``'s centre; shaping ``1 - tanh(5 |TCP - obj|)``."""
-    k = int(obj)
+@term_factory(entities=("entity",))
+def tcp_near(*, entity: int, max_dist: float = REACH_DONE_DIST):
+    """TCP within ``max_dist`` [m] of ``entity``'s centre."""
+    max_dist = float(max_dist)
 
     @wp.func
-    def near(ctx: TaskContext, w: int) -> bool:
-        return tcp_distance(ctx, w, k) < REACH_DONE_DIST
+    def tcp_near_entity(ctx: TaskContext, w: int) -> bool:
+        return tcp_distance(ctx, w, entity) < max_dist
+
+    return tcp_near_entity
+
+
+@term_factory(entities=("entity",))
+def reach_shaping(*, entity: int):
+    """``1 - tanh(5 |TCP - entity|)`` [m -> 0..1]."""
 
     @wp.func
-    def reach_shaping(ctx: TaskContext, w: int) -> float:
-        return closeness(tcp_distance(ctx, w, k))
+    def reach_entity_shaping(ctx: TaskContext, w: int) -> float:
+        return closeness(tcp_distance(ctx, w, entity))
 
-    return Stage(name, near, reach_shaping)
+    return reach_entity_shaping
 
 
-def pick_to_carry_stages(*, obj: int, grasped: Callable, lift_z: float, at_carry: Callable) -> list[Stage]:
-    """Reach, grasp (``grasped``), lift entity ``obj`` to centre height ``lift_z`` [m] (shaping ``1 - tanh(5 dz)``)
+@term_factory(entities=("entity", "target"))
+def place_shaping(*, entity: int, target: int, offset: tuple[float, float, float]):
+    """``1 - tanh(5 |entity - (target + offset)|)``: closeness of ``entity`` to its resting pose on ``target``
+    (``offset`` from ``target``'s centre, world axes [m])."""
+    off = wp.vec3(*(float(v) for v in offset))
+
+    @wp.func
+    def place_on_target_shaping(ctx: TaskContext, w: int) -> float:
+        return closeness(wp.length(entity_pos(ctx, w, entity) - entity_pos(ctx, w, target) - off))
+
+    return place_on_target_shaping
+
+
+@term_factory(entities=("entity",))
+def point_shaping(*, entity: int, point: tuple[float, float, float]):
+    """``1 - tanh(5 |entity - point|)``: closeness of ``entity``'s centre to a world ``point`` [m -> 0..1]."""
+    p = wp.vec3(*(float(v) for v in point))
+
+    @wp.func
+    def entity_point_shaping(ctx: TaskContext, w: int) -> float:
+        return closeness(wp.length(entity_pos(ctx, w, entity) - p))
+
+    return entity_point_shaping
+
+
+@term_factory(entities=("entity",))
+def lift_shaping(*, entity: int, min_z: float):
+    """``1 - tanh(5 dz)``, dz = height [m] still to go for ``entity``'s centre to reach ``min_z``."""
+    min_z = float(min_z)
+
+    @wp.func
+    def lift_entity_shaping(ctx: TaskContext, w: int) -> float:
+        return closeness(wp.max(min_z - entity_pos(ctx, w, entity)[2], 0.0))
+
+    return lift_entity_shaping
+
+
+@wp.func
+def carry_shaping(ctx: TaskContext, w: int) -> float:
+    """``1 - tanh(|q_arm - arm_home|)`` [rad -> 0..1]."""
+    return posture_closeness(arm_home_error(ctx, w))
+
+
+@term_factory()
+def posture_shaping(*, arm: tuple[float, ...], legs: tuple[float, ...] | None = None):
+    """``1 - tanh(|q - posture|)`` over the controlled arm (7) and, when given, the legs (5) [rad -> 0..1]."""
+    arm_q = wp.types.vector(length=7, dtype=float)(*(float(v) for v in arm))
+    legs_q = wp.types.vector(length=5, dtype=float)(*(float(v) for v in (legs or (0.0,) * 5)))
+    check_legs = legs is not None
+
+    @wp.func
+    def to_posture_shaping(ctx: TaskContext, w: int) -> float:
+        return posture_closeness(posture_error(ctx, w, legs_q, arm_q, check_legs)[0])
+
+    return to_posture_shaping
+
+
+def reach_stage(entity: str, name: str = "reaching") -> Stage:
+    """TCP within ``REACH_DONE_DIST`` [m] of ``entity``'s centre; shaping ``1 - tanh(5 |TCP - entity|)``."""
+    return Stage(name, tcp_near(entity=entity), reach_shaping(entity=entity))
+
+
+def pick_to_carry_stages(*, entity: str, grasped_term: Callable, lift_z: float, at_carry: Callable) -> list[Stage]:
+    """Reach, grasp (``grasped_term``), lift ``entity`` to centre height ``lift_z`` [m] (shaping ``1 - tanh(5 dz)``)
     while grasped, bring the arm to ``ctx.arm_home`` (``at_carry``: the task's stateless success predicate;
     shaping ``1 - tanh(|q_arm - home|)``, rad). Shared by the PickToShelf / SortToShelf Pick tasks."""
-    k, z_min = int(obj), float(lift_z)
-
-    @wp.func
-    def lifted(ctx: TaskContext, w: int) -> bool:
-        return grasped(ctx, w) and entity_pos(ctx, w, k)[2] >= z_min
-
-    @wp.func
-    def lift_shaping(ctx: TaskContext, w: int) -> float:
-        return closeness(wp.max(z_min - entity_pos(ctx, w, k)[2], 0.0))
-
-    @wp.func
-    def carry_shaping(ctx: TaskContext, w: int) -> float:
-        return posture_closeness(arm_home_error(ctx, w))
-
-    return [reach_stage(k), Stage("grasping", grasped), Stage("lifting", lifted, lift_shaping),
+    lifted_and_grasped = all_of(terms=(grasped_term, lifted(entity=entity, min_z=lift_z)))
+    return [reach_stage(entity), Stage("grasping", grasped_term),
+            Stage("lifting", lifted_and_grasped, lift_shaping(entity=entity, min_z=lift_z)),
             Stage("carrying", at_carry, carry_shaping)]
+
+
+@term_factory()
+def drive_shaping(*, goal_xy: tuple[float, float], goal_yaw: float):
+    """The mean of ``1 - tanh(d)`` (d: base distance to ``goal_xy`` [m]) and ``1 - tanh(|yaw error|)`` [rad]."""
+    gx, gy = (float(v) for v in goal_xy)
+    gyaw = float(goal_yaw)
+
+    @wp.func
+    def drive_to_goal_shaping(ctx: TaskContext, w: int) -> float:
+        b = base_pose2d(ctx, w)
+        d = wp.length(wp.vec2(b[0] - gx, b[1] - gy))
+        return 0.5 * (nav_closeness(d) + posture_closeness(wp.abs(wrap_angle(b[2] - gyaw))))
+
+    return drive_to_goal_shaping
 
 
 def drive_stage(*, goal_xy: tuple[float, float], goal_yaw: float, radius: float, yaw_tol: float) -> Stage:
     """Base within ``radius`` [m] of ``goal_xy`` and within ``yaw_tol`` [rad] of ``goal_yaw``; shaping: the mean of
     ``1 - tanh(d)`` (d [m]) and ``1 - tanh(|yaw error|)`` (rad)."""
-    gx, gy, gyaw, r, ytol = float(goal_xy[0]), float(goal_xy[1]), float(goal_yaw), float(radius), float(yaw_tol)
-
-    @wp.func
-    def arrived(ctx: TaskContext, w: int) -> bool:
-        b = base_pose2d(ctx, w)
-        return wp.length(wp.vec2(b[0] - gx, b[1] - gy)) <= r and wp.abs(wrap_angle(b[2] - gyaw)) <= ytol
-
-    @wp.func
-    def drive_shaping(ctx: TaskContext, w: int) -> float:
-        b = base_pose2d(ctx, w)
-        d = wp.length(wp.vec2(b[0] - gx, b[1] - gy))
-        return 0.5 * (nav_closeness(d) + posture_closeness(wp.abs(wrap_angle(b[2] - gyaw))))
-
-    return Stage("driving", arrived, drive_shaping)
+    return Stage("driving", base_at(goal_xy=goal_xy, radius=radius, goal_yaw=goal_yaw, yaw_tol=yaw_tol),
+                 drive_shaping(goal_xy=goal_xy, goal_yaw=goal_yaw))

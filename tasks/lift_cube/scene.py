@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import EntityCfg, SceneCfg
+from newton_lab.task_api.cfg import SceneCfg
 
 from ..common.table_top import cube, table
 
@@ -10,8 +10,3 @@ CUBE_INIT = (-0.30, 0.18, 0.125)
 """Cube centre at reset (resting on the table top, z = 0.10 + 0.025) [m]."""
 
 SCENE = SceneCfg(table(), cube("cube", CUBE_INIT, (0.85, 0.18, 0.12)))
-CUBE = SCENE.slot("cube")
-
-
-def entities() -> list[EntityCfg]:
-    return SCENE.entities

@@ -7,7 +7,7 @@ from newton_lab.task_api.cfg import EntityCfg, SceneCfg
 from .objects import OBJECTS
 
 ROBOT_ROOT = (-1.2, 0.0, 0.0)
-OBJECT_NAMES = tuple(OBJECTS)
+"""Robot root at reset [m]."""
 _PANEL = (0.10, 0.25, 0.60)
 _DIVIDER = (0.12, 0.30, 0.68)
 
@@ -46,10 +46,3 @@ def _entities() -> list[EntityCfg]:
 
 
 SCENE = SceneCfg(*_entities())
-OBJECT_SLOT = {name: SCENE.slot(name) for name in OBJECT_NAMES}
-"""Entity slot of each sorting object."""
-
-
-def entities() -> list[EntityCfg]:
-    return SCENE.entities
-

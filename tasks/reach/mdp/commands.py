@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from newton_lab.kernels.context import TaskContext
+from newton_lab.kernels.context import TaskContext, base_pose2d
 
 DEFAULT_GOAL_B = wp.constant(wp.vec3(0.45, 0.18, 0.58))
 """Reference goal, base frame [m]."""
@@ -15,9 +15,20 @@ GOAL_Z_RANGE_B = wp.constant(wp.vec2(0.25, 0.55))
 shifted toward the left arm so that every goal is reachable with a top-down TCP."""
 
 
+GOAL_DIM = 3
+"""The command is the goal position (x, y, z), world frame [m]: ``TaskCfg.command_dim``."""
+
+
+@wp.func
+def goal(ctx: TaskContext, w: int) -> wp.vec3:
+    """Row ``w``'s goal position, world frame [m] (the whole command)."""
+    return wp.vec3(ctx.command[w, 0], ctx.command[w, 1], ctx.command[w, 2])
+
+
 @wp.func
 def sample_goal(ctx: TaskContext, w: int, seed: int, stream: int, randomize: bool):
-    """Command columns 0..2 = goal position, world frame (base pose from the planar base joints)."""
+    """The goal: a base-frame point (the default, or uniform in the goal box) turned into the world frame with
+    the row's planar base pose."""
     g = DEFAULT_GOAL_B
     if randomize:
         rng = wp.rand_init(seed, stream)
@@ -26,12 +37,9 @@ def sample_goal(ctx: TaskContext, w: int, seed: int, stream: int, randomize: boo
             wp.randf(rng, GOAL_Y_RANGE_B[0], GOAL_Y_RANGE_B[1]),
             wp.randf(rng, GOAL_Z_RANGE_B[0], GOAL_Z_RANGE_B[1]),
         )
-    base = w * ctx.coords_per_world
-    bx = ctx.joint_q[base + 0]
-    by = ctx.joint_q[base + 1]
-    yaw = ctx.joint_q[base + 2]
-    c = wp.cos(yaw)
-    s = wp.sin(yaw)
-    ctx.command[w, 0] = bx + c * g[0] - s * g[1]
-    ctx.command[w, 1] = by + s * g[0] + c * g[1]
-    ctx.command[w, 2] = g[2]
+    b = base_pose2d(ctx, w)
+    c = wp.cos(b[2])
+    s = wp.sin(b[2])
+    world = wp.vec3(b[0] + c * g[0] - s * g[1], b[1] + s * g[0] + c * g[1], g[2])
+    for i in range(GOAL_DIM):
+        ctx.command[w, i] = world[i]

@@ -5,15 +5,8 @@ from __future__ import annotations
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext
-from newton_lab.tasks.common.rewards import action_rate  # noqa: F401  (listed by the env cfg)
 
 from .terminations import goal_distance
-
-
-@wp.func
-def position_error(ctx: TaskContext, w: int) -> float:
-    """Distance TCP - goal [m]."""
-    return goal_distance(ctx, w)
 
 
 @wp.func

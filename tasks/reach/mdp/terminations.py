@@ -6,16 +6,19 @@ import warp as wp
 
 from newton_lab.kernels.context import TaskContext, tcp_pos
 
+from .commands import goal
+
 SUCCESS_RADIUS = 0.02
 """TCP within this distance of the goal [m]."""
 
 
 @wp.func
 def goal_distance(ctx: TaskContext, w: int) -> float:
-    g = wp.vec3(ctx.command[w, 0], ctx.command[w, 1], ctx.command[w, 2])
-    return wp.length(tcp_pos(ctx, w) - g)
+    """|TCP - goal| [m]."""
+    return wp.length(tcp_pos(ctx, w) - goal(ctx, w))
 
 
 @wp.func
 def reached_goal(ctx: TaskContext, w: int) -> bool:
+    """TCP within 2 cm of the goal (episode success)."""
     return goal_distance(ctx, w) < SUCCESS_RADIUS

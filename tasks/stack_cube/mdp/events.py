@@ -1,12 +1,11 @@
-"""StackCube reset events."""
+"""StackCube reset event: three cubes placed apart on the table (this task's own sampler)."""
 
 from __future__ import annotations
 
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext, set_entity_pose
-
-from ..scene import CUBE_1
+from newton_lab.task_api.terms import term_factory
 
 # The reference samples x in (-0.35, -0.25), y in (0.14, 0.23) with a 0.09 m minimum separation: only
 # 2e-5 of joint draws are valid there, so its 5000-try sampler returns overlapping cubes ~90 % of the
@@ -20,24 +19,30 @@ MIN_SEPARATION = 0.09
 MAX_TRIES = 5000
 
 
-@wp.func
-def randomize_cube_positions(ctx: TaskContext, w: int, seed: int, stream: int, randomize: bool):
-    """Rejection-sample three cube positions at least 0.09 m apart, each with a random yaw."""
-    if not randomize:
-        return
-    rng = wp.rand_init(seed, stream)
-    p0 = wp.vec2(0.0, 0.0)
-    p1 = wp.vec2(0.0, 0.0)
-    p2 = wp.vec2(0.0, 0.0)
-    for _ in range(MAX_TRIES):
-        p0 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
-        p1 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
-        p2 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
-        if (wp.length(p0 - p1) >= MIN_SEPARATION and wp.length(p1 - p2) >= MIN_SEPARATION
-                and wp.length(p0 - p2) >= MIN_SEPARATION):
-            break
-    ps = wp.mat33(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0, p2[0], p2[1], 0.0)
-    for i in range(3):
-        yaw = wp.randf(rng, YAW_RANGE[0], YAW_RANGE[1])
-        q = wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), yaw)
-        set_entity_pose(ctx, w, CUBE_1 + i, wp.vec3(ps[i, 0], ps[i, 1], CUBE_Z), q)
+@term_factory(entities=("cubes",))
+def randomize_cube_positions(*, cubes: tuple[int, int, int]):
+    """Rejection-sample the three ``cubes``' positions at least 0.09 m apart, each with a random yaw."""
+    slots = wp.vec3i(*cubes)
+
+    @wp.func
+    def place_three_cubes_apart(ctx: TaskContext, w: int, seed: int, stream: int, randomize: bool):
+        if not randomize:
+            return
+        rng = wp.rand_init(seed, stream)
+        p0 = wp.vec2(0.0, 0.0)
+        p1 = wp.vec2(0.0, 0.0)
+        p2 = wp.vec2(0.0, 0.0)
+        for _ in range(MAX_TRIES):
+            p0 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
+            p1 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
+            p2 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
+            if (wp.length(p0 - p1) >= MIN_SEPARATION and wp.length(p1 - p2) >= MIN_SEPARATION
+                    and wp.length(p0 - p2) >= MIN_SEPARATION):
+                break
+        ps = wp.mat33(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0, p2[0], p2[1], 0.0)
+        for i in range(3):
+            yaw = wp.randf(rng, YAW_RANGE[0], YAW_RANGE[1])
+            q = wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), yaw)
+            set_entity_pose(ctx, w, slots[i], wp.vec3(ps[i, 0], ps[i, 1], CUBE_Z), q)
+
+    return place_three_cubes_apart

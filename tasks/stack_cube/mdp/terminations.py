@@ -1,76 +1,45 @@
-"""StackCube predicates (reference thresholds)."""
+"""StackCube predicates: the generic terms (``tasks.common.terminations``) with the reference's thresholds."""
 
 from __future__ import annotations
 
-import warp as wp
+from newton_lab.tasks.common.terminations import all_of, any_of, dropped, grasped, gripper_open, resting_on
 
-from newton_lab.kernels.context import TaskContext, entity_pos, gripper_q, tcp_pos
+from ..scene import CUBES
 
-from ..scene import CUBE_1, CUBE_2, CUBE_3
-
-GRASP_DIST = 0.06
-"""TCP within this distance of the cube centre [m]."""
-GRIPPER_THRESHOLD = 0.10
-"""Gripper counts as closed above this [rad]."""
+GRIPPER_CLOSED_MIN = 0.10
+"""Gripper counts as closed (on a cube) above this [rad]."""
 STACK_XY_TOL = 0.04
+"""A stacked cube's centre within this xy distance of the one below [m] ..."""
 STACK_DZ = 0.05
-"""Cube size: centre-to-centre height of a stacked pair [m]."""
+"""... and this (the cube size) above it [m] ..."""
 STACK_DZ_TOL = 0.006
+"""... within this [m]."""
 GRIPPER_OPEN_TOL = 0.01
 """Gripper counts as open at or below this [rad] (the master rests on its 0 limit when open)."""
 DROP_Z = 0.05
 """A cube centre below this fell off the table (top at 0.10) [m]."""
 
 
-@wp.func
-def _grasped(ctx: TaskContext, w: int, k: int) -> bool:
-    d = wp.length(entity_pos(ctx, w, k) - tcp_pos(ctx, w))
-    return d < GRASP_DIST and wp.abs(gripper_q(ctx, w)) > GRIPPER_THRESHOLD
+def grasped_cube(cube: str):
+    """TCP within 6 cm of ``cube`` with the gripper closed past 0.1 rad."""
+    return grasped(entity=cube, gripper_min=GRIPPER_CLOSED_MIN)
 
 
-@wp.func
-def _on(ctx: TaskContext, w: int, top: int, bottom: int) -> bool:
-    a = entity_pos(ctx, w, top)
-    b = entity_pos(ctx, w, bottom)
-    dxy = wp.length(wp.vec2(a[0] - b[0], a[1] - b[1]))
-    return dxy < STACK_XY_TOL and wp.abs(a[2] - b[2] - STACK_DZ) < STACK_DZ_TOL
+def stacked(top: str, bottom: str):
+    """``top`` resting on ``bottom`` (whatever the gripper does)."""
+    return resting_on(entity=top, target=bottom, height=STACK_DZ, xy_tol=STACK_XY_TOL, z_tol=STACK_DZ_TOL)
 
 
-@wp.func
-def _open(ctx: TaskContext, w: int) -> bool:
-    return wp.abs(gripper_q(ctx, w)) <= GRIPPER_OPEN_TOL
+def stacked_and_released(top: str, bottom: str):
+    """``top`` stacked on ``bottom`` with the gripper open (subtask signal)."""
+    return all_of(terms=(stacked(top, bottom), gripper_open(tol=GRIPPER_OPEN_TOL)))
 
 
-@wp.func
-def cube_2_grasped(ctx: TaskContext, w: int) -> bool:
-    return _grasped(ctx, w, CUBE_2)
-
-
-@wp.func
-def cube_3_grasped(ctx: TaskContext, w: int) -> bool:
-    return _grasped(ctx, w, CUBE_3)
-
-
-@wp.func
-def cube_2_on_cube_1(ctx: TaskContext, w: int) -> bool:
-    """cube_2 stacked on cube_1 and released."""
-    return _on(ctx, w, CUBE_2, CUBE_1) and _open(ctx, w)
-
-
-@wp.func
-def cube_3_on_cube_2(ctx: TaskContext, w: int) -> bool:
-    """cube_3 stacked on cube_2 and released."""
-    return _on(ctx, w, CUBE_3, CUBE_2) and _open(ctx, w)
-
-
-@wp.func
-def stack_success(ctx: TaskContext, w: int) -> bool:
+def stack_success():
     """The full three-cube stack, released (episode success)."""
-    return _on(ctx, w, CUBE_2, CUBE_1) and _on(ctx, w, CUBE_3, CUBE_2) and _open(ctx, w)
+    return all_of(terms=(stacked("cube_2", "cube_1"), stacked("cube_3", "cube_2"), gripper_open(tol=GRIPPER_OPEN_TOL)))
 
 
-@wp.func
-def cube_dropping(ctx: TaskContext, w: int) -> bool:
+def cube_dropping():
     """Any cube fell off the table [failure]."""
-    return (entity_pos(ctx, w, CUBE_1)[2] < DROP_Z or entity_pos(ctx, w, CUBE_2)[2] < DROP_Z
-            or entity_pos(ctx, w, CUBE_3)[2] < DROP_Z)
+    return any_of(terms=tuple(dropped(entity=c, below_z=DROP_Z) for c in CUBES))

@@ -12,13 +12,12 @@ GOAL_YAW = 0.0
 SUCCESS_RADIUS = 0.15
 """Base within this distance of the goal ends the episode [m]."""
 
-_goal_reached = nav.make_goal_reached(GOAL_XY, SUCCESS_RADIUS)
+_goal_reached = nav.goal_reached(goal_xy=GOAL_XY, radius=SUCCESS_RADIUS)
 
 
 def base_nav_cfg() -> TaskCfg:
     """Mobile G1 at the origin, no objects; 4-wheel velocity action (clip +-4.5 rad/s); 12 s episodes."""
     return TaskCfg(
-        task_id="GalbotG1-BaseNav-v0",
         entities=[],
         actions=nav.base_actions(),
         observations=nav.nav_observations(GOAL_XY),

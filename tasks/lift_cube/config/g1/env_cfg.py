@@ -1,27 +1,43 @@
-"""GalbotG1-LiftCube-v0 configuration: fixed-base G1, left arm + gripper absolute targets (8), 20 s episodes."""
+"""GalbotG1-LiftCube-v0 configuration: fixed-base G1, left arm + gripper absolute targets (8), 20 s episodes.
+
+Every term is a generic one (``tasks.common``) with this task's constants.
+"""
 
 from __future__ import annotations
 
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common import postures
-from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common.events import randomize_position
+from newton_lab.tasks.common.rewards import Stage, lift_shaping, reach_stage, staged_rewards
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
-from newton_lab.tasks.lift_cube import scene
-from newton_lab.tasks.lift_cube.mdp import events, observations, rewards, terminations
+from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, lifted
+from newton_lab.tasks.lift_cube.scene import CUBE_INIT, SCENE
+
+LIFTED_Z = CUBE_INIT[2] + 0.10
+"""Success: the cube centre 10 cm above its resting height [m] ..."""
+HOLD_STEPS = 5
+"""... grasped, for this many consecutive control steps."""
+DROPPED_Z = 0.05
+"""A cube centre below this has left the table [m]."""
 
 
 def lift_cube_cfg() -> TaskCfg:
-    """The PickCube robot set-up (table-top posture, head pitched down) with one cube to lift."""
+    """The PickCube robot set-up (table-top posture, head pitched down) with one cube to lift. Dense reward:
+    reaching, grasping, lifting (``1 - tanh(5 dz)`` while grasped), 1/3 each (``tasks.common.rewards``)."""
+    grasped_cube = grasped(entity="cube")
+    lifted_and_grasped = all_of(terms=(lifted(entity="cube", min_z=LIFTED_Z), grasped_cube))
     return TaskCfg(
-        task_id="GalbotG1-LiftCube-v0",
-        entities=scene.entities(),
+        entities=SCENE.entities,
         actions=left_arm_actions(),
-        observations=common_obs.manipulation_observations(cube_pose=ObsTermCfg(func=observations.cube_pose, size=7)),
-        phase_success=[terminations.cube_lifted],
-        terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
-        rewards=rewards.dense_rewards(),  # staged, in [0, 1]
-        signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
-        events={"randomize_cube": TermCfg(func=events.randomize_cube)},
+        observations=obs.manipulation_observations(cube_pose=obs.pose_of("cube")),
+        phase_success=[held(term=lifted_and_grasped, steps=HOLD_STEPS)],
+        terminations={"cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": DROPPED_Z})},
+        rewards=staged_rewards(reach_stage("cube"), Stage("grasping", grasped_cube),
+                               Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", min_z=LIFTED_Z))),
+        signals={"grasped_cube": TermCfg(func=grasped_cube)},
+        events={"randomize_cube": TermCfg(func=randomize_position, params={
+            "entity": "cube", "x_range": (-0.38, -0.22), "y_range": (0.08, 0.26), "z": CUBE_INIT[2]})},
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
         root_pos=postures.MANIPULATION_ROOT_POS,
         episode_length_s=20.0,

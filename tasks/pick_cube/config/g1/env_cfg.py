@@ -1,33 +1,52 @@
-"""GalbotG1-PickCube-v0 configuration (reference §3.3)."""
+"""GalbotG1-PickCube-v0 configuration (reference §3.3), and the operator's variant.
+
+Every term is a generic one (``tasks.common``) with the reference's thresholds. Dense reward (not in the
+reference, which has none; ManiSkill PickCube-v1 style): reaching, grasping, placing (``1 - tanh(5 |cube -
+resting pose on the block|)`` while grasped), releasing (gripper openness while the cube rests on the block),
+success: 0.2 each, in [0, 1].
+"""
 
 from __future__ import annotations
 
 import dataclasses
 
-from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import cameras, postures
-
-from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common import observations as obs
+from newton_lab.tasks.common.events import randomize_position
+from newton_lab.tasks.common.rewards import Stage, gripper_openness, place_shaping, reach_stage, staged_rewards
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
-from newton_lab.tasks.pick_cube import scene
-from newton_lab.tasks.pick_cube.mdp import events, observations, rewards, terminations
+from newton_lab.tasks.common.terminations import all_of, dropped, grasped, gripper_open, resting_on
+from newton_lab.tasks.pick_cube.scene import CUBE_INIT, SCENE
+
+ON_BLOCK = dict(entity="cube", target="blue_block", height=0.035, xy_tol=0.08, z_tol=0.03)
+"""The cube rests on the block: centre within 8 cm in xy, 0.035 +- 0.03 m above the block's centre (block half
+height 0.01 + cube half size 0.025) [m]."""
 
 
 def pick_cube_cfg() -> TaskCfg:
-    """Fixed-base G1 at (-1, 0, 0); left arm + gripper absolute targets (8)."""
+    """Fixed-base G1 at (-1, 0, 0); left arm + gripper absolute targets (8); success: the cube released on the
+    blue block (gripper open within 0.05 rad)."""
+    grasped_cube = grasped(entity="cube")
+    on_block = resting_on(**ON_BLOCK)
+    released = all_of(terms=(on_block, gripper_open(tol=0.05)))
     return TaskCfg(
-        task_id="GalbotG1-PickCube-v0",
-        entities=scene.entities(),
+        entities=SCENE.entities,
         actions=left_arm_actions(),
-        observations=common_obs.manipulation_observations(
-            cube_pose=ObsTermCfg(func=observations.cube_pose, size=7),
-            blue_block_pos=ObsTermCfg(func=observations.blue_block_pos, size=3),
+        observations=obs.manipulation_observations(cube_pose=obs.pose_of("cube"),
+                                                   blue_block_pos=obs.position_of("blue_block")),
+        phase_success=[released],
+        terminations={"cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": 0.05})},
+        rewards=staged_rewards(
+            reach_stage("cube"),
+            Stage("grasping", grasped_cube),
+            Stage("placing", on_block, place_shaping(entity="cube", target="blue_block", offset=(0.0, 0.0, 0.035))),
+            Stage("releasing", released, gripper_openness),
+            Stage("success", released),
         ),
-        phase_success=[terminations.released_on_blue_block],
-        terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped)},
-        rewards=rewards.dense_rewards(),  # staged, in [0, 1] (not in the reference, which has none)
-        signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
-        events={"randomize_cube_position": TermCfg(func=events.randomize_cube_position)},
+        signals={"grasped_cube": TermCfg(func=grasped_cube)},
+        events={"randomize_cube_position": TermCfg(func=randomize_position, params={
+            "entity": "cube", "x_range": (-0.38, -0.22), "y_range": (0.12, 0.26), "z": CUBE_INIT[2]})},
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
         root_pos=postures.MANIPULATION_ROOT_POS,
         fixed_base=True,
@@ -39,5 +58,4 @@ def pick_cube_cfg() -> TaskCfg:
 def pick_cube_teleop_cfg() -> TaskCfg:
     """PickCube for an operator: the teleop camera set (left wrist + front head RGB, 640 x 480) and the same
     success logic, latched but not ending the episode: the operator ends it (``done``) and reviews it."""
-    return dataclasses.replace(pick_cube_cfg(), task_id="GalbotG1-PickCube-Teleop-v0", cameras=cameras.teleop_rgb(),
-                               terminate_on_success=False)
+    return dataclasses.replace(pick_cube_cfg(), cameras=cameras.teleop_rgb(), terminate_on_success=False)

@@ -3,22 +3,36 @@
 All four share the PickToShelf world; the robot starts at (-1.2, 0, 0) on its wheels, left arm in the carry
 posture. The Nav and Place components start from scenarios (``scenarios/*.yaml``) captured at the end of the
 previous component with ``--save-end-scenario``; the coherent task chains the components without resets.
+Every term is a generic one (``tasks.common``) with the reference's thresholds.
+
+Dense rewards (ManiSkill PickCube-v1 style, each in [0, 1]): Pick: reaching, grasping, lifting (to z 0.465 m
+while grasped), carrying (``1 - tanh(|q_arm - carry|)``, rad): 1/4 each. Place: grasping, placing (``1 -
+tanh(5 |bar - resting pose on the deck|)`` while grasped, done when it stands there), releasing (gripper
+openness, done with the gripper open; the 20-step hold is not required): 1/3 each. Coherent task: ``(phase +
+r_phase) / 3`` with the pick, drive (to the nav goal, yaw not required) and place rewards.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-from newton_lab.task_api.cfg import ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.experts import NavExpert
-from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.compose import coherent_task, phase, task_sequence
+from newton_lab.task_api.experts import NavExpert
 from newton_lab.tasks.common import cameras, postures
 from newton_lab.tasks.common import navigation as nav
-from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common import observations as obs
+from newton_lab.tasks.common.events import randomize_position
+from newton_lab.tasks.common.rewards import (
+    Stage, drive_stage, gripper_openness, phased_rewards, pick_to_carry_stages, place_shaping, staged_rewards,
+)
 from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
-from newton_lab.tasks.pick_to_shelf import scene
-from newton_lab.tasks.pick_to_shelf.mdp import events, observations, rewards, terminations
+from newton_lab.tasks.common.terminations import (
+    all_of, arm_at_home, dropped, grasped, gripper_open, held, lifted, resting_on, tipped, upright,
+)
+from newton_lab.tasks.pick_to_shelf.scene import BAR_POS, ROBOT_ROOT, SCENE
 
 NAV_GOAL_XY = (-1.7, -1.15)
 """Base goal in front of the shelf: deck front edge + 0.65 m [m]."""
@@ -26,21 +40,34 @@ NAV_GOAL_YAW = -1.5707963267948966
 NAV_SUCCESS_RADIUS = 0.02
 SCENARIOS = Path(__file__).parent / "scenarios"
 
-_goal_reached = nav.make_goal_reached(NAV_GOAL_XY, NAV_SUCCESS_RADIUS)
+CARRY_MIN_Z = 0.465
+"""Pick success: bar centre at or above table top 0.325 + half height 0.08 + lift 0.06 [m] ..."""
+CARRY_ARM_TOL = 0.12
+"""... and every left-arm joint within this of the carry posture [rad]."""
+SHELF_DZ = 0.095
+"""The bar stands on the deck: its centre this far above the deck's (deck half 0.015 + bar half 0.08) [m]."""
+PLACE_HOLD_STEPS = 20
+"""Place success holds this many consecutive steps."""
+
+grasped_bar = grasped(entity="bar")
+at_carry = all_of(terms=(lifted(entity="bar", min_z=CARRY_MIN_Z), arm_at_home(tol=CARRY_ARM_TOL)))
+bar_on_shelf = all_of(terms=(resting_on(entity="bar", target="shelf_deck", height=SHELF_DZ, xy_tol=0.10, z_tol=0.04),
+                             upright(entity="bar", min_up_dot=0.90)))
+bar_released_on_shelf = all_of(terms=(bar_on_shelf, gripper_open(tol=0.05)))
+goal_reached = nav.goal_reached(goal_xy=NAV_GOAL_XY, radius=NAV_SUCCESS_RADIUS)
 
 
-def _world(task_id: str, **fields) -> TaskCfg:
+def _world(**fields) -> TaskCfg:
     base = dict(
-        task_id=task_id,
-        entities=scene.entities(),
+        entities=SCENE.entities,
         actions=left_arm_actions(),
-        observations=common_obs.manipulation_observations(cube_pose=ObsTermCfg(func=observations.cube_pose, size=7)),
+        observations=obs.manipulation_observations(bar_pose=obs.pose_of("bar")),
         phase_success=[],
-        terminations={"cube_dropped": TerminationTermCfg(func=terminations.cube_dropped),
-                      "cube_tipped": TerminationTermCfg(func=terminations.cube_tipped)},
-        signals={"grasped_cube": TermCfg(func=terminations.grasped_cube)},
+        terminations={"bar_dropped": TerminationTermCfg(func=dropped, params={"entity": "bar", "below_z": 0.2}),
+                      "bar_tipped": TerminationTermCfg(func=tipped, params={"entity": "bar"})},
+        signals={"grasped_bar": TermCfg(func=grasped_bar)},
         posture=shelf_posture(),
-        root_pos=scene.ROBOT_ROOT,
+        root_pos=ROBOT_ROOT,
         arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
         cameras=cameras.front_head_rgb(),
@@ -49,21 +76,36 @@ def _world(task_id: str, **fields) -> TaskCfg:
     return TaskCfg(**base)
 
 
+def pick_rewards():
+    """PickToShelf-Pick: reach, grasp, lift, carry posture (1/4 each)."""
+    return staged_rewards(*pick_to_carry_stages(entity="bar", grasped_term=grasped_bar, lift_z=CARRY_MIN_Z,
+                                                at_carry=at_carry))
+
+
+def place_rewards():
+    """PickToShelf-Place: hold, place on the deck, release (1/3 each)."""
+    return staged_rewards(
+        Stage("grasping", grasped_bar),
+        Stage("placing", bar_on_shelf, place_shaping(entity="bar", target="shelf_deck", offset=(0.0, 0.0, SHELF_DZ))),
+        Stage("releasing", bar_released_on_shelf, gripper_openness),
+    )
+
+
 def pick_cfg() -> TaskCfg:
     """Pick the bar from the table and bring it to the carry posture (success: ``at_carry``)."""
-    return _world("GalbotG1-PickToShelf-Pick-v0", phase_success=[terminations.at_carry], rewards=rewards.pick_rewards(),
-                  events={"randomize_bar_position": TermCfg(func=events.randomize_bar_position)})
+    return _world(phase_success=[at_carry], rewards=pick_rewards(),
+                  events={"randomize_bar_position": TermCfg(func=randomize_position, params={
+                      "entity": "bar", "x_range": (-0.58, -0.42), "y_range": (0.10, 0.30), "z": BAR_POS[2]})})
 
 
 def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
     """Drive with the bar in hand to the shelf (success: base within 2 cm of the goal; yaw not checked)."""
     return _world(
-        "GalbotG1-PickToShelf-Nav-v0",
         actions=nav.base_actions(),
         observations=nav.nav_observations(NAV_GOAL_XY),
-        phase_success=[_goal_reached],
+        phase_success=[goal_reached],
         rewards=nav.nav_rewards(NAV_GOAL_XY, NAV_SUCCESS_RADIUS),
-        signals={"goal_reached": TermCfg(func=_goal_reached)},
+        signals={"goal_reached": TermCfg(func=goal_reached)},
         scenario=init_scenario or str(SCENARIOS / "nav_default.yaml"),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
         fixed_base=False,
@@ -71,11 +113,10 @@ def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
 
 
 def place_cfg(init_scenario: str | None = None) -> TaskCfg:
-    """Put the bar upright on the shelf deck and let go (success: ``cube_on_shelf`` held 20 steps)."""
+    """Put the bar upright on the shelf deck and let go (success: released on the deck, held 20 steps)."""
     return _world(
-        "GalbotG1-PickToShelf-Place-v0",
-        phase_success=[terminations.cube_on_shelf],
-        rewards=rewards.place_rewards(),
+        phase_success=[held(term=bar_released_on_shelf, steps=PLACE_HOLD_STEPS)],
+        rewards=place_rewards(),
         scenario=init_scenario or str(SCENARIOS / "place_default.yaml"),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
     )
@@ -83,14 +124,15 @@ def place_cfg(init_scenario: str | None = None) -> TaskCfg:
 
 def coherent_cfg() -> TaskCfg:
     """Pick -> Nav -> Place in one episode; the episode succeeds when the bar stands on the shelf."""
+    drive = staged_rewards(drive_stage(goal_xy=NAV_GOAL_XY, goal_yaw=NAV_GOAL_YAW, radius=NAV_SUCCESS_RADIUS,
+                                       yaw_tol=math.pi))
     return coherent_task(
-        "GalbotG1-PickToShelf-v0",
         phases=task_sequence(
             phase("pick", "GalbotG1-PickToShelf-Pick-v0", terms=("left_arm", "left_gripper")),
             phase("nav", "GalbotG1-PickToShelf-Nav-v0", terms=("base",)),
             phase("place", "GalbotG1-PickToShelf-Place-v0", terms=("left_arm", "left_gripper")),
         ),
-        rewards=rewards.coherent_rewards(NAV_GOAL_XY, NAV_GOAL_YAW, NAV_SUCCESS_RADIUS),
+        rewards=phased_rewards([("pick", pick_rewards()), ("nav", drive), ("place", place_rewards())]),
     )
 
 

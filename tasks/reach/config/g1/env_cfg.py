@@ -5,16 +5,15 @@ from __future__ import annotations
 from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg
 from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import observations as common_obs
-from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
-from newton_lab.tasks.reach import scene
+from newton_lab.tasks.common.rewards import action_rate
+from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture, table
 from newton_lab.tasks.reach.mdp import commands, observations, rewards, terminations
 
 
 def reach_cfg() -> TaskCfg:
     """Fixed-base G1 at (-1, 0, 0); left arm absolute targets (7); goal resampled at every reset."""
     return TaskCfg(
-        task_id="GalbotG1-Reach-v0",
-        entities=scene.entities(),
+        entities=[table()],
         actions=left_arm_actions(gripper=False),
         observations={
             "joint_pos": common_obs.ARM_JOINT_POS,
@@ -25,15 +24,15 @@ def reach_cfg() -> TaskCfg:
         },
         phase_success=[terminations.reached_goal],
         rewards={
-            "position_error": RewardTermCfg(func=rewards.position_error, weight=-0.2),
+            "position_error": RewardTermCfg(func=terminations.goal_distance, weight=-0.2),
             "position_tanh": RewardTermCfg(func=rewards.position_tanh, weight=0.1),
-            "action_rate": RewardTermCfg(func=rewards.action_rate, weight=-1e-4),
+            "action_rate": RewardTermCfg(func=action_rate, weight=-1e-4),
             "joint_vel": RewardTermCfg(func=rewards.arm_joint_vel, weight=-1e-4),
         },
         signals={"reached_goal": TermCfg(func=terminations.reached_goal)},
         events={"sample_goal": TermCfg(func=commands.sample_goal)},
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, (0.0, 0.0)),
         root_pos=postures.MANIPULATION_ROOT_POS,
-        command_dim=3,
+        command_dim=commands.GOAL_DIM,
         episode_length_s=12.0,
     )

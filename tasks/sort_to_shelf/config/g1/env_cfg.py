@@ -9,37 +9,39 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common import cameras, postures
 from newton_lab.tasks.common import navigation as nav
-from newton_lab.tasks.common import observations as common_obs
+from newton_lab.tasks.common import observations as obs
+from newton_lab.tasks.common.terminations import dropped, tipped
 from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
 from newton_lab.tasks.sort_to_shelf import scene
-from newton_lab.tasks.sort_to_shelf.mdp import events, observations, rewards, terminations
-from newton_lab.tasks.sort_to_shelf.objects import SortingObject
+from newton_lab.tasks.sort_to_shelf.mdp import events, rewards, terminations
+from newton_lab.tasks.sort_to_shelf.objects import OBJECTS, SortingObject
 from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
 
 SCENARIOS = Path(__file__).parent / "scenarios"
 NAV_SUCCESS_RADIUS = 0.02
 
 
-def _world(task_id: str, obj: SortingObject, **fields) -> TaskCfg:
+def _dropped(obj: SortingObject) -> TerminationTermCfg:
+    return TerminationTermCfg(func=dropped, params={"entity": obj.name, "below_z": terminations.DROP_Z})
+
+
+def _world(obj: SortingObject, **fields) -> TaskCfg:
     base = dict(
-        task_id=task_id,
-        entities=scene.entities(),
+        entities=scene.SCENE.entities,
         actions=left_arm_actions(),
-        observations=common_obs.manipulation_observations(
-            object_pose=ObsTermCfg(func=observations.make_object_pose(obj), size=7)),
+        observations=obs.manipulation_observations(object_pose=obs.pose_of(obj.name)),
         phase_success=[],
-        terminations={"object_dropped": TerminationTermCfg(func=terminations.make_dropped(obj))},
-        signals={"grasped_object": TermCfg(func=terminations.make_grasped(obj))},
+        terminations={"object_dropped": _dropped(obj)},
+        signals={"grasped_object": TermCfg(func=terminations.grasped_object(obj))},
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
-        hold_slots=1,
         cameras=cameras.front_head_rgb_depth_segmentation(),
     )
     base.update(fields)
@@ -53,11 +55,11 @@ def _scenario(component: str, obj: SortingObject, init_scenario: str | None) -> 
 def pick_cfg(sorting_object: str | None = None) -> TaskCfg:
     """Pick the object from the table into the ready posture (success: lifted and arm at ready)."""
     obj = lookup_object(sorting_object)
-    terms = {"object_dropped": TerminationTermCfg(func=terminations.make_dropped(obj))}
+    terms = {"object_dropped": _dropped(obj)}
     if obj.upright_min > 0:
-        terms["object_tipped"] = TerminationTermCfg(func=terminations.make_tipped(obj))
-    return _world("GalbotG1-SortToShelf-Pick-v0", obj, phase_success=[terminations.make_at_carry(obj)],
-                  terminations=terms, events={"permute_objects": TermCfg(func=events.permute_objects)},
+        terms["object_tipped"] = TerminationTermCfg(func=tipped, params={"entity": obj.name})
+    return _world(obj, phase_success=[terminations.at_carry(obj)], terminations=terms,
+                  events={"permute_objects": TermCfg(func=events.permute_objects, params={"objects": tuple(OBJECTS)})},
                   rewards=rewards.pick_rewards(obj), options={"sorting_object": obj.name})
 
 
@@ -66,11 +68,11 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
     posture (success: all of it held for 20 steps)."""
     obj = lookup_object(sorting_object)
     return _world(
-        "GalbotG1-SortToShelf-Nav-v0", obj,
+        obj,
         actions=nav.base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
                                       ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
         observations=nav.nav_observations(obj.place_base_xy),
-        phase_success=[terminations.make_at_place_start(obj)],
+        phase_success=[terminations.held_at_place_start(obj)],
         rewards=nav.nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS),
         scenario=_scenario("nav", obj, init_scenario),
         initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
@@ -82,7 +84,7 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
 def place_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
     """Put the object in its cell, let go and retract the arm (success: ``placed``)."""
     obj = lookup_object(sorting_object)
-    return _world("GalbotG1-SortToShelf-Place-v0", obj, phase_success=[terminations.make_placed(obj)],
+    return _world(obj, phase_success=[terminations.placed(obj)],
                   rewards=rewards.place_rewards(obj),
                   scenario=_scenario("place", obj, init_scenario),
                   initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
@@ -93,7 +95,6 @@ def coherent_cfg(sorting_object: str | None = None) -> TaskCfg:
     """Pick -> Nav -> Place in one episode; the pick phase holds the base still."""
     obj = lookup_object(sorting_object)
     return coherent_task(
-        "GalbotG1-SortToShelf-v0",
         phases=task_sequence(
             phase("pick", "GalbotG1-SortToShelf-Pick-v0", terms=("left_arm", "left_gripper"), fixed_base=True),
             phase("nav", "GalbotG1-SortToShelf-Nav-v0", terms=("base", "legs", "left_arm")),

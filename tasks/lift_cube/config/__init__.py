@@ -1,1 +1,0 @@
-"""LiftCube configurations by robot."""

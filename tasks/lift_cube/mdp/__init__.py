@@ -1,1 +1,0 @@
-"""LiftCube terms: predicates (terminations), rewards, observations and reset events."""

@@ -1,1 +1,0 @@
-"""PickCube terms: predicates (terminations), observations and reset events."""

@@ -1,1 +1,0 @@
-"""G1 configuration of Reach."""

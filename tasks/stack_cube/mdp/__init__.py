@@ -1,1 +1,0 @@
-"""StackCube terms."""
