@@ -193,6 +193,17 @@ def record_poses(ctx: TaskContext, tcp_out: wp.array2d(dtype=float), entity_out:
 
 
 @wp.func
+def entity_coord_pos(ctx: TaskContext, w: int, k: int) -> wp.vec3:
+    """Entity ``k``'s position read from its free-joint coordinates (for a static entity, its fixed pose): what
+    reset events see, since body poses follow the coordinates only after the reset's forward kinematics."""
+    c = ctx.entity_coord[k]
+    if c < 0:
+        return wp.transform_get_translation(ctx.entity_static_pose[k])
+    base = w * ctx.coords_per_world + c
+    return wp.vec3(ctx.joint_q[base], ctx.joint_q[base + 1], ctx.joint_q[base + 2])
+
+
+@wp.func
 def set_entity_pose(ctx: TaskContext, w: int, k: int, p: wp.vec3, q: wp.quat):
     """Write a dynamic entity's free-joint coordinates (reset events); static entities are ignored."""
     c = ctx.entity_coord[k]

@@ -1,15 +1,16 @@
 """Fuse a task's declared terms into single Warp kernels.
 
 A task declares its logic as ``@wp.func`` terms (see ``newton_lab.task_api.cfg``); this module turns them
-into exactly three kernels per task id, each launched once per env step / reset:
+into four kernels per task id, each launched once per env step / reset (the signal kernel twice):
 
 * ``task_step``: phase advance, latched success, failure terminations, time-out, reward, and the divergence
   guard: it takes ``divergence = (max body distance [m], linear speed [m/s], angular speed [rad/s])``
   (``TaskCfg.divergence_bounds``); a row whose state breaks them or is non-finite (``context.row_diverged``)
   terminates with ``REASON_DIVERGED`` (over any other reason), no success and zero reward, and is reset
   like any finished row;
-* ``observe``: every observation term written into one (num_envs, obs_dim) buffer, plus the subtask
-  signals (on the post-reset state, so a recorded frame's signals describe its observation);
+* ``observe``: every observation term written into one (num_envs, obs_dim) buffer;
+* ``step_signals``: the stateless subtask signals as 0 / 1, on the state the step reached and again on the
+  observed (post-reset) state, so a recorded frame's signals describe its observation;
 * ``reset``: masked reset of the selected rows to their defaults, then the task's reset events
   (seeded per row and episode).
 

@@ -5,8 +5,7 @@ from __future__ import annotations
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext, tcp_pos
-
-from .commands import goal
+from newton_lab.tasks.common.commands import command_point
 
 SUCCESS_RADIUS = 0.02
 """TCP within this distance of the goal [m]."""
@@ -15,7 +14,7 @@ SUCCESS_RADIUS = 0.02
 @wp.func
 def goal_distance(ctx: TaskContext, w: int) -> float:
     """|TCP - goal| [m]."""
-    return wp.length(tcp_pos(ctx, w) - goal(ctx, w))
+    return wp.length(tcp_pos(ctx, w) - command_point(ctx, w))
 
 
 @wp.func

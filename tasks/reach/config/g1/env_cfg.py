@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg, TaskCfg, TermCfg
+from newton_lab.task_api.cfg import RewardTermCfg, TaskCfg, TermCfg
 from newton_lab.tasks.common import postures
 from newton_lab.tasks.common import observations as common_obs
 from newton_lab.tasks.common.rewards import action_rate
 from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture, table
-from newton_lab.tasks.reach.mdp import commands, observations, rewards, terminations
+from newton_lab.tasks.common.commands import COMMAND_POINT, POINT_COMMAND_DIM
+from newton_lab.tasks.reach.mdp import commands, rewards, terminations
 
 
 def reach_cfg() -> TaskCfg:
@@ -18,7 +19,7 @@ def reach_cfg() -> TaskCfg:
         observations={
             "joint_pos": common_obs.ARM_JOINT_POS,
             "joint_vel": common_obs.ROBOT_JOINT_VEL,
-            "pose_command": ObsTermCfg(func=observations.pose_command, size=3),
+            "pose_command": COMMAND_POINT,
             "tcp_pose": common_obs.TCP_POSE,
             "actions": common_obs.LAST_ACTION,
         },
@@ -33,6 +34,6 @@ def reach_cfg() -> TaskCfg:
         events={"sample_goal": TermCfg(func=commands.sample_goal)},
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, (0.0, 0.0)),
         root_pos=postures.MANIPULATION_ROOT_POS,
-        command_dim=commands.GOAL_DIM,
+        command_dim=POINT_COMMAND_DIM,
         episode_length_s=12.0,
     )
