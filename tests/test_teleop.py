@@ -54,7 +54,7 @@ def test_gp001_twist_scaling_and_hold_buttons():
     mapper = FrameMapper("mobile_full_body", FULL_BODY)
     out = mapper(TeleopFrame(base_twist=(0.2, 0.0, 0.0)), torch.zeros(1, len(FULL_BODY)))
     wheels = out[0, [FULL_BODY.index(j) for j in spec.BASE_WHEEL_JOINTS]]
-    assert wheels.tolist() == pytest.approx([-1.4142, -1.4142, 1.4142, 1.4142], abs=1e-3)  # reference §2.3
+    assert wheels.tolist() == pytest.approx([-1.4142, -1.4142, 1.4142, 1.4142], abs=1e-3)  # the reference's mixing
     for button in (17, 18):  # held: no twist, the height stays
         frame, h2 = map_gp001(_raw(_axes(a0=1.0, a5=1.0), buttons=[button]), height=h)
         assert frame.base_twist is None and h2 == h

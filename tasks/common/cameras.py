@@ -1,4 +1,4 @@
-"""Camera sets the G1 tasks declare (reference facts §1.6): the front head camera at 298 x 224."""
+"""Camera sets the G1 tasks declare (as on the reference platform): the front head camera at 298 x 224."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""PickToShelf world (reference §3.6), shared by the Pick / Nav / Place components and the coherent task:
+"""PickToShelf world (as on the reference platform), shared by the Pick / Nav / Place components and the coherent task:
 a 0.5 m high table with a 5 x 5 x 16 cm bar, and a one-cell shelf 2 m to the robot's right."""
 
 from __future__ import annotations

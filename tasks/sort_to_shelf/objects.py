@@ -1,4 +1,4 @@
-"""The four sorting objects (reference §3.7) and everything that depends on which one is sorted.
+"""The four sorting objects (as on the reference platform) and everything that depends on which one is sorted.
 
 Positions are env frame [m]; the shelf has a 2 x 2 grid of cells (a = upper row, b = lower row; 1 = left,
 2 = right seen from the robot). Place-approach arm postures are re-derived by IK for the authored arm:

@@ -1,4 +1,5 @@
-"""SortToShelf world (reference §3.7): the table with four objects, a 2 x 2 shelf 2.2 m to the robot's right."""
+"""SortToShelf world (as on the reference platform): the table with four objects, a 2 x 2 shelf 2.2 m to the
+robot's right."""
 
 from __future__ import annotations
 

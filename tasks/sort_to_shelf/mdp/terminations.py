@@ -1,4 +1,4 @@
-"""SortToShelf predicates (reference §3.7 thresholds) for one sorting object: the generic terms
+"""SortToShelf predicates (the reference platform's thresholds) for one sorting object: the generic terms
 (``tasks.common.terminations``) with the object's name, heights and cell."""
 
 from __future__ import annotations

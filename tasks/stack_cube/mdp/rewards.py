@@ -55,7 +55,7 @@ def stacking_shaping(*, top: int, bottom: int):
 
 
 def reference_rewards() -> dict[str, RewardTermCfg]:
-    """The reference's StackCube reward (reference §3.4): stacking shaping x2 (each), full-stack bonus x20,
+    """The reference platform's StackCube reward: stacking shaping x2 (each), full-stack bonus x20,
     action rate x-1e-4; in about [-0.01, 24]. Opt in with ``dataclasses.replace(cfg, rewards=reference_rewards())``."""
     return {
         "cube_2_on_cube_1": RewardTermCfg(func=stacking_shaping, params={"top": "cube_2", "bottom": "cube_1"},

@@ -1,4 +1,4 @@
-"""GalbotG1-BaseNav-v0 configuration (reference §3.5): drive the mobile base from A=(0, 0) to B=(2, 0)."""
+"""GalbotG1-BaseNav-v0 configuration (as on the reference platform): drive the mobile base from A=(0, 0) to B=(2, 0)."""
 
 from __future__ import annotations
 

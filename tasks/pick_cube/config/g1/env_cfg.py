@@ -1,4 +1,4 @@
-"""GalbotG1-PickCube-v0 configuration (reference §3.3), and the operator's variant.
+"""GalbotG1-PickCube-v0 configuration (as on the reference platform), and the operator's variant.
 
 Every term is a generic one (``tasks.common``) with the reference's thresholds. Dense reward (not in the
 reference, which has none; ManiSkill PickCube-v1 style): reaching, grasping, placing (``1 - tanh(5 |cube -

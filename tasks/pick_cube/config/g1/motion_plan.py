@@ -1,4 +1,4 @@
-"""PickCube expert plan (reference §4.2): all TCP targets top-down, resolved at reset."""
+"""PickCube expert plan (as on the reference platform): all TCP targets top-down, resolved at reset."""
 
 from __future__ import annotations
 

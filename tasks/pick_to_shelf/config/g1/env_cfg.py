@@ -1,4 +1,4 @@
-"""PickToShelf configurations (reference §3.6): the Pick, Nav and Place components and the coherent task.
+"""PickToShelf configurations (as on the reference platform): the Pick, Nav and Place components and the coherent task.
 
 All four share the PickToShelf world; the robot starts at (-1.2, 0, 0) on its wheels, left arm in the carry
 posture. The Nav and Place components start from scenarios (``scenarios/*.yaml``) captured at the end of the

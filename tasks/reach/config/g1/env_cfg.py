@@ -1,4 +1,4 @@
-"""GalbotG1-Reach-v0 configuration (reference §3.2, left arm absolute targets, 12 s episodes)."""
+"""GalbotG1-Reach-v0 configuration (as on the reference platform: left arm absolute targets, 12 s episodes)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""SortToShelf configurations (reference §3.7): Pick, Nav and Place components and the coherent task, each
+"""SortToShelf configurations (as on the reference platform): Pick, Nav and Place components and the coherent task, each
 for one of the four sorting objects (``task_options={"sorting_object": ...}``, default red_cube).
 
 The Nav and Place components start from per-object scenarios (``scenarios/<component>_<object>.yaml``)

@@ -1,4 +1,4 @@
-"""GalbotG1-StackCube-v0 configuration (reference §3.4)."""
+"""GalbotG1-StackCube-v0 configuration (as on the reference platform)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""StackCube expert plan (reference §4.2 structure): for each (cube, level) in
+"""StackCube expert plan (the reference platform's structure): for each (cube, level) in
 ((cube_2, 1), (cube_3, 2)): approach, descend, close x25, lift, raise to transfer height, move above
 cube_1, descend to the stack pose, open, lift away. 33 commands per cube.
 
