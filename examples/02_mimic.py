@@ -27,7 +27,7 @@ class MimicExampleArgs(MimicArgs):
 
 
 DEFAULTS = {"dataset_path": "data/pick_cube_demos.hdf5", "output_path": "data/pick_cube_demos_mimic.hdf5",
-            "num_envs": 9, "headless": True}
+            "num_envs": 9}
 
 
 def main() -> None:

@@ -35,8 +35,7 @@ SORTING_OBJECTS = ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder
 def main() -> None:
     args = parse_args(CollectArgs, description=__doc__,
                       defaults={"task": PRESETS[COMPONENT_PRESET], "dataset_path": f"data/{COMPONENT_PRESET}.hdf5"},
-                      exclude=("task", "rerun", "rerun_save", "rerun_worlds"),
-                      choices={"sorting_object": SORTING_OBJECTS})
+                      exclude=("task", "rerun", "rerun_save", "rerun_worlds"))
     env = make_env(args.task, **args.env_kwargs())
     ref = env.collect(agent=expert_agent(env), **args.collect_kwargs())
     keys = ("task", "episodes", "successes", "success_rate", "path", "termination_reasons")

@@ -9,8 +9,8 @@ import pytest
 
 from newton_lab.cli import REQUIRED, build_parser, main, parse_args
 from newton_lab.commands import CollectArgs, EvaluateArgs, TrainArgs
-from newton_lab.task_api.catalog import declared_task_ids
-from newton_lab.task_api.registry import list_tasks
+from newton_lab.task_api.catalog import declared_options, declared_task_ids
+from newton_lab.task_api.registry import list_tasks, lookup
 
 
 def test_tasks_lists_every_id(capsys):
@@ -43,6 +43,27 @@ def test_task_ids_read_from_source_are_the_registry():
     from newton_lab import tasks  # noqa: F401  registers every id
 
     assert declared_task_ids() == tuple(list_tasks()) and len(list_tasks()) >= 10
+
+
+def test_task_options_read_from_source_are_the_registry():
+    """Task options become flags from the task packages' source (no import): names and literal choices must be
+    those the registry checks."""
+    from newton_lab import tasks  # noqa: F401  registers every id
+
+    declared = declared_options()
+    assert set(declared) == set(list_tasks())
+    for task_id in list_tasks():
+        spec = lookup(task_id)
+        assert [o.name for o in declared[task_id]] == spec.option_names, task_id
+        for source, real in zip(declared[task_id], spec.options):
+            assert source.choices in (None, real.choices), task_id
+
+
+def test_an_option_the_task_does_not_take_is_refused_at_once(capsys):
+    rc = main(["collect", "--task", "GalbotG1-PickCube-v0", "--sorting-object", "red_cube", "--device", "cpu"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.count("\n") == 0
+    assert "GalbotG1-PickCube-v0 takes no option --sorting-object" in err and "its options: none" in err
 
 
 def test_task_option_typo_names_the_closest_value(capsys):
@@ -92,11 +113,11 @@ def test_bench_collect_splits_the_time(capsys, tmp_path):
 REQ = "<required>"
 LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the dataclass-generated one replaced
     "collect": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
-                "--device": None, "--seed": 0, "--randomize": False, "--headless": False, "--no-progress": False,
+                "--device": None, "--seed": 0, "--randomize": False, "--no-progress": False,
                 "--rerun": False, "--rerun-save": None, "--rerun-worlds": 4, "--sorting-object": None,
                 "--init-scenario": None, "--dataset-path": "data/pick_cube_demos.hdf5", "--save-end-scenario": None},
     "evaluate": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
-                 "--device": None, "--seed": 0, "--randomize": False, "--headless": False, "--no-progress": False,
+                 "--device": None, "--seed": 0, "--randomize": False, "--no-progress": False,
                  "--rerun": False, "--rerun-save": None, "--rerun-worlds": 4, "--sorting-object": None,
                  "--init-scenario": None, "--checkpoint": None},
     "mimic": {"--dataset-path": REQ, "--output-path": None, "--episodes": 36, "--num-envs": 8, "--max-attempts": None,
@@ -131,7 +152,8 @@ def test_generated_parser_keeps_every_flag_and_default():
 def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "c.pt").write_bytes(b"")
-    a = parse_args(CollectArgs, ["--num-envs", "2", "--sorting-object", "red_cube", "--randomize"])
+    a = parse_args(CollectArgs, ["--task", "GalbotG1-SortToShelf-Pick-v0", "--num-envs", "2", "--sorting-object",
+                                 "red_cube", "--randomize"])
     assert isinstance(a, CollectArgs) and a.num_envs == 2 and a.randomize and a.episodes == 1
     assert (tmp_path / "data").is_dir()  # the example's output folder is made, as the CLI makes it
     assert a.env_kwargs()["task_options"] == {"sorting_object": "red_cube"}

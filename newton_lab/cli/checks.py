@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs, camera_option
-from ..task_api.catalog import check_task_id
+from ..task_api.catalog import check_task_id, check_task_options
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
                 "batch_size", "rerun_worlds", "rerun_image_every", "max_attempts", "train_steps", "epochs",
@@ -33,6 +33,7 @@ def check_args(args: Any) -> None:
     names = {f for f in getattr(args, "__dataclass_fields__", {})}
     if "task" in names and args.task is not None:  # (an example's optional --task)
         check_task_id(args.task)  # first: it needs no import at all (typo'd ids answer at once)
+        check_task_options(args.task, getattr(args, "task_options", None) or {})
     for name in names & set(COUNT_FIELDS):
         value = getattr(args, name)
         if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):

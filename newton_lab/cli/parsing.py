@@ -23,7 +23,7 @@ from typing import Any, Literal
 from .. import commands as c
 from .checks import check_args
 from ..kernels.runtime import set_verbose
-from ..task_api.catalog import did_you_mean
+from ..task_api.catalog import all_declared_options, did_you_mean
 
 REQUIRED = dataclasses.MISSING
 """A ``defaults`` value making a field required (an example that needs ``--checkpoint``)."""
@@ -138,6 +138,9 @@ def add_arguments(parser: argparse.ArgumentParser, cls: type, *, defaults: Mappi
     docs = field_docs(cls)
     defaults, choices = dict(defaults or {}), dict(choices or {})
     for f in _fields(cls, exclude):
+        if f.metadata.get("task_options"):
+            add_task_option_flags(parser)
+            continue
         default = defaults.get(f.name, f.default)
         kwargs = _type_kwargs(hints[f.name], default)
         if f.name in choices:
@@ -155,10 +158,32 @@ def add_arguments(parser: argparse.ArgumentParser, cls: type, *, defaults: Mappi
         parser.add_argument(*flags, dest=f.name, **kwargs)
 
 
+TASK_OPTION_DEST = "task_option:"
+"""Namespace prefix of the task-option flags."""
+
+
+def add_task_option_flags(parser: argparse.ArgumentParser) -> None:
+    """One flag per option any task declares (``--sorting-object``), read from the task packages' source
+    (``newton_lab.task_api.catalog``): a new option of a task becomes a flag without touching the command line.
+    Literal choices are offered in the help; whether the chosen task takes the option is checked with the rest
+    of the arguments (``check_args``)."""
+    for name, opt in sorted(all_declared_options().items()):
+        help_text = _help(opt.doc or f"task option {name}")
+        if opt.choices:
+            help_text += f" (one of: {', '.join(opt.choices)})"
+        parser.add_argument("--" + name.replace("_", "-"), dest=TASK_OPTION_DEST + name, default=None, help=help_text)
+
+
 def from_namespace(cls: type, ns: argparse.Namespace, *, defaults: Mapping[str, Any] | None = None):
-    """``cls`` from parsed arguments; fields argparse did not see take ``defaults`` or their own default."""
+    """``cls`` from parsed arguments; fields argparse did not see take ``defaults`` or their own default. The
+    task-option flags that were given fill the ``task_options`` field."""
     values = {k: v for k, v in (defaults or {}).items() if v is not REQUIRED}
     values.update({f.name: getattr(ns, f.name) for f in dataclasses.fields(cls) if hasattr(ns, f.name)})
+    for f in dataclasses.fields(cls):
+        if f.metadata.get("task_options"):
+            given = {k[len(TASK_OPTION_DEST):]: v for k, v in vars(ns).items()
+                     if k.startswith(TASK_OPTION_DEST) and v is not None}
+            values[f.name] = {**values.get(f.name, {}), **given}
     return cls(**values)
 
 

@@ -3,15 +3,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..task_api.cfg import camera_option
 from ..task_api.registry import DEFAULT_TASK_ID
-
-TASK_OPTION_FIELDS = ("sorting_object", "init_scenario")
-"""``EnvArgs`` fields that are task options (``make_env(..., task_options=...)``)."""
-
 
 @dataclass(kw_only=True)
 class EnvArgs:
@@ -27,19 +23,15 @@ class EnvArgs:
     """Seed of the reset randomisation (per row and episode)."""
     randomize: bool = False
     """turn on the task's reset randomisation"""
-    sorting_object: str | None = None
-    """SortToShelf tasks: the object to sort"""
-    init_scenario: str | None = None
-    """component tasks: start from this scenario YAML"""
-
-    def task_options(self) -> dict[str, Any]:
-        """Task options that were given (unset ones are left to the task's defaults)."""
-        return {k: getattr(self, k) for k in TASK_OPTION_FIELDS if getattr(self, k) is not None}
+    task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
+    """The task's own options (``TaskSpec.options``), e.g. ``{"sorting_object": "red_cube"}``. On the command
+    line every option a task declares is a flag of its own (``--sorting-object red_cube``); unset ones are left to
+    the task's defaults."""
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keywords of ``make_env(self.task, **...)``."""
         return {"num_envs": self.num_envs, "device": self.device, "seed": self.seed, "randomize": self.randomize,
-                "task_options": self.task_options()}
+                "task_options": dict(self.task_options)}
 
 
 @dataclass(kw_only=True)
@@ -52,8 +44,6 @@ class RolloutArgs(EnvArgs):
     """episode step limit of the loop [control steps]"""
     no_progress: bool = False
     """No progress bar."""
-    headless: bool = False
-    """accepted for compatibility; newton-lab never opens a window"""
 
     def rollout_kwargs(self) -> dict[str, Any]:
         """Keywords shared by ``env.collect`` and ``env.evaluate``."""

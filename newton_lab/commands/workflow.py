@@ -52,8 +52,6 @@ class MimicArgs(CameraArgs):
     """Warp device, e.g. cpu or cuda:0 (default: Warp's)"""
     no_progress: bool = False
     """No progress bar."""
-    headless: bool = False
-    """accepted for compatibility; newton-lab never opens a window"""
 
     def mimic_kwargs(self) -> dict[str, Any]:
         """Keywords of ``mimic(self.dataset_path, **...)``."""

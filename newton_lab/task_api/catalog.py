@@ -2,7 +2,10 @@
 
 ``declared_task_ids()`` reads the ``id="..."`` keyword of every ``TaskSpec(...)`` / ``mimic_variant(...)``
 call in the task packages' ``__init__.py`` with ``ast`` (nothing is executed); the command line checks a
-``--task`` against it before any heavy import. tests/test_cli.py checks that it equals the registry.
+``--task`` against it before any heavy import. ``declared_options()`` reads the ``TaskOption(...)``
+declarations the same way, and which ids take which: the command line turns them into flags
+(``--sorting-object``) and refuses an option a task does not take, or a value outside its choices, at once.
+tests/test_cli.py checks both against the registry.
 ``did_you_mean`` is the one close-match helper of the project (``difflib``).
 """
 
@@ -13,10 +16,21 @@ import difflib
 import functools
 import importlib.util
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 DECLARING_CALLS = ("TaskSpec", "mimic_variant")
 """Calls whose literal ``id=`` keyword declares a task id."""
+
+
+@dataclass(frozen=True)
+class DeclaredOption:
+    """A task option as its ``TaskOption(...)`` call spells it (literal values only)."""
+
+    name: str
+    doc: str = ""
+    choices: tuple[str, ...] | None = None
+    """Valid values when they are written as a literal tuple, else ``None`` (checked when the task is built)."""
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
@@ -39,13 +53,101 @@ def _ids_in(source: str) -> list[str]:
     return ids
 
 
+def _task_inits() -> list[Path]:
+    spec = importlib.util.find_spec("newton_lab.tasks")  # locates the package; does not execute it
+    roots = [Path(p) for p in (spec.submodule_search_locations or [])] if spec else []
+    return [init for root in roots for init in sorted(root.glob("*/__init__.py"))]
+
+
 @functools.cache
 def declared_task_ids() -> tuple[str, ...]:
     """Every task id the task packages declare, sorted (read from source, no import of the tasks)."""
-    spec = importlib.util.find_spec("newton_lab.tasks")  # locates the package; does not execute it
-    roots = [Path(p) for p in (spec.submodule_search_locations or [])] if spec else []
-    ids = [i for root in roots for init in sorted(root.glob("*/__init__.py")) for i in _ids_in(init.read_text())]
-    return tuple(sorted(set(ids)))
+    return tuple(sorted({i for init in _task_inits() for i in _ids_in(init.read_text())}))
+
+
+def _literal(node: ast.AST | None):
+    try:
+        return ast.literal_eval(node) if node is not None else None
+    except ValueError:
+        return None
+
+
+def _option(call: ast.Call) -> DeclaredOption | None:
+    kw = {k.arg: k.value for k in call.keywords}
+    name = _literal(kw.get("name"))
+    if not isinstance(name, str):
+        return None
+    choices = _literal(kw.get("choices"))
+    doc = _literal(kw.get("doc"))
+    return DeclaredOption(name, doc if isinstance(doc, str) else "",
+                          tuple(choices) if isinstance(choices, tuple | list) else None)
+
+
+def _options_in(source: str) -> dict[str, tuple[DeclaredOption, ...]]:
+    """Task id -> its options, for one task package's ``__init__`` source: ``TaskOption`` calls bound to names,
+    ``TaskSpec(id=..., options=(NAME, ...))``, ``X = register(TaskSpec(...))`` and ``mimic_variant(X, id=...)``."""
+    tree = ast.parse(source)
+    named: dict[str, DeclaredOption] = {}
+    spec_ids: dict[str, str] = {}  # variable -> task id of the TaskSpec it holds
+    out: dict[str, tuple[DeclaredOption, ...]] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call) and _call_name(node.value) == "TaskOption":
+            if (opt := _option(node.value)) is not None:
+                named.update({t.id: opt for t in node.targets if isinstance(t, ast.Name)})
+    for node in ast.walk(tree):  # SPEC = register(TaskSpec(id=...)): the variable names that id
+        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call) and node.value.args:
+            inner = node.value.args[0]
+            if isinstance(inner, ast.Call) and _call_name(inner) == "TaskSpec":
+                task_id = _literal({k.arg: k.value for k in inner.keywords}.get("id"))
+                spec_ids.update({t.id: task_id for t in node.targets if isinstance(t, ast.Name)})
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and _call_name(n) in DECLARING_CALLS]
+    for node in sorted(calls, key=lambda n: _call_name(n) == "mimic_variant"):  # a variant after its source
+        kw = {k.arg: k.value for k in node.keywords}
+        task_id = _literal(kw.get("id"))
+        if not isinstance(task_id, str):
+            continue
+        if _call_name(node) == "mimic_variant":
+            source_var = node.args[0].id if node.args and isinstance(node.args[0], ast.Name) else None
+            out[task_id] = out.get(spec_ids.get(source_var, ""), ())
+            continue
+        opts = kw.get("options")
+        elts = opts.elts if isinstance(opts, ast.Tuple | ast.List) else []
+        found = (named.get(e.id) if isinstance(e, ast.Name) else _option(e) if isinstance(e, ast.Call) else None
+                 for e in elts)
+        out[task_id] = tuple(o for o in found if o is not None)
+    return out
+
+
+@functools.cache
+def declared_options() -> dict[str, tuple[DeclaredOption, ...]]:
+    """Task id -> the options it takes, read from the task packages' source (no import of the tasks)."""
+    out: dict[str, tuple[DeclaredOption, ...]] = {}
+    for init in _task_inits():
+        out.update(_options_in(init.read_text()))
+    return out
+
+
+def all_declared_options() -> dict[str, DeclaredOption]:
+    """Every option name any task declares (first declaration's doc and choices)."""
+    found: dict[str, DeclaredOption] = {}
+    for opts in declared_options().values():
+        for o in opts:
+            found.setdefault(o.name, o)
+    return found
+
+
+def check_task_options(task_id: str, options: dict) -> None:
+    """Refuse, in one line and before any import, an option ``task_id`` does not take or a value outside the
+    option's literal choices."""
+    declared = {o.name: o for o in declared_options().get(task_id, ())}
+    for name, value in options.items():
+        if name not in declared:
+            flag = "--" + name.replace("_", "-")
+            valid = ", ".join("--" + n.replace("_", "-") for n in declared) or "none"
+            raise ValueError(f"{task_id} takes no option {flag} ({name}); its options: {valid}")
+        choices = declared[name].choices
+        if choices is not None and value is not None and value not in choices:
+            raise ValueError(f"unknown {name} {value!r}{did_you_mean(value, choices)}; valid values: {list(choices)}")
 
 
 def check_task_id(task_id: str) -> None:

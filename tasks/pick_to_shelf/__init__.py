@@ -8,8 +8,8 @@ from newton_lab.task_api.experts import yaml_plan
 from .config.g1.env_cfg import coherent_cfg, nav_cfg, nav_expert, pick_cfg, place_cfg
 
 _PLANS = Path(__file__).parent / "config" / "g1"
-_INIT_SCENARIO = TaskOption(name="init_scenario", doc="Reset overlay: a scenario YAML path (default: the "
-                                                      "component's captured start).")
+_INIT_SCENARIO = TaskOption(name="init_scenario", doc="component tasks: start from this scenario YAML (default: the "
+                                                      "component's captured start)")
 
 register(TaskSpec(id="GalbotG1-PickToShelf-Pick-v0", cfg=pick_cfg, expert=yaml_plan(_PLANS / "pick_plan.yaml"),
                   description="Pick the bar from the table into the carry posture."))

@@ -10,10 +10,13 @@ from .config.g1.env_cfg import coherent_cfg, nav_cfg, pick_cfg, place_cfg
 from .config.g1.experts import nav_sequence_expert, pick_plan, place_plan
 from .objects import DEFAULT_OBJECT, OBJECTS
 
-_OBJECT = TaskOption(name="sorting_object", choices=tuple(OBJECTS), default=DEFAULT_OBJECT,
-                     doc="Which object to sort; selects its cell, thresholds, nav goal and postures.")
-_INIT_SCENARIO = TaskOption(name="init_scenario", doc="Reset overlay: a scenario YAML path (default: the "
-                                                      "component's captured start for the object).")
+_OBJECT = TaskOption(name="sorting_object", choices=("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"),
+                     default=DEFAULT_OBJECT, doc="SortToShelf tasks: the object to sort (selects its cell, "
+                                                "thresholds, nav goal and postures)")
+if _OBJECT.choices != tuple(OBJECTS):
+    raise ValueError(f"sorting_object choices {_OBJECT.choices} must name the objects {tuple(OBJECTS)}")
+_INIT_SCENARIO = TaskOption(name="init_scenario", doc="component tasks: start from this scenario YAML (default: the "
+                                                      "component's captured start for the object)")
 
 register(TaskSpec(id="GalbotG1-SortToShelf-Pick-v0", cfg=pick_cfg, expert=pick_plan, options=(_OBJECT,),
                   description="Pick the sorting object from the table into the ready posture."))
