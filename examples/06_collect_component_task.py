@@ -29,7 +29,6 @@ PRESETS = {
     "sort_to_shelf_nav": "GalbotG1-SortToShelf-Nav-v0",
     "sort_to_shelf_place": "GalbotG1-SortToShelf-Place-v0",
 }
-SORTING_OBJECTS = ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")
 
 
 def main() -> None:

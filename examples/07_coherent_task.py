@@ -20,7 +20,7 @@ import json
 from dataclasses import dataclass
 from typing import Literal
 
-from newton_lab.agents import TaskFlowAgent, default_agent
+from newton_lab.agents import TaskFlowAgent, expert_agent
 from newton_lab.cli import parse_args
 from newton_lab.commands import CollectArgs
 from newton_lab.envs import make_env
@@ -45,7 +45,7 @@ def phase_agents(env, preset: str):
     if preset == "task_default":
         return None
     if preset == "pick_to_shelf_experts":
-        return {p.name: default_agent(p.task_id) for p in env.cfg.phases}
+        return {p.name: expert_agent(p.task_id) for p in env.cfg.phases}
     if preset == "pick_to_shelf_policy":
         return {"pick": PolicyAgent.from_checkpoint("outputs/pick/checkpoint.pt"),
                 "place": PolicyAgent.from_checkpoint("outputs/place/checkpoint.pt")}

@@ -82,9 +82,9 @@ def test_inactive_wheels_give_zero_twist(nav_env):
 
 
 def test_base_nav_expert_reaches_goal(nav_env):
-    from newton_lab.agents import default_agent
+    from newton_lab.agents import expert_agent
 
-    res = nav_env.evaluate(agent=default_agent("GalbotG1-BaseNav-v0"), episodes=2, max_steps=240, progress=False)
+    res = nav_env.evaluate(agent=expert_agent("GalbotG1-BaseNav-v0"), episodes=2, max_steps=240, progress=False)
     assert res["success_rate"] == 1.0
 
 

@@ -3,12 +3,12 @@ reset envs. ``PlannerAgent`` executes a task's motion plan for every row at once
 base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row; ``TeleopAgent`` maps an operator's device."""
 
 from .base import BaseAgent, ZeroAgent
-from .experts import agent_for_expert, task_expert
+from .experts import agent_for_declaration
 from .joint import JointTargetAgent
 from .nav import BaseNavAgent, GoalNavAgent, ProportionalNavAgent, TrajectoryNavAgent
 from .planner.agent import PlannerAgent
 from .sequence import SequenceAgent, SequenceStep
-from .task_flow import TaskFlowAgent, default_agent, expert_agent
+from .task_flow import TaskFlowAgent, expert_agent
 from .teleop import TeleopAgent
 
 __all__ = [
@@ -24,8 +24,6 @@ __all__ = [
     "TeleopAgent",
     "TrajectoryNavAgent",
     "ZeroAgent",
-    "agent_for_expert",
-    "task_expert",
-    "default_agent",
+    "agent_for_declaration",
     "expert_agent",
 ]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from ..task_api.experts import Expert, JointTargetExpert, NavExpert, SequenceExpert
 from ..task_api.motion_plan import MotionPlan
-from ..task_api.registry import lookup
 from .base import BaseAgent
 from .joint import JointTargetAgent
 from .nav import ProportionalNavAgent, TrajectoryNavAgent
@@ -12,7 +11,7 @@ from .planner.agent import PlannerAgent
 from .sequence import SequenceAgent, SequenceStep
 
 
-def agent_for_expert(expert: Expert) -> BaseAgent:
+def agent_for_declaration(expert: Expert) -> BaseAgent:
     """The agent that executes ``expert``."""
     if isinstance(expert, MotionPlan):
         return PlannerAgent(expert)
@@ -26,12 +25,6 @@ def agent_for_expert(expert: Expert) -> BaseAgent:
         return JointTargetAgent(expert.targets, max_step=expert.max_step, tolerance=expert.tolerance,
                                 hold_steps=expert.hold_steps)
     if isinstance(expert, SequenceExpert):
-        return SequenceAgent([SequenceStep(name, agent_for_expert(e)) for name, e in expert.steps])
+        return SequenceAgent([SequenceStep(name, agent_for_declaration(e)) for name, e in expert.steps])
     raise TypeError(f"unknown expert declaration {type(expert).__name__}; use a MotionPlan, NavExpert, "
                     "JointTargetExpert or SequenceExpert")
-
-
-def task_expert(task_id: str, **options) -> BaseAgent:
-    """The expert agent of a registered (non-coherent) task, built for the task ``options`` it declares."""
-    task = lookup(task_id)
-    return agent_for_expert(task.make_expert(task.accepted(options)))

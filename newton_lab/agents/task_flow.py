@@ -6,19 +6,20 @@ import numpy as np
 import torch
 
 from .base import BaseAgent, EpisodeTracker, as_rows
-from .experts import task_expert
+from ..task_api.registry import lookup
+from .experts import agent_for_declaration
 
 
-def default_agent(task_id: str, **options) -> BaseAgent:
-    """A component task's expert, built for the task ``options`` it declares."""
-    return task_expert(task_id, **options)
-
-
-def expert_agent(env) -> BaseAgent:
-    """The expert for ``env``'s task: a ``TaskFlowAgent`` for coherent tasks, else the task's own expert."""
-    if env.cfg.phases:
-        return TaskFlowAgent.from_env(env)
-    return default_agent(env.task_id, **env.cfg.options)
+def expert_agent(task, **options) -> BaseAgent:
+    """The expert of a task: ``expert_agent(env)`` for an env's task (a ``TaskFlowAgent`` running the component
+    experts phase by phase for a coherent task), or ``expert_agent(task_id, **options)`` for a registered
+    component task, built for the task ``options`` it declares (others are ignored)."""
+    if isinstance(task, str):
+        spec = lookup(task)
+        return agent_for_declaration(spec.make_expert(spec.accepted(options)))
+    if task.cfg.phases:
+        return TaskFlowAgent.from_env(task)
+    return expert_agent(task.task_id, **task.cfg.options)
 
 
 class TaskFlowAgent(BaseAgent):
@@ -41,7 +42,7 @@ class TaskFlowAgent(BaseAgent):
         unknown = sorted(set(agents) - {p.name for p in phases})
         if unknown:
             raise ValueError(f"agents for unknown phase(s) {unknown}; phases of {env.task_id}: {[p.name for p in phases]}")
-        chosen = [agents.get(p.name) or default_agent(p.task_id, **env.cfg.options) for p in phases]
+        chosen = [agents.get(p.name) or expert_agent(p.task_id, **env.cfg.options) for p in phases]
         return cls(chosen, [p.name for p in phases])
 
     def _bind(self, env) -> None:

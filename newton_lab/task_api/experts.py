@@ -1,6 +1,6 @@
 """Expert declarations: what a task's scripted expert does, as data.
 
-A task's ``TaskSpec.expert(**options)`` returns one of these; ``newton_lab.agents.agent_for_expert`` builds
+A task's ``TaskSpec.expert(**options)`` returns one of these; ``newton_lab.agents.agent_for_declaration`` builds
 the agent. Tasks declare experts without importing the agents layer.
 """
 

@@ -45,7 +45,7 @@ class TaskSpec:
     """Options schema; unknown keys or values outside ``choices`` are refused in one line."""
     expert: Callable[..., Expert] | None = None
     """Expert declaration factory: ``expert(**options)`` -> a motion plan, nav, joint-target or sequence
-    expert (data; ``newton_lab.agents.agent_for_expert`` turns it into an agent). Coherent tasks leave it
+    expert (data; ``newton_lab.agents.agent_for_declaration`` turns it into an agent). Coherent tasks leave it
     ``None``: their expert runs the component experts phase by phase."""
     mimic: MimicCfg | None = None
     """Subtask decomposition for Mimic generation (Mimic variants only)."""
