@@ -3,7 +3,7 @@
 Per control step ``apply_actions`` writes every column to its joint's target (``control``); columns a row's
 current phase does not own hold (position targets keep their current value, velocity targets become 0).
 Per physics substep ``drive_base`` turns the four wheel-velocity columns into the planar base's velocity
-targets through the mecanum kinematics (``robots.g1.mecanum``), and ``drive_setpoints`` derives what the
+targets through the mecanum kinematics (``robots.mecanum``, with the robot's gains), and ``drive_setpoints`` derives what the
 solver tracks (the drive) from the targets: equal to them, except that a velocity-limited joint's setpoint
 moves toward its target at no more than its limit, with that velocity as the drive's velocity target.
 Every column's processed action is ``clamp(scale * a, low, high)`` (:func:`processed_action`).
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..robots.g1.mecanum import wheels_to_twist
+from ..robots.mecanum import wheels_to_twist
 
 TARGET_POSITION = 0
 """Column writes an absolute position target (coordinate index): ``absolute`` and ``binary`` kinds."""
@@ -25,7 +25,7 @@ TARGET_RELATIVE = 2
 
 KIND_CODE = {"absolute": TARGET_POSITION, "binary": TARGET_POSITION, "relative": TARGET_RELATIVE,
              "velocity": TARGET_VELOCITY}
-"""Kernel code of each action kind (``robots.g1.binding.ACTION_KINDS``)."""
+"""Kernel code of each action kind (``robots.bound.ACTION_KINDS``)."""
 
 
 @wp.func
@@ -97,7 +97,7 @@ def drive_base(
 ):
     """Wheel velocities (columns ``wheel_col .. +3``, [rad/s]) -> base twist -> planar base velocity targets.
 
-    Un-mixes the wheel speeds with ``robots.g1.mecanum.wheels_to_twist`` (the model has no rollers: the base
+    Un-mixes the wheel speeds with ``robots.mecanum.wheels_to_twist`` (the model has no rollers: the base
     is a planar joint) to the base-frame twist (vx, vy [m/s], wz [rad/s]) and rotates it into the world-frame
     x / y slides by the current yaw. Launched before every physics substep so the rotation follows the turning
     base. Rows whose phase does not own the wheels, or whose phase fixes the base, get a zero twist.

@@ -320,3 +320,31 @@ def test_no_monkeypatching_in_the_library():
                     and (rel, node.func.id) not in MONKEYPATCH_ALLOWED):
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)}")
     assert not bad, "run-time patching of project code:\n" + "\n".join(bad)
+
+
+# ---------------------------------------------------------------- the robot behind one binding
+ROBOT_PACKAGES = ("newton_lab.robots.g1",)
+"""Robot packages: only the robots layer (the registry loads a built-in robot's registration) and the tasks (a
+robot's own task configs) import them; everything else reads the robot through ``env.robot``
+(``newton_lab.robots.binding.RobotBinding``, looked up by ``newton_lab.robots.registry.robot_binding``)."""
+ROBOT_IMPORT_ALLOWED = {
+    # temporary: modules with their own owners that still read G1 facts directly
+    "newton_lab.task_api.experts": "NavExpert's default success radius (spec.NAV_SUCCESS_RADIUS)",
+    "newton_lab.datasets.split": "the joint groups of the component tasks' action terms (spec.JOINT_GROUPS)",
+    "newton_lab.cli.run": "camera names and image sides checked before anything heavy is imported",
+    "newton_lab.cli.yolo": "image sides checked before anything heavy is imported",
+}
+"""Module -> what it still reads from a robot package directly (each entry to be moved onto the binding)."""
+
+
+def _imports_robot_package(module: str) -> bool:
+    return any(t == p or t.startswith(p + ".") for t in GRAPH[module] for p in ROBOT_PACKAGES)
+
+
+def test_robot_packages_are_imported_only_by_robots_and_tasks():
+    bad = sorted(m for m in MODULES if _unit(m) not in ("robots", "tasks") and _imports_robot_package(m)
+                 and m not in ROBOT_IMPORT_ALLOWED)
+    assert not bad, ("modules importing a robot package directly (read the robot through env.robot / "
+                     "robots.registry.robot_binding):\n" + "\n".join(bad))
+    stale = sorted(m for m in ROBOT_IMPORT_ALLOWED if m not in MODULES or not _imports_robot_package(m))
+    assert not stale, f"ROBOT_IMPORT_ALLOWED entries that no longer import a robot package (remove them): {stale}"

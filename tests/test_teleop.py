@@ -12,12 +12,12 @@ import pytest
 import torch
 
 from newton_lab.agents.teleop import FrameMapper, TeleopFrame, review_demo
-from newton_lab.agents.teleop.contracts import CONTRACTS, GROUP_JOINTS, leg_targets
+from newton_lab.agents.teleop.contracts import CONTRACTS, leg_targets
 from newton_lab.agents.teleop.devices import KeyboardDevice
 from newton_lab.agents.teleop.devices.gp001 import Gp001Device, map_gp001
 from newton_lab.robots.g1 import spec
 
-FULL_BODY = [j for g in CONTRACTS["mobile_full_body"] for j in GROUP_JOINTS[g]]
+FULL_BODY = [j for g in CONTRACTS["mobile_full_body"] for j in spec.JOINT_GROUPS[g]]
 
 
 def _raw(axes=(0.0,) * 10, left=None, right=None, buttons=()):
@@ -76,7 +76,7 @@ def test_missing_joints_follow_the_no_frame_policy(policy):
     left = np.linspace(0.1, 0.7, 7)
     frame, _ = map_gp001(_raw(_axes(a3=0.7), left=left), height=0.0)  # no right-arm joints in the frame
     out = FrameMapper("mobile_full_body", FULL_BODY, no_frame_policy=policy)(frame, current)
-    cols = {g: [FULL_BODY.index(j) for j in GROUP_JOINTS[g]] for g in GROUP_JOINTS}
+    cols = {g: [FULL_BODY.index(j) for j in spec.JOINT_GROUPS[g]] for g in CONTRACTS["mobile_full_body"]}
     assert out[0, cols["left_arm"]].tolist() == pytest.approx(left.tolist())  # leader arm copied 1:1
     right = out[0, cols["right_arm"]]
     assert right.tolist() == (current[0, cols["right_arm"]].tolist() if policy == "hold" else [0.0] * 7)

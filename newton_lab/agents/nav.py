@@ -5,8 +5,9 @@ Every nav agent writes only the wheel columns and keeps the rest of the action a
 Base pose = the planar base coordinates (x, y [m], yaw [rad]), env frame.
 
 The wheel speeds are the action (the reference's action space: datasets record them, policies learn them), so
-an agent's twist becomes wheel speeds through the one mecanum formula (``robots.g1.mecanum``); the env's
-``drive_base`` kernel applies the same formula's inverse because its base is a planar joint without rollers.
+an agent's twist becomes wheel speeds through the one mecanum formula (``robots.mecanum``, with the robot's gains,
+``env.robot.wheel_gains``); the env's ``drive_base`` kernel applies the same formula's inverse because its base is
+a planar joint without rollers.
 """
 
 from __future__ import annotations
@@ -16,8 +17,7 @@ import math
 import numpy as np
 import torch
 
-from ..robots.g1 import spec
-from ..robots.g1.mecanum import twist_to_wheels_torch
+from ..robots.mecanum import twist_to_wheels_torch
 from .base import BaseAgent, EpisodeTracker
 
 
@@ -28,7 +28,7 @@ def wrap_angle(a: torch.Tensor) -> torch.Tensor:
 
 def base_pose(env) -> torch.Tensor:
     """(num_envs, 3) planar base pose (x, y, yaw)."""
-    return env.joint_positions(spec.BASE_PLANAR_JOINTS)
+    return env.joint_positions(env.robot.base_planar_joints)
 
 
 class BaseNavAgent(BaseAgent):
@@ -39,12 +39,12 @@ class BaseNavAgent(BaseAgent):
         self._env = None
 
     def _bind(self, env) -> None:
-        names = list(env.action_joint_names)
-        missing = [j for j in spec.BASE_WHEEL_JOINTS if j not in names]
-        if missing:
+        names, wheels = list(env.action_joint_names), env.robot.base_wheel_joints
+        missing = [j for j in wheels if j not in names]
+        if missing or not wheels:
             raise ValueError(f"env {env.task_id} has no wheel action columns {missing}; a nav agent needs a 'base' "
                              f"action term")
-        self._wheel_cols = [names.index(j) for j in spec.BASE_WHEEL_JOINTS]
+        self._wheel_cols = [names.index(j) for j in wheels]
         self._tracker = EpisodeTracker(env.num_envs)
         self._env = env
         self.bind(env)
@@ -72,7 +72,8 @@ class BaseNavAgent(BaseAgent):
             self.start(env, rows, pose)
         vx, vy, wz = self.twist(env, pose)
         out = env.current_action()
-        out[:, self._wheel_cols] = twist_to_wheels_torch(torch.stack((vx, vy, wz), dim=1).to(out.device))
+        twist = torch.stack((vx, vy, wz), dim=1).to(out.device)
+        out[:, self._wheel_cols] = twist_to_wheels_torch(twist, env.robot.wheel_gains)
         return out
 
 
@@ -83,19 +84,22 @@ class GoalNavAgent(BaseNavAgent):
     ramped by ``max_accel``; xy velocity zero inside ``success_radius``; yaw rate
     ``clamp(yaw_gain * wrap(goal_yaw - yaw), +-max_yaw_rate)`` zero inside ``yaw_tolerance``. With
     ``rotate_before_translate`` the base turns first and holds xy until the yaw is aligned, else it turns
-    after reaching xy. ``goal_yaw=None`` never turns. ``done``: xy reached and yaw aligned.
+    after reaching xy. ``goal_yaw=None`` never turns. ``done``: xy reached and yaw aligned. ``success_radius`` and
+    ``max_speed`` left ``None`` are the robot's (``env.robot.nav_success_radius`` / ``nav_max_speed``).
     """
 
-    def __init__(self, goal, goal_yaw: float | None = None, *, success_radius: float = spec.NAV_SUCCESS_RADIUS,
-                 yaw_tolerance: float = 0.03, max_speed: float = spec.NAV_MAX_SPEED, yaw_gain: float = 2.0,
+    def __init__(self, goal, goal_yaw: float | None = None, *, success_radius: float | None = None,
+                 yaw_tolerance: float = 0.03, max_speed: float | None = None, yaw_gain: float = 2.0,
                  max_yaw_rate: float = 1.0, rotate_before_translate: bool = True, max_accel: float = 1.0,
                  max_yaw_accel: float = 2.0):
         super().__init__()
         self.goal = tuple(float(v) for v in goal[:2])
         self.goal_yaw = None if goal_yaw is None else float(goal_yaw)
-        self.success_radius = float(success_radius)
+        self.success_radius = None if success_radius is None else float(success_radius)
+        """Distance to the goal that counts as reached [m]; ``None``: the robot's."""
         self.yaw_tolerance = float(yaw_tolerance)
-        self.max_speed = float(max_speed)
+        self.max_speed = None if max_speed is None else float(max_speed)
+        """Base speed limit [m/s]; ``None``: the robot's."""
         self.yaw_gain = float(yaw_gain)
         self.max_yaw_rate = float(max_yaw_rate)
         self.rotate_before_translate = bool(rotate_before_translate)
@@ -126,13 +130,16 @@ class GoalNavAgent(BaseNavAgent):
             yaw_err = wrap_angle(self.goal_yaw - pose[:, 2])
         return dist, yaw_err
 
+    def _radius(self, env) -> float:
+        return env.robot.nav_success_radius if self.success_radius is None else self.success_radius
+
     def twist(self, env, pose):
         dist, yaw_err = self._errors(env, pose)
-        xy_done = dist <= self.success_radius
+        xy_done = dist <= self._radius(env)
         yaw_ok = yaw_err.abs() <= self.yaw_tolerance
         wz = torch.clamp(self.yaw_gain * yaw_err, -self.max_yaw_rate, self.max_yaw_rate)
         wz = torch.where(yaw_ok, torch.zeros_like(wz), wz)
-        speed = torch.clamp(dist, max=self.max_speed)
+        speed = torch.clamp(dist, max=env.robot.nav_max_speed if self.max_speed is None else self.max_speed)
         if self.rotate_before_translate:
             speed = torch.where(yaw_ok, speed, torch.zeros_like(speed))
         else:
@@ -151,7 +158,7 @@ class GoalNavAgent(BaseNavAgent):
 
     def done(self, env) -> torch.Tensor:
         dist, yaw_err = self._errors(env, base_pose(env))
-        return (dist <= self.success_radius) & (yaw_err.abs() <= self.yaw_tolerance)
+        return (dist <= self._radius(env)) & (yaw_err.abs() <= self.yaw_tolerance)
 
 
 class ProportionalNavAgent(GoalNavAgent):
@@ -187,7 +194,7 @@ class TrajectoryNavAgent(GoalNavAgent):
         return self._start + span / length.clamp_min(1e-9) * along
 
     def target(self, env, pose):
-        tol = min(self.success_radius, self.waypoint_spacing)
+        tol = min(self._radius(env), self.waypoint_spacing)
         for _ in range(4):  # pass every waypoint already reached this step
             wpt = self._waypoint(env, self._index)
             passed = torch.linalg.norm(wpt - pose[:, :2], dim=1) <= tol

@@ -27,8 +27,8 @@ def make_env(
     ``task_options`` are the task's own options (unknown keys raise with the valid ones).
     ``cameras``: ``None`` renders the task's cameras (``TaskCfg.cameras``), ``False`` none (state-only speed),
     ``{"front_head": (96, 72)}`` changes a camera's resolution [px] (or ``{"front_head": {"resolution": (w, h),
-    "data": ("rgb", "depth", "segmentation")}}``; a G1 mount the task lacks is added), or the CLI's text for any
-    of these (``"none"``, ``"front_head=96x72:rgb"``).
+    "data": ("rgb", "depth", "segmentation")}}``; a mount of the task's robot that the task lacks is added), or the
+    CLI's text for any of these (``"none"``, ``"front_head=96x72:rgb"``).
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:

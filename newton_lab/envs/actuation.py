@@ -23,8 +23,7 @@ from ..kernels.actions import (
     drive_setpoints,
     sync_setpoints,
 )
-from ..robots.g1.binding import G1Binding
-from ..robots.g1.mecanum import wheel_gains
+from ..robots.bound import BoundRobot
 from ..task_api.cfg import TaskCfg
 from .scene import SceneLayout
 
@@ -38,7 +37,7 @@ class Actuation:
     velocity, targets -> drive setpoints (``substep``). After a masked reset: setpoints jump to the reset
     targets (``sync``). Warp arrays live on the current device."""
 
-    def __init__(self, binding: G1Binding, cfg: TaskCfg, layout: SceneLayout, control: newton.Control,
+    def __init__(self, binding: BoundRobot, cfg: TaskCfg, layout: SceneLayout, control: newton.Control,
                  num_envs: int):
         amap, limits = binding.actions, binding.limits
         self.num_envs, self.layout, self.control, self.sim_dt = num_envs, layout, control, cfg.sim_dt
@@ -54,9 +53,10 @@ class Actuation:
         self.max_step = _farray(limits.max_rate * cfg.sim_dt)
         self.coord_dof = wp.array(limits.coord_dof, dtype=int)
         self.dof_limited = wp.array(limits.dof_limited, dtype=bool)
-        self.lin_gain, self.yaw_gain = wheel_gains()
-        self.base_coord = layout.joints.coord["base_x"]
-        self.base_dof = layout.joints.dof["base_x"]
+        self.lin_gain, self.yaw_gain = binding.robot.wheel_gains
+        base_x = binding.robot.base_planar_joints[0]
+        self.base_coord = layout.joints.coord[base_x]
+        self.base_dof = layout.joints.dof[base_x]
         self.drive = copy.copy(control)
         """What the solver tracks: ``control``'s arrays, but its own position / velocity targets."""
         self.drive.joint_target_q = wp.clone(control.joint_target_q)

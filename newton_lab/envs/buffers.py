@@ -3,7 +3,7 @@ coordinates and the task context.
 
 The task context has two halves: the simulation and task half filled here (state / control arrays, per-world
 sizes, entities, task command and per-row counters) and the robot half the binding fills
-(``robots.g1.binding.RobotContext.fill``).
+(``robots.bound.RobotContext.fill``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels.context import TaskContext
-from ..robots.g1.binding import G1Binding
+from ..robots.bound import BoundRobot
 from ..task_api.cfg import TaskCfg
 from .scenario import Scenario, load_scenario
 from .scene import SceneLayout
@@ -132,7 +132,7 @@ def build_context(
     *,
     cfg: TaskCfg,
     layout: SceneLayout,
-    binding: G1Binding,
+    binding: BoundRobot,
     state: newton.State,
     control: newton.Control,
     actions: wp.array2d,

@@ -1,4 +1,4 @@
-"""Which cameras an env renders: the task's views on the G1 mounts (``TaskCfg.cameras``), changed by a
+"""Which cameras an env renders: the task's views on its robot's mounts (``TaskCfg.cameras``), changed by a
 ``make_env(..., cameras=...)`` request (a dict or the CLI's text), checked; and the image observation terms
 they give (``<camera>_<data>``: RGB uint8 (H, W, 3), depth float32 (H, W) [m], segmentation int32 (H, W)).
 """
@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..robots.g1 import cameras as mounts
-from ..robots.g1 import spec
+from ..robots.binding import RobotBinding
+from ..robots.registry import robot_binding
 from ..task_api.cfg import IMAGE_DATA, CameraCfg, TaskCfg, camera_option
 
 
@@ -28,13 +28,14 @@ class ImageTerm:
     dtype: torch.dtype
 
 
-def _resolution(name: str, value: Any) -> tuple[int, int]:
+def _resolution(name: str, value: Any, sides: tuple[int, int]) -> tuple[int, int]:
+    lo, hi = sides
     ok = (isinstance(value, (tuple, list)) and len(value) == 2
           and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
-          and all(mounts.MIN_RESOLUTION <= v <= mounts.MAX_RESOLUTION for v in value))
+          and all(lo <= v <= hi for v in value))
     if not ok:
-        raise ValueError(f"camera {name!r} resolution must be (width, height) integers in [{mounts.MIN_RESOLUTION}, "
-                         f"{mounts.MAX_RESOLUTION}] px, got {value!r}; e.g. cameras={{'{name}': (96, 72)}}")
+        raise ValueError(f"camera {name!r} resolution must be (width, height) integers in [{lo}, {hi}] px, got "
+                         f"{value!r}; e.g. cameras={{'{name}': (96, 72)}}")
     return int(value[0]), int(value[1])
 
 
@@ -46,22 +47,26 @@ def _data(name: str, value: Any) -> tuple[str, ...]:
     return data
 
 
-def _override(name: str, base: CameraCfg, value: Any) -> CameraCfg:
+def _override(name: str, base: CameraCfg, value: Any, sides: tuple[int, int]) -> CameraCfg:
     if isinstance(value, Mapping):
         unknown = sorted(set(value) - {"resolution", "data"})
         if unknown:
             raise ValueError(f"camera {name!r} override has unknown keys {unknown}; use 'resolution' and/or 'data'")
-        w, h = _resolution(name, value.get("resolution", (base.width, base.height)))
+        w, h = _resolution(name, value.get("resolution", (base.width, base.height)), sides)
         return CameraCfg(width=w, height=h, data=_data(name, value.get("data", base.data)))
-    w, h = _resolution(name, value)
+    w, h = _resolution(name, value, sides)
     return CameraCfg(width=w, height=h, data=base.data)
 
 
-def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None) -> dict[str, CameraCfg]:
+def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None, *,
+                    robot: RobotBinding | None = None) -> dict[str, CameraCfg]:
     """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
-    ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a G1 mount the task does
-    not declare is added), or any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``). Raises a
-    one-line ``ValueError`` on an unknown mount, a bad resolution or data, or cameras asked of a task without any."""
+    ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a mount of the robot that the
+    task does not declare is added), or any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``).
+    ``robot``: the task's (``robot_binding(cfg.robot)``) when ``None``. Raises a one-line ``ValueError`` on an
+    unknown mount, a bad resolution or data, or cameras asked of a task without any."""
+    robot = robot_binding(cfg.robot) if robot is None else robot
+    mounts, sides = list(robot.camera_mounts), robot.camera_resolution
     if isinstance(cameras, str):
         cameras = camera_option(cameras)
     if cameras is None or cameras is True:
@@ -74,16 +79,16 @@ def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None
                              f"{dict(cameras)!r} cannot apply; leave cameras unset or pass cameras=False")
         chosen = dict(cfg.cameras)
         for name, value in cameras.items():
-            if name not in spec.CAMERA_MOUNTS:
-                raise ValueError(f"unknown camera {name!r}; the G1's cameras are {list(spec.CAMERA_MOUNTS)}")
-            chosen[name] = _override(name, chosen.get(name, CameraCfg()), value)
+            if name not in mounts:
+                raise ValueError(f"unknown camera {name!r}; the {robot.name}'s cameras are {mounts}")
+            chosen[name] = _override(name, chosen.get(name, CameraCfg()), value, sides)
     else:
         raise ValueError(f"cameras must be None, True, False, a dict {{camera: (width, height)}} or its text form, "
                          f"got {cameras!r}")
     for name, cam in chosen.items():
-        if name not in spec.CAMERA_MOUNTS:
-            raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the G1's are {list(spec.CAMERA_MOUNTS)}")
-        _resolution(name, (cam.width, cam.height))
+        if name not in mounts:
+            raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the {robot.name}'s are {mounts}")
+        _resolution(name, (cam.width, cam.height), sides)
         _data(name, cam.data)
     return chosen
 

@@ -1,4 +1,4 @@
-"""The env's cameras: a task's views on the G1 mounts, rendered by Newton's ``SensorCamera``.
+"""The env's cameras: a task's views on its robot's mounts, rendered by Newton's ``SensorCamera``.
 
 All views of all worlds that share a resolution are rendered by one ``SensorCamera.update`` (views camera-major:
 view ``k * N + w`` is camera ``k`` in world ``w``), after the view poses follow their mount bodies
@@ -32,8 +32,8 @@ import warp as wp
 from newton.sensors import SensorCamera
 
 from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
-from ..robots.g1 import cameras as mounts
-from ..robots.g1 import spec
+from ..robots.binding import RobotBinding
+from ..robots.registry import robot_binding
 from ..task_api.cfg import CameraCfg
 from .camera_specs import ImageTerm, image_terms, resolve_cameras
 from .pictures import picture
@@ -49,11 +49,12 @@ marks them invisible because the MJCF also has visual geoms), not sites."""
 BACKGROUND, GROUND = "background", "ground"
 
 
-def segmentation_table(model: newton.Model, entity_names: list[str]) -> tuple[tuple[str, ...], np.ndarray]:
+def segmentation_table(model: newton.Model, entity_names: list[str],
+                       robot: RobotBinding) -> tuple[tuple[str, ...], np.ndarray]:
     """(names, shape_to_id): id 0 ``background`` (nothing hit), 1 ``ground``, then the task's objects in slot
-    order, then the robot's link groups (``robot/<group>``, ``robots.g1.cameras.LINK_GROUPS``); and the id of
-    every shape of the model."""
-    names = [BACKGROUND, GROUND, *entity_names, *(g for g, _ in mounts.LINK_GROUPS)]
+    order, then the robot's link groups (``robot/<group>``, ``RobotBinding.link_groups``); and the id of every
+    shape of the model."""
+    names = [BACKGROUND, GROUND, *entity_names, *robot.link_groups]
     ids = {n: i for i, n in enumerate(names)}
     world = model.shape_world.numpy()
     body = model.shape_body.numpy()
@@ -65,7 +66,7 @@ def segmentation_table(model: newton.Model, entity_names: list[str]) -> tuple[tu
         elif label in entity_names:
             table[s] = ids[label]
         elif body[s] >= 0:
-            table[s] = ids[mounts.link_group(model.body_label[body[s]].rsplit("/", 1)[-1])]
+            table[s] = ids[robot.link_group(model.body_label[body[s]].rsplit("/", 1)[-1])]
     return tuple(names), table
 
 
@@ -103,7 +104,10 @@ class Cameras:
 
     def __init__(self, specs: Mapping[str, CameraCfg], *, model: newton.Model, state: newton.State, num_envs: int,
                  bodies_per_world: int, entity_names: list[str], capture: bool = True, randomize: bool = False,
-                 seed=lambda: 0, episode: wp.array | None = None, keep_hue: Collection[str] = ()):
+                 seed=lambda: 0, episode: wp.array | None = None, keep_hue: Collection[str] = (),
+                 robot: RobotBinding | None = None):
+        self.robot = robot_binding() if robot is None else robot
+        """The robot the cameras ride on (mounts, intrinsics, clipping, segmentation groups)."""
         self.specs = dict(specs)
         self.terms = image_terms(self.specs)
         self.model, self.state, self.num_envs = model, state, num_envs
@@ -127,7 +131,7 @@ class Cameras:
     def segmentation_names(self) -> tuple[str, ...]:
         """Segmentation id -> name (``segmentation_table``)."""
         if self._names is None:
-            self._names, self._shape_ids = segmentation_table(self.model, self.entity_names)
+            self._names, self._shape_ids = segmentation_table(self.model, self.entity_names, self.robot)
         return self._names
 
     def id_colors(self) -> np.ndarray:
@@ -147,7 +151,7 @@ class Cameras:
     def intrinsics(self, camera: str) -> np.ndarray:
         """3x3 pinhole matrix K [px] of ``camera`` at its resolution (u right, v down, centre principal point)."""
         c = self._spec(camera)
-        return mounts.intrinsics(c.width, c.height)
+        return self.robot.camera_intrinsics(c.width, c.height)
 
     def poses(self, camera: str) -> torch.Tensor:
         """(N, 7) world pose (x, y, z, qx, qy, qz, qw) of ``camera`` at the last render (pinhole frame: looks along
@@ -199,7 +203,7 @@ class Cameras:
         self.model.bvh_build_shapes(self.state, shape_flags=RENDERED_SHAPES)
         clear = SensorCamera.ClearData(clear_color=int.from_bytes(bytes(SKY_RGBA), "little"),
                                        clear_depth=math.inf)
-        config = SensorCamera.RenderConfig(max_distance=spec.CAMERA_CLIPPING[1])
+        config = SensorCamera.RenderConfig(max_distance=self.robot.camera_clipping[1])
         self.sensor = SensorCamera(self.model, default_clear_data=clear, default_render_config=config,
                                    load_textures=False)
         self.sensor.create_default_light(enable_shadows=False)
@@ -223,7 +227,7 @@ class Cameras:
         img = lambda dtype: wp.zeros((v, height, width), dtype=dtype)  # noqa: E731
         return ViewGroup(
             cameras=names, width=width, height=height,
-            rays=wp.array(mounts.pinhole_rays(width, height), dtype=wp.vec3f).reshape((height, width, 1, 2)),
+            rays=wp.array(self.robot.camera_rays(width, height), dtype=wp.vec3f).reshape((height, width, 1, 2)),
             view_body=wp.array(body, dtype=int), view_offset=wp.array(offset, dtype=wp.transform),
             world=wp.array(np.tile(np.arange(n, dtype=np.int32), len(names)), dtype=wp.int32),
             poses=wp.zeros(v, dtype=wp.transformf),
@@ -235,13 +239,13 @@ class Cameras:
 
     def _mount(self, camera: str) -> tuple[int, wp.transform]:
         """(world-0 body index, camera offset in that body) of ``camera``'s MJCF site."""
-        site = spec.CAMERA_MOUNTS[camera]
+        site = self.robot.camera_mounts[camera]
         world = self.model.shape_world.numpy()
         for s, label in enumerate(self.model.shape_label):
             if label.rsplit("/", 1)[-1] == site and world[s] == 0:
                 xf = self.model.shape_transform.numpy()[s]
                 return int(self.model.shape_body.numpy()[s]), wp.transform(wp.vec3(*xf[:3]), wp.quat(*xf[3:]))
-        raise ValueError(f"the G1 model has no camera site {site!r} for camera {camera!r}")
+        raise ValueError(f"the {self.robot.name} model has no camera site {site!r} for camera {camera!r}")
 
     def _views(self) -> dict[str, torch.Tensor]:
         out, n = {}, self.num_envs

@@ -21,7 +21,9 @@ import newton
 import torch
 import warp as wp
 
-from ..robots.g1.binding import G1Binding
+from ..robots.binding import RobotBinding
+from ..robots.registry import robot_binding
+from ..robots.bound import BoundRobot
 from ..task_api.cfg import TaskCfg
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
 from . import rollout
@@ -37,7 +39,7 @@ __all__ = ["Entity", "NewtonEnv"]
 
 
 class NewtonEnv:
-    """A batch of ``num_envs`` G1 worlds running one task.
+    """A batch of ``num_envs`` worlds of one robot (``robot``, the binding the task's config names) running one task.
 
     Transparent: ``model``, ``state``, ``control`` and ``solver`` are Newton's own objects; the step
     writes into them in place. ``control`` holds the targets the actions command; the solver tracks ``drive``
@@ -65,10 +67,13 @@ class NewtonEnv:
         self.torch_device = torch.device(wp.device_to_torch(self.device))
         self.seed = 0 if seed is None else int(seed)
         self.randomize = bool(randomize)
-        self.camera_specs = resolve_cameras(cfg, cameras)  # a bad camera request fails before the build
+        self.robot: RobotBinding = robot_binding(cfg.robot)
+        """The robot's facts (``robots.binding.RobotBinding``): joint groups, arms, TCP, gripper range, cameras, its
+        kinematics; agents, Mimic and the viewers read the robot only through it."""
+        self.camera_specs = resolve_cameras(cfg, cameras, robot=self.robot)  # a bad request fails before the build
 
         with wp.ScopedDevice(self.device):
-            self.layout = build_scene(cfg, num_envs, str(self.device))
+            self.layout = build_scene(cfg, num_envs, str(self.device), self.robot)
             self.model = self.layout.model
             self.state = self.model.state()
             self.control = self.model.control()
@@ -96,8 +101,9 @@ class NewtonEnv:
 
     # ------------------------------------------------------------------ construction
     def _build_actions(self) -> None:
-        self.binding = G1Binding.from_layout(self.layout, actions=self.cfg.actions, arm=self.cfg.arm)
-        """The G1 on this scene: robot half of the task context, the action map, the drive limits."""
+        self.binding = BoundRobot.from_layout(self.robot, self.layout, actions=self.cfg.actions, arm=self.cfg.arm)
+        """The robot on this scene (``robots.bound.BoundRobot``): robot half of the task context, the action map,
+        the drive limits."""
         action_map = self.binding.actions
         self.action_joint_names = action_map.joint_names
         self.action_terms = action_map.terms
@@ -162,7 +168,7 @@ class NewtonEnv:
                                num_envs=self.num_envs, bodies_per_world=lay.bodies_per_world,
                                entity_names=lay.entity_names, capture=capture, randomize=self.randomize,
                                seed=lambda: self.seed, episode=self._buf.episode_count,
-                               keep_hue=[e.name for e in self.cfg.entities if e.keep_hue])
+                               keep_hue=[e.name for e in self.cfg.entities if e.keep_hue], robot=self.robot)
         """The rendered cameras (``envs.cameras``): specs, intrinsics, poses, segmentation names."""
         self.image_terms = self.cameras.terms
         """Image observations by name (``front_head_rgb``, ...): camera, data, per-row shape, dtype."""

@@ -187,6 +187,7 @@ def env_args(env) -> dict[str, Any]:
             "task_options": env.cfg.options,
         },
         "newton_lab": {
+            "robot": env.robot.name,
             "sim_dt": env.cfg.sim_dt,
             "decimation": env.cfg.decimation,
             "action_joint_names": list(env.action_joint_names),

@@ -29,7 +29,6 @@ import numpy as np
 import warp as wp
 import yaml
 
-from ..robots.g1 import spec
 
 SCHEMA = "newton_lab/scenario-v1"
 ROBOT = "robot"
@@ -56,14 +55,14 @@ class Scenario:
     def overlay(self, layout, default_q: np.ndarray, *, task_id: str) -> np.ndarray:
         """The task's default coordinates of one world with this scenario applied on top."""
         q = np.array(default_q, dtype=np.float32, copy=True)
-        coord = layout.joints.coord
+        coord, planar = layout.joints.coord, layout.robot.base_planar_joints
         if self.base_pose is not None:
             x, y, _, qx, qy, qz, qw = self.base_pose
-            q[coord["base_x"]], q[coord["base_y"]] = x, y
-            q[coord["base_yaw"]] = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-        robot_joints = sorted(n for n in coord if n not in spec.BASE_PLANAR_JOINTS)
+            q[coord[planar[0]]], q[coord[planar[1]]] = x, y
+            q[coord[planar[2]]] = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        robot_joints = sorted(n for n in coord if n not in planar)
         for name, value in self.joint_position.items():
-            if name not in coord or name in spec.BASE_PLANAR_JOINTS:
+            if name not in coord or name in planar:
                 raise ScenarioError(f"{self.origin}: articulations.robot.joint_position names unknown joint "
                                     f"{name!r} for {task_id}; valid joints: {robot_joints}")
             q[coord[name]] = value
@@ -187,10 +186,10 @@ def capture_scenario(env, row: int = 0, *, terminal: bool = False, source: str |
     lay = env.layout
     coords = env.terminal_joint_q if terminal else wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
     q = coords[row].detach().cpu().numpy().astype(np.float64)
-    coord = lay.joints.coord
-    yaw = q[coord["base_yaw"]]
-    base = (q[coord["base_x"]], q[coord["base_y"]], 0.0, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-    joints = {n: float(q[c]) for n, c in sorted(coord.items(), key=lambda kv: kv[1]) if n not in spec.BASE_PLANAR_JOINTS}
+    coord, planar = lay.joints.coord, env.robot.base_planar_joints
+    yaw = q[coord[planar[2]]]
+    base = (q[coord[planar[0]]], q[coord[planar[1]]], 0.0, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    joints = {n: float(q[c]) for n, c in sorted(coord.items(), key=lambda kv: kv[1]) if n not in planar}
     poses = {}
     for k, name in enumerate(lay.entity_names):
         c = lay.entity_coord[k]

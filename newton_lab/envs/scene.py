@@ -1,4 +1,5 @@
-"""Build a task's batched Newton model: one G1 plus the task's entities per world, replicated."""
+"""Build a task's batched Newton model: one robot (the task's ``RobotBinding``) plus the task's entities per world,
+replicated."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import newton
 import numpy as np
 import warp as wp
 
-from ..robots.g1 import spec
-from ..robots.g1.model import JointIndex, add_g1
+from ..robots.binding import JointIndex, RobotBinding
+from ..robots.registry import robot_binding
 from ..task_api.cfg import EntityCfg, TaskCfg
 
 
@@ -24,6 +25,8 @@ class SceneLayout:
     """The finalized model and the world-local indices every kernel needs."""
 
     model: newton.Model
+    robot: RobotBinding
+    """The robot of every world (its coordinates come first in each world's row)."""
     joints: JointIndex
     """World-local coord / dof / body indices of the robot's joints and bodies."""
     robot_coords: int
@@ -58,21 +61,23 @@ def _add_entity(builder: newton.ModelBuilder, e: EntityCfg) -> int:
     return body
 
 
-def build_scene(cfg: TaskCfg, num_envs: int, device: str) -> SceneLayout:
-    """Build, replicate ``num_envs`` times and finalize the task's scene on ``device``."""
+def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | None = None) -> SceneLayout:
+    """Build, replicate ``num_envs`` times and finalize the task's scene (its robot and entities) on ``device``;
+    ``robot``: the task's robot (``robot_binding(cfg.robot)``) when ``None``."""
+    robot = robot_binding(cfg.robot) if robot is None else robot
     world = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(world)
     world.rigid_gap = CONTACT_GAP
-    add_g1(world)
-    joints = JointIndex.from_builder(world)
+    joints = robot.build(world)
     robot_coords, robot_dofs = world.joint_coord_count, world.joint_dof_count
 
-    posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
+    base_x, base_y, base_yaw = robot.base_planar_joints
+    posture = {base_x: cfg.root_pos[0], base_y: cfg.root_pos[1], base_yaw: cfg.root_yaw, **cfg.posture}
     for name, value in posture.items():
         if name not in joints.coord:
             raise ValueError(f"task {cfg.task_id!r} posture names unknown joint {name!r}; valid: {sorted(joints.coord)}")
         world.joint_q[joints.coord[name]] = value
-        if name not in spec.BASE_PLANAR_JOINTS:
+        if name not in robot.base_planar_joints:
             world.joint_target_q[joints.coord[name]] = value
 
     entity_body, entity_coord, entity_dof, static_pose, half = [], [], [], [], []
@@ -97,6 +102,7 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str) -> SceneLayout:
     model = scene.finalize(device=device)
     return SceneLayout(
         model=model,
+        robot=robot,
         joints=joints,
         robot_coords=robot_coords,
         robot_dofs=robot_dofs,

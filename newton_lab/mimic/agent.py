@@ -10,7 +10,6 @@ import torch
 import warp as wp
 
 from ..agents.base import BaseAgent, EpisodeTracker
-from ..robots.g1.kinematics import TcpKinematics
 from ..task_api.mimic_cfg import MimicCfg
 from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segments
 from .source import SourceDemo
@@ -57,10 +56,10 @@ class MimicAgent(BaseAgent):
     def _bind(self, env) -> None:
         self._env = env
         n = env.num_envs
-        self._kin = TcpKinematics(n, device=env.device, arm=self.cfg.arm)
-        names = list(env.action_joint_names)
-        self._arm_cols = [names.index(f"{self.cfg.arm}_arm_joint{i}") for i in range(1, 8)]
-        grip = f"{self.cfg.arm}_gripper_joint"
+        self._kin = env.robot.kinematics(n, device=env.device, arm=self.cfg.arm)
+        names, arm = list(env.action_joint_names), env.robot.arm(self.cfg.arm)
+        self._arm_cols = [names.index(j) for j in arm.joints]
+        grip = arm.gripper
         self._grip_col = names.index(grip) if grip in names else None
         self._rows = [_RowPlan() for _ in range(n)]
         self._tracker = EpisodeTracker(n)

@@ -6,7 +6,6 @@ from pathlib import Path
 
 from ..datasets.ref import DatasetRef
 from ..envs import make_env
-from ..robots.g1.kinematics import TcpKinematics
 from ..task_api.registry import mimic_variant_of
 from .agent import MimicAgent
 from .source import load_sources
@@ -39,7 +38,8 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
         cameras = {cam: {"resolution": (c["width"], c["height"]), "data": tuple(c["data"])}
                    for cam, c in recorded.items()} or False
     env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras)
-    sources = load_sources(path, cfg, TcpKinematics(256, device=env.device, arm=cfg.arm), task_id=task_id)
+    sources = load_sources(path, cfg, env.robot.kinematics(256, device=env.device, arm=cfg.arm), task_id=task_id,
+                           robot=env.robot)
     agent = MimicAgent(sources, cfg, seed=seed)
     ref = env.collect(
         agent=agent,

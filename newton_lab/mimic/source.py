@@ -10,6 +10,8 @@ import numpy as np
 
 from ..datasets.states import state_tree
 from ..datasets.storage import read_dataset_info, read_episodes
+from ..robots.binding import RobotBinding
+from ..robots.registry import robot_binding
 from ..task_api.mimic_cfg import MimicCfg
 
 
@@ -42,16 +44,20 @@ class SourceDemo:
         return ends
 
 
-def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str) -> list[SourceDemo]:
-    """Successful demos of ``path`` that carry every signal ``cfg`` segments on."""
+def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str,
+                 robot: RobotBinding | None = None) -> list[SourceDemo]:
+    """Successful demos of ``path`` that carry every signal ``cfg`` segments on; ``kinematics`` (the robot's,
+    ``RobotBinding.kinematics``) turns their commanded arm joints into TCP poses. ``robot``: the env's
+    (``env.robot``); the default robot when ``None``."""
     info = read_dataset_info(path)
     args = info["env_args"].get("newton_lab", {})
     names = args.get("action_joint_names", [])
-    arm_joints = [f"{cfg.arm}_arm_joint{i}" for i in range(1, 8)]
+    arm = (robot_binding() if robot is None else robot).arm(cfg.arm)
+    arm_joints = list(arm.joints)
     if not all(j in names for j in arm_joints):
         raise ValueError(f"{path}: actions do not hold the {cfg.arm} arm joints; Mimic needs arm joint-target actions")
     arm_cols = [names.index(j) for j in arm_joints]
-    grip_name = f"{cfg.arm}_gripper_joint"
+    grip_name = arm.gripper
     grip_col = names.index(grip_name) if grip_name in names else None
     sources: list[SourceDemo] = []
     ids = [demo for demo in info["demo_ids"] if info["demos"][demo]["success"]]

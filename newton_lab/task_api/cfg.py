@@ -224,6 +224,9 @@ class TaskCfg:
     """Base twist held at zero (manipulation tasks); mobile tasks drive it from their wheel columns."""
     scenario: str | None = None
     """Reset overlay (``newton_lab.envs.scenario``): a YAML path or ``package:file.yaml`` resource."""
+    robot: str = "g1"
+    """The robot the task runs on, by registry name (``newton_lab.robots.registry.robot_binding``): the env builds
+    its model and reads its joint groups, arms, TCP, gripper range and camera mounts from it (``env.robot``)."""
     arm: str = "left"
     """The controlled arm (``left`` or ``right``): the TCP, gripper and arm coordinates terms read."""
     arm_home: tuple[float, ...] = (0.0,) * 7

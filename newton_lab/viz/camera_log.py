@@ -16,8 +16,7 @@ import numpy as np
 import rerun as rr
 import warp as wp
 
-from ..robots.g1 import cameras as mounts
-from ..robots.g1 import spec
+from ..robots.binding import RobotBinding
 
 CAMERA_XYZ = rr.ViewCoordinates.RUB
 """Axes of the camera poses (``env.cameras.poses``): x right, y up, z backwards (the view looks along -z)."""
@@ -53,28 +52,28 @@ def env_streams(env) -> list[CameraStream]:
             for name, c in cams.specs.items()]
 
 
-def dataset_streams(obs: Mapping[str, np.ndarray], env_args: Mapping) -> list[CameraStream]:
-    """The cameras of a recorded episode: every ``obs/<camera>_<data>`` image key of a G1 mount, with the
-    dataset's ``env_args["newton_lab"]["cameras"]`` block for intrinsics and segmentation names (reference
+def dataset_streams(obs: Mapping[str, np.ndarray], env_args: Mapping, robot: RobotBinding) -> list[CameraStream]:
+    """The cameras of a recorded episode: every ``obs/<camera>_<data>`` image key of a mount of ``robot``, with the
+    dataset's ``env_args["newton_lab"]["cameras"]`` block for intrinsics and segmentation names (the robot's
     intrinsics at the image's size when the block lacks them)."""
     block = (env_args.get("newton_lab") or {}).get("cameras") or {}
     out = []
-    for cam in spec.CAMERA_MOUNTS:
+    for cam in robot.camera_mounts:
         data = tuple(d for d in IMAGE_DATA if f"{cam}_{d}" in obs)
         if not data:
             continue
         h, w = np.asarray(obs[f"{cam}_{data[0]}"]).shape[1:3]
         meta = block.get(cam, {})
-        k = np.asarray(meta.get("intrinsics", mounts.intrinsics(w, h)), dtype=float).reshape(3, 3)
+        k = np.asarray(meta.get("intrinsics", robot.camera_intrinsics(w, h)), dtype=float).reshape(3, 3)
         names = tuple(meta.get("segmentation_names", ())) if "segmentation" in data else ()
         out.append(CameraStream(cam, int(w), int(h), data, k, names))
     return out
 
 
-def mount_poses(model, body_q: np.ndarray, camera: str) -> np.ndarray:
-    """(7,) world pose (xyz, xyzw) of ``camera``'s MJCF site in world 0, from the bodies' poses ``body_q``
-    (bodies, 7): the camera pose of a recording without ``datagen/camera_poses``."""
-    site = spec.CAMERA_MOUNTS[camera]
+def mount_poses(model, body_q: np.ndarray, camera: str, robot: RobotBinding) -> np.ndarray:
+    """(7,) world pose (xyz, xyzw) of ``camera``'s MJCF site (``robot.camera_mounts``) in world 0, from the bodies'
+    poses ``body_q`` (bodies, 7): the camera pose of a recording without ``datagen/camera_poses``."""
+    site = robot.camera_mounts[camera]
     world = model.shape_world.numpy()
     for s, label in enumerate(model.shape_label):
         if label.rsplit("/", 1)[-1] == site and world[s] == 0:
@@ -82,7 +81,7 @@ def mount_poses(model, body_q: np.ndarray, camera: str) -> np.ndarray:
             t = wp.transform_multiply(wp.transform(*[float(x) for x in body_q[b]]),
                                       wp.transform(*[float(x) for x in xf]))
             return np.array([*t.p, *t.q], dtype=np.float64)
-    raise ValueError(f"the G1 model has no camera site {site!r} for camera {camera!r}")
+    raise ValueError(f"the {robot.name} model has no camera site {site!r} for camera {camera!r}")
 
 
 def annotation_context(names) -> rr.AnnotationContext:

@@ -218,7 +218,7 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
     ep = read_episode(path, episode)
     env = make_env(info["task_id"], num_envs=1, device=device, capture=False, cameras=False)  # images are recorded
     obs = ep.get("obs", {})
-    streams = dataset_streams(obs, info["env_args"])
+    streams = dataset_streams(obs, info["env_args"], env.robot)
     cam_poses = ep.get("datagen", {}).get("camera_poses", {})
     logger = RerunLogger(env, save=save, spawn=spawn, max_worlds=1, app_id="newton_lab_replay", cameras=streams,
                          jpeg_quality=jpeg_quality) if (save is not None or spawn) else None
@@ -239,7 +239,7 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
             env.observe()
             frames = {c.name: {d: np.asarray(obs[f"{c.name}_{d}"][t])[None] for d in c.data} for c in streams}
             at = {c.name: (np.asarray(cam_poses[c.name][t]) if c.name in cam_poses
-                           else mount_poses(env.model, body_q, c.name))[None] for c in streams}
+                           else mount_poses(env.model, body_q, c.name, env.robot))[None] for c in streams}
             logger.log_step(body_q=body_q, camera_frames=frames, camera_poses=at)
     if logger is not None:
         logger.close()

@@ -11,8 +11,7 @@ import torch
 import warp as wp
 
 from ...kernels.planner import gather_plan_actions
-from ...robots.g1 import spec
-from ...robots.g1.kinematics import TcpKinematics, quat_mul
+from ...robots.quaternions import quat_mul
 from ...task_api.motion_plan import MotionPlan, yaw_of
 from ...task_api.registry import lookup
 from ..base import BaseAgent, EpisodeTracker
@@ -51,20 +50,20 @@ class PlannerAgent(BaseAgent):
 
     # ------------------------------------------------------------------ binding to an env
     def _bind(self, env) -> None:
-        self._env = env
+        self._env, self._robot = env, env.robot
         n, dev = env.num_envs, env.device
         arm = self.plan.arm
-        arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
+        arm_joints = env.robot.arm(arm).joints
         names = list(env.action_joint_names)
         missing = [j for j in arm_joints if j not in names]
         if missing:
             raise ValueError(f"env {env.task_id} has no action columns for {missing}; the plan drives the {arm} arm")
         self._arm_cols = wp.array([names.index(j) for j in arm_joints], dtype=int, device=dev)
-        gripper = f"{arm}_gripper_joint"
+        gripper = env.robot.arm(arm).gripper
         self._gripper_col = names.index(gripper) if gripper in names else -1
         self._arm_coords = env.joint_coords(arm_joints)
         self._robot_coords = env.robot_coords
-        self._kin = TcpKinematics(n, device=dev, arm=arm)
+        self._kin = env.robot.kinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
             k = max(self._num_waypoints(), 1)
             self._waypoints = wp.zeros((n, k, 8), dtype=float)
@@ -88,7 +87,7 @@ class PlannerAgent(BaseAgent):
         poses["tcp"] = env.tcp_pose.detach().cpu().numpy()[rows].astype(np.float64)
         poses["command"] = env.info["command"].detach().cpu().numpy()[rows].astype(np.float64)
         q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1).cpu().numpy()[rows]
-        bx, by, byaw = env.joint_coords(spec.BASE_PLANAR_JOINTS)
+        bx, by, byaw = env.joint_coords(env.robot.base_planar_joints)
         yaw = q[:, byaw]
         poses["base"] = np.stack(
             [q[:, bx], q[:, by], np.zeros_like(yaw),
@@ -100,7 +99,7 @@ class PlannerAgent(BaseAgent):
             return np.asarray(step.quat(poses), dtype=np.float64)
         if step.quat is not None:
             return np.tile(np.asarray(step.quat, dtype=np.float64), (r, 1))
-        top = np.tile(np.asarray(spec.TOP_DOWN_TCP_QUAT, dtype=np.float64), (r, 1))
+        top = np.tile(np.asarray(self._robot.top_down_tcp_quat, dtype=np.float64), (r, 1))
         if step.align_yaw is None:
             return top
         yaw = yaw_of(poses[step.align_yaw][:, 3:7])
@@ -145,7 +144,7 @@ class PlannerAgent(BaseAgent):
         tcp_prev = poses["tcp"][:, :3].copy()  # start of the next straight-line TCP move
         i = 0
         for step in plan.steps:
-            gripper = spec.GRIPPER_OPEN if step.gripper_open else spec.GRIPPER_CLOSED
+            gripper = self._robot.gripper_open if step.gripper_open else self._robot.gripper_closed
             moves = step.target is not None or step.joints is not None
             if step.joints is not None:
                 targets = [np.tile(np.asarray(step.joints, dtype=np.float64), (r, 1))]

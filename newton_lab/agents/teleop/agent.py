@@ -55,7 +55,7 @@ class TeleopAgent(BaseAgent):
             raise ValueError(f"this TeleopAgent drives {self.task_id}, not {env.task_id}; build one per task")
         self._env = env
         self.mapper = FrameMapper(self.contract, env.action_joint_names, no_frame_policy=self.no_frame_policy,
-                                  twist_scale=self.twist_scale)
+                                  twist_scale=self.twist_scale, robot=env.robot)
         self._tracker = EpisodeTracker(env.num_envs)
         self._jogs = {arm: TcpJog(env, arm) for arm in self.device.jog_arms}  # IK captured before the operator moves
 

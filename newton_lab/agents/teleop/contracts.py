@@ -13,8 +13,9 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from ...robots.g1 import spec
-from ...robots.g1.packers import base_twist_to_wheel_velocities
+from ...robots.binding import RobotBinding
+from ...robots.registry import robot_binding
+from ...robots.mecanum import twist_to_wheels_torch
 from ...task_api.registry import list_tasks, lookup
 from .frames import TeleopFrame
 
@@ -23,12 +24,8 @@ CONTRACTS: dict[str, tuple[str, ...]] = {
     "dual_arm": ("left_arm", "right_arm", "left_gripper", "right_gripper"),
     "mobile_full_body": ("base", "legs", "left_arm", "right_arm", "left_gripper", "right_gripper"),
 }
-"""Contract name -> the joint groups it drives (4 + 5 + 7 + 7 + 1 + 1 = 25 columns for the full body)."""
-GROUP_JOINTS: dict[str, tuple[str, ...]] = {
-    "base": spec.BASE_WHEEL_JOINTS, "legs": spec.LEG_JOINTS,
-    "left_arm": spec.LEFT_ARM_JOINTS, "right_arm": spec.RIGHT_ARM_JOINTS,
-    "left_gripper": (spec.LEFT_GRIPPER_JOINT,), "right_gripper": (spec.RIGHT_GRIPPER_JOINT,),
-}
+"""Contract name -> the joint groups it drives (the robot's ``joint_groups``; on the G1 4 + 5 + 7 + 7 + 1 + 1 = 25
+columns for the full body)."""
 NO_FRAME_POLICIES = ("hold", "zero")
 """What a joint gets when no frame (or a frame without it) names a target: its current target, or 0."""
 
@@ -53,28 +50,32 @@ def check_task(task_id: str, device: str, contracts: Sequence[str]) -> str:
     return contract
 
 
-def leg_targets(step: float) -> np.ndarray:
-    """Legs 1..5 for body-height step ``step`` [rad]: (s, 3s, 2s, 0, 0) with the teleop clamps."""
-    legs = np.asarray(spec.leg_lift(step), dtype=np.float64)
-    for i, name in enumerate(spec.LEG_JOINTS):
-        lo, hi = spec.TELEOP_LEG_CLAMPS.get(name, (-np.inf, np.inf))
+def leg_targets(step: float, robot: RobotBinding | None = None) -> np.ndarray:
+    """Leg joint targets for body-height step ``step`` [rad] (``robot.leg_lift``; the G1's: legs 1..5 at
+    (s, 3s, 2s, 0, 0)) within the teleop clamps; ``robot``: the default robot when ``None``."""
+    robot = robot_binding() if robot is None else robot
+    legs = np.asarray(robot.leg_lift(step), dtype=np.float64)
+    for i, name in enumerate(robot.leg_joints):
+        lo, hi = robot.teleop_leg_clamps.get(name, (-np.inf, np.inf))
         legs[i] = min(max(legs[i], lo), hi)
     return legs
 
 
 class FrameMapper:
     """``TeleopFrame`` -> a full (num_envs, action_dim) action for one contract. Every row gets the same
-    command (one operator); ``rows`` limits it to some rows (the others keep ``current``)."""
+    command (one operator); ``rows`` limits it to some rows (the others keep ``current``). ``robot``: the env's
+    (``env.robot``: joint groups, gripper range, wheel gains, leg lift); the default robot when ``None``."""
 
     def __init__(self, contract: str, action_joint_names: Sequence[str], *, no_frame_policy: str = "hold",
-                 twist_scale: float = 1.0):
+                 twist_scale: float = 1.0, robot: RobotBinding | None = None):
         if contract not in CONTRACTS:
             raise ValueError(f"unknown teleop contract {contract!r}; valid: {', '.join(CONTRACTS)}")
         if no_frame_policy not in NO_FRAME_POLICIES:
             raise ValueError(f"no_frame_policy {no_frame_policy!r} is unknown; use one of {', '.join(NO_FRAME_POLICIES)}")
         self.contract, self.no_frame_policy, self.twist_scale = contract, no_frame_policy, float(twist_scale)
-        names = list(action_joint_names)
-        self.columns = {g: [names.index(j) for j in GROUP_JOINTS[g] if j in names] for g in CONTRACTS[contract]}
+        self.robot = robot_binding() if robot is None else robot
+        names, groups = list(action_joint_names), self.robot.joint_groups
+        self.columns = {g: [names.index(j) for j in groups[g] if j in names] for g in CONTRACTS[contract]}
         """Action columns of each driven group that the task has (a group the task lacks maps to [])."""
 
     def __call__(self, frame: TeleopFrame | None, current: torch.Tensor, arm_targets: dict | None = None) -> torch.Tensor:
@@ -90,15 +91,15 @@ class FrameMapper:
             cols = self.columns.get(f"{arm}_gripper", [])
             if cols:  # a gripper is commanded every step: open unless the frame closes it
                 opened = frame.gripper_open.get(arm, True)
-                out[:, cols] = spec.GRIPPER_OPEN if opened else spec.GRIPPER_CLOSED
+                out[:, cols] = self.robot.gripper_open if opened else self.robot.gripper_closed
         cols = self.columns.get("base", [])
         if cols:
             vx, vy, wz = (0.0, 0.0, 0.0) if frame.base_twist is None else frame.base_twist
             s = self.twist_scale
-            wheels = base_twist_to_wheel_velocities(vx * s, vy * s, wz * s, num_envs=1, device=out.device)
-            out[:, cols] = wheels[0, :len(cols)]
+            twist = torch.tensor([[vx * s, vy * s, wz * s]], dtype=torch.float32, device=out.device)
+            out[:, cols] = twist_to_wheels_torch(twist, self.robot.wheel_gains)[0, :len(cols)]
         cols = self.columns.get("legs", [])
         if cols and frame.body_height is not None:
-            legs = leg_targets(frame.body_height)
+            legs = leg_targets(frame.body_height, self.robot)
             out[:, cols] = torch.as_tensor(legs[:len(cols)], dtype=out.dtype, device=out.device)
         return out

@@ -1,5 +1,5 @@
 """Cartesian TCP jog: a device's cumulative TCP offset -> arm joint targets through the batched IK
-(``robots.g1.kinematics.TcpKinematics``), warm-started from the last solution and solved only when the
+(the robot's ``RobotBinding.kinematics``), warm-started from the last solution and solved only when the
 offset changes. Joint targets move towards the solution at most ``max_joint_step`` per control step, as the
 expert planner's waypoints do, so a long jump of the target never throws the arm."""
 
@@ -8,8 +8,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...robots.g1 import spec
-from ...robots.g1.kinematics import TcpKinematics, quat_mul
+from ...robots.quaternions import quat_mul
 
 
 def yaw_quat(yaw: float) -> np.ndarray:
@@ -22,10 +21,9 @@ class TcpJog:
 
     def __init__(self, env, arm: str = "left", *, max_joint_step: float = 0.05, ik_iterations: int = 24):
         self.arm, self.max_joint_step, self.ik_iterations = arm, float(max_joint_step), ik_iterations
-        joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
-        self._coords = env.joint_coords(joints)
+        self._coords = env.joint_coords(env.robot.arm(arm).joints)
         self._robot_coords = env.robot_coords
-        self._kin = TcpKinematics(env.num_envs, device=env.device, arm=arm)
+        self._kin = env.robot.kinematics(env.num_envs, device=env.device, arm=arm)
         self.start: np.ndarray | None = None
         """(N, 7) TCP pose at the episode start (world; xyzw)."""
         self._offset: np.ndarray | None = None

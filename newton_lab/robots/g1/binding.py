@@ -1,264 +1,27 @@
-"""The G1 bound to a built scene: the robot half of the task context, the one action map, the drive limits.
+"""The G1 bound to a built scene: ``robots.bound.BoundRobot`` with the G1's facts (``robots.g1.robot.G1``).
 
-:meth:`G1Binding.from_layout` resolves, once, every robot index the env's kernels need, from the spec (joint
-groups, TCP, gripper values) and the scene's joint index (``envs.scene.SceneLayout``: ``joints.coord / dof /
-body``, ``robot_coords``, ``coords_per_world``, ``dofs_per_world`` and the finalized ``model``):
-
-* :class:`RobotContext` - base / leg / gripper coordinates, TCP body + offset, arm coordinates and
-  ``robot_coords``; :meth:`RobotContext.fill` writes them into a ``kernels.context.TaskContext``.
-* :class:`ActionMap` - action columns -> joint position targets / wheel speeds, one kind per column:
-  ``absolute`` (target = a), ``relative`` (target = current target + a, kept within the joint's range),
-  ``velocity`` (the base's wheel speeds [rad/s]) and ``binary`` (gripper master target, clipped to
-  open .. closed). Each column's action is first scaled and clipped: ``clamp(scale * a, clip)``.
-* :class:`DriveLimits` - the velocity limits the model carries in ``joint_velocity_limit`` (written from the
-  spec by ``model.apply_spec_limits``), per coordinate, for the env's setpoint kernel.
+The env binds whatever robot its task config names (``BoundRobot.from_layout(env.robot, ...)``); this module keeps
+the G1's own entry point, ``G1Binding.from_layout(layout, actions=..., arm=...)``, and the names it always had.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
-import newton
-import numpy as np
-import torch
-import warp as wp
-
+from ..bound import ACTION_KINDS, UNSET_VELOCITY_LIMIT, ActionMap, BoundRobot, DriveLimits, RobotContext
 from . import spec
+from .robot import G1, GROUP_KINDS
 
-ACTION_KINDS = ("absolute", "relative", "velocity", "binary")
-"""Every action kind a column can have (``ActionTermCfg.type``)."""
-
-GROUP_KINDS: dict[str, tuple[str, ...]] = {
-    "base": ("velocity",),
-    "legs": ("absolute", "relative"),
-    "left_arm": ("absolute", "relative"),
-    "right_arm": ("absolute", "relative"),
-    "head": ("absolute", "relative"),
-    "left_gripper": ("binary", "absolute", "relative"),
-    "right_gripper": ("binary", "absolute", "relative"),
-}
-"""The kinds that drive each joint group: the base's columns are wheel speeds the base un-mixes, every other
-group has position drives (a velocity target would not reach them)."""
-
-UNSET_VELOCITY_LIMIT = newton.ModelBuilder.JointDofConfig().velocity_limit
-"""Newton's default ``joint_velocity_limit`` (a joint without a declared limit)."""
+__all__ = ["ACTION_KINDS", "GROUP_KINDS", "UNSET_VELOCITY_LIMIT", "ActionMap", "DriveLimits", "G1Binding",
+           "RobotContext"]
 
 
-@dataclass(frozen=True)
-class RobotContext:
-    """The robot's world-local indices every task term reads through ``TaskContext``."""
-
-    robot_coords: int
-    base_coord: int
-    """``base_x`` (``base_y``, ``base_yaw`` follow)."""
-    leg_coord: int
-    """``leg_joint1`` (leg joints 2..5 follow)."""
-    tcp_body: int
-    tcp_offset_pos: tuple[float, float, float]
-    tcp_offset_quat: tuple[float, float, float, float]
-    gripper_coord: int
-    arm_coords: tuple[int, ...]
-
-    @classmethod
-    def from_layout(cls, layout: Any, arm: str) -> RobotContext:
-        if arm not in spec.END_EFFECTOR_LINK:
-            raise ValueError(f"unknown arm {arm!r}; valid arms: {sorted(spec.END_EFFECTOR_LINK)}")
-        coord = layout.joints.coord
-        leg = coord[spec.LEG_JOINTS[0]]
-        if [coord[j] - leg for j in spec.LEG_JOINTS] != list(range(len(spec.LEG_JOINTS))):
-            raise ValueError(f"leg joints {spec.LEG_JOINTS} are not contiguous coordinates in the model")
-        base = coord[spec.BASE_PLANAR_JOINTS[0]]
-        if [coord[j] - base for j in spec.BASE_PLANAR_JOINTS] != [0, 1, 2]:
-            raise ValueError(f"planar base joints {spec.BASE_PLANAR_JOINTS} are not contiguous coordinates")
-        arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
-        return cls(
-            robot_coords=int(layout.robot_coords),
-            base_coord=base,
-            leg_coord=leg,
-            tcp_body=layout.joints.body[spec.END_EFFECTOR_LINK[arm]],
-            tcp_offset_pos=spec.TCP_OFFSET_POS,
-            tcp_offset_quat=spec.TCP_OFFSET_QUAT,
-            gripper_coord=coord[f"{arm}_gripper_joint"],
-            arm_coords=tuple(coord[j] for j in arm_joints),
-        )
-
-    def fill(self, ctx: Any) -> None:
-        """Write the robot half into a ``TaskContext`` (its arrays on the current Warp device)."""
-        ctx.robot_coords = self.robot_coords
-        ctx.base_coord = self.base_coord
-        ctx.leg_coord = self.leg_coord
-        ctx.tcp_body = self.tcp_body
-        ctx.tcp_offset = wp.transform(wp.vec3(*self.tcp_offset_pos), wp.quat(*self.tcp_offset_quat))
-        ctx.gripper_coord = self.gripper_coord
-        ctx.arm_coords = wp.array(self.arm_coords, dtype=int)
-
-
-@dataclass(frozen=True)
-class ActionMap:
-    """Action columns -> joints, in ``ActionTermCfg`` declaration order (per-column numpy arrays)."""
-
-    joint_names: tuple[str, ...]
-    kinds: tuple[str, ...]
-    """Kind of each column (one of ``ACTION_KINDS``)."""
-    terms: dict[str, slice]
-    """Columns of each action term, by term name."""
-    term_groups: dict[str, str]
-    index: np.ndarray
-    """Coordinate (position kinds) or DOF (velocity) of each column's joint, world-local (int32)."""
-    scale: np.ndarray
-    low: np.ndarray
-    high: np.ndarray
-    """Clip of the scaled action (float32): the term's clip, open .. closed for binary, else unbounded."""
-    target_low: np.ndarray
-    target_high: np.ndarray
-    """Joint range that bounds a relative column's accumulated target (float32)."""
-    wheel_col: int
-    """First of the four wheel columns (wheel1..wheel4), -1 without a base term."""
-
-    @property
-    def dim(self) -> int:
-        return len(self.joint_names)
-
-    @classmethod
-    def from_terms(cls, terms: Sequence[Any], layout: Any) -> ActionMap:
-        """Columns of ``terms`` (``ActionTermCfg``) on the scene ``layout``; refuses unknown groups / kinds
-        with a one-line ``ValueError``."""
-        joints, cols = layout.joints, _Columns()
-        lower, upper = (np.asarray(a.numpy()[: layout.dofs_per_world], dtype=np.float32)
-                        for a in (layout.model.joint_limit_lower, layout.model.joint_limit_upper))
-        spans, groups, owner = {}, {}, {}
-        for term in terms:
-            kind = _check_term(term)
-            start = len(cols.names)
-            for j in spec.JOINT_GROUPS[term.group]:
-                if j in owner:
-                    raise ValueError(f"joint {j!r} is in action terms {owner[j]!r} and {term.name!r}; "
-                                     f"list each joint group once")
-                owner[j] = term.name
-                d = joints.dof[j]
-                cols.add(j, kind, d if kind == "velocity" else joints.coord[j], term, (lower[d], upper[d]))
-            spans[term.name], groups[term.name] = slice(start, len(cols.names)), term.group
-        base = [t.name for t in terms if t.group == "base"]
-        return cols.build(spans, groups, spans[base[0]].start if base else -1)
-
-    def ownership(self, phases: Sequence[Any], fixed_base: bool) -> tuple[np.ndarray, np.ndarray]:
-        """``owned`` (phases, columns): which columns each phase commands (the others hold); ``base_free``
-        (phases,): whether the phase may move the base. No phases: one phase owning every column."""
-        owned = np.ones((max(len(phases), 1), max(self.dim, 1)), dtype=bool)
-        base_free = np.full(max(len(phases), 1), not fixed_base, dtype=bool)
-        for p, ph in enumerate(phases):
-            if ph.action_groups is not None:
-                for term, cols in self.terms.items():
-                    owned[p, cols] = self.term_groups[term] in ph.action_groups
-            base_free[p] = not ph.fixed_base
-        return owned, base_free
-
-    def hold(self, joint_target_q: torch.Tensor) -> torch.Tensor:
-        """The action that keeps every column where it is: absolute / binary columns at their current position
-        targets (``joint_target_q``: (num_envs, coords_per_world)), relative and velocity columns at 0."""
-        out = torch.zeros(joint_target_q.shape[0], self.dim, dtype=torch.float32, device=joint_target_q.device)
-        cols = [c for c, k in enumerate(self.kinds) if k in ("absolute", "binary")]
-        if cols:
-            dev = joint_target_q.device
-            coords = torch.as_tensor(self.index[cols], dtype=torch.long, device=dev)
-            out[:, cols] = joint_target_q[:, coords].to(torch.float32) / torch.as_tensor(self.scale[cols], device=dev)
-        return out
-
-
-def _check_term(term: Any) -> str:
-    """The term's kind, after checking its group and type (one-line errors naming the valid values)."""
-    if term.group not in spec.JOINT_GROUPS:
-        raise ValueError(f"action term {term.name!r}: unknown group {term.group!r}; valid groups: "
-                         f"{', '.join(spec.JOINT_GROUPS)}")
-    if term.type not in ACTION_KINDS:
-        raise ValueError(f"action term {term.name!r}: unknown type {term.type!r}; valid kinds: "
-                         f"{', '.join(ACTION_KINDS)}")
-    if term.type not in GROUP_KINDS[term.group]:
-        raise ValueError(f"action term {term.name!r}: type {term.type!r} does not drive group {term.group!r}; "
-                         f"use {'|'.join(GROUP_KINDS[term.group])}")
-    return term.type
-
-
-def _f32(values: list[float]) -> np.ndarray:
-    return np.asarray(values, dtype=np.float32)
-
-
-class _Columns:
-    """Accumulates per-column values while an ``ActionMap`` is built."""
-
-    def __init__(self):
-        self.names, self.kinds, self.index, self.scale = [], [], [], []
-        self.low, self.high, self.target_low, self.target_high = [], [], [], []
-
-    def add(self, joint: str, kind: str, index: int, term: Any, joint_range: tuple[float, float]) -> None:
-        lo, hi = term.clip if term.clip else (-np.inf, np.inf)
-        if kind == "binary":
-            lo, hi = spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED
-        self.names.append(joint)
-        self.kinds.append(kind)
-        self.index.append(index)
-        self.scale.append(float(term.scale))
-        self.low.append(lo)
-        self.high.append(hi)
-        self.target_low.append(joint_range[0] if kind == "relative" else -np.inf)
-        self.target_high.append(joint_range[1] if kind == "relative" else np.inf)
-
-    def build(self, terms: dict[str, slice], groups: dict[str, str], wheel_col: int) -> ActionMap:
-        return ActionMap(
-            joint_names=tuple(self.names), kinds=tuple(self.kinds), terms=terms, term_groups=groups,
-            index=np.asarray(self.index, dtype=np.int32), scale=_f32(self.scale), low=_f32(self.low),
-            high=_f32(self.high), target_low=_f32(self.target_low), target_high=_f32(self.target_high),
-            wheel_col=wheel_col,
-        )
-
-
-@dataclass(frozen=True)
-class DriveLimits:
-    """Per-coordinate velocity limits of the robot's position-driven joints, from the model."""
-
-    max_rate: np.ndarray
-    """(coords_per_world,) velocity limit [rad/s | m/s] of each coordinate, 0 where none (float32)."""
-    coord_dof: np.ndarray
-    """(coords_per_world,) DOF of each limited coordinate, -1 elsewhere (int32)."""
-    dof_limited: np.ndarray
-    """(dofs_per_world,) whether a DOF's velocity target comes from its rate-limited setpoint (bool)."""
-
-    @classmethod
-    def from_layout(cls, layout: Any) -> DriveLimits:
-        model = layout.model
-        limit = model.joint_velocity_limit.numpy()[: layout.dofs_per_world]
-        mode = model.joint_target_mode.numpy()[: layout.dofs_per_world]
-        position = (int(newton.JointTargetMode.POSITION), int(newton.JointTargetMode.POSITION_VELOCITY))
-        max_rate = np.zeros(layout.coords_per_world, dtype=np.float32)
-        coord_dof = np.full(layout.coords_per_world, -1, dtype=np.int32)
-        dof_limited = np.zeros(layout.dofs_per_world, dtype=bool)
-        for name, c in layout.joints.coord.items():
-            d = layout.joints.dof[name]
-            if limit[d] < UNSET_VELOCITY_LIMIT and mode[d] in position:
-                max_rate[c], coord_dof[c], dof_limited[d] = limit[d], d, True
-        return cls(max_rate=max_rate, coord_dof=coord_dof, dof_limited=dof_limited)
-
-    @property
-    def any(self) -> bool:
-        return bool(self.dof_limited.any())
-
-
-@dataclass(frozen=True)
-class G1Binding:
-    """The G1 on one built scene: ``context`` (robot half of the task context), ``actions`` (the action map),
-    ``limits`` (drive velocity limits)."""
-
-    context: RobotContext
-    actions: ActionMap
-    limits: DriveLimits
+class G1Binding(BoundRobot):
+    """The G1 on one built scene (see ``BoundRobot``)."""
 
     @classmethod
     def from_layout(cls, layout: Any, *, actions: Sequence[Any], arm: str = spec.DEFAULT_ARM) -> G1Binding:
         """Bind the G1 of ``layout`` (``envs.scene.SceneLayout``) with the task's action terms and arm."""
-        return cls(
-            context=RobotContext.from_layout(layout, arm),
-            actions=ActionMap.from_terms(actions, layout),
-            limits=DriveLimits.from_layout(layout),
-        )
+        bound = BoundRobot.from_layout(G1, layout, actions=actions, arm=arm)
+        return cls(robot=G1, context=bound.context, actions=bound.actions, limits=bound.limits)

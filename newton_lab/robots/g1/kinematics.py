@@ -14,37 +14,17 @@ import newton.ik as ik
 import numpy as np
 import warp as wp
 
+from ..quaternions import quat_mul, quat_rotate
 from . import spec
-from .model import JointIndex, add_g1
+from .model import JointIndex, build_g1
 
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors ``v`` (3,) or (R, 3) by (R, 4) xyzw quaternions."""
-    u, w = q[:, :3], q[:, 3:4]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of (R, 4) xyzw quaternions."""
-    ax, ay, az, aw = a.T
-    bx, by, bz, bw = b.T
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=1,
-    )
+__all__ = ["TcpKinematics", "quat_mul", "quat_rotate"]
 
 
 def _robot_builder() -> tuple[newton.ModelBuilder, JointIndex]:
     b = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(b)
-    add_g1(b)
-    return b, JointIndex.from_builder(b)
+    return b, build_g1(b)
 
 
 class _Solve:

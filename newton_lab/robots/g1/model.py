@@ -1,14 +1,16 @@
-"""Build the authored G1 into a Newton ``ModelBuilder`` and index its joints by name."""
+"""Build the authored G1 into a Newton ``ModelBuilder`` and index its joints by name (``robots.binding.JointIndex``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from importlib import resources
 
 import newton
 import warp as wp
 
+from ..binding import JointIndex
 from . import spec
+
+__all__ = ["JointIndex", "PLANAR_BASE_JOINT", "add_g1", "apply_spec_limits", "build_g1", "joint_index", "mjcf_path"]
 
 
 def mjcf_path() -> str:
@@ -51,28 +53,16 @@ def apply_spec_limits(builder: newton.ModelBuilder, first_joint: int = 0) -> Non
         builder.joint_effort_limit[dof[name]] = float(limit)
 
 
-@dataclass(frozen=True)
-class JointIndex:
-    """World-local coordinate / DOF indices of named joints of one world's builder."""
+PLANAR_BASE_JOINT = "base_x_base_y_base_yaw"
+"""The one D6 joint the MJCF importer makes of the three planar base joints (``spec.BASE_PLANAR_JOINTS``)."""
 
-    coord: dict[str, int]
-    dof: dict[str, int]
-    body: dict[str, int]
 
-    @classmethod
-    def from_builder(cls, builder: newton.ModelBuilder) -> JointIndex:
-        coord: dict[str, int] = {}
-        dof: dict[str, int] = {}
-        starts = list(builder.joint_q_start) + [builder.joint_coord_count]
-        for j, label in enumerate(builder.joint_label):
-            name = label.rsplit("/", 1)[-1]
-            q0, qd0 = builder.joint_q_start[j], builder.joint_qd_start[j]
-            if starts[j + 1] == q0:  # fixed joint: no coordinate of its own
-                continue
-            if name == "base_x_base_y_base_yaw":  # the three planar base joints merge into one D6
-                for i, sub in enumerate(spec.BASE_PLANAR_JOINTS):
-                    coord[sub], dof[sub] = q0 + i, qd0 + i
-            else:
-                coord[name], dof[name] = q0, qd0
-        body = {label.rsplit("/", 1)[-1]: b for b, label in enumerate(builder.body_label)}
-        return cls(coord=coord, dof=dof, body=body)
+def joint_index(builder: newton.ModelBuilder) -> JointIndex:
+    """The ``JointIndex`` of a builder that holds the G1 (its planar base D6 split into base_x, base_y, base_yaw)."""
+    return JointIndex.from_builder(builder, merged={PLANAR_BASE_JOINT: spec.BASE_PLANAR_JOINTS})
+
+
+def build_g1(builder: newton.ModelBuilder) -> JointIndex:
+    """Add one G1 at the origin (``add_g1``) and index the builder's joints (``RobotBinding.build``)."""
+    add_g1(builder)
+    return joint_index(builder)

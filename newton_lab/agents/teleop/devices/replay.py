@@ -11,8 +11,8 @@ import time
 import numpy as np
 
 from ....datasets.storage import list_demos, read_dataset_info, read_episode
-from ....robots.g1 import spec
-from ....robots.g1.kinematics import quat_mul
+from ....robots.registry import DEFAULT_ROBOT, robot_binding
+from ....robots.quaternions import quat_mul
 from ..frames import TeleopFrame
 from .base import TeleopDevice
 
@@ -49,6 +49,8 @@ class ReplayDevice(TeleopDevice):
         episode = read_episode(path, self.demo)
         self.actions = np.asarray(episode["actions"], dtype=np.float64)
         self.names = list(info["env_args"]["newton_lab"]["action_joint_names"])
+        self.robot = robot_binding(info["env_args"]["newton_lab"].get("robot", DEFAULT_ROBOT))
+        """The robot that made the demo (its arms' joints and gripper range)."""
         self.mode, self.cursor = mode, 0
         if mode == "tcp":
             if "tcp_pose" not in episode["obs"]:
@@ -63,12 +65,12 @@ class ReplayDevice(TeleopDevice):
     def _frame(self, row: np.ndarray) -> TeleopFrame:
         col = {name: i for i, name in enumerate(self.names)}
         arms, grippers = {}, {}
-        for arm, joints, gripper in (("left", spec.LEFT_ARM_JOINTS, spec.LEFT_GRIPPER_JOINT),
-                                     ("right", spec.RIGHT_ARM_JOINTS, spec.RIGHT_GRIPPER_JOINT)):
-            if all(j in col for j in joints):
-                arms[arm] = row[[col[j] for j in joints]]
-            if gripper in col:  # the recorded target: nearer open (0.0) or closed (1.2)
-                grippers[arm] = bool(row[col[gripper]] < 0.5 * (spec.GRIPPER_OPEN + spec.GRIPPER_CLOSED))
+        half = 0.5 * (self.robot.gripper_open + self.robot.gripper_closed)
+        for arm, limb in self.robot.arms.items():
+            if all(j in col for j in limb.joints):
+                arms[arm] = row[[col[j] for j in limb.joints]]
+            if limb.gripper in col:  # the recorded target: nearer open (G1: 0.0) or closed (1.2)
+                grippers[arm] = bool(row[col[limb.gripper]] < half)
         return TeleopFrame(timestamp=time.perf_counter(), arm_joints=arms, gripper_open=grippers, raw={"row": row})
 
     def poll(self) -> TeleopFrame | None:
