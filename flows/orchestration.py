@@ -25,6 +25,7 @@ from prefect import flow, get_run_logger, task, unmapped
 from prefect.cache_policies import INPUTS
 
 from ..commands import CollectArgs, EvaluateArgs, MimicArgs, PipelineArgs
+from ..datasets.outputs import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .artifacts import artifact
@@ -270,8 +271,7 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
     runlog.quiet_console(INPUT_ERRORS)
     log = get_run_logger()
-    out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = output_path(Path(out) / "metrics.json").parent
     demo_art, s_collect = _collect(task_id, demos, num_envs, seed, device, out, workers)
     log.info("collect: %s", "/".join(s_collect))
     gen_art, s_mimic = _mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers)

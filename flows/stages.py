@@ -15,6 +15,7 @@ from typing import Any
 
 from ..commands import CollectArgs, EvaluateArgs, MimicArgs
 from ..datasets.contained import contained
+from ..datasets.outputs import output_path
 from .artifacts import artifact
 
 BACKEND = "diffusion"
@@ -62,8 +63,7 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
 
     path = Path(args.dataset_path)
-    out = path.parent
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_path(path).parent
     inputs = {"stage": "collect", "task_id": args.task, "episodes": args.episodes, "num_envs": args.num_envs,
               "seed": args.seed}
     if (done := _guard(out, name, inputs)) is not None:
@@ -82,8 +82,7 @@ def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic")
     from ..mimic import mimic  # deferred: Warp/Newton are slow to import
 
     path = Path(args.output_path)
-    out = path.parent
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_path(path).parent
     inputs = {"stage": "mimic", "source": source["sha256"], "episodes": args.episodes, "num_envs": args.num_envs,
               "seed": args.seed}
     if (done := _guard(out, name, inputs)) is not None:

@@ -21,6 +21,7 @@ from newton.sensors import SensorCamera
 
 from .datasets import list_demos, open_writer, read_episode, zarr_store, zarr_workers
 from .datasets._common import sync_tree
+from .datasets.outputs import output_path
 from .envs import make_env
 from .envs.rollout import Timers, env_args
 from .flows.cluster import cluster_options, pins_gpus, quiet_shutdown, visible_gpus
@@ -230,7 +231,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     path = Path(dataset_path)
     if path.exists():
         raise FileExistsError(f"{path} exists; bench-collect writes a fresh dataset (choose a new --dataset-path)")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    output_path(path)
     t0 = time.perf_counter()
     env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=False)
     agent = expert_agent(env)

@@ -40,6 +40,9 @@ BAD = [
     ("collect --epsiodes 2", "unrecognized arguments: --epsiodes (did you mean --episodes?) 2"),
     ("bench-train --dataset-path src.hdf5 --batchsize 8", "--batchsize (did you mean --batch-size?)"),
     ("collect --task GalbotG1-PickCube-v0 --dataset-path d/x.txt", "unknown dataset suffix"),  # no d/ left behind
+    # an output under a file: the rule of every output (datasets/outputs.py), one line (was `error: 17`)
+    ("collect --dataset-path src.hdf5/x.hdf5", "cannot write src.hdf5/x.hdf5: its parent src.hdf5 is a file; choose"),
+    ("mimic --dataset-path src.hdf5 --output-path src.hdf5/d/m.hdf5", "src.hdf5, on its path, is a file; choose"),
 ]
 CHECK = "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); sys.exit(rc if 'warp' not in sys.modules else 99)"
 

@@ -133,12 +133,21 @@ def test_refuses_dataset_of_another_task(tmp_path, suffix):
 
 
 @pytest.mark.parametrize("suffix", FORMATS)
-def test_refuses_missing_parent(tmp_path, suffix):
+def test_creates_missing_parents_refuses_a_file_parent(tmp_path, suffix):
+    """The rule of every output (``datasets.outputs``): missing folders are created, a file where one should be
+    is refused in one line and left as it was."""
     path = tmp_path / "no" / "such" / f"ds{suffix}"
-    with pytest.raises(FileNotFoundError) as exc:
-        open_writer(path, task_id=TASK, env_args={})
-    assert str(path.parent) in str(exc.value) and "mkdir" in str(exc.value) and "\n" not in str(exc.value)
-    assert not (tmp_path / "no").exists()
+    with open_writer(path, task_id=TASK, env_args={}) as w:
+        w.append_episode(make_episode(0, steps=3), success=True)
+    assert list_demos(path) == [0]
+    (tmp_path / "afile").write_bytes(b"mine")
+    for bad in (tmp_path / "afile" / f"ds{suffix}", tmp_path / "afile" / "sub" / f"ds{suffix}"):
+        with pytest.raises(ValueError) as exc:
+            open_writer(bad, task_id=TASK, env_args={})
+        msg = str(exc.value)
+        assert f"cannot write {bad}: " in msg and f"{tmp_path / 'afile'}" in msg and "is a file" in msg, msg
+        assert "choose another path" in msg and "\n" not in msg
+    assert (tmp_path / "afile").read_bytes() == b"mine"
 
 
 def test_refuses_bad_suffix(tmp_path):

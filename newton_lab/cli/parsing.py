@@ -17,7 +17,6 @@ import textwrap
 import types
 import typing
 from collections.abc import Iterable, Mapping
-from pathlib import Path
 from typing import Any, Literal
 
 from .. import commands as c
@@ -53,15 +52,19 @@ def unrecognized(parser: argparse.ArgumentParser, extra: list[str]) -> str:
 OUTPUT_FIELDS = {c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_save"), c.EvaluateArgs: ("rerun_save",),
                  c.MimicArgs: ("output_path",), c.ExportArgs: ("root",), c.ViewArgs: ("save",)}
 """Fields naming an output file (or new folder), per argument class (and its subclasses): the command or
-example creates their parent folder (``collect --dataset-path data/demos.hdf5`` into a missing ``data/``)."""
+example creates their parent folder (``collect --dataset-path data/demos.hdf5`` into a missing ``data/``) before
+Warp is imported, by the rule of the Python API (``newton_lab.datasets.outputs``)."""
 
 
 def make_output_dirs(args: object) -> None:
-    """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``)."""
+    """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``); a file where one
+    of its folders should be is refused in one line (``OutputPathError``, a ``ValueError``)."""
+    from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
+
     for cls, names in OUTPUT_FIELDS.items():
         for name in names if isinstance(args, cls) else ():
             if (value := getattr(args, name)) is not None:
-                Path(value).parent.mkdir(parents=True, exist_ok=True)
+                output_path(value)
 
 
 def add_verbose(parser: argparse.ArgumentParser) -> None:
@@ -203,7 +206,7 @@ def parse_args(cls: type, argv: list[str] | None = None, *, description: str | N
     args = from_namespace(cls, ns, defaults=defaults)
     try:
         check_args(args)
+        make_output_dirs(args)
     except (ValueError, FileNotFoundError) as exc:
         parser.error(exc.args[0] if exc.args else str(exc))
-    make_output_dirs(args)
     return args

@@ -207,6 +207,8 @@ def render(args: RenderArgs) -> int:
     _check_render(args)  # before Warp is imported
     from PIL import Image  # deferred: only this command writes pictures
 
+    from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
+
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.cameras import picture  # deferred: Warp/Newton are slow to import
@@ -220,7 +222,7 @@ def render(args: RenderArgs) -> int:
         for _ in range(args.expert_steps):
             env.step(agent.act(env))
     images = env.render()
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    output_path(args.out)
     Image.fromarray(picture(images, args.camera)).save(args.out)
     cam, names = env.cameras.specs[args.camera], env.cameras.segmentation_names
     seen = images[f"{args.camera}_segmentation"][0].unique().tolist()

@@ -21,9 +21,9 @@ def check_room(path: str | Path, demos: int, tree: dict[str, Any], batch: int = 
     chunk per frame, then count one frame; a batch large enough to be packed counts as one pack). HDF5, one file,
     and filesystems that report no inode count pass."""
     path = Path(path)
-    folder = path if path.exists() else path.parent
-    if path.suffix != ".zarr" or not folder.is_dir():
-        return  # the writer names a missing folder itself
+    folder = next((p for p in (path, *path.parents) if p.is_dir()), None)  # missing folders are made on its filesystem
+    if path.suffix != ".zarr" or folder is None:
+        return
     st = os.statvfs(folder)
     packed = batch >= zarr_packs.PACK_MIN_BATCH
     need = math.ceil(demos / batch) * zarr_packs.inodes_of_pack(tree, batch) if packed else demos * inodes_of(tree)

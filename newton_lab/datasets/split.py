@@ -46,7 +46,6 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
     taken = [str(o) for o in outs.values() if o.exists()]
     if taken:
         raise FileExistsError(f"{taken} already exist; split into a new folder")
-    out_dir.mkdir(parents=True, exist_ok=True)
     refs: dict[str, DatasetRef] = {}
     last = len(cfg.phases) - 1
     for p, ph in enumerate(cfg.phases):

@@ -11,9 +11,15 @@ Layout (both formats)::
     mask/<key>       robomimic filter keys: demo names (HDF5: byte strings; zarr: utf-8 strings), e.g.
                      train / valid written by ``split_train_val`` (``newton-lab split``)
 
-robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets stay readable. zarr packs a
-large batch's demos (``zarr_packs``: ``data/pack_<first id>/<array>``, the demos one after another, their ids,
-rows and attrs in the pack's attrs); the readers here return the same trees and attrs for both layouts.
+robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets (nested ``states``, no
+rewards / dones / next_obs) stay readable. zarr packs a large batch's demos (``zarr_packs``:
+``data/pack_<first id>/<array>``, the demos one after another, their ids, rows and attrs in the pack's attrs); the
+readers return the same trees and attrs for both layouts.
+
+This module writes: :class:`EpisodeWriter` checks episodes and appends them. Reading, deleting demos, setting root
+attrs and the dispatch by suffix live in ``access`` (re-exported here: ``from newton_lab.datasets.storage import
+read_episode`` keeps working). A new dataset's missing parent folders are created (``outputs.output_path``, the rule
+of every output of newton_lab); a file where one of them should be is refused in one line.
 
 Every ``append_episode`` / ``append_episodes`` batch is durable (one fsync) and crash safe before it
 returns: a writer killed at any time leaves a dataset holding every episode whose append returned, and
@@ -35,130 +41,27 @@ refuses (ENOSPC, EIO, ...) rolls the session back and raises one line, :class:`D
 
 from __future__ import annotations
 
-import errno
-import json
-import operator
-import os
-from collections.abc import Iterable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import numpy as np
 
-from . import hdf5_store, zarr_store
-from .room import out_of_room
-from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, STORAGE_ERRNOS, DatasetLockedError,
-                      DatasetWriteError, StoredDemo, damaged, demo_id_of, dumps_env_args, inject_write_fault,
-                      py_scalar)
+from .access import (BACKENDS, SUFFIXES, _as_id, _backend, _episodes, _existing, _medium_errors, _missing_id,
+                     _root_meta, delete_demos, list_demos, read_dataset_info, read_episode, read_episodes,
+                     set_dataset_attrs)
+from .outputs import output_path
+from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, DatasetLockedError, DatasetWriteError,
+                      StoredDemo, dumps_env_args, inject_write_fault, py_scalar)
 
-SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
-BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
-"""Storage module of each format."""
 TIME_ALIGNED = ("obs", "next_obs", "states", "rewards", "dones")  # every array under these has T rows
 EpisodeItem = tuple[Mapping[str, Any], bool, Mapping[str, Any] | None]
 """One entry of :meth:`EpisodeWriter.append_episodes`: (episode, success, attrs or None)."""
 
 __all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "read_episodes", "list_demos",
-           "delete_demos", "set_dataset_attrs", "SUFFIXES", "FORMAT_VERSION",
+           "delete_demos", "set_dataset_attrs", "SUFFIXES", "BACKENDS", "FORMAT_VERSION",
            "DatasetLockedError", "DatasetWriteError", "inject_write_fault"]
-
-
-# ----------------------------------------------------------------------------- dispatch / checks
-def _backend(path: str | Path) -> tuple[Path, ModuleType, str]:
-    p = Path(path).expanduser()
-    fmt = SUFFIXES.get(p.suffix.lower())
-    if fmt is None:
-        raise ValueError(f"unknown dataset suffix {p.suffix or '(none)'!r} for {p}: "
-                         f"use one of {', '.join(SUFFIXES)}")
-    return p, BACKENDS[fmt], fmt
-
-
-def _existing(path: str | Path) -> tuple[Path, ModuleType, str]:
-    p, backend, fmt = _backend(path)
-    if not p.exists():
-        raise FileNotFoundError(f"dataset {p} does not exist; check the path")
-    return p, backend, fmt
-
-
-def _root_meta(p: Path, root: dict[str, Any]) -> dict[str, Any]:
-    """Validate ``data`` attrs; returns them with env_args decoded and task_id resolved."""
-    try:
-        env_args = json.loads(root.get("env_args", "{}"))
-        assert isinstance(env_args, dict)
-    except (TypeError, ValueError, AssertionError):
-        raise damaged(p, "data.attrs['env_args'] is not a JSON object") from None
-    task_id = root.get("task_id") or env_args.get("env_name")
-    if not isinstance(task_id, str) or not task_id:
-        raise damaged(p, "data has no task_id")
-    try:
-        version = int(root.get("format_version", FORMAT_VERSION))
-    except (TypeError, ValueError):
-        raise damaged(p, "data.attrs['format_version'] is not an int") from None
-    if version > FORMAT_VERSION:
-        raise ValueError(f"{p} has format_version {version}, newer than this newton_lab "
-                         f"({FORMAT_VERSION}); upgrade newton_lab to read it")
-    return {**root, "env_args": env_args, "task_id": task_id, "format_version": version}
-
-
-def _describe_ids(ids: list[int]) -> str:
-    if not ids:
-        return "none (the dataset is empty)"
-    runs, start = [], ids[0]
-    for a, b in zip(ids, ids[1:] + [None]):
-        if b != a + 1:
-            runs.append(f"{start}..{a}" if a != start else f"{a}")
-            start = b
-    return ", ".join(runs[:8]) + (", ..." if len(runs) > 8 else "")
-
-
-def _as_id(demo_id: int | str) -> int:
-    if isinstance(demo_id, str):
-        parsed = demo_id_of(demo_id) if not demo_id.isdigit() else int(demo_id)
-        if parsed is None:
-            raise KeyError(f"bad demo id {demo_id!r}: use an int or 'demo_<i>'")
-        return parsed
-    return operator.index(demo_id)
-
-
-def _episodes(n: int, kind: str = "") -> str:
-    return f"{n} {kind}episode" if n == 1 else f"{n} {kind}episodes"
-
-
-def _medium_errno(exc: OSError) -> int | None:
-    """errno of an error of the storage medium (disk full, I/O error, ...), else None."""
-    if exc.errno in STORAGE_ERRNOS:
-        return exc.errno
-    text = str(exc).lower()  # h5py reports some OS errors in words only
-    return next((e for e in STORAGE_ERRNOS if os.strerror(e).lower() in text), None)
-
-
-@contextmanager
-def _medium_errors(p: Path, backend: ModuleType, done: str) -> Iterator[None]:
-    """Turn a write the disk refused into one line, :class:`DatasetWriteError` (others pass unchanged)."""
-    try:
-        yield
-    except OSError as exc:
-        err = _medium_errno(exc)
-        if err is None or isinstance(exc, DatasetWriteError):
-            raise
-        try:
-            holds = f"{p} holds {_episodes(len(backend.info(p)['demos']), 'finished ')}"
-        except FileNotFoundError:
-            holds = f"nothing was written to {p}"
-        except (OSError, ValueError):
-            holds = f"{p} could not be read back"
-        words, hint = os.strerror(err).lower(), ""
-        if err == errno.EDQUOT:
-            words = "disk full"
-        elif err == errno.ENOSPC:
-            words, hint = out_of_room(p)
-        raise DatasetWriteError(f"{words} {done}; {holds}{hint}", err) from None
-
-
-def _missing_id(p: Path, demo_id: Any, ids: list[int]) -> KeyError:
-    return KeyError(f"demo {demo_id} not in {p}; available ids: {_describe_ids(ids)}")
 
 
 # ----------------------------------------------------------------------------- episode validation
@@ -233,9 +136,6 @@ class EpisodeWriter:
         if not isinstance(task_id, str) or not task_id:
             raise ValueError("task_id must be a non-empty str")
         p, backend, fmt = _backend(path)
-        if not p.parent.is_dir():
-            raise FileNotFoundError(f"parent directory {p.parent} of {p} does not exist; "
-                                    f"create it first (mkdir -p {p.parent}) or choose another path")
         env = dict(env_args)
         if env.setdefault("env_name", task_id) != task_id:
             raise ValueError(f"env_args['env_name']={env['env_name']!r} differs from task_id={task_id!r}")
@@ -244,6 +144,7 @@ class EpisodeWriter:
         root = {"env_args": dumps_env_args(env), "total": 0, "num_demos": 0, NEXT_ID: 0,
                 "task_id": task_id, "format_version": FORMAT_VERSION}
         if not p.exists():
+            output_path(p)  # its missing folders (data/ of data/demos.hdf5)
             try:
                 with _medium_errors(p, backend, "while creating it"):
                     backend.create(p, root, fsync)
@@ -331,70 +232,3 @@ def open_writer(path: str | Path, *, task_id: str, env_args: Mapping[str, Any], 
     """Alias of :meth:`EpisodeWriter.open`."""
     return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync)
 
-
-# ----------------------------------------------------------------------------- readers
-def read_dataset_info(path: str | Path) -> dict[str, Any]:
-    """Task, env_args, totals and per-demo ``num_samples``/``success`` (committed demos only)."""
-    p, backend, fmt = _existing(path)
-    raw = backend.info(p)
-    meta = _root_meta(p, raw["root"])
-    demos = dict(sorted(raw["demos"].items()))
-    return {"path": str(p), "format": fmt, "format_version": meta["format_version"],
-            "task_id": meta["task_id"], "env_args": meta["env_args"],
-            "num_demos": len(demos), "total": sum(d["num_samples"] for d in demos.values()),
-            "demo_ids": list(demos), "demos": demos,
-            "provenance": json.loads(raw["root"].get("provenance", "[]"))}
-
-
-def set_dataset_attrs(path: str | Path, attrs: Mapping[str, Any]) -> None:
-    """Update scalar / string attrs of the ``data`` group (e.g. ``provenance`` JSON); crash safe."""
-    p, backend, _ = _existing(path)
-    with _medium_errors(p, backend, "while setting dataset attrs"):
-        backend.set_root_attrs(p, {k: py_scalar(v, k) for k, v in attrs.items()})
-
-
-def list_demos(path: str | Path) -> list[int]:
-    """Sorted ids of the committed demos."""
-    p, backend, _ = _existing(path)
-    return sorted(backend.info(p)["demos"])
-
-
-def read_episode(path: str | Path, demo_id: int | str) -> dict[str, Any]:
-    """Nested dict of numpy arrays for one demo, plus its attrs under ``"attrs"``."""
-    p, backend, _ = _existing(path)
-    i = _as_id(demo_id)
-    try:
-        tree, attrs = backend.read(p, i)
-    except KeyError:
-        raise _missing_id(p, demo_id, sorted(backend.info(p)["demos"])) from None
-    return {**tree, "attrs": attrs}
-
-
-def read_episodes(path: str | Path, demo_ids: Iterable[int | str], keys: Iterable[str] | None = None, *,
-                  attrs: bool = False) -> Iterator[dict[str, Any]]:
-    """``read_episode`` of each of ``demo_ids`` in turn, through one open dataset (one walk of its demo list, not
-    one per episode), with ``"attrs"`` only when ``attrs``; ``keys`` ("actions", "obs/front_head_rgb", ...) limits
-    what is read to those arrays (a key a demo lacks is left out; all arrays when None)."""
-    p, backend, _ = _existing(path)
-    ids = [_as_id(i) for i in demo_ids]
-    try:
-        if attrs:
-            yield from ({**tree, "attrs": a} for tree, a in backend.read_many(p, ids, None, attrs=True))
-            return
-        yield from backend.read_many(p, ids, None if keys is None else tuple(keys))
-    except KeyError as e:
-        raise _missing_id(p, e.args[0], sorted(backend.info(p)["demos"])) from None
-
-
-def delete_demos(path: str | Path, ids: Iterable[int | str]) -> list[int]:
-    """Remove demos (all ids checked first) and refresh num_demos/total; returns the remaining ids."""
-    p, backend, _ = _existing(path)
-    wanted = sorted({_as_id(i) for i in ids})
-    present = sorted(backend.info(p)["demos"])
-    for i in wanted:
-        if i not in present:
-            raise _missing_id(p, i, present)
-    if wanted:
-        with _medium_errors(p, backend, "while deleting demos"):
-            backend.delete(p, wanted)
-    return [i for i in present if i not in wanted]

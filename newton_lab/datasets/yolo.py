@@ -22,6 +22,8 @@ import numpy as np
 import yaml
 from PIL import Image, ImageDraw
 
+from .outputs import output_path
+
 SPLITS = ("train", "val", "test")
 MIN_AREA_PX = 12
 """An object covering fewer mask pixels than this is not labelled (a sliver at the border or behind the gripper)."""
@@ -135,6 +137,7 @@ class YoloWriter:
         if self.root.exists() and (not self.root.is_dir() or any(self.root.iterdir())):
             raise FileExistsError(f"--output-dir {self.root} exists and is not empty; choose a new folder")
         self.names, self.splits, self.preview = list(names), splits, preview
+        output_path(self.root)
         self.tmp = self.root.parent / f".{self.root.name}.partial-{uuid.uuid4().hex}"
         for split in SPLITS:
             (self.tmp / "images" / split).mkdir(parents=True)

@@ -29,6 +29,7 @@ import numpy as np
 import warp as wp
 import yaml
 
+from ..datasets.outputs import output_path
 
 SCHEMA = "newton_lab/scenario-v1"
 ROBOT = "robot"
@@ -100,8 +101,7 @@ class Scenario:
 
     def save(self, path: str | Path) -> Path:
         """Write the YAML; an existing file is never replaced."""
-        path = Path(path).expanduser()
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path = output_path(path)
         with open(path, "x") as f:  # "x": refuse to overwrite
             yaml.safe_dump(self.to_dict(), f, sort_keys=False)
         return path

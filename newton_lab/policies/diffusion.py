@@ -12,6 +12,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from ..datasets.outputs import output_path
 from .config import ARCHITECTURE_FIELDS, PRESETS, DiffusionPolicyConfig  # noqa: F401  (re-exported)
 from .ema import EMA
 from .model import ConditionalUnet1D
@@ -187,7 +188,7 @@ class DiffusionPolicy(nn.Module):
         path = Path(path)
         if not overwrite and path.exists():
             raise FileExistsError(f"{path} already exists; pass overwrite=True or choose another path")
-        path.parent.mkdir(parents=True, exist_ok=True)
+        output_path(path)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         try:
             torch.save(self.checkpoint(), tmp)

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ..datasets.outputs import output_path
 from .diffusion import ARCHITECTURE_FIELDS, DiffusionPolicy, DiffusionPolicyConfig
 from .normalize import MinMaxNormalizer
 
@@ -69,7 +70,7 @@ def data_fingerprint(data) -> str:
 
 def write_atomic(payload: dict[str, Any], path: Path) -> None:
     """``torch.save`` to a temporary file beside ``path``, fsync, then ``os.replace`` (and fsync the folder)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    output_path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as f:

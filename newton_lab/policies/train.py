@@ -24,6 +24,7 @@ from typing import Any
 import torch
 from tqdm import tqdm
 
+from ..datasets.outputs import output_path
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
 from .resume import (RESUME_FORMAT, RESUME_VERSION, capture_rng, check_resumable, data_fingerprint, load_resume,
@@ -73,7 +74,7 @@ def _free_names(out_dir: Path) -> tuple[Path, Path]:
 
 
 def _save_run(policy: DiffusionPolicy, out_dir: Path, log: dict[str, Any]) -> Path:
-    out_dir.mkdir(parents=True, exist_ok=True)
+    output_path(out_dir / "checkpoint.pt")
     while True:
         ckpt_path, log_path = _free_names(out_dir)
         try:
@@ -240,8 +241,7 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         if not path.exists():
             raise FileNotFoundError(f"dataset {path} does not exist; check the path")
     out_dir = Path(cfg.output_dir).expanduser()
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"output_dir {out_dir} is a file; pass a folder for the checkpoint")
+    output_path(out_dir / "checkpoint.pt", create=False)  # output_dir (or a folder above it) a file: refused now
     if not resume:
         refuse_fresh_run(out_dir)
     state = load_resume(out_dir) if resume else None

@@ -20,6 +20,7 @@ import torch
 import warp as wp
 
 from ..datasets import read_dataset_info, read_episode, state_tree
+from ..datasets.outputs import output_path
 from ..envs import make_env
 from .blueprint import default_blueprint, eye_for
 from .camera_log import (
@@ -78,7 +79,7 @@ class RerunLogger:
         self.blueprint = default_blueprint(self.rows, eye=self._eye(), hidden=logged.hidden,
                                            cameras={c.name: c.data for c in self.cameras})
         if self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            output_path(self.path)
             self.rec.save(str(self.path), default_blueprint=self.blueprint)
         elif connect is not None:
             self.rec.connect_grpc(connect, default_blueprint=self.blueprint)

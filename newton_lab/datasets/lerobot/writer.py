@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._common import fsync_path
+from ..outputs import output_path
 from ..storage import read_dataset_info, read_episode, read_episodes
 from .tables import (CHUNKS_SIZE, CODEBASE_VERSION, DATA_FILES_SIZE_IN_MB, DATA_PATH, EPISODES_PATH, IMAGE_NAMES,
                      IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, VIDEO_PATH,
@@ -102,7 +103,7 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
                              state_keys=state_keys, task_description=task_description)
     plan.video = bool(video)
 
-    root.parent.mkdir(parents=True, exist_ok=True)
+    output_path(root)
     tmp = root.parent / f".{root.name}.partial-{uuid.uuid4().hex}"
     tmp.mkdir()  # not mkdtemp: the renamed root should get the usual (umask) permissions
     try:
