@@ -63,7 +63,7 @@ def test_an_option_the_task_does_not_take_is_refused_at_once(capsys):
     rc = main(["collect", "--task", "GalbotG1-PickCube-v0", "--sorting-object", "red_cube", "--device", "cpu"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err.count("\n") == 0
-    assert "GalbotG1-PickCube-v0 takes no option --sorting-object" in err and "its options: none" in err
+    assert "GalbotG1-PickCube-v0 takes no option --sorting-object" in err and "its options: --obs-mode" in err
 
 
 def test_task_option_typo_names_the_closest_value(capsys):

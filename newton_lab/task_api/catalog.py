@@ -53,6 +53,13 @@ def _ids_in(source: str) -> list[str]:
     return ids
 
 
+OBS_MODE = DeclaredOption(
+    name="obs_mode", choices=("state", "sensors"),
+    doc="every task: state (every observation term the task declares) or sensors (what a real robot measures: "
+        "proprioception and cameras, no object or target poses)")
+"""The option every task takes (``TaskSpec.all_options``), listed after the task's own."""
+
+
 def _task_inits() -> list[Path]:
     spec = importlib.util.find_spec("newton_lab.tasks")  # locates the package; does not execute it
     roots = [Path(p) for p in (spec.submodule_search_locations or [])] if spec else []
@@ -124,7 +131,7 @@ def declared_options() -> dict[str, tuple[DeclaredOption, ...]]:
     out: dict[str, tuple[DeclaredOption, ...]] = {}
     for init in _task_inits():
         out.update(_options_in(init.read_text()))
-    return out
+    return {task_id: (*opts, OBS_MODE) for task_id, opts in out.items()}
 
 
 def all_declared_options() -> dict[str, DeclaredOption]:

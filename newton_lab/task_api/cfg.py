@@ -154,6 +154,9 @@ class ObsTermCfg(TermCfg):
     size: int | str
     """Columns written: a fixed count of the value's own (7 for a pose, 3 for a position) or a width the env
     derives from the robot and the action map (``ACTION_DIM``, ``ROBOT_COORDS``, ``ARM_JOINTS``)."""
+    privileged: bool = False
+    """The term reads what a real robot does not measure (a scene object's pose, a target's position): the task
+    option ``obs_mode="sensors"`` drops it, leaving proprioception and cameras."""
 
 
 @dataclass(frozen=True, kw_only=True)

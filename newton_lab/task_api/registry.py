@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .catalog import OBS_MODE as _OBS_MODE_DECL
 from .catalog import did_you_mean
 from .cfg import TaskCfg
 from .experts import Expert
@@ -56,8 +57,14 @@ class TaskSpec:
     no teleop device drives this task."""
 
     @property
+    def all_options(self) -> tuple[TaskOption, ...]:
+        """The task's own options, then the ones every task takes (``obs_mode``)."""
+        return (*self.options, *BUILTIN_OPTIONS)
+
+    @property
     def option_names(self) -> list[str]:
-        return [o.name for o in self.options]
+        """Names of ``all_options``."""
+        return [o.name for o in self.all_options]
 
     def check_options(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
         """``options`` as a dict after checking keys and values against the schema (one-line errors)."""
@@ -66,8 +73,8 @@ class TaskSpec:
         if unknown:
             hint = did_you_mean(unknown[0], self.option_names) if len(unknown) == 1 else ""
             raise ValueError(f"unknown task option(s) {unknown} for {self.id}{hint}; "
-                             f"valid options: {self.option_names if self.options else 'none'}")
-        for opt in self.options:
+                             f"valid options: {self.option_names}")
+        for opt in self.all_options:
             value = options.get(opt.name)
             if value is not None and opt.choices is not None and value not in opt.choices:
                 raise ValueError(f"unknown {opt.name} {value!r}{did_you_mean(value, opt.choices)}; "
@@ -75,22 +82,41 @@ class TaskSpec:
         return options
 
     def accepted(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
-        """The subset of ``options`` this task declares (a coherent task passes its options to every
-        component; each takes the ones it knows)."""
-        return {k: v for k, v in (options or {}).items() if k in self.option_names}
+        """The subset of ``options`` this task declares itself (a coherent task passes its options to every
+        component; each takes the ones it knows; the built-in ``obs_mode`` is applied to the coherent task)."""
+        own = {o.name for o in self.options}
+        return {k: v for k, v in (options or {}).items() if k in own}
 
     def make_cfg(self, options: Mapping[str, Any] | None = None) -> TaskCfg:
         """The env configuration for ``options`` (checked): ``cfg.task_id`` is this spec's id, ``cfg.options``
         records the options, and every generic term is resolved against the scene (``resolve_cfg``)."""
         options = self.check_options(options)
-        return resolve_cfg(dataclasses.replace(self.cfg(**options), task_id=self.id, options=options))
+        cfg = dataclasses.replace(self.cfg(**self._own(options)), task_id=self.id, options=options)
+        if options.get(OBS_MODE.name, OBS_MODE.default) == "sensors":
+            cfg = without_privileged(cfg)
+        return resolve_cfg(cfg)
+
+    def _own(self, options: dict[str, Any]) -> dict[str, Any]:
+        """The options the task's own factories take (the built-in ones are the registry's)."""
+        return {k: v for k, v in options.items() if k not in {o.name for o in BUILTIN_OPTIONS}}
 
     def make_expert(self, options: Mapping[str, Any] | None = None) -> Expert:
         """The expert declaration for ``options``; raises when the task declares none."""
         if self.expert is None:
             raise ValueError(f"task {self.id!r} declares no expert; pass an agent (e.g. a policy) or, for a "
                              "coherent task, use TaskFlowAgent")
-        return self.expert(**self.check_options(options))
+        return self.expert(**self._own(self.check_options(options)))
+
+
+OBS_MODE = TaskOption(name=_OBS_MODE_DECL.name, choices=_OBS_MODE_DECL.choices, default="state",
+                      doc=_OBS_MODE_DECL.doc)
+"""The option every task takes: ``sensors`` drops the privileged observation terms (``ObsTermCfg.privileged``)."""
+BUILTIN_OPTIONS = (OBS_MODE,)
+
+
+def without_privileged(cfg: TaskCfg) -> TaskCfg:
+    """``cfg`` observing only what a real robot measures: its privileged observation terms dropped."""
+    return dataclasses.replace(cfg, observations={k: t for k, t in cfg.observations.items() if not t.privileged})
 
 
 _REGISTRY: dict[str, TaskSpec] = {}

@@ -38,8 +38,8 @@ def command_point_obs(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), co
     write_vec3(out, w, col, command_point(ctx, w))
 
 
-COMMAND_POINT = ObsTermCfg(func=command_point_obs, size=POINT_COMMAND_DIM)
-"""Observation term: the commanded point (3)."""
+COMMAND_POINT = ObsTermCfg(func=command_point_obs, size=POINT_COMMAND_DIM, privileged=True)
+"""Observation term: the commanded point (3); privileged (a target's position: ``obs_mode="sensors"`` drops it)."""
 
 
 @term_factory(entities=("entity",))

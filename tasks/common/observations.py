@@ -91,23 +91,24 @@ def entity_orientations_obs(*, entities: tuple[int, ...]):
 
 
 def pose_of(entity: str) -> ObsTermCfg:
-    """Observation term: the pose (7) of the scene object ``entity``, world frame."""
-    return ObsTermCfg(func=entity_pose_obs, params={"entity": entity}, size=7)
+    """Observation term: the pose (7) of the scene object ``entity``, world frame (privileged, like the three
+    below: ``obs_mode="sensors"`` drops it)."""
+    return ObsTermCfg(func=entity_pose_obs, params={"entity": entity}, size=7, privileged=True)
 
 
 def position_of(entity: str) -> ObsTermCfg:
     """Observation term: the centre (3) of the scene object ``entity``, world frame [m]."""
-    return ObsTermCfg(func=entity_positions_obs, params={"entities": (entity,)}, size=3)
+    return ObsTermCfg(func=entity_positions_obs, params={"entities": (entity,)}, size=3, privileged=True)
 
 
 def positions_of(*entities: str) -> ObsTermCfg:
     """Observation term: the centres (3 each) of the scene objects ``entities``, world frame [m]."""
-    return ObsTermCfg(func=entity_positions_obs, params={"entities": entities}, size=3 * len(entities))
+    return ObsTermCfg(func=entity_positions_obs, params={"entities": entities}, size=3 * len(entities), privileged=True)
 
 
 def orientations_of(*entities: str) -> ObsTermCfg:
     """Observation term: the quaternions (4 each, xyzw) of the scene objects ``entities``."""
-    return ObsTermCfg(func=entity_orientations_obs, params={"entities": entities}, size=4 * len(entities))
+    return ObsTermCfg(func=entity_orientations_obs, params={"entities": entities}, size=4 * len(entities), privileged=True)
 
 
 LAST_ACTION = ObsTermCfg(func=last_action, size=ACTION_DIM)
