@@ -43,6 +43,9 @@ class TaskContext:
     tcp_body: int
     tcp_offset: wp.transform
     gripper_coord: int
+    """World-local coordinate of the controlled arm's gripper master joint."""
+    gripper_closed: float
+    """The gripper master joint's closed value [rad] (its open value is 0)."""
     arm_coords: wp.array(dtype=int)
     """World-local coordinate indices of the controlled arm (7)."""
     arm_home: wp.array(dtype=float)

@@ -329,8 +329,7 @@ robot's own task configs) import them; everything else reads the robot through `
 (``newton_lab.robots.binding.RobotBinding``, looked up by ``newton_lab.robots.registry.robot_binding``)."""
 ROBOT_IMPORT_ALLOWED = {
     # temporary: modules with their own owners that still read G1 facts directly
-    "newton_lab.task_api.experts": "NavExpert's default success radius (spec.NAV_SUCCESS_RADIUS)",
-    "newton_lab.datasets.split": "the joint groups of the component tasks' action terms (spec.JOINT_GROUPS)",
+    # the command line's refusals before anything heavy is imported (the binding imports Newton)
     "newton_lab.cli.run": "camera names and image sides checked before anything heavy is imported",
     "newton_lab.cli.yolo": "image sides checked before anything heavy is imported",
 }
@@ -339,6 +338,13 @@ ROBOT_IMPORT_ALLOWED = {
 
 def _imports_robot_package(module: str) -> bool:
     return any(t == p or t.startswith(p + ".") for t in GRAPH[module] for p in ROBOT_PACKAGES)
+
+
+def test_tasks_import_a_robot_package_only_in_its_config():
+    """In ``tasks/``, a robot's facts are read only by that robot's task config (``config/<robot>/``, e.g.
+    ``tasks/common/config/g1/setup.py``); scenes, generic terms and task mdp modules stay robot-free."""
+    bad = sorted(m for m in MODULES if _unit(m) == "tasks" and _imports_robot_package(m) and ".config." not in m)
+    assert not bad, "task modules outside config/<robot>/ importing a robot package:\n" + "\n".join(bad)
 
 
 def test_robot_packages_are_imported_only_by_robots_and_tasks():

@@ -9,7 +9,7 @@ import warp as wp
 
 from newton_lab.envs import make_env
 from newton_lab.robots.g1 import spec
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common.config.g1 import postures
 
 
 @pytest.fixture(scope="module")

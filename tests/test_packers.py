@@ -17,7 +17,7 @@ from newton_lab.robots.g1.packers import (
     wheel_gains,
     wheel_velocities_to_base_twist,
 )
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common.config.g1 import postures
 
 ACT = spec.G1_ACTION_JOINT_NAMES
 A = len(ACT)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..robots.g1 import spec
+from ..robots.registry import robot_binding
 from ..task_api.registry import lookup
 from .ref import DatasetRef
 from .filter_keys import read_filter_keys, set_filter_keys
@@ -51,7 +51,8 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
     for p, ph in enumerate(cfg.phases):
         comp = lookup(ph.task_id)
         comp = comp.cfg(**comp.accepted(options))
-        names = [j for t in comp.actions for j in spec.JOINT_GROUPS[t.group]]
+        groups = robot_binding(comp.robot).joint_groups
+        names = [j for t in comp.actions for j in groups[t.group]]
         cols = [columns.index(j) for j in names]
         args = {**env_args, "env_name": ph.task_id,
                 "newton_lab": {**env_args["newton_lab"], "action_joint_names": names}}

@@ -48,6 +48,8 @@ class RobotContext:
     tcp_offset_pos: tuple[float, float, float]
     tcp_offset_quat: tuple[float, float, float, float]
     gripper_coord: int
+    gripper_closed: float
+    """The gripper master's closed value [rad]."""
     arm_coords: tuple[int, ...]
 
     @classmethod
@@ -69,6 +71,7 @@ class RobotContext:
             tcp_offset_pos=robot.tcp_offset_pos,
             tcp_offset_quat=robot.tcp_offset_quat,
             gripper_coord=coord[chosen.gripper],
+            gripper_closed=float(robot.gripper_closed),
             arm_coords=tuple(coord[j] for j in chosen.joints),
         )
 
@@ -80,6 +83,7 @@ class RobotContext:
         ctx.tcp_body = self.tcp_body
         ctx.tcp_offset = wp.transform(wp.vec3(*self.tcp_offset_pos), wp.quat(*self.tcp_offset_quat))
         ctx.gripper_coord = self.gripper_coord
+        ctx.gripper_closed = self.gripper_closed
         ctx.arm_coords = wp.array(self.arm_coords, dtype=int)
 
 

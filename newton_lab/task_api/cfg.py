@@ -61,12 +61,12 @@ class SceneCfg:
 
 @dataclass(kw_only=True)
 class ActionTermCfg:
-    """One action term: a joint group's columns and how they drive it (``newton_lab.robots.g1.binding``)."""
+    """One action term: a joint group's columns and how they drive it (the robot binding's action map)."""
 
     name: str
     """Action term name (a dataset's action columns are named after it and its joints)."""
     group: str
-    """Joint group of ``newton_lab.robots.g1.spec.JOINT_GROUPS``."""
+    """Joint group of the task's robot (``RobotBinding.joint_groups``, e.g. the G1's ``left_arm``)."""
     type: str = "absolute"
     """``absolute`` (target = a [rad | m]), ``relative`` (target = current target + a), ``velocity`` (wheel
     speeds [rad/s]) or ``binary`` (gripper master target, 0 open .. 1.2 closed); others are refused."""
@@ -262,7 +262,7 @@ class TaskCfg:
     """Divergence guard: a body spinning faster than this ends the row (reason ``diverged``) [rad/s]. Non-finite
     body poses, velocities, joint coordinates or joint velocities always do."""
     cameras: dict[str, CameraCfg] = field(default_factory=dict)
-    """Cameras by robot mount name (``newton_lab.robots.g1.spec.CAMERA_MOUNTS``); empty: a state-only task.
+    """Cameras by robot mount name (``RobotBinding`` camera mounts, e.g. the G1's ``front_head``); empty: a state-only task.
     ``make_env(..., cameras=...)`` turns them off or changes their resolution."""
     options: dict[str, Any] = field(default_factory=dict)
     """The task options this cfg was built with (recorded in dataset env_args)."""

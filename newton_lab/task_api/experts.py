@@ -10,7 +10,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Union
 
-from ..robots.g1 import spec
 from .motion_plan import MotionPlan, plan_from_yaml
 
 
@@ -22,7 +21,7 @@ class NavExpert:
     """Goal base position, env frame [m]."""
     goal_yaw: float | None = None
     """Goal base yaw [rad]; ``None``: any heading."""
-    success_radius: float = spec.NAV_SUCCESS_RADIUS
+    success_radius: float = 0.15
     """xy velocity is zero inside this distance of the goal [m]."""
     yaw_tolerance: float = 0.03
     """Yaw rate is zero inside this error [rad]."""

@@ -10,19 +10,12 @@ from __future__ import annotations
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext, base_pose2d
-from newton_lab.robots.g1 import spec
-from newton_lab.task_api.cfg import ActionTermCfg, ObsTermCfg, RewardTermCfg
+from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg
 from newton_lab.task_api.terms import term_factory
 
 from .observations import LAST_ACTION
 from .rewards import indicator
 from .terminations import base_at
-
-
-def base_actions(*, clip: bool = True) -> list[ActionTermCfg]:
-    """The 4-wheel velocity action [rad/s], clipped to +-4.5 rad/s (= 0.45 m/s) unless ``clip`` is False."""
-    lim = spec.WHEEL_VELOCITY_CLIP
-    return [ActionTermCfg(name="base_action", group="base", type="velocity", clip=(-lim, lim) if clip else None)]
 
 
 def goal_reached(*, goal_xy: tuple[float, float], radius: float):

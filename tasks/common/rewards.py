@@ -21,7 +21,6 @@ from typing import Callable
 import warp as wp
 
 from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gripper_q, tcp_pos, wrap_angle
-from newton_lab.robots.g1 import spec
 from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.task_api.terms import bind, term_factory
 
@@ -37,8 +36,6 @@ POSTURE_TANH_SCALE = 1.0
 """Joint-space shaping ``1 - tanh(POSTURE_TANH_SCALE * |dq|)`` [1/rad]."""
 REACH_DONE_DIST = 0.06
 """The reaching stage is done with the TCP this close to the object's centre (the grasp distance) [m]."""
-GRIPPER_FULL_CLOSE = wp.constant(float(spec.GRIPPER_CLOSED))
-"""Gripper master target when fully closed [rad] (0 = open)."""
 
 vec5 = wp.types.vector(length=5, dtype=float)
 vec7 = wp.types.vector(length=7, dtype=float)
@@ -81,8 +78,9 @@ def tcp_distance(ctx: TaskContext, w: int, k: int) -> float:
 
 @wp.func
 def gripper_openness(ctx: TaskContext, w: int) -> float:
-    """1 - gripper / 1.2, clamped to [0, 1]: 1 open, ~0.44 closed on a 5 cm object, 0 fully closed."""
-    return 1.0 - wp.clamp(wp.abs(gripper_q(ctx, w)) / GRIPPER_FULL_CLOSE, 0.0, 1.0)
+    """1 - gripper / closed value (the G1's 1.2 rad), clamped to [0, 1]: 1 open, ~0.44 closed on a 5 cm object,
+    0 fully closed."""
+    return 1.0 - wp.clamp(wp.abs(gripper_q(ctx, w)) / ctx.gripper_closed, 0.0, 1.0)
 
 
 @wp.func

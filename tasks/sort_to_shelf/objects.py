@@ -9,8 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from newton_lab.robots.g1 import spec
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common.config.g1.postures import UPPER_ROW_LEGS
 
 SHELF_NAV_YAW = -1.5707963267948966
 """The base faces the shelf (-y) when placing [rad]."""
@@ -54,7 +53,7 @@ class SortingObject:
     @property
     def legs(self) -> tuple[float, ...]:
         """Leg posture while placing: lifted for the upper row [rad] (5)."""
-        return spec.leg_lift(postures.LEG_LIFT_STEP) if self.upper_row else (0.0,) * 5
+        return UPPER_ROW_LEGS if self.upper_row else (0.0,) * 5
 
     @property
     def release_tcp(self) -> tuple[float, float, float]:

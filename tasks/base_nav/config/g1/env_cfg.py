@@ -5,6 +5,7 @@ from __future__ import annotations
 from newton_lab.task_api.cfg import TaskCfg, TermCfg
 from newton_lab.task_api.experts import NavExpert
 from newton_lab.tasks.common import navigation as nav
+from newton_lab.tasks.common.config.g1.setup import base_actions
 
 GOAL_XY = (2.0, 0.0)
 """Goal position, env frame [m]."""
@@ -19,7 +20,7 @@ def base_nav_cfg() -> TaskCfg:
     """Mobile G1 at the origin, no objects; 4-wheel velocity action (clip +-4.5 rad/s); 12 s episodes."""
     return TaskCfg(
         entities=[],
-        actions=nav.base_actions(),
+        actions=base_actions(),
         observations=nav.nav_observations(GOAL_XY),
         phase_success=[_goal_reached],
         rewards=nav.nav_rewards(GOAL_XY, SUCCESS_RADIUS),

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import observations as obs
-from newton_lab.tasks.common import postures
+from newton_lab.tasks.common.config.g1 import postures
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import Stage, lift_shaping, reach_stage, staged_rewards
-from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, lifted
 from newton_lab.tasks.lift_cube.scene import CUBE_INIT, SCENE
 

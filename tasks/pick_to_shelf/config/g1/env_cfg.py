@@ -17,18 +17,19 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from newton_lab.robots.g1 import spec
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.task_api.experts import NavExpert
-from newton_lab.tasks.common import cameras, postures
+from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import (
     Stage, drive_stage, gripper_openness, phased_rewards, pick_to_carry_stages, place_shaping, staged_rewards,
 )
-from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
+from newton_lab.tasks.common.config.g1.setup import (
+    base_actions, carried_gripper_closed, left_arm_actions, shelf_posture,
+)
 from newton_lab.tasks.common.terminations import (
     all_of, arm_at_home, dropped, grasped, gripper_open, held, lifted, resting_on, tipped, upright,
 )
@@ -101,13 +102,13 @@ def pick_cfg() -> TaskCfg:
 def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
     """Drive with the bar in hand to the shelf (success: base within 2 cm of the goal; yaw not checked)."""
     return _world(
-        actions=nav.base_actions(),
+        actions=base_actions(),
         observations=nav.nav_observations(NAV_GOAL_XY),
         phase_success=[goal_reached],
         rewards=nav.nav_rewards(NAV_GOAL_XY, NAV_SUCCESS_RADIUS),
         signals={"goal_reached": TermCfg(func=goal_reached)},
         scenario=init_scenario or str(SCENARIOS / "nav_default.yaml"),
-        initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+        initial_targets=carried_gripper_closed(),
         fixed_base=False,
     )
 
@@ -118,7 +119,7 @@ def place_cfg(init_scenario: str | None = None) -> TaskCfg:
         phase_success=[held(term=bar_released_on_shelf, steps=PLACE_HOLD_STEPS)],
         rewards=place_rewards(),
         scenario=init_scenario or str(SCENARIOS / "place_default.yaml"),
-        initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+        initial_targets=carried_gripper_closed(),
     )
 
 

@@ -11,12 +11,13 @@ from pathlib import Path
 
 from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
-from newton_lab.robots.g1 import spec
-from newton_lab.tasks.common import cameras, postures
+from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.terminations import dropped, tipped
-from newton_lab.tasks.common.table_top import left_arm_actions, shelf_posture
+from newton_lab.tasks.common.config.g1.setup import (
+    base_actions, carried_gripper_closed, left_arm_actions, shelf_posture,
+)
 from newton_lab.tasks.sort_to_shelf import scene
 from newton_lab.tasks.sort_to_shelf.mdp import events, rewards, terminations
 from newton_lab.tasks.sort_to_shelf.objects import OBJECTS, SortingObject
@@ -69,13 +70,13 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
     obj = lookup_object(sorting_object)
     return _world(
         obj,
-        actions=nav.base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
+        actions=base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
                                       ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
         observations=nav.nav_observations(obj.place_base_xy),
         phase_success=[terminations.held_at_place_start(obj)],
         rewards=nav.nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS),
         scenario=_scenario("nav", obj, init_scenario),
-        initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+        initial_targets=carried_gripper_closed(),
         fixed_base=False,
         options={"sorting_object": obj.name},
     )
@@ -87,7 +88,7 @@ def place_cfg(sorting_object: str | None = None, init_scenario: str | None = Non
     return _world(obj, phase_success=[terminations.placed(obj)],
                   rewards=rewards.place_rewards(obj),
                   scenario=_scenario("place", obj, init_scenario),
-                  initial_targets={spec.LEFT_GRIPPER_JOINT: spec.GRIPPER_CLOSED},
+                  initial_targets=carried_gripper_closed(),
                   options={"sorting_object": obj.name})
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.tasks.common import observations as obs
-from newton_lab.tasks.common import postures
-from newton_lab.tasks.common.table_top import left_arm_actions, manipulation_posture
+from newton_lab.tasks.common.config.g1 import postures
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.stack_cube.mdp import events, rewards
 from newton_lab.tasks.stack_cube.mdp.terminations import cube_dropping, grasped_cube, stack_success, stacked_and_released
 from newton_lab.tasks.stack_cube.scene import CUBES, SCENE

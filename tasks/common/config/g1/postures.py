@@ -6,6 +6,8 @@ robot spec (which keeps only robot facts: joints, limits, TCP, mounts).
 
 from __future__ import annotations
 
+from newton_lab.robots.g1 import spec
+
 MANIPULATION_ROOT_POS = (-1.0, 0.0, 0.0)
 """Robot root of the fixed-base table-top tasks [m]."""
 
@@ -28,3 +30,5 @@ SHELF_HEAD = (0.0, 0.25)
 
 LEG_LIFT_STEP = 0.2
 """Body-height step for the shelf's upper row: legs (s, 3s, 2s, 0, 0) [rad]."""
+UPPER_ROW_LEGS = spec.leg_lift(LEG_LIFT_STEP)
+"""Leg posture for placing into the shelf's upper row [rad] (5)."""
