@@ -7,7 +7,10 @@ Layers, lowest first; a module may import its own layer and the ones below, neve
 
 Also: no import cycle between modules or between packages, no ``importlib`` of project modules by name,
 imports at module top (a deliberately deferred import says ``deferred`` in a comment on its line), no
-module over 400 lines, no function over 80 lines except Warp kernels / funcs.
+module over 400 lines, no function over 80 lines except Warp kernels / funcs. The env's narrow surface: no
+private attribute of an env object touched outside ``newton_lab/envs/`` and no run-time patching of project code
+in the library. The robot behind one binding: a robot package is imported only by ``robots/`` and by that robot's
+task configs.
 """
 
 from __future__ import annotations
@@ -250,10 +253,12 @@ def _private(name: str) -> bool:
     return name.startswith("_") and not name.startswith("__")
 
 
-def test_no_private_access_to_env_objects_outside_envs():
+def _private_env_access(files: dict[str, ast.Module]) -> list[str]:
+    """``file:line expression`` of every private attribute of an env object read or written outside ``envs/``
+    (``env._x``, ``self._env._x``, ``getattr(env, "_x")``)."""
     env_like = re.compile(ENV_OBJECT_NAMES)
     bad = []
-    for rel, tree in _source_files(ENV_SURFACE_FOLDERS).items():
+    for rel, tree in files.items():
         if rel.startswith(ENV_OWNER):
             continue
         for node in ast.walk(tree):
@@ -267,6 +272,11 @@ def test_no_private_access_to_env_objects_outside_envs():
                 continue
             if owner is not None and env_like.match(owner):
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)}")
+    return bad
+
+
+def test_no_private_access_to_env_objects_outside_envs():
+    bad = _private_env_access(_source_files(ENV_SURFACE_FOLDERS))
     assert not bad, ("private attributes of env objects used outside newton_lab/envs/ (use the env's public surface, "
                      "newton_lab/envs/env.py's docstring lists it):\n" + "\n".join(bad))
 
@@ -290,13 +300,13 @@ def _project_names(tree: ast.Module) -> set[str]:
     return names
 
 
-def test_no_monkeypatching_in_the_library():
-    """Library code never rebinds attributes of project classes, modules or env objects at run time (a hook or an
-    argument does it): no ``Cls.method = ...`` / ``module.fn = ...`` on an imported project name, no
-    ``env.step = ...`` outside ``envs/``, no ``setattr`` / ``delattr`` on anything but ``self``."""
+def _run_time_patching(files: dict[str, ast.Module]) -> list[str]:
+    """``file:line what`` of every run-time rebinding of project code: ``Cls.method = ...`` / ``module.fn = ...``
+    (or ``del``) on an imported project name, ``env.step = ...`` on an env object outside ``envs/``, and
+    ``setattr`` / ``delattr`` on anything but ``self`` (``MONKEYPATCH_ALLOWED`` aside)."""
     env_like = re.compile(ENV_OBJECT_NAMES)
     bad = []
-    for rel, tree in _source_files(("newton_lab", "flows", "kernels", "tasks")).items():
+    for rel, tree in files.items():
         imported = _project_names(tree)
         for node in ast.walk(tree):
             targets = []
@@ -319,7 +329,47 @@ def test_no_monkeypatching_in_the_library():
                     and not (isinstance(node.args[0], ast.Name) and node.args[0].id == "self")
                     and (rel, node.func.id) not in MONKEYPATCH_ALLOWED):
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)}")
+    return bad
+
+
+def test_no_monkeypatching_in_the_library():
+    """Library code never rebinds attributes of project classes, modules or env objects at run time (a hook or an
+    argument does it, e.g. ``env.collect(..., timers=...)``)."""
+    bad = _run_time_patching(_source_files(("newton_lab", "flows", "kernels", "tasks")))
     assert not bad, "run-time patching of project code:\n" + "\n".join(bad)
+
+
+PATCHING = """
+from .datasets.storage import EpisodeWriter
+from . import zarr_store
+EpisodeWriter.append_prepared = wrap(EpisodeWriter.append_prepared)
+zarr_store.sync_tree = wrap(zarr_store.sync_tree)
+env.step, agent.act = wrap(env.step), wrap(agent.act)
+del env.step
+setattr(module, "fn", wrap)
+setattr(self, "ok", 1)
+self.fine = 1
+"""
+PRIVATE = """
+env._graph
+pick_env._ctx.phase
+self._env._obs
+env.cameras._groups
+getattr(cams, "_graph")
+other._x
+env.__class__
+"""
+
+
+def test_the_surface_rules_catch_what_they_name():
+    patches = _run_time_patching({"newton_lab/x.py": ast.parse(PATCHING)})
+    assert sorted(p.split(" ", 1)[1] for p in patches) == sorted([
+        "EpisodeWriter.append_prepared (a project name)", "zarr_store.sync_tree (a project name)",
+        "env.step (an env object)", "env.step (an env object)", "setattr(module, 'fn', wrap)"])
+    private = _private_env_access({"tests/x.py": ast.parse(PRIVATE)})
+    assert sorted(p.split(" ", 1)[1] for p in private) == sorted([
+        "env._graph", "pick_env._ctx", "self._env._obs", "env.cameras._groups", "getattr(cams, '_graph')"])
+    assert not _private_env_access({ENV_OWNER + "env.py": ast.parse(PRIVATE)})
 
 
 # ---------------------------------------------------------------- the robot behind one binding

@@ -1,5 +1,6 @@
-"""The G1 binding: robot half of the task context, the action map and its kinds, the model's limits (the
-gripper's velocity limit measured on real physics), and the one mecanum formula."""
+"""The G1 binding: the robot the env reads through ``env.robot`` (registry, facts), robot half of the task context,
+the action map and its kinds, the model's limits (the gripper's velocity limit measured on real physics), and the
+one mecanum formula."""
 
 from __future__ import annotations
 
@@ -15,10 +16,13 @@ from torch.testing import assert_close
 from newton_lab.envs import NewtonEnv, make_env
 from newton_lab.envs.scene import build_scene
 from newton_lab.kernels.actions import KIND_CODE
+from newton_lab.robots.binding import RobotBinding
+from newton_lab.robots.bound import BoundRobot
 from newton_lab.robots.g1 import spec
 from newton_lab.robots.g1.binding import ACTION_KINDS, G1Binding
 from newton_lab.robots.g1.mecanum import twist_to_wheels_torch, wheel_gains, wheels_to_twist_torch
 from newton_lab.robots.g1.packers import base_twist_to_wheel_velocities
+from newton_lab.robots.registry import register_robot, robot_binding, robot_names
 from newton_lab.task_api.cfg import ActionTermCfg
 from newton_lab.task_api.registry import lookup
 
@@ -38,6 +42,43 @@ def layout(pick_cfg):
 
 def _bind(layout, *terms: ActionTermCfg) -> G1Binding:
     return G1Binding.from_layout(layout, actions=list(terms), arm="left")
+
+
+# ---------------------------------------------------------------- the robot behind one binding
+def test_the_env_reads_the_robot_its_task_names(pick_env, pick_cfg):
+    g1 = robot_binding("g1")
+    assert pick_cfg.robot == "g1" and pick_env.robot is g1 and pick_env.binding.robot is g1
+    assert "g1" in robot_names()
+    assert g1.arm("left").joints == spec.LEFT_ARM_JOINTS and g1.arm("right").gripper == spec.RIGHT_GRIPPER_JOINT
+    assert g1.wheel_gains == pytest.approx(wheel_gains())
+    assert (g1.gripper_open, g1.gripper_closed) == (spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED)
+    assert pick_env.joint_coords(g1.base_planar_joints) == [pick_env.binding.context.base_coord + i for i in range(3)]
+    with pytest.raises(ValueError, match="unknown robot 'h1'; registered robots: .*g1"):
+        robot_binding("h1")
+    with pytest.raises(ValueError, match="unknown arm 'middle'"):
+        g1.arm("middle")
+
+
+def test_a_second_robot_is_one_registration(layout):
+    """The seam a second robot would use: its own binding, registered by name, bound by the same generic code
+    (here the G1's facts under another name, with a wider gripper)."""
+    other = dataclasses.replace(robot_binding("g1"), name="g1_wide_gripper", gripper_closed=1.5)
+    assert register_robot(other) is robot_binding("g1_wide_gripper")
+    with pytest.raises(ValueError, match="already registered"):
+        register_robot(dataclasses.replace(other))
+    bound = BoundRobot.from_layout(other, layout, actions=[ActionTermCfg(name="gripper", group="left_gripper",
+                                                                         type="binary")])
+    assert isinstance(other, RobotBinding) and bound.robot is other
+    assert (bound.actions.low[0], bound.actions.high[0]) == (0.0, 1.5)  # the binary column clips to its range
+    assert bound.context.gripper_closed == 1.5
+
+
+def test_g1_binding_is_the_generic_binding_of_the_g1(layout):
+    terms = [ActionTermCfg(name="arm", group="left_arm", type="relative")]
+    g1, generic = G1Binding.from_layout(layout, actions=terms), BoundRobot.from_layout(robot_binding(), layout,
+                                                                                      actions=terms)
+    assert g1.context == generic.context and g1.actions.joint_names == generic.actions.joint_names
+    assert np.array_equal(g1.actions.index, generic.actions.index)
 
 
 # ---------------------------------------------------------------- robot half of the context

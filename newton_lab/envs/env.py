@@ -196,7 +196,8 @@ class NewtonEnv:
         Args:
             actions: (num_envs, action_dim) float32 tensor on the env's device; columns follow
                 ``action_joint_names``, each of the kind ``binding.actions.kinds`` names (absolute or relative
-                joint targets [rad], wheel speeds [rad/s], gripper 0 open .. 1.2 closed).
+                joint targets [rad], wheel speeds [rad/s], gripper targets from ``robot.gripper_open`` to
+                ``robot.gripper_closed``: the G1's 0 .. 1.2).
 
         Returns:
             ``(obs, reward, terminated, truncated, info)`` as torch views of the env's Warp buffers
