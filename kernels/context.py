@@ -35,7 +35,7 @@ class TaskContext:
     """Pose of static entities (identical in every world)."""
     entity_half_extents: wp.array(dtype=wp.vec3)
     """Half sizes of each entity's box (or bounding box) [m]."""
-    # ---- the robot half (with ``robot_coords``): filled by ``robots.g1.binding.RobotContext.fill``
+    # ---- the robot half (with ``robot_coords``): filled by ``robots.bound.RobotContext.fill``
     base_coord: int
     """World-local coordinate of ``base_x`` (``base_y``, ``base_yaw`` follow): the planar base pose."""
     leg_coord: int

@@ -19,7 +19,7 @@ import torch
 import warp as wp
 from newton.sensors import SensorCamera
 
-from .datasets import list_demos, open_writer, read_episode, zarr_store, zarr_workers
+from .datasets import list_demos, open_writer, read_episode, zarr_store
 from .datasets._common import sync_tree
 from .datasets.outputs import output_path
 from .envs import make_env
@@ -183,10 +183,10 @@ class _Clock:
         return timed
 
 
-ZARR_WRITER_PARTS = {"writer_files_s": (zarr_workers, "write_batch"), "writer_sync_s": (zarr_store, "sync_tree")}
-"""A zarr batch's seconds split: encoding and writing its demos' files (writer processes or threads), and the one
-``syncfs`` that makes them durable (disk-bound where the files are many); the rest of ``writer_s`` is the lock,
-the renames and the commit."""
+ZARR_WRITER_PARTS = {"writer_files_s": "files", "writer_sync_s": "sync"}
+"""A zarr batch's seconds split (``zarr_store.BATCH_SECONDS``): encoding and writing its demos' files (writer
+processes or threads), and the one ``syncfs`` that makes them durable (disk-bound where the files are many); the
+rest of ``writer_s`` is the lock, the renames and the commit."""
 
 
 def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dict[str, Any]:
@@ -195,21 +195,14 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
     ``Timers``); the loop's own time is the rest."""
     physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
     timers = Timers(step=physics.wrap, act=acting.wrap, write=writing.wrap)
-    parts = {name: _Clock("cpu") for name in ZARR_WRITER_PARTS}
-    store_fns = {place: getattr(*place) for place in ZARR_WRITER_PARTS.values()}
-    # the zarr split times two functions of datasets.zarr_store's batch write, which has no timing hook yet
-    for name, (module, fn) in ZARR_WRITER_PARTS.items():
-        setattr(module, fn, parts[name].wrap(store_fns[module, fn]))
+    store_before = dict(zarr_store.BATCH_SECONDS)
     t0 = time.perf_counter()
-    try:
-        ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
-                          only_successes=True, max_attempts=2 * episodes, timers=timers)
-    finally:
-        for (module, fn), original_fn in store_fns.items():
-            setattr(module, fn, original_fn)
+    ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
+                      only_successes=True, max_attempts=2 * episodes, timers=timers)
     wall = time.perf_counter() - t0
     ok = ref.metadata["successes"]
-    split = {name: clock.seconds for name, clock in parts.items()} if path.suffix == ".zarr" else {}
+    split = ({name: zarr_store.BATCH_SECONDS[part] - store_before[part] for name, part in ZARR_WRITER_PARTS.items()}
+             if path.suffix == ".zarr" else {})
     return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
             "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
             "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds, **split,

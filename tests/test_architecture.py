@@ -281,11 +281,7 @@ def test_no_private_access_to_env_objects_outside_envs():
                      "newton_lab/envs/env.py's docstring lists it):\n" + "\n".join(bad))
 
 
-MONKEYPATCH_ALLOWED = {
-    # temporary: the zarr writer split of bench-collect (files / syncfs seconds) wraps two module functions of
-    # datasets.zarr_workers / datasets.zarr_store, which offer no timing hook yet (datasets/ has its own owner)
-    ("newton_lab/bench.py", "setattr"),
-}
+MONKEYPATCH_ALLOWED: set[tuple[str, str]] = set()
 """(file, call) pairs that may still patch project code at run time, each with its reason."""
 
 

@@ -1,4 +1,4 @@
-"""Navigation agents: drive the planar base with the 4-wheel velocity action (reference §4.3 control law).
+"""Navigation agents: drive the planar base with the 4-wheel velocity action (the reference platform's control law).
 
 Every nav agent writes only the wheel columns and keeps the rest of the action at the current drive targets
 (arm, legs and gripper hold), so it can drive a row of any task whose action space has a ``base`` term.
@@ -78,7 +78,7 @@ class BaseNavAgent(BaseAgent):
 
 
 class GoalNavAgent(BaseNavAgent):
-    """Drive to ``goal`` (x, y) and turn to ``goal_yaw`` (reference §4.3).
+    """Drive to ``goal`` (x, y) and turn to ``goal_yaw`` (the reference platform's control law).
 
     Heading toward the current target (``target``; the goal here), speed ``min(distance to goal, max_speed)``
     ramped by ``max_accel``; xy velocity zero inside ``success_radius``; yaw rate

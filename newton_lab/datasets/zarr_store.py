@@ -14,6 +14,7 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -30,6 +31,11 @@ from .zarr_nodes import read_tree, write_group
 from .zarr_packs import PackJob, PackReader, batch_jobs, pack_first_of, pack_name
 from .zarr_session import data_group, drain, fsync_tree, locked, node_attrs, open_root, remove_node
 from . import zarr_packs, zarr_workers
+
+BATCH_SECONDS = {"files": 0.0, "sync": 0.0}
+"""Seconds this process's zarr batch appends spent encoding and writing their demos' files (writer processes or
+threads) and in the one ``syncfs`` that makes them durable; cumulative, read as differences (``bench-collect``'s
+writer split)."""
 
 __all__ = ["create", "read_root", "append", "set_root_attrs", "info", "read", "read_many", "delete", "read_masks",
            "set_masks"]
@@ -170,9 +176,13 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
             writers = zarr_workers.WRITE_THREADS if fault_injected() else zarr_workers.WRITE_PROCESSES
             jobs = batch_jobs(stage, ids, _unpacked(items), writers)
             names = [(job.node if isinstance(job, PackJob) else job[0]).name for job in jobs]
+            t0 = time.perf_counter()
             zarr_workers.write_batch(path, jobs)
+            t1 = time.perf_counter()
             if fsync:
                 sync_tree(stage)
+            BATCH_SECONDS["files"] += t1 - t0
+            BATCH_SECONDS["sync"] += time.perf_counter() - t1
             for name in names:
                 os.rename(stage / name, path / "data" / name)
             if fsync:

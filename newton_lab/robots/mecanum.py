@@ -1,7 +1,7 @@
 """Mecanum wheel kinematics: the one formula, in Warp, for any four-wheel mecanum base.
 
 Wheel speeds (wheel1..wheel4 [rad/s]) and the base-frame twist (vx, vy [m/s], wz [rad/s]) are related by one
-mixing matrix ``MIX`` (4 x 3, entries +-1) and the gains of :func:`wheel_gains` (reference facts §2.3)::
+mixing matrix ``MIX`` (4 x 3, entries +-1) and the gains of :func:`wheel_gains` (as on the reference platform)::
 
     wheels = MIX @ (lin * vx, lin * vy, yaw * wz)
 

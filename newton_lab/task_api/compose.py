@@ -66,6 +66,9 @@ def coherent_task(
                              f"{names}; components of a coherent task must share one world")
         if tuple(cfg.arm_home) != tuple(first.arm_home) or cfg.arm != first.arm:
             raise ValueError(f"phase {p.name!r} ({p.task_id}) uses another arm or arm reference posture")
+        if cfg.robot != first.robot:
+            raise ValueError(f"phase {p.name!r} ({p.task_id}) runs robot {cfg.robot!r} but the coherent task's first "
+                             f"phase runs {first.robot!r}; components of a coherent task share one robot")
 
     if actions is None:
         actions = _union_by_name(cfg.actions for cfg in parts)

@@ -1,5 +1,5 @@
 """Teleop contracts (which joint groups an operator drives) and the mapper from a ``TeleopFrame`` to a task's
-action columns (reference facts §2.2 "Teleop contracts", §2.3 twist -> wheels, §1.2 body-height mapping).
+action columns (the reference platform's teleop contracts, twist -> wheels mixing and body-height mapping).
 
 A task declares its contract (``TaskSpec.teleop``); a device declares the contracts it can drive. The mapper
 writes only the columns the task's action layout has, so one contract serves every task whose columns it

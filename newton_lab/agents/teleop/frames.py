@@ -27,7 +27,7 @@ class TeleopFrame:
     base_twist: tuple[float, float, float] | None = None
     """Base twist (vx, vy [m/s] in the base frame, wz [rad/s]); mapped to the four wheel velocities."""
     body_height: float | None = None
-    """Body-height step s [rad]: legs 1..3 = (s, 3s, 2s), clamped (reference facts §1.2)."""
+    """Body-height step s [rad]: legs 1..3 = (s, 3s, 2s), clamped (as on the reference platform)."""
     raw: dict | None = None
     """The device's own frame (e.g. the GP001 dict), for logging."""
 

@@ -1,4 +1,4 @@
-"""The teleop review loop (reference facts §7): the operator drives one episode, types ``done``, and answers
+"""The teleop review loop (as on the reference platform): the operator drives one episode, types ``done``, and answers
 keep / drop / exit. Each episode is written by ``env.collect`` (so the crash-safety promise holds); drop removes
 it again through ``DatasetRef.drop()``; exit drops the episode under review and stops; end of input is exit."""
 

@@ -1,4 +1,4 @@
-"""G1 camera mounts and intrinsics (reference facts §1.6), and the robot's segmentation link groups.
+"""G1 camera mounts and intrinsics (as on the reference platform), and the robot's segmentation link groups.
 
 The reference gives each camera as an offset from a mount link in the ROS optical convention (looks along +z,
 +y down, +x right). The authored G1 has no separate mount links: each mount frame is fixed in a body of the MJCF

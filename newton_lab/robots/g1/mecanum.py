@@ -2,7 +2,7 @@
 them on torch tensors (the packers' and tests' entry points).
 
 The gains are ``lin = lin_scale / (sqrt(2) r)``, ``yaw = ang_scale / (2 sqrt(2) r (|wx| + |wy|))`` with
-r = WHEEL_RADIUS [m], wx/wy = WHEEL_OFFSET_X/Y [m] (reference facts §2.3); defaults give (7.0711, 10.0161).
+r = WHEEL_RADIUS [m], wx/wy = WHEEL_OFFSET_X/Y [m] (as on the reference platform); defaults give (7.0711, 10.0161).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``gp001``: Galbot's GP001 leader-arm remote (reference facts §7). Frames come from a transport; the default
+"""``gp001``: Galbot's GP001 leader-arm remote (as on the reference platform). Frames come from a transport; the default
 one is the vendor driver (``remote_control_lite``, an optional import: a one-line error when absent). Tests and
 other hardware inject their own transport: any object with ``open()``, ``read()`` (the newest raw frame dict or
 ``None``) and ``close()``.
