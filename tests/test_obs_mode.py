@@ -48,3 +48,12 @@ def test_sensors_observation_does_not_see_the_cube():
 def test_unknown_obs_mode_is_one_line():
     with pytest.raises(ValueError, match=r"unknown obs_mode 'pixels'; valid values: \['state', 'sensors'\]"):
         lookup("GalbotG1-PickCube-v0").make_cfg({"obs_mode": "pixels"})
+
+
+def test_task_options_as_keywords():
+    env = make_env("GalbotG1-PickCube-v0", device="cpu", obs_mode="sensors", cameras=False)
+    assert env.cfg.options == {"obs_mode": "sensors"} and "cube_pose" not in env.obs_terms
+    with pytest.raises(ValueError, match="unknown task option"):
+        make_env("GalbotG1-PickCube-v0", device="cpu", sorting_object="red_cube")
+    with pytest.raises(ValueError, match="given twice"):
+        make_env("GalbotG1-PickCube-v0", device="cpu", task_options={"obs_mode": "state"}, obs_mode="sensors")

@@ -20,11 +20,14 @@ def make_env(
     *,
     capture: bool = True,
     cameras: bool | dict[str, Any] | str | None = None,
+    **options: Any,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
 
     ``randomize`` turns on the task's reset randomisation (seeded per row by ``seed``);
-    ``task_options`` are the task's own options (unknown keys raise with the valid ones).
+    ``task_options`` are the task's own options (unknown keys raise with the valid ones); they may also be given as
+    keywords: ``make_env("GalbotG1-SortToShelf-v0", sorting_object="blue_cuboid", obs_mode="sensors")`` (so
+    ``gymnasium.make`` takes them too).
     ``cameras``: ``None`` renders the task's cameras (``TaskCfg.cameras``), ``False`` none (state-only speed),
     ``{"front_head": (96, 72)}`` changes a camera's resolution [px] (or ``{"front_head": {"resolution": (w, h),
     "data": ("rgb", "depth", "segmentation")}}``; a mount of the task's robot that the task lacks is added), or the
@@ -33,7 +36,10 @@ def make_env(
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-    cfg = spec.make_cfg(task_options)
+    both = sorted(set(options) & set(task_options or {}))
+    if both:
+        raise ValueError(f"task option(s) {both} given twice (as keywords and in task_options); give each once")
+    cfg = spec.make_cfg({**(task_options or {}), **options})
     prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
     return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture,
                      cameras=cameras)
