@@ -94,13 +94,18 @@ def test_planner_for_unknown_task():
 
 
 def test_collect_into_missing_parent(pick_env, tmp_path):
+    """The Python API creates a dataset's missing folders, as the command line does; a file in the way of one is
+    refused in one line and nothing is written."""
     from newton_lab.agents import ZeroAgent
 
-    target = tmp_path / "missing" / "demos.hdf5"
-    with pytest.raises(FileNotFoundError) as e:
-        pick_env.collect(agent=ZeroAgent(), episodes=1, path=target, max_steps=2, progress=False)
-    assert "mkdir" in _one_line(e.value)
-    assert not target.parent.exists()
+    target = tmp_path / "missing" / "deeper" / "demos.hdf5"
+    ref = pick_env.collect(agent=ZeroAgent(), episodes=1, path=target, max_steps=2, progress=False)
+    assert target.is_file() and ref["episodes"] == 1
+    (tmp_path / "afile").write_text("keep")
+    with pytest.raises(ValueError) as e:
+        pick_env.collect(agent=ZeroAgent(), episodes=1, path=tmp_path / "afile" / "x.hdf5", max_steps=2,
+                         progress=False)
+    assert "is a file" in _one_line(e.value) and (tmp_path / "afile").read_text() == "keep"
 
 
 def test_collect_refuses_dataset_of_another_task(pick_env, tmp_path):
