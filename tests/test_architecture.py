@@ -375,9 +375,7 @@ robot's own task configs) import them; everything else reads the robot through `
 (``newton_lab.robots.binding.RobotBinding``, looked up by ``newton_lab.robots.registry.robot_binding``)."""
 ROBOT_IMPORT_ALLOWED = {
     # temporary: modules with their own owners that still read G1 facts directly
-    # the command line's refusals before anything heavy is imported (the binding imports Newton)
-    "newton_lab.cli.run": "camera names and image sides checked before anything heavy is imported",
-    "newton_lab.cli.yolo": "image sides checked before anything heavy is imported",
+
 }
 """Module -> what it still reads from a robot package directly (each entry to be moved onto the binding)."""
 

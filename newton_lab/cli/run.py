@@ -188,14 +188,14 @@ def bench_train(args: BenchTrainArgs) -> int:
 
 def _check_render(args: RenderArgs) -> None:
     """One-line errors for a ``render`` request (before Warp is imported)."""
-    from ..robots.g1.cameras import MAX_RESOLUTION, MIN_RESOLUTION  # deferred: numpy, only for this command
-    from ..robots.g1.spec import CAMERA_MOUNTS  # deferred: only for this command
+    from ..robots.registry import camera_facts  # deferred: numpy, only for this command
 
-    if args.camera not in CAMERA_MOUNTS:
-        raise ValueError(f"--camera {args.camera!r} is unknown; the G1's cameras are {', '.join(CAMERA_MOUNTS)}")
+    mounts, min_side, max_side = camera_facts()
+    if args.camera not in mounts:
+        raise ValueError(f"--camera {args.camera!r} is unknown; the G1's cameras are {', '.join(mounts)}")
     res = args.resolution
-    if res is not None and (len(res) != 2 or not all(MIN_RESOLUTION <= v <= MAX_RESOLUTION for v in res)):
-        raise ValueError(f"--resolution takes width and height in [{MIN_RESOLUTION}, {MAX_RESOLUTION}] px, got "
+    if res is not None and (len(res) != 2 or not all(min_side <= v <= max_side for v in res)):
+        raise ValueError(f"--resolution takes width and height in [{min_side}, {max_side}] px, got "
                          f"{' '.join(map(str, res))}; e.g. --resolution 298 224")
     if args.expert_steps < 0:
         raise ValueError(f"--expert-steps must be >= 0, got {args.expert_steps}")

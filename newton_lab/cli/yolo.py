@@ -43,7 +43,9 @@ def check(args: YoloExportArgs) -> None:
     """One-line errors before Warp is imported (unset split / resolution get their defaults)."""
     args.split = SPLIT if args.split is None else args.split
     args.resolution = RESOLUTION if args.resolution is None else args.resolution
-    from ..robots.g1.cameras import MAX_RESOLUTION, MIN_RESOLUTION  # deferred: numpy, only for this command
+    from ..robots.registry import camera_facts  # deferred: numpy, only for this command
+
+    _, min_side, max_side = camera_facts()
 
     if not args.task.startswith("GalbotG1-SortToShelf"):
         raise ValueError(f"--task {args.task}: YOLO labels are the four sorting objects; use a SortToShelf task, "
@@ -53,8 +55,8 @@ def check(args: YoloExportArgs) -> None:
     if len(args.split) != 3 or min(args.split) < 0 or not math.isclose(sum(args.split), 1.0, abs_tol=1e-6):
         raise ValueError(f"--split takes three fractions >= 0 summing to 1 (train val test), got {args.split}")
     res = args.resolution
-    if len(res) != 2 or not all(MIN_RESOLUTION <= v <= MAX_RESOLUTION for v in res):
-        raise ValueError(f"--resolution takes width and height in [{MIN_RESOLUTION}, {MAX_RESOLUTION}] px, got "
+    if len(res) != 2 or not all(min_side <= v <= max_side for v in res):
+        raise ValueError(f"--resolution takes width and height in [{min_side}, {max_side}] px, got "
                          f"{' '.join(map(str, res))}; e.g. --resolution 298 224")
     if args.mask_source not in MASK_SOURCES:
         raise ValueError(f"--mask-source {args.mask_source!r} is unknown; use one of {', '.join(MASK_SOURCES)}")

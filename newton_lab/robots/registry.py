@@ -41,3 +41,17 @@ def robot_names() -> list[str]:
     for name in BUILTIN_ROBOTS:
         robot_binding(name)
     return sorted(_ROBOTS)
+
+
+def camera_facts(name: str = DEFAULT_ROBOT) -> tuple[tuple[str, ...], int, int]:
+    """(camera mount names, smallest and largest image side [px]) of robot ``name``, from its pure-data modules
+    (no Newton): what the command line checks before anything heavy is imported. A registered robot's binding
+    answers for it."""
+    if name in BUILTIN_ROBOTS and name not in _ROBOTS:
+        from .g1.cameras import MAX_RESOLUTION, MIN_RESOLUTION  # deferred: numpy; the G1's binding imports Newton
+        from .g1.spec import CAMERA_MOUNTS  # deferred: as above
+
+        return tuple(CAMERA_MOUNTS), int(MIN_RESOLUTION), int(MAX_RESOLUTION)
+    robot = robot_binding(name)
+    lo, hi = robot.camera_resolution
+    return tuple(robot.camera_mounts), int(lo), int(hi)
