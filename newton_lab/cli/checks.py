@@ -55,6 +55,14 @@ def check_args(args: Any) -> None:
             if Path(path).suffix.lower() not in SUFFIXES:
                 raise ValueError(f"{_label(args, name)} {path}: unknown dataset suffix; use one of "
                                  f"{', '.join(SUFFIXES)}")
+    if isinstance(args, EvaluateArgs):
+        phases = args.phase_checkpoints()
+        if phases and args.checkpoint:
+            raise ValueError("give --checkpoint (one policy for the whole task) or --phase-checkpoint (one per phase "
+                             "of a coherent task), not both")
+        for phase, path in phases.items():
+            if not Path(path).exists():
+                raise FileNotFoundError(f"--phase-checkpoint {phase}={path}: {path} does not exist; check the path")
     for name in EXISTING_FIELDS.get(type(args), ()):
         value = getattr(args, name)
         if value is not None and not Path(value).exists():

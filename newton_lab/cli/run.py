@@ -70,19 +70,21 @@ def evaluate(args: EvaluateArgs) -> int:
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
-    from ..policies.agent import PolicyAgent  # deferred: torch is slow to import
+    from ..policies.agent import PolicyAgent, phase_policy_agent  # deferred: torch is slow to import
 
     on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
     checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.device if on_gpu else None)
                         if args.checkpoint else None)
     env = make_env(args.task, **args.env_kwargs())
-    agent = checkpoint_agent or expert_agent(env)
+    phases = args.phase_checkpoints()
+    agent = (phase_policy_agent(env, phases, device=args.device if on_gpu else None) if phases
+             else checkpoint_agent or expert_agent(env))
     hook, close = rerun_hook(args, env)
     try:
         summary = env.evaluate(agent=agent, on_step=hook, **args.rollout_kwargs())
     finally:
         close()
-    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
+    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS if k in summary}))
     return 0
 
 

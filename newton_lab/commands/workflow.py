@@ -30,6 +30,21 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
 
     checkpoint: str | None = None
     """policy checkpoint; the expert planner when omitted"""
+    phase_checkpoint: list[str] | None = None
+    """a coherent task's phase policies, PHASE=CHECKPOINT each (e.g. pick=pick.pt place=place.pt); the phases
+    without one run their component's expert"""
+
+    def phase_checkpoints(self) -> dict[str, str]:
+        """``--phase-checkpoint`` as phase name -> checkpoint path (one-line error for a malformed entry)."""
+        out: dict[str, str] = {}
+        for item in self.phase_checkpoint or []:
+            phase, sep, path = item.partition("=")
+            if not sep or not phase or not path:
+                raise ValueError(f"--phase-checkpoint {item!r}: write PHASE=CHECKPOINT, e.g. pick=outputs/pick.pt")
+            if phase in out:
+                raise ValueError(f"--phase-checkpoint names phase {phase!r} twice; give one checkpoint per phase")
+            out[phase] = path
+        return out
 
 
 @dataclass(kw_only=True)

@@ -32,7 +32,7 @@ REASON_MAX_STEPS = "max_steps"
 LOG_EVERY_S = 30.0
 """Seconds between the plain progress lines of a rollout whose stderr is not a terminal."""
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
-                    "diverged", "subtask_signals")
+                    "diverged", "subtask_signals", "phases")
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
 
 
@@ -67,6 +67,8 @@ class _Episodes:
         self.reward_total = torch.zeros(n, device=dev)
         self.latched = np.zeros(n, dtype=bool)
         self.reached = torch.zeros((n, len(env.signal_names)), dtype=torch.bool, device=dev)
+        self.phase = torch.zeros(n, dtype=torch.long, device=dev)
+        """The furthest phase each row's episode has reached (a coherent task's rows reset to phase 0)."""
         self.records: list[dict[str, Any]] = []
         self.successes = 0
         self.host: dict[str, np.ndarray] = {}
@@ -77,16 +79,19 @@ class _Episodes:
                                                        and len(self.records) >= self.max_attempts)
         return len(self.records) >= self.episodes
 
-    def add_step(self, reward, info) -> None:
+    def add_step(self, reward, info, ended) -> None:
+        """Count the step; ``ended`` (rows whose episode ended in it) keep the phase they had reached: their
+        ``info["phase"]`` is already the next episode's."""
         self.step_in_ep += 1
         self.reward_total += reward
         self.latched |= info["success"].cpu().numpy()
         self.reached |= info["step_signals"] > 0.5
+        self.phase = torch.where(ended, self.phase, torch.maximum(self.phase, info["phase"].long()))
 
     def snapshot(self) -> None:
         """Host copies of the per-row counters, read by :meth:`record` (call once per step, before it)."""
         self.host = {"length": self.step_in_ep.cpu().numpy(), "reward": self.reward_total.cpu().numpy(),
-                     "reached": self.reached.cpu().numpy()}
+                     "reached": self.reached.cpu().numpy(), "phase": self.phase.cpu().numpy()}
 
     def record(self, row: int, reason: str) -> dict[str, Any]:
         """The finished episode of ``row`` (from the step's :meth:`snapshot`); frees or retires the row."""
@@ -98,6 +103,7 @@ class _Episodes:
             "reward_total": float(h["reward"][row]),
             "termination_reason": reason,
             "signals_reached": [name for name, hit in zip(self.env.signal_names, h["reached"][row].tolist()) if hit],
+            "phase": self.env.cfg.phase_names[int(h["phase"][row])],
         }
         if self.quota is None or self.launched < self.quota:
             self.launched += 1
@@ -112,6 +118,7 @@ class _Episodes:
             self.reward_total[idx] = 0.0
             self.latched[finished] = False
             self.reached[idx] = False
+            self.phase[idx] = 0
 
 
 def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, saver=None,
@@ -154,7 +161,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 recorder.record_outcome(eps.step_in_ep, reward)
             if on_step is not None:
                 on_step(reward, info)
-            eps.add_step(reward, info)
+            eps.add_step(reward, info, terminated | truncated)
             done = (terminated | truncated).cpu().numpy()
             cut = (eps.step_in_ep >= max_steps).cpu().numpy() & ~done
             agent_done = np.zeros(n, dtype=bool)
@@ -198,6 +205,22 @@ def _overflow_worlds(env) -> int:
     return int((overflow.numpy() != 0).sum()) if overflow is not None else 0
 
 
+def phase_summary(names: list[str], records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per phase of a coherent task: episodes that ``reached`` it, that ``passed`` it (went on to the next phase, or
+    succeeded in the last), and of those that ended in it unsuccessfully, why (``stalled``: reason -> episodes):
+    where the rows of a composed policy stop."""
+    out = {}
+    for i, name in enumerate(names):
+        ended_here = [r for r in records if r["phase"] == name]
+        failed = [r for r in ended_here if not r["success"]]
+        stalled: dict[str, int] = {}
+        for r in failed:
+            stalled[r["termination_reason"]] = stalled.get(r["termination_reason"], 0) + 1
+        reached = sum(names.index(r["phase"]) >= i for r in records)
+        out[name] = {"reached": reached, "passed": reached - len(failed), "stalled": stalled}
+    return out
+
+
 def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
     successes = sum(r["success"] for r in records)
     reasons: dict[str, int] = {}
@@ -217,6 +240,7 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "diverged": reasons.get(DIVERGED, 0),
         # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
         "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.signal_names},
+        **({"phases": phase_summary(env.cfg.phase_names, records)} if env.cfg.phases else {}),
         "vector_steps": vector_steps,
         # worlds whose mujoco_warp overflow bitmask is set (buffer overflow or line-search cap; prints are off)
         "solver_overflow_worlds": _overflow_worlds(env),

@@ -13,6 +13,7 @@ import numpy as np
 import torch
 
 from ..agents.base import BaseAgent, EpisodeTracker
+from ..agents.task_flow import TaskFlowAgent
 from ..task_api.registry import lookup
 from .diffusion import DiffusionPolicy
 
@@ -24,6 +25,48 @@ def _compatible_task(env, policy_task: str | None) -> bool:
         return True
     return (lookup(env.task_id).source_task == policy_task
             or policy_task in [p.task_id for p in env.cfg.phases])
+
+
+def _trained_for_phase(policy_task: str | None, component: str) -> bool:
+    """A phase runs the policies of its component task and of that task's Mimic variant."""
+    return policy_task is None or policy_task == component or lookup(policy_task).source_task == component
+
+
+def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0) -> TaskFlowAgent:
+    """A coherent task's agent: the trained policy of ``checkpoints`` (phase name -> checkpoint path) in its phase,
+    the component's expert in the others (e.g. a learned pick and place with the nav expert between them). Each
+    checkpoint is loaded and checked against its phase and the env at once: one line names a phase the task does
+    not have, a checkpoint trained for another phase's task, or observation terms / cameras the env lacks."""
+    _check_phases(env, checkpoints)
+    return compose_phase_policies(env, {name: PolicyAgent.from_checkpoint(path, device=device, seed=seed)
+                                        for name, path in checkpoints.items()}, sources=checkpoints)
+
+
+def _check_phases(env, named) -> dict:
+    phases = {p.name: p for p in env.cfg.phases}
+    if not phases:
+        raise ValueError(f"{env.task_id} has no phases; give one --checkpoint for it instead of phase checkpoints")
+    unknown = sorted(set(named) - set(phases))
+    if unknown:
+        raise ValueError(f"{env.task_id} has no phase {unknown[0]!r}; its phases: {', '.join(phases)}")
+    return phases
+
+
+def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None) -> TaskFlowAgent:
+    """``phase_policy_agent`` for policy agents already made (``sources``: phase -> where each came from, for the
+    errors)."""
+    phases = _check_phases(env, agents)
+    for name, agent in agents.items():
+        where = (sources or {}).get(name, "policy")
+        trained, component = agent.policy.info.get("task_id"), phases[name].task_id
+        if not _trained_for_phase(trained, component):
+            raise ValueError(f"checkpoint {where} was trained for {trained}, but phase {name!r} of {env.task_id} runs "
+                             f"{component}; give that phase a checkpoint of {component}")
+        try:
+            agent._bind(env)  # the observation, camera and action checks, now rather than at the first step
+        except ValueError as exc:
+            raise ValueError(f"phase {name!r} ({where}): {exc}") from None
+    return TaskFlowAgent.from_env(env, agents=dict(agents))
 
 
 class PolicyAgent(BaseAgent):

@@ -37,8 +37,18 @@ def grasped_object(obj: SortingObject):
 
 
 def at_carry(obj: SortingObject):
-    """Object lifted to its minimum height and the left arm in the ready posture (Pick success)."""
+    """Object lifted to its minimum height and the left arm in the ready posture (stateless)."""
     return all_of(terms=(lifted(entity=obj.name, min_z=obj.lift_min_z), arm_at_home(tol=CARRY_ARM_TOL)))
+
+
+CARRY_HOLD = 10
+"""Pick success holds this many consecutive steps: a demo then shows the arm settling inside the ready band (a
+success on the step the arm entered it left policies hovering just outside)."""
+
+
+def held_at_carry(obj: SortingObject):
+    """``at_carry`` held ``CARRY_HOLD`` steps (Pick success)."""
+    return held(term=at_carry(obj), steps=CARRY_HOLD)
 
 
 def at_place_start(obj: SortingObject):

@@ -44,7 +44,9 @@ SCENARIOS = Path(__file__).parent / "scenarios"
 CARRY_MIN_Z = 0.465
 """Pick success: bar centre at or above table top 0.325 + half height 0.08 + lift 0.06 [m] ..."""
 CARRY_ARM_TOL = 0.12
-"""... and every left-arm joint within this of the carry posture [rad]."""
+"""... and every left-arm joint within this of the carry posture [rad] ..."""
+CARRY_HOLD = 10
+"""... for this many consecutive steps (demos then show the arm settling inside the band)."""
 SHELF_DZ = 0.095
 """The bar stands on the deck: its centre this far above the deck's (deck half 0.015 + bar half 0.08) [m]."""
 PLACE_HOLD_STEPS = 20
@@ -93,8 +95,8 @@ def place_rewards():
 
 
 def pick_cfg() -> TaskCfg:
-    """Pick the bar from the table and bring it to the carry posture (success: ``at_carry``)."""
-    return _world(phase_success=[at_carry], rewards=pick_rewards(),
+    """Pick the bar from the table and bring it to the carry posture (success: ``at_carry`` held 10 steps)."""
+    return _world(phase_success=[held(term=at_carry, steps=CARRY_HOLD)], rewards=pick_rewards(),
                   events={"randomize_bar_position": TermCfg(func=randomize_position, params={
                       "entity": "bar", "x_range": (-0.58, -0.42), "y_range": (0.10, 0.30), "z": BAR_POS[2]})})
 

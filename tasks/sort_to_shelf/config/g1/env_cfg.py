@@ -59,7 +59,7 @@ def pick_cfg(sorting_object: str | None = None) -> TaskCfg:
     terms = {"object_dropped": _dropped(obj)}
     if obj.upright_min > 0:
         terms["object_tipped"] = TerminationTermCfg(func=tipped, params={"entity": obj.name})
-    return _world(obj, phase_success=[terminations.at_carry(obj)], terminations=terms,
+    return _world(obj, phase_success=[terminations.held_at_carry(obj)], terminations=terms,
                   events={"permute_objects": TermCfg(func=events.permute_objects, params={"objects": tuple(OBJECTS)})},
                   rewards=rewards.pick_rewards(obj), options={"sorting_object": obj.name})
 
