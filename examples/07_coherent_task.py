@@ -5,8 +5,12 @@
   * ``task_default``: every phase's own expert (planner for pick / place, nav agent for nav);
   * ``pick_to_shelf_experts``: the same, spelled out phase by phase;
   * ``pick_to_shelf_policy``: diffusion policies for pick and place (checkpoints trained on the component
-    tasks' data at outputs/pick/checkpoint.pt and outputs/place/checkpoint.pt), the nav expert for nav.
-The default is ``task_default`` so the example runs without trained checkpoints.
+    tasks' data at outputs/pick/checkpoint.pt and outputs/place/checkpoint.pt), the nav expert for nav;
+    each checkpoint is checked against its phase and the env at once (``phase_policy_agent``).
+The default is ``task_default`` so the example runs without trained checkpoints. The recipe that trains the two
+policies from the coherent task's own expert demos (collect, ``newton-lab split --out``, train per phase) and
+evaluates them here, privileged-free (``--obs-mode sensors``, front camera): README, "Coherent tasks from learned
+phase policies".
 
     python examples/07_coherent_task.py --task GalbotG1-PickToShelf-v0 --episodes 4 --num-envs 4
 
@@ -24,7 +28,7 @@ from newton_lab.agents import TaskFlowAgent, expert_agent
 from newton_lab.cli import parse_args
 from newton_lab.commands import CollectArgs
 from newton_lab.envs import make_env
-from newton_lab.policies.agent import PolicyAgent
+from newton_lab.policies.agent import phase_policy_agent
 
 COMPOUND_AGENT_PRESET = "task_default"
 
@@ -41,14 +45,13 @@ DEFAULTS = {"task": "GalbotG1-PickToShelf-v0", "dataset_path": "data/coherent_ta
             "num_envs": 9, "max_steps": 1500, "randomize": True}
 
 
-def phase_agents(env, preset: str):
+def coherent_agent(env, preset: str) -> TaskFlowAgent:
     if preset == "task_default":
-        return None
+        return TaskFlowAgent.from_env(env)
     if preset == "pick_to_shelf_experts":
-        return {p.name: expert_agent(p.task_id) for p in env.cfg.phases}
+        return TaskFlowAgent.from_env(env, agents={p.name: expert_agent(p.task_id) for p in env.cfg.phases})
     if preset == "pick_to_shelf_policy":
-        return {"pick": PolicyAgent.from_checkpoint("outputs/pick/checkpoint.pt"),
-                "place": PolicyAgent.from_checkpoint("outputs/place/checkpoint.pt")}
+        return phase_policy_agent(env, {"pick": "outputs/pick/checkpoint.pt", "place": "outputs/place/checkpoint.pt"})
     raise ValueError(f"unknown COMPOUND_AGENT_PRESET {preset!r}; use task_default, pick_to_shelf_experts or "
                      f"pick_to_shelf_policy")
 
@@ -57,14 +60,14 @@ def main() -> None:
     args = parse_args(CompoundArgs, description=__doc__, defaults=DEFAULTS,
                       exclude=("rerun", "rerun_save", "rerun_worlds"))
     env = make_env(args.task, **args.env_kwargs())
-    agent = TaskFlowAgent.from_env(env, agents=phase_agents(env, COMPOUND_AGENT_PRESET))
+    agent = coherent_agent(env, COMPOUND_AGENT_PRESET)
     if args.mode == "collect":
         ref = env.collect(agent=agent, **args.collect_kwargs())
         out = {k: ref[k] for k in ("task", "episodes", "successes", "success_rate", "path", "termination_reasons")}
     else:
         res = env.evaluate(agent=agent, **args.rollout_kwargs())
         out = {k: res[k] for k in ("task", "episodes", "successes", "success_rate", "average_length",
-                                   "termination_reasons")}
+                                   "termination_reasons", "phases")}
     print(json.dumps(out))
 
 
