@@ -205,8 +205,10 @@ def test_review_prompt_answers_and_end_of_input():
         finally:
             os.close(r)
 
-    assert answer("maybe\nk\n") == ("keep", answer("maybe\nk\n")[1])
-    assert "'maybe' is not an answer" in answer("maybe\nk\n")[1]
+    choice, text = answer("maybe\nk\n")
+    assert choice == "keep"  # the unknown answer is refused and asked again, then "k" keeps
+    assert text == ("\nkeep / drop / exit? 'maybe' is not an answer; type keep (k), drop (d) or exit (e)\n"
+                    "\nkeep / drop / exit? ")
     assert answer("drop\n")[0] == "drop"
     assert answer("q\n")[0] == "exit"
     assert answer("")[0] == "exit"
