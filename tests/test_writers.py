@@ -369,16 +369,31 @@ def test_background_writer_blocks_when_the_queue_is_full(tmp_path, monkeypatch):
 
     monkeypatch.setattr(writer, "append_prepared", slow)
     bg = BackgroundWriter(writer, max_queued=2)
+    waiting, real_wait = threading.Event(), bg._wait
+
+    def recording_wait(ready):  # the blocked put's thread found no room: it waits on the condition
+        if threading.current_thread().name == "blocked put" and not ready():
+            waiting.set()
+        return real_wait(ready)
+
+    bg._wait = recording_wait
     first = bg.put(episode(0), success=True, attrs={"seed": 0})  # taken by the thread: it waits on `release`
+    deadline = time.monotonic() + 30
     while not bg._busy:
+        assert time.monotonic() < deadline, "the writer thread never took the first episode"
         time.sleep(0.001)
     queued = bg.put_many([(episode(s), True, {"seed": s}) for s in (1, 2)])  # fills the queue
-    blocked = threading.Thread(target=lambda: queued.append(bg.put(episode(3), success=True, attrs={"seed": 3})))
+    blocked = threading.Thread(target=lambda: queued.append(bg.put(episode(3), success=True, attrs={"seed": 3})),
+                               name="blocked put", daemon=True)
     blocked.start()
-    blocked.join(0.3)
-    assert blocked.is_alive() and len(queued) == 2  # back-pressure: the put waits for room
+    while not waiting.is_set() and blocked.is_alive():  # one or the other happens: no sleep decides it
+        assert time.monotonic() < deadline, "the put neither waited nor returned"
+        time.sleep(0.001)
+    # back-pressure: the put waits for room; the writer is held on `release`, so it cannot get any
+    assert waiting.is_set() and blocked.is_alive() and len(queued) == 2
     release.set()
     blocked.join(60)
+    assert not blocked.is_alive()
     bg.close()
     assert [f.result() for f in [first, *queued]] == [0, 1, 2, 3] and bg.batches == 3
     assert list_demos(path) == [0, 1, 2, 3]
