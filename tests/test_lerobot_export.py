@@ -20,6 +20,7 @@ pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
 from newton_lab.datasets import open_writer, read_episode, zarr_packs  # noqa: E402
+from newton_lab.datasets.ref import DatasetRef  # noqa: E402
 from newton_lab.datasets.lerobot import writer as lr  # noqa: E402  (the export reads episodes through it)
 from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3  # noqa: E402
 
@@ -176,8 +177,7 @@ def no_partials(parent: Path) -> bool:
 def test_export_validates_and_round_trips(dataset, tmp_path):
     root = tmp_path / "lerobot" / "pick"
     if dataset.suffix == ".zarr":  # a DatasetRef (anything with .path) is accepted as well as a path
-        ref_mod = pytest.importorskip("newton_lab.datasets.ref")
-        source = ref_mod.DatasetRef.open(dataset)
+        source = DatasetRef.open(dataset)
     else:
         source = dataset
     summary = export_lerobot(source, root)
