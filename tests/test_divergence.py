@@ -148,3 +148,51 @@ def test_finiteness_is_checked_over_each_episode_steps_only(pick_env):
     trees, finite = recorder.episodes([0, 1], [2, 4])
     assert finite == {0: True, 1: False}
     assert rollout.all_finite(trees[0]) and not rollout.all_finite(trees[1])  # the per-tree check agrees
+
+
+def _cube_dof(env) -> int:
+    """World-local first velocity coordinate of the cube's free joint (linear [m/s] x, y, z, then angular)."""
+    joint = list(env.model.joint_q_start.numpy()).index(env.entities["cube"].coord)
+    return int(env.model.joint_qd_start.numpy()[joint])
+
+
+# (cube position (x, y, z) or None to keep it, cube twist or None): finite states past each of the
+# cfg's bounds (50 m, 100 m/s, 1000 rad/s) and, beside each, one well inside it. The fast and spinning cubes
+# fly 3 m up so no contact tames them; one control step (0.05 s) at 200 m/s moves the cube 10 m, inside 50 m.
+BOUNDS_CASES = {
+    "teleported to 60 m": ((60.0, 0.18, 0.125), None, True),
+    "at 40 m": ((40.0, 0.18, 3.0), None, False),
+    "at 200 m/s": ((-0.3, 0.18, 3.0), (0.0, 200.0, 0.0, 0.0, 0.0, 0.0), True),
+    "at 90 m/s": ((-0.3, 0.18, 3.0), (0.0, 90.0, 0.0, 0.0, 0.0, 0.0), False),
+    "spinning at 2000 rad/s": ((-0.3, 0.18, 3.0), (0.0, 0.0, 0.0, 0.0, 0.0, 2000.0), True),
+    "spinning at 900 rad/s": ((-0.3, 0.18, 3.0), (0.0, 0.0, 0.0, 0.0, 0.0, 900.0), False),
+}
+
+
+@pytest.mark.parametrize("case", list(BOUNDS_CASES))
+def test_finite_state_beyond_the_bounds_is_diverged(pick_env, case):
+    """The guard is more than a NaN check: a finite cube too far, too fast or spinning too fast ends its row with
+    ``diverged`` in the very step, the other row does not notice; a cube inside the bounds is left alone."""
+    env = pick_env
+    pos, twist, diverges = BOUNDS_CASES[case]
+    env.episode_count.zero_()
+    env.reset()
+    try:
+        q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
+        qd = wp.to_torch(env.state.joint_qd).view(env.num_envs, -1)
+        coord, dof = env.entities["cube"].coord, _cube_dof(env)
+        q[1, coord:coord + 3] = torch.tensor(pos, dtype=q.dtype)
+        if twist is not None:
+            qd[1, dof:dof + 6] = torch.tensor(twist, dtype=qd.dtype)
+        count = env.episode_count.clone()
+        _, _, terminated, _, info = env.step(env.current_action())
+        reasons = [env.termination_reasons[int(r)] for r in info["termination_reason"]]
+        assert reasons[0] == "none" and not bool(terminated[0])
+        if diverges:
+            assert reasons[1] == DIVERGED and bool(terminated[1])
+            assert int(env.episode_count[1]) == int(count[1]) + 1  # it reset in that step
+        else:
+            assert reasons[1] == "none" and not bool(terminated[1])
+            assert (env.episode_count == count).all()
+    finally:
+        env.reset()
