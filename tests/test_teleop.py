@@ -284,3 +284,28 @@ def test_review_loop_keeps_drops_and_exits(expert_demo, tmp_path):
     info = ref.info()
     assert info["num_demos"] == 1
     assert [p.operation for p in ref.provenance] == ["teleop", "teleop", "drop", "teleop", "drop", "teleop", "drop"]
+
+
+def test_tcp_jog_moves_each_joint_at_most_005_rad_per_step(pick_env):
+    """A long jump of the jog target is reached through joint targets that move at most ``max_joint_step``
+    (0.05 rad) per control step, as the expert's waypoints do; they then settle on the IK solution."""
+    import warp as wp
+
+    from newton_lab.agents.teleop.jog import TcpJog
+
+    env = pick_env
+    env.reset()
+    jog = TcpJog(env, "left")
+    assert jog.max_joint_step == 0.05
+    start = jog(env, np.zeros(4)).copy()  # the start pose: no motion
+    arm_q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, env.joint_coords(spec.LEFT_ARM_JOINTS)]
+    np.testing.assert_allclose(start, arm_q.cpu().numpy(), atol=0.05)
+    commands = [start]
+    target = np.array([0.12, -0.10, 0.10, 0.6])  # 18 cm and 34 degrees of yaw away
+    for _ in range(80):
+        commands.append(jog(env, target).copy())
+    steps = np.abs(np.diff(np.stack(commands), axis=0))  # (80, N, 7)
+    assert steps.max() <= 0.05 + 1e-12
+    np.testing.assert_allclose(steps[0].max(axis=1), 0.05)  # a long jump: every row's first step is clipped
+    assert steps[-5:].max() == 0.0  # arrived: the command is the IK solution and stays there
+    assert jog.error < 5e-3
