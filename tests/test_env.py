@@ -42,19 +42,56 @@ def test_step_is_one_captured_graph(pick_env):
     assert pick_env.step_graph is not None
 
 
+STEP_INFO_KEYS = ("success", "success_latched", "done", "termination_reason", "episode_length", "phase", "signals",
+                  "step_signals", "command")
+
+
+def _step_outputs(env, out) -> dict[str, torch.Tensor]:
+    """Copies of everything one step hands out: its return values, every info entry, the terminal observation
+    and the state reached (the next step overwrites the views)."""
+    obs, reward, terminated, truncated, info = out
+    assert set(STEP_INFO_KEYS) == set(info), "a new info entry: compare it below too"
+    got = {"obs": obs, "reward": reward, "terminated": terminated, "truncated": truncated,
+           "final_obs": env.final_obs, "joint_q": wp.to_torch(env.state.joint_q), "episode_count": env.episode_count,
+           "entity_poses": env.entity_poses, "tcp_pose": env.tcp_pose}
+    got.update({f"info[{k}]": info[k] for k in STEP_INFO_KEYS})
+    return {k: (v.clone() if isinstance(v, torch.Tensor) else torch.as_tensor(np.array(v))) for k, v in got.items()}
+
+
 def test_captured_step_matches_eager(pick_env, eager_env):
+    """The captured graph and eager stepping agree on every output of every step, through a row that terminates
+    (its cube teleported 60 m: ``diverged``, finite) and a row that times out, and the new episodes after them."""
+    env_steps = pick_env.cfg.max_episode_steps
     for env in (pick_env, eager_env):  # same seed and episode counters -> same reset draws
         env.episode_count.zero_()
         env.reset()
+        # close to the time limit: row 0 is truncated inside the run, row 1 (terminated first) is not
+        wp.to_torch(env.task_context.episode_step)[:] = env_steps - 8
     torch.testing.assert_close(_q(pick_env), _q(eager_env))
+    counts = pick_env.episode_count.clone()
+    seen = {"terminated": 0, "truncated": 0}
+    cube = pick_env.entities["cube"].coord
     for t in range(15):
         a = pick_env.current_action()
         a[:, 3] += 0.01 * t
-        pick_env.step(a)
-        eager_env.step(a.clone())
-    torch.testing.assert_close(_q(pick_env), _q(eager_env), atol=1e-5, rtol=0)
-    torch.testing.assert_close(pick_env.obs, eager_env.obs, atol=1e-5, rtol=0)
-    torch.testing.assert_close(pick_env.reward, eager_env.reward, atol=1e-5, rtol=0)
+        if t == 3:
+            for env in (pick_env, eager_env):
+                wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[1, cube] = 60.0
+        for env in (pick_env, eager_env):  # outputs only the step writes: a graph that skips one is caught
+            for view in (env.final_obs, env.info["step_signals"], env.reward):
+                view.fill_(7.0)
+        captured = _step_outputs(pick_env, pick_env.step(a))
+        eager = _step_outputs(eager_env, eager_env.step(a.clone()))
+        for key, value in captured.items():
+            if value.dtype.is_floating_point:
+                torch.testing.assert_close(value, eager[key], atol=1e-5, rtol=0, msg=lambda m, k=key: f"step {t} {k}: {m}")
+            else:
+                assert torch.equal(value, eager[key]), f"step {t} {key}: {value.tolist()} != {eager[key].tolist()}"
+        seen["terminated"] += int(captured["terminated"].sum())
+        seen["truncated"] += int(captured["truncated"].sum())
+    # not vacuous: the run went through both ends of an episode and the resets after them
+    assert seen == {"terminated": 1, "truncated": 1}
+    assert (pick_env.episode_count == counts + 1).all()
 
 
 def test_step_returns_views_of_warp_buffers(pick_env):
