@@ -84,7 +84,8 @@ def test_captured_step_matches_eager(pick_env, eager_env):
         eager = _step_outputs(eager_env, eager_env.step(a.clone()))
         for key, value in captured.items():
             if value.dtype.is_floating_point:
-                torch.testing.assert_close(value, eager[key], atol=1e-5, rtol=0, msg=lambda m, k=key: f"step {t} {k}: {m}")
+                torch.testing.assert_close(value, eager[key], atol=1e-5, rtol=0,
+                                           msg=lambda m, k=key: f"step {t} {k}: {m}")
             else:
                 assert torch.equal(value, eager[key]), f"step {t} {key}: {value.tolist()} != {eager[key].tolist()}"
         seen["terminated"] += int(captured["terminated"].sum())
