@@ -240,7 +240,8 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "diverged": reasons.get(DIVERGED, 0),
         # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
         "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.signal_names},
-        **({"phases": phase_summary(env.cfg.phase_names, records)} if env.cfg.phases else {}),
+        # per phase (one, "task", for a single-phase task): episodes that reached / passed it, why others stopped
+        "phases": phase_summary(env.cfg.phase_names, records),
         "vector_steps": vector_steps,
         # worlds whose mujoco_warp overflow bitmask is set (buffer overflow or line-search cap; prints are off)
         "solver_overflow_worlds": _overflow_worlds(env),

@@ -24,7 +24,7 @@ from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gri
 from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.task_api.terms import bind, term_factory
 
-from .terminations import all_of, base_at, lifted, posture_error
+from .terminations import all_of, base_at, lifted, posture_error, posture_vectors
 
 DENSE_REWARD_MAX = 1.0
 """Upper bound of a staged dense reward (sum of its terms); its lower bound is 0."""
@@ -36,9 +36,6 @@ POSTURE_TANH_SCALE = 1.0
 """Joint-space shaping ``1 - tanh(POSTURE_TANH_SCALE * |dq|)`` [1/rad]."""
 REACH_DONE_DIST = 0.06
 """The reaching stage is done with the TCP this close to the object's centre (the grasp distance) [m]."""
-
-vec5 = wp.types.vector(length=5, dtype=float)
-vec7 = wp.types.vector(length=7, dtype=float)
 
 
 @wp.func
@@ -273,9 +270,7 @@ def carry_shaping(ctx: TaskContext, w: int) -> float:
 @term_factory()
 def posture_shaping(*, arm: tuple[float, ...], legs: tuple[float, ...] | None = None):
     """``1 - tanh(|q - posture|)`` over the controlled arm (7) and, when given, the legs (5) [rad -> 0..1]."""
-    arm_q = wp.types.vector(length=7, dtype=float)(*(float(v) for v in arm))
-    legs_q = wp.types.vector(length=5, dtype=float)(*(float(v) for v in (legs or (0.0,) * 5)))
-    check_legs = legs is not None
+    arm_q, legs_q, check_legs = posture_vectors(arm, legs)
 
     @wp.func
     def to_posture_shaping(ctx: TaskContext, w: int) -> float:

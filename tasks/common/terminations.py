@@ -158,14 +158,20 @@ def posture_error(ctx: TaskContext, w: int, legs: wp.types.vector(length=5, dtyp
     return wp.vec2(wp.sqrt(s), m)
 
 
+def posture_vectors(arm: tuple[float, ...], legs: tuple[float, ...] | None):
+    """``(arm (7), legs (5), check_legs)`` of a posture, as ``posture_error`` takes them (legs 0 and unchecked
+    when ``None``) [rad]."""
+    arm_q = wp.types.vector(length=7, dtype=float)(*(float(v) for v in arm))
+    legs_q = wp.types.vector(length=5, dtype=float)(*(float(v) for v in (legs or (0.0,) * 5)))
+    return arm_q, legs_q, legs is not None
+
+
 @term_factory()
 def at_posture(*, arm: tuple[float, ...], tol: float, legs: tuple[float, ...] | None = None):
     """Every joint of the controlled arm (7) and, when ``legs`` is given, of the legs (5) within ``tol``
     [rad] of that posture."""
     tol = float(tol)
-    arm_q = wp.types.vector(length=7, dtype=float)(*(float(v) for v in arm))
-    legs_q = wp.types.vector(length=5, dtype=float)(*(float(v) for v in (legs or (0.0,) * 5)))
-    check_legs = legs is not None
+    arm_q, legs_q, check_legs = posture_vectors(arm, legs)
 
     @wp.func
     def joints_at_posture(ctx: TaskContext, w: int) -> bool:
