@@ -3,16 +3,21 @@ the flag and the fix, before Warp, Newton or torch is imported and before any fi
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
 from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs, camera_option
-from ..task_api.catalog import check_task_id, check_task_options
+from ..task_api.catalog import check_task_id, check_task_options, did_you_mean
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
                 "batch_size", "rerun_worlds", "rerun_image_every", "max_attempts", "train_steps", "epochs",
                 "checkpoint_every_steps")
 """Fields that count something: an integer >= 1 when given."""
+DEVICE = re.compile(r"cpu|cuda(:\d+)?")
+"""The devices a command takes: Warp's and torch's names for the CPU and a CUDA GPU."""
+RUNNERS = ("local", "dask")
+"""The pipeline's task runners."""
 DATASET_FIELDS = ("dataset_path", "output_path")
 """Fields naming a dataset file: its suffix picks the format."""
 EXISTING_FIELDS = {MimicArgs: ("dataset_path",), EvaluateArgs: ("checkpoint",), ViewArgs: ("dataset",),
@@ -40,6 +45,10 @@ def check_args(args: Any) -> None:
             raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
     if "prefill" in names and (not isinstance(args.prefill, int) or isinstance(args.prefill, bool) or args.prefill < 0):
         raise ValueError(f"--prefill must be an integer >= 0, got {args.prefill!r}")
+    if "device" in names and args.device is not None and not DEVICE.fullmatch(str(args.device)):
+        raise ValueError(f"--device {args.device!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
+    if "runner" in names and args.runner not in RUNNERS:
+        raise ValueError(f"--runner {args.runner!r}{did_you_mean(args.runner, RUNNERS)}: use {' or '.join(RUNNERS)}")
     if "cameras" in names:
         camera_option(args.cameras)
     for name in names & {"checkpoint_every_s", "time_budget_s"}:
