@@ -45,8 +45,11 @@ def check_args(args: Any) -> None:
             raise ValueError(f"{_label(args, name)} must be an integer >= 1, got {value!r}")
     if "prefill" in names and (not isinstance(args.prefill, int) or isinstance(args.prefill, bool) or args.prefill < 0):
         raise ValueError(f"--prefill must be an integer >= 0, got {args.prefill!r}")
-    if "device" in names and args.device is not None and not DEVICE.fullmatch(str(args.device)):
-        raise ValueError(f"--device {args.device!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
+    # the simulation / training device (teleop's own --device names the operator's device; its --sim-device is this)
+    sim = "sim_device" if "sim_device" in names else "device" if "device" in names else None
+    value = getattr(args, sim) if sim else None
+    if value is not None and not DEVICE.fullmatch(str(value)):
+        raise ValueError(f"{_label(args, sim)} {value!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
     if "runner" in names and args.runner not in RUNNERS:
         raise ValueError(f"--runner {args.runner!r}{did_you_mean(args.runner, RUNNERS)}: use {' or '.join(RUNNERS)}")
     if "cameras" in names:
