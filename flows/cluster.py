@@ -28,6 +28,12 @@ SCHEDULER_HTTP = "127.0.0.1:0"
 second cluster on the host, or a dashboard already on distributed's 8787, neither clashes nor warns."""
 
 
+WORKER_LOG_LEVEL = logging.CRITICAL
+"""Level of distributed's own log lines that the local cluster's processes print. A stage's failure reaches the
+flow (and the one-line error) through its task run, not through these; on a busy host a worker's heartbeat
+that races the scheduler's shutdown logs a traceback at ERROR, after the pipeline has already answered."""
+
+
 def visible_gpus() -> list[str]:
     """CUDA device ids this process may use: ``CUDA_VISIBLE_DEVICES``'s entries, else ``0..n-1`` for Warp's
     CUDA device count (empty without a driver)."""
@@ -55,14 +61,15 @@ def cluster_options(workers: int, device: str | None, gpus: list[str] | None = N
 
         nanny = _patient_nanny()
         spec = {f"gpu-{gpu}": {"cls": nanny, "options": {"nthreads": 1, "env": {"CUDA_VISIBLE_DEVICES": gpu},
-                                                       "silence_logs": logging.WARNING, "dashboard": False}}
+                                                       "silence_logs": WORKER_LOG_LEVEL, "dashboard": False}}
                 for gpu in gpus[:workers]}
         return {"cluster_class": SpecCluster, "cluster_kwargs": {
             "workers": spec,
             "scheduler": {"cls": Scheduler, "options": {"dashboard": False, "dashboard_address": SCHEDULER_HTTP}},
-            "silence_logs": logging.WARNING}}
+            "silence_logs": WORKER_LOG_LEVEL}}
     return {"cluster_kwargs": {"n_workers": workers, "processes": True, "threads_per_worker": 1,
                                "worker_class": _patient_nanny(), "dashboard_address": None,
+                               "silence_logs": WORKER_LOG_LEVEL,
                                "scheduler_kwargs": {"dashboard_address": SCHEDULER_HTTP}}}
 
 
