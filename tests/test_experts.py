@@ -20,11 +20,7 @@ def _cases() -> list[tuple[str, dict]]:
         spec = lookup(task_id)
         if spec.expert is None and not spec.cfg().phases:  # the operator's variant: no expert
             continue
-        sets = [{}]
-        for opt in spec.options:
-            if opt.choices:
-                sets = [{**s, opt.name: c} for s in sets for c in opt.choices]
-        cases += [(task_id, s) for s in sets]
+        cases += [(task_id, s) for s in spec.choice_sets()]
     return cases
 
 

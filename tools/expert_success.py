@@ -20,15 +20,6 @@ from newton_lab.envs import make_env
 from newton_lab.task_api.registry import list_tasks, lookup
 
 
-def option_sets(task_id: str) -> list[dict]:
-    """One option dict per choice of the task's choice options (the defaults otherwise)."""
-    sets = [{}]
-    for opt in lookup(task_id).options:
-        if opt.choices:
-            sets = [{**s, opt.name: c} for s in sets for c in opt.choices]
-    return sets
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=8)
@@ -39,9 +30,9 @@ def main() -> None:
     args = ap.parse_args()
     for task_id in args.tasks or list_tasks():
         spec = lookup(task_id)
-        if spec.teleop and spec.expert is None and "Teleop" in task_id:
+        if spec.expert is None and not spec.cfg().phases:  # the operator's variant: no expert
             continue
-        for options in option_sets(task_id):
+        for options in spec.choice_sets():
             t0 = time.perf_counter()
             env = make_env(task_id, num_envs=args.num_envs, device="cpu", seed=args.seed, randomize=True,
                            task_options=options, cameras=False)

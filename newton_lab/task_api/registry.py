@@ -81,6 +81,15 @@ class TaskSpec:
                                  f"valid values: {list(opt.choices)}")
         return options
 
+    def choice_sets(self) -> list[dict[str, Any]]:
+        """One options dict per combination of the values of the task's own options with choices (``[{}]`` when
+        it has none): what a sweep over every variant of the task runs (e.g. each sorting object)."""
+        sets: list[dict[str, Any]] = [{}]
+        for opt in self.options:
+            if opt.choices:
+                sets = [{**s, opt.name: c} for s in sets for c in opt.choices]
+        return sets
+
     def accepted(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
         """The subset of ``options`` this task declares itself (a coherent task passes its options to every
         component; each takes the ones it knows; the built-in ``obs_mode`` is applied to the coherent task)."""
