@@ -27,7 +27,7 @@ def main() -> None:
     env = make_env(args.task, **args.env_kwargs())
     summary = env.evaluate(agent=agent, **args.rollout_kwargs())
     print(f"success rate: {summary['success_rate']:.3f} ({summary['successes']}/{summary['episodes']})")
-    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS if k in summary}))
+    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
 
 
 if __name__ == "__main__":

@@ -142,7 +142,7 @@ def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[st
     finally:
         if logger is not None:
             logger.close()
-    report = {k: s[k] for k in EVAL_REPORT_KEYS if k != "task" and k in s}
+    report = {k: s[k] for k in EVAL_REPORT_KEYS if k != "task"}
     if logger is not None:
         report["recording"] = str(logger.path)
     return report

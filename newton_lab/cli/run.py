@@ -84,7 +84,7 @@ def evaluate(args: EvaluateArgs) -> int:
         summary = env.evaluate(agent=agent, on_step=hook, **args.rollout_kwargs())
     finally:
         close()
-    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS if k in summary}))
+    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
     return 0
 
 
