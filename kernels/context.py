@@ -107,6 +107,12 @@ def tcp_pos(ctx: TaskContext, w: int) -> wp.vec3:
 
 
 @wp.func
+def tcp_distance(ctx: TaskContext, w: int, k: int) -> float:
+    """|TCP - centre of entity ``k``| in row ``w`` [m]."""
+    return wp.length(entity_pos(ctx, w, k) - tcp_pos(ctx, w))
+
+
+@wp.func
 def gripper_q(ctx: TaskContext, w: int) -> float:
     """Gripper master joint position [rad] (0 open .. 1.2 closed)."""
     return ctx.joint_q[w * ctx.coords_per_world + ctx.gripper_coord]

@@ -20,7 +20,7 @@ from typing import Callable
 
 import warp as wp
 
-from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gripper_q, tcp_pos, wrap_angle
+from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gripper_q, tcp_distance, wrap_angle
 from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.task_api.terms import bind, term_factory
 
@@ -65,12 +65,6 @@ def nav_closeness(d: float) -> float:
 def posture_closeness(d: float) -> float:
     """``1 - tanh(d)`` for a joint-space distance ``d`` [rad]."""
     return 1.0 - wp.tanh(POSTURE_TANH_SCALE * d)
-
-
-@wp.func
-def tcp_distance(ctx: TaskContext, w: int, k: int) -> float:
-    """|TCP - centre of entity ``k``| [m]."""
-    return wp.length(entity_pos(ctx, w, k) - tcp_pos(ctx, w))
 
 
 @wp.func

@@ -10,7 +10,7 @@ from __future__ import annotations
 import warp as wp
 
 from newton_lab.kernels.context import (
-    TaskContext, arm_near_home, base_pose2d, entity_pos, entity_up_dot, gripper_q, held_for, tcp_pos, wrap_angle,
+    TaskContext, arm_near_home, base_pose2d, entity_pos, entity_up_dot, gripper_q, held_for, tcp_distance, wrap_angle,
 )
 from newton_lab.task_api.terms import term_factory
 
@@ -30,8 +30,7 @@ def grasped(*, entity: int, max_dist: float = GRASP_DIST, gripper_min: float = G
 
     @wp.func
     def grasped_entity(ctx: TaskContext, w: int) -> bool:
-        d = wp.length(entity_pos(ctx, w, entity) - tcp_pos(ctx, w))
-        return d < max_dist and wp.abs(gripper_q(ctx, w)) > gripper_min
+        return tcp_distance(ctx, w, entity) < max_dist and wp.abs(gripper_q(ctx, w)) > gripper_min
 
     return grasped_entity
 
