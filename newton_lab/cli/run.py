@@ -104,7 +104,8 @@ def train(args: TrainArgs) -> int:
     from ..policies import Policy  # deferred: torch is slow to import
     from ..policies.diffusion import PRESETS  # deferred: torch is slow to import
 
-    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS), resume=args.resume)
+    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS), resume=args.resume,
+                                                  gpus=args.gpus)
     print(json.dumps({"checkpoint": str(path)}))
     return 0
 

@@ -117,6 +117,9 @@ class TrainArgs:
     """wall-clock budget [s]: the run is shortened to fit (LR schedule re-planned)"""
     device: str = "cpu"
     """Torch device for training (cpu, cuda, cuda:1, ...)."""
+    gpus: int = 1
+    """data-parallel processes, one GPU each (torchrun + NCCL; --batch-size is per GPU); with --device cpu,
+    that many gloo processes"""
     seed: int = 0
     """Seed of weight init, batch order and diffusion noise."""
     resume: bool = False

@@ -31,10 +31,10 @@ class DiffusionBackend:
     config_class = DiffusionPolicyConfig
 
     def train(self, dataset: str | Path | Any, train_cfg: dict[str, Any] | DiffusionPolicyConfig | None = None, *,
-              resume: bool = False) -> Path:
+              resume: bool = False, gpus: int = 1) -> Path:
         """Train on ``dataset`` (path or object with ``.path``); returns the written checkpoint path. ``resume``:
-        continue the interrupted run of ``output_dir`` from its ``resume.pt``."""
-        return train(dataset, train_cfg, resume=resume)
+        continue the interrupted run of ``output_dir`` from its ``resume.pt``; ``gpus`` > 1: data-parallel."""
+        return train(dataset, train_cfg, resume=resume, gpus=gpus)
 
     def load_policy(self, path: str | Path, *, device: str = "cpu") -> DiffusionPolicy:
         """Load a checkpoint written by ``train`` / ``DiffusionPolicy.save``."""

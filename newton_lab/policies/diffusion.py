@@ -14,6 +14,7 @@ from torch import nn
 
 from ..datasets.outputs import output_path
 from .config import ARCHITECTURE_FIELDS, PRESETS, DiffusionPolicyConfig  # noqa: F401  (re-exported)
+from .data_parallel import draw_rows
 from .ema import EMA
 from .model import ConditionalUnet1D
 from .normalize import MinMaxNormalizer
@@ -140,8 +141,9 @@ class DiffusionPolicy(nn.Module):
         {"obs": (B, To, Do), "actions": (B, Tp, A)[, "images": {key: (B, To, H, W, 3)}]} in raw units."""
         obs = batch["obs"].to(self.device, torch.float32)
         x0 = self.action_normalizer.normalize(batch["actions"].to(self.device, torch.float32))
-        noise = torch.randn_like(x0)
-        t = self.scheduler.sample_timesteps(x0.shape[0], device=x0.device)
+        rows, shape = x0.shape[0], x0.shape[1:]  # data-parallel: drawn for the global batch, this rank's rows kept
+        noise = draw_rows(lambda n: torch.randn((n, *shape), device=x0.device, dtype=x0.dtype), rows)
+        t = draw_rows(lambda n: self.scheduler.sample_timesteps(n, device=x0.device), rows)
         target = x0 if self.cfg.prediction_type == "sample" else noise
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.cfg.bf16):
             cond = self.condition(obs, batch.get("images"), self.model)

@@ -25,6 +25,7 @@ import torch
 from tqdm import tqdm
 
 from ..datasets.outputs import output_path
+from . import data_parallel
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
 from .resume import (RESUME_FORMAT, RESUME_VERSION, capture_rng, check_resumable, data_fingerprint, load_resume,
@@ -185,9 +186,10 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
     t0 = time.perf_counter() - run.elapsed_s  # a resumed run's budget counts the time before the interruption
     policy.model.train()
     set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
+    processes, show = data_parallel.world()[1], cfg.progress and data_parallel.is_main()
     with tqdm(total=run.total, initial=run.step, desc=f"diffusion policy {task_id}", unit="step",
-              disable=None if cfg.progress else True) as bar:  # None: a terminal only (no \r bars in logs)
-        lines = cfg.progress and bar.disable  # not a terminal (a log file, Prefect): a plain line every LOG_EVERY_S
+              disable=None if show else True) as bar:  # None: a terminal only (no \r bars in logs)
+        lines = show and bar.disable  # not a terminal (a log file, Prefect): a plain line every LOG_EVERY_S
         last_line = time.perf_counter()
         while run.step < run.total:
             for loss in stepper.epoch():
@@ -196,12 +198,16 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
                 bar.update()
                 if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
                     last_line = time.perf_counter()
-                    rate = run.step * cfg.batch_size / max(last_line - t0, 1e-9)
+                    rate = run.step * cfg.batch_size * processes / max(last_line - t0, 1e-9)
                     print(f"diffusion policy {task_id}: step {run.step}/{run.total}, loss {loss.item():.4f}, "
                           f"{rate:,.0f} samples/s, {last_line - t0:.0f} s", file=sys.stderr, flush=True)
                 if cfg.time_budget_s is not None:
                     elapsed = time.perf_counter() - t0
-                    run.total = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
+                    planned = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
+                    start = run.rate_from[0]
+                    if run.step == start or (run.step > start and run.step % 100 == 0):  # a re-plan: rank 0's counts
+                        planned = data_parallel.agreed(planned)
+                    run.total = planned
                     if run.step == run.rate_from[0]:
                         run.rate_from = (run.step, elapsed)
                     bar.total = run.total
@@ -210,10 +216,11 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
                 if run.step >= run.total:
                     break
                 set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
-                if checkpointer.due(run.step):
+                if checkpointer.due(run.step) and data_parallel.is_main():
                     run.elapsed_s = time.perf_counter() - t0
                     checkpointer.save(run)
-            run.epochs.append({"epoch": len(run.epochs) + 1, "loss": torch.stack(run.losses).mean().item(),
+            run.epochs.append({"epoch": len(run.epochs) + 1,
+                               "loss": data_parallel.mean_over_ranks(torch.stack(run.losses).mean()).item(),
                                "steps": run.step, "lr": cfg.lr * lr_factor(run.step)})
             run.losses = []
     run.elapsed_s = time.perf_counter() - t0
@@ -230,10 +237,12 @@ def _resume(state: dict[str, Any], policy: DiffusionPolicy, stepper: EagerTrainS
 
 
 def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None, *,
-          resume: bool = False) -> Path:
+          resume: bool = False, gpus: int = 1) -> Path:
     """Train a diffusion policy on a dataset (a path, an object with ``.path``, or a list of them: same task and
     action columns, trained as one); returns the checkpoint path. ``resume``: continue the interrupted run whose
-    resume file is in ``cfg.output_dir`` (same dataset and settings); without it, such a file is refused."""
+    resume file is in ``cfg.output_dir`` (same dataset and settings); without it, such a file is refused.
+    ``gpus`` > 1: data-parallel over that many processes under torchrun (``newton_lab.policies.data_parallel``;
+    ``batch_size`` per process), same checkpoint format."""
     cfg = as_config(cfg)
     many = isinstance(dataset, (list, tuple))
     paths = [Path(getattr(d, "path", d)).expanduser() for d in (dataset if many else [dataset])]
@@ -244,6 +253,11 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     output_path(out_dir / "checkpoint.pt", create=False)  # output_dir (or a folder above it) a file: refused now
     if not resume:
         refuse_fresh_run(out_dir)
+    if gpus < 1:
+        raise ValueError(f"gpus must be at least 1, got {gpus}")
+    if gpus > 1 and data_parallel.world()[1] == 1:
+        return data_parallel.launch([str(p) for p in paths], cfg.to_dict(), gpus, resume=resume)
+    cfg = dataclasses.replace(cfg, device=data_parallel.join_from_environment(cfg.device))
     state = load_resume(out_dir) if resume else None
     torch.manual_seed(cfg.seed)
     start = None
@@ -255,7 +269,7 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     read_from = time.perf_counter()
     data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                            pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
-    if cfg.progress:
+    if cfg.progress and data_parallel.is_main():
         print(f"diffusion policy {data.task_id}: {len(data.demos)} demos, {len(data):,} windows read in "
               f"{time.perf_counter() - read_from:.1f} s", file=sys.stderr, flush=True)
     if state is not None:
@@ -265,8 +279,9 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
     else:
         policy = _continue(start, data, cfg)
+    data_parallel.same_start(policy)
     stepper = make_train_step(policy, data, cfg)
-    per_epoch = steps_per_epoch(data, cfg.batch_size)
+    per_epoch = steps_per_epoch(data, cfg.batch_size * data_parallel.world()[1])
     total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
     run = Progress(total=total, cap=total) if state is None else _resume(state, policy, stepper)
     if out_dir.is_dir():
@@ -283,6 +298,8 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     policy.info["training"] = training
     log = {"task_id": data.task_id, "dataset": data.source, **training, "config": cfg.to_dict(),
            "epoch_log": run.epochs}
+    if not data_parallel.is_main():
+        return Path(data_parallel.shared(None))
     path = _save_run(policy, out_dir, log)
     checkpointer.finish()
-    return path
+    return Path(data_parallel.shared(str(path)))

@@ -13,9 +13,10 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import torch
-from torch.utils.data import DataLoader, RandomSampler
+from torch.utils.data import BatchSampler, DataLoader, RandomSampler
 
 from .data import SequenceDataset, collate_batch
+from .data_parallel import average_gradients, world
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
 
 WARMUP_STEPS_BEFORE_CAPTURE = 3
@@ -97,10 +98,13 @@ class EagerTrainStep(ResumableOrder):
                                            weight_decay=cfg.weight_decay, **fused)
         # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh
         # permutations) up to batch_size windows, so every step sees batch_size differently-noised windows.
+        # Data-parallel: every rank walks the same order in global batches of batch_size * processes windows
+        # and keeps its own slice of each.
         self.generator = torch.Generator().manual_seed(cfg.seed)
-        sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size), generator=self.generator)
-        self.loader = DataLoader(data, batch_size=cfg.batch_size, sampler=sampler, drop_last=True,
-                                 num_workers=cfg.num_workers, collate_fn=collate_batch,
+        rank, size = world()
+        sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size * size), generator=self.generator)
+        batches = RankSlice(BatchSampler(sampler, cfg.batch_size * size, drop_last=True), rank, cfg.batch_size)
+        self.loader = DataLoader(data, batch_sampler=batches, num_workers=cfg.num_workers, collate_fn=collate_batch,
                                  persistent_workers=cfg.num_workers > 0)
 
     def epoch(self) -> Iterator[torch.Tensor]:
@@ -115,6 +119,7 @@ class EagerTrainStep(ResumableOrder):
             loss = policy.compute_loss(batch)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
+            average_gradients(policy.model.parameters())
             optimizer.step()
             policy.ema.update(policy.model)
             self.position += 1
@@ -135,7 +140,8 @@ class CudaGraphTrainStep(ResumableOrder):
         self.obs, self.actions = data.obs.to(device), data.actions.to(device)
         self.images = {k: v.to(device) for k, v in data.images.items()}  # uint8 frames: the whole set on the GPU
         self.obs_index, self.action_index = data.obs_index.to(device), data.action_index.to(device)
-        self.num_windows, self.steps = len(data), steps_per_epoch(data, cfg.batch_size)
+        self.rank, self.processes = world()
+        self.num_windows, self.steps = len(data), steps_per_epoch(data, cfg.batch_size * self.processes)
         self.generator = torch.Generator(device=device).manual_seed(cfg.seed)  # batch order
         self.index = torch.zeros(cfg.batch_size, dtype=torch.long, device=device)
         self.ema_weight = torch.zeros((), device=device)
@@ -148,6 +154,7 @@ class CudaGraphTrainStep(ResumableOrder):
             batch["images"] = {k: v[frames] for k, v in self.images.items()}
         loss = self.policy.compute_loss(batch)
         loss.backward()
+        average_gradients(self.policy.model.parameters())  # an NCCL all-reduce, captured with the rest
         self.optimizer.step()
         self.policy.ema.blend(self.policy.model, self.ema_weight)
         return loss.detach()
@@ -175,15 +182,31 @@ class CudaGraphTrainStep(ResumableOrder):
         return self.loss.clone()
 
     def epoch(self) -> Iterator[torch.Tensor]:
-        n, b = self.num_windows, self.batch_size
-        reps = -(-max(n, b) // n)
+        n, b, size = self.num_windows, self.batch_size, self.processes
+        reps = -(-max(n, b * size) // n)
         skip = self._begin_epoch()
         order = torch.cat([torch.randperm(n, device=self.index.device, generator=self.generator) for _ in range(reps)])
         self._resumed()
         for k in range(skip, self.steps):
-            self.index.copy_(order[k * b:(k + 1) * b])
+            first = (k * size + self.rank) * b  # this rank's slice of the k-th global batch
+            self.index.copy_(order[first:first + b])
             self.position = k + 1
             yield self._run()
+
+
+class RankSlice:
+    """Batches of indices: this rank's ``batch_size`` consecutive indices of each global batch."""
+
+    def __init__(self, batches: BatchSampler, rank: int, batch_size: int) -> None:
+        self.batches, self.rank, self.batch_size = batches, rank, batch_size
+
+    def __iter__(self) -> Iterator[list[int]]:
+        first = self.rank * self.batch_size
+        for batch in self.batches:
+            yield batch[first:first + self.batch_size]
+
+    def __len__(self) -> int:
+        return len(self.batches)
 
 
 def make_train_step(policy: DiffusionPolicy, data: SequenceDataset,

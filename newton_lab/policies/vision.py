@@ -16,6 +16,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .data_parallel import draw_rows
+
 
 def _norm(channels: int) -> nn.GroupNorm:
     return nn.GroupNorm(max(1, channels // 16), channels)  # 16 channels per group, as Chi et al. replace BN
@@ -78,8 +80,8 @@ def crop_frames(x: torch.Tensor, size: tuple[int, int], random: bool) -> torch.T
     n, height, width = x.shape[:3]
     h, w = size
     if random:
-        oy = torch.randint(0, height - h + 1, (n,), device=x.device)
-        ox = torch.randint(0, width - w + 1, (n,), device=x.device)
+        oy = draw_rows(lambda k: torch.randint(0, height - h + 1, (k,), device=x.device), n)
+        ox = draw_rows(lambda k: torch.randint(0, width - w + 1, (k,), device=x.device), n)
     else:
         oy = torch.full((n,), (height - h) // 2, device=x.device)
         ox = torch.full((n,), (width - w) // 2, device=x.device)
