@@ -4,25 +4,21 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 import struct
-import subprocess
-import sys
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa  # a dependency of the project (the export writes parquet): imported, never skipped
+import pyarrow.parquet as pq
 import pytest
 
-pa = pytest.importorskip("pyarrow")
-pq = pytest.importorskip("pyarrow.parquet")
-
-from newton_lab.datasets import open_writer, read_episode, zarr_packs  # noqa: E402
-from newton_lab.datasets.ref import DatasetRef  # noqa: E402
-from newton_lab.datasets.lerobot import writer as lr  # noqa: E402  (the export reads episodes through it)
-from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3  # noqa: E402
+from newton_lab.datasets import open_writer, read_episode, zarr_packs
+from newton_lab.datasets.ref import DatasetRef
+from newton_lab.datasets.lerobot import writer as lr  # the export reads episodes through it
+from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3
 
 TASK = "GalbotG1-PickCube-v0"
 JOINTS = [f"joint_{i}" for i in range(7)] + ["gripper"]
@@ -56,7 +52,8 @@ class Ref:  # stands in for a DatasetRef
     path: Path
 
 
-def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, noisy: bool = False) -> dict:
+def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, noisy: bool = False,
+                 motion: int = 1) -> dict:
     rng = np.random.default_rng(seed)
     actions = rng.standard_normal((steps, 8)).astype(np.float32)
     obs = {name: rng.standard_normal((steps, w)).astype(np.float32) for name, w in OBS.items() if name != "actions"}
@@ -67,7 +64,7 @@ def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, no
     elif image is not None:  # a smooth moving gradient (video codecs are lossy on noise), per-episode offset
         t, y, x = np.meshgrid(np.arange(steps), np.arange(image[0]), np.arange(image[1]), indexing="ij")
         base = rng.integers(0, 100, 3)
-        obs[IMAGE] = np.stack([np.clip(base[c] + 3 * x + 2 * y + t + 40 * c, 0, 255) for c in range(3)],
+        obs[IMAGE] = np.stack([np.clip(base[c] + 3 * x + 2 * y + motion * t + 40 * c, 0, 255) for c in range(3)],
                               axis=-1).astype(np.uint8)
     return {
         "actions": actions,
@@ -81,11 +78,11 @@ def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, no
 
 
 def make_dataset(path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int] | None = None,
-                 noisy: bool = False) -> Path:
+                 noisy: bool = False, motion: int = 1) -> Path:
     with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
         for i, steps in enumerate(lengths):
             ok = i not in failed
-            w.append_episode(make_episode(i, steps, image, noisy), success=ok,
+            w.append_episode(make_episode(i, steps, image, noisy, motion), success=ok,
                              attrs={"termination_reason": "success" if ok else "timeout"})
     return path
 
@@ -490,62 +487,3 @@ def test_validator_names_first_problem(tmp_path, name):
     assert "\n" not in msg and str(bad) in msg and word in msg, msg
     with pytest.raises(ValueError, match="does not exist"):
         validate_lerobot_v3(tmp_path / "absent")
-
-
-# ----------------------------------------------------------------------------- real LeRobot (optional)
-LEROBOT_PYTHON = "NEWTON_LAB_LEROBOT_PYTHON"
-NO_LEROBOT = (
-    "lerobot is not importable here, and no lerobot release installs next to this project's torch==2.13.0 "
-    "(0.4.4, the newest for Python 3.11: torch<2.11 and rerun-sdk<0.27; 0.5.x: Python>=3.12, torch<2.11; "
-    "0.6.x: Python>=3.12, torch<2.12); set NEWTON_LAB_LEROBOT_PYTHON to a Python with lerobot==0.4.4 "
-    "installed (its own venv) to run this check")
-LOADER = """
-import json, sys
-try:
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-except ImportError:  # older layouts
-    from lerobot.common.datasets.lerobot_dataset import LeRobotDataset
-ds = LeRobotDataset(sys.argv[2], root=sys.argv[1])
-frames = [{k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in ds[i].items()} for i in range(len(ds))]
-print(json.dumps({"num_episodes": ds.num_episodes, "fps": ds.fps, "frames": frames}))
-"""
-
-
-def lerobot_python() -> str:
-    """An interpreter that imports lerobot: this one, or NEWTON_LAB_LEROBOT_PYTHON; else the test skips."""
-    try:
-        import lerobot  # noqa: F401
-        return sys.executable
-    except ImportError:
-        pass
-    python = os.environ.get(LEROBOT_PYTHON)
-    if not python:
-        pytest.skip(NO_LEROBOT)
-    return python
-
-
-def test_loads_with_lerobot(tmp_path):
-    """LeRobot's own LeRobotDataset reads the export frame for frame (in a subprocess: lerobot may live in
-    another venv, see NO_LEROBOT)."""
-    python = lerobot_python()
-    src = make_dataset(tmp_path / "src.hdf5", image=(6, 10))
-    root = tmp_path / "lerobot_root"
-    summary = export_lerobot(src, root)
-    env = dict(os.environ, HF_HUB_OFFLINE="1", HF_DATASETS_OFFLINE="1", HF_HOME=str(tmp_path / "hf"))
-    proc = subprocess.run([python, "-c", LOADER, str(root), summary["repo_id"]], capture_output=True, text=True,
-                          env=env, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    got = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert got["num_episodes"] == 2 and got["fps"] == 20 and len(got["frames"]) == summary["frames"]
-    key = f"observation.images.{IMAGE}"
-    frames = iter(got["frames"])
-    for e, demo in enumerate(summary["demo_ids"]):
-        ep = read_episode(src, demo)
-        state = np.concatenate([ep["obs"][t].astype(np.float32) for t in STATE_ORDER], axis=1)
-        for t in range(LENGTHS[demo]):
-            f = next(frames)
-            assert (f["episode_index"], f["frame_index"], f["task"]) == (e, t, TASK)
-            assert np.array_equal(np.float32(f["action"]), ep["actions"][t])  # bit for bit
-            assert np.array_equal(np.float32(f["observation.state"]), state[t])
-            assert np.float32(f["timestamp"]) == np.float32(t / 20)
-            np.testing.assert_allclose(np.transpose(f[key], (1, 2, 0)), ep["obs"][IMAGE][t] / 255.0, atol=1e-6)
