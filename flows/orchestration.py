@@ -183,9 +183,11 @@ def _run_dataset_stage(stage_task, args, *, shards: int, out: str, stage: str, n
     return art, states
 
 
-def _collect(task_id, episodes, num_envs, seed, device, out, shards):
+def _collect(task_id, episodes, num_envs, seed, device, out, shards, *, cameras=PIPELINE_CAMERAS, task_options=None,
+             max_steps=None):
     args = CollectArgs(task=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device, randomize=True,
-                       dataset_path=str(Path(out) / "demos.hdf5"), cameras=PIPELINE_CAMERAS)
+                       dataset_path=str(Path(out) / "demos.hdf5"), cameras=cameras,
+                       task_options=dict(task_options or {}), **({"max_steps": max_steps} if max_steps else {}))
     return _run_dataset_stage(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
                               path_field="dataset_path")
 
@@ -197,37 +199,49 @@ def _mimic(source, episodes, num_envs, seed, device, out, shards):
                               path_field="output_path", source=source)
 
 
-def _train(dataset, train_cfg, out):
-    (ckpt,), states = _results([train_task.submit(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out)],
-                               "train")
+def _train(dataset, train_cfg, out, gpus=1):
+    (ckpt,), states = _results([train_task.submit(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out,
+                                                  gpus=gpus)], "train")
     runlog.publish_loss_curve(ckpt)
     return ckpt, states
 
 
-def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps, recording=None):
-    args = EvaluateArgs(task=task_id, checkpoint=checkpoint["path"], episodes=episodes, num_envs=num_envs, seed=seed,
-                        device=device, randomize=True, max_steps=max_steps, cameras=PIPELINE_CAMERAS)
+def _evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps, recording=None, *,
+              cameras=PIPELINE_CAMERAS, task_options=None, phase_checkpoints=None):
+    """Evaluate a checkpoint artifact, or a coherent task's ``phase_checkpoints`` (phase -> artifact; checkpoint
+    None), in ``shards`` runs with disjoint seeds; the summed metrics (per phase too) and the task states."""
+    args = EvaluateArgs(task=task_id, checkpoint=None if checkpoint is None else checkpoint["path"], episodes=episodes,
+                        num_envs=num_envs, seed=seed, device=device, randomize=True, max_steps=max_steps,
+                        cameras=cameras, task_options=dict(task_options or {}))
     shard_args = _shards(args, shards)
     if recording is not None:  # two episodes of the first shard, for the viewer
         shard_args[0] = replace(shard_args[0], rerun_save=str(recording), rerun_worlds=EVAL_RECORDED_EPISODES)
-    parts, states = _results(evaluate_task.map(checkpoint=unmapped(checkpoint), args=shard_args), "evaluate")
+    parts, states = _results(evaluate_task.map(checkpoint=unmapped(checkpoint), args=shard_args,
+                                               phase_checkpoints=unmapped(phase_checkpoints)), "evaluate")
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
-    reasons: dict[str, int] = {}
-    signals: dict[str, int] = {}
-    for p in parts:
-        for k, v in p["termination_reasons"].items():
-            reasons[k] = reasons.get(k, 0) + v
-        for k, v in p.get("subtask_signals", {}).items():
-            signals[k] = signals.get(k, 0) + v
-    metrics = {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1), "termination_reasons": reasons,
-               "subtask_signals": signals,
+    metrics = {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1),
+               "termination_reasons": _summed(p["termination_reasons"] for p in parts),
+               "subtask_signals": _summed(p.get("subtask_signals", {}) for p in parts),
+               "phases": {name: {"reached": sum(p["phases"][name]["reached"] for p in parts),
+                                 "passed": sum(p["phases"][name]["passed"] for p in parts),
+                                 "stalled": _summed(p["phases"][name]["stalled"] for p in parts)}
+                          for name in parts[0]["phases"]},
                "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}
     recorded = [p["recording"] for p in parts if p.get("recording")]
     if recorded:
         metrics["recording"] = recorded[0]
     runlog.publish_evaluation(metrics)
     return metrics, states
+
+
+def _summed(counts) -> dict[str, int]:
+    """Counters (name -> count) added up."""
+    out: dict[str, int] = {}
+    for c in counts:
+        for k, v in c.items():
+            out[k] = out.get(k, 0) + v
+    return out
 
 
 @flow(name="collect")
@@ -264,7 +278,7 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
 def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: int = _R["mimic_episodes"],
              train_cfg: dict[str, Any] | None = None, eval_episodes: int = _R["eval_episodes"],
              num_envs: int = _R["num_envs"], device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
-             workers: int = _P.workers, eval_max_steps: int = 600) -> dict[str, Any]:
+             workers: int = _P.workers, eval_max_steps: int = 600, gpus: int = 1) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
     runner for all); publishes one artifact per stage and a markdown summary (``runlog``) and writes
     ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation.
@@ -276,7 +290,7 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     log.info("collect: %s", "/".join(s_collect))
     gen_art, s_mimic = _mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers)
     log.info("mimic: %s", "/".join(s_mimic))
-    ckpt_art, s_train = _train(gen_art, train_cfg, out)
+    ckpt_art, s_train = _train(gen_art, train_cfg, out, gpus)
     log.info("train: %s", "/".join(s_train))
     metrics, s_eval = _evaluate(ckpt_art, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
                                 eval_max_steps, recording=Path(out) / "evaluation.rrd")
@@ -297,7 +311,15 @@ def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address:
     gives every keyword from the command line's arguments."""
     _check(kwargs.get("task_id", _P.task), runner, workers)
     _check_counts(**{k: kwargs.get(k) for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs",
-                                                 "eval_max_steps")})
+                                                 "eval_max_steps", "gpus")})
+    from .long_horizon import has_phases, long_horizon_pipeline  # deferred: it imports this module
+
+    flow_fn = pipeline
+    if has_phases(kwargs.get("task_id", _P.task)):
+        if kwargs.pop("mimic_episodes", None) is not None:
+            raise ValueError("a coherent task's pipeline takes more coherent demos (--demos) instead of Mimic; "
+                             "drop --mimic-episodes")
+        flow_fn = long_horizon_pipeline
     check_api_reachable()
     options: dict[str, Any] = {}
     if runner == "dask":
@@ -315,7 +337,7 @@ def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address:
     for t in (collect_task, mimic_task, train_task, evaluate_task):
         t.retries = retries
     runlog.quiet_console(INPUT_ERRORS)
-    return pipeline.with_options(**options)(workers=workers if runner == "dask" else 1, **kwargs)
+    return flow_fn.with_options(**options)(workers=workers if runner == "dask" else 1, **kwargs)
 
 
 def _check_scheduler(address: str, timeout_s: float = 5.0) -> None:

@@ -36,6 +36,8 @@ def describe_inputs(kwargs: dict[str, Any]) -> str:
     if args is not None:
         fields = ("task", "episodes", "num_envs", "seed", "device", "dataset_path", "output_path", "checkpoint")
         return ", ".join(f"{k} {getattr(args, k)}" for k in fields if getattr(args, k, None) is not None)
+    if "source" in kwargs and "dataset" not in kwargs:  # split
+        return f"source {kwargs['source']['path']} -> {kwargs.get('out_dir')}"
     cfg = kwargs.get("train_cfg") or {}
     return (f"dataset {kwargs['dataset']['path']}, {cfg.get('max_steps')} steps, batch {cfg.get('batch_size')}, "
             f"device {cfg.get('device')} -> {kwargs.get('out_dir')}")
@@ -90,6 +92,9 @@ def publish_evaluation(metrics: dict[str, Any]) -> None:
             ("successes", metrics["successes"]), ("average length", f"{metrics['average_length']:.1f} steps")]
     rows += [(f"termination: {k}", v) for k, v in sorted(metrics["termination_reasons"].items())]
     rows += [(f"subtask: {k}", v) for k, v in sorted(metrics.get("subtask_signals", {}).items())]
+    phases = metrics.get("phases", {})
+    if len(phases) > 1:  # a coherent task: where its rows stop
+        rows += [(f"phase {k}: passed / reached", f"{v['passed']} / {v['reached']}") for k, v in phases.items()]
     create_table_artifact(table=[{"metric": k, "value": str(v)} for k, v in rows], key=ARTIFACT_KEYS["evaluate"],
                           description=f"evaluate stage: {metrics['successes']}/{metrics['episodes']} successes")
 

@@ -32,6 +32,23 @@ DEMO_RECIPES: dict[str, dict[str, Any]] = {
             "train": {**DEMO_TRAIN_CFG, "activation": "mish", "num_inference_steps": 10, "max_steps": 10000}},
 }
 """Counts and training config of ``newton-lab pipeline`` / ``make demo`` for every flag left unset."""
+LONG_HORIZON_RECIPES: dict[str, dict[str, Any]] = {
+    # The smallest end-to-end run on 2 CPU cores: a few coherent demos, short trainings of the quarter-width
+    # visuomotor policy, a few evaluation episodes (it shows the flow works; no success is expected at this size).
+    "cpu": {"demos": 4, "eval_episodes": 4, "num_envs": 2, "eval_max_steps": 3000,
+            "train": {"preset": "vision_cpu", "max_steps": 1000}},
+    # Full size on a GPU: the visuomotor preset under bf16, one 10-minute training per learned phase.
+    "gpu": {"demos": 1200, "eval_episodes": 100, "num_envs": 300, "eval_max_steps": 3000,
+            "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 600}},
+}
+"""Counts and training of ``newton-lab pipeline`` on a coherent task (``newton_lab.flows.long_horizon``): every
+policy input is what the robot measures: the front head camera at 96x72 RGB and proprioception
+(``obs_mode="sensors"``: no object or target pose)."""
+LONG_HORIZON_CAMERAS = "front_head=96x72:rgb"
+"""``--cameras`` of the long-horizon pipeline's collection and evaluation (the visuomotor policies' view)."""
+LONG_HORIZON_OPTIONS = {"obs_mode": "sensors"}
+"""Task options the long-horizon pipeline always sets (policies see no privileged state)."""
+
 PIPELINE_CAMERAS = "none"
 """``--cameras`` of the pipeline's collect, Mimic and evaluation envs: its policy observes state, so nothing is
 rendered or recorded (image terms would cost a render per step and ~0.9 MB per 298x224 demo)."""
@@ -46,10 +63,11 @@ def _sees_cuda() -> bool:
         return torch.cuda.is_available()
 
 
-def demo_recipe(name: str = "auto", device: str | None = None) -> dict[str, Any]:
+def demo_recipe(name: str = "auto", device: str | None = None, *, long_horizon: bool = False) -> dict[str, Any]:
     """The demo recipe ``name`` ("cpu", "gpu", or "auto": gpu when torch sees a CUDA device and ``device`` is not
     a CPU), with ``name`` resolved, ``device`` (envs: "cpu" for the cpu recipe, else the given one or Warp's) and
-    ``train_device`` (the given device, else cpu / cuda) added."""
+    ``train_device`` (the given device, else cpu / cuda) added; ``long_horizon``: a coherent task's recipe
+    (``LONG_HORIZON_RECIPES``)."""
     if name not in (*DEMO_RECIPES, "auto"):
         raise ValueError(f"unknown demo recipe {name!r}; valid recipes: auto, {', '.join(DEMO_RECIPES)}")
     if name == "auto":
@@ -57,7 +75,9 @@ def demo_recipe(name: str = "auto", device: str | None = None) -> dict[str, Any]
         name = "gpu" if not on_cpu and (device is not None and device.startswith("cuda") or _sees_cuda()) else "cpu"
     env_device = device if device is not None else ("cpu" if name == "cpu" else None)
     train_device = device if device is not None else ("cpu" if name == "cpu" else "cuda")
-    return {**DEMO_RECIPES[name], "name": name, "device": env_device, "train_device": train_device}
+    recipes = LONG_HORIZON_RECIPES if long_horizon else DEMO_RECIPES
+    return {**recipes[name], "name": name, "device": env_device, "train_device": train_device,
+            "long_horizon": long_horizon}
 
 DEFAULTS = {
     "PREFECT_SERVER_ANALYTICS_ENABLED": "false",

@@ -95,14 +95,16 @@ def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic")
     return _finish(out, name, inputs, art)
 
 
-def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy") -> dict[str, Any]:
-    """Diffusion policy on a dataset artifact -> checkpoint artifact. An interrupted run (its folder holds a
-    ``resume.pt``) is continued; any other leftover of it is removed first."""
+def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy",
+                gpus: int = 1) -> dict[str, Any]:
+    """Diffusion policy on a dataset artifact -> checkpoint artifact (``gpus`` > 1: data-parallel). An interrupted
+    run (its folder holds a ``resume.pt``) is continued; any other leftover of it is removed first."""
     from ..policies import Policy  # deferred: torch is slow to import
     from ..policies.resume import RESUME_NAME  # deferred: torch is slow to import
 
     out = Path(out_dir)
-    inputs = {"stage": "train", "dataset": dataset["sha256"], "train_cfg": train_cfg}
+    inputs = {"stage": "train", "dataset": dataset["sha256"], "train_cfg": train_cfg,
+              **({"gpus": gpus} if gpus > 1 else {})}  # batch_size is per GPU: more GPUs, another run
     if (done := _guard(out, name, inputs)) is not None:
         return done
     run_dir = out / name
@@ -111,7 +113,7 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
         if leftover.name != RESUME_NAME:
             _fresh(leftover)
     ckpt = Policy.from_backend(BACKEND).train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)},
-                                              resume=resume)
+                                              resume=resume, gpus=gpus)
     log_path = Path(ckpt).parent / "train_log.json"
     log = json.loads(log_path.read_text()) if log_path.exists() else {}
     curve = [{k: e[k] for k in ("epoch", "steps", "loss", "lr")} for e in log.get("epoch_log", [])]
@@ -120,17 +122,41 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
                                                loss_curve=curve))
 
 
-def evaluate_stage(*, checkpoint: dict[str, Any], args: EvaluateArgs) -> dict[str, Any]:
-    """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``; with
-    ``args.rerun_save``, the first episode of each of the first ``args.rerun_worlds`` rows is recorded there
-    (``recording`` in the result)."""
+def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -> dict[str, dict[str, Any]]:
+    """A coherent task's dataset artifact split by phase -> {phase name: dataset artifact} in ``<out_dir>/<name>/``
+    (``newton_lab.datasets.split_by_phase``)."""
+    from ..datasets import split_by_phase  # deferred: the dataset package imports Warp/Newton
+
+    out = output_path(Path(out_dir) / f"{name}.manifest.json").parent
+    inputs = {"stage": "split", "source": source["sha256"]}
+    if (done := _guard(out, name, inputs)) is not None:
+        return done["phases"]
+    folder = _fresh(out / name)
+    refs = split_by_phase(source["path"], folder)
+    phases = {p: artifact(ref.path, "dataset", episodes=ref.metadata["episodes"], samples=dataset_samples(ref.path))
+              for p, ref in refs.items()}
+    _finish(out, name, inputs, artifact(folder, "phase datasets", phases=phases))
+    return phases
+
+
+def evaluate_stage(*, checkpoint: dict[str, Any] | None = None, args: EvaluateArgs,
+                   phase_checkpoints: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``, or of a coherent
+    task run by one checkpoint artifact per learned phase (``phase_checkpoints``: phase name -> artifact; the
+    other phases run their component's expert); with ``args.rerun_save``, the first episode of each of the first
+    ``args.rerun_worlds`` rows is recorded there (``recording`` in the result)."""
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies import Policy  # deferred: torch is slow to import
-    from ..policies.agent import PolicyAgent  # deferred: imports the env stack (Warp)
+    from ..policies.agent import PolicyAgent, phase_policy_agent  # deferred: imports the env stack (Warp)
 
+    on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
+    policy_device = args.device if on_gpu else "cpu"
     env = make_env(args.task, **args.env_kwargs())
-    agent = PolicyAgent(Policy.from_backend(BACKEND).load_policy(args.checkpoint))
+    if phase_checkpoints:
+        agent = phase_policy_agent(env, {p: a["path"] for p, a in phase_checkpoints.items()}, device=policy_device)
+    else:
+        agent = PolicyAgent(Policy.from_backend(BACKEND).load_policy(args.checkpoint, device=policy_device))
     logger = None
     if args.rerun_save:  # the first episode of each of the first ``rerun_worlds`` rows, to a fresh .rrd
         from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import

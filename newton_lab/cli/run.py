@@ -136,10 +136,14 @@ def pipeline(args: PipelineArgs) -> int:
     configure(Path(args.out) / ".prefect")  # before Prefect is imported
     from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
 
-    recipe = demo_recipe(args.recipe, args.device)
+    from ..flows.long_horizon import has_phases, summary_lines as long_horizon_lines  # deferred: as above
+
+    long_horizon = has_phases(args.task)
+    recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon)
     summary = run_pipeline(**args.pipeline_kwargs(recipe))
     metrics = Path(args.out).resolve() / "metrics.json"
-    print("\n".join(summary_lines(summary, args.out, recipe["name"])))
+    lines = long_horizon_lines if long_horizon else summary_lines
+    print("\n".join(lines(summary, args.out, recipe["name"])))
     print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
     print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"], "metrics": str(metrics)}))
     return 0

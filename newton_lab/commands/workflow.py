@@ -181,7 +181,8 @@ RECIPE_FIELDS = ("demos", "mimic_episodes", "eval_episodes", "num_envs")
 
 @dataclass(kw_only=True)
 class PipelineArgs:
-    """``newton-lab pipeline``: the Prefect flow collect -> mimic -> train -> evaluate."""
+    """``newton-lab pipeline``: the Prefect flow collect -> mimic -> train -> evaluate; on a coherent task
+    (PickToShelf, SortToShelf) collect -> split by phase -> train per learned phase -> evaluate composed."""
 
     task: str = DEFAULT_TASK_ID
     """task id (see `newton-lab tasks`)"""
@@ -214,21 +215,37 @@ class PipelineArgs:
     """Dask scheduler address (default: start a local cluster)"""
     retries: int = 1
     """retries of a failed stage"""
+    gpus: int = 1
+    """data-parallel GPUs of each training (see newton-lab train --gpus)"""
+    task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
 
     def train_cfg(self, recipe: dict[str, Any]) -> dict[str, Any]:
-        """The resolved ``recipe``'s training config on its training device, with ``train_steps`` when given."""
-        cfg = dict(recipe["train"], device=recipe["train_device"])
+        """The resolved ``recipe``'s training config on its training device, with ``train_steps`` when given (a
+        recipe naming a ``preset`` gets that preset's fields, its own on top)."""
+        train = dict(recipe["train"])
+        if "preset" in train:
+            from ..policies.config import PRESETS  # deferred: the policies package imports torch
+
+            train = {**PRESETS[train.pop("preset")], **train}
+        cfg = {**train, "device": recipe["train_device"]}
         if self.train_steps:
             cfg["max_steps"] = self.train_steps
+            cfg.pop("time_budget_s", None)
         return cfg
 
     def pipeline_kwargs(self, recipe: dict[str, Any]) -> dict[str, Any]:
         """Keywords of ``newton_lab.flows.orchestration.run_pipeline``: the given fields, and for the unset ones
         those of ``recipe`` (``newton_lab.flows.settings.demo_recipe(self.recipe, self.device)``)."""
-        counts = {k: recipe[k] if getattr(self, k) is None else getattr(self, k) for k in RECIPE_FIELDS}
+        if recipe.get("long_horizon") and self.mimic_episodes is not None:
+            raise ValueError("a coherent task's pipeline takes more coherent demos (--demos) instead of Mimic; "
+                             "drop --mimic-episodes")
+        fields = [k for k in RECIPE_FIELDS if k in recipe]
+        counts = {k: recipe[k] if getattr(self, k) is None else getattr(self, k) for k in fields}
+        extra = ({"eval_max_steps": recipe["eval_max_steps"], "task_options": dict(self.task_options)}
+                 if recipe.get("long_horizon") else {})
         return {"runner": self.runner, "workers": self.workers, "address": self.address, "retries": self.retries,
                 "task_id": self.task, "train_cfg": self.train_cfg(recipe), "device": recipe["device"],
-                "out": str(Path(self.out).resolve()), "seed": self.seed, **counts}
+                "out": str(Path(self.out).resolve()), "seed": self.seed, "gpus": self.gpus, **counts, **extra}
 
 
 @dataclass(kw_only=True)

@@ -1,0 +1,109 @@
+"""The long-horizon pipeline of a coherent task (PickToShelf, SortToShelf): collect the whole task with its expert
+-> split the demos by phase -> train one visuomotor policy per learned phase (mapped task runs: on a Dask cluster
+they spread over its workers, one GPU each) -> evaluate the coherent task run by the learned phases, the other
+phases by their component's expert. Every stage is cached on its inputs and resumable, as in ``pipeline``.
+
+Which phases are learned: every phase but the ones that drive the base (navigation runs the planner's exact
+base motion; a policy would only copy it). The phases' data is the coherent task's own demos, split: each
+phase's policy sees the scenes that the phase before it leaves behind, which is what it meets when composed.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from prefect import flow, get_run_logger, unmapped
+
+from ..datasets.outputs import output_path
+from ..task_api.registry import lookup
+from . import runlog, stages
+from .orchestration import INPUT_ERRORS, _collect, _evaluate, _results, _stage_task, train_task
+from .settings import LONG_HORIZON_CAMERAS, LONG_HORIZON_OPTIONS
+
+split_task = _stage_task(stages.split_stage, "split")
+
+NAVIGATION_GROUPS = ("base",)
+"""Joint groups of a phase that navigates: such a phase runs its component's expert, not a learned policy."""
+
+
+def learned_phases(task_id: str, task_options: dict[str, Any] | None = None) -> list[str]:
+    """The phases of a coherent task that the pipeline trains a policy for (all but the navigating ones)."""
+    from .. import tasks  # noqa: F401  deferred: registering the task ids imports Warp
+
+    cfg = lookup(task_id).make_cfg(dict(task_options or {}))
+    if not cfg.phases:
+        raise ValueError(f"{task_id} has no phases; run the single-task pipeline on it (no long-horizon recipe)")
+    return [p.name for p in cfg.phases if not set(p.action_groups or ()) & set(NAVIGATION_GROUPS)]
+
+
+def has_phases(task_id: str) -> bool:
+    """Whether ``task_id`` is a coherent task (its pipeline is the long-horizon one)."""
+    from .. import tasks  # noqa: F401  deferred: registering the task ids imports Warp
+
+    return bool(lookup(task_id).make_cfg({}).phases)
+
+
+@flow(name="long-horizon pipeline")
+def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], eval_episodes: int, num_envs: int,
+                          device: str | None, out: str, seed: int = 0, workers: int = 1, eval_max_steps: int = 3000,
+                          cameras: str = LONG_HORIZON_CAMERAS, task_options: dict[str, Any] | None = None,
+                          gpus: int = 1) -> dict[str, Any]:
+    """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
+    flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included) and a markdown summary.
+    ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
+    ``gpus`` > 1 trains each phase data-parallel."""
+    runlog.quiet_console(INPUT_ERRORS)
+    log = get_run_logger()
+    out_dir = output_path(Path(out) / "metrics.json").parent
+    options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
+    phases = learned_phases(task_id, options)
+    demo_art, s_collect = _collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
+                                   task_options=options, max_steps=eval_max_steps)
+    log.info("collect: %s", "/".join(s_collect))
+    (split,), s_split = _results([split_task.submit(source=demo_art, out_dir=out)], "split")
+    log.info("split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items()))
+    arts, s_train = _results(train_task.map(dataset=[split[p] for p in phases], train_cfg=unmapped(dict(train_cfg)),
+                                            out_dir=unmapped(out), name=[f"policy_{p}" for p in phases],
+                                            gpus=unmapped(gpus)), "train")
+    checkpoints = dict(zip(phases, arts))
+    for art in arts:
+        runlog.publish_loss_curve(art)
+    log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
+    metrics, s_eval = _evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers, eval_max_steps,
+                                recording=Path(out) / "evaluation.rrd", cameras=cameras, task_options=options,
+                                phase_checkpoints=checkpoints)
+    log.info("evaluate: %s; success rate %.1f%% over %d episodes; %s", "/".join(s_eval),
+             100 * metrics["success_rate"], metrics["episodes"],
+             ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in metrics["phases"].items()))
+    summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
+               "learned_phases": phases,
+               "artifacts": {"demos": demo_art, "phases": split, "checkpoints": checkpoints},
+               "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval}}
+    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | None = None) -> list[str]:
+    """Human-readable end of a long-horizon run: demos, per-phase datasets and trainings, the composed success
+    and where each phase's rows stopped, then where to look."""
+    arts, ev = summary["artifacts"], summary["evaluation"]
+    demos = arts["demos"]["metrics"]
+    head = f"{summary['task']} long-horizon pipeline" + (f" ({recipe} recipe)" if recipe else "")
+    lines = [f"{head}:", f"  expert demos    {demos.get('episodes')} collected, "
+                         f"{demos.get('success_rate', 0):.0%} success"]
+    for phase, art in arts["phases"].items():
+        ckpt = arts["checkpoints"].get(phase)
+        trained = (f"; policy {ckpt['metrics'].get('steps')} steps, final loss {ckpt['metrics'].get('final_loss'):.4f}"
+                   if ckpt else "; expert")
+        lines.append(f"  phase {phase:<9} {art['metrics']['episodes']} segments{trained}")
+    lines.append(f"  composed        {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised episodes")
+    for phase, p in ev["phases"].items():
+        stalled = ", ".join(f"{k} {v}" for k, v in p["stalled"].items()) or "none"
+        lines.append(f"    {phase:<13} passed {p['passed']}/{p['reached']} (stopped: {stalled})")
+    lines += ["where to look:", f"  metrics         {Path(out_dir).resolve() / 'metrics.json'}"]
+    lines += [f"  checkpoint      {phase}: {art['path']}" for phase, art in arts["checkpoints"].items()]
+    if ev.get("recording"):
+        lines.append(f"  evaluation rrd  {ev['recording']}")
+    return lines
