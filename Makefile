@@ -1,6 +1,7 @@
-# Two entry points; both create / reuse .venv and install the pinned versions first.
+# Entry points; each creates / reuses .venv and installs the pinned versions first.
 #   make demo   the Prefect pipeline on PickCube (collect -> mimic -> train -> evaluate); CPU, or CUDA if present
 #   make test   run the test suite (real Newton physics on CPU Warp)
+#   make mutate break each promise on purpose in a scratch copy and check its tests catch it
 PY ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
@@ -9,7 +10,7 @@ $(STAMP): pyproject.toml setup.py tools/install_venv.sh
 	tools/install_venv.sh $(PY) $(VENV)
 	touch $(STAMP)
 
-.PHONY: demo test bench
+.PHONY: demo test bench mutate
 # demo: the cpu recipe (4 expert demos, 100 Mimic demos, 2500 training steps, 20 evaluation episodes; about
 # 11 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
 # DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
@@ -25,6 +26,13 @@ TEST_WORKERS ?= 2
 test: $(STAMP)
 	$(VENV)/bin/python -m compileall -q newton_lab kernels tasks flows tests examples > /dev/null
 	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+
+# mutate: break one promise at a time (tools/mutations.py: a curated list of small patches) in a scratch copy and
+# run only the tests that cover it; every mutation must be killed (exit 1 on a survivor). Minutes on 2 CPU cores.
+# MUTATE_ARGS adds flags, e.g. make mutate MUTATE_ARGS="--only jog-clip-removed" (--list names them).
+MUTATE_ARGS ?=
+mutate: $(STAMP)
+	$(VENV)/bin/python tools/mutations.py $(MUTATE_ARGS)
 
 bench: $(STAMP)
 	$(VENV)/bin/newton-lab bench --task GalbotG1-PickCube-v0 --num-envs 4 --steps 200 --device cpu

@@ -174,3 +174,38 @@ def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
             "assert hasattr(sys.modules['mujoco_warp'], 'OverflowType')\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_each_action_column_is_clipped_to_its_range(eager_env):
+    """``apply_actions`` writes ``clamp(scale * a, low, high)`` to each column's joint target: far past the
+    gripper's clip (open .. closed) lands on the bound, an unbounded arm column passes through."""
+    env, amap = eager_env, eager_env.binding.actions
+    env.reset()
+    grip = amap.kinds.index("binary")
+    assert np.isfinite([amap.low[grip], amap.high[grip]]).all() and amap.high[grip] > amap.low[grip]
+    targets = wp.to_torch(env.control.joint_target_q).view(env.num_envs, -1)
+    for value, expected in ((50.0, amap.high[grip]), (-50.0, amap.low[grip]), (0.5, 0.5)):
+        env.actions.copy_(env.current_action())
+        env.actions[:, grip] = value
+        env.actions[:, 0] = 0.7  # an absolute arm column, unbounded
+        env.apply_actions()
+        torch.testing.assert_close(targets[:, int(amap.index[grip])], torch.full((2,), float(expected)))
+        torch.testing.assert_close(targets[:, int(amap.index[0])], torch.full((2,), 0.7 * float(amap.scale[0])))
+    env.reset()
+
+
+def test_a_task_whose_step_cannot_be_captured_says_so_and_steps_eagerly(monkeypatch):
+    """Where Warp cannot capture the step, the env warns in one line and steps eagerly (correct, slower)."""
+    from newton_lab.envs.launches import GraphCaptureWarning
+
+    def refuse(*args, **kwargs):
+        raise RuntimeError("graph capture is not supported here")
+
+    monkeypatch.setattr(wp, "ScopedCapture", refuse)
+    with pytest.warns(GraphCaptureWarning) as caught:
+        env = make_env("GalbotG1-Reach-v0", num_envs=1, device="cpu", seed=0)
+    message = str(caught[0].message)
+    assert "\n" not in message and "GalbotG1-Reach-v0" in message and "stepping eagerly" in message
+    assert "graph capture is not supported here" in message
+    assert env.step_graph is None
+    assert torch.isfinite(env.step(env.current_action())[0]).all()

@@ -9,6 +9,7 @@ randomisation, setpoints synced, forward kinematics, solver warm start cleared) 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 
 import newton
@@ -20,6 +21,10 @@ from ..task_api.cfg import TaskCfg
 from .actuation import Actuation
 from .buffers import StepBuffers
 from .terms import TaskKernels
+
+
+class GraphCaptureWarning(RuntimeWarning):
+    """The env step could not be recorded as one graph: it runs its launches eagerly (correct, slower)."""
 
 
 class StepLaunches:
@@ -39,11 +44,14 @@ class StepLaunches:
 
     def capture(self):
         """Record ``step`` as one graph; ``None`` where the Warp build cannot capture (eager stepping stays
-        correct)."""
+        correct), said in one line (:class:`GraphCaptureWarning`)."""
         try:
             with wp.ScopedCapture(device=self.model.device) as cap:
                 self.step()
-        except Exception:  # pragma: no cover - depends on the Warp build
+        except Exception as e:  # noqa: BLE001 - depends on the Warp build; told, not hidden
+            reason = " ".join(f"{type(e).__name__}: {e}".split())
+            warnings.warn(f"{self.cfg.task_id}: the env step could not be captured as a graph ({reason}); "
+                          "stepping eagerly (correct, slower)", GraphCaptureWarning, stacklevel=2)
             return None
         return cap.graph
 

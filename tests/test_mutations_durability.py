@@ -1,0 +1,215 @@
+"""Durability order of both writers, checked through their I/O the way SQLite's crash tests use a VFS: every write,
+sync, rename and unlink of one append is logged, and a power cut at any point must find the commit marker only
+after the data it commits is on disk (the journal before the bytes it saves are overwritten, the commit synced
+before the append returns). Also ENOSPC inside a zarr writer process. No physics."""
+
+from __future__ import annotations
+
+import errno
+import os
+import pathlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from newton_lab.datasets import _common, _journal, list_demos, open_writer, read_dataset_info, read_episode
+from newton_lab.datasets import zarr_nodes, zarr_session, zarr_store, zarr_workers
+from newton_lab.datasets.storage import DatasetWriteError
+
+STEPS = 30
+
+
+def episode(seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    return {"actions": rng.standard_normal((STEPS, 7)).astype(np.float32),
+            "obs": {"eef_pos": rng.standard_normal((STEPS, 3)),
+                    "rgb": rng.integers(0, 255, (STEPS, 8, 8, 3), dtype=np.uint8)}}
+
+
+def _fd_path(fd: int) -> str:
+    return os.readlink(f"/proc/self/fd/{fd}")
+
+
+class Disk:
+    """What a power cut keeps: a file's content once an fsync (or a syncfs) followed its last write, a folder's
+    entries (renames, unlinks) once the folder is fsynced. ``events`` logs each operation in order."""
+
+    def __init__(self) -> None:
+        self.events: list[tuple[str, str]] = []
+        self.dirty_files: set[str] = set()
+        self.dirty_dirs: set[str] = set()
+
+    def write(self, path: str) -> None:
+        self.events.append(("write", path))
+        self.dirty_files.add(path)
+
+    def entry(self, kind: str, path: str) -> None:
+        self.events.append((kind, path))
+        self.dirty_dirs.add(os.path.dirname(path))
+
+    def fsync(self, path: str) -> None:
+        self.events.append(("fsync", path))
+        self.dirty_files.discard(path)
+        self.dirty_dirs.discard(path)
+
+    def syncfs(self) -> None:
+        self.events.append(("syncfs", ""))
+        self.dirty_files.clear()
+        self.dirty_dirs.clear()
+
+    def lost(self, under: str = "") -> list[str]:
+        """Files and folders under ``under`` whose last change a power cut now would lose."""
+        return sorted(p for p in self.dirty_files | self.dirty_dirs if p.startswith(under))
+
+
+@pytest.fixture
+def disk(monkeypatch) -> Disk:
+    """Log the writers' file I/O in this process (zarr batches on threads, not writer processes)."""
+    d = Disk()
+    real_fsync, real_unlink, real_rename, real_replace = os.fsync, pathlib.Path.unlink, os.rename, os.replace
+
+    def fsync(fd):
+        d.fsync(_fd_path(fd))
+        return real_fsync(fd)
+
+    def unlink(self, missing_ok=False):
+        d.entry("unlink", str(self.absolute()))
+        return real_unlink(self, missing_ok=missing_ok)
+
+    def rename(src, dst, *args, **kwargs):
+        d.entry("rename", os.path.abspath(dst))
+        return real_rename(src, dst, *args, **kwargs)
+
+    def replace(src, dst, *args, **kwargs):
+        d.entry("rename", os.path.abspath(dst))
+        return real_replace(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(os, "rename", rename)
+    monkeypatch.setattr(os, "replace", replace)
+    monkeypatch.setattr(pathlib.Path, "unlink", unlink)
+    real_syncfs = _common._syncfs
+    if real_syncfs is not None:
+        monkeypatch.setattr(_common, "_syncfs", lambda fd: (d.syncfs(), real_syncfs(fd))[1])
+    # HDF5: every byte goes through the journaled file's _write_all (data file and journal alike)
+    real_write_all = _journal._write_all
+
+    def write_all(f, data):
+        path = _fd_path(f.fileno())
+        if not path.endswith("-journal") and f.tell() < d.size0.get(path, 0):
+            d.events.append(("overwrite", path))
+        d.write(path)
+        return real_write_all(f, data)
+
+    d.size0 = {}
+    monkeypatch.setattr(_journal, "_write_all", write_all)
+    # zarr: demo files through zarr_nodes.write_file, metadata (and the commit) through the store's _set
+    real_write_file = zarr_nodes.write_file
+    monkeypatch.setattr(zarr_nodes, "write_file", lambda path, data: (d.write(os.path.abspath(path)),
+                                                                      real_write_file(path, data))[1])
+    real_set = zarr_session.FaultStore._set
+
+    async def store_set(self, key, value, exclusive=False):
+        await real_set(self, key, value, exclusive=exclusive)
+        d.write(os.path.abspath(os.path.join(str(self.root), key)))
+
+    monkeypatch.setattr(zarr_session.FaultStore, "_set", store_set)
+    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 0)
+    return d
+
+
+def test_hdf5_append_syncs_data_before_its_commit_and_the_journal_before_overwriting(tmp_path, disk):
+    path = tmp_path / "ds.hdf5"
+    with open_writer(path, task_id="pick_cube", env_args={}) as w:
+        w.append_episodes([(episode(s), True, {"seed": s}) for s in range(2)])
+        disk.size0[str(path)] = path.stat().st_size
+        disk.events.clear()
+        disk.dirty_files.clear()
+        disk.dirty_dirs.clear()
+        journal = str(_journal.journal_path(path))
+        overwrites, commit = 0, None
+        real_events = disk.events
+
+        class Watch(list):
+            """Checks each event as it happens: the state a power cut at that moment would find."""
+
+            def append(self, event):
+                nonlocal overwrites, commit
+                kind, where = event
+                if kind == "overwrite":  # bytes that existed before the session: the journal holds them, durably
+                    overwrites += 1
+                    assert journal not in disk.lost(), "a committed byte overwritten before its journal copy synced"
+                if kind == "unlink" and where == journal and commit is None:  # the commit point
+                    commit = len(self)
+                    assert str(path) not in disk.lost(), "journal removed (commit) before the data was fsynced"
+                super().append(event)
+
+        disk.events = Watch(real_events)
+        assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (2, 3)]) == [2, 3]
+    assert commit is not None and overwrites > 0, "the journaled file no longer goes through _write_all"
+    assert disk.lost(str(tmp_path)) == [], "the append returned with its commit not yet durable"
+    assert list_demos(path) == [0, 1, 2, 3]
+
+
+def test_zarr_append_syncs_the_batch_before_its_commit_and_the_commit_before_returning(tmp_path, disk):
+    path = tmp_path / "ds.zarr"
+    with open_writer(path, task_id="pick_cube", env_args={}) as w:
+        w.append_episodes([(episode(s), True, {"seed": s}) for s in range(2)])
+        disk.events.clear()
+        disk.dirty_files.clear()
+        disk.dirty_dirs.clear()
+        marker = str(path / "data" / "zarr.json")
+        commit = None
+        demo_files: set[str] = set()
+
+        class Watch(list):
+            def append(self, event):
+                nonlocal commit
+                kind, where = event
+                if kind == "write" and zarr_store.STAGING in where:
+                    demo_files.add(where)
+                if kind in ("write", "rename") and where == marker and commit is None:  # the commit (zarr
+                    # replaces data/zarr.json, whose next_demo_id then counts the batch)
+                    commit = len(self)
+                    assert disk.lost(str(path / "data")) == [], "the batch's demos were not durable at its commit"
+                    renamed = {os.path.basename(p) for k, p in self if k == "rename"}
+                    assert {"demo_2", "demo_3"} <= renamed, "committed before the demos were renamed into data/"
+                super().append(event)
+
+        disk.events = Watch(disk.events)
+        assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (2, 3)]) == [2, 3]
+    assert commit is not None and len(demo_files) > 10, "the zarr writer no longer goes through the logged calls"
+    assert disk.lost(str(path)) == [], "the append returned with its commit not yet durable"
+    for s in range(4):
+        np.testing.assert_array_equal(read_episode(path, s)["actions"], episode(s)["actions"])
+
+
+def test_disk_full_inside_a_zarr_writer_process_fails_the_batch_and_keeps_the_dataset(tmp_path, monkeypatch):
+    """The fault is armed in the writer processes only (``NEWTON_LAB_TEST_WRITE_FAULT`` read as they start), so
+    the batch really is written by them: ENOSPC there ends the append in one line, nothing of the batch is
+    committed or left behind, and the next append (space again, new processes) continues the ids."""
+    path = tmp_path / "ds.zarr"
+    monkeypatch.setattr(zarr_workers, "PROCESS_MIN_BATCH", 2)
+    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 1)
+    monkeypatch.setattr(zarr_workers, "_shared", None)
+    monkeypatch.setenv("NEWTON_LAB_TEST_WRITE_FAULT", "40:ENOSPC")
+    try:
+        with open_writer(path, task_id="pick_cube", env_args={}) as w:
+            assert w.append_episode(episode(0), success=True, attrs={"seed": 0}) == 0  # one demo: on a thread
+            assert not _common.fault_injected()  # this process writes on
+            with pytest.raises(DatasetWriteError) as exc:
+                w.append_episodes([(episode(s), True, {"seed": s}) for s in range(1, 5)])
+            assert zarr_workers.shared().pids, "the batch did not go to the writer processes"
+        assert exc.value.errno == errno.ENOSPC
+        assert str(exc.value) == f"disk full after 1 episode; {path} holds 1 finished episode"
+        assert list_demos(path) == [0] and read_dataset_info(path)["total"] == STEPS
+        assert sorted(os.listdir(path / "data")) == ["demo_0", "zarr.json"]
+        zarr_workers.shared().close()
+        monkeypatch.delenv("NEWTON_LAB_TEST_WRITE_FAULT")
+        with open_writer(path, task_id="pick_cube", env_args={}) as w:
+            assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (1, 2)]) == [1, 2]
+    finally:
+        if zarr_workers._shared is not None:
+            zarr_workers._shared.close()
+    np.testing.assert_array_equal(read_episode(path, 2)["obs"]["rgb"], episode(2)["obs"]["rgb"])
