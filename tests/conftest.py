@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -22,6 +23,19 @@ def pytest_collection_modifyitems(config, items):
     """Longest modules first (``MODULE_SECONDS``; the rest after them, in their usual order). ``make test`` passes
     ``--no-loadscope-reorder`` so that xdist hands the modules out in this order."""
     items.sort(key=lambda item: -MODULE_SECONDS.get(Path(str(item.fspath)).name, 0))
+
+
+def in_ci() -> bool:
+    """Whether the suite runs in CI (``CI=true``, as CI services and ``.ci/run`` set it)."""
+    return os.environ.get("CI", "").strip().lower() in ("true", "1", "yes")
+
+
+def missing_tool(what: str, module: bool = False) -> None:
+    """A test's tool or package is not installed: skip it here, fail in CI (``in_ci``), where a skip would drop
+    the test silently. ``module``: called at a test module's top level."""
+    if in_ci():
+        pytest.fail(f"{what}; CI must run this test (install it in the CI image)", pytrace=False)
+    pytest.skip(what, allow_module_level=module)
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -8,6 +8,7 @@ import json
 import h5py
 import numpy as np
 import pytest
+from conftest import missing_tool
 
 from newton_lab.agents import PlannerAgent, ZeroAgent
 from newton_lab.cli import main
@@ -77,7 +78,7 @@ def test_robomimic_sequence_dataset_loads_it(collected):
         import robomimic.utils.obs_utils as obs_utils
         from robomimic.utils.dataset import SequenceDataset
     except ImportError as e:
-        pytest.skip(f"robomimic is not installed ({e}); pip install -e '.[robomimic]' to run this check")
+        missing_tool(f"robomimic is not installed ({e}); pip install -e '.[robomimic]' to run this check")
     import torch
 
     assert main(["split", "--dataset-path", str(collected), "--val-ratio", "0.5"]) == 0

@@ -13,9 +13,11 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import missing_tool
 
-pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")]
+pytestmark = pytest.mark.slow
+if shutil.which("tmux") is None:
+    missing_tool("tmux is not installed (apt-get install tmux)", module=True)
 
 STATUS = re.compile(r"step +(\d+) \| tcp ([+-]\d+\.\d+) ([+-]\d+\.\d+) ([+-]\d+\.\d+) m")
 CLI = str(Path(sys.executable).with_name("newton-lab"))
