@@ -4,10 +4,14 @@ file is written (the working folder is left as it was)."""
 from __future__ import annotations
 
 import os
+import resource
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+from test_lerobot_export import make_dataset
 
 BAD = [
     ("collect --episodes 0 --dataset-path x.hdf5", "--episodes must be an integer >= 1"),
@@ -49,18 +53,55 @@ BAD = [
     # an output under a file: the rule of every output (datasets/outputs.py), one line (was `error: 17`)
     ("collect --dataset-path src.hdf5/x.hdf5", "cannot write src.hdf5/x.hdf5: its parent src.hdf5 is a file; choose"),
     ("mimic --dataset-path src.hdf5 --output-path src.hdf5/d/m.hdf5", "src.hdf5, on its path, is a file; choose"),
+    # an output folder that cannot be made or takes no file (permission denied, read-only file system, /proc)
+    ("collect --dataset-path /sys/nl/x.hdf5", "cannot write /sys/nl/x.hdf5: cannot create the folder /sys/nl ("),
+    ("collect --dataset-path /proc/x.hdf5", "cannot write /proc/x.hdf5: /proc takes no new file ("),
+    ("export --dataset-path src.hdf5 --root /proc/nl/out", "cannot write /proc/nl/out: cannot create the folder"),
+    # refused before Warp: a CUDA device this machine lacks (asked of the driver), a dataset input that is not one,
+    # an episode the dataset lacks, a task option value or option the task does not take, a runner
+    ("collect --device cuda:7 --dataset-path x.hdf5", "--device cuda:7: "),
+    ("evaluate --device cuda:99 --episodes 2", "--device cuda:99: "),
+    ("teleop --sim-device cuda:42", "--sim-device cuda:42: "),
+    ("mimic --dataset-path junk.hdf5 --episodes 2", "junk.hdf5 is not a newton_lab dataset or is damaged"),
+    ("train --dataset-path src.hdf5 junk.hdf5", "junk.hdf5 is not a newton_lab dataset or is damaged"),
+    ("bench-train --dataset-path junk.hdf5", "junk.hdf5 is not a newton_lab dataset or is damaged"),
+    ("export --dataset-path junk.hdf5 --root out", "junk.hdf5 is not a newton_lab dataset or is damaged"),
+    ("split --dataset-path junk.hdf5", "junk.hdf5 is not a newton_lab dataset or is damaged"),
+    ("view src.hdf5 --episode 999 --save v.rrd", "--episode 999: src.hdf5 has no episode 999; its 3 episodes: 0, 1, 2"),
+    ("view src.hdf5", "view needs --save file.rrd (headless) or --spawn"),
+    ("collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object unicorn", "unknown sorting_object 'unicorn'"),
+    ("pipeline --task GalbotG1-PickCube-v0 --sorting-object banana", "takes no option --sorting-object"),
 ]
+CPU_SECONDS = 2.0
+"""Each refusal's CPU time, interpreter start included (0.2-0.6 s here; importing Warp first took 5-12 s on 2 cores).
+CPU time and not wall time: the latter grows with whatever else runs on the cores (up to 1.5 s measured at a load
+of 7 on 2 cores)."""
 CHECK = "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); sys.exit(rc if 'warp' not in sys.modules else 99)"
 
 
 @pytest.mark.parametrize("argv,message", BAD, ids=[b[0] for b in BAD])
 def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message):
-    (tmp_path / "src.hdf5").write_bytes(b"")  # an existing (empty) source, for the checks that need one
-    before = sorted(p.name for p in tmp_path.iterdir())
+    make_dataset(tmp_path / "src.hdf5")  # a source dataset (demos 0, 1, 2), for the checks that need one
+    (tmp_path / "junk.hdf5").write_bytes(b"not a dataset")
+    before = tree(tmp_path)
+    start = cpu_of_children()
     out = subprocess.run([sys.executable, "-c", CHECK, *argv.split()], cwd=tmp_path, capture_output=True, text=True)
-    assert out.returncode == 2, (out.returncode, out.stderr)
+    seconds = cpu_of_children() - start
+    assert out.returncode == 2, (out.returncode, out.stderr)  # 99: Warp was imported first
     assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert tree(tmp_path) == before
+    assert seconds < CPU_SECONDS, f"{seconds:.2f} s of CPU"
+
+
+def cpu_of_children() -> float:
+    """User + system CPU seconds of this process's finished children (and theirs)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def tree(root: Path) -> dict[str, tuple[int, int]]:
+    """Every path under ``root`` with its size and modification time."""
+    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(root.rglob("*"))}
 
 
 def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
@@ -82,3 +123,33 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     assert "disk full after 1 episode; d.hdf5 holds 1 finished episode" in errors[0]
     assert read_dataset_info(tmp_path / "d.hdf5")["demo_ids"] == [0]
     assert read_episode(tmp_path / "d.hdf5", 0)["actions"].shape[0] == 5
+
+
+@pytest.mark.parametrize("device, devices, words", [
+    ("cuda:2", 2, "--device cuda:2: this machine has 2 CUDA devices (cuda:0 to cuda:1); use one of them or cpu"),
+    ("cuda:1", 1, "--device cuda:1: this machine has 1 CUDA device (cuda:0); use one of them or cpu"),
+    ("cuda", 0, "--device cuda: no CUDA device here (the driver shows no device); use --device cpu"),
+    ("cuda:0", "no NVIDIA driver: libcuda.so.1 not found", "(no NVIDIA driver: libcuda.so.1 not found)"),
+])
+def test_a_cuda_device_the_machine_lacks_is_refused(device, devices, words):
+    """The GPU side of the device check (CI has no GPU): what the driver's count gives."""
+    from newton_lab.cli.checks import check_cuda_device
+
+    with pytest.raises(ValueError) as err:
+        check_cuda_device("--device", device, devices)
+    assert words in str(err.value) and "\n" not in str(err.value)
+    check_cuda_device("--device", "cuda:1", 2)  # one it has
+    check_cuda_device("--device", "cuda", 1)
+
+
+def test_the_device_count_comes_from_the_driver_in_a_child_process():
+    """This process never loads the CUDA driver for the check (it may fork workers later); without a driver the
+    count says why."""
+    from newton_lab.cli.checks import cuda_devices
+
+    answer = cuda_devices()
+    assert isinstance(answer, int) or "libcuda.so.1" in answer or "CUDA error" in answer, answer
+    code = ("from newton_lab.cli.checks import cuda_devices; cuda_devices(); "
+            "print('libcuda.so' in open('/proc/self/maps').read())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

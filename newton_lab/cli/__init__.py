@@ -101,12 +101,23 @@ def main(argv: list[str] | None = None) -> int:
         make_output_dirs(args)
         return cmd.run(args)
     except ERRORS as exc:
-        msg = exc.args[0] if exc.args else str(exc)
-        print(f"newton-lab {ns.command}: error: {msg}", file=sys.stderr)
+        print(f"newton-lab {ns.command}: error: {error_line(exc)}", file=sys.stderr)
         return 2
     except _write_error() as exc:  # the disk refused a write: the run stops, the dataset keeps what it had
         print(f"newton-lab {ns.command}: error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:  # the system refused something midway (permissions, a read-only file system, ...)
+        print(f"newton-lab {ns.command}: error: {error_line(exc)}", file=sys.stderr)
+        return 1
+
+
+def error_line(exc: Exception) -> str:
+    """The one-line message of ``exc``: an OSError raised by the system (``[Errno 2] ...``) as what failed on which
+    path, and not its bare errno; else its first argument (a KeyError's without the quotes)."""
+    if isinstance(exc, OSError) and exc.errno is not None and exc.strerror:
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        return f"{where}{exc.strerror} (errno {exc.errno}); check the path and its permissions"
+    return str(exc.args[0]) if exc.args else str(exc)
 
 
 __all__ = ["COMMANDS", "REQUIRED", "build_parser", "main", "parse_args"]

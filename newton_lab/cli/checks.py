@@ -4,10 +4,14 @@ the flag and the fix, before Warp, Newton or torch is imported and before any fi
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..commands import BenchTrainArgs, EvaluateArgs, MimicArgs, ViewArgs, camera_option
+from ..commands import (BenchTrainArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs,
+                        camera_option)
 from ..task_api.catalog import check_task_id, check_task_options, did_you_mean
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
@@ -23,6 +27,20 @@ DATASET_FIELDS = ("dataset_path", "output_path")
 EXISTING_FIELDS = {MimicArgs: ("dataset_path",), EvaluateArgs: ("checkpoint",), ViewArgs: ("dataset",),
                    BenchTrainArgs: ("dataset_path",)}
 """Fields naming an input that must exist, per command."""
+DATASET_INPUTS = {MimicArgs: "dataset_path", ViewArgs: "dataset", BenchTrainArgs: "dataset_path",
+                  ExportArgs: "dataset_path", SplitArgs: "dataset_path", TrainArgs: "dataset_path"}
+"""The field naming the dataset(s) a command reads: each must open as a newton_lab dataset."""
+CUDA_COUNT = """
+import ctypes
+try:
+    cuda = ctypes.CDLL("libcuda.so.1")
+except OSError:
+    print("no NVIDIA driver: libcuda.so.1 not found"); raise SystemExit
+n, err = ctypes.c_int(0), cuda.cuInit(0)
+err = err or cuda.cuDeviceGetCount(ctypes.byref(n))
+print(n.value if not err else f"the driver answers cuInit with CUDA error {err}")
+"""
+"""Prints how many CUDA devices the driver shows (after CUDA_VISIBLE_DEVICES), or why there are none."""
 
 
 def _label(args: Any, name: str) -> str:
@@ -50,6 +68,8 @@ def check_args(args: Any) -> None:
     value = getattr(args, sim) if sim else None
     if value is not None and not DEVICE.fullmatch(str(value)):
         raise ValueError(f"{_label(args, sim)} {value!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
+    if value is not None and str(value).startswith("cuda"):
+        check_cuda_device(_label(args, sim), str(value), cuda_devices())
     if "runner" in names and args.runner not in RUNNERS:
         raise ValueError(f"--runner {args.runner!r}{did_you_mean(args.runner, RUNNERS)}: use {' or '.join(RUNNERS)}")
     if "cameras" in names:
@@ -79,4 +99,56 @@ def check_args(args: Any) -> None:
         value = getattr(args, name)
         if value is not None and not Path(value).exists():
             raise FileNotFoundError(f"{_label(args, name)} {value} does not exist; check the path")
+    if isinstance(args, ViewArgs) and not args.save and not args.spawn:
+        raise ValueError("view needs --save file.rrd (headless) or --spawn (open a rerun viewer)")
+    for cls, name in DATASET_INPUTS.items():
+        if isinstance(args, cls):
+            check_datasets(args, name)
 
+
+def cuda_devices() -> int | str:
+    """How many CUDA devices this process would see, or why it sees none. Asked of the driver in a child process:
+    this one must not initialise CUDA (a process that forks workers later could not use it in them)."""
+    if not sys.platform.startswith("linux"):
+        return 1 << 30  # not checked here: Warp says
+    out = subprocess.run([sys.executable, "-I", "-S", "-c", CUDA_COUNT], capture_output=True, text=True, timeout=120)
+    answer = out.stdout.strip() or f"the device check failed ({out.stderr.strip().splitlines()[-1:]})"
+    return int(answer) if answer.isdigit() else answer
+
+
+def check_cuda_device(label: str, device: str, devices: int | str) -> None:
+    """Refuse ``cuda`` / ``cuda:N`` when the machine has no such device (``devices``: a count, or why none)."""
+    index = int(device.partition(":")[2] or 0)
+    if isinstance(devices, str) or devices == 0:
+        why = devices if isinstance(devices, str) else "the driver shows no device"
+        raise ValueError(f"{label} {device}: no CUDA device here ({why}); use {label} cpu")
+    if index >= devices:
+        raise ValueError(f"{label} {device}: this machine has {devices} CUDA device{'s' * (devices > 1)} "
+                         f"(cuda:0{f' to cuda:{devices - 1}' if devices > 1 else ''}); use one of them or cpu")
+
+
+def check_datasets(args: Any, name: str) -> None:
+    """The dataset(s) a command reads exist and open (and ``view``'s episode is in its dataset): one line each."""
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    value = getattr(args, name)
+    for path in value if isinstance(value, list) else [value]:
+        if not Path(path).exists():
+            raise FileNotFoundError(f"{_label(args, name)} {path} does not exist; check the path")
+        ids = read_dataset_info(path)["demo_ids"]  # a one-line ValueError if it is no dataset or is damaged
+        if isinstance(args, ViewArgs) and args.episode not in ids:
+            listed = ", ".join(map(str, ids[:5])) + (", ..." if len(ids) > 5 else "")
+            raise ValueError(f"--episode {args.episode}: {path} has no episode {args.episode}; its {len(ids)} "
+                             f"episodes: {listed or 'none'}")
+
+
+def check_writable(path: Path) -> None:
+    """The folder of output ``path`` takes a new file (tried with an unnamed temporary file: nothing is left)."""
+    try:
+        with tempfile.TemporaryFile(dir=path.parent):
+            pass
+    except OSError as exc:  # permission denied, a read-only file system, a folder that takes no files (/proc)
+        from ..datasets.outputs import OutputPathError  # deferred: as above
+
+        raise OutputPathError(f"cannot write {path}: {path.parent} takes no new file ({exc.strerror}); "
+                              "choose a writable path") from None

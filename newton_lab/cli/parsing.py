@@ -20,7 +20,7 @@ from collections.abc import Iterable, Mapping
 from typing import Any, Literal
 
 from .. import commands as c
-from .checks import check_args
+from .checks import check_args, check_writable
 from ..kernels.runtime import set_verbose
 from ..task_api.catalog import all_declared_options, did_you_mean
 
@@ -58,13 +58,13 @@ Warp is imported, by the rule of the Python API (``newton_lab.datasets.outputs``
 
 def make_output_dirs(args: object) -> None:
     """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``); a file where one
-    of its folders should be is refused in one line (``OutputPathError``, a ``ValueError``)."""
+    of its folders should be, or a folder that takes no new file, is refused in one line (``OutputPathError``)."""
     from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
 
     for cls, names in OUTPUT_FIELDS.items():
         for name in names if isinstance(args, cls) else ():
             if (value := getattr(args, name)) is not None:
-                output_path(value)
+                check_writable(output_path(value))
 
 
 def add_verbose(parser: argparse.ArgumentParser) -> None:

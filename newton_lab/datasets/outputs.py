@@ -19,7 +19,8 @@ from pathlib import Path
 
 
 class OutputPathError(ValueError):
-    """An output path that cannot be written: a file stands where one of its folders should be."""
+    """An output path that cannot be written: a file stands where one of its folders should be, or a missing folder
+    cannot be created."""
 
 
 def _file_above(path: Path) -> Path | None:
@@ -48,6 +49,9 @@ def output_path(path: str | os.PathLike, *, create: bool = True) -> Path:
             p.parent.mkdir(parents=True, exist_ok=True)
         except (FileExistsError, NotADirectoryError):  # a file put there meanwhile
             raise _refusal(p, _file_above(p) or p.parent) from None
+        except OSError as exc:  # permission denied, a read-only file system, a folder that takes none (/proc)
+            raise OutputPathError(f"cannot write {p}: cannot create the folder {p.parent} ({exc.strerror}); "
+                                  "choose a writable path") from None
     return p
 
 
