@@ -172,6 +172,21 @@ def test_gripper_binary_inputs():
     assert_close(gripper_binary([1, 0]), torch.tensor([[0.0], [1.2]]))
 
 
+def test_gripper_binary_rows_keep_the_baseline():
+    """Like the joint packers: flags for some rows, every other row keeps its baseline targets."""
+    current = torch.tensor([[1.2], [0.0], [0.7]])  # closed, open, half-way
+    out = gripper_binary(True, env_indices=[0], baseline=current)  # open row 0 only; N from the baseline
+    assert_close(out, torch.tensor([[0.0], [0.0], [0.7]]))
+    assert_close(current, torch.tensor([[1.2], [0.0], [0.7]]))  # the baseline is not written
+    out = gripper_binary([False, True], env_indices=[2, 1], baseline=current)  # per selected row, in its order
+    assert_close(out, torch.tensor([[1.2], [0.0], [1.2]]))
+    two = gripper_binary([[False, True]], num_envs=3, env_indices=torch.tensor([1]), baseline=[0.3, 0.4])
+    assert_close(two, torch.tensor([[0.3, 0.4], [1.2, 0.0], [0.3, 0.4]]))  # (G,) baseline, one row of flags
+    assert_close(gripper_binary(False, num_envs=2), torch.tensor([[1.2], [1.2]]))  # every row
+    assert_close(g1_action("right_gripper", "binary", open_flags=True, env_indices=[1], baseline=current),
+                 torch.tensor([[1.2], [0.0], [0.7]]))
+
+
 # ---------------------------------------------------------------- dispatcher
 def test_g1_action_dispatch():
     assert_close(g1_action("base", "velocity", vx=0.2), _t(-1.4142, -1.4142, 1.4142, 1.4142), **TOL)
@@ -267,6 +282,17 @@ def test_error_wheel_inputs():
 
 def test_error_gripper_non_boolean():
     _one_line_error("must be booleans", gripper_binary, [0.5])
+
+
+def test_error_gripper_rows():
+    base = torch.zeros(3, 1)
+    _one_line_error("env_indices needs baseline", gripper_binary, True, num_envs=3, env_indices=[0])
+    _one_line_error(r"open_flags has shape \(2, 1\) for 1 row\(s\) of 1 gripper", gripper_binary, [True, False],
+                    env_indices=[0], baseline=base)
+    _one_line_error("out of range", gripper_binary, True, env_indices=[3], baseline=base)
+    _one_line_error("baseline has shape", gripper_binary, True, env_indices=[0], baseline=torch.zeros(3, 1, 1))
+    _one_line_error(r"baseline has shape \(2, 1\)", gripper_binary, True, num_envs=3, env_indices=[0],
+                    baseline=torch.zeros(2, 1))
 
 
 def test_error_g1_action_unknown_group_and_type():

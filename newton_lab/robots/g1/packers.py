@@ -6,7 +6,7 @@ Turn human-level commands into batched action tensors of shape ``(num_envs, A)``
   formula (``robots.g1.mecanum``, a Warp function run on the tensors' device);
 * named absolute joint targets [rad] packed into an action-joint order, keeping a baseline elsewhere;
 * named relative joint deltas (scaled) with zeros elsewhere;
-* binary gripper open/close flags -> master-joint targets [rad].
+* binary gripper open/close flags -> master-joint targets [rad], on some rows keeping a baseline elsewhere.
 
 All tensors are float32 unless stated. Every validation failure raises ``ValueError`` with a one-line
 message naming the problem and the fix.
@@ -288,14 +288,54 @@ def pack_relative_joint_positions(
 
 
 # ---------------------------------------------------------------- grippers
-def gripper_binary(open_flags: Any, *, device: Any = None) -> torch.Tensor:
+def gripper_binary(
+    open_flags: Any,
+    *,
+    num_envs: int | None = None,
+    env_indices: Any = None,
+    baseline: Any = None,
+    device: Any = None,
+) -> torch.Tensor:
     """Open flags -> gripper master targets [rad]: True -> GRIPPER_OPEN (0.0), False -> GRIPPER_CLOSED (1.2).
 
-    Accepts bool, list, numpy or torch (bool or 0/1). Shapes: scalar -> (1, 1); (N,) -> (N, 1), one
-    gripper over N envs; (N, G) -> (N, G), one column per gripper.
+    Accepts bool, list, numpy or torch (bool or 0/1). Shapes: scalar -> (1, 1); (R,) -> (R, 1), one gripper over
+    R rows; (R, G) -> (R, G), one column per gripper. Like the joint packers, the flags can go to some rows of N:
+    ``env_indices`` picks them (R = len(env_indices); a scalar or one row of flags is broadcast) and every other
+    row keeps ``baseline`` ((G,) or (N, G) [rad], e.g. the env's current gripper targets; needed with
+    ``env_indices``). N is ``num_envs``, else the rows of a (N, G) ``baseline``, else R.
     """
     fn = "gripper_binary"
-    dev = _device_of(device, open_flags)
+    dev = _device_of(device, open_flags, baseline)
+    flags = _open_flags(open_flags, fn)
+    targets = torch.where(
+        torch.as_tensor(flags, device=dev),
+        torch.tensor(spec.GRIPPER_OPEN, dtype=DTYPE, device=dev),
+        torch.tensor(spec.GRIPPER_CLOSED, dtype=DTYPE, device=dev),
+    )
+    if num_envs is None and env_indices is None and baseline is None:
+        return targets
+    if env_indices is not None and baseline is None:
+        raise ValueError(f"{fn}: env_indices needs baseline, the targets the other rows keep; pass "
+                         "baseline=<(G,) or (N, G) current gripper targets>")
+    base = None if baseline is None else _as_float(baseline, dev)
+    if base is not None and base.ndim not in (1, 2):
+        raise ValueError(f"{fn}: baseline has shape {tuple(base.shape)}; pass shape (G,) or (N, G)")
+    if num_envs is None:
+        num_envs = base.shape[0] if base is not None and base.ndim == 2 else targets.shape[0]
+    n = _check_num_envs(num_envs, fn)
+    rows = _env_rows(env_indices, n, dev, fn)
+    m = n if rows is None else int(rows.shape[0])
+    width = targets.shape[1] if base is None else base.shape[-1]
+    if targets.shape[0] not in (1, m) or targets.shape[1] not in (1, width):
+        raise ValueError(f"{fn}: open_flags has shape {tuple(targets.shape)} for {m} row(s) of {width} gripper(s); "
+                         f"pass a bool, ({m},) or ({m}, {width}) flags")
+    out = _start(base, None, n, width, dev, fn)
+    out[torch.arange(n, device=dev) if rows is None else rows] = targets.expand(m, width)
+    return out
+
+
+def _open_flags(open_flags: Any, fn: str) -> np.ndarray:
+    """Validated open flags as a bool (R, G) array."""
     if isinstance(open_flags, torch.Tensor):
         flags = open_flags.detach().cpu().numpy()
     else:
@@ -306,13 +346,7 @@ def gripper_binary(open_flags: Any, *, device: Any = None) -> torch.Tensor:
         flags = flags.astype(bool)
     if flags.ndim > 2:
         raise ValueError(f"{fn}: open_flags has shape {flags.shape}; pass a bool, (N,) or (N, G)")
-    flags = flags.reshape(-1, 1) if flags.ndim < 2 else flags
-    t = torch.as_tensor(flags, device=dev)
-    return torch.where(
-        t,
-        torch.tensor(spec.GRIPPER_OPEN, dtype=DTYPE, device=dev),
-        torch.tensor(spec.GRIPPER_CLOSED, dtype=DTYPE, device=dev),
-    )
+    return flags.reshape(-1, 1) if flags.ndim < 2 else flags
 
 
 # ---------------------------------------------------------------- dispatcher
