@@ -10,7 +10,7 @@ $(STAMP): pyproject.toml setup.py tools/install_venv.sh
 	tools/install_venv.sh $(PY) $(VENV)
 	touch $(STAMP)
 
-.PHONY: demo test bench mutate
+.PHONY: demo test bench docs docs-serve mutate
 # demo: the cpu recipe (4 expert demos, 100 Mimic demos, 2500 training steps, 20 evaluation episodes; about
 # 11 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
 # DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
@@ -36,3 +36,12 @@ mutate: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/newton-lab bench --task GalbotG1-PickCube-v0 --num-envs 4 --steps 200 --device cpu
+
+# The user guide (mkdocs.yml, docs/): `docs` builds it into site/ and fails on any warning (a broken link, a missing
+# page, a docstring mkdocstrings cannot read); `docs-serve` serves it at http://127.0.0.1:8000, rebuilt on edits.
+# (NO_MKDOCS_2_WARNING: no banner about MkDocs 2 from Material.)
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
+docs-serve: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve
