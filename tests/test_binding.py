@@ -240,6 +240,35 @@ def test_reset_rows_restart_their_setpoints():
     assert float(wp.to_torch(env.drive.joint_target_q)[c]) == float(wp.to_torch(env.control.joint_target_q)[c])
 
 
+def test_a_gripper_placed_by_hand_stays_where_it_was_placed():
+    """``set_joint_positions`` moves position, target and drive setpoint together: a gripper placed closed stays
+    closed under a holding action. Written into ``state`` and ``control`` alone, the rate-limited setpoint stays
+    open and the drive pulls the gripper open again, until ``sync_drive``."""
+    env = make_env(PICK, num_envs=2, device="cpu", capture=False)
+    env.reset()
+    c = env.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
+    column = lambda a: wp.to_torch(a).view(2, -1)[:, c].tolist()  # noqa: E731
+    env.set_joint_positions([spec.LEFT_GRIPPER_JOINT], [spec.GRIPPER_CLOSED], env_ids=[1])
+    for array in (env.state.joint_q, env.control.joint_target_q, env.drive.joint_target_q):
+        assert column(array) == pytest.approx([spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED])
+    assert env.joint_positions([spec.LEFT_GRIPPER_JOINT])[:, 0].tolist() == pytest.approx([0.0, spec.GRIPPER_CLOSED])
+    for _ in range(3):
+        env.step(env.current_action())  # hold every target
+    assert column(env.state.joint_q)[1] == pytest.approx(spec.GRIPPER_CLOSED, abs=0.05)
+
+    # by hand: position and target written, the setpoint left open
+    env.reset()
+    for array in (env.state.joint_q, env.control.joint_target_q):
+        wp.to_torch(array).view(2, -1)[1, c] = spec.GRIPPER_CLOSED
+    assert column(env.drive.joint_target_q)[1] == spec.GRIPPER_OPEN  # stale
+    env.step(env.current_action())
+    assert column(env.state.joint_q)[1] < spec.GRIPPER_CLOSED - 0.2  # pulled open by the stale setpoint
+    env.sync_drive([1])
+    assert column(env.drive.joint_target_q) == pytest.approx([spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED])
+    with pytest.raises(ValueError, match=r"values has shape \(2,\); pass \(1,\) or \(1, 1\)"):
+        env.set_joint_positions([spec.LEFT_GRIPPER_JOINT], [0.0, 1.0], env_ids=[0])
+
+
 # ---------------------------------------------------------------- the one wheel formula
 def test_mecanum_formula_reference_vectors_and_inverse():
     lin, yaw = wheel_gains()

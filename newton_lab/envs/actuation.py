@@ -35,7 +35,8 @@ def _farray(values: np.ndarray) -> wp.array:
 class Actuation:
     """Per control step: actions -> targets (``apply``). Per physics substep: wheel columns -> planar base
     velocity, targets -> drive setpoints (``substep``). After a masked reset: setpoints jump to the reset
-    targets (``sync``). Warp arrays live on the current device."""
+    targets (``sync``); joints placed by hand move target and setpoint together (``place``). Warp arrays live on the
+    current device."""
 
     def __init__(self, binding: BoundRobot, cfg: TaskCfg, layout: SceneLayout, control: newton.Control,
                  num_envs: int):
@@ -101,6 +102,16 @@ class Actuation:
         """Setpoints of the masked rows jump to their (just reset) targets."""
         wp.launch(sync_setpoints, dim=self._target_rows.shape, inputs=[mask, self._target_rows],
                   outputs=[self._setpoint_rows])
+
+    def place(self, state: newton.State, rows: torch.Tensor, coords: list[int], dofs: list[int],
+              values: torch.Tensor) -> None:
+        """Positions (velocities zeroed), targets and setpoints of ``rows`` x ``coords`` set to ``values`` (rows,
+        coords) at once: the drive holds them there from the next substep."""
+        n, at = self.num_envs, rows[:, None]
+        cols, dof_cols = (torch.as_tensor(c, device=rows.device) for c in (coords, dofs))
+        for array in (state.joint_q, self.control.joint_target_q, self.drive.joint_target_q):
+            wp.to_torch(array).view(n, -1)[at, cols] = values
+        wp.to_torch(state.joint_qd).view(n, -1)[at, dof_cols] = 0.0
 
     def hold(self) -> torch.Tensor:
         """An action that holds every column at its current target (see ``ActionMap.hold``)."""

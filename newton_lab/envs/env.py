@@ -9,7 +9,8 @@ checks its input first, which reads the actions' finiteness on the host.
 The public surface beyond ``step`` / ``reset``, for tools and tests: the step's parts (``step_graph``,
 ``launch_step``, ``apply_actions``, ``substep``, ``simulate``, ``observe``), its arrays (``buffers``,
 ``task_context``, ``kernels``, ``actuation``) and joint / entity views by name (``joint_coords``,
-``joint_positions``, ``entities``, ``robot_coords``, ``bodies_per_world``). Code outside ``envs/`` uses only these
+``joint_positions``, ``entities``, ``robot_coords``, ``bodies_per_world``), and a scene placed by hand
+(``set_joint_positions``, ``sync_drive``). Code outside ``envs/`` uses only these
 and the public attributes; ``tests/test_architecture.py`` checks it touches nothing private.
 """
 
@@ -315,6 +316,30 @@ class NewtonEnv:
         if missing:
             raise KeyError(f"no robot joint {missing[0]!r}; the robot's joints are {list(coord)}")
         return [coord[n] for n in names]
+
+    # ------------------------------------------------------------------ a scene placed by hand
+    def set_joint_positions(self, names, values, env_ids=None) -> None:
+        """Place the named robot joints of rows ``env_ids`` (all when ``None``) at ``values`` [rad | m]
+        ((len(names),) or (rows, len(names))): positions (velocities zeroed), targets and drive setpoints together,
+        then forward kinematics and ``observe``. Writing ``state.joint_q`` and ``control.joint_target_q`` alone
+        leaves a rate-limited setpoint (the grippers') behind for up to 0.6 s: the drive pulls the joint back."""
+        coords = self.joint_coords(names)
+        rows = torch.as_tensor(row_mask(env_ids, self.num_envs), device=self.torch_device).nonzero().flatten()
+        vals = torch.as_tensor(values, dtype=torch.float32, device=self.torch_device)
+        if vals.shape not in ((len(coords),), (len(rows), len(coords))):
+            raise ValueError(f"values has shape {tuple(vals.shape)}; pass ({len(coords)},) or ({len(rows)}, "
+                             f"{len(coords)}): one value per named joint (per row)")
+        dofs = [self.layout.joints.dof[n] for n in names]
+        self._actuation.place(self.state, rows, coords, dofs, vals.expand(len(rows), len(coords)))
+        with wp.ScopedDevice(self.device):
+            newton.eval_fk(self.model, self.state.joint_q, self.state.joint_qd, self.state)
+        self.observe()
+
+    def sync_drive(self, env_ids=None) -> None:
+        """The drive setpoints of rows ``env_ids`` (all when ``None``) jump to ``control``'s targets: call it after
+        writing ``control.joint_target_q`` by hand (``set_joint_positions`` does it itself)."""
+        with wp.ScopedDevice(self.device):
+            self._actuation.sync(wp.array(row_mask(env_ids, self.num_envs), dtype=bool))
 
     # ------------------------------------------------------------------ input checks
     def check_actions(self, actions) -> torch.Tensor:
