@@ -22,10 +22,14 @@ demo: $(STAMP)
 # envs once), the longest modules handed out first (tests/conftest.py). The project is byte-compiled first: with
 # PYTHONDONTWRITEBYTECODE set, each of the suite's ~50 subprocesses would compile it again. TEST_WORKERS=0 runs
 # the tests in this process.
+# LeRobot's own loader reads the exports in tests/test_lerobot_loader.py, from an overlay venv beside .venv that
+# tools/lerobot_env.sh builds (what it holds and why: its header; ~15 s once, then reused); built here first so that
+# its line shows in the log (the test builds it too, and fails if it cannot). -rs lists every skipped test.
 TEST_WORKERS ?= 2
 test: $(STAMP)
+	tools/lerobot_env.sh $(VENV)/bin/python .venv-lerobot > /dev/null
 	$(VENV)/bin/python -m compileall -q newton_lab kernels tasks flows tests examples > /dev/null
-	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(VENV)/bin/python -m pytest -q -rs -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # mutate: break one promise at a time (tools/mutations.py: a curated list of small patches) in a scratch copy and
 # run only the tests that cover it; every mutation must be killed (exit 1 on a survivor). Minutes on 2 CPU cores.

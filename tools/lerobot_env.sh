@@ -49,6 +49,7 @@ KEY="$(sha256sum "$0" | cut -c1-16) $VERSIONS $PROJECT_SITE"  # a change of any 
 exec 9>"$OVERLAY.lock"
 flock 9  # one build at a time (two pytest runs may ask together)
 if [ "$(cat "$OVERLAY/.built" 2>/dev/null)" = "$KEY" ]; then
+    echo "lerobot overlay: $OVERLAY is up to date" >&2
     echo "$OVERLAY/bin/lerobot-python"
     exit 0
 fi
@@ -114,8 +115,8 @@ from torchcodec.decoders import VideoDecoder  # loads torchcodec core against th
 from torchvision.transforms import ToTensor
 from lerobot.datasets.lerobot_dataset import LeRobotDataset
 assert ToTensor()(np.zeros((2, 3, 3), np.uint8)).shape == (3, 2, 3)
-print("lerobot overlay: torchcodec", torchcodec.__version__, "torchvision", torchvision.__version__,
-      "(Python part)", file=__import__("sys").stderr)
+print("lerobot overlay: built with lerobot 0.4.4, torchcodec", torchcodec.__version__, "on PyAV's FFmpeg,",
+      "torchvision", torchvision.__version__, "(Python part)", file=__import__("sys").stderr)
 '
 echo "$KEY" > "$OVERLAY/.built"
 trap - ERR
