@@ -115,7 +115,7 @@ from torchcodec.decoders import VideoDecoder  # loads torchcodec core against th
 from torchvision.transforms import ToTensor
 from lerobot.datasets.lerobot_dataset import LeRobotDataset
 assert ToTensor()(np.zeros((2, 3, 3), np.uint8)).shape == (3, 2, 3)
-print("lerobot overlay: built with lerobot 0.4.4, torchcodec", torchcodec.__version__, "on PyAV's FFmpeg,",
+print("lerobot overlay: built with lerobot 0.4.4, torchcodec", torchcodec.__version__, "on the FFmpeg of PyAV,",
       "torchvision", torchvision.__version__, "(Python part)", file=__import__("sys").stderr)
 '
 echo "$KEY" > "$OVERLAY/.built"
