@@ -26,6 +26,7 @@ import re
 import runpy
 import shlex
 import sys
+import tempfile
 import time
 import traceback
 from dataclasses import dataclass
@@ -250,7 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="check or run the user guide's code blocks")
     parser.add_argument("mode", choices=("check", "run"))
     parser.add_argument("pages", nargs="*", help="markdown pages (default: every page of docs/)")
-    parser.add_argument("--workdir", default="docs_run", help="working folder of the runs (one subfolder a page)")
+    parser.add_argument("--workdir", help="working folder of the runs, one subfolder a page (default: a new temporary one)")
     parser.add_argument("--json", help="write the results here")
     args = parser.parse_args(argv)
     paths = _resolve(args.pages)
@@ -258,8 +259,8 @@ def main(argv: list[str] | None = None) -> int:
         problems = [p for path in paths for s in snippets(path) for p in check(s)]
         print("\n".join(problems) or f"{sum(len(snippets(p)) for p in paths)} snippets checked")
         return 1 if problems else 0
-    results = [run_page(p, Path(args.workdir).resolve() / "_".join(p.relative_to(DOCS).with_suffix("").parts))
-               for p in paths]
+    workdir = Path(args.workdir or tempfile.mkdtemp(prefix="docs_run_")).resolve()
+    results = [run_page(p, workdir / "_".join(p.relative_to(DOCS).with_suffix("").parts)) for p in paths]
     if args.json:
         Path(args.json).write_text(json.dumps(results))
     for r in results:
