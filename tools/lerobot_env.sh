@@ -54,10 +54,15 @@ if [ "$(cat "$OVERLAY/.built" 2>/dev/null)" = "$KEY" ]; then
     exit 0
 fi
 
+if [ -e "$OVERLAY" ] && [ ! -e "$OVERLAY/.lerobot-overlay" ]; then  # never delete a folder it did not build
+    echo "error: $OVERLAY exists and is not an overlay this script built; move it away or pass another OVERLAY" >&2
+    exit 2
+fi
 rm -rf "$OVERLAY"
 trap 'rm -rf "$OVERLAY"; echo "error: the LeRobot overlay $OVERLAY could not be built (reason above);" \
     "fix that and run tools/lerobot_env.sh again" >&2' ERR
 "$PY" -m venv --without-pip "$OVERLAY"
+echo "built by tools/lerobot_env.sh; rebuilt (deleted first) when its key in .built changes" > "$OVERLAY/.lerobot-overlay"
 SITE=$("$OVERLAY/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
 echo "$PROJECT_SITE" > "$SITE/_newton_lab_project.pth"
 
