@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # An overlay environment in which LeRobot's own dataset loader (lerobot.datasets.lerobot_dataset.LeRobotDataset)
-# reads `newton-lab export` folders: tests/test_lerobot_export.py builds it (this script) and loads every export
-# kind through it on each test run, CI included. Prints the overlay's Python (bin/lerobot-python) on success.
+# reads `newton-lab export` folders: make test and tests/test_lerobot_loader.py build it (this script) and load every
+# export kind through it on each test run, CI included. Prints the overlay's Python (bin/lerobot-python) on success.
 #   usage: tools/lerobot_env.sh [PROJECT_PYTHON] [OVERLAY]      (defaults: .venv/bin/python .venv-lerobot)
 #
 # What it holds, and why:
 # - A venv whose .pth file puts the project's site-packages after its own: torch 2.13.0+cpu, av (PyAV), pyarrow and
-#   numpy come from the project, nothing of the project is changed. ~100 MB, ~1-3 s to build with a warm uv cache.
+#   numpy come from the project, nothing of the project is changed. ~150 MB; 13-17 s to build on 2 cores (uv cache
+#   warm or cold; most of it byte-compiling and the final import check), then reused until this script or the
+#   project's Python, torch or av changes.
 # - lerobot==0.4.4 (the newest release for Python 3.11) installed --no-deps: its torch<2.11 and rerun-sdk<0.27 pins
 #   are packaging pins; the loader runs on torch 2.13 and never imports rerun. With it, --no-deps too, exactly what
 #   the loader imports: datasets, huggingface-hub, hf-xet, fsspec, accelerate (lerobot.utils.utils imports it),
