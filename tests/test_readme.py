@@ -1,4 +1,5 @@
-"""The README's first sections run as written: every ```python and ```bash block above "## Tasks" (the header, the
+"""The README is a front page: at most ``MAX_LINES`` lines, every link into the repository resolves, and no benchmark
+history (figures live in docs/benchmarks.md). Its first sections run as written: every ```python and ```bash block above "## Tasks" (the header, the
 Tour, the command line, gymnasium) is executed from an empty folder, the way a newcomer copies it, in a subprocess of
 this venv's ``python`` (the bash lines with this venv's ``bin`` first on ``PATH``, so ``newton-lab`` and ``python``
 are this install's).
@@ -27,13 +28,14 @@ pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 BIN = Path(sys.executable).parent
+MAX_LINES = 200
 FIRST_SECTIONS_END = "\n## Tasks\n"
 """The blocks checked are those above this heading (the later ones are excerpts of task configs)."""
 
 SMALLER: dict[str, list[tuple[str, str, int]]] = {
     # block id -> [(regex, replacement, expected number of matches)]
     "tour": [(r"\bepisodes=20\b", "episodes=2", 2)],  # collect and evaluate: 2 episodes each, same path
-    "newton-lab collect": [(r"--episodes 10\b", "--episodes 1", 1)],  # StackCube: 430 steps an episode
+    "newton-lab collect": [(r"--episodes 10\b", "--episodes 1", 1)],  # PushCube: one episode is enough
     # (newton-lab evaluate on Reach runs as written: 20 episodes of ~18 steps cost no more than 2)
     # the example scripts live in the clone, not in the newcomer's empty folder
     "python examples/01_collect.py": [(r"--episodes 4\b", "--episodes 1", 1),
@@ -104,6 +106,17 @@ def test_the_first_sections_hold_the_blocks_this_test_runs():
     assert [line.split("#")[0].strip() for line in header] == list(SKIPPED)
 
 
+def test_the_readme_is_a_front_page():
+    """Short, its links resolve, and its figures are the demo's only (the rest is in docs/benchmarks.md)."""
+    text = README.read_text()
+    assert len(text.splitlines()) <= MAX_LINES
+    links = re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text)
+    assert "docs/tutorial/simple_task.md" in links and "docs/benchmarks.md" in links
+    missing = [link for link in links if "://" not in link and not (ROOT / link).exists()]
+    assert not missing, missing
+    assert not re.search(r"demos/s|env-steps/s|samples/s|demos per hour", text), "benchmark figures belong in docs/"
+
+
 def test_tour_runs_as_written_from_an_empty_folder(empty):
     script = empty.parent / "tour.py"
     script.write_text(_smaller("tour", BLOCKS["tour"][1]))
@@ -132,5 +145,5 @@ def test_command_line_block_runs_from_an_empty_folder(empty):
         if command == "newton-lab tasks":
             assert "GalbotG1-PickCube-v0" in out.stdout
     assert {"newton-lab tasks", "newton-lab collect", "newton-lab evaluate", "python examples/01_collect.py"} <= {*ran}
-    assert read_dataset_info(empty / "data" / "stack.hdf5")["num_demos"] == 1
+    assert read_dataset_info(empty / "data" / "push.hdf5")["num_demos"] == 1
     assert read_dataset_info(empty / "data" / "pick_cube_demos.hdf5")["num_demos"] == 1  # the example's default
