@@ -110,7 +110,7 @@ def _task_section(spec, cfg) -> str:
     ]
     if spec.source_task:
         rows.insert(1, ["expands", f"[`{spec.source_task}`](#{_anchor(spec.source_task)})"])
-    return f"### {spec.id}\n\n" + _table(["", ""], rows)
+    return f"### {spec.id}\n\n" + _table(["property", "value"], rows)
 
 
 def _anchor(task_id: str) -> str:
@@ -146,9 +146,9 @@ def _joint_rows() -> list[list[str]]:
     for group, names in groups.items():
         for name in names:
             j = joints.get(name, {})
-            limit = j.get("range", "unlimited").replace(" ", " … ")
             unit = "m" if j.get("type") == "slide" else "rad"
-            rows.append([f"`{group}`", f"`{name}`", j.get("type", "hinge"), f"{limit} {unit}",
+            limit = f"{j['range'].replace(' ', ' … ')} {unit}" if "range" in j else "unlimited"
+            rows.append([f"`{group}`", f"`{name}`", j.get("type", "hinge"), limit,
                          f"{spec.JOINT_VELOCITY_LIMITS[name]:g}" if name in spec.JOINT_VELOCITY_LIMITS else "–"])
     return rows
 
@@ -206,7 +206,7 @@ def robot_page() -> str:
     mounts = _table(["camera", "MJCF site", "body", "position in the body [m]", "rotation xyzw (pinhole frame)"],
                     _mount_rows())
     layouts = _table(["task", "action columns"], _layout_rows())
-    facts = _table(["", ""], [
+    facts = _table(["property", "value"], [
         ["model", f"`assets/{spec.MJCF_FILE}` (robot name `{spec.ROBOT_NAME}`)"],
         ["gripper", f"one master joint per hand: {spec.GRIPPER_OPEN:g} open … {spec.GRIPPER_CLOSED:g} closed [rad], "
                     f"at most {spec.GRIPPER_VELOCITY_LIMIT:g} rad/s; each finger slides "
