@@ -9,8 +9,8 @@
     each checkpoint is checked against its phase and the env at once (``phase_policy_agent``).
 The default is ``task_default`` so the example runs without trained checkpoints. The recipe that trains the two
 policies from the coherent task's own expert demos (collect, ``newton-lab split --out``, train per phase) and
-evaluates them here, privileged-free (``--obs-mode sensors``, front camera): README, "Coherent tasks from learned
-phase policies".
+evaluates them here, privileged-free (``--obs-mode sensors``, front camera): the user guide's tutorial, chapter 3
+(docs/tutorial/compound_task.md).
 
     python examples/07_coherent_task.py --task GalbotG1-PickToShelf-v0 --episodes 4 --num-envs 4
 
