@@ -8,7 +8,7 @@ from __future__ import annotations
 import errno
 import os
 import pathlib
-from pathlib import Path
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -37,24 +37,39 @@ class Disk:
 
     def __init__(self) -> None:
         self.events: list[tuple[str, str]] = []
+        self.watch: Callable[[str, str], None] | None = None
+        """Called with each event before it takes effect: sees what a power cut at that moment would find."""
         self.dirty_files: set[str] = set()
         self.dirty_dirs: set[str] = set()
+        self.size0: dict[str, int] = {}
+        """Size of a file when its session began [bytes]: a write below it overwrites committed bytes."""
+
+    def forget(self) -> None:
+        """Start a new log, everything so far on disk."""
+        self.events.clear()
+        self.dirty_files.clear()
+        self.dirty_dirs.clear()
+
+    def log(self, kind: str, path: str) -> None:
+        if self.watch is not None:
+            self.watch(kind, path)
+        self.events.append((kind, path))
 
     def write(self, path: str) -> None:
-        self.events.append(("write", path))
+        self.log("write", path)
         self.dirty_files.add(path)
 
     def entry(self, kind: str, path: str) -> None:
-        self.events.append((kind, path))
+        self.log(kind, path)
         self.dirty_dirs.add(os.path.dirname(path))
 
     def fsync(self, path: str) -> None:
-        self.events.append(("fsync", path))
+        self.log("fsync", path)
         self.dirty_files.discard(path)
         self.dirty_dirs.discard(path)
 
     def syncfs(self) -> None:
-        self.events.append(("syncfs", ""))
+        self.log("syncfs", "")
         self.dirty_files.clear()
         self.dirty_dirs.clear()
 
@@ -98,11 +113,10 @@ def disk(monkeypatch) -> Disk:
     def write_all(f, data):
         path = _fd_path(f.fileno())
         if not path.endswith("-journal") and f.tell() < d.size0.get(path, 0):
-            d.events.append(("overwrite", path))
+            d.log("overwrite", path)
         d.write(path)
         return real_write_all(f, data)
 
-    d.size0 = {}
     monkeypatch.setattr(_journal, "_write_all", write_all)
     # zarr: demo files through zarr_nodes.write_file, metadata (and the commit) through the store's _set
     real_write_file = zarr_nodes.write_file
@@ -124,30 +138,21 @@ def test_hdf5_append_syncs_data_before_its_commit_and_the_journal_before_overwri
     with open_writer(path, task_id="pick_cube", env_args={}) as w:
         w.append_episodes([(episode(s), True, {"seed": s}) for s in range(2)])
         disk.size0[str(path)] = path.stat().st_size
-        disk.events.clear()
-        disk.dirty_files.clear()
-        disk.dirty_dirs.clear()
+        disk.forget()
         journal = str(_journal.journal_path(path))
-        overwrites, commit = 0, None
-        real_events = disk.events
+        seen = {"overwrites": 0, "commit": False}
 
-        class Watch(list):
-            """Checks each event as it happens: the state a power cut at that moment would find."""
+        def check(kind: str, where: str) -> None:
+            if kind == "overwrite":  # bytes that existed before the session: the journal must hold them, durably
+                seen["overwrites"] += 1
+                assert journal not in disk.lost(), "a committed byte overwritten before its journal copy synced"
+            if kind == "unlink" and where == journal and not seen["commit"]:  # the commit point
+                seen["commit"] = True
+                assert str(path) not in disk.lost(), "journal removed (commit) before the data was fsynced"
 
-            def append(self, event):
-                nonlocal overwrites, commit
-                kind, where = event
-                if kind == "overwrite":  # bytes that existed before the session: the journal holds them, durably
-                    overwrites += 1
-                    assert journal not in disk.lost(), "a committed byte overwritten before its journal copy synced"
-                if kind == "unlink" and where == journal and commit is None:  # the commit point
-                    commit = len(self)
-                    assert str(path) not in disk.lost(), "journal removed (commit) before the data was fsynced"
-                super().append(event)
-
-        disk.events = Watch(real_events)
+        disk.watch = check
         assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (2, 3)]) == [2, 3]
-    assert commit is not None and overwrites > 0, "the journaled file no longer goes through _write_all"
+    assert seen["commit"] and seen["overwrites"] > 0, "the journaled file no longer goes through _write_all"
     assert disk.lost(str(tmp_path)) == [], "the append returned with its commit not yet durable"
     assert list_demos(path) == [0, 1, 2, 3]
 
@@ -156,30 +161,24 @@ def test_zarr_append_syncs_the_batch_before_its_commit_and_the_commit_before_ret
     path = tmp_path / "ds.zarr"
     with open_writer(path, task_id="pick_cube", env_args={}) as w:
         w.append_episodes([(episode(s), True, {"seed": s}) for s in range(2)])
-        disk.events.clear()
-        disk.dirty_files.clear()
-        disk.dirty_dirs.clear()
+        disk.forget()
         marker = str(path / "data" / "zarr.json")
-        commit = None
-        demo_files: set[str] = set()
+        seen = {"demo_files": set(), "renamed": set(), "commit": False}
 
-        class Watch(list):
-            def append(self, event):
-                nonlocal commit
-                kind, where = event
-                if kind == "write" and zarr_store.STAGING in where:
-                    demo_files.add(where)
-                if kind in ("write", "rename") and where == marker and commit is None:  # the commit (zarr
-                    # replaces data/zarr.json, whose next_demo_id then counts the batch)
-                    commit = len(self)
-                    assert disk.lost(str(path / "data")) == [], "the batch's demos were not durable at its commit"
-                    renamed = {os.path.basename(p) for k, p in self if k == "rename"}
-                    assert {"demo_2", "demo_3"} <= renamed, "committed before the demos were renamed into data/"
-                super().append(event)
+        def check(kind: str, where: str) -> None:
+            if kind == "write" and zarr_store.STAGING in where:
+                seen["demo_files"].add(where)
+            if kind == "rename":
+                seen["renamed"].add(os.path.basename(where))
+            # the commit: zarr replaces data/zarr.json, whose next_demo_id then counts the batch
+            if kind in ("write", "rename") and where == marker and not seen["commit"]:
+                seen["commit"] = True
+                assert disk.lost(str(path / "data")) == [], "the batch's demos were not durable at its commit"
+                assert {"demo_2", "demo_3"} <= seen["renamed"], "committed before the demos were renamed into data/"
 
-        disk.events = Watch(disk.events)
+        disk.watch = check
         assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (2, 3)]) == [2, 3]
-    assert commit is not None and len(demo_files) > 10, "the zarr writer no longer goes through the logged calls"
+    assert seen["commit"] and len(seen["demo_files"]) > 10, "the zarr writer no longer goes through the logged calls"
     assert disk.lost(str(path)) == [], "the append returned with its commit not yet durable"
     for s in range(4):
         np.testing.assert_array_equal(read_episode(path, s)["actions"], episode(s)["actions"])

@@ -328,6 +328,18 @@ def test_checkpoint_round_trip_and_no_overwrite(trained, tmp_path):
     assert torch.equal(before, again)
 
 
+def test_checkpoint_carries_the_stats_of_the_training_data(trained):
+    """The saved normalisers are the training data's own: per-dimension min / max of the successful demo's actions
+    and of its obs in env layout order (robot_joint_pos, cube_pose), the failed demo left out. (The round trip
+    above cannot tell: a checkpoint saved with wrong stats loads and saves them again unchanged.)"""
+    policy = DiffusionPolicy.load(trained)
+    demo = demo_arrays()
+    obs = np.concatenate([demo["obs"]["robot_joint_pos"], demo["obs"]["cube_pose"]], axis=1)
+    for normalizer, data in ((policy.action_normalizer, demo["actions"]), (policy.obs_normalizer, obs)):
+        torch.testing.assert_close(normalizer.low, torch.from_numpy(data.min(axis=0)), atol=0, rtol=0)
+        torch.testing.assert_close(normalizer.high, torch.from_numpy(data.max(axis=0)), atol=0, rtol=0)
+
+
 def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):
     cfg = {**TINY, "max_steps": 2, "warmup_steps": 1, "batch_size": 8, "output_dir": str(tmp_path)}
     backend = Policy.from_backend("diffusion")

@@ -4,7 +4,8 @@ Each :class:`Mutation` is a small exact text patch (one or more hunks) of the co
 pytest arguments (files or node ids) of the tests that claim to cover it. The working tree's files (tracked and
 not ignored) are copied once to a scratch folder; each patch is applied there in turn and undone after its run
 (never in the working tree: Warp reads ``kernels/`` and ``tasks/`` at kernel build and other runs use them), and
-the covering tests run with ``-x`` from the copy, ``PYTHONPATH`` pointing at it. A test failure kills the mutation; all tests passing lets it survive.
+the covering tests run with ``-x`` from the copy, ``PYTHONPATH`` pointing at it. A test failure kills the
+mutation; all tests passing lets it survive.
 
     python tools/mutations.py              run every mutation; exit 1 on a survivor, 2 on an error
     python tools/mutations.py --check      only check that every patch still applies (no pytest)
@@ -50,20 +51,22 @@ class Mutation:
     tests: tuple[str, ...]
 
 
-def _m(name: str, promise: str, path: str, old: str, new: str, *tests: str) -> Mutation:
+def one_patch(name: str, promise: str, path: str, old: str, new: str, *tests: str) -> Mutation:
+    """A mutation of one hunk."""
     return Mutation(name, promise, ((path, old, new),), tests)
 
 
 DIV = "tests/test_divergence.py"
 STORE, WRITERS, DURABLE = "tests/test_storage.py", "tests/test_writers.py", "tests/test_mutations_durability.py"
 MUTATIONS: tuple[Mutation, ...] = (
-    _m("divergence-bounds-inf", "a finite body past the guard's bounds ends the row as diverged",
-       "newton_lab/task_api/cfg.py",
-       "return (float(self.max_body_distance), float(self.max_body_linear_speed), float(self.max_body_angular_speed))",
-       'return (float("inf"),) * 3', DIV),
-    _m("divergence-guard-never-triggers", "a non-finite or absurd state ends the row as diverged",
-       "kernels/fuse.py", "        diverged = row_diverged(ctx, w, divergence[0], divergence[1], divergence[2])\n",
-       "        diverged = row_diverged(ctx, w, divergence[0], divergence[1], divergence[2]) and False\n", DIV),
+    one_patch("divergence-bounds-inf", "a finite body past the guard's bounds ends the row as diverged",
+              "newton_lab/task_api/cfg.py",
+              "return (float(self.max_body_distance), float(self.max_body_linear_speed), "
+              "float(self.max_body_angular_speed))",
+              'return (float("inf"),) * 3', DIV),
+    one_patch("divergence-guard-never-triggers", "a non-finite or absurd state ends the row as diverged",
+              "kernels/fuse.py", "        diverged = row_diverged(ctx, w, divergence[0], divergence[1], divergence[2])",
+              "        diverged = row_diverged(ctx, w, divergence[0], divergence[1], divergence[2]) and False", DIV),
     Mutation("graph-one-substep-short", "the captured step equals eager stepping", (
         ("newton_lab/envs/launches.py", "        for _ in range(self.cfg.decimation):\n",
          "        for _ in range(self.cfg.decimation - getattr(self, '_capturing', 0)):\n"),
@@ -71,70 +74,86 @@ MUTATIONS: tuple[Mutation, ...] = (
          "                self.step()\n",
          "            self._capturing = 1\n            with wp.ScopedCapture(device=self.model.device) as cap:\n"
          "                self.step()\n            self._capturing = 0\n")), ("tests/test_env.py",)),
-    _m("action-clip-removed", "each action column is clipped to its range before it becomes a target",
-       "kernels/actions.py", "    return wp.clamp(scale[c] * actions[w, c], low[c], high[c])\n",
-       "    return scale[c] * actions[w, c]\n", "tests/test_env.py"),
-    _m("camera-pose-flipped", "camera images look the way the reference's cameras look",
-       "newton_lab/robots/g1/cameras.py", "ROS_TO_PINHOLE = (1.0, 0.0, 0.0, 0.0)",
-       "ROS_TO_PINHOLE = (0.0, 0.0, 0.0, 1.0)", "tests/test_cameras.py"),
-    _m("jog-clip-removed", "a teleop jog moves each arm joint target at most 0.05 rad per step",
-       "newton_lab/agents/teleop/jog.py",
-       "step = np.clip(self._solution - self._command, -self.max_joint_step, self.max_joint_step)",
-       "step = self._solution - self._command", "tests/test_teleop.py"),
-    _m("yolo-polygons-mirrored", "YOLO label polygons outline the objects in the image",
-       "newton_lab/datasets/yolo.py", "            out.append((cls, poly / [w, h]))",
-       "            out.append((cls, (poly * [1, -1] + [0, h]) / [w, h]))", "tests/test_yolo_export.py"),
-    _m("hdf5-data-not-synced", "a committed HDF5 append survives a power cut (data fsynced before the commit)",
-       "newton_lab/datasets/_journal.py",
-       "            jf.close_journal()\n            if fsync:\n                os.fsync(raw.fileno())\n",
-       "            jf.close_journal()\n", STORE, DURABLE),
-    _m("hdf5-journal-not-synced", "the rollback journal is durable before a byte it saves is overwritten",
-       "newton_lab/datasets/_journal.py", "        _write_all(self._journal, blob)\n        if self._fsync:\n",
-       "        _write_all(self._journal, blob)\n        if False:\n", STORE, DURABLE),
-    _m("hdf5-commit-before-data", "the HDF5 commit (journal removed) comes after the data is durable",
-       "newton_lab/datasets/_journal.py",
-       "            jf.close_journal()\n            if fsync:\n                os.fsync(raw.fileno())\n",
-       "            jf.close_journal()\n            journal_path(path).unlink()\n            if fsync:\n"
-       "                os.fsync(raw.fileno())\n            journal_path(path).touch()\n", STORE, DURABLE),
-    _m("zarr-data-not-synced", "a committed zarr batch survives a power cut (its files synced before the commit)",
-       "newton_lab/datasets/zarr_store.py", "            if fsync:\n                sync_tree(stage)\n",
-       "            if False:\n                sync_tree(stage)\n", STORE, DURABLE),
-    _m("zarr-commit-before-data", "the zarr commit (next_demo_id) is written after the batch's demos are in place",
-       "newton_lab/datasets/zarr_store.py", "            for name in names:\n                os.rename(",
-       "            _commit(data, {NEXT_ID: next_id + len(ids), 'total': total + sum(int(n) for _, _, n in items),\n"
-       "                           'num_demos': count + len(ids)})\n"
-       "            for name in names:\n                os.rename(", STORE, DURABLE),
-    _m("zarr-commit-not-synced", "append returns only after the zarr commit is durable",
-       "newton_lab/datasets/zarr_store.py",
-       "            if fsync:\n                fsync_path(path / \"data\" / \"zarr.json\")\n",
-       "            if False:\n                fsync_path(path / \"data\" / \"zarr.json\")\n", STORE, DURABLE),
-    _m("writer-lock-skipped", "two writers of one dataset take turns (exclusive lock)",
-       "newton_lab/datasets/_common.py",
-       "        _poll(lambda: fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB), fd, path, deadline)\n",
-       "        pass\n", WRITERS),
-    _m("episode-ids-reused", "a new episode never reuses the id of a finished one",
-       "newton_lab/datasets/zarr_store.py", "        ids = list(range(next_id, next_id + len(items)))\n",
-       "        ids = list(range(len(items)))\n", STORE),
-    _m("writer-process-error-dropped", "ENOSPC inside a zarr writer process fails the batch and keeps the dataset",
-       "newton_lab/datasets/zarr_workers.py", '            answer = ("error", e)\n',
-       '            answer = ("ok", [])\n', WRITERS, DURABLE),
-    _m("contained-check-skipped", "no path read from a file reaches outside its folder",
-       "newton_lab/datasets/contained.py", "    if target != base and base not in target.parents:\n",
-       "    if False:\n", "tests/test_contained_paths.py"),
-    _m("retry-condition-inverted", "transient stage failures are retried, input errors are not",
-       "flows/orchestration.py", "    return not isinstance(error, INPUT_ERRORS)\n",
-       "    return isinstance(error, INPUT_ERRORS)\n",
-       "tests/test_flows.py::test_input_error_is_not_retried_and_prints_one_line",
-       "tests/test_flows.py::test_transient_error_is_retried"),
-    _m("rng-not-restored", "an interrupted training run resumes bitwise where the uninterrupted one is",
-       "newton_lab/policies/train.py", 'then=lambda: restore_rng(state["rng"])', "then=lambda: None",
-       "tests/test_train_resume.py"),
-    _m("normaliser-stats-not-saved", "a checkpoint carries the normaliser stats its policy was trained with",
-       "newton_lab/policies/diffusion.py",
-       '"normalizers": {"obs": self.obs_normalizer.state_dict(), "action": self.action_normalizer.state_dict()},',
-       '"normalizers": {k: {"low": v.state_dict()["low"] * 0, "high": v.state_dict()["high"] * 0 + 1}\n'
-       '                                for k, v in (("obs", self.obs_normalizer), ("action", self.action_normalizer))},',
-       "tests/test_policy.py::test_checkpoint_round_trip_and_no_overwrite"),
+    one_patch("action-clip-removed", "each action column is clipped to its range before it becomes a target",
+              "kernels/actions.py", "    return wp.clamp(scale[c] * actions[w, c], low[c], high[c])\n",
+              "    return scale[c] * actions[w, c]\n", "tests/test_env.py"),
+    one_patch("camera-pose-flipped", "camera images look the way the reference's cameras look",
+              "newton_lab/robots/g1/cameras.py", "ROS_TO_PINHOLE = (1.0, 0.0, 0.0, 0.0)",
+              "ROS_TO_PINHOLE = (0.0, 0.0, 0.0, 1.0)", "tests/test_cameras.py"),
+    one_patch("jog-clip-removed", "a teleop jog moves each arm joint target at most 0.05 rad per step",
+              "newton_lab/agents/teleop/jog.py",
+              "step = np.clip(self._solution - self._command, -self.max_joint_step, self.max_joint_step)",
+              "step = self._solution - self._command", "tests/test_teleop.py"),
+    one_patch("yolo-polygons-mirrored", "YOLO label polygons outline the objects in the image",
+              "newton_lab/datasets/yolo.py", "            out.append((cls, poly / [w, h]))",
+              "            out.append((cls, (poly * [1, -1] + [0, h]) / [w, h]))", "tests/test_yolo_export.py"),
+    one_patch("hdf5-data-not-synced", "a committed HDF5 append survives a power cut (data synced before the commit)",
+              "newton_lab/datasets/_journal.py",
+              "            jf.close_journal()\n            if fsync:\n                os.fsync(raw.fileno())\n",
+              "            jf.close_journal()\n", STORE, DURABLE),
+    one_patch("hdf5-journal-not-synced", "the rollback journal is durable before a byte it saves is overwritten",
+              "newton_lab/datasets/_journal.py", "        _write_all(self._journal, blob)\n        if self._fsync:\n",
+              "        _write_all(self._journal, blob)\n        if False:\n", STORE, DURABLE),
+    one_patch("hdf5-commit-before-data", "the HDF5 commit (journal removed) comes after the data is durable",
+              "newton_lab/datasets/_journal.py",
+              "            jf.close_journal()\n            if fsync:\n                os.fsync(raw.fileno())\n",
+              "            jf.close_journal()\n            journal_path(path).unlink()\n            if fsync:\n"
+              "                os.fsync(raw.fileno())\n            journal_path(path).touch()\n", STORE, DURABLE),
+    one_patch("zarr-data-not-synced", "a committed zarr batch survives a power cut (files synced before the commit)",
+              "newton_lab/datasets/zarr_store.py", "            if fsync:\n                sync_tree(stage)\n",
+              "            if False:\n                sync_tree(stage)\n", STORE, DURABLE),
+    one_patch("zarr-commit-before-data", "the zarr commit (next_demo_id) comes after the batch's demos are in place",
+              "newton_lab/datasets/zarr_store.py", "            for name in names:\n                os.rename(",
+              "            _commit(data, {NEXT_ID: next_id + len(ids),\n"
+              "                           'total': total + sum(int(n) for _, _, n in items),\n"
+              "                           'num_demos': count + len(ids)})\n"
+              "            for name in names:\n                os.rename(", STORE, DURABLE),
+    one_patch("zarr-commit-not-synced", "append returns only after the zarr commit is durable",
+              "newton_lab/datasets/zarr_store.py",
+              "            if fsync:\n                fsync_path(path / \"data\" / \"zarr.json\")\n",
+              "            if False:\n                fsync_path(path / \"data\" / \"zarr.json\")\n", STORE, DURABLE),
+    one_patch("writer-lock-skipped", "two writers of one dataset take turns (exclusive lock)",
+              "newton_lab/datasets/_common.py",
+              "        _poll(lambda: fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB), fd, path, deadline)\n",
+              "        pass\n", WRITERS),
+    one_patch("episode-ids-reused", "a new episode never reuses the id of a finished one",
+              "newton_lab/datasets/zarr_store.py", "        ids = list(range(next_id, next_id + len(items)))\n",
+              "        ids = list(range(len(items)))\n", STORE),
+    one_patch("writer-process-error-dropped", "ENOSPC in a zarr writer process fails the batch, keeps the dataset",
+              "newton_lab/datasets/zarr_workers.py", '            answer = ("error", e)\n',
+              '            answer = ("ok", [])\n', WRITERS, DURABLE),
+    one_patch("contained-check-skipped", "no path read from a file reaches outside its folder",
+              "newton_lab/datasets/contained.py", "    if target != base and base not in target.parents:\n",
+              "    if False:\n", "tests/test_contained_paths.py"),
+    one_patch("retry-condition-inverted", "transient stage failures are retried, input errors are not",
+              "flows/orchestration.py", "    return not isinstance(error, INPUT_ERRORS)\n",
+              "    return isinstance(error, INPUT_ERRORS)\n",
+              "tests/test_flows.py::test_input_error_is_not_retried_and_prints_one_line",
+              "tests/test_flows.py::test_transient_error_is_retried"),
+    one_patch("rng-not-restored", "an interrupted training run resumes bitwise where the uninterrupted one is",
+              "newton_lab/policies/train.py", 'then=lambda: restore_rng(state["rng"])', "then=lambda: None",
+              "tests/test_train_resume.py"),
+    one_patch("normaliser-stats-not-saved", "a checkpoint carries the normaliser stats its policy was trained with",
+              "newton_lab/policies/diffusion.py",
+              '"normalizers": {"obs": self.obs_normalizer.state_dict(), "action": '
+              'self.action_normalizer.state_dict()},',
+              '"normalizers": {k: {"low": v.state_dict()["low"] * 0, "high": v.state_dict()["high"] * 0 + 1}\n'
+              '                                for k, v in (("obs", self.obs_normalizer),\n'
+              '                                             ("action", self.action_normalizer))},',
+              "tests/test_policy.py::test_checkpoint_round_trip_and_no_overwrite",
+              "tests/test_policy.py::test_checkpoint_carries_the_stats_of_the_training_data"),
+    one_patch("journal-rollback-skipped", "an HDF5 append killed mid-session is rolled back by the next writer",
+              "newton_lab/datasets/_journal.py", "        _rollback(raw, path, fsync)  # a previous writer was killed",
+              "        pass  # a previous writer was killed", STORE),
+    one_patch("diverged-episode-written", "collect never writes an episode that diverged",
+              "newton_lab/envs/saver.py",
+              'if rec["termination_reason"] == DIVERGED or (self.only_successes and not rec["success"]):',
+              'if self.only_successes and not rec["success"]:', DIV),
+    one_patch("non-finite-episode-written", "collect never writes an episode holding a non-finite value",
+              "newton_lab/envs/saver.py", "        if not finite:\n", "        if False:\n", DIV),
+    one_patch("non-finite-action-accepted", "a NaN or inf action is refused in one line before stepping",
+              "newton_lab/envs/checks.py", "    if not bool(finite.all()):\n", "    if False:\n",
+              "tests/test_inputs.py"),
 )
 
 
