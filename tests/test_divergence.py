@@ -114,6 +114,31 @@ def test_collect_drops_and_counts_the_diverged_episode(pick_env, tmp_path):
         assert np.abs(ep["actions"]).max() < 1e3
 
 
+class TeleportingAgent(ZeroAgent):
+    """Holds every joint; on its ``at``-th call moves ``row``'s cube 60 m away: finite, only the guard's distance
+    bound says the row diverged (the frames hold no NaN for the finiteness check to catch)."""
+
+    def __init__(self, row: int = 1, at: int = 2):
+        self.row, self.at, self.calls = row, at, 0
+
+    def act(self, env, env_ids=None) -> torch.Tensor:
+        if self.calls == self.at:
+            wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[self.row, env.entities["cube"].coord] = 60.0
+        self.calls += 1
+        return super().act(env).clone()
+
+
+def test_collect_drops_a_finite_diverged_episode(pick_env, tmp_path):
+    path = tmp_path / "far.zarr"
+    ref = pick_env.collect(agent=TeleportingAgent(), episodes=3, path=path, max_steps=6, progress=False)
+    assert ref["diverged"] == 1 and ref["termination_reasons"] == {DIVERGED: 1, "max_steps": 2}
+    ids = list_demos(path)
+    assert len(ids) == 2 and ref["saved_demo_ids"] == ids
+    for demo in ids:
+        ep = read_episode(path, demo)
+        assert ep["attrs"]["termination_reason"] != DIVERGED and np.abs(ep["obs"]["cube_pose"]).max() < 10
+
+
 def test_collect_skips_an_episode_with_a_non_finite_frame(pick_env, tmp_path, monkeypatch):
     """A non-finite frame the guard did not catch is dropped too, and counted as diverged (the recorded frame
     itself is poisoned: the finiteness check runs on the copied buffers of all rows that ended together)."""

@@ -586,6 +586,25 @@ def test_hdf5_kill_inside_append_rolls_back(tmp_path, point):
         assert_tree_equal({k: v for k, v in read_episode(path, seed).items() if k != "attrs"}, make_episode(seed))
 
 
+@pytest.mark.parametrize("point", ["mid_flush", "before_commit"])
+def test_hdf5_writer_open_across_a_killed_append_rolls_it_back_itself(tmp_path, point):
+    """A writer opened before another process was killed mid-append (its journal left, no reader in between)
+    rolls the torn append back at its own next append, then appends: the killed demo (written in full before the
+    commit, at ``before_commit``) does not come back, every other reads back as written."""
+    path = tmp_path / "ds.hdf5"
+    write_demos(path, [0, 1])
+    before = fingerprint(path)
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+        proc = subprocess.run([sys.executable, "-c", KILL_POINT_CHILD, str(path), point],
+                              env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=120)
+        assert proc.returncode == -signal.SIGKILL, proc.stderr
+        assert (tmp_path / "ds.hdf5-journal").exists() and fingerprint(path) != before  # really torn
+        assert w.append_episode(make_episode(2), success=True) == 2
+    assert not (tmp_path / "ds.hdf5-journal").exists() and list_demos(path) == [0, 1, 2]
+    for seed in (0, 1, 2):
+        assert_tree_equal({k: v for k, v in read_episode(path, seed).items() if k != "attrs"}, make_episode(seed))
+
+
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
     path = tmp_path / f"ds{suffix}"
