@@ -121,8 +121,8 @@ def tasks_page() -> str:
     """The task table and one section per task (markdown)."""
     tasks = list(_task_rows())
     rows = [[f"[`{s.id}`](#{_anchor(s.id)})", s.description, f"{_action_width(c)}: " + ", ".join(a.group for a in c.actions),
-             _cameras(c), _options(s)] for s, c in tasks]
-    table = _table(["id", "what", "action columns", "cameras", "options"], rows)
+             _cameras(c), _success(c), _options(s)] for s, c in tasks]
+    table = _table(["id", "what", "action columns", "cameras", "success", "options"], rows)
     sections = "\n\n".join(_task_section(s, c) for s, c in tasks)
     note = ("Observation terms marked \\* are privileged (an object's pose or a target's position): "
             "`obs_mode=\"sensors\"` drops them.")
