@@ -19,10 +19,10 @@ from prefect import flow, get_run_logger, unmapped
 from ..datasets.outputs import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
-from .orchestration import INPUT_ERRORS, _collect, _evaluate, _results, _stage_task, train_task
+from .stage_runs import INPUT_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 from .settings import LONG_HORIZON_CAMERAS, LONG_HORIZON_OPTIONS
 
-split_task = _stage_task(stages.split_stage, "split")
+split_task = stage_task(stages.split_stage, "split")
 
 NAVIGATION_GROUPS = ("base",)
 """Joint groups of a phase that navigates: such a phase runs its component's expert, not a learned policy."""
@@ -59,19 +59,19 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
     phases = learned_phases(task_id, options)
-    demo_art, s_collect = _collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
+    demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
                                    task_options=options, max_steps=eval_max_steps)
     log.info("collect: %s", "/".join(s_collect))
-    (split,), s_split = _results([split_task.submit(source=demo_art, out_dir=out)], "split")
+    (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out)], "split")
     log.info("split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items()))
-    arts, s_train = _results(train_task.map(dataset=[split[p] for p in phases], train_cfg=unmapped(dict(train_cfg)),
+    arts, s_train = results(train_task.map(dataset=[split[p] for p in phases], train_cfg=unmapped(dict(train_cfg)),
                                             out_dir=unmapped(out), name=[f"policy_{p}" for p in phases],
                                             gpus=unmapped(gpus)), "train")
     checkpoints = dict(zip(phases, arts))
     for art in arts:
         runlog.publish_loss_curve(art)
     log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
-    metrics, s_eval = _evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers, eval_max_steps,
+    metrics, s_eval = run_evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers, eval_max_steps,
                                 recording=Path(out) / "evaluation.rrd", cameras=cameras, task_options=options,
                                 phase_checkpoints=checkpoints)
     log.info("evaluate: %s; success rate %.1f%% over %d episodes; %s", "/".join(s_eval),

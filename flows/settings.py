@@ -37,9 +37,9 @@ LONG_HORIZON_RECIPES: dict[str, dict[str, Any]] = {
     # visuomotor policy, a few evaluation episodes (it shows the flow works; no success is expected at this size).
     "cpu": {"demos": 4, "eval_episodes": 4, "num_envs": 2, "eval_max_steps": 3000,
             "train": {"preset": "vision_cpu", "max_steps": 1000}},
-    # Full size on a GPU: the visuomotor preset under bf16, one 10-minute training per learned phase.
+    # Full size on a GPU: the visuomotor preset under bf16, one 7-minute training per learned phase.
     "gpu": {"demos": 1200, "eval_episodes": 100, "num_envs": 300, "eval_max_steps": 3000,
-            "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 600}},
+            "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 420}},
 }
 """Counts and training of ``newton-lab pipeline`` on a coherent task (``newton_lab.flows.long_horizon``): every
 policy input is what the robot measures: the front head camera at 96x72 RGB and proprioception

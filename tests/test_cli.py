@@ -157,6 +157,9 @@ def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
     assert isinstance(a, CollectArgs) and a.num_envs == 2 and a.randomize and a.episodes == 1
     assert (tmp_path / "data").is_dir()  # the example's output folder is made, as the CLI makes it
     assert a.env_kwargs()["task_options"] == {"sorting_object": "red_cube"}
+    from test_policy import write_dataset  # inputs must open: two real (tiny) datasets
+
+    write_dataset(tmp_path / "a.hdf5"), write_dataset(tmp_path / "b.hdf5")
     t = parse_args(TrainArgs, ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys", "x, y"])
     cfg = t.train_cfg({"default": {"epochs": 7}})
     assert t.datasets() == ["a.hdf5", "b.hdf5"] and cfg["lr"] == 0.001 and cfg["epochs"] == 7
@@ -173,7 +176,10 @@ def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
     assert exit_.value.code == 2 and "(did you mean GalbotG1-Reach-v0?)" in capsys.readouterr().err
 
 
-def test_train_reports_an_unknown_preset_in_one_line(capsys):
-    assert main(["train", "--dataset-path", "nope.hdf5", "--preset", "huge"]) == 2
+def test_train_reports_an_unknown_preset_in_one_line(tmp_path, capsys):
+    from test_policy import write_dataset
+
+    data = write_dataset(tmp_path / "d.hdf5")
+    assert main(["train", "--dataset-path", str(data), "--preset", "huge"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "unknown training preset 'huge'" in err and "cpu" in err

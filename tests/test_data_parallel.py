@@ -60,8 +60,8 @@ def test_two_gloo_processes_take_the_steps_of_one(dataset, one_process, tmp_path
     DiffusionPolicy.load(path)  # loads as any checkpoint
 
 
-def test_train_command_takes_gpus():
-    args = parse_args(TrainArgs, ["--dataset-path", "d.hdf5", "--gpus", "2"])
+def test_train_command_takes_gpus(dataset):
+    args = parse_args(TrainArgs, ["--dataset-path", str(dataset), "--gpus", "2"])
     assert args.gpus == 2
 
 

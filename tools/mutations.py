@@ -126,7 +126,7 @@ MUTATIONS: tuple[Mutation, ...] = (
               "newton_lab/datasets/contained.py", "    if target != base and base not in target.parents:\n",
               "    if False:\n", "tests/test_contained_paths.py"),
     one_patch("retry-condition-inverted", "transient stage failures are retried, input errors are not",
-              "flows/orchestration.py", "    return not isinstance(error, INPUT_ERRORS)\n",
+              "flows/stage_runs.py", "    return not isinstance(error, INPUT_ERRORS)\n",
               "    return isinstance(error, INPUT_ERRORS)\n",
               "tests/test_flows.py::test_input_error_is_not_retried_and_prints_one_line",
               "tests/test_flows.py::test_transient_error_is_retried"),

@@ -258,6 +258,10 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     if gpus > 1 and data_parallel.world()[1] == 1:
         return data_parallel.launch([str(p) for p in paths], cfg.to_dict(), gpus, resume=resume)
     cfg = dataclasses.replace(cfg, device=data_parallel.join_from_environment(cfg.device))
+    if torch.device(cfg.device).type == "cuda" and torch.device(cfg.device).index is not None:
+        # the captured step (its side stream, the graph's pool) works on the current device: make it cuda:k
+        # (training on cuda:1 from a process whose current device was cuda:0 failed in capture)
+        torch.cuda.set_device(torch.device(cfg.device))
     state = load_resume(out_dir) if resume else None
     torch.manual_seed(cfg.seed)
     start = None
