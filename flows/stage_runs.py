@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -199,9 +200,8 @@ def run_evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, 
 
 
 def summed(counts) -> dict[str, int]:
-    """Counters (name -> count) added up."""
-    out: dict[str, int] = {}
+    """Counters (name -> count) added up; a name counted 0 everywhere is kept."""
+    total: Counter[str] = Counter()
     for c in counts:
-        for k, v in c.items():
-            out[k] = out.get(k, 0) + v
-    return out
+        total.update(c)
+    return dict(total)

@@ -150,8 +150,7 @@ def evaluate_stage(*, checkpoint: dict[str, Any] | None = None, args: EvaluateAr
     from ..policies import Policy  # deferred: torch is slow to import
     from ..policies.agent import PolicyAgent, phase_policy_agent  # deferred: imports the env stack (Warp)
 
-    on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
-    policy_device = args.device if on_gpu else "cpu"
+    policy_device = args.policy_device()
     env = make_env(args.task, **args.env_kwargs())
     if phase_checkpoints:
         agent = phase_policy_agent(env, {p: a["path"] for p, a in phase_checkpoints.items()}, device=policy_device)

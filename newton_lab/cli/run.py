@@ -72,12 +72,11 @@ def evaluate(args: EvaluateArgs) -> int:
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies.agent import PolicyAgent, phase_policy_agent  # deferred: torch is slow to import
 
-    on_gpu = args.device is not None and args.device.startswith("cuda")  # the policy runs beside the env
-    checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.device if on_gpu else None)
+    checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.policy_device())
                         if args.checkpoint else None)
     env = make_env(args.task, **args.env_kwargs())
     phases = args.phase_checkpoints()
-    agent = (phase_policy_agent(env, phases, device=args.device if on_gpu else None) if phases
+    agent = (phase_policy_agent(env, phases, device=args.policy_device()) if phases
              else checkpoint_agent or expert_agent(env))
     hook, close = rerun_hook(args, env)
     try:

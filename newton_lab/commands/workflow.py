@@ -34,6 +34,10 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     """a coherent task's phase policies, PHASE=CHECKPOINT each (e.g. pick=pick.pt place=place.pt); the phases
     without one run their component's expert"""
 
+    def policy_device(self) -> str:
+        """Torch device of the evaluated policies: the env's CUDA device (the policy runs beside it), else cpu."""
+        return self.device if self.device is not None and self.device.startswith("cuda") else "cpu"
+
     def phase_checkpoints(self) -> dict[str, str]:
         """``--phase-checkpoint`` as phase name -> checkpoint path (one-line error for a malformed entry)."""
         out: dict[str, str] = {}

@@ -106,17 +106,8 @@ def same_start(module: torch.nn.Module) -> None:
         dist.broadcast(tensor.data, src=0)
 
 
-def agreed(value: int) -> int:
-    """Rank 0's ``value`` on every rank (a decision taken from wall time, e.g. the re-planned step total)."""
-    if world()[1] == 1:
-        return value
-    box = [value]
-    dist.broadcast_object_list(box, src=0)
-    return int(box[0])
-
-
 def shared(value: Any) -> Any:
-    """Rank 0's picklable ``value`` on every rank."""
+    """Rank 0's picklable ``value`` on every rank (e.g. a decision taken from wall time: the re-planned step total)."""
     if world()[1] == 1:
         return value
     box = [value]

@@ -97,13 +97,15 @@ def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from
     first 50 steps), then every 100 steps from the rate since step 50 (the machine may speed up or slow
     down; each re-plan moves the cosine schedule only a little); never above ``cap``."""
     start, t_start = rate_from
-    if step == start:
-        rate = step / elapsed
-    elif step > start and step % 100 == 0:
-        rate = (step - start) / max(elapsed - t_start, 1e-9)
-    else:
+    if not _replans_at(step, start):
         return total
+    rate = step / elapsed if step == start else (step - start) / max(elapsed - t_start, 1e-9)
     return min(cap, step + max(0, int((budget - elapsed) * rate * 0.97)))  # == step: stop now
+
+
+def _replans_at(step: int, start: int) -> bool:
+    """Whether a time-budgeted run re-plans its total at ``step`` (``start``: the step its rate is measured from)."""
+    return step == start or (step > start and step % 100 == 0)
 
 
 def _continue(policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig) -> DiffusionPolicy:
@@ -203,11 +205,9 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
                           f"{rate:,.0f} samples/s, {last_line - t0:.0f} s", file=sys.stderr, flush=True)
                 if cfg.time_budget_s is not None:
                     elapsed = time.perf_counter() - t0
-                    planned = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
-                    start = run.rate_from[0]
-                    if run.step == start or (run.step > start and run.step % 100 == 0):  # a re-plan: rank 0's counts
-                        planned = data_parallel.agreed(planned)
-                    run.total = planned
+                    run.total = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
+                    if _replans_at(run.step, run.rate_from[0]):  # the same steps on every rank: rank 0's plan counts
+                        run.total = data_parallel.shared(run.total)
                     if run.step == run.rate_from[0]:
                         run.rate_from = (run.step, elapsed)
                     bar.total = run.total
