@@ -14,19 +14,20 @@ from typing import Any
 
 DEMO_TRAIN_CFG: dict[str, Any] = {
     "down_dims": [32, 64, 128], "diffusion_step_embed_dim": 64, "activation": "silu", "prediction_type": "sample",
-    "num_inference_steps": 5, "batch_size": 64, "lr": 6e-4, "warmup_steps": 300, "epochs": 1000, "max_steps": 2500,
+    "num_inference_steps": 5, "batch_size": 64, "lr": 6e-4, "warmup_steps": 300, "epochs": 1000, "max_steps": 6000,
     "seed": 0}
 """The demo's diffusion policy: the ``cpu`` preset's quarter-width U-Net with SiLU (a step takes 0.82x the Mish
 one on 2 CPU cores), predicting the clean action chunk (x0) instead of the noise, 5 DDIM steps at inference.
-Measured on the demo's 100 Mimic demos, 40 held-out episodes each (seeds 0 / 1): 2500 steps 85 % / 85 %, 2000
-steps 90 % / 75 %, 1500 steps 72 %; at 2500 steps, 10 DDIM steps 68 % and action_horizon 4 60 % (seed 1); Mish
-with 3000 steps 90-95 % on 20. Epsilon prediction: 0-5 % after 3000-5000 steps. 2500 steps take about 5 min on
-2 CPU cores (``compile=True`` makes a step ~0.55x as long once torch's compile cache is warm, but its first
-compile on a fresh machine costs about what it saves)."""
+Measured on the demo's 100 Mimic demos, the same 40 held-out episodes (evaluation seed 10000) each, training seed
+0 / 1 (docs/benchmarks.md, "The demo pipeline"): 2500 steps 80 % / -, 5000 steps 100 % / 90 %, 6000 steps - / 92.5 %;
+Mish 4000 steps 100 % / -, Mish 5000 steps - / 87.5 %. Earlier: 10 DDIM steps 68 % and action_horizon 4 60 % at
+2500 steps; epsilon prediction 0-5 % after 3000-5000 steps. 6000 steps take about 2.8 min on 2 CPU cores
+(``compile=True`` makes a step ~0.55x as long once torch's compile cache is warm, but its first compile on a fresh
+machine costs about what it saves)."""
 
 DEMO_RECIPES: dict[str, dict[str, Any]] = {
-    # 10:57 on 2 CPU cores from a fresh clone, 85 % (README: figures)
-    "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 20, "num_envs": 4, "train": DEMO_TRAIN_CFG},
+    # on 2 CPU cores from a fresh clone with cold caches: docs/benchmarks.md, "The demo pipeline"
+    "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 40, "num_envs": 4, "train": DEMO_TRAIN_CFG},
     # full size on a CUDA device: more Mimic data, the cpu preset's 10k steps, 100 evaluation episodes
     "gpu": {"demos": 10, "mimic_episodes": 500, "eval_episodes": 100, "num_envs": 50,
             "train": {**DEMO_TRAIN_CFG, "activation": "mish", "num_inference_steps": 10, "max_steps": 10000}},
