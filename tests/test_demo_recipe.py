@@ -1,5 +1,5 @@
 """The demo recipes of ``newton-lab pipeline`` / ``make demo`` and the lines the pipeline ends with (no physics:
-configuration and reporting only; the recipe's figures come from the pipeline run reported in the README)."""
+configuration and reporting only; the recipe's figures come from the pipeline runs on docs/benchmarks.md)."""
 
 from __future__ import annotations
 

@@ -111,7 +111,7 @@ def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
             _write_tree(g.create_group(key), value)
         elif value.ndim == 0 or value.size == 0:
             g.create_dataset(key, data=value)
-        elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, gzip 4 (README: Image datasets)
+        elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, gzip 4 (docs/data.md: Image datasets)
             g.create_dataset(key, data=value, chunks=(1, *value.shape[1:]), compression="gzip", compression_opts=4)
         elif value.dtype.kind in _PLAIN_KINDS and key.isascii():  # state arrays: contiguous and uncompressed.
             # Physics floats barely compress (a PickCube demo: 162 KB raw, 183 KB as gzip-4 chunks, 176 KB

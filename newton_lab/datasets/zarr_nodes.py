@@ -42,7 +42,8 @@ writer process."""
 
 def array_kwargs(value: np.ndarray) -> dict[str, Any]:
     """``create_array`` keywords of a demo array: image frames (T, H, W[, 3]) one frame per chunk, zstd 3; the
-    rest split along time, zstd 1 (README: Image datasets). Chunk files sit in the array's folder (``c.<t>.0``)."""
+    rest split along time, zstd 1 (docs/data.md: Image datasets). Chunk files sit in the array's folder
+    (``c.<t>.0``)."""
     flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}  # one directory per array, not per chunk row
     level = IMAGE_ZSTD_LEVEL if value.ndim >= 3 else STATE_ZSTD_LEVEL
     return {"chunks": chunk_shape(value.shape, value.itemsize) if value.ndim else "auto",
