@@ -11,8 +11,8 @@ $(STAMP): pyproject.toml setup.py tools/install_venv.sh
 	touch $(STAMP)
 
 .PHONY: demo test bench docs docs-serve mutate
-# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 2500 training steps, 20 evaluation episodes; about
-# 11 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
+# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 6000 training steps, 40 evaluation episodes; about
+# 5 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
 # DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
 DEMO_ARGS ?=
 demo: $(STAMP)
