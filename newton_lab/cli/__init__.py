@@ -50,6 +50,10 @@ COMMANDS: dict[str, Command] = {
                       "drive a task from a teleop device (keyboard, replay, gp001, ...); keep / drop / exit each demo"),
     "yolo-export": Command(yolo.YoloExportArgs, yolo.yolo_export,
                            "YOLO-seg dataset (images, polygon labels, data.yaml) of the sorting objects"),
+    "yolo-train": Command(yolo.YoloTrainArgs, yolo.yolo_train,
+                          "train YOLO-seg (Ultralytics) on a yolo-export folder; mask mAP on a held-out export"),
+    "yolo-predict": Command(yolo.YoloPredictArgs, yolo.yolo_predict,
+                            "a trained YOLO-seg model on fresh renders of the camera: overlay PNGs"),
 }
 """Subcommands in ``--help`` order."""
 

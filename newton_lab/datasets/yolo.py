@@ -185,3 +185,96 @@ class YoloWriter:
 
     def abort(self) -> None:
         shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+# ---- training and inference (``newton-lab yolo-train`` / ``yolo-predict``): the parts that need no Ultralytics ----
+
+OVERLAY_COLORS = ((255, 0, 255), (0, 255, 255), (255, 140, 0), (255, 255, 255), (160, 255, 0), (255, 90, 90))
+"""Overlay colour of each class id (cycled): far from the objects' own red, blue, yellow and green."""
+
+
+def read_export(root: str | os.PathLike, flag: str = "--dataset") -> dict[str, object]:
+    """What a ``yolo-export`` folder holds: ``names`` (class id -> name), ``images`` (PNG count per split) and
+    ``size`` (width, height of its first image); one-line ``FileNotFoundError`` / ``ValueError`` naming ``flag``."""
+    root = Path(root).expanduser()
+    spec_file = root / "data.yaml"
+    if not spec_file.is_file():
+        raise FileNotFoundError(f"{flag} {root}: no data.yaml there; write a dataset with `newton-lab yolo-export`")
+    try:
+        spec = yaml.safe_load(spec_file.read_text())
+        names = {int(k): str(v) for k, v in dict(spec["names"]).items()}
+    except (yaml.YAMLError, KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise ValueError(f"{flag} {root}: data.yaml has no names list ({type(exc).__name__}); write a dataset with "
+                         f"`newton-lab yolo-export`") from None
+    images = {s: len(list((root / "images" / s).glob("*.png"))) for s in SPLITS}
+    if not sum(images.values()):
+        raise ValueError(f"{flag} {root}: no images under images/{{train,val,test}}")
+    first = next(p for s in SPLITS for p in sorted((root / "images" / s).glob("*.png")))
+    with Image.open(first) as im:
+        size = im.size
+    return {"root": root.resolve(), "names": names, "images": images, "size": size}
+
+
+def training_specs(dataset: dict, heldout: dict | None, out: str | os.PathLike) -> tuple[dict, dict]:
+    """The Ultralytics data specs of a run: training on ``dataset``'s train split with its val split for the
+    per-epoch checks, and the evaluation spec: every image of ``heldout`` (all its splits), or ``dataset``'s val
+    split without one. Absolute folders; labels are found by Ultralytics' rule (``images`` -> ``labels``)."""
+    def dirs(ds: dict, splits) -> list[str]:
+        return [str(ds["root"] / "images" / s) for s in splits if ds["images"][s]]
+
+    names = dict(dataset["names"])
+    train = {"path": str(Path(out).expanduser().resolve()), "train": dirs(dataset, ["train"]),
+             "val": dirs(dataset, ["val"]) or dirs(dataset, ["train"]), "names": names}
+    evaluate = dict(train, val=dirs(heldout, SPLITS) if heldout else train["val"])
+    return train, evaluate
+
+
+def default_imgsz(size: Sequence[int], stride: int = 32) -> int:
+    """The network input side for frames of ``size`` (width, height): the longer side, rounded up to ``stride``."""
+    return int(-(-max(size) // stride) * stride)
+
+
+def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two boolean masks (0 when both are empty)."""
+    union = int((a | b).sum())
+    return float((a & b).sum() / union) if union else 0.0
+
+
+def overlay(rgb: np.ndarray, masks: np.ndarray, classes: Sequence[int], scores: Sequence[float],
+            names: Sequence[str] | dict, scale: int = 3, alpha: float = 0.45) -> Image.Image:
+    """An (H, W, 3) uint8 frame at ``scale`` x size with each predicted (H, W) mask of ``masks`` (N, H, W) tinted in
+    its class colour (``OVERLAY_COLORS``), outlined, and named with its score at the mask's top-left corner."""
+    h, w = rgb.shape[:2]
+    out = rgb.astype(np.float32).copy()
+    edges = []
+    for mask, cls in zip(masks, classes):
+        mask = np.asarray(mask, bool)
+        color = np.array(OVERLAY_COLORS[int(cls) % len(OVERLAY_COLORS)], np.float32)
+        out[mask] = (1 - alpha) * out[mask] + alpha * color
+        inner = mask.copy()
+        inner[1:, :] &= mask[:-1, :]
+        inner[:-1, :] &= mask[1:, :]
+        inner[:, 1:] &= mask[:, :-1]
+        inner[:, :-1] &= mask[:, 1:]
+        edges.append((mask & ~inner, color))
+    for edge, color in edges:
+        out[edge] = color
+    image = Image.fromarray(out.round().clip(0, 255).astype(np.uint8)).resize((w * scale, h * scale), Image.NEAREST)
+    draw = ImageDraw.Draw(image)
+    for mask, cls, score in zip(masks, classes, scores):
+        ys, xs = np.nonzero(np.asarray(mask, bool))
+        if len(xs):
+            at = (int(xs.min()) * scale, max(0, int(ys.min()) * scale - 11))
+            color = OVERLAY_COLORS[int(cls) % len(OVERLAY_COLORS)]
+            draw.text(at, f"{names[int(cls)]} {float(score):.2f}", fill=color)
+    return image
+
+
+def montage(images: Sequence[Image.Image], cols: int = 4) -> Image.Image:
+    """Equal-sized pictures in a grid, ``cols`` per row, row by row."""
+    w, h = images[0].size
+    rows = -(-len(images) // cols)
+    sheet = Image.new("RGB", (w * min(cols, len(images)), h * rows))
+    for k, image in enumerate(images):
+        sheet.paste(image, ((k % cols) * w, (k // cols) * h))
+    return sheet
