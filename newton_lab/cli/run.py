@@ -8,6 +8,7 @@ Prefect (flows) each take seconds to import, and a command pays only for what it
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from ..commands import RenderArgs
@@ -170,14 +171,16 @@ def bench(args: BenchArgs) -> int:
 
 
 def bench_collect(args: BenchCollectArgs) -> int:
-    from ..bench import bench_collect, bench_collect_on_workers  # deferred: Warp/Newton are slow to import
+    from ..bench_collect import bench_collect, bench_collect_on_workers, summary  # deferred: Warp is slow to import
 
     common = {"num_envs": args.num_envs, "episodes": args.episodes, "device": args.device,
               "dataset_path": args.dataset_path}
     if args.workers == 1:
         if args.baseline:
             raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")
-        print(json.dumps(bench_collect(args.task, prefill=args.prefill, **common)))
+        out = bench_collect(args.task, prefill=args.prefill, **common)
+        print(summary(out), file=sys.stderr, flush=True)
+        print(json.dumps(out))
     else:
         print(json.dumps(bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline,
                                                   **common)))

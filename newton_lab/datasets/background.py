@@ -7,14 +7,20 @@ A write that fails (disk full, I/O error, lock timeout, ...) writes none of its 
 is written; the error is raised in the caller, with its one-line message, at the next ``put`` /
 ``put_many`` / ``flush`` / ``close``.
 
+Batching: with ``min_batch`` the thread waits until that many episodes are queued (or the oldest has waited
+``max_wait_s``, or a ``put`` is blocked, or ``flush`` / ``close`` asks) before it writes, so that a writer faster than
+the simulation still writes few large batches: each batch has a fixed cost (lock, ``syncfs``, commit), and a zarr
+batch of ``zarr_packs.PACK_MIN_BATCH`` demos or more is packed into a few files instead of ~80 per demo.
+
 Crash window: an episode is durable once its future is done. A process killed at any moment keeps every
-episode written before; it loses those queued (at most ``max_queued``) and the one batch being written
-(all of that batch or none of it lands, see ``storage``).
+episode written before; it loses those queued (at most ``max_queued``, held at most ``max_wait_s`` longer with
+``min_batch``) and the one batch being written (all of that batch or none of it lands, see ``storage``).
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Iterable, Mapping
 from concurrent.futures import Future
@@ -32,11 +38,18 @@ class BackgroundWriter:
 
     Use as a context manager, or call :meth:`close` (it waits for every queued episode)."""
 
-    def __init__(self, writer: EpisodeWriter, *, max_queued: int = 256, max_queued_bytes: int = 1 << 30) -> None:
-        for name, value in (("max_queued", max_queued), ("max_queued_bytes", max_queued_bytes)):
+    def __init__(self, writer: EpisodeWriter, *, max_queued: int = 256, max_queued_bytes: int = 1 << 30,
+                 min_batch: int = 1, max_wait_s: float = 1.0) -> None:
+        for name, value in (("max_queued", max_queued), ("max_queued_bytes", max_queued_bytes),
+                            ("min_batch", min_batch)):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if not max_wait_s >= 0:
+            raise ValueError(f"max_wait_s must be >= 0, got {max_wait_s!r}")
         self.writer, self.max_queued, self.max_queued_bytes = writer, max_queued, max_queued_bytes
+        self.min_batch, self.max_wait_s = min(min_batch, max_queued), float(max_wait_s)
+        self._since = 0.0  # when the oldest queued episode came
+        self._blocked = self._hurry = 0  # puts waiting for room; flush / close calls waiting
         self._bytes = 0  # array bytes queued
         self.batches = 0
         """Batches written (one write session each)."""
@@ -67,10 +80,19 @@ class BackgroundWriter:
         size = sum(_nbytes(tree) for (tree, _, _), _ in items)
         with self._cv:
             self._raise(always=True)
-            self._wait(lambda: self._error is not None or not self._queue or not self._thread.is_alive()
-                       or (len(self._queue) + len(items) <= self.max_queued
-                           and self._bytes + size <= self.max_queued_bytes))
+            room = (lambda: self._error is not None or not self._queue or not self._thread.is_alive()
+                    or (len(self._queue) + len(items) <= self.max_queued
+                        and self._bytes + size <= self.max_queued_bytes))
+            if not room():
+                self._blocked += 1
+                self._cv.notify_all()  # the queue goes now, below min_batch or not: the caller waits for room
+                try:
+                    self._wait(room)
+                finally:
+                    self._blocked -= 1
             self._raise(always=True)
+            if not self._queue:
+                self._since = time.monotonic()
             self._queue.extend(items)
             self._bytes += size
             self._cv.notify_all()
@@ -79,7 +101,12 @@ class BackgroundWriter:
     def flush(self) -> None:
         """Wait until every queued episode is written; raises the write error, if one happened."""
         with self._cv:
-            self._wait(self._idle)
+            self._hurry += 1
+            self._cv.notify_all()
+            try:
+                self._wait(self._idle)
+            finally:
+                self._hurry -= 1
             self._raise(always=True)
 
     def close(self) -> None:
@@ -88,6 +115,8 @@ class BackgroundWriter:
             return
         try:
             with self._cv:
+                self._hurry += 1
+                self._cv.notify_all()
                 self._wait(self._idle)
                 self._raise(always=False)
         finally:
@@ -110,10 +139,17 @@ class BackgroundWriter:
             self._raised = True
             raise self._error
 
+    def _due(self) -> bool:
+        """The queue is to be written now (under the lock; see the module docstring's Batching)."""
+        return bool(self._queue) and (len(self._queue) >= self.min_batch or self._blocked > 0 or self._hurry > 0
+                                      or time.monotonic() - self._since >= self.max_wait_s)
+
     def _loop(self) -> None:
         while True:
             with self._cv:
-                self._wait(lambda: self._queue or self._stop)
+                while not (self._due() or self._stop):
+                    left = self.max_wait_s - (time.monotonic() - self._since) if self._queue else 0.5
+                    self._cv.wait(min(0.5, max(left, 0.001)))
                 if not self._queue:
                     return
                 batch = list(self._queue)

@@ -77,7 +77,7 @@ def _to_tree(node: Mapping, prefix: str = "") -> dict[str, Any]:
         if arr.dtype.kind not in "biufc":
             raise TypeError(f"episode array {prefix + key!r} has unsupported dtype {arr.dtype} "
                             "(use bool/int/uint/float/complex)")
-        out[key] = arr if arr.flags.c_contiguous else np.array(arr, order="C")
+        out[key] = arr  # strided views too: the writers copy into chunks or packs anyway (off the caller's thread)
     return out
 
 
@@ -160,7 +160,8 @@ class EpisodeWriter:
     def prepare(self, episode: Mapping[str, Any], *, success: bool,
                 attrs: Mapping[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any], int]:
         """Check one episode (one-line errors) and convert it for :meth:`append_prepared`: (tree, attrs, steps).
-        The arrays are not copied where they already fit: do not change them until they are written."""
+        The arrays are not copied (strided views stay views; only ``actions`` of another dtype becomes float32):
+        do not change them until they are written."""
         tree, steps = _normalize_episode(episode)
         return tree, _demo_attrs(success, attrs), steps
 

@@ -110,10 +110,12 @@ def _array_meta(dtype: str, shape: tuple[int, ...]) -> tuple[bytes, Zstd, tuple[
             .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode(), compressor, chunks)
 
 
-def write_array(node: str, value: np.ndarray) -> bool:
+def write_array(node: str, value: np.ndarray, tasks: list[Callable[[], None]] | None = None) -> bool:
     """Write ``value`` as the array ``node`` (a path); False when it needs zarr-python (see the module docstring).
     Plain ``os`` paths and the cached metadata keep the Python per array to a few microseconds: a writer
-    process spends most of its ~3 ms per PickCube demo on file creation (about 80 files and folders) and zstd."""
+    process spends most of its ~3 ms per PickCube demo on file creation (about 80 files and folders) and zstd.
+    With ``tasks`` the array's folder and ``zarr.json`` are written here and each chunk's encoding and file are
+    appended to ``tasks`` as a call (the caller runs them, e.g. on threads: zstd and the writes release the GIL)."""
     if value.ndim == 0 or value.size == 0:
         return False
     found = _array_meta(value.dtype.str, value.shape)
@@ -123,15 +125,24 @@ def write_array(node: str, value: np.ndarray) -> bool:
     os.mkdir(node)
     write_file(f"{node}/zarr.json", meta)
     value = np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("<"))
+    run = (lambda f, *a: f(*a)) if tasks is None else (lambda f, *a: tasks.append(functools.partial(f, *a)))
     if chunks == value.shape:  # one chunk (most arrays of a demo)
-        write_file(f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor.encode(value))
+        run(_write_chunk, f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor, value)
         return True
     for index in np.ndindex(*chunk_grid(value.shape, chunks)):
         block = value[tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, chunks))]
-        if block.shape != chunks:  # edge chunk: stored whole, padded with the fill value (0 / false)
-            block = np.pad(block, [(0, c - s) for s, c in zip(block.shape, chunks)])
-        write_file(f"{node}/c.{'.'.join(map(str, index))}", compressor.encode(np.ascontiguousarray(block)))
+        run(_write_chunk, f"{node}/c.{'.'.join(map(str, index))}", compressor, block, chunks)
     return True
+
+
+def _write_chunk(path: str, compressor: Zstd, block: np.ndarray, chunks: tuple[int, ...] | None = None) -> None:
+    """One chunk file; an edge chunk (smaller than ``chunks``) is stored whole, padded with the fill value (0 /
+    false), as zarr stores it."""
+    if chunks is not None and block.shape != chunks:
+        whole = np.zeros(chunks, block.dtype)
+        whole[tuple(slice(0, s) for s in block.shape)] = block
+        block = whole
+    write_file(path, compressor.encode(np.ascontiguousarray(block)))
 
 
 def inodes_of(tree: dict[str, Any]) -> int:

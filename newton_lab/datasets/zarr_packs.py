@@ -122,9 +122,10 @@ def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any
             for a, b in zip(bounds, bounds[1:])]
 
 
-def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None]) -> None:
+def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks: Any = None) -> None:
     """The pack group ``job.node`` with its index and every array of its demos one after another;
-    ``fallback(relpath, value)`` writes an array ``zarr_nodes`` does not. Not durable until the caller syncs."""
+    ``fallback(relpath, value)`` writes an array ``zarr_nodes`` does not. Not durable until the caller syncs. With
+    ``tasks`` (anything with ``append``) each chunk's encoding and file go there as calls (``write_array``)."""
     starts = np.cumsum([0] + [int(a["num_samples"]) for a in job.attrs[:-1]]).tolist()
     demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
     write_group(job.node, {"pack": {"arrays": job.layout, "demos": demos}})
@@ -133,15 +134,16 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None]) -> Non
     for key, rows in job.layout.items():
         parts = [f[key] for f in job.flats]
         value = np.stack(parts) if rows == 0 else np.concatenate(parts)
-        if not write_array(f"{job.node}/{key}", value):
+        if not write_array(f"{job.node}/{key}", value, tasks):
             fallback(key, value)
 
 
 def write_job(job: PackJob | tuple[Path, dict[str, Any], dict[str, Any]],
-              fallback: Callable[[Path, str, np.ndarray], None]) -> None:
-    """Write a pack, or one demo group ``(folder, attrs, tree)``; ``fallback(node, relpath, value)`` as above."""
+              fallback: Callable[[Path, str, np.ndarray], None], tasks: Any = None) -> None:
+    """Write a pack, or one demo group ``(folder, attrs, tree)``; ``fallback(node, relpath, value)`` and a pack's
+    ``tasks`` as above."""
     if isinstance(job, PackJob):
-        write_pack(job, fallback=lambda rel, value: fallback(job.node, rel, value))
+        write_pack(job, fallback=lambda rel, value: fallback(job.node, rel, value), tasks=tasks)
     else:
         node, attrs, tree = job
         write_demo(node, attrs, tree, fallback=lambda rel, value: fallback(node, rel, value))

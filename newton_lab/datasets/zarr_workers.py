@@ -1,5 +1,12 @@
-"""Writer processes of the zarr store: a large batch's demos are encoded and written by ``WRITE_PROCESSES`` child
-processes, so the ~10 ms of Python per PickCube demo no longer shares the GIL with the simulation loop.
+"""Who writes a zarr batch's files: by default this process, a batch's packs on ``PACK_THREADS`` chunk threads
+(``_write_packs``: zstd and the file writes release the GIL; the Python per pack is a few milliseconds) and the demo
+groups of a small batch on ``WRITE_THREADS`` threads; with ``NEWTON_LAB_ZARR_WRITE_PROCESSES`` >= 1, a large
+batch's demos are encoded and written by that many child processes instead, each fed its share through a pipe.
+
+Why threads by default (``tools/collect_writer_cost.py``, docs/benchmarks.md): the processes were there for the
+~10 ms of Python per demo group (~80 files); a pack's Python is per array, not per demo, and what is left, zstd and
+writing, runs without the GIL. The processes cost a pickled copy of every array through a pipe and back out (the
+feed is sequential), and a batch of ~140 demos used only two of them (``zarr_packs.PACK_MIN_PART``).
 
 Hand-written on ``subprocess`` pipes rather than ``multiprocessing``: its spawn and forkserver starts re-import
 the user's ``__main__`` (a script without a main guard would start writers recursively), and a fork would copy
@@ -37,8 +44,8 @@ Leftover = tuple[Path, str, np.ndarray]
 """(demo or pack folder, array path inside it, value): an array ``zarr_nodes`` leaves to zarr-python."""
 
 
-WRITE_PROCESSES = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_PROCESSES", str(min(8, (os.cpu_count() or 2) // 2))))
-"""Writer processes of a large batch (0: the store writes every batch on threads)."""
+WRITE_PROCESSES = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_PROCESSES", "0"))
+"""Writer processes of a large batch (0, the default: the store writes every batch in this process, on threads)."""
 PROCESS_MIN_BATCH = 32
 """Batches of at least this many demos go to the writer processes."""
 _shared: WriterProcesses | None = None
@@ -129,6 +136,37 @@ class WriterProcesses:
 
 WRITE_THREADS = int(os.environ.get("NEWTON_LAB_ZARR_WRITE_THREADS", "4"))
 """Threads writing a small batch's demos (file creation waits on the filesystem, not on the GIL)."""
+PACK_THREADS = int(os.environ.get("NEWTON_LAB_ZARR_PACK_THREADS", str(min(8, os.cpu_count() or 2))))
+"""Threads encoding and writing the chunks of a batch's packs in this process (``_write_packs``)."""
+
+
+class _Submitted(list):
+    """The futures of chunk calls handed to ``pool`` as they come (``append``: a call)."""
+
+    def __init__(self, pool: ThreadPoolExecutor) -> None:
+        super().__init__()
+        self.pool = pool
+
+    def append(self, call) -> None:  # type: ignore[override]
+        super().append(self.pool.submit(call))
+
+
+def _write_packs(path: Path, jobs: list[Job]) -> None:
+    """Packs written in this process: their folders, metadata and arrays (concatenated) on this thread, each
+    chunk's zstd and file on ``PACK_THREADS`` threads as soon as its array is ready; both release the GIL, so
+    nothing is copied to another process (a batch's arrays crossed a pipe twice to reach a writer process)."""
+    leftovers: list[Leftover] = []
+    with ThreadPoolExecutor(max(1, PACK_THREADS), thread_name_prefix="zarr-pack") as pool:
+        futures = _Submitted(pool)
+        try:
+            for job in jobs:
+                write_job(job, fallback=lambda node, rel, value: leftovers.append((node, rel, value)), tasks=futures)
+        finally:
+            wait(futures)  # nothing may still be writing when the caller removes the staging folder
+    for future in futures:
+        future.result()
+    for node, rel, value in leftovers:
+        write_with_zarr(path, node, rel, value)
 
 
 def _write_job(path: Path, job: Job) -> None:
@@ -136,9 +174,10 @@ def _write_job(path: Path, job: Job) -> None:
 
 
 def write_batch(path: Path, jobs: list[Job]) -> None:
-    """Write every job of ``jobs`` into the store ``path``: a large batch on the writer processes, a small one (or
-    any under an injected test fault, which lives in this process) on ``WRITE_THREADS`` threads. Returns when
-    every writer stopped; raises the first error."""
+    """Write every job of ``jobs`` into the store ``path``: a large batch on the writer processes when there are
+    any (``WRITE_PROCESSES``), packs on this process's chunk threads (``_write_packs``), demo groups of a small
+    batch (or of any under an injected test fault, which lives in this process) on ``WRITE_THREADS`` threads.
+    Returns when every writer stopped; raises the first error."""
     demos = sum(len(job.ids) if isinstance(job, PackJob) else 1 for job in jobs)
     if demos >= PROCESS_MIN_BATCH and WRITE_PROCESSES >= 1 and not fault_injected():
         try:
@@ -147,6 +186,8 @@ def write_batch(path: Path, jobs: list[Job]) -> None:
             raise RuntimeError(f"{e} to {path}; none of the batch was committed") from None
         for node, rel, value in leftovers:
             write_with_zarr(path, node, rel, value)
+    elif any(isinstance(job, PackJob) for job in jobs):
+        _write_packs(path, jobs)
     elif len(jobs) < 2 or WRITE_THREADS < 2:
         for job in jobs:
             _write_job(path, job)

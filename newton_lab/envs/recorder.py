@@ -138,9 +138,12 @@ class EpisodeRecorder:
         ``dones`` (T,) zeros (``collect`` sets the last step of a successful episode to 1, as robomimic does),
         ``initial_state`` (1, D) and ``datagen/*`` (with cameras: ``camera_poses/<camera>`` (T, 7) world pose,
         xyz + quaternion xyzw, pinhole frame)."""
-        frames, rewards, nxt, images = self._host.get(row) or (
-            self._frames[row], self._rewards[row], self._next_obs[row],
-            {name: buf[row] for name, buf in self._images.items()})
+        found = self._host.get(row)
+        if found is None:  # not fetched: copies, never views of the live buffers (the row's next episode reuses them)
+            found = (self._frames[row, :length].clone(), self._rewards[row, :length].clone(),
+                     self._next_obs[row, :length].clone(),
+                     {name: buf[row, :length].clone() for name, buf in self._images.items()})
+        frames, rewards, nxt, images = found
         data = frames[:length].cpu().numpy()
         flat = {key: data[:, sl] for key, sl in self._slices.items()}
         states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)

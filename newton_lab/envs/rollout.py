@@ -31,6 +31,13 @@ from .scenario import capture_scenario
 REASON_MAX_STEPS = "max_steps"
 LOG_EVERY_S = 30.0
 """Seconds between the plain progress lines of a rollout whose stderr is not a terminal."""
+WRITE_MIN_BATCH = 256
+"""Episodes the background writer gathers before it writes a batch (or ``WRITE_MAX_WAIT_S`` after the oldest came):
+each batch costs a lock, a ``syncfs`` and a commit, and a zarr batch of 32 demos or more is packed into a few
+files (below that, ~80 files a PickCube demo); a writer faster than the simulation that took whatever was queued
+would write what one step ended, about 4096 / 170 = 24 demos at 4096 rows of ~170-step PickCube episodes."""
+WRITE_MAX_WAIT_S = 1.0
+"""Seconds an ended episode waits at most for its batch to fill (``WRITE_MIN_BATCH``)."""
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
                     "diverged", "subtask_signals", "phases")
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
@@ -51,6 +58,11 @@ class Timers:
     """Wraps ``agent.act``."""
     write: Callable[[Callable], Callable] = _same
     """Wraps the dataset writer's batch write (``EpisodeWriter.append_prepared``, called on the writer's thread)."""
+    hand_over: Callable[[Callable], Callable] = _same
+    """Wraps the loop's hand-over of ended episodes (``EpisodeSaver.fetch``: the device->host copy and the trees;
+    ``EpisodeSaver.submit``: the checks and the queueing, waiting while the writer's queue is full)."""
+    drain: Callable[[Callable], Callable] = _same
+    """Wraps the wait for the writer after the loop (``EpisodeSaver.close``)."""
 
 
 class _Episodes:
@@ -263,7 +275,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     it before returning (also on Ctrl-C or an error, so every finished episode is written). An episode is
     durable once written: a run killed (SIGKILL) keeps every episode written before and loses at most the
     batch being written (all of it or none lands) and those queued behind it (at most ``max_queued``, by default
-    256 or one per env row, whichever is more, and 1 GiB of arrays; the simulation waits while the queue is full).
+    256 or one per env row, whichever is more, and 1 GiB of arrays; the simulation waits while the queue is full;
+    the writer gathers ``WRITE_MIN_BATCH`` episodes, or waits ``WRITE_MAX_WAIT_S``, before it writes a batch).
     A queue that holds one episode per row lets the rows' next episodes run while the writer writes the ones that
     ended together (on a GPU thousands end within a few steps; a queue of 256 held the loop until they were written).
 
@@ -292,15 +305,18 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     store = open_writer(Path(path), task_id=task_id, env_args=args)
     if timers is not None:
         store = WrappedWriter(store, timers.write)
-    writer = BackgroundWriter(store, max_queued=max(256, env.num_envs) if max_queued is None else max_queued)
+    writer = BackgroundWriter(store, max_queued=max(256, env.num_envs) if max_queued is None else max_queued,
+                              min_batch=WRITE_MIN_BATCH, max_wait_s=WRITE_MAX_WAIT_S)
     saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
+    timers = timers or Timers()
+    saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
     try:
         records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
                                     recorder=saver.recorder, saver=saver, until_successes=only_successes,
                                     max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
                                     on_step=on_step, timers=timers)
     finally:
-        saver.close()  # waits for the writer: what finished is written, also on Ctrl-C or an error
+        timers.drain(saver.close)()  # waits for the writer: what finished is written, also on Ctrl-C or an error
     summary = _summary(env, records, steps, wall)
     summary.update(task=task_id, path=str(path), saved_demo_ids=saver.saved_ids(), attempts=len(records),
                    writer_batches=writer.batches)

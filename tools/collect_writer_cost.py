@@ -1,0 +1,124 @@
+"""What the collection writer costs, without physics: real demos of a stored dataset (``--source``, e.g. a CPU
+``bench-collect`` of PickCube) handed to the background writer the way ``collect`` hands them (``put_many`` of
+``--batch`` demos at a time, each written before the next comes, ``EpisodeWriter.prepare`` in the caller's thread), ``--demos`` in all, into a fresh
+zarr dataset under ``--dir``. Each demo is a distinct copy (its floats scaled by 1 + k * 1e-7, so that no two
+compress as one). Prints one JSON line: the writer thread's seconds (``writer_s``, what ``bench-collect`` reports,
+split into ``writer_files_s`` / ``writer_sync_s``), the caller's seconds handing the demos over (``feed_s``) and
+waiting for the writer at the end (``drain_s``), writer demos/s, bytes and files per demo. ``--profile`` also
+prints the 25 costliest calls of one batch written in this thread (cProfile; the writer processes' own work shows
+as the wait on their answers).
+
+    .venv/bin/python tools/collect_writer_cost.py --source src.zarr --dir /tmp/wc [--demos 2048] [--batch 140]
+        [--processes 2] [--profile]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import os
+import pstats
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episodes
+from newton_lab.datasets import zarr_store
+from newton_lab.datasets.background import BackgroundWriter
+
+
+def _scaled(tree: dict, k: int) -> dict:
+    return {key: _scaled(v, k) if isinstance(v, dict)
+            else (v * np.float32(1 + k * 1e-7)).astype(v.dtype) if v.dtype.kind == "f" else v.copy()
+            for key, v in tree.items()}
+
+
+def _footprint(path: Path) -> tuple[int, int]:
+    nodes = list(path.rglob("*"))
+    return sum(p.stat().st_size for p in nodes if p.is_file()), len(nodes)
+
+
+def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> dict:
+    stored = list(read_episodes(source, list_demos(source), attrs=True))
+    info = read_dataset_info(source)
+    task, env_args = info["task_id"], info["env_args"]
+    items = []
+    for k in range(demos):
+        ep = stored[k % len(stored)]
+        items.append((_scaled({key: v for key, v in ep.items() if key != "attrs"}, k // len(stored)), True,
+                      {"seed": 0, "env_index": k % 4096}))
+    raw = sum(v.nbytes for v in _leaves(items[0][0]))
+    shutil.rmtree(root, ignore_errors=True)
+    root.mkdir(parents=True)
+    path = root / "w.zarr"
+    writer_s = [0.0]
+
+    def timed(fn):
+        def wrapper(*a, **kw):
+            t0 = time.perf_counter()
+            try:
+                return fn(*a, **kw)
+            finally:
+                writer_s[0] += time.perf_counter() - t0
+        return wrapper
+
+    store = open_writer(path, task_id=task, env_args=env_args)
+    store.append_episodes(items[:batch])  # first use: writer processes started, caches filled (not counted)
+    before = dict(zarr_store.BATCH_SECONDS)
+    inner = store.append_prepared
+    store.append_prepared = timed(inner)
+    writer = BackgroundWriter(store, max_queued=max(256, 4096))
+    t0, feed = time.perf_counter(), 0.0
+    for a in range(batch, demos, batch):
+        t1 = time.perf_counter()
+        writer.put_many(items[a:a + batch])
+        feed += time.perf_counter() - t1
+        writer.flush()  # one batch of ``batch`` demos at a time, as on a GPU (102-131 batches per 16,384 demos)
+    t1 = time.perf_counter()
+    writer.close()
+    end = time.perf_counter()
+    written = demos - batch
+    size, files = _footprint(path / "data")
+    out = {"demos": written, "batch": batch, "raw_bytes_per_demo": raw, "wall_s": end - t0, "feed_s": feed,
+           "drain_s": end - t1, "writer_s": writer_s[0], "writer_batches": writer.batches,
+           "writer_files_s": zarr_store.BATCH_SECONDS["files"] - before["files"],
+           "writer_sync_s": zarr_store.BATCH_SECONDS["sync"] - before["sync"],
+           "writer_demos_per_s": written / writer_s[0], "bytes_per_demo": size / demos,
+           "files_per_demo": files / demos}
+    if profile:
+        store = open_writer(path, task_id=task, env_args=env_args)
+        prepared = [store.prepare(ep, success=ok, attrs=attrs) for ep, ok, attrs in items[:batch]]
+        prof = cProfile.Profile()
+        prof.runcall(store.append_prepared, prepared)
+        print(json.dumps(out))
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(25)
+    shutil.rmtree(root, ignore_errors=True)
+    return out
+
+
+def _leaves(tree: dict):
+    for v in tree.values():
+        yield from (_leaves(v) if isinstance(v, dict) else [np.asarray(v)])
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--source", required=True)
+    p.add_argument("--dir", required=True, type=Path)
+    p.add_argument("--demos", type=int, default=2048)
+    p.add_argument("--batch", type=int, default=140)
+    p.add_argument("--processes", type=int, default=None, help="writer processes (default: the store's)")
+    p.add_argument("--profile", action="store_true")
+    a = p.parse_args()
+    if a.processes is not None:
+        os.environ["NEWTON_LAB_ZARR_WRITE_PROCESSES"] = str(a.processes)
+        from newton_lab.datasets import zarr_workers
+        zarr_workers.WRITE_PROCESSES = a.processes
+    print(json.dumps(measure(a.source, a.dir, a.demos, a.batch, a.profile)))
+
+
+if __name__ == "__main__":
+    main()
