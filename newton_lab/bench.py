@@ -16,10 +16,10 @@ import warp as wp
 from newton.sensors import SensorCamera
 
 from .envs import make_env
-from .task_api.physics import PhysicsCfg
 from .policies.data import SequenceDataset
 from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
 from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
+from .task_api.physics import PhysicsCfg
 
 
 def _time_graph(launch, steps: int, device) -> float:

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from .. import tasks  # noqa: F401  (registers every task id: the one place the core imports the task packages)
+from ..task_api.physics import PhysicsCfg
 from ..task_api.registry import lookup
 from .env import NewtonEnv
 from .prefetch import prefetch_kernels
@@ -20,6 +22,7 @@ def make_env(
     *,
     capture: bool = True,
     cameras: bool | dict[str, Any] | str | None = None,
+    physics: PhysicsCfg | None = None,
     **options: Any,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
@@ -32,6 +35,8 @@ def make_env(
     ``{"front_head": (96, 72)}`` changes a camera's resolution [px] (or ``{"front_head": {"resolution": (w, h),
     "data": ("rgb", "depth", "segmentation")}}``; a mount of the task's robot that the task lacks is added), or the
     CLI's text for any of these (``"none"``, ``"front_head=96x72:rgb"``).
+    ``physics`` replaces the task's physics settings (``TaskCfg.physics``, ``task_api.physics.PhysicsCfg``), e.g.
+    ``PhysicsCfg()`` for the settings every task ran with before choosing its own (``tools/physics_table.py``).
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
@@ -40,6 +45,8 @@ def make_env(
     if both:
         raise ValueError(f"task option(s) {both} given twice (as keywords and in task_options); give each once")
     cfg = spec.make_cfg({**(task_options or {}), **options})
+    if physics is not None:
+        cfg = dataclasses.replace(cfg, physics=physics)
     prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
     return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture,
                      cameras=cameras)

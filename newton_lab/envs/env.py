@@ -78,18 +78,7 @@ class NewtonEnv:
             self.model = self.layout.model
             self.state = self.model.state()
             self.control = self.model.control()
-            self.solver = newton.solvers.SolverMuJoCo(
-                self.model,
-                use_mujoco_cpu=False,
-                solver="newton",
-                integrator="implicitfast",
-                cone="elliptic",
-                iterations=20,
-                ls_iterations=10,
-                impratio=10,
-                nconmax=cfg.contacts_per_world,
-                njmax=cfg.constraints_per_world,
-            )
+            self.solver = newton.solvers.SolverMuJoCo(self.model, **cfg.physics.solver_options())
             # mujoco_warp prints a line from inside its kernels whenever a world overflows a buffer or the line
             # search hits its cap; the per-world bitmask (solver_overflows) is reported by the loops instead
             self.solver.mjw_model.opt.warn_overflow = 0

@@ -13,6 +13,7 @@ import warp as wp
 from ..robots.binding import JointIndex, RobotBinding
 from ..robots.registry import robot_binding
 from ..task_api.cfg import EntityCfg, TaskCfg
+from ..task_api.physics import ANY_OBJECT, GROUND, ContactFilterCfg
 
 
 CONTACT_GAP = 0.005
@@ -61,6 +62,33 @@ def _add_entity(builder: newton.ModelBuilder, e: EntityCfg) -> int:
     return body
 
 
+def robot_collision_groups(builder: newton.ModelBuilder, robot: RobotBinding, shapes) -> dict[int, str]:
+    """The collision group (``ContactFilterCfg``) of each colliding robot shape among ``shapes``: its body's link
+    group (``RobotBinding.link_group``) without the ``robot/`` prefix."""
+    collide = int(newton.ShapeFlags.COLLIDE_SHAPES)
+    out = {}
+    for s in shapes:
+        if builder.shape_flags[s] & collide:
+            body = builder.body_label[builder.shape_body[s]].rsplit("/", 1)[-1]
+            out[s] = robot.link_group(body).removeprefix("robot/")
+    return out
+
+
+def check_contact_filter(cfg: TaskCfg, robot: RobotBinding, contact_filter: ContactFilterCfg) -> None:
+    """Raise a one-line ``ValueError`` if ``contact_filter`` names a robot group or a scene object that the task's
+    robot or scene lacks."""
+    groups = {g.removeprefix("robot/") for g in robot.link_groups}
+    targets = {e.name for e in cfg.entities} | {ANY_OBJECT, GROUND}
+    for group, allowed in contact_filter.robot.items():
+        if group not in groups:
+            raise ValueError(f"task {cfg.task_id!r} contact filter names robot group {group!r}; groups of "
+                             f"{robot.name}: {sorted(groups)}")
+        unknown = sorted(set(allowed) - targets)
+        if unknown:
+            raise ValueError(f"task {cfg.task_id!r} contact filter lets {group!r} touch {unknown}, which the scene "
+                             f"lacks; targets: {sorted(targets)}")
+
+
 def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | None = None) -> SceneLayout:
     """Build, replicate ``num_envs`` times and finalize the task's scene (its robot and entities) on ``device``;
     ``robot``: the task's robot (``robot_binding(cfg.robot)``) when ``None``."""
@@ -80,9 +108,12 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
         if name not in robot.base_planar_joints:
             world.joint_target_q[joints.coord[name]] = value
 
+    robot_shapes = world.shape_count
     entity_body, entity_coord, entity_dof, static_pose, half = [], [], [], [], []
+    entity_shapes: dict[str, int] = {}
     for e in cfg.entities:
         n_joints = world.joint_count
+        entity_shapes[e.name] = world.shape_count
         b = _add_entity(world, e)
         entity_body.append(b)
         if b >= 0:
@@ -94,11 +125,27 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
         static_pose.append((*e.pos, *e.quat))
         half.append(tuple(0.5 * s for s in e.size))
 
+    contact_filter = cfg.physics.contact_filter
+    groups = {} if contact_filter is None else robot_collision_groups(world, robot, range(robot_shapes))
+    if contact_filter is not None:
+        check_contact_filter(cfg, robot, contact_filter)
+        for shape, group in groups.items():
+            for name, other in entity_shapes.items():
+                if not contact_filter.allows(group, name):
+                    world.add_shape_collision_filter_pair(shape, other)
+
     scene = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
     scene.rigid_gap = CONTACT_GAP
     scene.replicate(world, num_envs)
-    scene.add_ground_plane()
+    ground = scene.add_ground_plane()
+    off_ground = [s for s, g in groups.items() if not contact_filter.allows(g, GROUND)]
+    if off_ground:
+        per_world = world.shape_count  # replicate lays the worlds' shapes out block by block
+        assert scene.shape_world[per_world * (num_envs - 1)] == num_envs - 1
+        for start in range(0, per_world * num_envs, per_world):
+            for shape in off_ground:
+                scene.add_shape_collision_filter_pair(start + shape, ground)
     model = scene.finalize(device=device)
     return SceneLayout(
         model=model,

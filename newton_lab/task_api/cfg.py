@@ -7,6 +7,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from .physics import PhysicsCfg
+
 
 @dataclass(kw_only=True)
 class EntityCfg:
@@ -245,12 +247,9 @@ class TaskCfg:
     """Physics step [s]."""
     decimation: int = 5
     """Physics steps per control step (control at 1 / (sim_dt * decimation) Hz)."""
-    contacts_per_world: int | None = None
-    """MuJoCo contact capacity per world (``nconmax``); ``None`` keeps Newton's default. Size it from
-    measured peak contact counts (the solver's ``mjw_data.nacon`` over expert runs): oversized capacities slow
-    every step."""
-    constraints_per_world: int | None = None
-    """MuJoCo constraint-row capacity per world (``njmax``); ``None`` keeps Newton's default."""
+    physics: PhysicsCfg = field(default_factory=PhysicsCfg)
+    """Solver options, contact / constraint capacities and the robot's contact filter (``task_api.physics``);
+    the default is what every task ran with before tasks chose their own."""
     terminate_on_success: bool = True
     """End the episode when the last phase succeeds (``False``: success is latched, e.g. for an operator who
     ends the episode)."""

@@ -17,6 +17,7 @@ import dataclasses
 from typing import Any
 
 from .cfg import ActionTermCfg, PhaseCfg, TaskCfg, TerminationTermCfg
+from .physics import merged as merged_physics
 from .registry import lookup
 
 
@@ -100,8 +101,7 @@ def coherent_task(
         hold_slots=max(c.hold_slots for c in parts),
         command_dim=max(c.command_dim for c in parts),
         fixed_base=False,
-        contacts_per_world=max((c.contacts_per_world or 0) for c in parts) or None,
-        constraints_per_world=max((c.constraints_per_world or 0) for c in parts) or None,
+        physics=merged_physics([c.physics for c in parts]),
         terminate_on_success=True,
         scenario=None,
         options=options,

@@ -6,6 +6,7 @@ Every term is a generic one (``tasks.common``) with this task's constants.
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.config.g1 import postures
 from newton_lab.tasks.common.events import randomize_position
@@ -41,5 +42,5 @@ def lift_cube_cfg() -> TaskCfg:
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
         root_pos=postures.MANIPULATION_ROOT_POS,
         episode_length_s=20.0,
-        constraints_per_world=128,
+        physics=PhysicsCfg(constraints_per_world=128),
     )

@@ -8,6 +8,7 @@ cube's centre within 8 cm of it in xy. Dense reward (ManiSkill PushCube-v1 style
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.commands import (
@@ -44,5 +45,5 @@ def push_cube_cfg() -> TaskCfg:
         command_dim=POINT_COMMAND_DIM,
         episode_length_s=15.0,
         cameras=cameras.front_head_rgb(),
-        constraints_per_world=128,
+        physics=PhysicsCfg(constraints_per_world=128),
     )

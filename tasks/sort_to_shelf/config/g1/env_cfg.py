@@ -11,6 +11,7 @@ from pathlib import Path
 
 from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
+from newton_lab.task_api.physics import PhysicsCfg, gripper_only
 from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as obs
@@ -31,6 +32,14 @@ def _dropped(obj: SortingObject) -> TerminationTermCfg:
     return TerminationTermCfg(func=dropped, params={"entity": obj.name, "below_z": terminations.DROP_Z})
 
 
+PHYSICS = PhysicsCfg(
+    iterations=8, ls_iterations=5,  # expert runs, every phase: solves converge in <= 6 iterations (3472 samples)
+    contact_filter=gripper_only(),  # expert runs touch the object, table and shelf with the fingers only
+)
+"""The physics of every component and the coherent task (docs/benchmarks.md, "Per-task physics settings"); expert
+peaks: 18 contacts, 61 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
+
+
 def _world(obj: SortingObject, **fields) -> TaskCfg:
     base = dict(
         entities=scene.SCENE.entities,
@@ -43,6 +52,7 @@ def _world(obj: SortingObject, **fields) -> TaskCfg:
         root_pos=scene.ROBOT_ROOT,
         arm_home=postures.CARRY_LEFT_ARM,
         fixed_base=True,
+        physics=PHYSICS,
         cameras=cameras.front_head_rgb_depth_segmentation(),
     )
     base.update(fields)

@@ -1,0 +1,136 @@
+"""Per-task physics settings (``TaskCfg.physics``): the defaults are the solver every task ran with before, a task's
+contact filter reaches MuJoCo-Warp's collision and keeps the contacts its success depends on, and a pair it
+declares non-colliding makes no contact (real Newton on CPU Warp, 1-2 worlds)."""
+
+from __future__ import annotations
+
+import newton
+import numpy as np
+import pytest
+
+from newton_lab.agents import expert_agent
+from newton_lab.envs import make_env
+from newton_lab.envs.scene import check_contact_filter
+from newton_lab.robots.registry import robot_binding
+from newton_lab.task_api.physics import ANY_OBJECT, GROUND, ContactFilterCfg, PhysicsCfg, gripper_only, merged
+from newton_lab.task_api.registry import list_tasks, lookup
+
+PICK = "GalbotG1-PickCube-v0"
+LINK = "left_arm_link3"
+"""A left-arm link (upper arm capsule): PickCube's filter lets only the left gripper touch anything."""
+
+
+def test_default_physics_is_the_solver_every_task_ran_with():
+    options = PhysicsCfg().solver_options()
+    assert options == dict(use_mujoco_cpu=False, solver="newton", integrator="implicitfast", cone="elliptic",
+                           iterations=20, ls_iterations=10, tolerance=None, ls_tolerance=None, impratio=10.0,
+                           nconmax=None, njmax=None)
+    with pytest.raises(ValueError, match="cone"):
+        PhysicsCfg(cone="round")
+
+
+def test_every_task_declares_a_valid_physics():
+    for task_id in list_tasks():
+        cfg = lookup(task_id).make_cfg({})
+        assert isinstance(cfg.physics, PhysicsCfg), task_id
+        if cfg.physics.contact_filter is not None:
+            check_contact_filter(cfg, robot_binding(cfg.robot), cfg.physics.contact_filter)
+    for task_id in ("GalbotG1-PickCube-v0", "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0",
+                    "GalbotG1-SortToShelf-v0", "GalbotG1-PickToShelf-Nav-v0", "GalbotG1-SortToShelf-Place-v0"):
+        assert lookup(task_id).make_cfg({}).physics.contact_filter is not None, task_id
+
+
+def test_a_filter_naming_what_the_scene_lacks_is_refused():
+    cfg = lookup(PICK).make_cfg({})
+    g1 = robot_binding(cfg.robot)
+    with pytest.raises(ValueError, match="robot group 'left_hand'"):
+        check_contact_filter(cfg, g1, ContactFilterCfg(robot={"left_hand": (ANY_OBJECT,)}))
+    with pytest.raises(ValueError, match="shelf"):
+        check_contact_filter(cfg, g1, ContactFilterCfg(robot={"left_gripper": ("cube", "shelf")}))
+
+
+def test_a_coherent_task_runs_what_every_phase_needs():
+    a = PhysicsCfg(iterations=5, ls_iterations=5, constraints_per_world=128,
+                   contact_filter=ContactFilterCfg(robot={"left_gripper": ("cube",)}))
+    b = PhysicsCfg(iterations=8, ls_iterations=4, contact_filter=ContactFilterCfg(robot={"left_gripper": (GROUND,),
+                                                                                         "left_arm": ("table",)}))
+    m = merged([a, b])
+    assert (m.iterations, m.ls_iterations, m.constraints_per_world, m.contacts_per_world) == (8, 5, 128, None)
+    assert m.contact_filter.robot == {"left_gripper": ("cube", GROUND), "left_arm": ("table",)}
+    assert merged([a, PhysicsCfg()]).contact_filter is None  # a phase without a filter: none
+    coherent = lookup("GalbotG1-PickToShelf-v0").make_cfg({}).physics
+    assert coherent == lookup("GalbotG1-PickToShelf-Pick-v0").make_cfg({}).physics
+
+
+def _geom_pairs(env) -> set[tuple[str, str]]:
+    """Label pairs (last path part) of MuJoCo-Warp's broad-phase candidate geom pairs of world 0."""
+    solver, model = env.solver, env.model
+    shape = solver.mjc_geom_to_newton_shape.numpy()[0]
+    label = [model.shape_label[s].rsplit("/", 1)[-1] if s >= 0 else "?" for s in shape]
+    pairs = solver.mjw_model.nxn_geom_pair_filtered.numpy()
+    return {tuple(sorted((label[int(a)], label[int(b)]))) for a, b in (p for p in pairs)}
+
+
+def test_the_filter_reaches_mujoco_warps_broad_phase():
+    before = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
+                      physics=PhysicsCfg(constraints_per_world=128))
+    task = make_env(PICK, num_envs=2, device="cpu", capture=False, cameras=False)
+    assert task.solver.mj_model.opt.iterations == task.cfg.physics.iterations == 5
+    assert before.solver.mj_model.opt.iterations == 20
+    old, new = _geom_pairs(before), _geom_pairs(task)
+    assert len(old) == 75  # 18 robot geoms x (table, cube, block, ground) + the cube's 3
+    gripper = {"left_palm", "left_gripper_l_finger_link_geom_0", "left_gripper_r_finger_link_geom_0"}
+    objects = {"table", "cube", "blue_block"}
+    assert new == {tuple(sorted((g, o))) for g in gripper for o in objects} | {
+        ("cube", "table"), ("blue_block", "cube"), ("cube", "ground_plane")}
+    assert ("cube", LINK + "_geom_0") in old
+
+
+def _contacts_of(env, body_a: int, body_b: int) -> int:
+    """Contacts of world 0 between the bodies ``body_a`` and ``body_b`` after the last physics step."""
+    d, solver, model = env.solver.mjw_data, env.solver, env.model
+    n = int(d.nacon.numpy()[0])
+    geom, world = d.contact.geom.numpy()[:n], d.contact.worldid.numpy()[:n]
+    shape = solver.mjc_geom_to_newton_shape.numpy()
+    shape_body = model.shape_body.numpy()
+    bodies = {(int(shape_body[shape[w, a]]), int(shape_body[shape[w, b]])) for (a, b), w in zip(geom, world) if w == 0}
+    return sum(pair in bodies for pair in ((body_a, body_b), (body_b, body_a)))
+
+
+@pytest.mark.parametrize("physics", ["task", "before"])
+def test_a_declared_non_colliding_pair_makes_no_contact(physics):
+    """The cube placed inside a left-arm link: with PickCube's filter nothing touches it (it falls freely); with the
+    settings before, the link makes contacts and pushes it out."""
+    env = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
+                   physics=None if physics == "task" else PhysicsCfg(constraints_per_world=128))
+    labels = env.model.body_label
+    link = next(i for i, name in enumerate(labels) if name.endswith("/" + LINK))
+    cube = env.entities["cube"]
+    q = env.state.joint_q.numpy()
+    link_pos = env.state.body_q.numpy()[link][:3]
+    q[cube.coord:cube.coord + 7] = [*link_pos, 0.0, 0.0, 0.0, 1.0]
+    env.state.joint_q.assign(q)
+    env.state.joint_qd.zero_()
+    newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
+    env.simulate()  # one control step of physics (5 substeps)
+    moved = env.state.joint_q.numpy()[cube.coord:cube.coord + 3] - link_pos
+    contacts = _contacts_of(env, link, cube.body)
+    if physics == "task":
+        assert contacts == 0
+        assert np.abs(moved[:2]).max() < 1e-4  # no push sideways: it only falls
+        assert -0.02 < moved[2] < 0.0  # 0.05 s of free fall: 1.2 cm
+    else:
+        assert contacts > 0
+        assert np.abs(moved[:2]).max() > 2e-3  # pushed out sideways
+
+
+@pytest.mark.parametrize("task_id", [PICK, "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0",
+                                     "GalbotG1-SortToShelf-v0"])
+def test_the_filter_keeps_the_contacts_grasp_and_place_need(task_id):
+    """The expert grasps and places with the task's filter and iterations on (PickCube: cube released on the
+    block; StackCube: both cubes stacked and released; the shelf tasks: picked, carried to the shelf, placed)."""
+    n = 2 if task_id == PICK else 1
+    env = make_env(task_id, num_envs=n, device="cpu", seed=100, randomize=True, cameras=False)
+    assert env.cfg.physics.contact_filter == gripper_only()
+    summary = env.evaluate(agent=expert_agent(env), episodes=n, max_steps=1500, progress=False)
+    assert summary["success_rate"] == 1.0, summary
