@@ -34,10 +34,10 @@ python3 -c "import torch, torchvision, cv2, ultralytics, numpy; print('torch', t
 if [ "$what" = all ] || [ "$what" = data ]; then
   rm -rf "$W/train" "$W/heldout"
   stage "export: ${TRAIN_N:-2000} training images (seed 0, --randomize; includes Warp's first compile)"
-  $N yolo-export --num-images "${TRAIN_N:-2000}" --num-envs 100 --randomize --seed 0 --split 0.85 0.15 0 \
+  $N yolo-export --num-images "${TRAIN_N:-2000}" --num-envs 64 --randomize --seed 0 --split 0.85 0.15 0 \
     --preview 3 --device "$DEVICE" --output-dir "$W/train" 2>&1 | tail -1 | cut -c1-400
   stage "export: ${HELD_N:-400} held-out images (seed 1000, --randomize)"
-  $N yolo-export --num-images "${HELD_N:-400}" --num-envs 50 --randomize --seed 1000 --split 0 1 0 \
+  $N yolo-export --num-images "${HELD_N:-400}" --num-envs 25 --randomize --seed 1000 --split 0 1 0 \
     --preview 2 --device "$DEVICE" --output-dir "$W/heldout" 2>&1 | tail -1 | cut -c1-400
 fi
 
@@ -48,8 +48,8 @@ if [ "$what" = all ] || [ "$what" = fit ]; then
     --epochs 200 --batch-size 64 --workers 12 --output-dir "$W/run" > "$W/train.log" 2>&1 || { tail -30 "$W/train.log"; exit 1; }
   grep -E "^\s+(all|Class)\s" "$W/train.log" | tail -2 || true
   tail -1 "$W/train.log"
-  stage "predict: 8 fresh renders (seed 5000, --randomize)"
-  $N yolo-predict --weights "$W/run/weights/best.pt" --num-images 8 --num-envs 8 --capture-every 40 --seed 5000 \
+  stage "predict: 8 fresh renders, 2 rows at steps 0 50 100 150 (seed 5000, --randomize)"
+  $N yolo-predict --weights "$W/run/weights/best.pt" --num-images 8 --num-envs 2 --capture-every 50 --seed 5000 \
     --randomize --device "$DEVICE" --output-dir "$W/pred" 2>&1 | tail -1
   cp "$W/run/metrics.json" "$OUT/metrics.json"
   cp "$W/run/run/results.csv" "$OUT/results.csv" 2>/dev/null || true
