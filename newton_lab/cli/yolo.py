@@ -6,12 +6,14 @@ the two commands refuse in one line without it."""
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 import json
 import math
 import os
 import time
 from dataclasses import dataclass
+from importlib import metadata
 from pathlib import Path
 
 from ..commands import EnvArgs
@@ -121,10 +123,10 @@ SEG_MODEL = "yolo11n-seg.yaml"
 
 @dataclass(kw_only=True)
 class YoloTrainArgs:
-    """``newton-lab yolo-train``: train YOLO-seg (Ultralytics) on a ``yolo-export`` folder, score it on a held-out one."""
+    """``newton-lab yolo-train``: YOLO-seg (Ultralytics) on a ``yolo-export`` folder, scored on a held-out one."""
 
     dataset: str
-    """training export (a `newton-lab yolo-export` folder): its train split trains, its val split is checked each epoch"""
+    """training export (a `newton-lab yolo-export` folder): its train split trains, its val split checks each epoch"""
     heldout: str | None = None
     """held-out export (other seed, --randomize) scored at the end, all its images (default: the dataset's val split)"""
     model: str = SEG_MODEL
@@ -238,8 +240,6 @@ def check_predict(args: YoloPredictArgs) -> None:
 
 def _results_csv(trainer) -> dict:
     """``BaseTrainer.read_results_csv`` without polars (Ultralytics copies results.csv into each checkpoint)."""
-    import csv
-
     try:
         with open(trainer.csv, newline="") as f:
             rows = list(csv.DictReader(f))
@@ -260,7 +260,7 @@ def yolo_train(args: YoloTrainArgs) -> int:
     found = check_train(args)
     import yaml  # deferred: only this command's body needs it
 
-    from ..datasets.yolo import default_imgsz, training_specs
+    from ..datasets.yolo import default_imgsz, training_specs  # deferred: contourpy, PIL
 
     out = Path(args.output_dir).expanduser()
     out.mkdir(parents=True, exist_ok=True)
@@ -270,8 +270,8 @@ def yolo_train(args: YoloTrainArgs) -> int:
     imgsz = args.imgsz or default_imgsz(found["dataset"]["size"])
 
     import torch  # deferred: torch and Ultralytics are slow to import
-    from ultralytics import YOLO
-    from ultralytics.engine.trainer import BaseTrainer
+    from ultralytics import YOLO  # deferred: an optional package (it needs torchvision)
+    from ultralytics.engine.trainer import BaseTrainer  # deferred: as above
 
     if importlib.util.find_spec("polars") is None:
         BaseTrainer.read_results_csv = _results_csv
@@ -304,8 +304,6 @@ def yolo_train(args: YoloTrainArgs) -> int:
 
 
 def _version(dist: str) -> str:
-    from importlib import metadata
-
     try:
         return metadata.version(dist)
     except metadata.PackageNotFoundError:
@@ -318,7 +316,7 @@ def yolo_predict(args: YoloPredictArgs) -> int:
     from ultralytics import YOLO  # deferred: torch and Ultralytics are slow to import
 
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
-    from ..datasets.yolo import MIN_AREA_PX, mask_iou, montage, overlay
+    from ..datasets.yolo import MIN_AREA_PX, mask_iou, montage, overlay  # deferred: contourpy, PIL
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..tasks.sort_to_shelf.objects import OBJECTS  # deferred: registering the tasks imports Warp
 

@@ -5,10 +5,12 @@
 # score mask mAP50 / mAP50-95 on the held-out set, predict on fresh renders and copy the results into $OUT.
 #
 #   usage: bash tools/gpu/yolo_run.sh [all|data|fit]     (data: the two exports; fit: train, score, predict)
-#   knobs: TRAIN_N (2000 images), HELD_N (400), TRAIN_S (training budget, 170 s), DEVICE (cuda:0)
+#   knobs: TRAIN_N (2000 images), HELD_N (400), TRAIN_ENVS (64), HELD_ENVS (25), TRAIN_S (training budget,
+#          170 s), DEVICE (cuda:0)
 set -euo pipefail
 root=$PWD
 what=${1:-all}
+case "$what" in all|data|fit) ;; *) echo "usage: bash tools/gpu/yolo_run.sh [all|data|fit]" >&2; exit 2 ;; esac
 T0=$(date +%s)
 stage() { echo "== $(date -u +%T) +$(( $(date +%s) - T0 ))s $*"; }
 OUT=${OUT:-$root/yolo_out}
@@ -19,7 +21,9 @@ mkdir -p "$OUT" "$W"
 stage "python path: this tree's newton_lab, the project's wheels, Ultralytics"
 src=$HOME/.cache/yolo_src
 rm -rf "$src" && mkdir -p "$src" && cp -r newton_lab "$src/newton_lab"
-for d in kernels tasks flows assets; do [ -d "$d" ] && rm -rf "$src/newton_lab/$d" && cp -r "$d" "$src/newton_lab/$d"; done
+for d in kernels tasks flows assets; do
+  if [ -d "$d" ]; then rm -rf "$src/newton_lab/$d" && cp -r "$d" "$src/newton_lab/$d"; fi
+done
 yl=$HOME/.cache/yolo_site
 if [ ! -f "$yl/.unpacked" ]; then
   rm -rf "$yl" && mkdir -p "$yl" && tar -C "$yl" -xJf .gpu_wheels/p5/yolo_site.tar.xz && touch "$yl/.unpacked"
@@ -29,15 +33,19 @@ export YOLO_OFFLINE=1 YOLO_CONFIG_DIR=$HOME/.cache/yolo_config MPLBACKEND=Agg
 mkdir -p "$YOLO_CONFIG_DIR"
 N="python3 -m newton_lab.cli"
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
-python3 -c "import torch, torchvision, cv2, ultralytics, numpy; print('torch', torch.__version__, 'torchvision', torchvision.__version__, 'cv2', cv2.__version__, 'ultralytics', ultralytics.__version__, 'numpy', numpy.__version__)"
+python3 -c "import torch, torchvision, cv2, ultralytics, numpy as np
+print('torch', torch.__version__, 'torchvision', torchvision.__version__, 'cv2', cv2.__version__,
+      'ultralytics', ultralytics.__version__, 'numpy', np.__version__)"
 
 if [ "$what" = all ] || [ "$what" = data ]; then
   rm -rf "$W/train" "$W/heldout"
   stage "export: ${TRAIN_N:-2000} training images (seed 0, --randomize; includes Warp's first compile)"
-  $N yolo-export --num-images "${TRAIN_N:-2000}" --num-envs 64 --randomize --seed 0 --split 0.85 0.15 0 \
+  $N yolo-export --num-images "${TRAIN_N:-2000}" --num-envs "${TRAIN_ENVS:-64}" --randomize --seed 0 \
+    --split 0.85 0.15 0 \
     --preview 3 --device "$DEVICE" --output-dir "$W/train" 2>&1 | tail -1 | cut -c1-400
   stage "export: ${HELD_N:-400} held-out images (seed 1000, --randomize)"
-  $N yolo-export --num-images "${HELD_N:-400}" --num-envs 25 --randomize --seed 1000 --split 0 1 0 \
+  $N yolo-export --num-images "${HELD_N:-400}" --num-envs "${HELD_ENVS:-25}" --randomize --seed 1000 \
+    --split 0 1 0 \
     --preview 2 --device "$DEVICE" --output-dir "$W/heldout" 2>&1 | tail -1 | cut -c1-400
 fi
 
@@ -45,7 +53,8 @@ if [ "$what" = all ] || [ "$what" = fit ]; then
   rm -rf "$W/run" "$W/pred"
   stage "train: yolo11n-seg.yaml from scratch, ${TRAIN_S:-170} s budget"
   $N yolo-train --dataset "$W/train" --heldout "$W/heldout" --device "$DEVICE" --time-budget-s "${TRAIN_S:-170}" \
-    --epochs 200 --batch-size 64 --workers 12 --output-dir "$W/run" > "$W/train.log" 2>&1 || { tail -30 "$W/train.log"; exit 1; }
+    --epochs 200 --batch-size 64 --workers 12 --output-dir "$W/run" > "$W/train.log" 2>&1 \
+    || { tail -30 "$W/train.log"; exit 1; }
   grep -E "^\s+(all|Class)\s" "$W/train.log" | tail -2 || true
   tail -1 "$W/train.log"
   stage "predict: 8 fresh renders, 2 rows at steps 0 50 100 150 (seed 5000, --randomize)"
