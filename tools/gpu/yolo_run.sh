@@ -5,8 +5,8 @@
 # score mask mAP50 / mAP50-95 on the held-out set, predict on fresh renders and copy the results into $OUT.
 #
 #   usage: bash tools/gpu/yolo_run.sh [all|data|fit]     (data: the two exports; fit: train, score, predict)
-#   knobs: TRAIN_N (2000 images), HELD_N (400), TRAIN_ENVS (64), HELD_ENVS (25), TRAIN_S (training budget,
-#          170 s), DEVICE (cuda:0)
+#   knobs: TRAIN_N (2000 images), HELD_N (400), TRAIN_ENVS (64), HELD_ENVS (25), DEVICE (cuda:0), TRAIN_S
+#          (training budget [s]; default: what is left of TOTAL_S = 460 s after the exports, less 90 s, >= 120 s)
 set -euo pipefail
 root=$PWD
 what=${1:-all}
@@ -51,8 +51,11 @@ fi
 
 if [ "$what" = all ] || [ "$what" = fit ]; then
   rm -rf "$W/run" "$W/pred"
-  stage "train: yolo11n-seg.yaml from scratch, ${TRAIN_S:-170} s budget"
-  $N yolo-train --dataset "$W/train" --heldout "$W/heldout" --device "$DEVICE" --time-budget-s "${TRAIN_S:-170}" \
+  # unset TRAIN_S: what is left of TOTAL_S (460 s) after the exports, less 90 s for start-up, scoring and predicting
+  left=$(( ${TOTAL_S:-460} - ($(date +%s) - T0) - 90 ))
+  TRAIN_S=${TRAIN_S:-$(( left > 120 ? left : 120 ))}
+  stage "train: yolo11n-seg.yaml from scratch, ${TRAIN_S} s budget"
+  $N yolo-train --dataset "$W/train" --heldout "$W/heldout" --device "$DEVICE" --time-budget-s "$TRAIN_S" \
     --epochs 200 --batch-size 64 --workers 12 --output-dir "$W/run" > "$W/train.log" 2>&1 \
     || { tail -30 "$W/train.log"; exit 1; }
   grep -E "^\s+(all|Class)\s" "$W/train.log" | tail -2 || true
