@@ -4,7 +4,8 @@
 zarr dataset under ``--dir``. Each demo is a distinct copy (its floats scaled by 1 + k * 1e-7, so that no two
 compress as one). Prints one JSON line: the writer thread's seconds (``writer_s``, what ``bench-collect`` reports,
 split into ``writer_files_s`` / ``writer_sync_s``), the caller's seconds handing the demos over (``feed_s``) and
-waiting for the writer at the end (``drain_s``), writer demos/s, bytes and files per demo. ``--profile`` also
+waiting for the writer at the end (``drain_s``), writer demos/s, CPU milliseconds per demo (this process's threads and
+its writer processes: what a busy host pays), bytes and files per demo. ``--profile`` also
 prints the 25 costliest calls of one batch written in this thread (cProfile; the writer processes' own work shows
 as the wait on their answers).
 
@@ -41,6 +42,18 @@ def _footprint(path: Path) -> tuple[int, int]:
     return sum(p.stat().st_size for p in nodes if p.is_file()), len(nodes)
 
 
+def _cpu_s() -> float:
+    """CPU seconds of this process (every thread) and of its writer processes so far (``/proc``: they live on)."""
+    from newton_lab.datasets import zarr_workers
+
+    total = time.process_time()
+    for pid in zarr_workers._shared.pids if zarr_workers._shared is not None else []:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
+    return total
+
+
 def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> dict:
     stored = list(read_episodes(source, list_demos(source), attrs=True))
     info = read_dataset_info(source)
@@ -71,6 +84,7 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> d
     inner = store.append_prepared
     store.append_prepared = timed(inner)
     writer = BackgroundWriter(store, max_queued=max(256, 4096))
+    cpu0 = _cpu_s()
     t0, feed = time.perf_counter(), 0.0
     for a in range(batch, demos, batch):
         t1 = time.perf_counter()
@@ -80,13 +94,14 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> d
     t1 = time.perf_counter()
     writer.close()
     end = time.perf_counter()
+    cpu = _cpu_s() - cpu0
     written = demos - batch
     size, files = _footprint(path / "data")
     out = {"demos": written, "batch": batch, "raw_bytes_per_demo": raw, "wall_s": end - t0, "feed_s": feed,
            "drain_s": end - t1, "writer_s": writer_s[0], "writer_batches": writer.batches,
            "writer_files_s": zarr_store.BATCH_SECONDS["files"] - before["files"],
            "writer_sync_s": zarr_store.BATCH_SECONDS["sync"] - before["sync"],
-           "writer_demos_per_s": written / writer_s[0], "bytes_per_demo": size / demos,
+           "writer_demos_per_s": written / writer_s[0], "cpu_ms_per_demo": 1e3 * cpu / written, "bytes_per_demo": size / demos,
            "files_per_demo": files / demos}
     if profile:
         store = open_writer(path, task_id=task, env_args=env_args)

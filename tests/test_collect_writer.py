@@ -1,0 +1,105 @@
+"""The collection writer's throughput choices: the background writer gathers ``min_batch`` episodes per batch (or
+writes sooner when waited on), a packed batch is written by chunk threads in this process (strided arrays too) and
+reads back as written, and ``bench-collect``'s summary words the three stages. Fast, no physics."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+import zarr
+
+from newton_lab.datasets import EpisodeWriter, list_demos, read_episodes
+from newton_lab.datasets import zarr_packs, zarr_workers
+from newton_lab.datasets.background import BackgroundWriter
+from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
+
+
+def _writer(path, **kw) -> BackgroundWriter:
+    return BackgroundWriter(EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS, fsync=False), **kw)
+
+
+def test_the_background_writer_gathers_min_batch_episodes(tmp_path):
+    bg = _writer(tmp_path / "g.zarr", max_queued=64, min_batch=5, max_wait_s=60.0)
+    try:
+        futures = [bg.put(make_episode(s, steps=5), success=True) for s in range(4)]
+        time.sleep(0.3)  # time for the writer thread to (wrongly) write
+        assert bg.batches == 0 and not any(f.done() for f in futures)  # 4 < min_batch: still gathering
+        futures += bg.put_many([(make_episode(4, steps=5), True, None)])
+        assert [f.result(timeout=30) for f in futures] == list(range(5)) and bg.batches == 1  # one batch of 5
+        more = bg.put_many([(make_episode(s, steps=5), True, None) for s in (5, 6)])
+        bg.flush()  # a flush does not wait for min_batch
+        assert [f.result() for f in more] == [5, 6] and bg.batches == 2
+    finally:
+        bg.close()
+    lone = _writer(tmp_path / "t.zarr", min_batch=100, max_wait_s=0.05)
+    try:
+        f = lone.put(make_episode(0, steps=5), success=True)
+        assert f.result(timeout=30) == 0 and lone.batches == 1  # the oldest waited max_wait_s: written alone
+    finally:
+        lone.close()
+
+
+def test_a_put_that_waits_for_room_has_the_queue_written_below_min_batch(tmp_path):
+    ep = make_episode(0, steps=5)
+    size = sum(np.asarray(v).nbytes for v in _leaves(ep))
+    bg = _writer(tmp_path / "b.zarr", max_queued=10, min_batch=10, max_wait_s=60.0, max_queued_bytes=2 * size + 1)
+    try:
+        first = bg.put_many([(make_episode(s, steps=5), True, None) for s in range(2)])
+        done: list = []
+        third = threading.Thread(target=lambda: done.append(bg.put(make_episode(2, steps=5), success=True)),
+                                 daemon=True)
+        third.start()  # no room for its bytes: the two queued go now, although fewer than min_batch
+        third.join(30)
+        assert not third.is_alive() and [f.result(timeout=30) for f in first] == [0, 1]
+        bg.flush()
+        assert done[0].result() == 2
+    finally:
+        bg.close()
+    assert list_demos(tmp_path / "b.zarr") == [0, 1, 2]
+
+
+def _leaves(tree: dict):
+    for v in tree.values():
+        yield from (_leaves(v) if isinstance(v, dict) else [v])
+
+
+@pytest.mark.parametrize("threads", [1, 3])
+def test_a_packed_batch_on_chunk_threads_reads_back_as_written(tmp_path, monkeypatch, threads):
+    """Arrays of several ~1 MB chunks and an edge chunk, strided views among them: one pack for the batch, the
+    demos read back as given, and zarr-python reads the pack's rows one demo after another."""
+    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 4)
+    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 0)
+    monkeypatch.setattr(zarr_workers, "PACK_THREADS", threads)
+    rng = np.random.default_rng(0)
+    episodes = []
+    for s in range(6):
+        ep = make_episode(s, steps=30 + s)
+        wide = rng.standard_normal((30 + s, 4096 + 8)).astype(np.float32)
+        ep["obs"]["wide"] = wide[:, 8:]  # a strided view: 16 KB a row, 64 rows a chunk, 195 rows in all
+        episodes.append(ep)
+    path = tmp_path / "p.zarr"
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+        assert w.append_episodes([(ep, True, {"seed": s}) for s, ep in enumerate(episodes)]) == list(range(6))
+    assert sorted(p.name for p in (path / "data").iterdir() if p.is_dir()) == ["pack_0"]
+    for s, got in enumerate(read_episodes(path, range(6))):
+        assert_tree_equal({k: v for k, v in got.items() if k != "attrs"}, episodes[s], f"demo {s}")
+    wide = zarr.open_group(str(path), mode="r")["data/pack_0/obs/wide"]
+    assert wide.shape[0] == 195 and wide.chunks[0] == 64  # four chunks, the last an edge one of 3 rows
+    np.testing.assert_array_equal(wide[...], np.concatenate([ep["obs"]["wide"] for ep in episodes]))
+
+
+def test_the_bench_collect_summary_names_the_stages_and_the_bound():
+    from newton_lab.bench_collect import summary
+
+    out = {"task": "T", "device_name": "NVIDIA H100 80GB HBM3", "num_envs": 4096, "format": ".zarr",
+           "successful_demos": 16384, "wall_s": 10.0, "demos_per_s": 1638.4, "demos_per_hour": 5_898_240.0,
+           "physics_s": 5.0, "agent_s": 2.0, "writer_s": 2.5, "writer_files_s": 1.5, "writer_sync_s": 0.5,
+           "loop_s": 3.0, "hand_over_s": 1.0, "drain_s": 0.2, "vector_steps": 1000, "bytes_per_demo": 118_000.0,
+           "inodes_per_demo": 0.45, "writer_batches": 64, "physics_bound": True}
+    text = summary(out)
+    assert "1638 demos/s = 5.90 M demos per GPU-hour" in text and "physics 5.00 s (5.00 ms/step)" in text
+    assert "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step)" in text
+    assert "largest stage: physics" in text and "hand-over 1.00 s" in text
