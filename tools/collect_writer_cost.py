@@ -10,13 +10,17 @@ prints the 25 costliest calls of one batch written in this thread (cProfile; the
 as the wait on their answers).
 
     .venv/bin/python tools/collect_writer_cost.py --source src.zarr --dir /tmp/wc [--demos 2048] [--batch 140]
-        [--processes 2] [--profile]
+        [--processes 2] [--profile] [--loop PYTHON_MS WAIT_MS PER_STEP]
+
+``--loop`` feeds as a collect loop does instead (the writer gathering as ``collect``'s does) and adds the loop's
+slowdown: its seconds over steps x (PYTHON_MS + WAIT_MS), the GIL the writer takes from the loop.
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
+import inspect
 import json
 import os
 import pstats
@@ -54,7 +58,26 @@ def _cpu_s() -> float:
     return total
 
 
-def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> dict:
+def _python(n: int) -> None:
+    x = 0
+    for i in range(n):
+        x += i
+
+
+def _calibrate(ms: float) -> int:
+    """Iterations of ``_python`` that take ``ms`` alone (best of 5)."""
+    best = min(_timed_python(100_000) for _ in range(5))
+    return int(100_000 * ms / 1e3 / best)
+
+
+def _timed_python(n: int) -> float:
+    t0 = time.perf_counter()
+    _python(n)
+    return time.perf_counter() - t0
+
+
+def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
+            loop: tuple[float, float, int] | None = None) -> dict:
     stored = list(read_episodes(source, list_demos(source), attrs=True))
     info = read_dataset_info(source)
     task, env_args = info["task_id"], info["env_args"]
@@ -83,14 +106,32 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> d
     before = dict(zarr_store.BATCH_SECONDS)
     inner = store.append_prepared
     store.append_prepared = timed(inner)
-    writer = BackgroundWriter(store, max_queued=max(256, 4096))
+    gather = {"min_batch": 256, "max_wait_s": 1.0} if loop and "min_batch" in inspect.signature(
+        BackgroundWriter).parameters else {}  # as collect's writer gathers (where this version has it)
+    writer = BackgroundWriter(store, max_queued=max(256, 4096), **gather)
+    extra: dict = {}
     cpu0 = _cpu_s()
     t0, feed = time.perf_counter(), 0.0
-    for a in range(batch, demos, batch):
-        t1 = time.perf_counter()
-        writer.put_many(items[a:a + batch])
-        feed += time.perf_counter() - t1
-        writer.flush()  # one batch of ``batch`` demos at a time, as on a GPU (102-131 batches per 16,384 demos)
+    if loop:  # simulated steps: Python holding the GIL, a wait releasing it (a GPU sync), the ended demos queued
+        python_ms, wait_ms, per_step = loop
+        work = _calibrate(python_ms)
+        steps = 0
+        for a in range(batch, demos, per_step):
+            _python(work)
+            time.sleep(wait_ms / 1e3)
+            t1 = time.perf_counter()
+            writer.put_many(items[a:a + per_step])
+            feed += time.perf_counter() - t1
+            steps += 1
+        loop_s = time.perf_counter() - t0
+        extra = {"steps": steps, "loop_s": loop_s, "ideal_loop_s": steps * (python_ms + wait_ms) / 1e3,
+                 "loop_slowdown": loop_s / (steps * (python_ms + wait_ms) / 1e3)}
+    else:
+        for a in range(batch, demos, batch):
+            t1 = time.perf_counter()
+            writer.put_many(items[a:a + batch])
+            feed += time.perf_counter() - t1
+            writer.flush()  # one batch of ``batch`` demos at a time, as on a GPU (102-131 batches per 16,384 demos)
     t1 = time.perf_counter()
     writer.close()
     end = time.perf_counter()
@@ -102,7 +143,7 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool) -> d
            "writer_files_s": zarr_store.BATCH_SECONDS["files"] - before["files"],
            "writer_sync_s": zarr_store.BATCH_SECONDS["sync"] - before["sync"],
            "writer_demos_per_s": written / writer_s[0], "cpu_ms_per_demo": 1e3 * cpu / written, "bytes_per_demo": size / demos,
-           "files_per_demo": files / demos}
+           "files_per_demo": files / demos, **extra}
     if profile:
         store = open_writer(path, task_id=task, env_args=env_args)
         prepared = [store.prepare(ep, success=ok, attrs=attrs) for ep, ok, attrs in items[:batch]]
@@ -127,12 +168,16 @@ def main() -> None:
     p.add_argument("--batch", type=int, default=140)
     p.add_argument("--processes", type=int, default=None, help="writer processes (default: the store's)")
     p.add_argument("--profile", action="store_true")
+    p.add_argument("--loop", nargs=3, type=float, metavar=("PYTHON_MS", "WAIT_MS", "PER_STEP"),
+                   help="feed as a collect loop does: each step PYTHON_MS of Python (holding the GIL), WAIT_MS of "
+                        "waiting (releasing it, as a GPU sync), then PER_STEP demos queued; prints the loop's slowdown")
     a = p.parse_args()
     if a.processes is not None:
         os.environ["NEWTON_LAB_ZARR_WRITE_PROCESSES"] = str(a.processes)
         from newton_lab.datasets import zarr_workers
         zarr_workers.WRITE_PROCESSES = a.processes
-    print(json.dumps(measure(a.source, a.dir, a.demos, a.batch, a.profile)))
+    loop = None if a.loop is None else (a.loop[0], a.loop[1], int(a.loop[2]))
+    print(json.dumps(measure(a.source, a.dir, a.demos, a.batch, a.profile, loop)))
 
 
 if __name__ == "__main__":
