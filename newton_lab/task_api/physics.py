@@ -63,7 +63,8 @@ class PhysicsCfg:
     iteration's kernels are launched."""
     ls_iterations: int = 10
     """Maximum line-search iterations per solver iteration (a compile-time constant of MuJoCo-Warp's line
-    search)."""
+    search: another value compiles another solver module). A truncated line search degrades the solve: with 5,
+    SortToShelf's green_cylinder expert fell from 16/16 to 12/16."""
     tolerance: float | None = None
     """Relative cost improvement below which a world's solve stops; ``None``: MuJoCo's default (1e-8)."""
     ls_tolerance: float | None = None

@@ -25,7 +25,7 @@ ON_BLOCK = dict(entity="cube", target="blue_block", height=0.035, xy_tol=0.08, z
 height 0.01 + cube half size 0.025) [m]."""
 
 PHYSICS = PhysicsCfg(
-    iterations=5, ls_iterations=5,  # expert runs: solves converge in <= 4 iterations (1388 samples)
+    iterations=5,  # expert runs: solves converge in <= 4 iterations (1388 samples)
     constraints_per_world=128,  # policy rollouts pressing the cube into the table exceeded the default 64 rows
     contact_filter=gripper_only(),  # expert runs touch the cube, table and block with the fingers only
 )

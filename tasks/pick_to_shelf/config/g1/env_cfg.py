@@ -62,7 +62,7 @@ goal_reached = nav.goal_reached(goal_xy=NAV_GOAL_XY, radius=NAV_SUCCESS_RADIUS)
 
 
 PHYSICS = PhysicsCfg(
-    iterations=5, ls_iterations=5,  # expert runs, every phase: solves converge in <= 3 iterations (3748 samples)
+    iterations=5,  # expert runs, every phase: solves converge in <= 3 iterations (3748 samples)
     contact_filter=gripper_only(),  # expert runs touch the object, table and shelf with the fingers only
 )
 """The physics of every component and the coherent task (docs/benchmarks.md, "Per-task physics settings"); expert

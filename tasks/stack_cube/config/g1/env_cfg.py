@@ -12,7 +12,7 @@ from newton_lab.tasks.stack_cube.mdp.terminations import cube_dropping, grasped_
 from newton_lab.tasks.stack_cube.scene import CUBES, SCENE
 
 PHYSICS = PhysicsCfg(
-    iterations=8, ls_iterations=5,  # expert runs: solves converge in <= 6 iterations (3724 samples)
+    iterations=8,  # expert runs: solves converge in <= 6 iterations (3724 samples)
     constraints_per_world=128,  # measured peaks (expert, randomised): 22 contacts and 67 constraint rows per world
     contact_filter=gripper_only(),  # expert runs touch the cubes and the table with the fingers only
 )
