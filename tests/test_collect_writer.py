@@ -103,3 +103,44 @@ def test_the_bench_collect_summary_names_the_stages_and_the_bound():
     assert "1638 demos/s = 5.90 M demos per GPU-hour" in text and "physics 5.00 s (5.00 ms/step)" in text
     assert "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step)" in text
     assert "largest stage: physics" in text and "hand-over 1.00 s" in text
+
+
+def _with_repeats(seed: int, steps: int) -> dict:
+    """An episode whose ``next_obs`` is its ``obs`` one step on and whose ``datagen/pose`` repeats ``obs/pose``."""
+    rng = np.random.default_rng(seed)
+    obs = {"pose": rng.standard_normal((steps + 1, 7)).astype(np.float32),
+           "q": rng.standard_normal((steps + 1, 5)).astype(np.float32)}
+    return {"actions": rng.standard_normal((steps, 3)).astype(np.float32),
+            "obs": {k: v[:-1].copy() for k, v in obs.items()}, "next_obs": {k: v[1:].copy() for k, v in obs.items()},
+            "datagen": {"pose": obs["pose"][:-1].copy(), "zero": np.zeros((steps, 2), np.float32)},
+            "other": np.zeros((steps, 2), np.float32)}
+
+
+def test_arrays_that_repeat_others_are_stored_once_and_read_back_byte_identical(tmp_path, monkeypatch):
+    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 4)
+    episodes = [_with_repeats(s, 10 + s) for s in range(5)]
+    episodes[3]["datagen"]["zero"][2, 1] = -0.0  # equal to 0.0 as a value, not as bytes: stored apart
+    episodes[4]["next_obs"]["q"][3, 0] += 1  # one interior row off: next_obs/q stored in full
+    path = tmp_path / "d.zarr"
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+        w.append_episodes([(ep, True, None) for ep in episodes])
+    arrays = zarr_packs.read_index(path / "data" / "pack_0")["arrays"]
+    assert {k: v for k, v in arrays.items() if isinstance(v, str)} == {
+        "datagen/pose": "same:obs/pose", "next_obs/pose": "next:obs/pose"}
+    for s, got in enumerate(read_episodes(path, range(5))):
+        _assert_bytes_equal(got, episodes[s], f"demo {s}")
+    picked = next(read_episodes(path, [2], keys=["next_obs/pose", "datagen/pose"]))  # without their source asked
+    np.testing.assert_array_equal(picked["next_obs"]["pose"], episodes[2]["next_obs"]["pose"])
+    np.testing.assert_array_equal(picked["datagen"]["pose"], episodes[2]["datagen"]["pose"])
+    assert not (path / "data" / "pack_0" / "datagen" / "pose").exists()  # stored once
+    assert zarr.open_group(str(path), mode="r")["data/pack_0/next_obs/pose"].shape == (5, 7)  # last rows only
+
+
+def _assert_bytes_equal(actual: dict, expected: dict, where: str) -> None:
+    assert sorted(k for k in actual if k != "attrs") == sorted(expected), where
+    for key, exp in expected.items():
+        if isinstance(exp, dict):
+            _assert_bytes_equal(actual[key], exp, f"{where}/{key}")
+        else:
+            got = actual[key]
+            assert got.dtype == exp.dtype and got.shape == exp.shape and got.tobytes() == exp.tobytes(), where + key

@@ -4,14 +4,18 @@ demos one after another along time, instead of one ``data/demo_<i>`` group (~80 
 Why: on one ext4 disk the per-demo layout made file creation, not physics, bound collection (two GPUs writing
 330 k files per 4096 demos each thrashed the volume), and a filesystem's inodes ran out long before its bytes. A
 pack of 512 PickCube demos is ~150 files. The logical layout is unchanged: readers (``zarr_store.read_many``) map a
-demo id to its pack and rows and return the same tree a ``demo_<i>`` group gives.
+demo id to its pack and rows and return the same tree a ``demo_<i>`` group gives. A per-step array whose bytes repeat
+another of the pack (``next_obs/<term>``: ``obs/<term>`` one step on) is stored once, as a reference in the index
+(``zarr_derived``), and rebuilt when read.
 
 A pack group's attrs hold its index, ``{"pack": {"arrays": {path: rows}, "demos": {id: [k, start, attrs]}}}``:
 ``rows`` is ``null`` for arrays with one row per step (demo ``k`` holds rows ``start .. start + num_samples``),
 ``c >= 1`` for arrays of ``c`` rows per demo (rows ``k*c .. (k+1)*c``, e.g. ``initial_state``), ``0`` for one scalar
-per demo (row ``k``). The ids of a pack are ``first .. first + n - 1`` when written; a delete drops ids from the
-index (the rows stay until the pack is empty, then the pack goes). Arrays are stored as ``zarr_nodes`` stores a
-demo's (same codecs, ~1 MB time chunks, one image frame per chunk), so zarr-python reads them as well.
+per demo (row ``k``), or a reference ``"same:<array>"`` / ``"next:<array>"`` (``zarr_derived``). The ids of a pack
+are ``first .. first + n - 1`` when written; a delete drops ids from the index (the rows stay until the pack is
+empty, then the pack goes). Arrays are stored as ``zarr_nodes`` stores a demo's (same codecs, ~1 MB time chunks,
+one image frame per chunk), so zarr-python reads them as well (a referenced array: its source, and for ``next``
+each demo's last row under its own name).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ._common import StoredDemo, demo_name, fsync_path, nest
+from .zarr_derived import derive, rebuild, rebuild_needs_last, source_of, stored_value
 from .zarr_nodes import (DECODER, chunk_grid, chunk_shape, node_meta, plain_dtype, write_array, write_demo, write_file,
                          write_group)
 
@@ -126,15 +131,18 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks:
     """The pack group ``job.node`` with its index and every array of its demos one after another;
     ``fallback(relpath, value)`` writes an array ``zarr_nodes`` does not. Not durable until the caller syncs. With
     ``tasks`` (anything with ``append``) each chunk's encoding and file go there as calls (``write_array``)."""
-    starts = np.cumsum([0] + [int(a["num_samples"]) for a in job.attrs[:-1]]).tolist()
+    counts = [int(a["num_samples"]) for a in job.attrs]
+    starts = np.cumsum([0] + counts[:-1]).tolist()
     demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
-    write_group(job.node, {"pack": {"arrays": job.layout, "demos": demos}})
+    values = {key: np.stack([f[key] for f in job.flats]) if rows == 0 else np.concatenate([f[key] for f in job.flats])
+              for key, rows in job.layout.items()}
+    arrays = derive(values, job.layout, counts)  # arrays that repeat another: a reference (``zarr_derived``)
+    write_group(job.node, {"pack": {"arrays": arrays, "demos": demos}})
     for group in _groups(job.layout):
         write_group(f"{job.node}/{group}", {})
-    for key, rows in job.layout.items():
-        parts = [f[key] for f in job.flats]
-        value = np.stack(parts) if rows == 0 else np.concatenate(parts)
-        if not write_array(f"{job.node}/{key}", value, tasks):
+    for key, entry in arrays.items():
+        value = stored_value(entry, values.pop(key), counts)
+        if value is not None and not write_array(f"{job.node}/{key}", value, tasks):
             fallback(key, value)
 
 
@@ -226,12 +234,20 @@ class PackReader:
         name, k, start, attrs, arrays = found
         flat = {}
         for key in sorted(arrays if keys is None else [key for key in keys if key in arrays]):
-            rows = arrays[key]
-            a, b = ((start, start + int(attrs["num_samples"])) if rows is None
-                    else (k, k + 1) if rows == 0 else (k * rows, (k + 1) * rows))
-            value = self._rows(f"{name}/{key}", a, b)
-            flat[key] = value.reshape(value.shape[1:]) if rows == 0 else value
+            rows, source = arrays[key], source_of(arrays[key])
+            if source is not None:  # stored once, under ``source`` (``zarr_derived``)
+                last = self._rows(f"{name}/{key}", k, k + 1) if rebuild_needs_last(rows) else None
+                flat[key] = rebuild(rows, self._array(name, source, arrays[source], k, start, attrs), last)
+                continue
+            flat[key] = self._array(name, key, rows, k, start, attrs)
         return nest(flat)
+
+    def _array(self, name: str, key: str, rows: int | None, k: int, start: int, attrs: dict[str, Any]) -> np.ndarray:
+        """Demo ``k``'s rows of the stored array ``key`` (``rows`` from the index)."""
+        a, b = ((start, start + int(attrs["num_samples"])) if rows is None
+                else (k, k + 1) if rows == 0 else (k * rows, (k + 1) * rows))
+        value = self._rows(f"{name}/{key}", a, b)
+        return value.reshape(value.shape[1:]) if rows == 0 else value
 
     def _rows(self, rel: str, a: int, b: int) -> np.ndarray:
         node = os.fspath(self._dir / rel)
