@@ -91,6 +91,22 @@ def _expert(spec) -> str:
     return f"`{type(spec.make_expert({})).__name__}`"
 
 
+def _physics(cfg) -> str:
+    """The task's ``TaskCfg.physics`` in words (solver, capacities, contact filter)."""
+    p = cfg.physics
+    text = f"{p.iterations} solver / {p.ls_iterations} line-search iterations, {p.cone} cone"
+    if p.tolerance is not None:
+        text += f", tolerance {p.tolerance:g}"
+    caps = [f"{v} {what} per world" for v, what in ((p.contacts_per_world, "contacts"),
+                                                    (p.constraints_per_world, "constraint rows")) if v]
+    text += "; " + (", ".join(caps) if caps else "Newton's default capacities")
+    if p.contact_filter is None:
+        return text + "; every robot collision geom touches every object and the ground"
+    touches = "; ".join(f"`{g}` touches {', '.join('every object' if t == '*' else f'`{t}`' for t in targets)}"
+                        for g, targets in p.contact_filter.robot.items())
+    return f"{text}; contacts: {touches}; other robot links touch nothing"
+
+
 def _task_section(spec, cfg) -> str:
     rows = [
         ["description", spec.description],
@@ -104,6 +120,7 @@ def _task_section(spec, cfg) -> str:
         ["reward terms", _code(cfg.rewards)],
         ["episode length", f"{cfg.episode_length_s:g} s ({round(cfg.episode_length_s / (cfg.sim_dt * cfg.decimation))}"
                            f" control steps of {cfg.sim_dt * cfg.decimation:g} s)"],
+        ["physics", _physics(cfg)],
         ["expert", _expert(spec)],
         ["options", _options(spec) + "; every task also takes `obs_mode` (`state` or `sensors`)"],
         ["teleop contract", f"`{spec.teleop}`" if spec.teleop else "–"],
