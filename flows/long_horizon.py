@@ -20,7 +20,7 @@ from ..datasets.outputs import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .stage_runs import INPUT_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
-from .settings import LONG_HORIZON_CAMERAS, LONG_HORIZON_OPTIONS
+from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
 
 split_task = stage_task(stages.split_stage, "split")
 
@@ -48,7 +48,7 @@ def has_phases(task_id: str) -> bool:
 @flow(name="long-horizon pipeline")
 def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], eval_episodes: int, num_envs: int,
                           device: str | None, out: str, seed: int = 0, workers: int = 1, eval_max_steps: int = 3000,
-                          cameras: str = LONG_HORIZON_CAMERAS, task_options: dict[str, Any] | None = None,
+                          cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"], task_options: dict[str, Any] | None = None,
                           gpus: int = 1) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included) and a markdown summary.

@@ -35,18 +35,21 @@ DEMO_RECIPES: dict[str, dict[str, Any]] = {
 """Counts and training config of ``newton-lab pipeline`` / ``make demo`` for every flag left unset."""
 LONG_HORIZON_RECIPES: dict[str, dict[str, Any]] = {
     # The smallest end-to-end run on 2 CPU cores: a few coherent demos, short trainings of the quarter-width
-    # visuomotor policy, a few evaluation episodes (it shows the flow works; no success is expected at this size).
-    "cpu": {"demos": 4, "eval_episodes": 4, "num_envs": 2, "eval_max_steps": 3000,
+    # visuomotor policy on the front camera, a few evaluation episodes (it shows the flow works; no success is
+    # expected at this size).
+    "cpu": {"demos": 4, "eval_episodes": 4, "num_envs": 2, "eval_max_steps": 3000, "cameras": "front_head=96x72:rgb",
             "train": {"preset": "vision_cpu", "max_steps": 1000}},
-    # Full size on a GPU: the visuomotor preset under bf16, one 7-minute training per learned phase.
+    # Full size on a GPU: the visuomotor preset under bf16 with the front head and the left wrist camera (at 96x72
+    # the bar is a few pixels wide in the head view; the wrist view holds it large through the grasp and the
+    # place), one 7-minute training per learned phase.
     "gpu": {"demos": 1200, "eval_episodes": 100, "num_envs": 300, "eval_max_steps": 3000,
-            "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 420}},
+            "cameras": "front_head=96x72:rgb,left_wrist=96x72:rgb",
+            "train": {"preset": "vision", "image_keys": ("front_head_rgb", "left_wrist_rgb"), "bf16": True,
+                      "lr": 3e-4, "time_budget_s": 420}},
 }
-"""Counts and training of ``newton-lab pipeline`` on a coherent task (``newton_lab.flows.long_horizon``): every
-policy input is what the robot measures: the front head camera at 96x72 RGB and proprioception
-(``obs_mode="sensors"``: no object or target pose)."""
-LONG_HORIZON_CAMERAS = "front_head=96x72:rgb"
-"""``--cameras`` of the long-horizon pipeline's collection and evaluation (the visuomotor policies' view)."""
+"""Counts, cameras and training of ``newton-lab pipeline`` on a coherent task (``newton_lab.flows.long_horizon``):
+every policy input is what the robot measures: its cameras (``cameras``: the ``--cameras`` of collection and
+evaluation) and proprioception (``obs_mode="sensors"``: no object or target pose)."""
 LONG_HORIZON_OPTIONS = {"obs_mode": "sensors"}
 """Task options the long-horizon pipeline always sets (policies see no privileged state)."""
 

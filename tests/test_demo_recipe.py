@@ -74,3 +74,25 @@ def test_summary_names_every_figure_and_where_to_look(tmp_path, monkeypatch):
     del summary["evaluation"]["recording"]
     text = "\n".join(summary_lines(summary, tmp_path))
     assert "http://prefect.lab:4200 (your server)" in text and ".rrd" not in text
+
+
+@pytest.mark.parametrize("name", ["cpu", "gpu"])
+def test_long_horizon_recipe_records_every_camera_its_policies_see(name):
+    from newton_lab.task_api.cfg import parse_cameras
+
+    recipe = demo_recipe(name, "cpu" if name == "cpu" else "cuda:0", long_horizon=True)
+    args = PipelineArgs(task="GalbotG1-PickToShelf-v0", recipe=name)
+    kwargs = args.pipeline_kwargs(recipe)
+    cfg = DiffusionPolicyConfig.from_dict(kwargs["train_cfg"])
+    recorded = {f"{cam}_{data}" for cam, spec in parse_cameras(kwargs["cameras"]).items() for data in spec["data"]}
+    assert cfg.image_keys and set(cfg.image_keys) <= recorded, (cfg.image_keys, kwargs["cameras"])
+    assert "object_pose" not in (cfg.obs_keys or ()) and kwargs["task_options"] == {}
+
+
+def test_train_image_keys_flag_overrides_the_preset():
+    from newton_lab.commands.workflow import TrainArgs
+    from newton_lab.policies.config import PRESETS
+
+    args = TrainArgs(dataset_path=["d.hdf5"], preset="vision", image_keys="front_head_rgb, left_wrist_rgb")
+    assert args.train_cfg(PRESETS)["image_keys"] == ("front_head_rgb", "left_wrist_rgb")
+    assert "image_keys" not in TrainArgs(dataset_path=["d.hdf5"], preset="default").train_cfg(PRESETS)

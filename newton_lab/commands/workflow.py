@@ -108,6 +108,8 @@ class TrainArgs:
     """DataLoader worker processes (default 0: the data is in memory)."""
     obs_keys: str | None = None
     """comma-separated obs terms to condition on (default: every low-dim term but actions)"""
+    image_keys: str | None = None
+    """comma-separated camera terms the policy sees (e.g. front_head_rgb,left_wrist_rgb; default: the preset's)"""
     prediction_type: Literal["epsilon", "sample"] | None = None
     """what the U-Net predicts: epsilon (the noise; presets' default) or sample (the clean actions; learns
     PickCube in fewer steps, the demo's choice)"""
@@ -144,8 +146,9 @@ class TrainArgs:
         cfg = dict(presets[self.preset], device=self.device, seed=self.seed, output_dir=self.output_dir)
         given = (*TRAIN_OVERRIDES, "checkpoint_every_steps", "checkpoint_every_s")
         cfg.update({k: getattr(self, k) for k in given if getattr(self, k) is not None})
-        if self.obs_keys:
-            cfg["obs_keys"] = tuple(k.strip() for k in self.obs_keys.split(",") if k.strip())
+        for key in ("obs_keys", "image_keys"):
+            if getattr(self, key):
+                cfg[key] = tuple(k.strip() for k in getattr(self, key).split(",") if k.strip())
         return cfg
 
 
@@ -246,7 +249,8 @@ class PipelineArgs:
                              "drop --mimic-episodes")
         fields = [k for k in RECIPE_FIELDS if k in recipe]
         counts = {k: recipe[k] if getattr(self, k) is None else getattr(self, k) for k in fields}
-        extra = ({"eval_max_steps": recipe["eval_max_steps"], "task_options": dict(self.task_options)}
+        extra = ({"eval_max_steps": recipe["eval_max_steps"], "task_options": dict(self.task_options),
+                  "cameras": recipe["cameras"]}
                  if recipe.get("long_horizon") else {})
         return {"runner": self.runner, "workers": self.workers, "address": self.address, "retries": self.retries,
                 "task_id": self.task, "train_cfg": self.train_cfg(recipe), "device": recipe["device"],

@@ -31,6 +31,7 @@ fi
 export PYTHONPATH=$src:$HOME/.cache/gpu_site:$yl
 export YOLO_OFFLINE=1 YOLO_CONFIG_DIR=$HOME/.cache/yolo_config MPLBACKEND=Agg
 mkdir -p "$YOLO_CONFIG_DIR"
+cd "$W"  # python -m from the repository root would import its unpackaged newton_lab/ (no kernels/, tasks/)
 N="python3 -m newton_lab.cli"
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
 python3 -c "import torch, torchvision, cv2, ultralytics, numpy as np
