@@ -35,7 +35,10 @@ WRITE_MIN_BATCH = 256
 """Episodes the background writer gathers before it writes a batch (or ``WRITE_MAX_WAIT_S`` after the oldest came):
 each batch costs a lock, a ``syncfs`` and a commit, and a zarr batch of 32 demos or more is packed into a few
 files (below that, ~80 files a PickCube demo); a writer faster than the simulation that took whatever was queued
-would write what one step ended, about 4096 / 170 = 24 demos at 4096 rows of ~170-step PickCube episodes."""
+would write what one step ended, about 4096 / 170 = 24 demos at 4096 rows of ~170-step PickCube episodes. Only
+with at least this many rows: fewer (a CPU run) end too few episodes a second to fill a pack, and gathering them
+only made the writer's bursts (and the wait for the last batch) longer (bench-collect, 4 rows on the 2-core CPU:
+4.7-5.1 demos/s gathering against 5.3-5.9 writing each as it ends)."""
 WRITE_MAX_WAIT_S = 1.0
 """Seconds an ended episode waits at most for its batch to fill (``WRITE_MIN_BATCH``)."""
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
@@ -276,7 +279,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     durable once written: a run killed (SIGKILL) keeps every episode written before and loses at most the
     batch being written (all of it or none lands) and those queued behind it (at most ``max_queued``, by default
     256 or one per env row, whichever is more, and 1 GiB of arrays; the simulation waits while the queue is full;
-    the writer gathers ``WRITE_MIN_BATCH`` episodes, or waits ``WRITE_MAX_WAIT_S``, before it writes a batch).
+    with ``WRITE_MIN_BATCH`` rows or more the writer gathers that many episodes, or waits ``WRITE_MAX_WAIT_S``,
+    before it writes a batch).
     A queue that holds one episode per row lets the rows' next episodes run while the writer writes the ones that
     ended together (on a GPU thousands end within a few steps; a queue of 256 held the loop until they were written).
 
@@ -306,7 +310,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     if timers is not None:
         store = WrappedWriter(store, timers.write)
     writer = BackgroundWriter(store, max_queued=max(256, env.num_envs) if max_queued is None else max_queued,
-                              min_batch=WRITE_MIN_BATCH, max_wait_s=WRITE_MAX_WAIT_S)
+                              min_batch=WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1,
+                              max_wait_s=WRITE_MAX_WAIT_S)
     saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
     timers = timers or Timers()
     saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
