@@ -248,6 +248,12 @@ def test_coherent_records_phase_and_splits(shelf_env, tmp_path):
     assert list_demos(parts["place"].path) == []
     with pytest.raises(FileExistsError):
         split_by_phase(ref.path, tmp_path / "split")
+    only = split_by_phase(ref.path, tmp_path / "only", phases=["nav"], workers=1)  # in this process
+    assert list(only) == ["nav"] and sorted(p.name for p in (tmp_path / "only").iterdir()) == ["nav.hdf5"]
+    np.testing.assert_array_equal(read_episode(only["nav"].path, 0)["actions"], nav["actions"])
+    with pytest.raises(ValueError, match="has no phase 'grab'; its phases: pick, nav, place"):
+        split_by_phase(ref.path, tmp_path / "none", phases=["grab"])
+    assert not (tmp_path / "none").exists()
 
 
 # ---------------------------------------------------------------- scenarios

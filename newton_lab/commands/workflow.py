@@ -160,6 +160,8 @@ class SplitArgs:
     """Dataset to split (by phase: a coherent task's, its episodes record datagen/phase)."""
     out: str | None = None
     """split by phase into this folder (<phase>.hdf5 / .zarr, must not exist); default: write filter keys"""
+    phases: str | None = None
+    """with --out: comma-separated phases to write (default: every phase)"""
     val_ratio: float = 0.1
     """Fraction of the demos put in mask/valid (robomimic's --ratio)."""
     filter_key: str | None = None

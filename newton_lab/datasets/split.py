@@ -9,8 +9,12 @@ moved on to the next phase (the last phase: when the episode succeeded).
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -28,9 +32,51 @@ def _slice(node: Any, sel: np.ndarray, steps: int) -> Any:
     return arr[sel] if arr.ndim and arr.shape[0] == steps else arr
 
 
-def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRef]:
-    """Write one dataset per phase of the coherent task that recorded ``path``; returns them by phase name.
-    Existing output files are never replaced."""
+@dataclass(frozen=True)
+class _PhaseJob:
+    """What one phase's writer needs (plain values: it is sent to a worker process)."""
+
+    source: Path
+    out: Path
+    name: str
+    index: int
+    last: bool
+    task_id: str
+    cols: list[int]
+    env_args: dict[str, Any]
+
+
+def _write_phase(job: _PhaseJob) -> list[int]:
+    """Write ``job``'s phase dataset: every episode's steps of that phase; returns the saved demo ids."""
+    info = read_dataset_info(job.source)
+    saved = []
+    with open_writer(job.out, task_id=job.task_id, env_args=job.env_args) as writer:
+        for demo, ep in zip(info["demo_ids"], read_episodes(job.source, info["demo_ids"], attrs=True)):
+            attrs = ep.pop("attrs")
+            phase = np.asarray(ep["datagen"]["phase"]).reshape(-1)
+            sel = np.nonzero(phase == job.index)[0]
+            if sel.size == 0:
+                continue
+            steps = phase.shape[0]
+            seg = _slice({k: v for k, v in ep.items() if k != "initial_state"}, sel, steps)
+            seg["actions"] = np.asarray(seg["actions"])[:, job.cols]
+            if "states" in ep:  # (1, ...) like a collected episode's initial_state
+                seg["initial_state"] = _slice(ep["states"], sel[:1], steps)
+            success = bool(attrs.get("success", False)) if job.last else bool((phase > job.index).any())
+            if "dones" in seg:  # robomimic: 1 on the last step of a successful segment
+                seg["dones"] = np.zeros_like(seg["dones"])
+                seg["dones"][-1:] = int(success)
+            saved.append(writer.append_episode(seg, success=success,
+                                               attrs={"source": f"{job.source.name}:{demo}", "phase": job.name}))
+    return saved
+
+
+def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[str] | None = None,
+                   workers: int | None = None) -> dict[str, DatasetRef]:
+    """Write one dataset per phase of the coherent task that recorded ``path`` (only ``phases``, by name, when
+    given); returns them by phase name. Each phase is written by its own process (at most ``workers``, default
+    one per phase up to the CPU count): a phase's writer spends its time compressing frames, and the phases are
+    independent. Existing output files are never replaced."""
     path, out_dir = Path(path), Path(out_dir)
     info = read_dataset_info(path)
     task_id = info["task_id"]
@@ -41,42 +87,36 @@ def split_by_phase(path: str | Path, out_dir: str | Path) -> dict[str, DatasetRe
     cfg = lookup(task_id).make_cfg(options)
     if not cfg.phases:
         raise ValueError(f"{path} was recorded on {task_id}, which has no phases; nothing to split")
+    names = [p.name for p in cfg.phases]
+    unknown = [p for p in (phases or ()) if p not in names]
+    if unknown:
+        raise ValueError(f"{task_id} has no phase {unknown[0]!r}; its phases: {', '.join(names)}")
     columns = env_args["newton_lab"]["action_joint_names"]
-    outs = {p.name: out_dir / f"{p.name}{path.suffix}" for p in cfg.phases}
+    chosen = [(i, ph) for i, ph in enumerate(cfg.phases) if phases is None or ph.name in phases]
+    outs = {ph.name: out_dir / f"{ph.name}{path.suffix}" for _, ph in chosen}
     taken = [str(o) for o in outs.values() if o.exists()]
     if taken:
         raise FileExistsError(f"{taken} already exist; split into a new folder")
-    refs: dict[str, DatasetRef] = {}
-    last = len(cfg.phases) - 1
-    for p, ph in enumerate(cfg.phases):
+    jobs = []
+    for p, ph in chosen:
         comp = lookup(ph.task_id)
         comp = comp.cfg(**comp.accepted(options))
         groups = robot_binding(comp.robot).joint_groups
-        names = [j for t in comp.actions for j in groups[t.group]]
-        cols = [columns.index(j) for j in names]
+        joints = [j for t in comp.actions for j in groups[t.group]]
         args = {**env_args, "env_name": ph.task_id,
-                "newton_lab": {**env_args["newton_lab"], "action_joint_names": names}}
-        saved = []
-        with open_writer(outs[ph.name], task_id=ph.task_id, env_args=args) as writer:
-            for demo, ep in zip(info["demo_ids"], read_episodes(path, info["demo_ids"], attrs=True)):
-                attrs = ep.pop("attrs")
-                phase = np.asarray(ep["datagen"]["phase"]).reshape(-1)
-                sel = np.nonzero(phase == p)[0]
-                if sel.size == 0:
-                    continue
-                steps = phase.shape[0]
-                seg = _slice({k: v for k, v in ep.items() if k != "initial_state"}, sel, steps)
-                seg["actions"] = np.asarray(seg["actions"])[:, cols]
-                if "states" in ep:  # (1, ...) like a collected episode's initial_state
-                    seg["initial_state"] = _slice(ep["states"], sel[:1], steps)
-                success = bool(attrs.get("success", False)) if p == last else bool((phase > p).any())
-                if "dones" in seg:  # robomimic: 1 on the last step of a successful segment
-                    seg["dones"] = np.zeros_like(seg["dones"])
-                    seg["dones"][-1:] = int(success)
-                saved.append(writer.append_episode(seg, success=success,
-                                                   attrs={"source": f"{path.name}:{demo}", "phase": ph.name}))
-        ref = DatasetRef(outs[ph.name], task_id=ph.task_id, metadata={"saved_demo_ids": saved, "episodes": len(saved)})
-        refs[ph.name] = ref.record("split", config={"source": str(path), "phase": ph.name, "phase_index": p})
+                "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints}}
+        jobs.append(_PhaseJob(path, outs[ph.name], ph.name, p, p == len(cfg.phases) - 1, ph.task_id,
+                              [columns.index(j) for j in joints], args))
+    workers = min(len(jobs), workers or os.cpu_count() or 1)
+    if workers > 1:  # spawn: the parent may hold a CUDA context, which a forked child must not inherit
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            saved = list(pool.map(_write_phase, jobs))
+    else:
+        saved = [_write_phase(job) for job in jobs]
+    refs: dict[str, DatasetRef] = {}
+    for job, ids in zip(jobs, saved):
+        ref = DatasetRef(job.out, task_id=job.task_id, metadata={"saved_demo_ids": ids, "episodes": len(ids)})
+        refs[job.name] = ref.record("split", config={"source": str(path), "phase": job.name, "phase_index": job.index})
     return refs
 
 
