@@ -37,8 +37,8 @@ each batch costs a lock, a ``syncfs`` and a commit, and a zarr batch of 32 demos
 files (below that, ~80 files a PickCube demo); a writer faster than the simulation that took whatever was queued
 would write what one step ended, about 4096 / 170 = 24 demos at 4096 rows of ~170-step PickCube episodes. Only
 with at least this many rows: fewer (a CPU run) end too few episodes a second to fill a pack, and gathering them
-only made the writer's bursts (and the wait for the last batch) longer (bench-collect, 4 rows on the 2-core CPU:
-4.7-5.1 demos/s gathering against 5.3-5.9 writing each as it ends)."""
+only made the writer's bursts (and the wait for the last batch) longer (bench-collect, 4 rows on the 2-core CPU,
+one torch thread: 4.7-5.1 demos/s gathering against 5.3-5.9 writing each as it ends)."""
 WRITE_MAX_WAIT_S = 1.0
 """Seconds an ended episode waits at most for its batch to fill (``WRITE_MIN_BATCH``)."""
 EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
