@@ -134,14 +134,20 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks:
     counts = [int(a["num_samples"]) for a in job.attrs]
     starts = np.cumsum([0] + counts[:-1]).tolist()
     demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
-    values = {key: np.stack([f[key] for f in job.flats]) if rows == 0 else np.concatenate([f[key] for f in job.flats])
-              for key, rows in job.layout.items()}
-    arrays = derive(values, job.layout, counts)  # arrays that repeat another: a reference (``zarr_derived``)
+
+    def joined(key: str) -> np.ndarray:
+        parts = [f[key] for f in job.flats]
+        return np.stack(parts) if job.layout[key] == 0 else np.concatenate(parts)
+
+    # arrays that repeat another become a reference (``zarr_derived``); images are never compared (nor held at once)
+    values = {key: joined(key) for key in job.layout if job.flats[0][key].ndim < 3}
+    found = derive(values, {k: rows for k, rows in job.layout.items() if k in values}, counts)
+    arrays = {key: found.get(key, rows) for key, rows in job.layout.items()}
     write_group(job.node, {"pack": {"arrays": arrays, "demos": demos}})
     for group in _groups(job.layout):
         write_group(f"{job.node}/{group}", {})
     for key, entry in arrays.items():
-        value = stored_value(entry, values.pop(key), counts)
+        value = stored_value(entry, values.pop(key) if key in values else joined(key), counts)
         if value is not None and not write_array(f"{job.node}/{key}", value, tasks):
             fallback(key, value)
 
