@@ -49,7 +49,7 @@ def has_phases(task_id: str) -> bool:
 def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], eval_episodes: int, num_envs: int,
                           device: str | None, out: str, seed: int = 0, workers: int = 1, eval_max_steps: int = 3000,
                           cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"], task_options: dict[str, Any] | None = None,
-                          gpus: int = 1) -> dict[str, Any]:
+                          gpus: int = 1, record: bool = True) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included) and a markdown summary.
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
@@ -72,7 +72,7 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
         runlog.publish_loss_curve(art)
     log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
     metrics, s_eval = run_evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers, eval_max_steps,
-                                recording=Path(out) / "evaluation.rrd", cameras=cameras, task_options=options,
+                                recording=Path(out) / "evaluation.rrd" if record else None, cameras=cameras, task_options=options,
                                 phase_checkpoints=checkpoints)
     log.info("evaluate: %s; success rate %.1f%% over %d episodes; %s", "/".join(s_eval),
              100 * metrics["success_rate"], metrics["episodes"],

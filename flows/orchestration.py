@@ -89,7 +89,8 @@ def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_e
 def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: int = _R["mimic_episodes"],
              train_cfg: dict[str, Any] | None = None, eval_episodes: int = _R["eval_episodes"],
              num_envs: int = _R["num_envs"], device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
-             workers: int = _P.workers, eval_max_steps: int = 600, gpus: int = 1) -> dict[str, Any]:
+             workers: int = _P.workers, eval_max_steps: int = 600, gpus: int = 1,
+             record: bool = _P.record) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
     runner for all); publishes one artifact per stage and a markdown summary (``runlog``) and writes
     ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation.
@@ -104,7 +105,7 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     ckpt_art, s_train = run_train(gen_art, train_cfg, out, gpus)
     log.info("train: %s", "/".join(s_train))
     metrics, s_eval = run_evaluate(ckpt_art, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
-                                eval_max_steps, recording=Path(out) / "evaluation.rrd")
+                                eval_max_steps, recording=Path(out) / "evaluation.rrd" if record else None)
     log.info("evaluate: %s; success rate %.1f%% over %d episodes", "/".join(s_eval), 100 * metrics["success_rate"],
              metrics["episodes"])
     summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,

@@ -96,3 +96,8 @@ def test_train_image_keys_flag_overrides_the_preset():
     args = TrainArgs(dataset_path=["d.hdf5"], preset="vision", image_keys="front_head_rgb, left_wrist_rgb")
     assert args.train_cfg(PRESETS)["image_keys"] == ("front_head_rgb", "left_wrist_rgb")
     assert "image_keys" not in TrainArgs(dataset_path=["d.hdf5"], preset="default").train_cfg(PRESETS)
+
+
+def test_no_record_reaches_the_flow():
+    assert PipelineArgs().pipeline_kwargs(demo_recipe("cpu"))["record"] is True
+    assert PipelineArgs(record=False).pipeline_kwargs(demo_recipe("cpu"))["record"] is False

@@ -227,6 +227,9 @@ class PipelineArgs:
     """retries of a failed stage"""
     gpus: int = 1
     """data-parallel GPUs of each training (see newton-lab train --gpus)"""
+    record: bool = True
+    """record the first evaluation episodes to <out>/evaluation.rrd (rerun); --no-record on a host without
+    rerun-sdk"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
 
     def train_cfg(self, recipe: dict[str, Any]) -> dict[str, Any]:
@@ -256,7 +259,8 @@ class PipelineArgs:
                  if recipe.get("long_horizon") else {})
         return {"runner": self.runner, "workers": self.workers, "address": self.address, "retries": self.retries,
                 "task_id": self.task, "train_cfg": self.train_cfg(recipe), "device": recipe["device"],
-                "out": str(Path(self.out).resolve()), "seed": self.seed, "gpus": self.gpus, **counts, **extra}
+                "out": str(Path(self.out).resolve()), "seed": self.seed, "gpus": self.gpus, "record": self.record,
+                **counts, **extra}
 
 
 @dataclass(kw_only=True)

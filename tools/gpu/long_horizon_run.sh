@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Issue-31 runs on a GPU host, from the repository root, after the project's wheels are installed into
+# $HOME/.cache/gpu_site (../shared/tools/gpu/fetch_wheels.sh parts p1-p3, then `install` here with the zarr wheels
+# in .gpu_wheels/p4). Every policy sees the front head and the left wrist camera (96x72 RGB) and proprioception
+# (--obs-mode sensors); evaluations are 100 held-out randomised episodes (--seed 50000).
+#
+#   bash tools/gpu/long_horizon_run.sh install
+#   bash tools/gpu/long_horizon_run.sh single GPU TASK [task flags...]    collect 800 -> train -> evaluate
+#   bash tools/gpu/long_horizon_run.sh coherent GPU TASK [task flags...]  collect 600 -> split -> train pick, place
+#                                                                         -> evaluate composed with the nav expert
+#   bash tools/gpu/long_horizon_run.sh bg NAME MODE ARGS...                the same, detached (setsid), log in
+#                                                                         /tmp/w/NAME.log: calls stay short
+#   knobs: EPS (demos), TB (training budget per policy [s], default 300), W (work folder, /tmp/w)
+# Each run ends with one JSON line: the evaluation's summary (success_rate, phases, termination_reasons).
+set -uo pipefail
+export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
+W=${W:-/tmp/w}; mkdir -p "$W"
+root=$PWD
+N="python3 -m newton_lab.cli"
+CAM=(--cameras front_head=96x72:rgb,left_wrist=96x72:rgb --obs-mode sensors)
+TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4 --time-budget-s "${TB:-300}")
+stamp() { echo "== $(date -u +%T) $*"; }
+name_of() { echo "$1" | sed 's/GalbotG1-//; s/-v0//' | tr 'A-Z' 'a-z'; }
+
+case "${1:-}" in
+install)
+  python3 -m pip install -q --no-index --no-deps --no-compile --upgrade --target "$HOME/.cache/gpu_site" .gpu_wheels/p4/*.whl
+  site=$HOME/.cache/gpu_site/newton_lab
+  rm -rf "$site" && mkdir -p "$site" && cp -r newton_lab/* "$site/"
+  for d in kernels tasks flows assets; do cp -r "$d" "$site/$d"; done
+  nvidia-smi --query-gpu=name --format=csv,noheader
+  python3 -c "import torch, warp, newton, zarr; print('ok torch', torch.__version__, 'warp', warp.__version__)" ;;
+single)
+  g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
+  stamp "collect $task $* on cuda:$g"
+  $N collect --task "$task" "$@" --episodes "${EPS:-800}" --num-envs 200 --randomize --seed 7 "${CAM[@]}" \
+    --dataset-path "$d/demos.hdf5" --device "cuda:$g" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+  stamp "train"
+  $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" --device "cuda:$g" --output-dir "$d/pol" 2>&1 | tail -1
+  stamp "evaluate"
+  $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" --randomize --episodes 100 \
+    --num-envs 100 --seed 50000 --device "cuda:$g" --max-steps 3000 --no-progress | tail -1 ;;
+coherent)
+  g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
+  stamp "collect $task $* on cuda:$g"
+  $N collect --task "$task" "$@" --episodes "${EPS:-600}" --num-envs 300 --randomize --seed 7 "${CAM[@]}" \
+    --dataset-path "$d/demos.hdf5" --device "cuda:$g" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+  stamp "split"
+  rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases pick,place | cut -c1-300
+  for p in pick place; do
+    stamp "train $p"
+    $N train --dataset-path "$d/split/$p.hdf5" "${TRAIN[@]}" --device "cuda:$g" --output-dir "$d/${p}_pol" 2>&1 | tail -1
+  done
+  stamp "evaluate composed"
+  $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
+    "place=$d/place_pol/checkpoint.pt" --randomize --episodes 100 --num-envs 100 --seed 50000 --device "cuda:$g" \
+    --max-steps 3000 --no-progress | tail -1 ;;
+bg)
+  log=$W/$2.log; shift 2
+  setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &
+  echo "started: $log" ;;
+*)
+  sed -n 2,17p "$0"; exit 2 ;;
+esac
