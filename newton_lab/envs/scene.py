@@ -1,5 +1,5 @@
 """Build a task's batched Newton model: one robot (the task's ``RobotBinding``) plus the task's entities per world,
-replicated."""
+replicated, with the task's contact filter (``TaskCfg.physics.contact_filter``) as Newton collision filter pairs."""
 
 from __future__ import annotations
 
@@ -89,6 +89,23 @@ def check_contact_filter(cfg: TaskCfg, robot: RobotBinding, contact_filter: Cont
                              f"lacks; targets: {sorted(targets)}")
 
 
+def _filter_contacts(world: newton.ModelBuilder, cfg: TaskCfg, robot: RobotBinding, robot_shapes,
+                     entity_shapes: dict[str, int]) -> list[int]:
+    """Add the collision filter pairs of the task's contact filter (``cfg.physics.contact_filter``) between the
+    robot's shapes and the scene objects' to the one-world builder; returns the robot shapes that may not touch
+    the ground (filtered once the shared ground plane exists). No filter: nothing is added."""
+    contact_filter = cfg.physics.contact_filter
+    if contact_filter is None:
+        return []
+    check_contact_filter(cfg, robot, contact_filter)
+    groups = robot_collision_groups(world, robot, robot_shapes)
+    for shape, group in groups.items():
+        for name, other in entity_shapes.items():
+            if not contact_filter.allows(group, name):
+                world.add_shape_collision_filter_pair(shape, other)
+    return [shape for shape, group in groups.items() if not contact_filter.allows(group, GROUND)]
+
+
 def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | None = None) -> SceneLayout:
     """Build, replicate ``num_envs`` times and finalize the task's scene (its robot and entities) on ``device``;
     ``robot``: the task's robot (``robot_binding(cfg.robot)``) when ``None``."""
@@ -125,21 +142,13 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
         static_pose.append((*e.pos, *e.quat))
         half.append(tuple(0.5 * s for s in e.size))
 
-    contact_filter = cfg.physics.contact_filter
-    groups = {} if contact_filter is None else robot_collision_groups(world, robot, range(robot_shapes))
-    if contact_filter is not None:
-        check_contact_filter(cfg, robot, contact_filter)
-        for shape, group in groups.items():
-            for name, other in entity_shapes.items():
-                if not contact_filter.allows(group, name):
-                    world.add_shape_collision_filter_pair(shape, other)
+    off_ground = _filter_contacts(world, cfg, robot, range(robot_shapes), entity_shapes)
 
     scene = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
     scene.rigid_gap = CONTACT_GAP
     scene.replicate(world, num_envs)
     ground = scene.add_ground_plane()
-    off_ground = [s for s, g in groups.items() if not contact_filter.allows(g, GROUND)]
     if off_ground:
         per_world = world.shape_count  # replicate lays the worlds' shapes out block by block
         assert scene.shape_world[per_world * (num_envs - 1)] == num_envs - 1
