@@ -5,7 +5,8 @@ by side in one process, as a markdown table (docs/benchmarks.md, "Per-task physi
                                   [--variant iterations=3,ls_iterations=3 ...] [--out table.md]
 
 For each task and each setting (``before``: ``BEFORE`` below, the physics as it was before tasks chose their own;
-``task``: the task's ``TaskCfg.physics``; one row per ``--variant``, the task's physics with those fields replaced):
+``task``: the task's ``TaskCfg.physics``; one row per ``--variant``, the task's physics with those fields replaced,
+e.g. ``iterations=20`` for the contact filter alone, ``contact_filter=None`` for the iterations alone):
 ``newton_lab.bench.bench`` times the captured env step at ``--num-envs`` rows (state only, the same code as
 ``newton-lab bench``), then the task's expert runs ``--episodes`` randomised episodes as that many parallel rows (at
 most ``--eval-envs``; the same seed for every setting, so every setting sees the same episodes). Tasks with choices
@@ -44,9 +45,10 @@ def _variant(text: str) -> dict:
     out = {}
     for part in filter(None, text.split(",")):
         key, _, value = part.partition("=")
-        if key not in {f.name for f in dataclasses.fields(PhysicsCfg)} or key == "contact_filter" or not value:
-            raise SystemExit(f"--variant {text!r}: use field=value[,...] over PhysicsCfg's fields "
-                             f"(not contact_filter), e.g. iterations=3,cone=pyramidal")
+        if key not in {f.name for f in dataclasses.fields(PhysicsCfg)} or not value or (
+                key == "contact_filter" and value != "None"):
+            raise SystemExit(f"--variant {text!r}: use field=value[,...] over PhysicsCfg's fields, e.g. "
+                             f"iterations=3,cone=pyramidal (contact_filter takes only None: no filter)")
         try:
             out[key] = ast.literal_eval(value)
         except (ValueError, SyntaxError):
