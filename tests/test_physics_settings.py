@@ -1,8 +1,11 @@
-"""Per-task physics settings (``TaskCfg.physics``): the defaults are the solver every task ran with before, a task's
-contact filter reaches MuJoCo-Warp's collision and keeps the contacts its success depends on, and a pair it
-declares non-colliding makes no contact (real Newton on CPU Warp, 1-2 worlds)."""
+"""Per-task physics settings (``TaskCfg.physics``): the defaults are the solver every task runs with, a contact
+filter (``gripper_only()``, given through ``make_env(physics=...)``) reaches MuJoCo-Warp's collision and keeps the
+contacts a task's success depends on, and a pair it declares non-colliding makes no contact (real Newton on CPU
+Warp, 1-2 worlds)."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import newton
 import numpy as np
@@ -16,6 +19,14 @@ from newton_lab.task_api.physics import ANY_OBJECT, GROUND, ContactFilterCfg, Ph
 from newton_lab.task_api.registry import list_tasks, lookup
 
 PICK = "GalbotG1-PickCube-v0"
+TASKS = (PICK, "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0", "GalbotG1-SortToShelf-v0")
+
+
+def filtered(task_id: str, iterations: int | None = None) -> PhysicsCfg:
+    """The task's physics with ``gripper_only()`` (and ``iterations``, when given)."""
+    own = lookup(task_id).make_cfg({}).physics
+    return dataclasses.replace(own, contact_filter=gripper_only(), iterations=iterations or own.iterations)
+
 LINK = "left_arm_link3"
 """A left-arm link (upper arm capsule): PickCube's filter lets only the left gripper touch anything."""
 
@@ -35,9 +46,9 @@ def test_every_task_declares_a_valid_physics():
         assert isinstance(cfg.physics, PhysicsCfg), task_id
         if cfg.physics.contact_filter is not None:
             check_contact_filter(cfg, robot_binding(cfg.robot), cfg.physics.contact_filter)
-    for task_id in ("GalbotG1-PickCube-v0", "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0",
-                    "GalbotG1-SortToShelf-v0", "GalbotG1-PickToShelf-Nav-v0", "GalbotG1-SortToShelf-Place-v0"):
-        assert lookup(task_id).make_cfg({}).physics.contact_filter is not None, task_id
+    for task_id in TASKS:  # gripper_only() names only what these scenes and the robot have
+        cfg = lookup(task_id).make_cfg({})
+        check_contact_filter(cfg, robot_binding(cfg.robot), gripper_only())
 
 
 def test_a_filter_naming_what_the_scene_lacks_is_refused():
@@ -78,7 +89,7 @@ GRIPPER = {"left_palm", "left_gripper_l_finger_link_geom_0", "left_gripper_r_fin
 def test_the_filter_reaches_mujoco_warps_broad_phase():
     before = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
                       physics=PhysicsCfg(constraints_per_world=128))
-    task = make_env(PICK, num_envs=2, device="cpu", capture=False, cameras=False)
+    task = make_env(PICK, num_envs=2, device="cpu", capture=False, cameras=False, physics=filtered(PICK, 5))
     assert task.solver.mj_model.opt.iterations == task.cfg.physics.iterations == 5
     assert before.solver.mj_model.opt.iterations == 20
     old = _geom_pairs(before)
@@ -89,7 +100,7 @@ def test_the_filter_reaches_mujoco_warps_broad_phase():
 
 @pytest.mark.parametrize("task_id", ["GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0", "GalbotG1-SortToShelf-v0"])
 def test_every_filtered_task_leaves_mujoco_exactly_the_gripper_and_object_pairs(task_id):
-    env = make_env(task_id, num_envs=1, device="cpu", capture=False, cameras=False)
+    env = make_env(task_id, num_envs=1, device="cpu", capture=False, cameras=False, physics=filtered(task_id))
     assert _geom_pairs(env) == _gripper_only_pairs(env)
 
 
@@ -113,12 +124,12 @@ def _contacts_of(env, body_a: int, body_b: int) -> int:
     return sum(pair in bodies for pair in ((body_a, body_b), (body_b, body_a)))
 
 
-@pytest.mark.parametrize("physics", ["task", "before"])
+@pytest.mark.parametrize("physics", ["filtered", "task"])
 def test_a_declared_non_colliding_pair_makes_no_contact(physics):
-    """The cube placed inside a left-arm link: with PickCube's filter nothing touches it (it falls freely); with the
-    settings before, the link makes contacts and pushes it out."""
+    """The cube placed inside a left-arm link: with ``gripper_only()`` nothing touches it (it falls freely); with
+    PickCube's own physics (no filter) the link makes contacts and pushes it out."""
     env = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
-                   physics=None if physics == "task" else PhysicsCfg(constraints_per_world=128))
+                   physics=filtered(PICK) if physics == "filtered" else None)
     labels = env.model.body_label
     link = next(i for i, name in enumerate(labels) if name.endswith("/" + LINK))
     cube = env.entities["cube"]
@@ -131,7 +142,7 @@ def test_a_declared_non_colliding_pair_makes_no_contact(physics):
     env.simulate()  # one control step of physics (5 substeps)
     moved = env.state.joint_q.numpy()[cube.coord:cube.coord + 3] - link_pos
     contacts = _contacts_of(env, link, cube.body)
-    if physics == "task":
+    if physics == "filtered":
         assert contacts == 0
         assert np.abs(moved[:2]).max() < 1e-4  # no push sideways: it only falls
         assert -0.02 < moved[2] < 0.0  # 0.05 s of free fall: 1.2 cm
@@ -140,13 +151,15 @@ def test_a_declared_non_colliding_pair_makes_no_contact(physics):
         assert np.abs(moved[:2]).max() > 2e-3  # pushed out sideways
 
 
-@pytest.mark.parametrize("task_id", [PICK, "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0",
-                                     "GalbotG1-SortToShelf-v0"])
+@pytest.mark.parametrize("task_id", TASKS)
 def test_the_filter_keeps_the_contacts_grasp_and_place_need(task_id):
-    """The expert grasps and places with the task's filter and iterations on (PickCube: cube released on the
-    block; StackCube: both cubes stacked and released; the shelf tasks: picked, carried to the shelf, placed)."""
+    """The expert grasps and places with ``gripper_only()`` and the fewest iterations its solves needed (PickCube:
+    cube released on the block; StackCube: both cubes stacked and released; the shelf tasks: picked, carried to
+    the shelf, placed)."""
     n = 2 if task_id == PICK else 1
-    env = make_env(task_id, num_envs=n, device="cpu", seed=100, randomize=True, cameras=False)
+    fewest = {PICK: 5, "GalbotG1-StackCube-v0": 8, "GalbotG1-PickToShelf-v0": 5, "GalbotG1-SortToShelf-v0": 8}
+    env = make_env(task_id, num_envs=n, device="cpu", seed=100, randomize=True, cameras=False,
+                   physics=filtered(task_id, fewest[task_id]))
     assert env.cfg.physics.contact_filter == gripper_only()
     summary = env.evaluate(agent=expert_agent(env), episodes=n, max_steps=1500, progress=False)
     assert summary["success_rate"] == 1.0, summary

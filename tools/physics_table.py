@@ -1,13 +1,12 @@
-"""Per-task physics settings against the settings every task ran with before: env-steps/s and expert success, side
-by side in one process, as a markdown table (docs/benchmarks.md, "Per-task physics settings").
+"""A task's physics settings against variants of them: env-steps/s and expert success, side by side in one process,
+as a markdown table (docs/benchmarks.md, "Per-task physics settings").
 
     python tools/physics_table.py [--device cuda:0] [--num-envs 4096] [--episodes 100] [--tasks ID ...]
-                                  [--variant iterations=3,ls_iterations=3 ...] [--out table.md]
+        [--variant iterations=5,contact_filter=gripper_only ...] [--out table.md]
 
-For each task and each setting (``before``: ``BEFORE`` below, the physics as it was before tasks chose their own;
-``task``: the task's ``TaskCfg.physics``; one row per ``--variant``, the task's physics with those fields replaced,
-e.g. ``iterations=20`` for the contact filter alone, ``contact_filter=None`` for the iterations alone):
-``newton_lab.bench.bench`` times the captured env step at ``--num-envs`` rows (state only, the same code as
+For each task, the ``task`` row is its ``TaskCfg.physics``, and each ``--variant`` adds a row with those fields
+replaced (``contact_filter=gripper_only``: only the left gripper touches the scene; ``contact_filter=None``: no
+filter): ``newton_lab.bench.bench`` times the captured env step at ``--num-envs`` rows (state only, the same code as
 ``newton-lab bench``), then the task's expert runs ``--episodes`` randomised episodes as that many parallel rows (at
 most ``--eval-envs``; the same seed for every setting, so every setting sees the same episodes). Tasks with choices
 (SortToShelf's objects) split the episodes evenly over them. Progress goes to stderr, the table to stdout.
@@ -28,27 +27,22 @@ import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.agents import expert_agent
 from newton_lab.bench import bench
 from newton_lab.envs import make_env
-from newton_lab.task_api.physics import PhysicsCfg
+from newton_lab.task_api.physics import PhysicsCfg, gripper_only
 from newton_lab.task_api.registry import lookup
 
 TASKS = ("GalbotG1-PickCube-v0", "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0", "GalbotG1-SortToShelf-v0")
-BEFORE = {
-    "GalbotG1-PickCube-v0": PhysicsCfg(constraints_per_world=128),
-    "GalbotG1-StackCube-v0": PhysicsCfg(constraints_per_world=128),
-}
-"""The physics each task ran with before per-task settings (commit de548bc): the defaults, and 128 constraint rows
-for the table-top tasks that declared them; every other task: ``PhysicsCfg()``."""
-
-
 def _variant(text: str) -> dict:
     """``iterations=3,cone=pyramidal`` -> {"iterations": 3, "cone": "pyramidal"} (``PhysicsCfg`` fields)."""
     out = {}
     for part in filter(None, text.split(",")):
         key, _, value = part.partition("=")
         if key not in {f.name for f in dataclasses.fields(PhysicsCfg)} or not value or (
-                key == "contact_filter" and value != "None"):
+                key == "contact_filter" and value not in ("None", "gripper_only")):
             raise SystemExit(f"--variant {text!r}: use field=value[,...] over PhysicsCfg's fields, e.g. "
-                             f"iterations=3,cone=pyramidal (contact_filter takes only None: no filter)")
+                             f"iterations=3,cone=pyramidal (contact_filter: None or gripper_only)")
+        if key == "contact_filter" and value == "gripper_only":
+            out[key] = gripper_only()
+            continue
         try:
             out[key] = ast.literal_eval(value)
         except (ValueError, SyntaxError):
@@ -58,7 +52,7 @@ def _variant(text: str) -> dict:
 
 def _settings(task_id: str, variants: list[str]) -> list[tuple[str, PhysicsCfg]]:
     own = lookup(task_id).make_cfg({}).physics
-    rows = [("before", BEFORE.get(task_id, PhysicsCfg())), ("task", own)]
+    rows = [("task", own)]
     return rows + [(v, dataclasses.replace(own, **_variant(v))) for v in variants]
 
 
@@ -108,7 +102,7 @@ def main() -> None:
 
     rows, t_start = [], time.perf_counter()
     for task_id in args.tasks:
-        before_rate = None
+        task_rate = None
         for name, physics in _settings(task_id, args.variant):
             t0 = time.perf_counter()
             r = bench(task_id, num_envs=args.num_envs, steps=args.steps, device=args.device, physics=physics)
@@ -117,15 +111,15 @@ def main() -> None:
                               device=args.device, seed=args.seed, max_steps=args.max_steps)
                      if args.episodes > 0 else (0, 0))
             rate = r["env_steps_per_s"]
-            before_rate = before_rate or rate
+            task_rate = task_rate or rate
             rows.append([task_id.removeprefix("GalbotG1-"), name, _describe(physics), f"{rate:,.0f}",
-                         f"{rate / before_rate:.2f}x", f"{r['ratio_env_step_to_bare']:.3f}",
+                         f"{rate / task_rate:.2f}x", f"{r['ratio_env_step_to_bare']:.3f}",
                          f"{ok}/{n} ({100 * ok / n:.0f} %)" if n else "–"])
             print(json.dumps({"task": task_id, "setting": name, "env_steps_per_s": rate,
                               "ratio_env_step_to_bare": r["ratio_env_step_to_bare"], "successes": ok, "episodes": n,
                               "seconds": round(time.perf_counter() - t0, 1)}), file=sys.stderr, flush=True)
             device_name = f"{r['device_name']} ({r['device']})"
-    header = ["task", "setting", "physics", f"env-steps/s @ {args.num_envs}", "vs before", "env / bare",
+    header = ["task", "setting", "physics", f"env-steps/s @ {args.num_envs}", "vs task", "env / bare",
               f"expert success (seed {args.seed})"]
     lines = [f"Device: {device_name}; {time.strftime('%Y-%m-%d')}; "
              f"{time.perf_counter() - t_start:.0f} s in all.", "",

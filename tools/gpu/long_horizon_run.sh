@@ -10,15 +10,19 @@
 #                                                                         -> evaluate composed with the nav expert
 #   bash tools/gpu/long_horizon_run.sh bg NAME MODE ARGS...                the same, detached (setsid), log in
 #                                                                         /tmp/w/NAME.log: calls stay short
-#   knobs: EPS (demos), TB (training budget per policy [s], default 300), W (work folder, /tmp/w)
+#   knobs: EPS (demos), TB (training budget per policy [s], default 300), EVAL_EPS (100), W (work folder, /tmp/w),
+#          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3)
 # Each run ends with one JSON line: the evaluation's summary (success_rate, phases, termination_reasons).
 set -uo pipefail
 export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
 W=${W:-/tmp/w}; mkdir -p "$W"
 root=$PWD
-N="python3 -m newton_lab.cli"
+N="${PY:-python3} -m newton_lab.cli"
 CAM=(--cameras front_head=96x72:rgb,left_wrist=96x72:rgb --obs-mode sensors)
 TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4 --time-budget-s "${TB:-300}")
+dev() { if [ "${DEV:-cuda}" = cpu ]; then echo cpu; else echo "cuda:$1"; fi; }
+EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))" --seed 50000
+      --max-steps 3000 --no-progress)
 stamp() { echo "== $(date -u +%T) $*"; }
 name_of() { echo "$1" | sed 's/GalbotG1-//; s/-v0//' | tr 'A-Z' 'a-z'; }
 
@@ -32,29 +36,28 @@ install)
   python3 -c "import torch, warp, newton, zarr; print('ok torch', torch.__version__, 'warp', warp.__version__)" ;;
 single)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
-  stamp "collect $task $* on cuda:$g"
-  $N collect --task "$task" "$@" --episodes "${EPS:-800}" --num-envs 200 --randomize --seed 7 "${CAM[@]}" \
-    --dataset-path "$d/demos.hdf5" --device "cuda:$g" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+  stamp "collect $task $* on $(dev "$g")"
+  $N collect --task "$task" "$@" --episodes "${EPS:-800}" --num-envs "$(( ${EPS:-800} < 200 ? ${EPS:-800} : 200 ))" --randomize --seed 7 "${CAM[@]}" \
+    --dataset-path "$d/demos.hdf5" --device "$(dev "$g")" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
   stamp "train"
-  $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" --device "cuda:$g" --output-dir "$d/pol" 2>&1 | tail -1
+  $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" --device "$(dev "$g")" --output-dir "$d/pol" 2>&1 | tail -1
   stamp "evaluate"
-  $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" --randomize --episodes 100 \
-    --num-envs 100 --seed 50000 --device "cuda:$g" --max-steps 3000 --no-progress | tail -1 ;;
+  $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" \
+    --device "$(dev "$g")" | tail -1 ;;
 coherent)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
-  stamp "collect $task $* on cuda:$g"
-  $N collect --task "$task" "$@" --episodes "${EPS:-600}" --num-envs 300 --randomize --seed 7 "${CAM[@]}" \
-    --dataset-path "$d/demos.hdf5" --device "cuda:$g" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+  stamp "collect $task $* on $(dev "$g")"
+  $N collect --task "$task" "$@" --episodes "${EPS:-600}" --num-envs "$(( ${EPS:-600} < 300 ? ${EPS:-600} : 300 ))" --randomize --seed 7 "${CAM[@]}" \
+    --dataset-path "$d/demos.hdf5" --device "$(dev "$g")" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
   stamp "split"
   rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases pick,place | cut -c1-300
   for p in pick place; do
     stamp "train $p"
-    $N train --dataset-path "$d/split/$p.hdf5" "${TRAIN[@]}" --device "cuda:$g" --output-dir "$d/${p}_pol" 2>&1 | tail -1
+    $N train --dataset-path "$d/split/$p.hdf5" "${TRAIN[@]}" --device "$(dev "$g")" --output-dir "$d/${p}_pol" 2>&1 | tail -1
   done
   stamp "evaluate composed"
   $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
-    "place=$d/place_pol/checkpoint.pt" --randomize --episodes 100 --num-envs 100 --seed 50000 --device "cuda:$g" \
-    --max-steps 3000 --no-progress | tail -1 ;;
+    "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" --device "$(dev "$g")" | tail -1 ;;
 bg)
   log=$W/$2.log; shift 2
   setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
-from newton_lab.task_api.physics import PhysicsCfg, gripper_only
+from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.task_api.experts import NavExpert
 from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import navigation as nav
@@ -61,12 +61,10 @@ bar_released_on_shelf = all_of(terms=(bar_on_shelf, gripper_open(tol=0.05)))
 goal_reached = nav.goal_reached(goal_xy=NAV_GOAL_XY, radius=NAV_SUCCESS_RADIUS)
 
 
-PHYSICS = PhysicsCfg(
-    iterations=5,  # expert runs, every phase: solves converge in <= 3 iterations (3748 samples)
-    contact_filter=gripper_only(),  # expert runs touch the object, table and shelf with the fingers only
-)
-"""The physics of every component and the coherent task (docs/benchmarks.md, "Per-task physics settings"); expert
-peaks: 12 contacts, 43 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
+PHYSICS = PhysicsCfg()
+"""The physics of every component and the coherent task: the default solver and no contact filter (no filter or
+iteration cap gained anything on an H100; docs/benchmarks.md, "Per-task physics settings"); expert peaks: 12
+contacts, 43 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
 
 
 def _world(**fields) -> TaskCfg:

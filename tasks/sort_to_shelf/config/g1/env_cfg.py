@@ -11,7 +11,7 @@ from pathlib import Path
 
 from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
-from newton_lab.task_api.physics import PhysicsCfg, gripper_only
+from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common import observations as obs
@@ -32,13 +32,10 @@ def _dropped(obj: SortingObject) -> TerminationTermCfg:
     return TerminationTermCfg(func=dropped, params={"entity": obj.name, "below_z": terminations.DROP_Z})
 
 
-PHYSICS = PhysicsCfg(
-    iterations=8,  # expert runs, every phase: solves converge in <= 7 iterations (green_cylinder, 8076 samples)
-    # ls_iterations stays 10: with 5, green_cylinder's coherent expert fell from 16/16 to 12/16
-    contact_filter=gripper_only(),  # expert runs touch the object, table and shelf with the fingers only
-)
-"""The physics of every component and the coherent task (docs/benchmarks.md, "Per-task physics settings"); expert
-peaks: 18 contacts, 61 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
+PHYSICS = PhysicsCfg()
+"""The physics of every component and the coherent task: the default solver and no contact filter (no filter or
+iteration cap gained anything on an H100; docs/benchmarks.md, "Per-task physics settings"); expert peaks: 18
+contacts, 61 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
 
 
 def _world(obj: SortingObject, **fields) -> TaskCfg:

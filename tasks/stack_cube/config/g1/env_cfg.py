@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.physics import PhysicsCfg, gripper_only
+from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.config.g1 import postures
 from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
@@ -12,11 +12,10 @@ from newton_lab.tasks.stack_cube.mdp.terminations import cube_dropping, grasped_
 from newton_lab.tasks.stack_cube.scene import CUBES, SCENE
 
 PHYSICS = PhysicsCfg(
-    iterations=8,  # expert runs: solves converge in <= 6 iterations (3724 samples)
     constraints_per_world=128,  # measured peaks (expert, randomised): 22 contacts and 67 constraint rows per world
-    contact_filter=gripper_only(),  # expert runs touch the cubes and the table with the fingers only
 )
-"""StackCube's physics (docs/benchmarks.md, "Per-task physics settings": steps/s gained, expert success kept)."""
+"""StackCube's physics: the default solver and no contact filter (``gripper_only()`` with 8 iterations ran at 1.01x
+on an H100 at 4096 envs; docs/benchmarks.md, "Per-task physics settings")."""
 
 
 def stack_cube_cfg() -> TaskCfg:
