@@ -23,6 +23,13 @@ TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e
 dev() { if [ "${DEV:-cuda}" = cpu ]; then echo cpu; else echo "cuda:$1"; fi; }
 EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))" --seed 50000
       --max-steps 3000 --no-progress)
+# collect EPISODES MAX_ENVS GPU TASK [task flags...]: expert demos from the policies' cameras into $d/demos.hdf5
+collect() {
+  local eps=$1 envs=$2 g=$3 task=$4; shift 4
+  stamp "collect $eps of $task $* on $(dev "$g")"
+  $N collect --task "$task" "$@" --episodes "$eps" --num-envs "$(( eps < envs ? eps : envs ))" --randomize --seed 7 \
+    "${CAM[@]}" --dataset-path "$d/demos.hdf5" --device "$(dev "$g")" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+}
 stamp() { echo "== $(date -u +%T) $*"; }
 name_of() { echo "$1" | sed 's/GalbotG1-//; s/-v0//' | tr 'A-Z' 'a-z'; }
 
@@ -36,9 +43,7 @@ install)
   python3 -c "import torch, warp, newton, zarr; print('ok torch', torch.__version__, 'warp', warp.__version__)" ;;
 single)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
-  stamp "collect $task $* on $(dev "$g")"
-  $N collect --task "$task" "$@" --episodes "${EPS:-800}" --num-envs "$(( ${EPS:-800} < 200 ? ${EPS:-800} : 200 ))" --randomize --seed 7 "${CAM[@]}" \
-    --dataset-path "$d/demos.hdf5" --device "$(dev "$g")" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+  collect "${EPS:-800}" 200 "$g" "$task" "$@"
   stamp "train"
   $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" --device "$(dev "$g")" --output-dir "$d/pol" 2>&1 | tail -1
   stamp "evaluate"
@@ -46,9 +51,7 @@ single)
     --device "$(dev "$g")" | tail -1 ;;
 coherent)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
-  stamp "collect $task $* on $(dev "$g")"
-  $N collect --task "$task" "$@" --episodes "${EPS:-600}" --num-envs "$(( ${EPS:-600} < 300 ? ${EPS:-600} : 300 ))" --randomize --seed 7 "${CAM[@]}" \
-    --dataset-path "$d/demos.hdf5" --device "$(dev "$g")" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
+  collect "${EPS:-600}" 300 "$g" "$task" "$@"
   stamp "split"
   rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases pick,place | cut -c1-300
   for p in pick place; do
