@@ -1,0 +1,151 @@
+"""What the joints a table-top task never moves cost the solver: the task's bare solver step (its scene, entities,
+physics and decimation, no env around it) with the full G1 against the same scene with every robot joint but the
+moving ones welded at the task's posture, side by side in one process.
+
+    python tools/frozen_dof_probe.py [--task GalbotG1-PickCube-v0] [--num-envs 4096] [--steps 200] [--device cuda:0]
+
+Welding is done in the MJCF: a welded joint's element is removed and its posture value is folded into its body's
+pose (MuJoCo rides a joint-less body on its parent), together with the actuators and equality constraints that
+name it. The moving joints are the left arm and the left gripper (what PickCube, StackCube and the shelf tasks'
+manipulation phases drive). This is a measurement of the lever, not a product path: the env, its observations and
+its datasets keep the full robot. It prints one JSON line per variant (degrees of freedom per world, world-steps/s
+of the captured ``decimation`` solver steps) and their ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import tempfile
+import xml.etree.ElementTree as ET
+
+import newton
+import numpy as np
+import warp as wp
+
+import newton_lab.tasks  # noqa: F401  (registers every task id)
+from newton_lab.bench import _time_graph
+from newton_lab.envs.scene import CONTACT_GAP, _add_entity
+from newton_lab.robots.g1 import spec
+from newton_lab.robots.g1.model import mjcf_path
+from newton_lab.robots.registry import robot_binding
+from newton_lab.task_api.registry import lookup
+
+MOVING = (*spec.LEFT_ARM_JOINTS, "left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint")
+"""Robot joints left free in the welded variant."""
+
+
+def _quat_mul(a, b):
+    """Hamilton product of wxyz quaternions (MJCF's order)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _rotate(q, v):
+    w, x, y, z = q
+    qv = np.array([x, y, z])
+    t = 2.0 * np.cross(qv, v)
+    return v + w * t + np.cross(qv, t)
+
+
+def welded_mjcf(posture: dict[str, float], moving: tuple[str, ...]) -> str:
+    """The G1 MJCF with every joint not in ``moving`` removed and its ``posture`` value folded into its body."""
+    tree = ET.parse(mjcf_path())
+    root = tree.getroot()
+    welded = set()
+    for body in root.iter("body"):
+        pos = np.array([float(v) for v in body.get("pos", "0 0 0").split()])
+        quat = tuple(float(v) for v in body.get("quat", "1 0 0 0").split())
+        for joint in [j for j in body.findall("joint") if j.get("name") not in moving]:
+            axis = np.array([float(v) for v in joint.get("axis", "0 0 1").split()])
+            axis = axis / np.linalg.norm(axis)
+            value = posture.get(joint.get("name"), 0.0)
+            if joint.get("type", "hinge") == "slide":
+                pos = pos + _rotate(quat, axis * value)
+            else:  # hinge about the body origin (the G1's joints have no pos offset)
+                s = math.sin(0.5 * value)
+                quat = _quat_mul(quat, (math.cos(0.5 * value), *(axis * s)))
+            welded.add(joint.get("name"))
+            body.remove(joint)
+        body.set("pos", " ".join(f"{v:.9g}" for v in pos))
+        body.set("quat", " ".join(f"{v:.9g}" for v in quat))
+    for section in ("actuator", "equality"):
+        for parent in root.findall(section):
+            for child in list(parent):
+                if {child.get("joint"), child.get("joint1"), child.get("joint2")} & welded:
+                    parent.remove(child)
+    return ET.tostring(root, encoding="unicode")
+
+
+def build(cfg, num_envs: int, device, mjcf: str | None) -> newton.Model:
+    """The task's scene replicated ``num_envs`` times, posture as drive targets: the robot as the env builds it
+    (``mjcf`` None), or from the ``mjcf`` text (joints found by name)."""
+    world = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(world)
+    world.rigid_gap = CONTACT_GAP
+    posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
+    if mjcf is None:
+        coord = robot_binding(cfg.robot).build(world).coord
+    else:
+        with tempfile.NamedTemporaryFile("w", suffix=".xml") as f:
+            f.write(mjcf)
+            f.flush()
+            world.add_mjcf(f.name, enable_self_collisions=False, xform=wp.transform_identity())
+        coord = {label.rsplit("/", 1)[-1]: world.joint_q_start[j] for j, label in enumerate(world.joint_label)}
+    for name, value in posture.items():
+        if name in coord:
+            world.joint_q[coord[name]] = value
+            if name not in ("base_x", "base_y", "base_yaw"):
+                world.joint_target_q[coord[name]] = value
+    for e in cfg.entities:
+        _add_entity(world, e)
+    scene = newton.ModelBuilder()
+    newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
+    scene.rigid_gap = CONTACT_GAP
+    scene.replicate(world, num_envs)
+    scene.add_ground_plane()
+    return scene.finalize(device=device)
+
+
+def measure(cfg, model: newton.Model, steps: int) -> dict:
+    """World-steps/s of the captured ``cfg.decimation`` solver steps (one control step) on ``model``."""
+    solver = newton.solvers.SolverMuJoCo(model, **cfg.physics.solver_options())
+    solver.mjw_model.opt.warn_overflow = 0
+    state, control = model.state(), model.control()
+    newton.eval_fk(model, state.joint_q, state.joint_qd, state)
+    with wp.ScopedDevice(model.device):
+        for _ in range(cfg.decimation):  # compiles, settles
+            solver.step(state, state, control, None, cfg.sim_dt)
+        with wp.ScopedCapture(device=model.device) as cap:
+            for _ in range(cfg.decimation):
+                solver.step(state, state, control, None, cfg.sim_dt)
+    t = _time_graph(lambda: wp.capture_launch(cap.graph), steps, model.device)
+    return {"dofs_per_world": model.joint_dof_count // model.world_count, "env_steps_per_s": model.world_count / t}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--task", default="GalbotG1-PickCube-v0")
+    ap.add_argument("--num-envs", type=int, default=4096)
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--device", default=None)
+    args = ap.parse_args()
+    device = wp.get_device(args.device)
+    cfg = lookup(args.task).make_cfg({})
+    full_posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
+    variants = {"full": None, "welded": welded_mjcf(full_posture, MOVING)}
+    rows = {}
+    for name, mjcf in variants.items():
+        model = build(cfg, args.num_envs, device, mjcf)
+        rows[name] = {"task": args.task, "variant": name, "device": str(device), "num_envs": args.num_envs,
+                      **measure(cfg, model, args.steps)}
+        print(json.dumps(rows[name]), flush=True)
+    ratio = rows["welded"]["env_steps_per_s"] / rows["full"]["env_steps_per_s"]
+    print(json.dumps({"welded_vs_full": round(ratio, 3)}))
+
+
+if __name__ == "__main__":
+    main()
