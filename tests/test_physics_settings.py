@@ -163,3 +163,43 @@ def test_the_filter_keeps_the_contacts_grasp_and_place_need(task_id):
     assert env.cfg.physics.contact_filter == gripper_only()
     summary = env.evaluate(agent=expert_agent(env), episodes=n, max_steps=1500, progress=False)
     assert summary["success_rate"] == 1.0, summary
+
+
+def _probe():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "frozen_dof_probe.py"  # tools/ is no package
+    spec = importlib.util.spec_from_file_location("frozen_dof_probe", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_welding_joints_at_the_posture_keeps_every_body_where_the_posture_puts_it():
+    """tools/frozen_dof_probe.py's welded G1 (only the left arm and gripper free): 16 DoF per world instead of 40,
+    every body at the pose forward kinematics gives the full robot in the task's posture, and no actuator or
+    equality left naming a welded joint."""
+    import xml.etree.ElementTree as ET
+
+    probe = _probe()
+    cfg = lookup(PICK).make_cfg({})
+    posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
+    mjcf = probe.welded_mjcf(posture, probe.MOVING)
+    root = ET.fromstring(mjcf)
+    assert sorted(j.get("name") for j in root.find("worldbody").iter("joint")) == sorted(probe.MOVING)
+    named = {v for e in [*root.iter("position"), *root.iter("velocity"), *root.find("equality")]
+             for k, v in e.attrib.items() if k in ("joint", "joint1", "joint2")}
+    assert named <= set(probe.MOVING)
+    poses = {}
+    for name, text in (("full", None), ("welded", mjcf)):
+        model = probe.build(cfg, 1, "cpu", text)
+        state = model.state()
+        newton.eval_fk(model, state.joint_q, state.joint_qd, state)
+        labels = [label.rsplit("/", 1)[-1] for label in model.body_label]
+        poses[name] = ({labels[i]: q for i, q in enumerate(state.body_q.numpy())}, model.joint_dof_count)
+    (full, full_dofs), (welded, welded_dofs) = poses["full"], poses["welded"]
+    assert (full_dofs, welded_dofs) == (40, 16)
+    for body in ("left_arm_link7", "right_arm_link7", "head_link2", "left_gripper_l_finger_link", "cube"):
+        np.testing.assert_allclose(welded[body][:3], full[body][:3], atol=1e-5, err_msg=body)
+        assert abs(abs(float(np.dot(welded[body][3:], full[body][3:]))) - 1.0) < 1e-5, body
