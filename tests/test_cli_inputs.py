@@ -71,6 +71,10 @@ BAD = [
     ("view src.hdf5", "view needs --save file.rrd (headless) or --spawn"),
     ("collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object unicorn", "unknown sorting_object 'unicorn'"),
     ("pipeline --task GalbotG1-PickCube-v0 --sorting-object banana", "takes no option --sorting-object"),
+    # split --phases: the phase names recorded in the dataset (a coherent task's), a split by phase only
+    ("split --dataset-path pts.hdf5 --out parts --phases pick,plase",
+     "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place"),
+    ("split --dataset-path pts.hdf5 --phases pick", "--phases selects the phases of a split by phase: give --out"),
 ]
 CPU_SECONDS = 2.0
 """Each refusal's CPU time, interpreter start included (0.2-0.6 s here; importing Warp first took 5-12 s on 2 cores).
@@ -82,6 +86,7 @@ CHECK = "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); s
 @pytest.mark.parametrize("argv,message", BAD, ids=[b[0] for b in BAD])
 def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message):
     make_dataset(tmp_path / "src.hdf5")  # a source dataset (demos 0, 1, 2), for the checks that need one
+    make_coherent_dataset(tmp_path / "pts.hdf5")
     (tmp_path / "junk.hdf5").write_bytes(b"not a dataset")
     before = tree(tmp_path)
     start = cpu_of_children()
@@ -91,6 +96,16 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message
     assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
     assert tree(tmp_path) == before
     assert seconds < CPU_SECONDS, f"{seconds:.2f} s of CPU"
+
+
+def make_coherent_dataset(path: Path) -> None:
+    """One demo whose ``env_args`` say it was recorded on PickToShelf (phases pick, nav, place)."""
+    from newton_lab.datasets import open_writer
+    from test_lerobot_export import ENV_ARGS, make_episode
+
+    args = {**ENV_ARGS, "newton_lab": {**ENV_ARGS["newton_lab"], "phases": ["pick", "nav", "place"]}}
+    with open_writer(path, task_id="GalbotG1-PickToShelf-v0", env_args=args, fsync=False) as w:
+        w.append_episode(make_episode(0, 5, None, False, 1), success=True)
 
 
 def cpu_of_children() -> float:

@@ -135,11 +135,30 @@ def check_datasets(args: Any, name: str) -> None:
     for path in value if isinstance(value, list) else [value]:
         if not Path(path).exists():
             raise FileNotFoundError(f"{_label(args, name)} {path} does not exist; check the path")
-        ids = read_dataset_info(path)["demo_ids"]  # a one-line ValueError if it is no dataset or is damaged
+        info = read_dataset_info(path)  # a one-line ValueError if it is no dataset or is damaged
+        ids = info["demo_ids"]
+        if isinstance(args, SplitArgs) and args.phases:
+            check_split_phases(args, path, info)
         if isinstance(args, ViewArgs) and args.episode not in ids:
             listed = ", ".join(map(str, ids[:5])) + (", ..." if len(ids) > 5 else "")
             raise ValueError(f"--episode {args.episode}: {path} has no episode {args.episode}; its {len(ids)} "
                              f"episodes: {listed or 'none'}")
+
+
+def check_split_phases(args: SplitArgs, path: str, info: dict[str, Any]) -> None:
+    """``split --phases`` names phases that the dataset's task has (as recorded in its ``env_args``; a dataset
+    recorded before the phase names were is checked after the task is built), and only with ``--out``."""
+    if not args.out:
+        raise ValueError("--phases selects the phases of a split by phase: give --out too")
+    recorded = info["env_args"].get("newton_lab", {}).get("phases")
+    if recorded is None:
+        return
+    if not recorded:
+        raise ValueError(f"{path} was recorded on {info['task_id']}, which has no phases; nothing to split")
+    for name in (p.strip() for p in args.phases.split(",") if p.strip()):
+        if name not in recorded:
+            raise ValueError(f"{info['task_id']} has no phase {name!r}{did_you_mean(name, recorded)}; its phases: "
+                             f"{', '.join(recorded)}")
 
 
 def check_writable(path: Path) -> None:

@@ -104,7 +104,7 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
         groups = robot_binding(comp.robot).joint_groups
         joints = [j for t in comp.actions for j in groups[t.group]]
         args = {**env_args, "env_name": ph.task_id,
-                "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints}}
+                "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints, "phases": []}}
         jobs.append(_PhaseJob(path, outs[ph.name], ph.name, p, p == len(cfg.phases) - 1, ph.task_id,
                               [columns.index(j) for j in joints], args))
     workers = min(len(jobs), workers or os.cpu_count() or 1)

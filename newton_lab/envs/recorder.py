@@ -198,6 +198,7 @@ def env_args(env) -> dict[str, Any]:
             "entities": list(env.entities),
             "signals": list(env.signal_names),
             "termination_reasons": list(env.termination_reasons),
+            "phases": [ph.name for ph in env.cfg.phases],  # a coherent task's, in order (datagen/phase indexes them)
             "state_layout": state_layout(
                 q.shape[1], qd.shape[1], lay.robot_coords, lay.robot_dofs,
                 {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.entities.items()
