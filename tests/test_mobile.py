@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import multiprocessing
 
 import numpy as np
 import pytest
@@ -254,6 +255,13 @@ def test_coherent_records_phase_and_splits(shelf_env, tmp_path):
     with pytest.raises(ValueError, match="has no phase 'grab'; its phases: pick, nav, place"):
         split_by_phase(ref.path, tmp_path / "none", phases=["grab"])
     assert not (tmp_path / "none").exists()
+    # inside a daemonic process (a Dask worker's), which may not start the per-phase writers: it writes them itself
+    worker = multiprocessing.get_context("spawn").Process(target=split_by_phase, args=(ref.path, tmp_path / "daemon"),
+                                                          daemon=True)
+    worker.start()
+    worker.join(300)
+    assert worker.exitcode == 0 and sorted(p.name for p in (tmp_path / "daemon").iterdir()) == [
+        "nav.hdf5", "pick.hdf5", "place.hdf5"]
 
 
 # ---------------------------------------------------------------- scenarios

@@ -108,6 +108,8 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
         jobs.append(_PhaseJob(path, outs[ph.name], ph.name, p, p == len(cfg.phases) - 1, ph.task_id,
                               [columns.index(j) for j in joints], args))
     workers = min(len(jobs), workers or os.cpu_count() or 1)
+    if multiprocessing.current_process().daemon:  # e.g. a Dask worker: a daemonic process may not start children
+        workers = 1
     if workers > 1:  # spawn: the parent may hold a CUDA context, which a forked child must not inherit
         with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
             saved = list(pool.map(_write_phase, jobs))
