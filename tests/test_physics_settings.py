@@ -13,7 +13,7 @@ import pytest
 
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
-from newton_lab.envs.scene import check_contact_filter
+from newton_lab.envs.scene import check_contact_filter, task_posture
 from newton_lab.robots.registry import robot_binding
 from newton_lab.task_api.physics import ANY_OBJECT, GROUND, ContactFilterCfg, PhysicsCfg, gripper_only, merged
 from newton_lab.task_api.registry import list_tasks, lookup
@@ -184,8 +184,7 @@ def test_welding_joints_at_the_posture_keeps_every_body_where_the_posture_puts_i
 
     probe = _probe()
     cfg = lookup(PICK).make_cfg({})
-    posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
-    mjcf = probe.welded_mjcf(posture, probe.MOVING)
+    mjcf = probe.welded_mjcf(task_posture(cfg, robot_binding(cfg.robot)), probe.MOVING)
     root = ET.fromstring(mjcf)
     assert sorted(j.get("name") for j in root.find("worldbody").iter("joint")) == sorted(probe.MOVING)
     named = {v for e in [*root.iter("position"), *root.iter("velocity"), *root.find("equality")]

@@ -26,29 +26,15 @@ import warp as wp
 
 import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.bench import _time_graph
-from newton_lab.envs.scene import CONTACT_GAP, _add_entity
+from newton_lab.envs.scene import CONTACT_GAP, _add_entity, task_posture
 from newton_lab.robots.g1 import spec
 from newton_lab.robots.g1.model import mjcf_path
+from newton_lab.robots.quaternions import quat_mul, quat_rotate
 from newton_lab.robots.registry import robot_binding
 from newton_lab.task_api.registry import lookup
 
 MOVING = (*spec.LEFT_ARM_JOINTS, "left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint")
 """Robot joints left free in the welded variant."""
-
-
-def _quat_mul(a, b):
-    """Hamilton product of wxyz quaternions (MJCF's order)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
-
-
-def _rotate(q, v):
-    w, x, y, z = q
-    qv = np.array([x, y, z])
-    t = 2.0 * np.cross(qv, v)
-    return v + w * t + np.cross(qv, t)
 
 
 def welded_mjcf(posture: dict[str, float], moving: tuple[str, ...]) -> str:
@@ -58,20 +44,21 @@ def welded_mjcf(posture: dict[str, float], moving: tuple[str, ...]) -> str:
     welded = set()
     for body in root.iter("body"):
         pos = np.array([float(v) for v in body.get("pos", "0 0 0").split()])
-        quat = tuple(float(v) for v in body.get("quat", "1 0 0 0").split())
+        w, x, y, z = (float(v) for v in body.get("quat", "1 0 0 0").split())  # MJCF: wxyz
+        quat = np.array([[x, y, z, w]])
         for joint in [j for j in body.findall("joint") if j.get("name") not in moving]:
             axis = np.array([float(v) for v in joint.get("axis", "0 0 1").split()])
             axis = axis / np.linalg.norm(axis)
             value = posture.get(joint.get("name"), 0.0)
             if joint.get("type", "hinge") == "slide":
-                pos = pos + _rotate(quat, axis * value)
+                pos = pos + quat_rotate(quat, axis * value)[0]
             else:  # hinge about the body origin (the G1's joints have no pos offset)
-                s = math.sin(0.5 * value)
-                quat = _quat_mul(quat, (math.cos(0.5 * value), *(axis * s)))
+                quat = quat_mul(quat, np.array([[*(axis * math.sin(0.5 * value)), math.cos(0.5 * value)]]))
             welded.add(joint.get("name"))
             body.remove(joint)
+        x, y, z, w = quat[0]
         body.set("pos", " ".join(f"{v:.9g}" for v in pos))
-        body.set("quat", " ".join(f"{v:.9g}" for v in quat))
+        body.set("quat", " ".join(f"{v:.9g}" for v in (w, x, y, z)))
     for section in ("actuator", "equality"):
         for parent in root.findall(section):
             for child in list(parent):
@@ -86,9 +73,10 @@ def build(cfg, num_envs: int, device, mjcf: str | None) -> newton.Model:
     world = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(world)
     world.rigid_gap = CONTACT_GAP
-    posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
+    robot = robot_binding(cfg.robot)
+    posture = task_posture(cfg, robot)
     if mjcf is None:
-        coord = robot_binding(cfg.robot).build(world).coord
+        coord = robot.build(world).coord
     else:
         with tempfile.NamedTemporaryFile("w", suffix=".xml") as f:
             f.write(mjcf)
@@ -98,7 +86,7 @@ def build(cfg, num_envs: int, device, mjcf: str | None) -> newton.Model:
     for name, value in posture.items():
         if name in coord:
             world.joint_q[coord[name]] = value
-            if name not in ("base_x", "base_y", "base_yaw"):
+            if name not in robot.base_planar_joints:
                 world.joint_target_q[coord[name]] = value
     for e in cfg.entities:
         _add_entity(world, e)
@@ -135,8 +123,7 @@ def main() -> None:
     args = ap.parse_args()
     device = wp.get_device(args.device)
     cfg = lookup(args.task).make_cfg({})
-    full_posture = {"base_x": cfg.root_pos[0], "base_y": cfg.root_pos[1], "base_yaw": cfg.root_yaw, **cfg.posture}
-    variants = {"full": None, "welded": welded_mjcf(full_posture, MOVING)}
+    variants = {"full": None, "welded": welded_mjcf(task_posture(cfg, robot_binding(cfg.robot)), MOVING)}
     rows = {}
     for name, mjcf in variants.items():
         model = build(cfg, args.num_envs, device, mjcf)

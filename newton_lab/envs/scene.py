@@ -106,6 +106,13 @@ def _filter_contacts(world: newton.ModelBuilder, cfg: TaskCfg, robot: RobotBindi
     return [shape for shape, group in groups.items() if not contact_filter.allows(group, GROUND)]
 
 
+def task_posture(cfg: TaskCfg, robot: RobotBinding) -> dict[str, float]:
+    """The robot's joint values at reset by joint name: the planar base at the task's root pose [m, m, rad], then
+    the task's posture [rad | m]."""
+    base_x, base_y, base_yaw = robot.base_planar_joints
+    return {base_x: cfg.root_pos[0], base_y: cfg.root_pos[1], base_yaw: cfg.root_yaw, **cfg.posture}
+
+
 def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | None = None) -> SceneLayout:
     """Build, replicate ``num_envs`` times and finalize the task's scene (its robot and entities) on ``device``;
     ``robot``: the task's robot (``robot_binding(cfg.robot)``) when ``None``."""
@@ -116,9 +123,7 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
     joints = robot.build(world)
     robot_coords, robot_dofs = world.joint_coord_count, world.joint_dof_count
 
-    base_x, base_y, base_yaw = robot.base_planar_joints
-    posture = {base_x: cfg.root_pos[0], base_y: cfg.root_pos[1], base_yaw: cfg.root_yaw, **cfg.posture}
-    for name, value in posture.items():
+    for name, value in task_posture(cfg, robot).items():
         if name not in joints.coord:
             raise ValueError(f"task {cfg.task_id!r} posture names unknown joint {name!r}; valid: {sorted(joints.coord)}")
         world.joint_q[joints.coord[name]] = value
