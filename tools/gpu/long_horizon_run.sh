@@ -36,9 +36,7 @@ name_of() { echo "$1" | sed 's/GalbotG1-//; s/-v0//' | tr 'A-Z' 'a-z'; }
 case "${1:-}" in
 install)
   python3 -m pip install -q --no-index --no-deps --no-compile --upgrade --target "$HOME/.cache/gpu_site" .gpu_wheels/p4/*.whl
-  site=$HOME/.cache/gpu_site/newton_lab
-  rm -rf "$site" && mkdir -p "$site" && cp -r newton_lab/* "$site/"
-  for d in kernels tasks flows assets; do cp -r "$d" "$site/$d"; done
+  bash tools/gpu/lay_out_package.sh "$HOME/.cache/gpu_site"
   nvidia-smi --query-gpu=name --format=csv,noheader
   python3 -c "import torch, warp, newton, zarr; print('ok torch', torch.__version__, 'warp', warp.__version__)" ;;
 single)

@@ -20,10 +20,7 @@ mkdir -p "$OUT" "$W"
 
 stage "python path: this tree's newton_lab, the project's wheels, Ultralytics"
 src=$HOME/.cache/yolo_src
-rm -rf "$src" && mkdir -p "$src" && cp -r newton_lab "$src/newton_lab"
-for d in kernels tasks flows assets; do
-  if [ -d "$d" ]; then rm -rf "$src/newton_lab/$d" && cp -r "$d" "$src/newton_lab/$d"; fi
-done
+bash "$root/tools/gpu/lay_out_package.sh" "$src"
 yl=$HOME/.cache/yolo_site
 if [ ! -f "$yl/.unpacked" ]; then
   rm -rf "$yl" && mkdir -p "$yl" && tar -C "$yl" -xJf .gpu_wheels/p5/yolo_site.tar.xz && touch "$yl/.unpacked"
