@@ -150,15 +150,11 @@ def check_split_phases(args: SplitArgs, path: str, info: dict[str, Any]) -> None
     recorded before the phase names were is checked after the task is built), and only with ``--out``."""
     if not args.out:
         raise ValueError("--phases selects the phases of a split by phase: give --out too")
+    from ..datasets.split import check_phase_names  # deferred: the datasets package imports h5py and zarr (~1 s)
+
     recorded = info["env_args"].get("newton_lab", {}).get("phases")
-    if recorded is None:
-        return
-    if not recorded:
-        raise ValueError(f"{path} was recorded on {info['task_id']}, which has no phases; nothing to split")
-    for name in (p.strip() for p in args.phases.split(",") if p.strip()):
-        if name not in recorded:
-            raise ValueError(f"{info['task_id']} has no phase {name!r}{did_you_mean(name, recorded)}; its phases: "
-                             f"{', '.join(recorded)}")
+    if recorded is not None:
+        check_phase_names(path, info["task_id"], recorded, args.phase_names())
 
 
 def check_writable(path: Path) -> None:

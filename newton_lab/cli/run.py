@@ -117,8 +117,7 @@ def split(args: SplitArgs) -> int:
         keys = split_train_val(args.dataset_path, args.val_ratio, seed=args.seed, filter_key=args.filter_key)
         print(json.dumps({"path": str(args.dataset_path), "filter_keys": {k: len(v) for k, v in keys.items()}}))
         return 0
-    phases = [p.strip() for p in args.phases.split(",") if p.strip()] if args.phases else None
-    refs = split_by_phase(args.dataset_path, args.out, phases=phases)
+    refs = split_by_phase(args.dataset_path, args.out, phases=args.phase_names())
     print(json.dumps({name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]}
                       for name, r in refs.items()}))
     return 0

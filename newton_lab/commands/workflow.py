@@ -169,6 +169,10 @@ class SplitArgs:
     seed: int = 0
     """Seed of the train / valid shuffle (robomimic's split_train_val uses 0)."""
 
+    def phase_names(self) -> list[str] | None:
+        """``--phases`` as a list of names; None when not given (every phase)."""
+        return [p.strip() for p in self.phases.split(",") if p.strip()] if self.phases else None
+
 
 @dataclass(kw_only=True)
 class ExportArgs:

@@ -19,6 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..robots.registry import robot_binding
+from ..task_api.catalog import did_you_mean
 from ..task_api.registry import lookup
 from .ref import DatasetRef
 from .filter_keys import read_filter_keys, set_filter_keys
@@ -71,6 +72,17 @@ def _write_phase(job: _PhaseJob) -> list[int]:
     return saved
 
 
+def check_phase_names(path: str | Path, task_id: str, names: Sequence[str], wanted: Sequence[str]) -> None:
+    """Raise a one-line ``ValueError`` unless the task that recorded ``path`` has phases (``names``, in order) and
+    every phase in ``wanted`` is one of them."""
+    if not names:
+        raise ValueError(f"{path} was recorded on {task_id}, which has no phases; nothing to split")
+    for name in wanted:
+        if name not in names:
+            raise ValueError(f"{task_id} has no phase {name!r}{did_you_mean(name, names)}; its phases: "
+                             f"{', '.join(names)}")
+
+
 def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[str] | None = None,
                    workers: int | None = None) -> dict[str, DatasetRef]:
     """Write one dataset per phase of the coherent task that recorded ``path`` (only ``phases``, by name, when
@@ -85,12 +97,7 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
     from .. import tasks  # noqa: F401  (deferred: registering the tasks imports Warp; storage stays Warp-free)
 
     cfg = lookup(task_id).make_cfg(options)
-    if not cfg.phases:
-        raise ValueError(f"{path} was recorded on {task_id}, which has no phases; nothing to split")
-    names = [p.name for p in cfg.phases]
-    unknown = [p for p in (phases or ()) if p not in names]
-    if unknown:
-        raise ValueError(f"{task_id} has no phase {unknown[0]!r}; its phases: {', '.join(names)}")
+    check_phase_names(path, task_id, [p.name for p in cfg.phases], phases or ())
     columns = env_args["newton_lab"]["action_joint_names"]
     chosen = [(i, ph) for i, ph in enumerate(cfg.phases) if phases is None or ph.name in phases]
     outs = {ph.name: out_dir / f"{ph.name}{path.suffix}" for _, ph in chosen}
