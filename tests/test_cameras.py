@@ -229,8 +229,7 @@ def test_state_only_envs_do_no_camera_work(stack_env):
     (PICK, {"front_head": {"fov": 1.0}}, "unknown keys"),
     (PICK, "front_head", "use none, default or <camera>="),
     (PICK, 3, "cameras must be"),
-    ("GalbotG1-StackCube-v0", {"front_head": (96, 72)}, "has no cameras"),
-    ("GalbotG1-Reach-v0", {"left_wrist": (96, 72)}, "has no cameras"),
+    ("GalbotG1-StackCube-v0", {"head_cam": (96, 72)}, "unknown camera 'head_cam'"),
 ])
 def test_bad_camera_requests_raise_one_line(task, cameras, message):
     cfg = lookup(task).make_cfg(None)
@@ -250,6 +249,10 @@ def test_camera_sets_per_task_and_overrides():
         assert cams(task)["front_head"].data == ALL, task
     for task in ("GalbotG1-StackCube-v0", "GalbotG1-BaseNav-v0", "GalbotG1-Reach-v0"):
         assert cams(task) == {}, task
+    # a state-only task renders the cameras it is asked for (StackCube from pixels)
+    stack = cams("GalbotG1-StackCube-v0", "front_head=96x72:rgb,left_wrist=96x72:rgb")
+    assert {k: (c.width, c.height, c.data) for k, c in stack.items()} == {
+        "front_head": (96, 72, ("rgb",)), "left_wrist": (96, 72, ("rgb",))}
     assert cams(PICK, False) == {}
     small = cams(PICK, {"front_head": (96, 72)})["front_head"]
     assert (small.width, small.height, small.data) == (96, 72, ("rgb",))

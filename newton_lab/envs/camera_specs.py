@@ -62,9 +62,10 @@ def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None
                     robot: RobotBinding | None = None) -> dict[str, CameraCfg]:
     """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
     ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a mount of the robot that the
-    task does not declare is added), or any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``).
+    task does not declare is added, so a state-only task such as StackCube renders the cameras it is asked for), or
+    any of these as the CLI's text (``"none"``, ``"front_head=96x72:rgb"``).
     ``robot``: the task's (``robot_binding(cfg.robot)``) when ``None``. Raises a one-line ``ValueError`` on an
-    unknown mount, a bad resolution or data, or cameras asked of a task without any."""
+    unknown mount, a bad resolution or data."""
     robot = robot_binding(cfg.robot) if robot is None else robot
     mounts, sides = list(robot.camera_mounts), robot.camera_resolution
     if isinstance(cameras, str):
@@ -74,9 +75,6 @@ def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None
     elif cameras is False:
         return {}
     elif isinstance(cameras, Mapping):
-        if not cfg.cameras:
-            raise ValueError(f"{cfg.task_id} has no cameras (a state-only task, as in the reference), so cameras="
-                             f"{dict(cameras)!r} cannot apply; leave cameras unset or pass cameras=False")
         chosen = dict(cfg.cameras)
         for name, value in cameras.items():
             if name not in mounts:
