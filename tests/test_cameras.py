@@ -359,3 +359,33 @@ def test_objects_named_by_their_colour_keep_its_hue():
                 assert not np.allclose(ratio, 1.0), names[i]
         tables.append(colors[:, names.index("table")])
     assert np.abs(tables[0] - tables[1]).max() > 0.1 and np.abs(tables[1] - tables[2]).max() > 0.1
+
+
+def test_stack_cube_from_pixels_sees_its_cubes_by_colour():
+    """StackCube is state-only in the reference; asked for cameras with ``head="table"`` its front head sees all
+    three cubes at reset (the level head sees none of them), and the cubes keep their hue under vision
+    randomisation: which cube goes where is named by colour."""
+    def seen(head):
+        env = make_env("GalbotG1-StackCube-v0", task_options={"head": head}, num_envs=2, device="cpu", seed=3,
+                       randomize=True, cameras={"front_head": {"resolution": (96, 72), "data": ("segmentation",)}})
+        names = env.cameras.segmentation_names
+        seg = env.images["front_head_segmentation"].numpy()
+        return env, names, [{names[i] for i in np.unique(seg[row])} for row in range(env.num_envs)]
+
+    cubes = {"cube_1", "cube_2", "cube_3"}
+    _, _, level = seen("level")
+    assert all(not (ids & cubes) for ids in level), level
+    env, names, table = seen("table")
+    assert all(cubes <= ids for ids in table), table
+    env.cameras.randomize = False
+    try:
+        base = env.cameras.id_colors()[0]
+    finally:
+        env.cameras.randomize = True
+    colors = env.cameras.id_colors()
+    for row in range(env.num_envs):
+        for cube in sorted(cubes):
+            i = names.index(cube)
+            assert np.argmax(colors[row, i]) == np.argmax(base[i]), (cube, colors[row, i], base[i])
+            ratio = colors[row, i] / base[i]
+            assert ratio.max() / ratio.min() <= 1.2 / 0.8 + 1e-3, (cube, colors[row, i], base[i])

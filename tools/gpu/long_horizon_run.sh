@@ -11,6 +11,8 @@
 #   bash tools/gpu/long_horizon_run.sh bg NAME MODE ARGS...                the same, detached (setsid), log in
 #                                                                         /tmp/w/NAME.log: calls stay short
 #   knobs: EPS (demos), TB (training budget per policy [s], default 300), EVAL_EPS (100), W (work folder, /tmp/w),
+#          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
+#          StackCube: OBS_KEYS=joint_pos,gripper_pos ... single 0 GalbotG1-StackCube-v0 --head table),
 #          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3)
 # Each run ends with one JSON line: the evaluation's summary (success_rate, phases, termination_reasons).
 set -uo pipefail
@@ -19,7 +21,8 @@ W=${W:-/tmp/w}; mkdir -p "$W"
 root=$PWD
 N="${PY:-python3} -m newton_lab.cli"
 CAM=(--cameras front_head=96x72:rgb,left_wrist=96x72:rgb --obs-mode sensors)
-TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4 --time-budget-s "${TB:-300}")
+TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4 --time-budget-s "${TB:-300}"
+       ${OBS_KEYS:+--obs-keys "$OBS_KEYS"})
 dev() { if [ "${DEV:-cuda}" = cpu ]; then echo cpu; else echo "cuda:$1"; fi; }
 EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))" --seed 50000
       --max-steps 3000 --no-progress)

@@ -18,8 +18,13 @@ PHYSICS = PhysicsCfg(
 on an H100 at 4096 envs; docs/benchmarks.md, "Per-task physics settings")."""
 
 
-def stack_cube_cfg() -> TaskCfg:
-    """Fixed-base G1 at (-1, 0, 0), head level; left arm + gripper absolute targets (8). The episode
+HEADS = {"level": postures.LEVEL_HEAD, "table": postures.TABLE_TOP_HEAD}
+"""Head postures by the ``head`` option's value [rad]: level (the reference; its front camera sees only the table's
+near edge) or tilted down at the table (what a policy from pixels needs)."""
+
+
+def stack_cube_cfg(head: str = "level") -> TaskCfg:
+    """Fixed-base G1 at (-1, 0, 0), head ``head`` (``HEADS``); left arm + gripper absolute targets (8). The episode
     ends when the full stack is released (the collect / evaluate boundary of the reference)."""
     return TaskCfg(
         entities=SCENE.entities,
@@ -43,7 +48,7 @@ def stack_cube_cfg() -> TaskCfg:
             "cube_3_on_cube_2": TermCfg(func=stacked_and_released("cube_3", "cube_2")),
         },
         events={"randomize_cube_positions": TermCfg(func=events.randomize_cube_positions, params={"cubes": CUBES})},
-        posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.LEVEL_HEAD),
+        posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, HEADS[head]),
         root_pos=postures.MANIPULATION_ROOT_POS,
         physics=PHYSICS,
     )

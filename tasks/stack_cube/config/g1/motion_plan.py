@@ -100,6 +100,7 @@ def _cube_steps(name: str, level: int) -> list[MotionStep]:
     ]
 
 
-def plan() -> MotionPlan:
+def plan(head: str = "level") -> MotionPlan:
+    """The expert's plan (the head posture, the ``head`` option, changes nothing the arm does)."""
     return MotionPlan(steps=tuple(_cube_steps("cube_2", 1) + _cube_steps("cube_3", 2)), max_joint_step=0.03,
                       settle_steps=12)
