@@ -1,12 +1,17 @@
-"""Where a bare solver step spends its GPU time: Warp's per-kernel CUDA timing of ``env.simulate()`` (the step's
-physics alone: ``decimation`` solver substeps, no actions, task, reset or observation), grouped by kernel name.
+"""Where a bare solver step spends its GPU time: Warp's per-kernel CUDA timing of ``cfg.decimation`` solver
+substeps (the step's physics alone: no actions, task, reset or observation), summed by the stage its kernel's
+module belongs to, for the task's scene as the env builds it and, with ``--welded``, for the same scene with
+every robot joint but the left arm and gripper welded at the task's posture (``tools/frozen_dof_probe.py``).
 
-    python tools/profile_step.py --task GalbotG1-PickCube-v0 --num-envs 1024 4096 16384 --steps 20
+    python tools/profile_step.py [--task GalbotG1-PickCube-v0] [--num-envs 1024 4096 16384] [--steps 20]
+                                 [--welded] [--top 12] [--device cuda:0]
 
-One JSON line per env count: milliseconds per env step in all kernels, and the top kernels with their share. The
-grouping follows mujoco_warp's kernel names (collision broad / narrow phase, constraint build, solver iterations,
-smoothing and integration). CUDA events around every launch add a little to each kernel; the shares, not the sum,
-are the figure (``newton-lab bench`` times the captured step).
+One JSON line per variant and env count: kernel milliseconds per env step, launches, the stages (collision,
+constraint build, solver iterations, smooth dynamics, integration, Newton's glue) with their share, and the top
+kernels. A kernel's stage is the mujoco_warp module that defines it (``collision_*``, ``constraint``, ``solver``,
+``smooth``, ...), read from Warp's module registry rather than guessed from its name. CUDA events around every
+launch add a little to each kernel, and the substeps run eagerly: the shares, not the sum, are the figure
+(``newton-lab bench`` times the captured step). On the CPU Warp records no activities and the lines say so.
 """
 
 from __future__ import annotations
@@ -16,60 +21,107 @@ import json
 import re
 from collections import defaultdict
 
+import newton
 import warp as wp
+import warp._src.context as warp_context  # its module registry maps a kernel's key to the module defining it
 
-from newton_lab.envs import make_env
+import newton_lab.tasks  # noqa: F401  (registers every task id)
+from frozen_dof_probe import MOVING, build, welded_mjcf  # tools/ sits first on sys.path when run as a script
+from newton_lab.envs.scene import task_posture
+from newton_lab.robots.registry import robot_binding
+from newton_lab.task_api.registry import lookup
 
 STAGES = (
-    ("collision", re.compile(r"collision|broad|narrow|sap|nxn|contact|gjk|epa|box_box|plane|sphere|capsule|ccd")),
-    ("solver", re.compile(r"solve|linesearch|cg_|hessian|update_gradient|mul_m|cholesky|jtdacj|init_h")),
-    ("constraint", re.compile(r"constraint|efc|_jac|contact_to|make_")),
-    ("smooth / kinematics", re.compile(r"kinematic|fk|articulation|com_|crb|cfrc|rne_|gravity|tendon|transmission|"
-                                       r"smooth|cdof|cinert|factor_m")),
-    ("integration", re.compile(r"euler|implicit|integrat|advance|qvel|qpos")),
+    ("collision", ("collision",)),
+    ("constraint build", ("constraint",)),
+    ("solver iterations", ("solver", "block_cholesky")),
+    ("smooth dynamics", ("smooth", "passive", "derivative", "support", "sensor")),
+    ("integration", ("forward",)),
 )
-"""Kernel-name patterns of each stage, matched on the kernel's own name (first match wins; the rest is ``other``)."""
+"""mujoco_warp module-name fragments of each stage (first match wins); kernels of other packages (Newton's state
+exchange with MuJoCo-Warp) are ``newton glue``."""
 
 
-def stage_of(name: str) -> str:
-    """The stage of a Warp activity name such as ``forward kernel _crb_accumulate__locals__kernel_eb71fb91``."""
-    core = re.sub(r"^forward kernel |__locals__.*$", "", name).lower()
-    return next((stage for stage, pattern in STAGES if pattern.search(core)), "other")
+def stage_of(module: str) -> str:
+    """The stage of a kernel defined in Python module ``module``."""
+    if not module.startswith("mujoco_warp"):
+        return "newton glue"
+    leaf = module.rsplit(".", 1)[-1]
+    return next((stage for stage, fragments in STAGES if any(f in leaf for f in fragments)),
+                f"mujoco_warp {leaf}")
 
 
-def profile(task: str, num_envs: int, steps: int, top: int) -> dict:
-    env = make_env(task, num_envs=num_envs, device="cuda:0", seed=0, randomize=True, cameras=False)
-    for _ in range(3):  # warm up: every kernel compiled and loaded
-        env.simulate()
-    wp.synchronize_device(env.device)
-    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL)
-    for _ in range(steps):
-        env.simulate()
-    results = wp.timing_end()
+def kernel_modules() -> dict[str, str]:
+    """Kernel name -> the Python module that defines it, over every kernel Warp has loaded: by key and by the
+    mangled name (``<key>_<hash8>``) that Warp's activity timer reports."""
+    out: dict[str, str] = {}
+    for name, module in list(warp_context.user_modules.items()):
+        for kernel in list(module._live_kernels):  # every variant a factory made, not only the latest per key
+            out.setdefault(kernel.key, name)
+            try:
+                out.setdefault(kernel.get_mangled_name(), name)
+            except RuntimeError:  # never compiled: it cannot have run
+                pass
+    return out
+
+
+def module_of(activity: str, modules: dict[str, str]) -> str:
+    """The module of a timed kernel (``<key>_<hash8>``); ``""`` when unknown."""
+    return modules.get(activity) or modules.get(re.sub(r"_[0-9a-f]{8}$", "", activity), "")
+
+
+def profile(cfg, model: newton.Model, steps: int, top: int) -> dict:
+    """GPU milliseconds per env step (``cfg.decimation`` solver substeps) of ``model``: total, by stage, top
+    kernels."""
+    solver = newton.solvers.SolverMuJoCo(model, **cfg.physics.solver_options())
+    solver.mjw_model.opt.warn_overflow = 0
+    state, control = model.state(), model.control()
+    newton.eval_fk(model, state.joint_q, state.joint_qd, state)
+    with wp.ScopedDevice(model.device):
+        for _ in range(3 * cfg.decimation):  # warm up: every kernel compiled and loaded
+            solver.step(state, state, control, None, cfg.sim_dt)
+        wp.synchronize_device(model.device)
+        wp.timing_begin(cuda_filter=wp.TIMING_KERNEL)
+        for _ in range(steps * cfg.decimation):
+            solver.step(state, state, control, None, cfg.sim_dt)
+        results = wp.timing_end()
+    modules = kernel_modules()
     per_kernel: dict[str, float] = defaultdict(float)
-    for r in results:
-        per_kernel[r.name] += r.elapsed / steps
-    total = sum(per_kernel.values())
     per_stage: dict[str, float] = defaultdict(float)
-    for name, ms in per_kernel.items():
-        per_stage[stage_of(name)] += ms
+    for r in results:
+        key = r.name.removeprefix("forward kernel ")
+        per_kernel[key] += r.elapsed / steps
+        per_stage[stage_of(module_of(key, modules))] += r.elapsed / steps
+    total = sum(per_kernel.values())
+    if not results:
+        return {"note": f"no CUDA activity recorded on {model.device} (Warp times kernels on CUDA devices only)"}
     ranked = sorted(per_kernel.items(), key=lambda kv: -kv[1])[:top]
-    return {"task": task, "device_name": env.device.name, "num_envs": num_envs, "decimation": env.cfg.decimation,
-            "kernel_ms_per_env_step": round(total, 4), "launches_per_env_step": len(results) / steps,
-            "stages": {k: {"ms": round(v, 4), "share": round(v / total, 3)} for k, v in
-                       sorted(per_stage.items(), key=lambda kv: -kv[1])},
+    return {"kernel_ms_per_env_step": round(total, 4), "launches_per_env_step": len(results) / steps,
+            "stages": {k: {"ms": round(v, 4), "share": round(v / total, 3)}
+                       for k, v in sorted(per_stage.items(), key=lambda kv: -kv[1])},
             "top_kernels": [{"kernel": k, "ms": round(v, 4), "share": round(v / total, 3)} for k, v in ranked]}
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--task", default="GalbotG1-PickCube-v0")
     ap.add_argument("--num-envs", type=int, nargs="+", default=[1024, 4096, 16384])
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--top", type=int, default=12)
+    ap.add_argument("--welded", action="store_true", help="also profile the robot welded down to the left arm")
+    ap.add_argument("--device", default="cuda:0")
     args = ap.parse_args()
+    cfg = lookup(args.task).make_cfg(None)
+    variants = {"full": None}
+    if args.welded:
+        variants["welded"] = welded_mjcf(task_posture(cfg, robot_binding(cfg.robot)), MOVING)
+    device = wp.get_device(args.device)
     for n in args.num_envs:
-        print(json.dumps(profile(args.task, n, args.steps, args.top)), flush=True)
+        for variant, mjcf in variants.items():
+            model = build(cfg, n, device, mjcf)
+            row = {"task": args.task, "variant": variant, "device_name": device.name, "num_envs": n,
+                   "decimation": cfg.decimation, "dofs_per_world": model.joint_dof_count // model.world_count}
+            print(json.dumps({**row, **profile(cfg, model, args.steps, args.top)}), flush=True)
 
 
 if __name__ == "__main__":
