@@ -269,7 +269,6 @@ def test_camera_sets_per_task_and_overrides():
     (["--resolution", "96"], "--resolution takes width and height"),
     (["--resolution", "96", "72000"], "--resolution takes width and height"),
     (["--out", "frame.jpg"], "the picture is a PNG"),
-    (["--task", "GalbotG1-StackCube-v0"], "has no cameras"),
 ])
 def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp_path):
     from newton_lab.cli import main

@@ -88,7 +88,7 @@ GRIPPER = {"left_palm", "left_gripper_l_finger_link_geom_0", "left_gripper_r_fin
 
 def test_the_filter_reaches_mujoco_warps_broad_phase():
     before = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
-                      physics=PhysicsCfg(constraints_per_world=128))
+                      physics=PhysicsCfg(constraints_per_world=128, weld_idle_joints=False))
     task = make_env(PICK, num_envs=2, device="cpu", capture=False, cameras=False, physics=filtered(PICK, 5))
     assert task.solver.mj_model.opt.iterations == task.cfg.physics.iterations == 5
     assert before.solver.mj_model.opt.iterations == 20
@@ -202,3 +202,76 @@ def test_welding_joints_at_the_posture_keeps_every_body_where_the_posture_puts_i
     for body in ("left_arm_link7", "right_arm_link7", "head_link2", "left_gripper_l_finger_link", "cube"):
         np.testing.assert_allclose(welded[body][:3], full[body][:3], atol=1e-5, err_msg=body)
         assert abs(abs(float(np.dot(welded[body][3:], full[body][3:]))) - 1.0) < 1e-5, body
+
+
+def _weld(task_id: str, on: bool) -> PhysicsCfg:
+    return dataclasses.replace(lookup(task_id).make_cfg({}).physics, weld_idle_joints=on)
+
+
+def test_welding_idle_joints_keeps_the_full_robot_layout_and_the_expert_episodes():
+    """``PhysicsCfg(weld_idle_joints=True)`` on PickCube: the solver steps the left arm, the gripper (its fingers
+    follow it) and the cube, 17 coordinates a world instead of 41; the env's coordinates, observations and actions
+    keep the full robot's layout, a welded joint reads its posture and zero velocity while the arm works, and the
+    expert's episodes succeed as without welding (same lengths, TCP within a few mm mid-episode)."""
+    import torch
+    import warp as wp
+
+    envs = {on: make_env(PICK, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False,
+                         physics=_weld(PICK, on)) for on in (False, True)}
+    full, welded = envs[False], envs[True]
+    free = {*welded.robot.joint_groups["left_arm"], "left_gripper_joint", "left_gripper_l_finger_joint",
+            "left_gripper_r_finger_joint"}
+    assert set(welded.layout.welded) == set(full.layout.joints.coord) - free
+    assert full.joint_space is None and full.layout.welded == ()
+    assert welded.joint_space.model.joint_coord_count // 2 == 17 and welded.layout.coords_per_world == 41
+    assert welded.obs.shape == full.obs.shape and welded.action_joint_names == full.action_joint_names
+    idle = list(welded.layout.welded)
+    posture = welded.joint_positions(idle).clone()
+    idle_dofs = [welded.layout.joints.dof[n] for n in idle]
+    agents = {on: expert_agent(env) for on, env in envs.items()}
+    for _ in range(60):
+        for on, env in envs.items():
+            env.step(agents[on].act(env))
+    assert (full.tcp_pose[:, :3] - welded.tcp_pose[:, :3]).abs().max() < 0.005
+    torch.testing.assert_close(welded.joint_positions(idle), posture)
+    assert not wp.to_torch(welded.state.joint_qd).view(2, -1)[:, idle_dofs].any()
+    moved = welded.joint_positions(list(welded.robot.joint_groups["left_arm"]))
+    assert not torch.allclose(moved, full.joint_positions(list(full.robot.joint_groups["left_arm"])) * 0)
+    runs = {on: env.evaluate(agent=expert_agent(env), episodes=4, max_steps=1500, progress=False)
+            for on, env in envs.items()}
+    assert runs[True]["success_rate"] == runs[False]["success_rate"] == 1.0, runs
+    assert abs(runs[True]["average_length"] - runs[False]["average_length"]) <= 2.0, runs
+
+
+def test_a_joint_coupled_to_a_free_one_stays_free_and_welding_refuses_unknown_joints():
+    import xml.etree.ElementTree as ET
+
+    from newton_lab.robots.g1 import spec
+    from newton_lab.robots.g1.model import mjcf_path
+    from newton_lab.robots.weld import weld_mjcf
+
+    text, welded = weld_mjcf(mjcf_path(), {}, keep=["left_gripper_joint"])
+    left = {j.get("name") for j in ET.fromstring(text).iter("joint") if j.get("name")}
+    assert {"left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint"} <= left
+    assert "right_gripper_l_finger_joint" in welded and "head_joint1" in welded
+    assert set(welded) | {"left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint"} \
+        == set(spec.ALL_JOINT_NAMES)
+    builder = newton.ModelBuilder()
+    with pytest.raises(ValueError, match="no such joints"):
+        robot_binding(lookup(PICK).make_cfg({}).robot).build(builder, {"nose_joint": 0.0})
+
+
+def test_a_reset_that_moves_a_welded_joint_is_refused_in_one_line():
+    """The env compares the first reset's coordinates of its welded joints with the values the solver welded them
+    at: a reset that moved one (an event randomising the head, say) is refused, naming the joint and the fix."""
+    from newton_lab.envs.joint_space import check_welded_reset
+
+    env = make_env(PICK, num_envs=1, device="cpu", seed=0, cameras=False)
+    names = list(env.layout.welded)
+    assert "head_joint2" in names
+    reset = env.joint_positions(names).clone()
+    check_welded_reset(PICK, env.layout, reset, env.layout.default_q)  # the task's own reset passes
+    reset[0, names.index("head_joint2")] += 0.3
+    with pytest.raises(ValueError, match="moves welded joint 'head_joint2'.*weld_idle_joints=False") as err:
+        check_welded_reset(PICK, env.layout, reset, env.layout.default_q)
+    assert "\n" not in str(err.value)

@@ -4,11 +4,11 @@ moving ones welded at the task's posture, side by side in one process.
 
     python tools/frozen_dof_probe.py [--task GalbotG1-PickCube-v0] [--num-envs 4096] [--steps 200] [--device cuda:0]
 
-Welding is done in the MJCF: a welded joint's element is removed and its posture value is folded into its body's
-pose (MuJoCo rides a joint-less body on its parent), together with the actuators and equality constraints that
-name it. The moving joints are the left arm and the left gripper (what PickCube, StackCube and the shelf tasks'
-manipulation phases drive). This is a measurement of the lever, not a product path: the env, its observations and
-its datasets keep the full robot. It prints one JSON line per variant (degrees of freedom per world, world-steps/s
+Welding is done in the MJCF (``newton_lab.robots.weld``): a welded joint's element is removed and its posture value
+is folded into its body's pose (MuJoCo rides a joint-less body on its parent), together with the actuators and
+equality constraints that name it. The moving joints are the left arm and the left gripper (what PickCube,
+StackCube and the shelf tasks' manipulation phases drive). This is the bare solver alone; a task welds its idle
+joints inside the env with ``PhysicsCfg(weld_idle_joints=True)`` (``newton-lab bench`` then times it). It prints one JSON line per variant (degrees of freedom per world, world-steps/s
 of the captured ``decimation`` solver steps) and their ratio.
 """
 
@@ -16,12 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import tempfile
-import xml.etree.ElementTree as ET
 
 import newton
-import numpy as np
 import warp as wp
 
 import newton_lab.tasks  # noqa: F401  (registers every task id)
@@ -29,8 +25,8 @@ from newton_lab.bench import _time_graph
 from newton_lab.envs.scene import CONTACT_GAP, _add_entity, task_posture
 from newton_lab.robots.g1 import spec
 from newton_lab.robots.g1.model import mjcf_path
-from newton_lab.robots.quaternions import quat_mul, quat_rotate
 from newton_lab.robots.registry import robot_binding
+from newton_lab.robots.weld import weld_mjcf
 from newton_lab.task_api.registry import lookup
 
 MOVING = (*spec.LEFT_ARM_JOINTS, "left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint")
@@ -38,33 +34,8 @@ MOVING = (*spec.LEFT_ARM_JOINTS, "left_gripper_joint", "left_gripper_l_finger_jo
 
 
 def welded_mjcf(posture: dict[str, float], moving: tuple[str, ...]) -> str:
-    """The G1 MJCF with every joint not in ``moving`` removed and its ``posture`` value folded into its body."""
-    tree = ET.parse(mjcf_path())
-    root = tree.getroot()
-    welded = set()
-    for body in root.iter("body"):
-        pos = np.array([float(v) for v in body.get("pos", "0 0 0").split()])
-        w, x, y, z = (float(v) for v in body.get("quat", "1 0 0 0").split())  # MJCF: wxyz
-        quat = np.array([[x, y, z, w]])
-        for joint in [j for j in body.findall("joint") if j.get("name") not in moving]:
-            axis = np.array([float(v) for v in joint.get("axis", "0 0 1").split()])
-            axis = axis / np.linalg.norm(axis)
-            value = posture.get(joint.get("name"), 0.0)
-            if joint.get("type", "hinge") == "slide":
-                pos = pos + quat_rotate(quat, axis * value)[0]
-            else:  # hinge about the body origin (the G1's joints have no pos offset)
-                quat = quat_mul(quat, np.array([[*(axis * math.sin(0.5 * value)), math.cos(0.5 * value)]]))
-            welded.add(joint.get("name"))
-            body.remove(joint)
-        x, y, z, w = quat[0]
-        body.set("pos", " ".join(f"{v:.9g}" for v in pos))
-        body.set("quat", " ".join(f"{v:.9g}" for v in (w, x, y, z)))
-    for section in ("actuator", "equality"):
-        for parent in root.findall(section):
-            for child in list(parent):
-                if {child.get("joint"), child.get("joint1"), child.get("joint2")} & welded:
-                    parent.remove(child)
-    return ET.tostring(root, encoding="unicode")
+    """The G1 MJCF with every joint not in ``moving`` welded at its ``posture`` value (``robots.weld``)."""
+    return weld_mjcf(mjcf_path(), posture, keep=moving)[0]
 
 
 def build(cfg, num_envs: int, device, mjcf: str | None) -> newton.Model:
@@ -78,10 +49,7 @@ def build(cfg, num_envs: int, device, mjcf: str | None) -> newton.Model:
     if mjcf is None:
         coord = robot.build(world).coord
     else:
-        with tempfile.NamedTemporaryFile("w", suffix=".xml") as f:
-            f.write(mjcf)
-            f.flush()
-            world.add_mjcf(f.name, enable_self_collisions=False, xform=wp.transform_identity())
+        world.add_mjcf(mjcf, enable_self_collisions=False, xform=wp.transform_identity())  # XML text
         coord = {label.rsplit("/", 1)[-1]: world.joint_q_start[j] for j, label in enumerate(world.joint_label)}
     for name, value in posture.items():
         if name in coord:

@@ -82,6 +82,8 @@ def _describe(p: PhysicsCfg) -> str:
         text += f", cap {p.contacts_per_world or '-'}c/{p.constraints_per_world or '-'}r"
     if p.contact_filter is not None:
         text += ", filter " + " ".join(f"{g}:{'+'.join(t) or '-'}" for g, t in p.contact_filter.robot.items())
+    if p.weld_idle_joints:
+        text += ", idle joints welded"
     return text
 
 

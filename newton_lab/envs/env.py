@@ -32,8 +32,9 @@ from .actuation import Actuation
 from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coordinates
 from .cameras import Cameras, ImageViews, resolve_cameras
 from .checks import check_actions, row_mask
+from .joint_space import SolverJointSpace, check_welded_reset
 from .launches import StepLaunches
-from .scene import build_scene
+from .scene import build_scene, with_welded_solver
 from .terms import build_task_kernels, observation_layout
 
 __all__ = ["Entity", "NewtonEnv"]
@@ -74,19 +75,28 @@ class NewtonEnv:
         self.camera_specs = resolve_cameras(cfg, cameras, robot=self.robot)  # a bad request fails before the build
 
         with wp.ScopedDevice(self.device):
-            self.layout = build_scene(cfg, num_envs, str(self.device), self.robot)
+            layout = build_scene(cfg, num_envs, str(self.device), self.robot)
+            self.scenario, default_q, default_target_q = reset_coordinates(cfg, layout)
+            self.layout = with_welded_solver(cfg, layout, default_q, num_envs, str(self.device))
             self.model = self.layout.model
             self.state = self.model.state()
             self.control = self.model.control()
-            self.solver = newton.solvers.SolverMuJoCo(self.model, **cfg.physics.solver_options())
+            self.joint_space = SolverJointSpace(self.layout, self.state, num_envs) if self.layout.welded else None
+            """The solver's own joint space when the task welds its idle joints (``envs.joint_space``), else
+            ``None``: the solver steps ``model`` itself."""
+            solver_model = self.model if self.joint_space is None else self.joint_space.model
+            self.solver = newton.solvers.SolverMuJoCo(solver_model, **cfg.physics.solver_options())
             # mujoco_warp prints a line from inside its kernels whenever a world overflows a buffer or the line
             # search hits its cap; the per-world bitmask (solver_overflows) is reported by the loops instead
             self.solver.mjw_model.opt.warn_overflow = 0
             self._build_actions()
-            self._build_buffers()
+            self._build_buffers(default_q, default_target_q)
             self._build_launches()
             self._build_cameras(capture)
             self.reset()
+            if self.joint_space is not None:
+                check_welded_reset(self.task_id, self.layout, self.joint_positions(list(self.layout.welded)),
+                                   default_q)
             self._graph = self._launches.capture() if capture else None
 
     # ------------------------------------------------------------------ construction
@@ -108,7 +118,7 @@ class NewtonEnv:
                                                   ARM_JOINTS: len(self.binding.context.arm_coords)})
         self.obs_dim = max((s.stop for s in self.obs_terms.values()), default=0)
 
-    def _build_buffers(self) -> None:
+    def _build_buffers(self, default_q, default_target_q) -> None:
         n, lay, cfg = self.num_envs, self.layout, self.cfg
         self._build_observation_layout()
         self.entities = entity_table(lay)
@@ -119,7 +129,6 @@ class NewtonEnv:
             num_envs=n, action_dim=self.action_dim, obs_dim=self.obs_dim, signals=len(self.signal_names),
             entities=len(lay.entity_names), articulations=self.model.articulation_count,
             coords_per_world=lay.coords_per_world)
-        self.scenario, default_q, default_target_q = reset_coordinates(cfg, lay)
         self._default_q = wp.array(default_q, dtype=float)
         self._default_target_q = wp.array(default_target_q, dtype=float)
         self._ctx = build_context(cfg=cfg, layout=lay, binding=self.binding, state=self.state, control=self.control,
@@ -177,7 +186,7 @@ class NewtonEnv:
             cfg=self.cfg, model=self.model, state=self.state, solver=self.solver, drive=self.drive,
             actuation=self._actuation, ctx=self._ctx, buffers=self._buf, kernels=self._kernels,
             default_q=self._default_q, default_target_q=self._default_target_q, seed=lambda: self.seed,
-            randomize=lambda: self.randomize)
+            randomize=lambda: self.randomize, joint_space=self.joint_space)
 
     # ------------------------------------------------------------------ the step
     def step(self, actions: torch.Tensor):

@@ -2,7 +2,7 @@
 Warp graph (a CUDA graph on a GPU, Warp's CPU graph on the CPU).
 
 actions -> control targets (``Actuation.apply``) -> ``decimation`` x (base twist and drive setpoints, then
-``solver.step``) -> fused task kernel (phase, success, terminations, reward) -> subtask signals and observation
+``solver.step``, in the solver's joint space when joints are welded: ``envs.joint_space``) -> fused task kernel (phase, success, terminations, reward) -> subtask signals and observation
 of the state reached (``final_obs``) and the finished rows' coordinates -> masked reset of finished rows (+ seeded
 randomisation, setpoints synced, forward kinematics, solver warm start cleared) -> observation, signals, poses.
 """
@@ -20,6 +20,7 @@ from ..kernels.context import TaskContext, record_poses
 from ..task_api.cfg import TaskCfg
 from .actuation import Actuation
 from .buffers import StepBuffers
+from .joint_space import SolverJointSpace
 from .terms import TaskKernels
 
 
@@ -35,8 +36,9 @@ class StepLaunches:
     def __init__(self, *, cfg: TaskCfg, model: newton.Model, state: newton.State, solver, drive: newton.Control,
                  actuation: Actuation, ctx: TaskContext, buffers: StepBuffers, kernels: TaskKernels,
                  default_q: wp.array, default_target_q: wp.array, seed: Callable[[], int],
-                 randomize: Callable[[], bool]):
+                 randomize: Callable[[], bool], joint_space: SolverJointSpace | None = None):
         self.cfg, self.model, self.state, self.solver, self.drive = cfg, model, state, solver, drive
+        self.joint_space = joint_space
         self.actuation, self.ctx, self.buf, self.kernels = actuation, ctx, buffers, kernels
         self.num_envs = buffers.reward.shape[0]
         self.default_q, self.default_target_q = default_q, default_target_q
@@ -61,7 +63,13 @@ class StepLaunches:
     def substep(self) -> None:
         # the world-frame base twist follows the turning base, limited setpoints advance
         self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q)
-        self.solver.step(self.state, self.state, self.drive, None, self.cfg.sim_dt)
+        js = self.joint_space
+        if js is None:
+            self.solver.step(self.state, self.state, self.drive, None, self.cfg.sim_dt)
+            return
+        js.push(self.state, self.drive)  # welded joints: the solver steps its own, smaller joint space
+        self.solver.step(js.state, js.state, js.drive, None, self.cfg.sim_dt)
+        js.pull(self.state)
 
     def simulate(self) -> None:
         for _ in range(self.cfg.decimation):

@@ -3,6 +3,7 @@ replicated, with the task's contact filter (``TaskCfg.physics.contact_filter``) 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -43,6 +44,16 @@ class SceneLayout:
     entity_half_extents: list[tuple]
     default_q: np.ndarray
     """Initial coordinates of one world (robot posture + entity poses)."""
+    solver_model: newton.Model | None = None
+    """The model the solver steps: ``model`` itself, or the same scene with the task's idle robot joints welded
+    (``welded``; same bodies and shapes, fewer coordinates)."""
+    welded: tuple[str, ...] = ()
+    """Robot joints welded in ``solver_model`` (``PhysicsCfg.weld_idle_joints``)."""
+    solver_coord: list[int] | None = None
+    """Per coordinate of one world of ``model``: its index in a world of ``solver_model``, -1 if welded (``None``:
+    nothing welded)."""
+    solver_dof: list[int] | None = None
+    """Per DOF of one world of ``model``: its index in a world of ``solver_model``, -1 if welded."""
 
 
 def _add_entity(builder: newton.ModelBuilder, e: EntityCfg) -> int:
@@ -113,17 +124,32 @@ def task_posture(cfg: TaskCfg, robot: RobotBinding) -> dict[str, float]:
     return {base_x: cfg.root_pos[0], base_y: cfg.root_pos[1], base_yaw: cfg.root_yaw, **cfg.posture}
 
 
-def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | None = None) -> SceneLayout:
-    """Build, replicate ``num_envs`` times and finalize the task's scene (its robot and entities) on ``device``;
-    ``robot``: the task's robot (``robot_binding(cfg.robot)``) when ``None``."""
-    robot = robot_binding(cfg.robot) if robot is None else robot
+def welded_joints(cfg: TaskCfg, robot: RobotBinding, joints: JointIndex, default_q) -> dict[str, float]:
+    """The robot joints the task asks to weld (``cfg.physics.weld_idle_joints``) and their values [rad | m]: every
+    joint no action term drives (the wheels drive the planar base; a free base stays free), at its reset value in
+    ``default_q`` (one world's coordinates). Empty when the task welds nothing. The robot's build keeps the joints
+    coupled to a driven one free (a gripper's fingers): ``SceneLayout.welded`` lists what was welded."""
+    if not cfg.physics.weld_idle_joints:
+        return {}
+    driven = {j for term in cfg.actions for j in robot.joint_groups[term.group]}
+    if driven & set(robot.base_wheel_joints) or not cfg.fixed_base:
+        driven |= set(robot.base_planar_joints)
+    return {name: float(default_q[c]) for name, c in joints.coord.items() if name not in driven}
+
+
+def _one_world(cfg: TaskCfg, robot: RobotBinding, weld: dict[str, float] | None = None):
+    """One world's builder (robot in the task's posture, entities, the contact filter's pairs), its joint index,
+    per-entity indices and the robot shapes that may not touch the ground. ``weld``: robot joints welded at these
+    values (``RobotBinding.build``)."""
     world = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(world)
     world.rigid_gap = CONTACT_GAP
-    joints = robot.build(world)
+    joints = robot.build(world, weld) if weld else robot.build(world)
     robot_coords, robot_dofs = world.joint_coord_count, world.joint_dof_count
 
     for name, value in task_posture(cfg, robot).items():
+        if weld and name in weld and name not in joints.coord:
+            continue  # welded: folded into its body's pose
         if name not in joints.coord:
             raise ValueError(f"task {cfg.task_id!r} posture names unknown joint {name!r}; valid: {sorted(joints.coord)}")
         world.joint_q[joints.coord[name]] = value
@@ -131,24 +157,21 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
             world.joint_target_q[joints.coord[name]] = value
 
     robot_shapes = world.shape_count
-    entity_body, entity_coord, entity_dof, static_pose, half = [], [], [], [], []
+    entities = {"body": [], "coord": [], "dof": []}
     entity_shapes: dict[str, int] = {}
     for e in cfg.entities:
         n_joints = world.joint_count
         entity_shapes[e.name] = world.shape_count
         b = _add_entity(world, e)
-        entity_body.append(b)
-        if b >= 0:
-            entity_coord.append(world.joint_q_start[n_joints])
-            entity_dof.append(world.joint_qd_start[n_joints])
-        else:
-            entity_coord.append(-1)
-            entity_dof.append(-1)
-        static_pose.append((*e.pos, *e.quat))
-        half.append(tuple(0.5 * s for s in e.size))
-
+        entities["body"].append(b)
+        entities["coord"].append(world.joint_q_start[n_joints] if b >= 0 else -1)
+        entities["dof"].append(world.joint_qd_start[n_joints] if b >= 0 else -1)
     off_ground = _filter_contacts(world, cfg, robot, range(robot_shapes), entity_shapes)
+    return world, joints, (robot_coords, robot_dofs), entities, off_ground
 
+
+def _replicate(world: newton.ModelBuilder, off_ground: list[int], num_envs: int, device: str) -> newton.Model:
+    """``num_envs`` copies of ``world`` on the shared ground plane, finalized on ``device``."""
     scene = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
     scene.rigid_gap = CONTACT_GAP
@@ -160,7 +183,39 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
         for start in range(0, per_world * num_envs, per_world):
             for shape in off_ground:
                 scene.add_shape_collision_filter_pair(start + shape, ground)
-    model = scene.finalize(device=device)
+    return scene.finalize(device=device)
+
+
+def _joint_map(full: newton.ModelBuilder, solver: newton.ModelBuilder) -> tuple[list[int], list[int]]:
+    """For every coordinate and DOF of one full world: its index in the welded world, -1 where welded. Joints are
+    matched by label; the two worlds must hold the same bodies in the same order (welding keeps every body)."""
+    if list(full.body_label) != list(solver.body_label):
+        raise RuntimeError("the welded robot's bodies differ from the full robot's; welding must keep every body")
+
+    def spans(b: newton.ModelBuilder):
+        q = list(b.joint_q_start) + [b.joint_coord_count]
+        qd = list(b.joint_qd_start) + [b.joint_dof_count]
+        return {label: (q[j], q[j + 1], qd[j], qd[j + 1]) for j, label in enumerate(b.joint_label)}
+
+    coord, dof = [-1] * full.joint_coord_count, [-1] * full.joint_dof_count
+    kept = spans(solver)
+    for label, (q0, q1, d0, d1) in spans(full).items():
+        if label in kept and q1 > q0:
+            s0, s1, t0, t1 = kept[label]
+            if (s1 - s0, t1 - t0) != (q1 - q0, d1 - d0):
+                continue  # a multi-DOF joint the weld changed (the planar base): welded as a whole
+            coord[q0:q1] = range(s0, s1)
+            dof[d0:d1] = range(t0, t1)
+    return coord, dof
+
+
+def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | None = None) -> SceneLayout:
+    """Build, replicate ``num_envs`` times and finalize the task's scene (its robot and entities) on ``device``;
+    ``robot``: the task's robot (``robot_binding(cfg.robot)``) when ``None``. The solver steps this model until
+    ``with_welded_solver`` gives it a welded one."""
+    robot = robot_binding(cfg.robot) if robot is None else robot
+    world, joints, (robot_coords, robot_dofs), entities, off_ground = _one_world(cfg, robot)
+    model = _replicate(world, off_ground, num_envs, device)
     return SceneLayout(
         model=model,
         robot=robot,
@@ -171,10 +226,27 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
         dofs_per_world=world.joint_dof_count,
         bodies_per_world=world.body_count,
         entity_names=[e.name for e in cfg.entities],
-        entity_body=entity_body,
-        entity_coord=entity_coord,
-        entity_dof=entity_dof,
-        entity_static_pose=static_pose,
-        entity_half_extents=half,
+        entity_body=entities["body"],
+        entity_coord=entities["coord"],
+        entity_dof=entities["dof"],
+        entity_static_pose=[(*e.pos, *e.quat) for e in cfg.entities],
+        entity_half_extents=[tuple(0.5 * s for s in e.size) for e in cfg.entities],
         default_q=np.asarray(world.joint_q, dtype=np.float32),
+        solver_model=model,
     )
+
+
+def with_welded_solver(cfg: TaskCfg, layout: SceneLayout, reset_q: np.ndarray, num_envs: int,
+                       device: str) -> SceneLayout:
+    """``layout`` with a solver model in which the task's idle robot joints (``welded_joints``) are welded at
+    their reset values ``reset_q`` (one world's coordinates at reset: posture and scenario); ``layout`` itself when
+    the task welds nothing."""
+    weld = welded_joints(cfg, layout.robot, layout.joints, reset_q)
+    if not weld:
+        return layout
+    world, _, _, _, _ = _one_world(cfg, layout.robot)
+    welded_world, _, _, _, off_ground = _one_world(cfg, layout.robot, weld)
+    solver_coord, solver_dof = _joint_map(world, welded_world)
+    welded = tuple(name for name in weld if solver_coord[layout.joints.coord[name]] < 0)
+    return dataclasses.replace(layout, solver_model=_replicate(welded_world, off_ground, num_envs, device),
+                               welded=welded, solver_coord=solver_coord, solver_dof=solver_dof)

@@ -111,9 +111,10 @@ class RobotBinding:
     """Segmentation names of the robot's body groups (``robot/<group>``), in id order."""
     link_group: Callable[[str], str]
     """Body name -> its segmentation group (one of ``link_groups``)."""
-    build: Callable[[Any], JointIndex]
-    """Add one robot at the origin to a Newton ``ModelBuilder`` (its planar base coordinates are its pose) and
-    return the builder's ``JointIndex``."""
+    build: Callable[..., JointIndex]
+    """``(builder, weld=None)``: add one robot at the origin to a Newton ``ModelBuilder`` (its planar base
+    coordinates are its pose), with the joints named in ``weld`` welded at those values [rad | m]
+    (``robots.weld``; joints coupled to a free one stay free), and return the builder's ``JointIndex``."""
     kinematics: Callable[..., Any]
     """``(n, *, device, arm) ->`` batched TCP kinematics of one arm for ``n`` problems: ``solve(q_seed, pos, quat,
     iterations=)`` (IK with ``newton.ik``) and ``tcp_poses(q)`` (FK), robot coordinates first in each row."""

@@ -1,10 +1,11 @@
 """Physics settings a task declares (``TaskCfg.physics``): the MuJoCo-Warp solver's options, its contact and
 constraint capacities, and which robot geoms may collide with what.
 
-The defaults are the settings every task ran with before tasks could choose (Newton solver, elliptic cone, 20
-iterations, 10 line-search iterations, every robot collision geom against every scene object and the ground). A
-task that declares cheaper settings justifies them by a measurement: steps/s gained and the expert's success kept
-(``tools/physics_table.py`` prints both side by side; docs/benchmarks.md, "Per-task physics settings").
+The defaults are the solver every task ran with before tasks could choose (Newton solver, elliptic cone, 20
+iterations, 10 line-search iterations, every robot collision geom against every scene object and the ground),
+with the robot's idle joints welded (``weld_idle_joints``: the measured lever). A task that declares cheaper
+settings justifies them by a measurement: steps/s gained and the expert's success kept (``tools/physics_table.py``
+prints both side by side; docs/benchmarks.md, "Per-task physics settings").
 """
 
 from __future__ import annotations
@@ -54,8 +55,8 @@ def gripper_only(*groups: str, ground: bool = False) -> ContactFilterCfg:
 
 @dataclass(frozen=True, kw_only=True)
 class PhysicsCfg:
-    """The solver options, capacities and contact filter of a task's physics (``SolverMuJoCo``; MuJoCo-Warp, the
-    Newton solver, implicitfast integration). Defaults: the settings every task ran with before this config."""
+    """The solver options, capacities, contact filter and welded joints of a task's physics (``SolverMuJoCo``;
+    MuJoCo-Warp, the Newton solver, implicitfast integration)."""
 
     iterations: int = 20
     """Maximum constraint-solver iterations per physics step. A world stops early once its cost improves by less
@@ -84,6 +85,16 @@ class PhysicsCfg:
     contact_filter: ContactFilterCfg | None = None
     """Which robot geoms may collide with what; ``None``: every robot collision geom with every scene object and
     the ground."""
+    weld_idle_joints: bool = True
+    """Weld every robot joint that no action term drives at its reset value (posture, scenario), so the solver
+    integrates only the driven joints (and the joints coupled to them, a gripper's fingers; the planar base stays
+    free unless ``TaskCfg.fixed_base``). The env keeps the full robot's layout: a welded joint reads its reset
+    value and zero velocity (``envs.joint_space``). A welded joint is rigid where its drive would give a little
+    under load, and a reset must not move it (the env refuses one that does, when it is built). On the 2-core
+    CPU, env-steps/s at 4 envs: PickCube 2.58x, StackCube 1.29x, PickToShelf 1.63x, SortToShelf 1.35x, Reach
+    4.19x, BaseNav 4.91x, every expert's success unchanged (``tools/physics_table.py --variant
+    weld_idle_joints=False``); PickCube's bare solver step 1.46x on an H200 (``tools/frozen_dof_probe.py``).
+    ``False``: every robot joint is simulated, held by its drive."""
 
     def __post_init__(self) -> None:
         if self.cone not in CONES:
@@ -102,8 +113,9 @@ class PhysicsCfg:
 
 def merged(physics: list[PhysicsCfg]) -> PhysicsCfg:
     """One physics for a coherent task from its phases': the most iterations, the tightest tolerances, the
-    largest capacities, an elliptic cone if any phase has one, and a filter allowing what any phase allows (no
-    filter if a phase has none)."""
+    largest capacities, an elliptic cone if any phase has one, a filter allowing what any phase allows (no
+    filter if a phase has none), and welding only if every phase welds (the coherent task's own action terms
+    then say which joints are driven)."""
     first = physics[0]
     filters = [p.contact_filter for p in physics]
     contact_filter = None
@@ -131,4 +143,5 @@ def merged(physics: list[PhysicsCfg]) -> PhysicsCfg:
         contacts_per_world=largest([p.contacts_per_world for p in physics]),
         constraints_per_world=largest([p.constraints_per_world for p in physics]),
         contact_filter=contact_filter,
+        weld_idle_joints=all(p.weld_idle_joints for p in physics),
     )

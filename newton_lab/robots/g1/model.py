@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from importlib import resources
 
 import newton
 import warp as wp
 
 from ..binding import JointIndex
+from ..weld import weld_mjcf
 from . import spec
 
 __all__ = ["JointIndex", "PLANAR_BASE_JOINT", "add_g1", "apply_spec_limits", "build_g1", "joint_index", "mjcf_path"]
@@ -18,11 +20,19 @@ def mjcf_path() -> str:
     return str(resources.files("newton_lab.assets").joinpath(spec.MJCF_FILE))
 
 
-def add_g1(builder: newton.ModelBuilder) -> None:
+def add_g1(builder: newton.ModelBuilder, weld: Mapping[str, float] | None = None) -> None:
     """Add one G1 at the origin; its planar base coordinates (base_x, base_y, base_yaw) are its pose. The spec's
-    joint limits beyond the MJCF ranges are written into Newton's limit fields (``apply_spec_limits``)."""
+    joint limits beyond the MJCF ranges are written into Newton's limit fields (``apply_spec_limits``). ``weld``:
+    joints welded at these values [rad | m] (``robots.weld``; the joints coupled to a kept one stay free)."""
     first_joint = builder.joint_count
-    builder.add_mjcf(mjcf_path(), enable_self_collisions=False, xform=wp.transform_identity())
+    source = mjcf_path()
+    if weld:
+        everything = spec.ALL_JOINT_NAMES
+        unknown = sorted(set(weld) - set(everything))
+        if unknown:
+            raise ValueError(f"cannot weld {unknown}: the G1 has no such joints; valid: {sorted(everything)}")
+        source, _ = weld_mjcf(source, weld, keep=[j for j in everything if j not in weld])
+    builder.add_mjcf(source, enable_self_collisions=False, xform=wp.transform_identity())
     apply_spec_limits(builder, first_joint)
 
 
@@ -40,17 +50,20 @@ def apply_spec_limits(builder: newton.ModelBuilder, first_joint: int = 0) -> Non
         for j, label in enumerate(builder.joint_label)
         if j >= first_joint
     }
-    unknown = sorted((set(spec.JOINT_VELOCITY_LIMITS) | set(spec.JOINT_EFFORT_LIMITS)) - set(dof))
+    unknown = sorted((set(spec.JOINT_VELOCITY_LIMITS) | set(spec.JOINT_EFFORT_LIMITS)) - set(spec.ALL_JOINT_NAMES))
     if unknown:
         raise ValueError(f"spec limits name joints the G1 model lacks: {unknown}; valid: {sorted(dof)}")
     position_only = int(newton.JointTargetMode.POSITION)
     for name, limit in spec.JOINT_VELOCITY_LIMITS.items():
+        if name not in dof:  # welded: no degree of freedom to limit
+            continue
         d = dof[name]
         builder.joint_velocity_limit[d] = float(limit)
         if builder.joint_target_mode[d] == position_only:
             builder.joint_target_mode[d] = int(newton.JointTargetMode.POSITION_VELOCITY)
     for name, limit in spec.JOINT_EFFORT_LIMITS.items():
-        builder.joint_effort_limit[dof[name]] = float(limit)
+        if name in dof:
+            builder.joint_effort_limit[dof[name]] = float(limit)
 
 
 PLANAR_BASE_JOINT = "base_x_base_y_base_yaw"
@@ -62,7 +75,8 @@ def joint_index(builder: newton.ModelBuilder) -> JointIndex:
     return JointIndex.from_builder(builder, merged={PLANAR_BASE_JOINT: spec.BASE_PLANAR_JOINTS})
 
 
-def build_g1(builder: newton.ModelBuilder) -> JointIndex:
-    """Add one G1 at the origin (``add_g1``) and index the builder's joints (``RobotBinding.build``)."""
-    add_g1(builder)
+def build_g1(builder: newton.ModelBuilder, weld: Mapping[str, float] | None = None) -> JointIndex:
+    """Add one G1 at the origin (``add_g1``, ``weld``: joints welded at these values) and index the builder's
+    joints (``RobotBinding.build``)."""
+    add_g1(builder, weld)
     return joint_index(builder)
