@@ -10,7 +10,10 @@
 #                                                                         -> evaluate composed with the nav expert
 #   bash tools/gpu/long_horizon_run.sh bg NAME MODE ARGS...                the same, detached (setsid), log in
 #                                                                         /tmp/w/NAME.log: calls stay short
-#   knobs: EPS (demos), TB (training budget per policy [s], default 300), EVAL_EPS (100), W (work folder, /tmp/w),
+#   knobs: EPS (demos), TB (training budget per policy [s], default 300; TB_PICK / TB_PLACE per phase of a coherent
+#          run), GPUS (train data-parallel over that many GPUs: torchrun + NCCL; pick them with CUDA_VISIBLE_DEVICES,
+#          e.g. CUDA_VISIBLE_DEVICES=2,3 GPUS=2 ... coherent 0 TASK: GPU counts among the visible ones),
+#          EVAL_EPS (100), W (work folder, /tmp/w),
 #          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
 #          StackCube: OBS_KEYS=joint_pos,gripper_pos ... single 0 GalbotG1-StackCube-v0 --head table),
 #          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3)
@@ -21,8 +24,10 @@ W=${W:-/tmp/w}; mkdir -p "$W"
 root=$PWD
 N="${PY:-python3} -m newton_lab.cli"
 CAM=(--cameras front_head=96x72:rgb,left_wrist=96x72:rgb --obs-mode sensors)
-TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4 --time-budget-s "${TB:-300}"
-       ${OBS_KEYS:+--obs-keys "$OBS_KEYS"})
+TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4
+       ${OBS_KEYS:+--obs-keys "$OBS_KEYS"} ${GPUS:+--gpus "$GPUS"})
+budget() { echo --time-budget-s "${1:-${TB:-300}}"; }
+train_dev() { if [ -n "${GPUS:-}" ] && [ "${DEV:-cuda}" != cpu ]; then echo cuda; else dev "$1"; fi; }
 dev() { if [ "${DEV:-cuda}" = cpu ]; then echo cpu; else echo "cuda:$1"; fi; }
 EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))" --seed 50000
       --max-steps 3000 --no-progress)
@@ -46,7 +51,8 @@ single)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
   collect "${EPS:-800}" 200 "$g" "$task" "$@"
   stamp "train"
-  $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" --device "$(dev "$g")" --output-dir "$d/pol" 2>&1 | tail -1
+  $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" $(budget) --device "$(train_dev "$g")" --output-dir "$d/pol" \
+    2>&1 | tail -1
   stamp "evaluate"
   $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" \
     --device "$(dev "$g")" | tail -1 ;;
@@ -57,7 +63,9 @@ coherent)
   rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases pick,place | cut -c1-300
   for p in pick place; do
     stamp "train $p"
-    $N train --dataset-path "$d/split/$p.hdf5" "${TRAIN[@]}" --device "$(dev "$g")" --output-dir "$d/${p}_pol" 2>&1 | tail -1
+    tb=TB_${p^^}
+    $N train --dataset-path "$d/split/$p.hdf5" "${TRAIN[@]}" $(budget "${!tb:-}") --device "$(train_dev "$g")" \
+      --output-dir "$d/${p}_pol" 2>&1 | tail -1
   done
   stamp "evaluate composed"
   $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
