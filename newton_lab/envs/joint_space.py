@@ -18,23 +18,41 @@ from .scene import SceneLayout
 
 
 @wp.kernel
-def full_to_solver(src: wp.array(dtype=float), index: wp.array(dtype=int), src_per_world: int,
-                   dst_per_world: int, dst: wp.array(dtype=float)):
-    """``dst`` (solver layout) from ``src`` (full layout) for every entry that is not welded (``index[i] >= 0``)."""
+def full_to_solver(q: wp.array(dtype=float), qd: wp.array(dtype=float), target_q: wp.array(dtype=float),
+                   target_qd: wp.array(dtype=float), coord: wp.array(dtype=int), dof: wp.array(dtype=int),
+                   full_coords: int, full_dofs: int, coords: int, dofs: int, solver_q: wp.array(dtype=float),
+                   solver_qd: wp.array(dtype=float), solver_target_q: wp.array(dtype=float),
+                   solver_target_qd: wp.array(dtype=float)):
+    """Row ``w``, entry ``i``: the env's coordinate / velocity / drive targets into the solver's, unless welded
+    (``coord[i]`` / ``dof[i]`` < 0). Position targets follow the coordinates, velocity targets the DOFs."""
     w, i = wp.tid()
-    j = index[i]
-    if j >= 0:
-        dst[w * dst_per_world + j] = src[w * src_per_world + i]
+    if i < full_coords:
+        j = coord[i]
+        if j >= 0:
+            solver_q[w * coords + j] = q[w * full_coords + i]
+            solver_target_q[w * coords + j] = target_q[w * full_coords + i]
+    if i < full_dofs:
+        j = dof[i]
+        if j >= 0:
+            solver_qd[w * dofs + j] = qd[w * full_dofs + i]
+            solver_target_qd[w * dofs + j] = target_qd[w * full_dofs + i]
 
 
 @wp.kernel
-def solver_to_full(src: wp.array(dtype=float), index: wp.array(dtype=int), src_per_world: int,
-                   dst_per_world: int, dst: wp.array(dtype=float)):
-    """``dst`` (full layout) from ``src`` (solver layout); welded entries of ``dst`` are left as they are."""
+def solver_to_full(solver_q: wp.array(dtype=float), solver_qd: wp.array(dtype=float), coord: wp.array(dtype=int),
+                   dof: wp.array(dtype=int), full_coords: int, full_dofs: int, coords: int, dofs: int,
+                   q: wp.array(dtype=float), qd: wp.array(dtype=float)):
+    """Row ``w``, entry ``i``: the solver's coordinate and velocity back into the env's; welded entries keep
+    their values."""
     w, i = wp.tid()
-    j = index[i]
-    if j >= 0:
-        dst[w * dst_per_world + i] = src[w * src_per_world + j]
+    if i < full_coords:
+        j = coord[i]
+        if j >= 0:
+            q[w * full_coords + i] = solver_q[w * coords + j]
+    if i < full_dofs:
+        j = dof[i]
+        if j >= 0:
+            qd[w * full_dofs + i] = solver_qd[w * dofs + j]
 
 
 class SolverJointSpace:
@@ -52,25 +70,25 @@ class SolverJointSpace:
         self._dof = wp.array(layout.solver_dof, dtype=int)
         self._full = (layout.coords_per_world, layout.dofs_per_world)
         self._solver = (self.model.joint_coord_count // num_envs, self.model.joint_dof_count // num_envs)
-        self._target_per_coord = self.drive.joint_target_q.shape[0] == self.model.joint_coord_count
-
-    def _copy(self, kernel, src: wp.array, dst: wp.array, per_dof: bool, to_solver: bool) -> None:
-        index, full, solver = (self._dof, self._full[1], self._solver[1]) if per_dof else \
-            (self._coord, self._full[0], self._solver[0])
-        src_w, dst_w = (full, solver) if to_solver else (solver, full)
-        wp.launch(kernel, dim=(self.num_envs, index.shape[0]), inputs=[src, index, src_w, dst_w], outputs=[dst])
+        if self.drive.joint_target_q.shape[0] != self.model.joint_coord_count:
+            raise RuntimeError("Newton's position targets are no longer one per coordinate; envs.joint_space "
+                               "copies them by coordinate")
+        self._dims = (num_envs, max(self._full))
 
     def push(self, state: newton.State, drive: newton.Control) -> None:
-        """The env's coordinates, velocities and drive targets into the solver's."""
-        self._copy(full_to_solver, state.joint_q, self.state.joint_q, False, True)
-        self._copy(full_to_solver, state.joint_qd, self.state.joint_qd, True, True)
-        self._copy(full_to_solver, drive.joint_target_q, self.drive.joint_target_q, not self._target_per_coord, True)
-        self._copy(full_to_solver, drive.joint_target_qd, self.drive.joint_target_qd, True, True)
+        """The env's coordinates, velocities and drive targets into the solver's (one launch)."""
+        d = self.drive
+        wp.launch(full_to_solver, dim=self._dims,
+                  inputs=[state.joint_q, state.joint_qd, drive.joint_target_q, drive.joint_target_qd, self._coord,
+                          self._dof, *self._full, *self._solver],
+                  outputs=[self.state.joint_q, self.state.joint_qd, d.joint_target_q, d.joint_target_qd])
 
     def pull(self, state: newton.State) -> None:
-        """The solver's coordinates and velocities back into the env's (welded ones keep their values)."""
-        self._copy(solver_to_full, self.state.joint_q, state.joint_q, False, False)
-        self._copy(solver_to_full, self.state.joint_qd, state.joint_qd, True, False)
+        """The solver's coordinates and velocities back into the env's (one launch; welded ones keep theirs)."""
+        wp.launch(solver_to_full, dim=self._dims,
+                  inputs=[self.state.joint_q, self.state.joint_qd, self._coord, self._dof, *self._full,
+                          *self._solver],
+                  outputs=[state.joint_q, state.joint_qd])
 
 
 def check_welded_reset(task_id: str, layout: SceneLayout, reset, welded_at) -> None:
