@@ -13,13 +13,14 @@
 #   knobs: EPS (demos), TB (training budget per policy [s], default 300; TB_PICK / TB_PLACE per phase of a coherent
 #          run), GPUS (train data-parallel over that many GPUs: torchrun + NCCL; pick them with CUDA_VISIBLE_DEVICES,
 #          e.g. CUDA_VISIBLE_DEVICES=2,3 GPUS=2 ... coherent 0 TASK: GPU counts among the visible ones),
-#          EVAL_EPS (100), W (work folder, /tmp/w),
+#          EVAL_EPS (100), REC (record that many evaluation worlds to $d/eval.rrd; needs rerun-sdk staged by
+#          tools/gpu/rerun_wheels.sh), W (work folder, /tmp/w),
 #          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
 #          StackCube: OBS_KEYS=joint_pos,gripper_pos ... single 0 GalbotG1-StackCube-v0 --head table),
 #          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3)
 # Each run ends with one JSON line: the evaluation's summary (success_rate, phases, termination_reasons).
 set -uo pipefail
-export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
+export PYTHONPATH=$HOME/.cache/gpu_site${REC:+:$HOME/.cache/rerun_site} PYTHONUNBUFFERED=1
 W=${W:-/tmp/w}; mkdir -p "$W"
 root=$PWD
 N="${PY:-python3} -m newton_lab.cli"
@@ -31,6 +32,7 @@ train_dev() { if [ -n "${GPUS:-}" ] && [ "${DEV:-cuda}" != cpu ]; then echo cuda
 dev() { if [ "${DEV:-cuda}" = cpu ]; then echo cpu; else echo "cuda:$1"; fi; }
 EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))" --seed 50000
       --max-steps 3000 --no-progress)
+rec() { if [ -n "${REC:-}" ]; then echo --rerun-save "$1/eval.rrd" --rerun-worlds "$REC" --rerun-image-every 5; fi; }
 # collect EPISODES MAX_ENVS GPU TASK [task flags...]: expert demos from the policies' cameras into $d/demos.hdf5
 collect() {
   local eps=$1 envs=$2 g=$3 task=$4; shift 4
@@ -54,7 +56,7 @@ single)
   $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" $(budget) --device "$(train_dev "$g")" --output-dir "$d/pol" \
     2>&1 | tail -1
   stamp "evaluate"
-  $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" \
+  $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" $(rec "$d") \
     --device "$(dev "$g")" | tail -1 ;;
 coherent)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
@@ -69,7 +71,7 @@ coherent)
   done
   stamp "evaluate composed"
   $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
-    "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" --device "$(dev "$g")" | tail -1 ;;
+    "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" $(rec "$d") --device "$(dev "$g")" | tail -1 ;;
 bg)
   log=$W/$2.log; shift 2
   setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &
