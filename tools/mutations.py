@@ -155,6 +155,19 @@ MUTATIONS: tuple[Mutation, ...] = (
     one_patch("non-finite-action-accepted", "a NaN or inf action is refused in one line before stepping",
               "newton_lab/envs/checks.py", "    if not bool(finite.all()):\n", "    if False:\n",
               "tests/test_inputs.py"),
+    one_patch("welded-drive-targets-dropped", "with idle joints welded, the solver tracks the env's drive targets",
+              "newton_lab/envs/joint_space.py",
+              "            solver_target_q[w * coords + j] = target_q[w * full_coords + i]\n",
+              "            pass\n", "tests/test_physics_settings.py"),
+    one_patch("welded-coords-not-read-back", "with idle joints welded, env.state follows the solver's coordinates",
+              "newton_lab/envs/joint_space.py",
+              "            q[w * full_coords + i] = solver_q[w * coords + j]\n", "            pass\n",
+              "tests/test_physics_settings.py"),
+    one_patch("welded-fingers-frozen", "welding keeps a gripper's fingers free with its master joint",
+              "newton_lab/robots/weld.py", "            if (a in out) != (b in out) and None not in (a, b):\n",
+              "            if False:\n", "tests/test_physics_settings.py"),
+    one_patch("stack-cube-colours-redrawn", "StackCube from pixels: the cubes keep their hue under randomisation",
+              "tasks/stack_cube/scene.py", "keep_hue=True)", "keep_hue=False)", "tests/test_cameras.py"),
 )
 
 
