@@ -45,7 +45,9 @@ def _world(obj: SortingObject, **fields) -> TaskCfg:
         observations=obs.manipulation_observations(object_pose=obs.pose_of(obj.name)),
         phase_success=[],
         terminations={"object_dropped": _dropped(obj)},
-        signals={"grasped_object": TermCfg(func=terminations.grasped_object(obj))},
+        signals={"grasped_object": TermCfg(func=terminations.grasped_object(obj)),
+                 # how far a failed place got: the object let go inside its cell (then knocked out, or not)
+                 "released_in_cell": TermCfg(func=terminations.released_in_cell(obj))},
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=postures.CARRY_LEFT_ARM,
