@@ -1,11 +1,11 @@
 """The solver's joint space beside the env's, when a task welds its idle joints (``PhysicsCfg.weld_idle_joints``).
 
-The solver then steps a model with fewer coordinates (``SceneLayout.solver_model``) than the full robot that the
-env's kernels, observations, agents and datasets see. The env's full-layout ``state`` stays the one truth: before
-each solver step its coordinates, velocities and the drive's targets are copied into the solver's (welded ones
-have no place there), after it the solver's coordinates and velocities are copied back, so a welded joint keeps
-its posture and zero velocity. Body poses and twists are the same arrays in both states (welding keeps every
-body in place), so the cameras, the TCP and forward kinematics of a reset need no copy.
+The solver then steps a model with fewer coordinates and bodies (``SceneLayout.solver_model``: the welded links
+merged into their parents) than the full robot that the env's kernels, observations, agents, cameras and datasets
+see. The env's full-layout ``state`` stays the one truth: before each solver step its coordinates, velocities and
+the drive's targets are copied into the solver's (welded ones have no place there); after it the solver's
+coordinates and velocities are copied back, so a welded joint keeps its reset value and zero velocity, and the
+full model's forward kinematics gives every body's pose and twist from them.
 """
 
 from __future__ import annotations
@@ -60,10 +60,10 @@ class SolverJointSpace:
 
     def __init__(self, layout: SceneLayout, state: newton.State, num_envs: int):
         self.model: newton.Model = layout.solver_model
+        self.full_model: newton.Model = layout.model
         self.num_envs = num_envs
         self.state = self.model.state()
-        """The solver's state: its own coordinates and velocities, the env state's body arrays."""
-        self.state.body_q, self.state.body_qd = state.body_q, state.body_qd
+        """The solver's state, in its own layout (coordinates, velocities, its merged bodies)."""
         self.drive = self.model.control()
         """The targets the solver tracks, in its layout (copied from the env's drive before every step)."""
         self._coord = wp.array(layout.solver_coord, dtype=int)
@@ -84,11 +84,13 @@ class SolverJointSpace:
                   outputs=[self.state.joint_q, self.state.joint_qd, d.joint_target_q, d.joint_target_qd])
 
     def pull(self, state: newton.State) -> None:
-        """The solver's coordinates and velocities back into the env's (one launch; welded ones keep theirs)."""
+        """The solver's coordinates and velocities back into the env's (welded ones keep theirs), then the full
+        model's body poses and twists from them (forward kinematics)."""
         wp.launch(solver_to_full, dim=self._dims,
                   inputs=[self.state.joint_q, self.state.joint_qd, self._coord, self._dof, *self._full,
                           *self._solver],
                   outputs=[state.joint_q, state.joint_qd])
+        newton.eval_fk(self.full_model, state.joint_q, state.joint_qd, state)
 
 
 def check_welded_reset(task_id: str, layout: SceneLayout, reset, welded_at) -> None:

@@ -86,15 +86,15 @@ class PhysicsCfg:
     """Which robot geoms may collide with what; ``None``: every robot collision geom with every scene object and
     the ground."""
     weld_idle_joints: bool = True
-    """Weld every robot joint that no action term drives at its reset value (posture, scenario), so the solver
-    integrates only the driven joints (and the joints coupled to them, a gripper's fingers; the planar base stays
-    free unless ``TaskCfg.fixed_base``). The env keeps the full robot's layout: a welded joint reads its reset
-    value and zero velocity (``envs.joint_space``). A welded joint is rigid where its drive would give a little
-    under load, and a reset must not move it (the env refuses one that does, when it is built). On the 2-core
-    CPU, env-steps/s at 4 envs: PickCube 2.58x, StackCube 1.29x, PickToShelf 1.63x, SortToShelf 1.35x, Reach
-    4.19x, BaseNav 4.91x, every expert's success unchanged (``tools/physics_table.py --variant
-    weld_idle_joints=False``); PickCube's bare solver step 1.46x on an H200 (``tools/frozen_dof_probe.py``).
-    ``False``: every robot joint is simulated, held by its drive."""
+    """Weld every robot joint that no action term drives at its reset value (posture, scenario), and merge the
+    links it held into their parents, so the solver integrates only the driven joints (and the joints coupled to
+    them, a gripper's fingers; the planar base stays free unless ``TaskCfg.fixed_base``). The env keeps the full
+    robot's layout: a welded joint reads its reset value and zero velocity (``envs.joint_space``). A welded joint
+    is rigid where its drive would give a little under load, and a reset must not move it (the env refuses one
+    that does, when it is built). On the 2-core CPU, env-steps/s at 4 envs: PickCube 3.11x, StackCube 1.44x,
+    PickToShelf 1.73x, SortToShelf 1.44x, Reach 5.72x, BaseNav 7.90x, every expert's success unchanged
+    (``tools/physics_table.py --variant weld_idle_joints=False``). ``False``: every robot joint is simulated,
+    held by its drive."""
 
     def __post_init__(self) -> None:
         if self.cone not in CONES:
