@@ -1,10 +1,10 @@
 """Where a bare solver step spends its GPU time: Warp's per-kernel CUDA timing of ``cfg.decimation`` solver
 substeps (the step's physics alone: no actions, task, reset or observation), summed by the stage its kernel's
-module belongs to, for the task's scene as the env builds it and, with ``--welded``, for the same scene with
-every robot joint but the left arm and gripper welded at the task's posture (``tools/frozen_dof_probe.py``).
+module belongs to, for the model the task's env hands its solver (idle joints welded and their links merged,
+``PhysicsCfg.weld_idle_joints``) and, with ``--full``, for the full robot beside it.
 
     python tools/profile_step.py [--task GalbotG1-PickCube-v0] [--num-envs 1024 4096 16384] [--steps 20]
-                                 [--welded] [--top 12] [--device cuda:0]
+                                 [--full] [--top 12] [--device cuda:0]
 
 One JSON line per variant and env count: kernel milliseconds per env step, launches, the stages (collision,
 constraint build, solver iterations, smooth dynamics, integration, Newton's glue) with their share, and the top
@@ -17,6 +17,7 @@ launch add a little to each kernel, and the substeps run eagerly: the shares, no
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import re
 from collections import defaultdict
@@ -26,9 +27,7 @@ import warp as wp
 import warp._src.context as warp_context  # its module registry maps a kernel's key to the module defining it
 
 import newton_lab.tasks  # noqa: F401  (registers every task id)
-from frozen_dof_probe import MOVING, build, welded_mjcf  # tools/ sits first on sys.path when run as a script
-from newton_lab.envs.scene import task_posture
-from newton_lab.robots.registry import robot_binding
+from newton_lab.envs import make_env
 from newton_lab.task_api.registry import lookup
 
 STAGES = (
@@ -102,25 +101,30 @@ def profile(cfg, model: newton.Model, steps: int, top: int) -> dict:
             "top_kernels": [{"kernel": k, "ms": round(v, 4), "share": round(v / total, 3)} for k, v in ranked]}
 
 
+def solver_model(task: str, num_envs: int, device, weld: bool) -> tuple:
+    """The task's config and the model its env's solver steps: the task's own physics (idle joints welded) or,
+    ``weld=False``, every joint simulated."""
+    physics = None if weld else dataclasses.replace(lookup(task).make_cfg({}).physics, weld_idle_joints=False)
+    env = make_env(task, num_envs=num_envs, device=device, seed=0, cameras=False, capture=False, physics=physics)
+    return env.cfg, (env.model if env.joint_space is None else env.joint_space.model)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--task", default="GalbotG1-PickCube-v0")
     ap.add_argument("--num-envs", type=int, nargs="+", default=[1024, 4096, 16384])
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--top", type=int, default=12)
-    ap.add_argument("--welded", action="store_true", help="also profile the robot welded down to the left arm")
+    ap.add_argument("--full", action="store_true", help="also profile the full robot (no joint welded)")
     ap.add_argument("--device", default="cuda:0")
     args = ap.parse_args()
-    cfg = lookup(args.task).make_cfg(None)
-    variants = {"full": None}
-    if args.welded:
-        variants["welded"] = welded_mjcf(task_posture(cfg, robot_binding(cfg.robot)), MOVING)
     device = wp.get_device(args.device)
     for n in args.num_envs:
-        for variant, mjcf in variants.items():
-            model = build(cfg, n, device, mjcf)
+        for variant, weld in (("task", True), ("full", False))[: 2 if args.full else 1]:
+            cfg, model = solver_model(args.task, n, device, weld)
             row = {"task": args.task, "variant": variant, "device_name": device.name, "num_envs": n,
-                   "decimation": cfg.decimation, "dofs_per_world": model.joint_dof_count // model.world_count}
+                   "decimation": cfg.decimation, "dofs_per_world": model.joint_dof_count // model.world_count,
+                   "bodies_per_world": model.body_count // model.world_count}
             print(json.dumps({**row, **profile(cfg, model, args.steps, args.top)}), flush=True)
 
 
