@@ -4,8 +4,8 @@ The solver then steps a model with fewer coordinates and bodies (``SceneLayout.s
 merged into their parents) than the full robot that the env's kernels, observations, agents, cameras and datasets
 see. The env's full-layout ``state`` stays the one truth: before each solver step its coordinates, velocities and
 the drive's targets are copied into the solver's (welded ones have no place there); after it the solver's
-coordinates and velocities are copied back, so a welded joint keeps its reset value and zero velocity, and the
-full model's forward kinematics gives every body's pose and twist from them.
+coordinates and velocities are copied back, so a welded joint keeps its reset value and zero velocity. Once the
+substeps of a control step are done, the full model's forward kinematics gives every body's pose and twist.
 """
 
 from __future__ import annotations
@@ -84,12 +84,14 @@ class SolverJointSpace:
                   outputs=[self.state.joint_q, self.state.joint_qd, d.joint_target_q, d.joint_target_qd])
 
     def pull(self, state: newton.State) -> None:
-        """The solver's coordinates and velocities back into the env's (welded ones keep theirs), then the full
-        model's body poses and twists from them (forward kinematics)."""
+        """The solver's coordinates and velocities back into the env's (one launch; welded ones keep theirs)."""
         wp.launch(solver_to_full, dim=self._dims,
                   inputs=[self.state.joint_q, self.state.joint_qd, self._coord, self._dof, *self._full,
                           *self._solver],
                   outputs=[state.joint_q, state.joint_qd])
+
+    def forward_kinematics(self, state: newton.State) -> None:
+        """The env's body poses and twists from its coordinates, on the full model (after ``pull``)."""
         newton.eval_fk(self.full_model, state.joint_q, state.joint_qd, state)
 
 

@@ -2,8 +2,8 @@
 Warp graph (a CUDA graph on a GPU, Warp's CPU graph on the CPU).
 
 actions -> control targets (``Actuation.apply``) -> ``decimation`` x (base twist and drive setpoints, then
-``solver.step``, in the solver's joint space when joints are welded: ``envs.joint_space``) -> fused task kernel (phase, success, terminations, reward) -> subtask signals and observation
-of the state reached (``final_obs``) and the finished rows' coordinates -> masked reset of finished rows (+ seeded
+``solver.step``, in the solver's joint space when joints are welded: ``envs.joint_space``) -> fused task kernel
+(phase, success, terminations, reward) -> subtask signals and observation of the state reached (``final_obs``) and the finished rows' coordinates -> masked reset of finished rows (+ seeded
 randomisation, setpoints synced, forward kinematics, solver warm start cleared) -> observation, signals, poses.
 """
 
@@ -60,7 +60,9 @@ class StepLaunches:
     def apply_actions(self) -> None:
         self.actuation.apply(self.buf.actions, self.ctx.phase)
 
-    def substep(self) -> None:
+    def _physics(self) -> None:
+        """One substep's drive and solver step; with welded joints the env's body poses are not updated (nothing
+        between two substeps reads them): ``substep`` and ``simulate`` do it once at their end."""
         # the world-frame base twist follows the turning base, limited setpoints advance
         self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q)
         js = self.joint_space
@@ -71,9 +73,18 @@ class StepLaunches:
         self.solver.step(js.state, js.state, js.drive, None, self.cfg.sim_dt)
         js.pull(self.state)
 
+    def _body_poses(self) -> None:
+        if self.joint_space is not None:
+            self.joint_space.forward_kinematics(self.state)
+
+    def substep(self) -> None:
+        self._physics()
+        self._body_poses()
+
     def simulate(self) -> None:
         for _ in range(self.cfg.decimation):
-            self.substep()
+            self._physics()
+        self._body_poses()  # once a control step, not once a substep
 
     def evaluate_task(self) -> None:
         buf = self.buf
