@@ -22,7 +22,7 @@ import warp as wp
 
 import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.bench import _time_graph
-from newton_lab.envs.scene import CONTACT_GAP, _add_entity, task_posture
+from newton_lab.envs.scene import CONTACT_GAP, _add_entity, _replicate, task_posture
 from newton_lab.robots.g1 import spec
 from newton_lab.robots.g1.model import mjcf_path
 from newton_lab.robots.registry import robot_binding
@@ -58,12 +58,7 @@ def build(cfg, num_envs: int, device, mjcf: str | None) -> newton.Model:
                 world.joint_target_q[coord[name]] = value
     for e in cfg.entities:
         _add_entity(world, e)
-    scene = newton.ModelBuilder()
-    newton.solvers.SolverMuJoCo.register_custom_attributes(scene)
-    scene.rigid_gap = CONTACT_GAP
-    scene.replicate(world, num_envs)
-    scene.add_ground_plane()
-    return scene.finalize(device=device)
+    return _replicate(world, [], num_envs, device)
 
 
 def measure(cfg, model: newton.Model, steps: int) -> dict:

@@ -84,8 +84,7 @@ class NewtonEnv:
             self.joint_space = SolverJointSpace(self.layout, self.state, num_envs) if self.layout.welded else None
             """The solver's own joint space when the task welds its idle joints (``envs.joint_space``), else
             ``None``: the solver steps ``model`` itself."""
-            solver_model = self.model if self.joint_space is None else self.joint_space.model
-            self.solver = newton.solvers.SolverMuJoCo(solver_model, **cfg.physics.solver_options())
+            self.solver = newton.solvers.SolverMuJoCo(self.layout.solver_model, **cfg.physics.solver_options())
             # mujoco_warp prints a line from inside its kernels whenever a world overflows a buffer or the line
             # search hits its cap; the per-world bitmask (solver_overflows) is reported by the loops instead
             self.solver.mjw_model.opt.warn_overflow = 0

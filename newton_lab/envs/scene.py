@@ -44,7 +44,7 @@ class SceneLayout:
     entity_half_extents: list[tuple]
     default_q: np.ndarray
     """Initial coordinates of one world (robot posture + entity poses)."""
-    solver_model: newton.Model | None = None
+    solver_model: newton.Model
     """The model the solver steps: ``model`` itself, or the same scene with the task's idle robot joints welded
     (``welded``) and the links they held merged into their parents (fewer coordinates and bodies, the same
     shapes)."""

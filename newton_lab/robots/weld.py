@@ -68,7 +68,7 @@ def weld_mjcf(path: str, values: Mapping[str, float], keep: Iterable[str]) -> tu
         body.set("pos", " ".join(f"{v:.9g}" for v in pos))
         body.set("quat", " ".join(f"{v:.9g}" for v in (w, x, y, z)))
     gone = set(welded)
-    for section in ("actuator", "equality", "contact"):
+    for section in ("actuator", "equality"):
         for parent in root.findall(section):
             for child in list(parent):
                 if {child.get("joint"), child.get("joint1"), child.get("joint2")} & gone:
