@@ -81,7 +81,7 @@ class NewtonEnv:
             self.model = self.layout.model
             self.state = self.model.state()
             self.control = self.model.control()
-            self.joint_space = SolverJointSpace(self.layout, self.state, num_envs) if self.layout.welded else None
+            self.joint_space = SolverJointSpace(self.layout, num_envs) if self.layout.welded else None
             """The solver's own joint space when the task welds its idle joints (``envs.joint_space``), else
             ``None``: the solver steps ``model`` itself."""
             self.solver = newton.solvers.SolverMuJoCo(self.layout.solver_model, **cfg.physics.solver_options())

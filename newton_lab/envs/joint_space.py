@@ -58,7 +58,7 @@ def solver_to_full(solver_q: wp.array(dtype=float), solver_qd: wp.array(dtype=fl
 class SolverJointSpace:
     """The solver model's state and drive, and the copies between them and the env's full-layout ones."""
 
-    def __init__(self, layout: SceneLayout, state: newton.State, num_envs: int):
+    def __init__(self, layout: SceneLayout, num_envs: int):
         self.model: newton.Model = layout.solver_model
         self.full_model: newton.Model = layout.model
         self.num_envs = num_envs
