@@ -5,8 +5,9 @@ as a markdown table (docs/benchmarks.md, "Per-task physics settings").
         [--variant iterations=5,contact_filter=gripper_only ...] [--out table.md]
 
 For each task, the ``task`` row is its ``TaskCfg.physics``, and each ``--variant`` adds a row with those fields
-replaced (``contact_filter=gripper_only``: only the left gripper touches the scene; ``contact_filter=None``: no
-filter): ``newton_lab.bench.bench`` times the captured env step at ``--num-envs`` rows (state only, the same code as
+replaced (``contact_filter=gripper_only``: only the left gripper touches the scene;
+``contact_filter=left_arm+left_gripper``: those robot groups, each with every scene object; ``contact_filter=None``:
+no filter): ``newton_lab.bench.bench`` times the captured env step at ``--num-envs`` rows (state only, the same code as
 ``newton-lab bench``), then the task's expert runs ``--episodes`` randomised episodes as that many parallel rows (at
 most ``--eval-envs``; the same seed for every setting, so every setting sees the same episodes). Tasks with choices
 (SortToShelf's objects) split the episodes evenly over them. Progress goes to stderr, the table to stdout.
@@ -36,12 +37,13 @@ def _variant(text: str) -> dict:
     out = {}
     for part in filter(None, text.split(",")):
         key, _, value = part.partition("=")
-        if key not in {f.name for f in dataclasses.fields(PhysicsCfg)} or not value or (
-                key == "contact_filter" and value not in ("None", "gripper_only")):
+        if key not in {f.name for f in dataclasses.fields(PhysicsCfg)} or not value:
             raise SystemExit(f"--variant {text!r}: use field=value[,...] over PhysicsCfg's fields, e.g. "
-                             f"iterations=3,cone=pyramidal (contact_filter: None or gripper_only)")
-        if key == "contact_filter" and value == "gripper_only":
-            out[key] = gripper_only()
+                             f"iterations=3,cone=pyramidal (contact_filter: None, gripper_only or robot groups "
+                             f"joined by '+', e.g. left_arm+left_gripper)")
+        if key == "contact_filter" and value != "None":
+            # gripper_only: the left gripper alone; "a+b": those robot groups, each with every scene object
+            out[key] = gripper_only(*([] if value == "gripper_only" else value.split("+")))
             continue
         try:
             out[key] = ast.literal_eval(value)

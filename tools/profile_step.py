@@ -52,10 +52,13 @@ def stage_of(module: str) -> str:
 
 def kernel_modules() -> dict[str, str]:
     """Kernel name -> the Python module that defines it, over every kernel Warp has loaded: by key and by the
-    mangled name (``<key>_<hash8>``) that Warp's activity timer reports."""
+    mangled name (``<key>_<hash8>``) that Warp's activity timer reports. The Python module comes from the kernel's
+    function: a kernel a factory makes (mujoco_warp's ``_crb_accumulate.<locals>.kernel``) lives in a Warp module
+    of its own, named after the kernel, not after the file that defines it."""
     out: dict[str, str] = {}
-    for name, module in list(warp_context.user_modules.items()):
+    for module_name, module in list(warp_context.user_modules.items()):
         for kernel in list(module._live_kernels):  # every variant a factory made, not only the latest per key
+            name = getattr(getattr(kernel, "func", None), "__module__", None) or module_name
             out.setdefault(kernel.key, name)
             try:
                 out.setdefault(kernel.get_mangled_name(), name)

@@ -8,11 +8,13 @@
 #   bash tools/gpu/long_horizon_run.sh single GPU TASK [task flags...]    collect 800 -> train -> evaluate
 #   bash tools/gpu/long_horizon_run.sh coherent GPU TASK [task flags...]  collect 600 -> split -> train pick, place
 #                                                                         -> evaluate composed with the nav expert
+#   bash tools/gpu/long_horizon_run.sh ddp DATASET                       samples/s training on one GPU, then two
 #   bash tools/gpu/long_horizon_run.sh bg NAME MODE ARGS...                the same, detached (setsid), log in
 #                                                                         /tmp/w/NAME.log: calls stay short
 #   knobs: EPS (demos), TB (training budget per policy [s], default 300; TB_PICK / TB_PLACE per phase of a coherent
 #          run), GPUS (train data-parallel over that many GPUs: torchrun + NCCL; pick them with CUDA_VISIBLE_DEVICES,
 #          e.g. CUDA_VISIBLE_DEVICES=2,3 GPUS=2 ... coherent 0 TASK: GPU counts among the visible ones),
+#          PICK_GPU (a coherent run trains pick on that GPU while place trains on GPU),
 #          EVAL_EPS (100), REC (record that many evaluation worlds to $d/eval.rrd; needs rerun-sdk staged by
 #          tools/gpu/rerun_wheels.sh), W (work folder, /tmp/w),
 #          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
@@ -41,6 +43,13 @@ collect() {
     "${CAM[@]}" --dataset-path "$d/demos.hdf5" --device "$(dev "$g")" --no-progress --max-steps 3000 | tail -1 | cut -c1-300
 }
 stamp() { echo "== $(date -u +%T) $*"; }
+# train_phase PHASE GPU: one policy on $d/split/PHASE.hdf5 (budget TB_PHASE or TB) into $d/PHASE_pol
+train_phase() {
+  local tb=TB_${1^^}
+  stamp "train $1 on $(train_dev "$2")"
+  $N train --dataset-path "$d/split/$1.hdf5" "${TRAIN[@]}" $(budget "${!tb:-}") --device "$(train_dev "$2")" \
+    --output-dir "$d/${1}_pol" 2>&1 | tail -1
+}
 name_of() { echo "$1" | sed 's/GalbotG1-//; s/-v0//' | tr 'A-Z' 'a-z'; }
 
 case "${1:-}" in
@@ -63,19 +72,26 @@ coherent)
   collect "${EPS:-600}" 300 "$g" "$task" "$@"
   stamp "split"
   rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases pick,place | cut -c1-300
-  for p in pick place; do
-    stamp "train $p"
-    tb=TB_${p^^}
-    $N train --dataset-path "$d/split/$p.hdf5" "${TRAIN[@]}" $(budget "${!tb:-}") --device "$(train_dev "$g")" \
-      --output-dir "$d/${p}_pol" 2>&1 | tail -1
-  done
+  if [ -n "${PICK_GPU:-}" ]; then  # pick on its own GPU while place trains on this one
+    train_phase pick "$PICK_GPU" > "$d/pick_train.log" 2>&1 &
+    train_phase place "$g"; wait; cat "$d/pick_train.log"
+  else
+    for p in pick place; do train_phase "$p" "$g"; done
+  fi
   stamp "evaluate composed"
   $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
     "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" $(rec "$d") --device "$(dev "$g")" | tail -1 ;;
+ddp)  # ddp DATASET: samples/s of one GPU and of two (the first two visible), TB seconds each (default 60)
+  cd "$W"
+  for n in 1 2; do
+    stamp "train on $n GPU(s)"
+    $N train --dataset-path "$2" "${TRAIN[@]}" $(budget "${TB:-60}") --device cuda --gpus "$n" --output-dir "$W/ddp$n" \
+      2>&1 | tail -3
+  done ;;
 bg)
   log=$W/$2.log; shift 2
   setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &
   echo "started: $log" ;;
 *)
-  sed -n 2,17p "$0"; exit 2 ;;
+  sed -n 2,19p "$0"; exit 2 ;;
 esac

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Issue-33 measurements on one GPU of a GPU host, from the repository root, after the project's wheels are installed
+# into $HOME/.cache/gpu_site (`bash tools/gpu/long_horizon_run.sh install`). Each command's output goes to
+# $W/p33/<step>.log (W: /tmp/w); the steps run one after the other on the same GPU, so no two timings overlap.
+#
+#   bash tools/gpu/physics_limit_run.sh GPU            every step below
+#   bash tools/gpu/physics_limit_run.sh GPU STEP...    only those steps: bench table profile collect tasks camera
+#   setsid nohup bash tools/gpu/physics_limit_run.sh 0 > /tmp/w/p33.log 2>&1 &     detached, so calls stay short
+#
+#   bench    newton-lab bench, PickCube, 4096 and 16384 envs (the env step against the bare solver)
+#   table    tools/physics_table.py, PickCube: the task's physics against all joints simulated, the pyramidal cone
+#            and a contact filter (left arm and gripper only), with 100 randomised expert episodes each
+#   collect  newton-lab bench-collect, PickCube, 4096 envs, 16,384 demos into zarr packs
+#   profile  tools/profile_step.py --full at 4096 envs: the stages of the welded solver model and the full robot's
+#   tasks    tools/physics_table.py for StackCube, PickToShelf and SortToShelf against all joints simulated
+#   camera   newton-lab bench with the front head camera, RGB 128x128, at 4096 envs
+set -uo pipefail
+export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
+W=${W:-/tmp/w}; out=$W/p33; mkdir -p "$out"
+g=${1:?GPU index}; shift
+steps=("$@"); [ ${#steps[@]} -eq 0 ] && steps=(bench table collect profile tasks camera)
+dev=${DEV:-cuda:$g}
+N="${PY:-python3} -m newton_lab.cli"
+tools=$PWD/tools
+run() {  # run STEP COMMAND...: the command's output into $out/STEP.log, a line with its time here
+  local step=$1; shift
+  local t0=$SECONDS
+  echo "== $(date -u +%T) $step: $*"
+  (cd "$W" && "$@") > "$out/$step.log" 2>&1
+  echo "== $(date -u +%T) $step done, rc $?, $((SECONDS - t0)) s"
+}
+nvidia-smi --query-gpu=index,name --format=csv,noheader | sed -n "$((g + 1))p"
+for step in "${steps[@]}"; do
+  case $step in
+  bench)
+    run bench bash -c "$N bench --task GalbotG1-PickCube-v0 --num-envs 4096 --device $dev \
+      && $N bench --task GalbotG1-PickCube-v0 --num-envs 16384 --device $dev" ;;
+  table)
+    run table ${PY:-python3} "$tools/physics_table.py" --device "$dev" --num-envs 4096 --steps 200 --episodes 100 \
+      --tasks GalbotG1-PickCube-v0 --variant weld_idle_joints=False --variant cone=pyramidal \
+      --variant contact_filter=left_arm+left_gripper --variant cone=pyramidal,contact_filter=left_arm+left_gripper ;;
+  collect)
+    rm -rf "$W/bc33.zarr"*
+    run collect $N bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 \
+      --dataset-path "$W/bc33.zarr" --device "$dev" ;;
+  profile)
+    run profile ${PY:-python3} "$tools/profile_step.py" --full --num-envs 4096 --device "$dev" ;;
+  tasks)
+    run tasks ${PY:-python3} "$tools/physics_table.py" --device "$dev" --num-envs 4096 --steps 200 --episodes 100 \
+      --tasks GalbotG1-StackCube-v0 GalbotG1-PickToShelf-v0 GalbotG1-SortToShelf-v0 --variant weld_idle_joints=False ;;
+  camera)
+    run camera $N bench --task GalbotG1-PickCube-v0 --num-envs 4096 --device "$dev" --camera front_head \
+      --resolution 128 128 ;;
+  *) echo "unknown step $step (bench table collect profile tasks camera)"; exit 2 ;;
+  esac
+done
