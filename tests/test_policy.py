@@ -162,6 +162,22 @@ def test_normalizer_round_trip_and_constant_dims():
         n.normalize(torch.zeros(2, 4))
 
 
+def test_normalizer_min_range_keeps_a_still_dimension_near_its_window():
+    """A base coordinate that moved 0.14 mm over the demos and is 1 mm off at inference: the plain min-max maps it
+    to ~15, the 1 cm window to ~0.2; dimensions wider than the window keep their plain stats, and the round trip
+    stays exact."""
+    data = torch.tensor([[-1.9, 0.0, 7.25], [-1.90014, 1.0, 7.25], [-1.90007, 0.5, 7.25]])
+    plain, floored = MinMaxNormalizer.fit(data), MinMaxNormalizer.fit(data, min_range=0.01)
+    off = torch.tensor([[-1.899, 0.5, 7.25]])
+    assert float(plain.normalize(off)[0, 0]) > 10
+    assert abs(float(floored.normalize(off)[0, 0])) < 0.25
+    assert torch.equal(floored.normalize(data)[:, 1], plain.normalize(data)[:, 1])
+    assert torch.allclose(floored.high - floored.low, torch.tensor([0.01, 1.0, 0.01]), atol=1e-6)
+    torch.testing.assert_close(floored.unnormalize(floored.normalize(data)), data, atol=1e-6, rtol=0)
+    with pytest.raises(ValueError, match="obs_min_range must be >= 0"):
+        DiffusionPolicyConfig(obs_min_range=-1.0)
+
+
 # ----------------------------------------------------------------------------- data windows
 @pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
 def test_windows_pad_episode_edges(tmp_path, suffix):
@@ -330,14 +346,23 @@ def test_checkpoint_round_trip_and_no_overwrite(trained, tmp_path):
 
 def test_checkpoint_carries_the_stats_of_the_training_data(trained):
     """The saved normalisers are the training data's own: per-dimension min / max of the successful demo's actions
-    and of its obs in env layout order (robot_joint_pos, cube_pose), the failed demo left out. (The round trip
-    above cannot tell: a checkpoint saved with wrong stats loads and saves them again unchanged.)"""
+    and of its obs in env layout order (robot_joint_pos, cube_pose), the failed demo left out; the obs windows
+    widened to ``obs_min_range`` (0.01) about their centre where the data spans less (the constant cube pose),
+    the actions' never (sampling clips them to [-1, 1]). (The round trip above cannot tell: a checkpoint saved
+    with wrong stats loads and saves them again unchanged.)"""
     policy = DiffusionPolicy.load(trained)
     demo = demo_arrays()
     obs = np.concatenate([demo["obs"]["robot_joint_pos"], demo["obs"]["cube_pose"]], axis=1)
-    for normalizer, data in ((policy.action_normalizer, demo["actions"]), (policy.obs_normalizer, obs)):
-        torch.testing.assert_close(normalizer.low, torch.from_numpy(data.min(axis=0)), atol=0, rtol=0)
-        torch.testing.assert_close(normalizer.high, torch.from_numpy(data.max(axis=0)), atol=0, rtol=0)
+    actions = demo["actions"]
+    torch.testing.assert_close(policy.action_normalizer.low, torch.from_numpy(actions.min(axis=0)), atol=0, rtol=0)
+    torch.testing.assert_close(policy.action_normalizer.high, torch.from_numpy(actions.max(axis=0)), atol=0, rtol=0)
+    assert policy.cfg.obs_min_range == 0.01
+    centre, half = (obs.min(axis=0) + obs.max(axis=0)) / 2, np.maximum((obs.max(axis=0) - obs.min(axis=0)) / 2, 0.005)
+    torch.testing.assert_close(policy.obs_normalizer.low, torch.from_numpy(centre - half), atol=1e-6, rtol=0)
+    torch.testing.assert_close(policy.obs_normalizer.high, torch.from_numpy(centre + half), atol=1e-6, rtol=0)
+    wide = obs.max(axis=0) - obs.min(axis=0) >= 0.01  # the joint columns: exactly the data's min / max
+    assert wide.sum() == 4
+    torch.testing.assert_close(policy.obs_normalizer.low[wide], torch.from_numpy(obs.min(axis=0)[wide]), atol=0, rtol=0)
 
 
 def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):

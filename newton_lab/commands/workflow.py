@@ -80,7 +80,7 @@ class MimicArgs(CameraArgs):
 
 
 TRAIN_OVERRIDES = ("epochs", "batch_size", "max_steps", "lr", "weight_decay", "num_workers", "time_budget_s",
-                   "init_checkpoint", "prediction_type", "compile", "bf16")
+                   "init_checkpoint", "prediction_type", "compile", "bf16", "obs_min_range")
 """``TrainArgs`` fields that override the preset only when given."""
 
 
@@ -113,6 +113,9 @@ class TrainArgs:
     prediction_type: Literal["epsilon", "sample"] | None = None
     """what the U-Net predicts: epsilon (the noise; presets' default) or sample (the clean actions; learns
     PickCube in fewer steps, the demo's choice)"""
+    obs_min_range: float | None = None
+    """narrowest window of the observation normaliser [m, rad] (default 0.01; 0: plain min-max, which turns a
+    deviation in a dimension that barely moved in the demos into values far outside [-1, 1])"""
     init_checkpoint: str | None = None
     """continue training this checkpoint (its architecture and normalisers are kept)"""
     compile: bool | None = None

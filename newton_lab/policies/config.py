@@ -102,6 +102,12 @@ class DiffusionPolicyConfig:
     """Torch device for training ("cpu", "cuda", "cuda:1", ...)."""
     obs_keys: tuple[str, ...] | None = None
     """obs/<term> arrays to condition on; None = every low-dim term except ``actions``."""
+    obs_min_range: float = 0.01
+    """Narrowest window [obs units: m, rad] of the low-dim observations' min-max normaliser, centred on the data.
+    A dimension that barely moved in the demos would otherwise amplify any deviation at inference: in
+    SortToShelf's place phase the base's x and y vary by 0.14 and 0.41 mm over the expert demos, so a base 1 mm
+    off at inference maps to 15 and 6 instead of inside [-1, 1]. 0 = the plain min-max (checkpoints before this
+    field)."""
     image_keys: tuple[str, ...] | None = None
     """Camera image terms to condition on (e.g. ("front_head_rgb",)): RGB frames through ``vision.ImageEncoder``;
     None = a state-based policy."""
@@ -154,6 +160,7 @@ class DiffusionPolicyConfig:
              f"prediction_type must be one of {', '.join(PREDICTION_TYPES)}, got {self.prediction_type!r}"),
             (len(self.betas) == 2, f"betas must be a pair, got {self.betas}"),
             (0.0 < self.crop <= 1.0, f"crop must be in (0, 1], got {self.crop}"),
+            (self.obs_min_range >= 0.0, f"obs_min_range must be >= 0, got {self.obs_min_range}"),
             (self.image_feature_dim >= 1 and self.encoder_width >= 16,
              f"image_feature_dim must be >= 1 and encoder_width >= 16, got {self.image_feature_dim} and "
              f"{self.encoder_width}"),

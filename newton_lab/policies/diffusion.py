@@ -102,7 +102,7 @@ class DiffusionPolicy(nn.Module):
         if cfg.image_keys:
             info.update(image_keys=list(cfg.image_keys),
                         image_shapes={k: list(v) for k, v in getattr(dataset, "image_shapes", {}).items()})
-        return cls(cfg, obs_normalizer=MinMaxNormalizer.fit(dataset.obs),
+        return cls(cfg, obs_normalizer=MinMaxNormalizer.fit(dataset.obs, min_range=cfg.obs_min_range),
                    action_normalizer=MinMaxNormalizer.fit(dataset.actions), info=info)
 
     @property
