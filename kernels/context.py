@@ -40,6 +40,10 @@ class TaskContext:
     """World-local coordinate of ``base_x`` (``base_y``, ``base_yaw`` follow): the planar base pose."""
     leg_coord: int
     """World-local coordinate of ``leg_joint1`` (leg joints 2..5 follow)."""
+    wheel_coord: int
+    """World-local coordinate of the first base wheel (the others follow), -1 for a robot without wheels."""
+    wheel_count: int
+    """Base wheels (their coordinates are contiguous from ``wheel_coord``)."""
     tcp_body: int
     tcp_offset: wp.transform
     gripper_coord: int

@@ -40,12 +40,20 @@ def shelf_run(shelf_env):
     agent = TaskFlowAgent.from_env(env)
     bar = env.entities["bar"].slot
     phases, bars, tcps, done_at, results = [], [], [], [None] * 4, [None] * 4
+    jp = env.obs_terms["robot_joint_pos"]
+    wheel_cols, base_cols = env.joint_coords(spec.BASE_WHEEL_JOINTS), env.joint_coords(spec.BASE_PLANAR_JOINTS)
+    wheel_q, wheel_obs, base_gap = 0.0, 0.0, 0.0
     for t in range(700):
         pre_phase = env.info["phase"].clone()
         _, _, term, trunc, info = env.step(agent.act(env))
         phases.append(torch.where(term | trunc, pre_phase, info["phase"]).clone())
         bars.append(env.entity_poses[:, bar, :3].clone())
         tcps.append(env.tcp_pose[:, :3].clone())
+        wheels = env.joint_positions(spec.BASE_WHEEL_JOINTS)
+        obs_q = env.obs[:, jp]
+        wheel_q = max(wheel_q, float(wheels.abs().max()))
+        wheel_obs = max(wheel_obs, float(obs_q[:, wheel_cols].abs().max()))
+        base_gap = max(base_gap, float((obs_q[:, base_cols] - env.joint_positions(spec.BASE_PLANAR_JOINTS)).abs().max()))
         for r in np.nonzero((term | trunc).numpy())[0]:
             if done_at[r] is None:
                 done_at[r] = t
@@ -53,7 +61,7 @@ def shelf_run(shelf_env):
         if all(d is not None for d in done_at):
             break
     return {"phase": torch.stack(phases), "bar": torch.stack(bars), "tcp": torch.stack(tcps), "done_at": done_at,
-            "results": results}
+            "results": results, "wheel_q": wheel_q, "wheel_obs": wheel_obs, "base_gap": base_gap}
 
 
 # ---------------------------------------------------------------- base kinematics
@@ -204,6 +212,13 @@ def test_coherent_rows_in_different_phases(shelf_run):
 
 
 @pytest.mark.slow
+def test_robot_joint_pos_reads_zero_for_the_wheels(shelf_run, shelf_env):
+    """The nav phase turns the wheels (their angles integrate every drive so far), but ``robot_joint_pos`` reads 0
+    for them, as on the reference platform, while the base pose next to them is the joint state's own."""
+    assert shelf_env.robot.base_wheel_joints == spec.BASE_WHEEL_JOINTS
+    assert shelf_run["wheel_q"] > 1.0 and shelf_run["wheel_obs"] == 0.0 and shelf_run["base_gap"] == 0.0
+
+
 def test_bar_stays_in_hand_from_pick_to_place(shelf_run):
     phase, bar, tcp = shelf_run["phase"], shelf_run["bar"], shelf_run["tcp"]
     for r in range(phase.shape[1]):

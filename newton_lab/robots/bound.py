@@ -5,7 +5,7 @@
 (``envs.scene.SceneLayout``: ``joints.coord / dof / body``, ``robot_coords``, ``coords_per_world``,
 ``dofs_per_world`` and the finalized ``model``):
 
-* :class:`RobotContext` - base / leg / gripper coordinates, TCP body + offset, arm coordinates and
+* :class:`RobotContext` - base / leg / wheel / gripper coordinates, TCP body + offset, arm coordinates and
   ``robot_coords``; :meth:`RobotContext.fill` writes them into a ``kernels.context.TaskContext``.
 * :class:`ActionMap` - action columns -> joint position targets / wheel speeds, one kind per column:
   ``absolute`` (target = a), ``relative`` (target = current target + a, kept within the joint's range),
@@ -44,6 +44,9 @@ class RobotContext:
     """``base_x`` (``base_y``, ``base_yaw`` follow)."""
     leg_coord: int
     """``leg_joint1`` (leg joints 2..5 follow)."""
+    wheel_coord: int
+    """The first base wheel (the others follow); -1 without wheels."""
+    wheel_count: int
     tcp_body: int
     tcp_offset_pos: tuple[float, float, float]
     tcp_offset_quat: tuple[float, float, float, float]
@@ -63,10 +66,16 @@ class RobotContext:
         base = coord[planar[0]]
         if [coord[j] - base for j in planar] != [0, 1, 2]:
             raise ValueError(f"planar base joints {planar} are not contiguous coordinates")
+        wheels = robot.base_wheel_joints
+        wheel = coord[wheels[0]] if wheels else -1
+        if wheels and [coord[j] - wheel for j in wheels] != list(range(len(wheels))):
+            raise ValueError(f"base wheel joints {wheels} are not contiguous coordinates in the model")
         return cls(
             robot_coords=int(layout.robot_coords),
             base_coord=base,
             leg_coord=leg,
+            wheel_coord=wheel,
+            wheel_count=len(wheels),
             tcp_body=layout.joints.body[chosen.end_effector],
             tcp_offset_pos=robot.tcp_offset_pos,
             tcp_offset_quat=robot.tcp_offset_quat,
@@ -80,6 +89,8 @@ class RobotContext:
         ctx.robot_coords = self.robot_coords
         ctx.base_coord = self.base_coord
         ctx.leg_coord = self.leg_coord
+        ctx.wheel_coord = self.wheel_coord
+        ctx.wheel_count = self.wheel_count
         ctx.tcp_body = self.tcp_body
         ctx.tcp_offset = wp.transform(wp.vec3(*self.tcp_offset_pos), wp.quat(*self.tcp_offset_quat))
         ctx.gripper_coord = self.gripper_coord

@@ -20,9 +20,15 @@ def last_action(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int
 
 @wp.func
 def robot_joint_pos(ctx: TaskContext, w: int, out: wp.array2d(dtype=float), col: int):
-    """Every robot coordinate in model order (robot_coords) [m | rad]."""
+    """Every robot coordinate in model order (robot_coords) [m | rad], the base wheels' angles zeroed (as on the
+    reference platform): a wheel's angle is the integral of every drive so far, the same pose reached by another
+    path reads another angle, and a policy conditioned on it sees noise (SortToShelf's place phase: 1-9 mrad
+    apart after the same nav, where the demos spanned 0.06 mrad)."""
     for j in range(ctx.robot_coords):
-        out[w, col + j] = ctx.joint_q[w * ctx.coords_per_world + j]
+        value = ctx.joint_q[w * ctx.coords_per_world + j]
+        if j >= ctx.wheel_coord and j < ctx.wheel_coord + ctx.wheel_count:
+            value = float(0.0)
+        out[w, col + j] = value
 
 
 @wp.func
