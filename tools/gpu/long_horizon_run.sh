@@ -2,7 +2,7 @@
 # Issue-31 runs on a GPU host, from the repository root, after the project's wheels are installed into
 # $HOME/.cache/gpu_site (../shared/tools/gpu/fetch_wheels.sh parts p1-p3, then `install` here with the zarr wheels
 # in .gpu_wheels/p4). Every policy sees the front head and the left wrist camera (96x72 RGB) and proprioception
-# (--obs-mode sensors); evaluations are 100 held-out randomised episodes (--seed 50000).
+# (--obs-mode sensors); evaluations are 100 held-out randomised episodes (--seed 50000; collection uses seed 7).
 #
 #   bash tools/gpu/long_horizon_run.sh install
 #   bash tools/gpu/long_horizon_run.sh single GPU TASK [task flags...]    collect 800 -> train -> evaluate
@@ -15,7 +15,9 @@
 #          run), GPUS (train data-parallel over that many GPUs: torchrun + NCCL; pick them with CUDA_VISIBLE_DEVICES,
 #          e.g. CUDA_VISIBLE_DEVICES=2,3 GPUS=2 ... coherent 0 TASK: GPU counts among the visible ones),
 #          PICK_GPU (a coherent run trains pick on that GPU while place trains on GPU),
-#          EVAL_EPS (100), REC (record that many evaluation worlds to $d/eval.rrd; needs rerun-sdk staged by
+#          EVAL_EPS (100), EVAL_SEEDS (evaluation seeds, default 50000; "50000 7" adds the collection's seed,
+#          whose scenes recur where the row counts agree: a policy failing its own demos' scenes is not short of data),
+#          REC (record that many evaluation worlds to $d/eval_<seed>.rrd; needs rerun-sdk staged by
 #          tools/gpu/rerun_wheels.sh), W (work folder, /tmp/w),
 #          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
 #          StackCube: OBS_KEYS=joint_pos,gripper_pos ... single 0 GalbotG1-StackCube-v0 --head table),
@@ -32,9 +34,9 @@ TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e
 budget() { echo --time-budget-s "${1:-${TB:-300}}"; }
 train_dev() { if [ -n "${GPUS:-}" ] && [ "${DEV:-cuda}" != cpu ]; then echo cuda; else dev "$1"; fi; }
 dev() { if [ "${DEV:-cuda}" = cpu ]; then echo cpu; else echo "cuda:$1"; fi; }
-EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))" --seed 50000
+EVAL=(--randomize --episodes "${EVAL_EPS:-100}" --num-envs "$(( ${EVAL_EPS:-100} < 100 ? ${EVAL_EPS:-100} : 100 ))"
       --max-steps 3000 --no-progress)
-rec() { if [ -n "${REC:-}" ]; then echo --rerun-save "$1/eval.rrd" --rerun-worlds "$REC" --rerun-image-every 5; fi; }
+rec() { if [ -n "${REC:-}" ]; then echo --rerun-save "$1/eval_$2.rrd" --rerun-worlds "$REC" --rerun-image-every 5; fi; }
 # collect EPISODES MAX_ENVS GPU TASK [task flags...]: expert demos from the policies' cameras into $d/demos.hdf5
 collect() {
   local eps=$1 envs=$2 g=$3 task=$4; shift 4
@@ -64,9 +66,11 @@ single)
   stamp "train"
   $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" $(budget) --device "$(train_dev "$g")" --output-dir "$d/pol" \
     2>&1 | tail -1
-  stamp "evaluate"
-  $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" $(rec "$d") \
-    --device "$(dev "$g")" | tail -1 ;;
+  for seed in ${EVAL_SEEDS:-50000}; do
+    stamp "evaluate, seed $seed"
+    $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" --seed "$seed" \
+      $(rec "$d" "$seed") --device "$(dev "$g")" | tail -1
+  done ;;
 coherent)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
   collect "${EPS:-600}" 300 "$g" "$task" "$@"
@@ -78,9 +82,12 @@ coherent)
   else
     for p in pick place; do train_phase "$p" "$g"; done
   fi
-  stamp "evaluate composed"
-  $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
-    "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" $(rec "$d") --device "$(dev "$g")" | tail -1 ;;
+  for seed in ${EVAL_SEEDS:-50000}; do
+    stamp "evaluate composed, seed $seed"
+    $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
+      "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" --seed "$seed" $(rec "$d" "$seed") --device "$(dev "$g")" \
+      | tail -1
+  done ;;
 ddp)  # ddp DATASET: samples/s of one GPU and of two (the first two visible), TB seconds each (default 60)
   cd "$W"
   for n in 1 2; do
@@ -93,5 +100,5 @@ bg)
   setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &
   echo "started: $log" ;;
 *)
-  sed -n 2,19p "$0"; exit 2 ;;
+  sed -n 2,21p "$0"; exit 2 ;;
 esac
