@@ -24,6 +24,9 @@ from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
 
 split_task = stage_task(stages.split_stage, "split")
 
+COLLECT_MAX_STEPS = 3000
+"""Step limit of an expert coherent episode in the collect stage (PickToShelf's take ~470, SortToShelf's ~440);
+``eval_max_steps`` bounds the evaluation alone."""
 NAVIGATION_GROUPS = ("base",)
 """Joint groups of a phase that navigates: such a phase runs its component's expert, not a learned policy."""
 
@@ -60,7 +63,7 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
     phases = learned_phases(task_id, options)
     demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
-                                   task_options=options, max_steps=eval_max_steps)
+                                   task_options=options, max_steps=COLLECT_MAX_STEPS)
     log.info("collect: %s", "/".join(s_collect))
     (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out)], "split")
     log.info("split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items()))

@@ -20,7 +20,9 @@ pytestmark = pytest.mark.slow
 
 TASK = "GalbotG1-PickToShelf-v0"
 COMMAND = ["pipeline", "--task", TASK, "--recipe", "cpu", "--demos", "2", "--num-envs", "2", "--eval-episodes", "2",
-           "--train-steps", "5", "--no-record"]
+           "--train-steps", "5", "--eval-max-steps", "300", "--no-record"]
+"""The smallest size: 5 training steps make a policy that may wander until the step limit, so the limit is 300
+steps (an expert coherent episode is ~470)."""
 
 
 def run_pipeline(out: Path) -> subprocess.CompletedProcess:

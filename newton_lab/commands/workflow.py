@@ -214,6 +214,8 @@ class PipelineArgs:
     each on the gpu one)"""
     eval_episodes: int | None = None
     """evaluation episodes of the trained policy (cpu recipe 20, gpu 100)"""
+    eval_max_steps: int | None = None
+    """step limit of an evaluation episode (default 600; a coherent task's 3000)"""
     num_envs: int | None = None
     """parallel env rows of collection, Mimic and evaluation (cpu recipe 4, gpu 50)"""
     device: str | None = None
@@ -264,6 +266,8 @@ class PipelineArgs:
         extra = ({"eval_max_steps": recipe["eval_max_steps"], "task_options": dict(self.task_options),
                   "cameras": recipe["cameras"]}
                  if recipe.get("long_horizon") else {})
+        if self.eval_max_steps is not None:
+            extra["eval_max_steps"] = self.eval_max_steps
         return {"runner": self.runner, "workers": self.workers, "address": self.address, "retries": self.retries,
                 "task_id": self.task, "train_cfg": self.train_cfg(recipe), "device": recipe["device"],
                 "out": str(Path(self.out).resolve()), "seed": self.seed, "gpus": self.gpus, "record": self.record,
