@@ -12,6 +12,7 @@ from typing import Any
 import newton
 import newton.ik as ik
 import numpy as np
+import torch
 import warp as wp
 
 from ..quaternions import quat_mul, quat_rotate
@@ -129,14 +130,17 @@ class TcpKinematics:
             return self._solver(k).run(q_seed, pos, quat, iterations)[:m]
 
     def tcp_poses(self, q: np.ndarray) -> np.ndarray:
-        """TCP poses (m, 7) of ``m <= n`` robot coordinate rows ``q`` (m, 34)."""
+        """TCP poses (m, 7) of ``m <= n`` robot coordinate rows ``q`` (m, 34). Only the ``m`` rows cross between
+        host and device: the end-effector link of each, not every body of all ``n`` problems (4 MB a call at
+        4096 rows, and a planner re-plan makes one call per solve)."""
         q = np.asarray(q, dtype=np.float32)
         m = q.shape[0]
-        full = np.zeros((self.n, self.robot_coords), dtype=np.float32)
-        full[:m] = q
-        self._fk_state.joint_q.assign(full.reshape(-1))
+        if not 1 <= m <= self.n:
+            raise ValueError(f"FK takes 1..{self.n} coordinate rows, got {m}")
+        wp.to_torch(self._fk_state.joint_q)[: m * self.robot_coords].copy_(torch.from_numpy(q.reshape(-1)))
         newton.eval_fk(self._fk_model, self._fk_state.joint_q, self._fk_state.joint_qd, self._fk_state)
-        link = self._fk_state.body_q.numpy().reshape(self.n, self._bodies, 7)[:m, self._link].astype(np.float64)
+        body_q = wp.to_torch(self._fk_state.body_q).view(self.n, self._bodies, 7)
+        link = body_q[:m, self._link].cpu().numpy().astype(np.float64)
         tcp_rot = np.tile(np.asarray(spec.TCP_OFFSET_QUAT, dtype=np.float64), (m, 1))
         pos = link[:, :3] + quat_rotate(link[:, 3:7], np.asarray(spec.TCP_OFFSET_POS, dtype=np.float64))
         return np.concatenate([pos, quat_mul(link[:, 3:7], tcp_rot)], axis=1)
