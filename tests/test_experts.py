@@ -40,29 +40,3 @@ def test_tasks_without_an_expert_step_as_one_captured_graph():
     for task_id in left_out:
         env = make_env(task_id, num_envs=1, device="cpu", seed=0, cameras=False)
         assert env.step_graph is not None, f"{task_id}: its step is not one captured graph"
-
-
-def test_a_step_aiming_where_the_last_one_did_reuses_its_joints(monkeypatch):
-    """PickCube's plan has six IK targets, the last (open the gripper) at the pose of the one before: a re-plan
-    solves five, and the release waypoint holds the descend waypoint's joints exactly."""
-    from newton_lab.robots.g1.kinematics import TcpKinematics
-
-    env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, cameras=False)
-    agent = expert_agent(env)
-    first_solves = []
-    solve = TcpKinematics.solve
-
-    def counting(self, q, pos, quat, *, iterations=48):
-        if iterations == agent.ik_iterations:  # refinements of rows still off are not counted
-            first_solves.append(len(q))
-        return solve(self, q, pos, quat, iterations=iterations)
-
-    monkeypatch.setattr(TcpKinematics, "solve", counting)
-    env.reset()
-    agent.act(env)
-    names = [s.name for s in agent.plan.steps]
-    assert sum(s.target is not None for s in agent.plan.steps) == 6 and len(first_solves) == 5
-    way = agent._waypoints.numpy()
-    descend, release = names.index("descend_to_target"), names.index("open_left_gripper")
-    assert (way[:, release, :7] == way[:, descend, :7]).all()
-    assert way[0, release, 7] != way[0, descend, 7]  # the gripper opens there

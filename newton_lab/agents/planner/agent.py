@@ -142,21 +142,17 @@ class PlannerAgent(BaseAgent):
         frame = np.zeros(r, dtype=np.int64)
         failed = np.zeros(r, dtype=bool)
         tcp_prev = poses["tcp"][:, :3].copy()  # start of the next straight-line TCP move
-        solved = None  # (goal, quat) of the last IK target: a step aiming at the same pose reuses its joints
         i = 0
         for step in plan.steps:
             gripper = self._robot.gripper_open if step.gripper_open else self._robot.gripper_closed
             moves = step.target is not None or step.joints is not None
             if step.joints is not None:
                 targets = [np.tile(np.asarray(step.joints, dtype=np.float64), (r, 1))]
-                solved = None
             elif step.target is not None:
                 goal = step.target.resolve(poses) if hasattr(step.target, "resolve") else step.target(poses)
                 quat = self._target_quat(step, poses, r)
-                same = (solved is not None and step.linear == 1 and np.array_equal(goal, solved[0])
-                        and np.array_equal(quat, solved[1]))  # e.g. PickCube's release at the descend pose
-                solved, targets = (goal, quat), ([prev] if same else [])
-                for j in range(1, 0 if same else step.linear + 1):
+                targets = []
+                for j in range(1, step.linear + 1):
                     point = tcp_prev + (goal - tcp_prev) * (j / step.linear)
                     q_all, err = self._solve(q_seed, rows, point, quat)
                     targets.append(q_all[rows][:, self._arm_coords].astype(np.float64))
