@@ -35,6 +35,15 @@ UNSET_VELOCITY_LIMIT = newton.ModelBuilder.JointDofConfig().velocity_limit
 """Newton's default ``joint_velocity_limit`` (a joint without a declared limit)."""
 
 
+def _first_coord(coord: dict[str, int], joints: Sequence[str], what: str) -> int:
+    """The coordinate of ``joints[0]``, whose following joints must hold the following coordinates (a kernel
+    reads them as one run)."""
+    first = coord[joints[0]]
+    if [coord[j] - first for j in joints] != list(range(len(joints))):
+        raise ValueError(f"{what} joints {tuple(joints)} are not contiguous coordinates in the model")
+    return first
+
+
 @dataclass(frozen=True)
 class RobotContext:
     """The robot's world-local indices every task term reads through ``TaskContext``."""
@@ -59,17 +68,9 @@ class RobotContext:
     def from_layout(cls, robot: RobotBinding, layout: Any, arm: str) -> RobotContext:
         chosen = robot.arm(arm)
         coord = layout.joints.coord
-        legs, planar = robot.leg_joints, robot.base_planar_joints
-        leg = coord[legs[0]]
-        if [coord[j] - leg for j in legs] != list(range(len(legs))):
-            raise ValueError(f"leg joints {legs} are not contiguous coordinates in the model")
-        base = coord[planar[0]]
-        if [coord[j] - base for j in planar] != [0, 1, 2]:
-            raise ValueError(f"planar base joints {planar} are not contiguous coordinates")
-        wheels = robot.base_wheel_joints
-        wheel = coord[wheels[0]] if wheels else -1
-        if wheels and [coord[j] - wheel for j in wheels] != list(range(len(wheels))):
-            raise ValueError(f"base wheel joints {wheels} are not contiguous coordinates in the model")
+        legs, planar, wheels = robot.leg_joints, robot.base_planar_joints, robot.base_wheel_joints
+        leg, base = _first_coord(coord, legs, "leg"), _first_coord(coord, planar, "planar base")
+        wheel = _first_coord(coord, wheels, "base wheel") if wheels else -1
         return cls(
             robot_coords=int(layout.robot_coords),
             base_coord=base,
