@@ -20,6 +20,7 @@ from ..kernels.context import TaskContext, record_poses
 from ..task_api.cfg import TaskCfg
 from .actuation import Actuation
 from .buffers import StepBuffers
+from . import mujoco_substeps
 from .joint_space import SolverJointSpace
 from .terms import TaskKernels
 
@@ -43,6 +44,13 @@ class StepLaunches:
         self.num_envs = buffers.reward.shape[0]
         self.default_q, self.default_target_q = default_q, default_target_q
         self.seed, self.randomize = seed, randomize
+        self.control_step_physics = None
+        """``envs.mujoco_substeps.ControlStepPhysics`` where the task lets ``simulate`` exchange the state with
+        MuJoCo-Warp once a control step (``PhysicsCfg.sync_every_substep`` off, no driven base); ``None``: every
+        substep is a whole ``solver.step``."""
+        if not cfg.physics.sync_every_substep and actuation.wheel_col < 0 and mujoco_substeps.supported(solver):
+            model_stepped = joint_space.model if joint_space is not None else model
+            self.control_step_physics = mujoco_substeps.ControlStepPhysics(solver, model_stepped, cfg.sim_dt)
 
     def capture(self):
         """Record ``step`` as one graph; ``None`` where the Warp build cannot capture (eager stepping stays
@@ -82,8 +90,22 @@ class StepLaunches:
         self._body_poses()
 
     def simulate(self) -> None:
-        for _ in range(self.cfg.decimation):
-            self._physics()
+        if self.control_step_physics is None:
+            for _ in range(self.cfg.decimation):
+                self._physics()
+        else:  # nothing reads the coordinates between substeps: push once, pull once (envs.mujoco_substeps)
+            physics, js = self.control_step_physics, self.joint_space
+            state, drive = (js.state, js.drive) if js is not None else (self.state, self.drive)
+            for i in range(self.cfg.decimation):
+                self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q)
+                if js is not None:
+                    js.push(self.state, self.drive)  # the new setpoints (the coordinates copied are not read)
+                if i == 0:
+                    physics.begin(state)
+                physics.substep(state, drive)
+            physics.end(state)
+            if js is not None:
+                js.pull(self.state)
         self._body_poses()  # once a control step, not once a substep
 
     def evaluate_task(self) -> None:

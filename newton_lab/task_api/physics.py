@@ -96,6 +96,12 @@ class PhysicsCfg:
     (``tools/physics_table.py --variant weld_idle_joints=False``). ``False``: every robot joint is simulated,
     held by its drive."""
 
+    sync_every_substep: bool = False
+    """Exchange the state with MuJoCo-Warp around every physics substep (Newton's ``SolverMuJoCo.step`` each
+    substep). ``False``: once a control step, push before the first substep and pull after the last
+    (``envs.mujoco_substeps``), the same physics in fewer launches; a task whose actions drive the base keeps
+    the exchange every substep regardless (its wheel twist turns with the yaw reached at each substep)."""
+
     def __post_init__(self) -> None:
         if self.cone not in CONES:
             raise ValueError(f"physics cone {self.cone!r} is not one of {CONES}")
@@ -144,4 +150,5 @@ def merged(physics: list[PhysicsCfg]) -> PhysicsCfg:
         constraints_per_world=largest([p.constraints_per_world for p in physics]),
         contact_filter=contact_filter,
         weld_idle_joints=all(p.weld_idle_joints for p in physics),
+        sync_every_substep=any(p.sync_every_substep for p in physics),
     )
