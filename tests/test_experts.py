@@ -40,3 +40,36 @@ def test_tasks_without_an_expert_step_as_one_captured_graph():
     for task_id in left_out:
         env = make_env(task_id, num_envs=1, device="cpu", seed=0, cameras=False)
         assert env.step_graph is not None, f"{task_id}: its step is not one captured graph"
+
+
+def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
+    """``PlannerAgent(replan_batch=4, replan_wait=3)``: a row whose episode restarts holds its reset targets until
+    four rows wait or the oldest has held for three calls, then they are planned together; the expert still
+    succeeds in every episode, each at most ``replan_wait`` steps longer. Below 128 rows the default plans each
+    restarted row at once."""
+    import torch
+
+    from newton_lab.agents.planner.agent import PlannerAgent
+
+    task = "GalbotG1-PickCube-v0"
+    env = make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False)
+    assert PlannerAgent.from_task(task).replan_batch is None
+    agent = PlannerAgent.from_task(task, replan_batch=4, replan_wait=3)
+    env.reset()
+    agent.reset()
+    hold = env.current_action().clone()
+    first = agent.act(env)  # four fresh rows: one batch, planned at once
+    assert (agent._waiting_since < 0).all() and not torch.equal(first, hold)
+    env.reset([1])
+    agent.act(env)
+    assert list(map(int, (agent._waiting_since >= 0).nonzero()[0])) == [1]
+    torch.testing.assert_close(agent.act(env)[1], env.current_action()[1])  # still waiting, holding
+    agent.act(env)
+    assert (agent._waiting_since >= 0).sum() == 1
+    agent.act(env)
+    assert (agent._waiting_since < 0).all()  # held for 3 calls: planned alone at the 4th
+    runs = [make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
+        agent=PlannerAgent.from_task(task, replan_batch=batch), episodes=8, max_steps=1500, progress=False)
+        for batch in (None, 4)]
+    assert runs[0]["success_rate"] == runs[1]["success_rate"] == 1.0, runs
+    assert 0 <= runs[1]["average_length"] - runs[0]["average_length"] <= 3.0, runs

@@ -26,7 +26,8 @@ REFINE_ROTATION_RAD = math.radians(0.5)
 class PlannerAgent(BaseAgent):
     """Executes ``plan`` for every row; see ``newton_lab.task_api.motion_plan`` for the step format."""
 
-    def __init__(self, plan: MotionPlan, *, ik_iterations: int = 16, refine_iterations: int = 32):
+    def __init__(self, plan: MotionPlan, *, ik_iterations: int = 16, refine_iterations: int = 32,
+                 replan_batch: int | None = None, replan_wait: int = 3):
         self.plan = plan
         self.ik_iterations = ik_iterations
         """LM steps of every IK solve (the targets of PickCube, StackCube, LiftCube, Reach and SortToShelf converge
@@ -34,6 +35,14 @@ class PlannerAgent(BaseAgent):
         self.refine_iterations = refine_iterations
         """Further LM steps, from the first solve's result, for the rows still off by more than
         ``REFINE_POSITION_M`` or ``REFINE_ROTATION_RAD`` (far or unreachable targets, e.g. PickToShelf's)."""
+        self.replan_batch = replan_batch
+        """Restarted rows gathered before they are planned together; ``None``: one per 64 env rows (1 below
+        128 rows, where every restarted row is planned at once). A plan's IK solves cost the same for 1 row or
+        500 on a GPU (they are chains of small kernels), so at 4096 rows, where ~24 episodes restart every
+        step, planning them every few steps instead of every step cuts the agent's time by that factor."""
+        self.replan_wait = replan_wait
+        """Most ``act`` calls a restarted row holds its reset targets before it is planned (its demo then starts
+        with up to this many still frames)."""
         self._env = None
         self.plan_failures = 0
         """Rows whose IK missed a target by more than the plan's tolerances (cumulative)."""
@@ -75,6 +84,9 @@ class PlannerAgent(BaseAgent):
             self._plan_length = np.zeros(n, dtype=np.int64)
             self._actions = wp.from_torch(env.current_action().contiguous())
         self._tracker = EpisodeTracker(n)
+        self._waiting_since = np.full(n, -1, dtype=np.int64)  # act count at which a row began waiting; -1: none
+        self._acts = 0
+        self._batch = self.replan_batch if self.replan_batch is not None else max(1, n // 64)
 
     # ------------------------------------------------------------------ planning
     def _num_waypoints(self) -> int:
@@ -199,8 +211,14 @@ class PlannerAgent(BaseAgent):
         if self._env is not env:
             self._bind(env)
         rows = self._tracker.fresh_rows(env, env_ids)
+        if env_ids is not None or self._batch <= 1:
+            rows = np.union1d(rows, np.flatnonzero(self._waiting_since >= 0))
+        elif rows.size or (self._waiting_since >= 0).any():
+            rows = self._rows_due(env, rows)
         if rows.size:
             self._plan_rows(env, rows)
+            self._waiting_since[rows] = -1
+        self._acts += 1
         wp.launch(
             gather_plan_actions,
             dim=env.num_envs,
@@ -218,6 +236,20 @@ class PlannerAgent(BaseAgent):
             device=env.device,
         )
         return wp.to_torch(self._actions)
+
+    def _rows_due(self, env, fresh: np.ndarray) -> np.ndarray:
+        """Restarted rows join the waiting ones (holding their reset targets); all of them are due once there
+        are ``replan_batch`` or the oldest has waited ``replan_wait`` calls."""
+        if fresh.size:
+            self._waiting_since[fresh] = self._acts
+            idx = torch.as_tensor(fresh, device=env.torch_device)
+            wp.to_torch(self._num_segments)[idx] = 0  # the gather leaves their action rows alone
+            wp.to_torch(self._actions)[idx] = env.current_action()[idx]
+            self._plan_length[fresh] = np.iinfo(np.int64).max  # not done while waiting
+        waiting = np.flatnonzero(self._waiting_since >= 0)
+        oldest = self._acts - int(self._waiting_since[waiting].min())
+        due = waiting.size >= self._batch or oldest >= self.replan_wait
+        return waiting if due else np.zeros(0, dtype=np.int64)
 
     def done(self, env) -> torch.Tensor:
         """Rows whose plan has played to its last frame."""
