@@ -73,13 +73,15 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
 
 def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
                   dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
-                  max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None) -> dict[str, Any]:
+                  max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None,
+                  replan_batch: int | None = None) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
     ``started_at`` / ``ended_at`` (Unix seconds) bound the timed run, for ``bench_collect_on_workers``; one
     ``syncfs`` of the dataset's filesystem (``presync_s``) comes before it, and ``start_gate()``, when given, right
-    after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it)."""
+    after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it). ``replan_batch``:
+    the expert's ``PlannerAgent.replan_batch`` (``None``: its default)."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -89,6 +91,10 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     t0 = time.perf_counter()
     env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=False)
     agent = expert_agent(env)
+    if replan_batch is not None:
+        if not hasattr(agent, "replan_batch"):
+            raise ValueError(f"--replan-batch: the expert of {task_id} ({type(agent).__name__}) does not plan; drop it")
+        agent.replan_batch = replan_batch
     warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
     _collect_timed(env, agent, 1, warm, max_steps)  # compiles the step, the IK solves and the writer path
     first_use = time.perf_counter() - t0

@@ -45,7 +45,8 @@ def test_tasks_without_an_expert_step_as_one_captured_graph():
 def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
     """``PlannerAgent(replan_batch=4, replan_wait=3)``: a row whose episode restarts holds its reset targets until
     four rows wait or the oldest has held for three calls, then they are planned together; the expert still
-    succeeds in every episode, each at most ``replan_wait`` steps longer. Below 128 rows the default plans each
+    succeeds in every episode, and the episode of a row that waited starts over when its plan begins (the
+    lengths are those of planning at once). Below 128 rows the default plans each
     restarted row at once."""
     import torch
 
@@ -72,4 +73,5 @@ def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
         agent=PlannerAgent.from_task(task, replan_batch=batch), episodes=8, max_steps=1500, progress=False)
         for batch in (None, 4)]
     assert runs[0]["success_rate"] == runs[1]["success_rate"] == 1.0, runs
-    assert 0 <= runs[1]["average_length"] - runs[0]["average_length"] <= 3.0, runs
+    # an episode starts over when its plan begins (rollout: PlannerAgent.holding): the wait is not counted
+    assert abs(runs[1]["average_length"] - runs[0]["average_length"]) <= 1.0, runs

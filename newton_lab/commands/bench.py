@@ -47,6 +47,9 @@ class BenchCollectArgs(BenchEnvArgs):
     workers: int = 1
     """Dask worker processes collecting at once (one per GPU with no --device or --device cuda), each into its own
     shard <stem>_w<i>; no prefilled run."""
+    replan_batch: int | None = None
+    """restarted rows the expert plans together (PlannerAgent.replan_batch); default: one per 64 env rows, 1 below
+    128 rows; 1 plans each restarted row at once"""
     baseline: bool = False
     """with --workers: also time worker 0 alone on one worker's share, before (<stem>_alone) and after (<stem>_alone2)
     the workers' run, and print the scaling, the workers' demos/s over the mean lone rate (same cluster, same demos

@@ -156,6 +156,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     n = env.num_envs
     timers = timers or Timers()
     step, act = timers.step(env.step), timers.act(agent.act)
+    holding = getattr(agent, "holding", None)  # rows waiting for a plan (PlannerAgent): their episode starts later
     done_reason = getattr(agent, "done_reason", "agent_done")  # e.g. a teleop operator's ``user_exit``
     env.reset()
     agent.reset()
@@ -168,6 +169,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     try:
         while not eps.enough():
             actions = act(env)
+            held = holding() if holding is not None else None
             if recorder is not None:
                 recorder.record(eps.step_in_ep, actions)
             _, reward, terminated, truncated, info = step(actions)
@@ -205,7 +207,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                     break
             if saver is not None:
                 saver.submit()
-            eps.clear(done | cut | agent_done)
+            eps.clear(done | cut | agent_done if held is None else done | cut | agent_done | held)
             if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
                 last_line = time.perf_counter()
                 print(f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "

@@ -8,9 +8,11 @@
 #   setsid nohup bash tools/gpu/physics_limit_run.sh 0 > /tmp/w/p33.log 2>&1 &     detached, so calls stay short
 #
 #   bench    newton-lab bench, PickCube, 4096 and 16384 envs (the env step against the bare solver)
-#   table    tools/physics_table.py, PickCube: the task's physics against all joints simulated, the pyramidal cone
-#            and a contact filter (left arm and gripper only), with 100 randomised expert episodes each
-#   collect  newton-lab bench-collect, PickCube, 4096 envs, 16,384 demos into zarr packs
+#   table    tools/physics_table.py, PickCube: the task's physics against Newton's state exchange around every
+#            substep, against all joints simulated (with that exchange: the physics before welding), the pyramidal
+#            cone and a looser solver tolerance, with 100 randomised expert episodes each
+#   collect  newton-lab bench-collect, PickCube, 4096 envs, 16,384 demos into zarr packs: the defaults, each
+#            restarted row planned at once (--replan-batch 1), and the zarr files written by 4 writer processes
 #   profile  tools/profile_step.py --full at 4096 envs: the stages of the welded solver model and the full robot's
 #   tasks    tools/physics_table.py for StackCube, PickToShelf and SortToShelf against all joints simulated
 #   camera   newton-lab bench with the front head camera, RGB 128x128, at 4096 envs
@@ -37,17 +39,21 @@ for step in "${steps[@]}"; do
       && $N bench --task GalbotG1-PickCube-v0 --num-envs 16384 --device $dev" ;;
   table)
     run table ${PY:-python3} "$tools/physics_table.py" --device "$dev" --num-envs 4096 --steps 200 --episodes 100 \
-      --tasks GalbotG1-PickCube-v0 --variant weld_idle_joints=False --variant cone=pyramidal \
-      --variant contact_filter=left_arm+left_gripper --variant cone=pyramidal,contact_filter=left_arm+left_gripper ;;
+      --tasks GalbotG1-PickCube-v0 --variant sync_every_substep=True \
+      --variant weld_idle_joints=False,sync_every_substep=True --variant cone=pyramidal --variant tolerance=1e-6 \
+      --variant cone=pyramidal,tolerance=1e-6 ;;
   collect)
-    rm -rf "$W/bc33.zarr"*
-    run collect $N bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 \
-      --dataset-path "$W/bc33.zarr" --device "$dev" ;;
+    rm -rf "$W"/bc33*.zarr*
+    bc="$N bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
+    run collect $bc --dataset-path "$W/bc33.zarr"
+    run collect_replan1 $bc --dataset-path "$W/bc33r.zarr" --replan-batch 1
+    run collect_proc env NEWTON_LAB_ZARR_WRITE_PROCESSES=4 $bc --dataset-path "$W/bc33p.zarr" ;;
   profile)
     run profile ${PY:-python3} "$tools/profile_step.py" --full --num-envs 4096 --device "$dev" ;;
   tasks)
     run tasks ${PY:-python3} "$tools/physics_table.py" --device "$dev" --num-envs 4096 --steps 200 --episodes 100 \
-      --tasks GalbotG1-StackCube-v0 GalbotG1-PickToShelf-v0 GalbotG1-SortToShelf-v0 --variant weld_idle_joints=False ;;
+      --tasks GalbotG1-StackCube-v0 GalbotG1-PickToShelf-v0 GalbotG1-SortToShelf-v0 \
+      --variant weld_idle_joints=False,sync_every_substep=True ;;
   camera)
     run camera $N bench --task GalbotG1-PickCube-v0 --num-envs 4096 --device "$dev" --camera front_head \
       --resolution 128 128 ;;

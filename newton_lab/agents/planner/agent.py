@@ -219,6 +219,7 @@ class PlannerAgent(BaseAgent):
             self._plan_rows(env, rows)
             self._waiting_since[rows] = -1
         self._acts += 1
+        self._held = self._waiting_since >= 0
         wp.launch(
             gather_plan_actions,
             dim=env.num_envs,
@@ -236,6 +237,13 @@ class PlannerAgent(BaseAgent):
             device=env.device,
         )
         return wp.to_torch(self._actions)
+
+    def holding(self) -> np.ndarray | None:
+        """Rows whose last action was a hold while they waited for their plan (numpy bool), or None before the
+        first ``act``. ``collect`` and ``evaluate`` start such a row's episode over from the step its plan
+        begins: a recorded demo has no still frames ahead of its motion, and episode lengths do not count the
+        wait."""
+        return getattr(self, "_held", None)
 
     def _rows_due(self, env, fresh: np.ndarray) -> np.ndarray:
         """Restarted rows join the waiting ones (holding their reset targets); all of them are due once there
