@@ -88,19 +88,20 @@ def drive_base(
     phase: wp.array(dtype=int),
     lin_gain: float,
     yaw_gain: float,
-    base_coord: int,
     base_dof: int,
-    coords_per_world: int,
     dofs_per_world: int,
-    joint_q: wp.array(dtype=float),
+    yaw_q: wp.array(dtype=float),
+    yaw_stride: int,
+    yaw_offset: int,
     target_qd: wp.array(dtype=float),
 ):
     """Wheel velocities (columns ``wheel_col .. +3``, [rad/s]) -> base twist -> planar base velocity targets.
 
     Un-mixes the wheel speeds with ``robots.mecanum.wheels_to_twist`` (the model has no rollers: the base
     is a planar joint) to the base-frame twist (vx, vy [m/s], wz [rad/s]) and rotates it into the world-frame
-    x / y slides by the current yaw. Launched before every physics substep so the rotation follows the turning
-    base. Rows whose phase does not own the wheels, or whose phase fixes the base, get a zero twist.
+    x / y slides by the current yaw, ``yaw_q[w * yaw_stride + yaw_offset]`` (the env's coordinates, or MuJoCo-Warp's
+    ``qpos`` between the substeps of a control step). Launched before every physics substep so the rotation follows
+    the turning base. Rows whose phase does not own the wheels, or whose phase fixes the base, get a zero twist.
     """
     w = wp.tid()
     ph = phase[w]
@@ -113,7 +114,7 @@ def drive_base(
             processed_action(actions, w, wheel_col + 3, scale, low, high),
         )
         twist = wheels_to_twist(wheels, lin_gain, yaw_gain)
-    yaw = joint_q[w * coords_per_world + base_coord + 2]
+    yaw = yaw_q[w * yaw_stride + yaw_offset]
     c = wp.cos(yaw)
     s = wp.sin(yaw)
     d = w * dofs_per_world + base_dof

@@ -77,17 +77,20 @@ class Actuation:
             outputs=[self.control.joint_target_q, self.control.joint_target_qd],
         )
 
-    def substep(self, actions: wp.array2d, phase: wp.array, joint_q: wp.array) -> None:
+    def substep(self, actions: wp.array2d, phase: wp.array, joint_q: wp.array,
+                yaw: tuple[wp.array, int, int] | None = None) -> None:
         """Before one physics substep: the wheel columns' base twist (rotated by the current yaw) into
-        ``control``, then ``control``'s targets into the ``drive``."""
+        ``control``, then ``control``'s targets into the ``drive``. The yaw is read from the env's ``joint_q``,
+        or from ``yaw`` = (flat array, stride per world, offset) where the coordinates live elsewhere between
+        substeps (MuJoCo-Warp's ``qpos``: ``envs.mujoco_substeps``)."""
         lay = self.layout
         if self.wheel_col >= 0:
+            yaw_q, stride, offset = yaw or (joint_q, lay.coords_per_world, self.base_coord + 2)
             wp.launch(
                 drive_base,
                 dim=self.num_envs,
                 inputs=[actions, self.wheel_col, self.scale, self.low, self.high, self.owned, self.base_free, phase,
-                        self.lin_gain, self.yaw_gain, self.base_coord, self.base_dof, lay.coords_per_world,
-                        lay.dofs_per_world, joint_q],
+                        self.lin_gain, self.yaw_gain, self.base_dof, lay.dofs_per_world, yaw_q, stride, offset],
                 outputs=[self.control.joint_target_qd],
             )
         wp.launch(

@@ -66,6 +66,8 @@ class SolverJointSpace:
         """The solver's state, in its own layout (coordinates, velocities, its merged bodies)."""
         self.drive = self.model.control()
         """The targets the solver tracks, in its layout (copied from the env's drive before every step)."""
+        self.solver_coord = np.asarray(layout.solver_coord, dtype=np.int64)
+        """Per full-layout coordinate of a world: its coordinate in the solver's, or -1 where welded."""
         self._coord = wp.array(layout.solver_coord, dtype=int)
         self._dof = wp.array(layout.solver_dof, dtype=int)
         self._full = (layout.coords_per_world, layout.dofs_per_world)

