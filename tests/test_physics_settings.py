@@ -292,8 +292,7 @@ def test_exchanging_the_state_once_a_control_step_steps_the_same_physics(task_id
 
     envs = {sync: make_env(task_id, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False,
                            physics=physics(sync)) for sync in (True, False)}
-    assert envs[False]._launches.control_step_physics is not None
-    assert envs[True]._launches.control_step_physics is None
+    assert (envs[False].physics_exchange, envs[True].physics_exchange) == ("control_step", "substep")
     agents = {sync: expert_agent(env) for sync, env in envs.items()}
     start = wp.to_torch(envs[False].state.joint_q).clone()
     for _ in range(60):

@@ -8,7 +8,7 @@ checks its input first, which reads the actions' finiteness on the host.
 
 The public surface beyond ``step`` / ``reset``, for tools and tests: the step's parts (``step_graph``,
 ``launch_step``, ``apply_actions``, ``substep``, ``simulate``, ``observe``), its arrays (``buffers``,
-``task_context``, ``kernels``, ``actuation``) and joint / entity views by name (``joint_coords``,
+``task_context``, ``kernels``, ``actuation``, ``physics_exchange``) and joint / entity views by name (``joint_coords``,
 ``joint_positions``, ``entities``, ``robot_coords``, ``bodies_per_world``), and a scene placed by hand
 (``set_joint_positions``, ``sync_drive``). Code outside ``envs/`` uses only these
 and the public attributes; ``tests/test_architecture.py`` checks it touches nothing private.
@@ -293,6 +293,13 @@ class NewtonEnv:
     def actuation(self) -> Actuation:
         """The action map and drive limits on the device (``envs.actuation.Actuation``)."""
         return self._actuation
+
+    @property
+    def physics_exchange(self) -> str:
+        """How the step's physics exchanges the state with MuJoCo-Warp: ``"control_step"`` (pushed before the
+        first substep, pulled after the last: ``envs.mujoco_substeps``) or ``"substep"`` (Newton's
+        ``SolverMuJoCo.step`` around every substep: ``PhysicsCfg.sync_every_substep``)."""
+        return "substep" if self._launches.control_step_physics is None else "control_step"
 
     @property
     def robot_coords(self) -> int:
