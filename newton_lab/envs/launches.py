@@ -52,12 +52,11 @@ class StepLaunches:
         if not cfg.physics.sync_every_substep and mujoco_substeps.supported(solver):
             model_stepped = joint_space.model if joint_space is not None else model
             physics = mujoco_substeps.ControlStepPhysics(solver, model_stepped, cfg.sim_dt)
-            if actuation.wheel_col >= 0:
-                yaw = actuation.base_coord + 2
-                yaw = joint_space.solver_coord[yaw] if joint_space is not None else yaw
-                self._yaw_in_qpos = physics.qpos_source(yaw) if yaw >= 0 else None
-            if actuation.wheel_col < 0 or self._yaw_in_qpos is not None:
-                self.control_step_physics = physics
+            yaw = actuation.base_coord + 2
+            yaw = joint_space.solver_coord[yaw] if joint_space is not None else yaw
+            if actuation.wheel_col >= 0 and yaw >= 0:  # a welded yaw stays what the env's coordinates say
+                self._yaw_in_qpos = physics.qpos_source(yaw)
+            self.control_step_physics = physics
 
     def capture(self):
         """Record ``step`` as one graph; ``None`` where the Warp build cannot capture (eager stepping stays

@@ -4,7 +4,7 @@
 ``ctrl``), one MuJoCo-Warp step, pull (``qpos`` / ``qvel`` -> Newton coordinates, then forward kinematics of
 every body of the solver's model). Between two substeps of one control step nothing of the env reads the
 coordinates or the bodies but the wheel drive, which turns the base twist by the current yaw and reads it from
-MuJoCo-Warp's ``qpos`` there (``yaw_source``), so ``ControlStepPhysics`` pushes once, runs each substep's control
+MuJoCo-Warp's ``qpos`` there (``qpos_source``), so ``ControlStepPhysics`` pushes once, runs each substep's control
 and MuJoCo-Warp step, and pulls once. On the GPU that drops ~9 launches a substep of the ~108 (Newton's forward
 kinematics among them): PickCube 1.13x at 4096 envs on an H100 (docs/benchmarks.md).
 

@@ -207,7 +207,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                     break
             if saver is not None:
                 saver.submit()
-            eps.clear(done | cut | agent_done if held is None else done | cut | agent_done | held)
+            restarted = done | cut | agent_done
+            eps.clear(restarted if held is None else restarted | held)
             if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
                 last_line = time.perf_counter()
                 print(f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "

@@ -44,6 +44,7 @@ class PlannerAgent(BaseAgent):
         """Most ``act`` calls a restarted row holds its reset targets before it is planned (its demo then starts
         with up to this many still frames)."""
         self._env = None
+        self._held: np.ndarray | None = None  # rows whose last action held while they waited (``holding``)
         self.plan_failures = 0
         """Rows whose IK missed a target by more than the plan's tolerances (cumulative)."""
 
@@ -243,7 +244,7 @@ class PlannerAgent(BaseAgent):
         first ``act``. ``collect`` and ``evaluate`` start such a row's episode over from the step its plan
         begins: a recorded demo has no still frames ahead of its motion, and episode lengths do not count the
         wait."""
-        return getattr(self, "_held", None)
+        return self._held
 
     def _rows_due(self, env, fresh: np.ndarray) -> np.ndarray:
         """Restarted rows join the waiting ones (holding their reset targets); all of them are due once there
