@@ -90,6 +90,36 @@ def test_stack_success_needs_the_full_stack(stack_env):
     assert step_sig["cube_3_on_cube_2"] == 1.0 and info["signals"][0].tolist() != info["step_signals"][0].tolist()
 
 
+def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
+    """GalbotG1-StackCube-Phased-v0: the first phase ends when cube_2 sits released on cube_1, the second when the
+    full stack does (StackCube's own success); its expert is the two subtasks' plans, the second planned from the
+    poses the first leaves. The second subtask on its own resets with cube_2 already on cube_1."""
+    from newton_lab.agents.task_flow import expert_agent
+    from newton_lab.envs import make_env
+
+    env = make_env("GalbotG1-StackCube-Phased-v0", num_envs=1, device="cpu", seed=3, randomize=True)
+    assert env.cfg.phase_names == ["cube_2", "cube_3"] and env.cfg.fixed_base
+    env.reset()
+    agent, phase, signals = expert_agent(env), [], []
+    for _ in range(900):
+        _, _, term, trunc, info = env.step(agent.act(env))
+        if bool(term[0] | trunc[0]):
+            break
+        phase.append(int(info["phase"][0]))
+        signals.append(info["signals"][0].tolist())
+    assert bool(info["success"][0]) and env.termination_reasons[int(info["termination_reason"][0])] == "success"
+    on_1 = env.signal_names.index("cube_2_on_cube_1")
+    entered = phase.index(1)
+    assert set(phase[:entered]) == {0} and set(phase[entered:]) == {1}
+    assert [s[on_1] for s in signals].index(1.0) == entered  # the row moves on in the step cube_2 is let go
+
+    second = make_env("GalbotG1-StackCube-Cube3-v0", num_envs=1, device="cpu", seed=5, randomize=True)
+    second.reset()
+    pose = {n: second.entity_poses[0, e.slot].numpy() for n, e in second.entities.items()}
+    assert np.allclose(pose["cube_2"][:3] - pose["cube_1"][:3], (0.0, 0.0, 0.05), atol=1e-4)
+    assert np.linalg.norm(pose["cube_3"][:2] - pose["cube_1"][:2]) >= 0.09
+
+
 def test_reach_planner(reach_env):
     env = reach_env
     result, _, _ = run_until_done(env, PlannerAgent.from_task(env.task_id), 200)

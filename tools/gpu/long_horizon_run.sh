@@ -6,15 +6,18 @@
 #
 #   bash tools/gpu/long_horizon_run.sh install
 #   bash tools/gpu/long_horizon_run.sh single GPU TASK [task flags...]    collect 800 -> train -> evaluate
-#   bash tools/gpu/long_horizon_run.sh coherent GPU TASK [task flags...]  collect 600 -> split -> train pick, place
-#                                                                         -> evaluate composed with the nav expert
+#   bash tools/gpu/long_horizon_run.sh coherent GPU TASK [task flags...]  collect 600 -> split -> train one policy per
+#                                                                         learned phase (PHASES, default pick,place)
+#                                                                         -> evaluate composed (experts for the rest,
+#                                                                         e.g. nav)
 #   bash tools/gpu/long_horizon_run.sh ddp DATASET                       samples/s training on one GPU, then two
 #   bash tools/gpu/long_horizon_run.sh bg NAME MODE ARGS...                the same, detached (setsid), log in
 #                                                                         /tmp/w/NAME.log: calls stay short
-#   knobs: EPS (demos), TB (training budget per policy [s], default 300; TB_PICK / TB_PLACE per phase of a coherent
+#   knobs: EPS (demos), TB (training budget per policy [s], default 300; TB_<PHASE> per phase of a coherent
 #          run), GPUS (train data-parallel over that many GPUs: torchrun + NCCL; pick them with CUDA_VISIBLE_DEVICES,
 #          e.g. CUDA_VISIBLE_DEVICES=2,3 GPUS=2 ... coherent 0 TASK: GPU counts among the visible ones),
-#          PICK_GPU (a coherent run trains pick on that GPU while place trains on GPU),
+#          PHASES (a coherent run's learned phases, comma-separated: pick,place; StackCube-Phased: cube_2,cube_3),
+#          PICK_GPU (a coherent run trains its first phase on that GPU while the others train on GPU),
 #          EVAL_EPS (100), EVAL_SEEDS (evaluation seeds, default 50000; "50000 7" adds the collection's seed,
 #          whose scenes recur where the row counts agree: a policy failing its own demos' scenes is not short of data),
 #          REC (record that many evaluation worlds to $d/eval_<seed>.rrd; needs rerun-sdk staged by
@@ -75,18 +78,20 @@ coherent)
   g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -'); mkdir -p "$d"; cd "$W"
   collect "${EPS:-600}" 300 "$g" "$task" "$@"
   stamp "split"
-  rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases pick,place | cut -c1-300
-  if [ -n "${PICK_GPU:-}" ]; then  # pick on its own GPU while place trains on this one
-    train_phase pick "$PICK_GPU" > "$d/pick_train.log" 2>&1 &
-    train_phase place "$g"; wait; cat "$d/pick_train.log"
+  IFS=, read -r -a phases <<< "${PHASES:-pick,place}"
+  rm -rf "$d/split"; $N split --dataset-path "$d/demos.hdf5" --out "$d/split" --phases "${PHASES:-pick,place}" \
+    | cut -c1-300
+  if [ -n "${PICK_GPU:-}" ]; then  # the first phase on its own GPU while the others train on this one
+    train_phase "${phases[0]}" "$PICK_GPU" > "$d/${phases[0]}_train.log" 2>&1 &
+    for p in "${phases[@]:1}"; do train_phase "$p" "$g"; done; wait; cat "$d/${phases[0]}_train.log"
   else
-    for p in pick place; do train_phase "$p" "$g"; done
+    for p in "${phases[@]}"; do train_phase "$p" "$g"; done
   fi
+  ckpts=(); for p in "${phases[@]}"; do ckpts+=("$p=$d/${p}_pol/checkpoint.pt"); done
   for seed in ${EVAL_SEEDS:-50000}; do
     stamp "evaluate composed, seed $seed"
-    $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "pick=$d/pick_pol/checkpoint.pt" \
-      "place=$d/place_pol/checkpoint.pt" "${EVAL[@]}" --seed "$seed" $(rec "$d" "$seed") --device "$(dev "$g")" \
-      | tail -1
+    $N evaluate --task "$task" "$@" "${CAM[@]}" --phase-checkpoint "${ckpts[@]}" "${EVAL[@]}" --seed "$seed" \
+      $(rec "$d" "$seed") --device "$(dev "$g")" | tail -1
   done ;;
 ddp)  # ddp DATASET: samples/s of one GPU and of two (the first two visible), TB seconds each (default 60)
   cd "$W"
@@ -100,5 +105,5 @@ bg)
   setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &
   echo "started: $log" ;;
 *)
-  sed -n 2,21p "$0"; exit 2 ;;
+  sed -n 2,28p "$0"; exit 2 ;;
 esac

@@ -17,12 +17,17 @@ CUBE_Z = 0.125
 MIN_SEPARATION = 0.09
 """Smallest centre distance between two cubes [m]."""
 MAX_TRIES = 5000
+CUBE_SIZE = 0.05
+"""Edge of a cube [m]: a pre-stacked cube sits this far above the one below."""
 
 
 @term_factory(entities=("cubes",))
-def randomize_cube_positions(*, cubes: tuple[int, int, int]):
-    """Rejection-sample the three ``cubes``' positions at least 0.09 m apart, each with a random yaw."""
+def randomize_cube_positions(*, cubes: tuple[int, int, int], prestacked: bool = False):
+    """Rejection-sample the three ``cubes``' positions at least 0.09 m apart, each with a random yaw. With
+    ``prestacked`` the second cube is then set on the first (same yaw), as the first stacking subtask leaves it:
+    the start of the second subtask on its own (the draws are those of the unstacked layout)."""
     slots = wp.vec3i(*cubes)
+    on_first = bool(prestacked)
 
     @wp.func
     def place_three_cubes_apart(ctx: TaskContext, w: int, seed: int, stream: int, randomize: bool):
@@ -40,9 +45,16 @@ def randomize_cube_positions(*, cubes: tuple[int, int, int]):
                     and wp.length(p0 - p2) >= MIN_SEPARATION):
                 break
         ps = wp.mat33(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0, p2[0], p2[1], 0.0)
+        first = wp.quat_identity()
         for i in range(3):
             yaw = wp.randf(rng, YAW_RANGE[0], YAW_RANGE[1])
             q = wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), yaw)
-            set_entity_pose(ctx, w, slots[i], wp.vec3(ps[i, 0], ps[i, 1], CUBE_Z), q)
+            pos = wp.vec3(ps[i, 0], ps[i, 1], CUBE_Z)
+            if i == 0:
+                first = q
+            if on_first and i == 1:
+                pos = wp.vec3(ps[0, 0], ps[0, 1], CUBE_Z + CUBE_SIZE)
+                q = first
+            set_entity_pose(ctx, w, slots[i], pos, q)
 
     return place_three_cubes_apart

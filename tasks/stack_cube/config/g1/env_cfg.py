@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.config.g1 import postures
@@ -23,10 +24,8 @@ HEADS = {"level": postures.LEVEL_HEAD, "table": postures.TABLE_TOP_HEAD}
 near edge) or tilted down at the table (what a policy from pixels needs)."""
 
 
-def stack_cube_cfg(head: str = "level") -> TaskCfg:
-    """Fixed-base G1 at (-1, 0, 0), head ``head`` (``HEADS``); left arm + gripper absolute targets (8). The episode
-    ends when the full stack is released (the collect / evaluate boundary of the reference)."""
-    return TaskCfg(
+def _world(head: str, **fields) -> TaskCfg:
+    base = dict(
         entities=SCENE.entities,
         actions=left_arm_actions(),
         observations={
@@ -51,4 +50,38 @@ def stack_cube_cfg(head: str = "level") -> TaskCfg:
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, HEADS[head]),
         root_pos=postures.MANIPULATION_ROOT_POS,
         physics=PHYSICS,
+    )
+    base.update(fields)
+    return TaskCfg(**base)
+
+
+def stack_cube_cfg(head: str = "level") -> TaskCfg:
+    """Fixed-base G1 at (-1, 0, 0), head ``head`` (``HEADS``); left arm + gripper absolute targets (8). The episode
+    ends when the full stack is released (the collect / evaluate boundary of the reference)."""
+    return _world(head)
+
+
+def cube_2_cfg(head: str = "level") -> TaskCfg:
+    """The first subtask on its own: StackCube's world and reset; success when cube_2 is stacked on cube_1 and
+    released."""
+    return _world(head, phase_success=[stacked_and_released("cube_2", "cube_1")])
+
+
+def cube_3_cfg(head: str = "level") -> TaskCfg:
+    """The second subtask on its own: the cubes reset with cube_2 already on cube_1; success is StackCube's (the
+    full stack, released)."""
+    return _world(head, events={"randomize_cube_positions": TermCfg(
+        func=events.randomize_cube_positions, params={"cubes": CUBES, "prestacked": True})})
+
+
+def phased_cfg(head: str = "level") -> TaskCfg:
+    """StackCube as two phases in one episode (cube_2, then cube_3): StackCube's world, reset, observations and
+    success, with the phase a row is in, so that one policy per subtask can drive it (``--phase-checkpoint``)."""
+    return coherent_task(
+        phases=task_sequence(
+            phase("cube_2", "GalbotG1-StackCube-Cube2-v0", terms=("left_arm", "left_gripper")),
+            phase("cube_3", "GalbotG1-StackCube-Cube3-v0", terms=("left_arm", "left_gripper")),
+        ),
+        options={"head": head},
+        fixed_base=True,
     )

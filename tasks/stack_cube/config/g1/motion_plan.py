@@ -9,6 +9,9 @@ world y (as in PickCube): the wrist target follows the cube's own yaw. Choosing 
 perpendicular to the nearest other cube (this plan until 2026-11-27) put the wrist 90 deg apart for cubes of the
 same yaw in 121 of 255 neighbouring scenes, a choice a policy from 96x72 pixels had to guess; the expert then
 stacked 96 of 96 randomised episodes, and with this rule 94 of 96 (CPU, seeds 100 and 200).
+
+``cube_2_plan`` and ``cube_3_plan`` are the two subtasks on their own (the phases of GalbotG1-StackCube-Phased-v0):
+the second is planned from the poses the first leaves, so it starts by clearing the stack.
 """
 
 from __future__ import annotations
@@ -93,7 +96,22 @@ def _cube_steps(name: str, level: int) -> list[MotionStep]:
     ]
 
 
+def _plan(steps: list[MotionStep]) -> MotionPlan:
+    return MotionPlan(steps=tuple(steps), max_joint_step=0.03, settle_steps=12)
+
+
 def plan(head: str = "level") -> MotionPlan:
     """The expert's plan (the head posture, the ``head`` option, changes nothing the arm does)."""
-    return MotionPlan(steps=tuple(_cube_steps("cube_2", 1) + _cube_steps("cube_3", 2)), max_joint_step=0.03,
-                      settle_steps=12)
+    return _plan(_cube_steps("cube_2", 1) + _cube_steps("cube_3", 2))
+
+
+def cube_2_plan(head: str = "level") -> MotionPlan:
+    """The first subtask's plan: cube_2 onto cube_1 (the first half of ``plan``)."""
+    return _plan(_cube_steps("cube_2", 1))
+
+
+def cube_3_plan(head: str = "level") -> MotionPlan:
+    """The second subtask's plan, resolved from the live poses when it starts: clear the stack (straight up to
+    cube_2's transfer height above cube_1, where the first subtask's lift-away goes), then cube_3 onto cube_2."""
+    clear = MotionStep(name="clear_the_stack", target=_transfer("cube_2", 1, "cube_1"), quat=_grasp_quat("cube_1"))
+    return _plan([clear] + _cube_steps("cube_3", 2))
