@@ -10,9 +10,10 @@
 #   bench    newton-lab bench, PickCube, 4096 and 16384 envs (the env step against the bare solver)
 #   table    tools/physics_table.py, PickCube: the task's physics against Newton's state exchange around every
 #            substep, against all joints simulated (with that exchange: the physics before welding), the pyramidal
-#            cone and a looser solver tolerance, with 100 randomised expert episodes each
-#   collect  newton-lab bench-collect, PickCube, 4096 envs, 16,384 demos into zarr packs: the defaults, each
-#            restarted row planned at once (--replan-batch 1), and the zarr files written by 4 writer processes
+#            cone, and contact capacities cut to 32 a world (expert peak: 14), with 100 randomised expert episodes each
+#   collect  newton-lab bench-collect, PickCube, 4096 envs, 16,384 demos into zarr packs: the defaults, the
+#            interpreter's thread switch interval at 0.5 ms instead of 5 ms (the loop and the writer thread share the
+#            GIL), and the defaults under cProfile (collect_profile.txt: where the loop's thread spends its time)
 #   profile  tools/profile_step.py --full at 4096 envs: the stages of the welded solver model and the full robot's
 #   tasks    tools/physics_table.py for StackCube, PickToShelf and SortToShelf against all joints simulated
 #   camera   newton-lab bench with the front head camera, RGB 128x128, at 4096 envs
@@ -40,20 +41,24 @@ for step in "${steps[@]}"; do
   table)
     run table ${PY:-python3} "$tools/physics_table.py" --device "$dev" --num-envs 4096 --steps 200 --episodes 100 \
       --tasks GalbotG1-PickCube-v0 --variant sync_every_substep=True \
-      --variant weld_idle_joints=False,sync_every_substep=True --variant cone=pyramidal --variant tolerance=1e-6 \
-      --variant cone=pyramidal,tolerance=1e-6 ;;
+      --variant weld_idle_joints=False,sync_every_substep=True --variant cone=pyramidal --variant contacts_per_world=32 \
+      --variant cone=pyramidal,contacts_per_world=32 ;;
   collect)
     rm -rf "$W"/bc33*.zarr*
     bc="$N bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
     run collect $bc --dataset-path "$W/bc33.zarr"
-    run collect_replan1 $bc --dataset-path "$W/bc33r.zarr" --replan-batch 1
-    run collect_proc env NEWTON_LAB_ZARR_WRITE_PROCESSES=4 $bc --dataset-path "$W/bc33p.zarr" ;;
+    run collect_switch ${PY:-python3} -c "import sys; sys.setswitchinterval(5e-4); from newton_lab.cli import main; \
+sys.exit(main(sys.argv[1:]))" ${bc#*-m newton_lab.cli } --dataset-path "$W/bc33s.zarr"
+    run collect_cprofile ${PY:-python3} -m cProfile -o "$out/collect.prof" -m newton_lab.cli ${bc#*-m newton_lab.cli } \
+      --dataset-path "$W/bc33c.zarr"
+    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(60); \
+s.sort_stats('tottime').print_stats(40)" "$out/collect.prof" > "$out/collect_profile.txt" 2>&1 ;;
   profile)
     run profile ${PY:-python3} "$tools/profile_step.py" --full --num-envs 4096 --device "$dev" ;;
   tasks)
     run tasks ${PY:-python3} "$tools/physics_table.py" --device "$dev" --num-envs 4096 --steps 200 --episodes 100 \
       --tasks GalbotG1-StackCube-v0 GalbotG1-PickToShelf-v0 GalbotG1-SortToShelf-v0 \
-      --variant weld_idle_joints=False,sync_every_substep=True ;;
+      --variant weld_idle_joints=False,sync_every_substep=True --variant cone=pyramidal ;;
   camera)
     run camera $N bench --task GalbotG1-PickCube-v0 --num-envs 4096 --device "$dev" --camera front_head \
       --resolution 128 128 ;;
