@@ -61,22 +61,31 @@ def stack_cube_cfg(head: str = "level") -> TaskCfg:
     return _world(head)
 
 
+def _subtask_observations():
+    """The subtasks' (and the phased task's) observation: the platform's manipulation terms (``robot_joint_pos``,
+    ``tcp_pose``, ...: what the visuomotor training presets read) and the cube poses, where StackCube keeps the
+    reference's names (``joint_pos``, ``eef_pose``)."""
+    return obs.manipulation_observations(cube_positions=obs.positions_of(*CUBES),
+                                         cube_orientations=obs.orientations_of(*CUBES))
+
+
 def cube_2_cfg(head: str = "level") -> TaskCfg:
     """The first subtask on its own: StackCube's world and reset; success when cube_2 is stacked on cube_1 and
     released."""
-    return _world(head, phase_success=[stacked_and_released("cube_2", "cube_1")])
+    return _world(head, observations=_subtask_observations(), phase_success=[stacked_and_released("cube_2", "cube_1")])
 
 
 def cube_3_cfg(head: str = "level") -> TaskCfg:
     """The second subtask on its own: the cubes reset with cube_2 already on cube_1; success is StackCube's (the
     full stack, released)."""
-    return _world(head, events={"randomize_cube_positions": TermCfg(
+    return _world(head, observations=_subtask_observations(), events={"randomize_cube_positions": TermCfg(
         func=events.randomize_cube_positions, params={"cubes": CUBES, "prestacked": True})})
 
 
 def phased_cfg(head: str = "level") -> TaskCfg:
-    """StackCube as two phases in one episode (cube_2, then cube_3): StackCube's world, reset, observations and
-    success, with the phase a row is in, so that one policy per subtask can drive it (``--phase-checkpoint``)."""
+    """StackCube as two phases in one episode (cube_2, then cube_3): StackCube's world, reset and success, with the
+    phase a row is in, so that one policy per subtask can drive it (``--phase-checkpoint``); the subtasks'
+    observation names."""
     return coherent_task(
         phases=task_sequence(
             phase("cube_2", "GalbotG1-StackCube-Cube2-v0", terms=("left_arm", "left_gripper")),
