@@ -41,6 +41,16 @@ def dense_rewards() -> dict[str, RewardTermCfg]:
     )
 
 
+def cube_2_rewards() -> dict[str, RewardTermCfg]:
+    """The first subtask's dense reward: cube_2's four stages (1/4 each)."""
+    return staged_rewards(*_subtask_stages("cube_2", "cube_1"))
+
+
+def cube_3_rewards() -> dict[str, RewardTermCfg]:
+    """The second subtask's dense reward: cube_3's four stages and the full stack (1/5 each)."""
+    return staged_rewards(*_subtask_stages("cube_3", "cube_2"), Stage("success", stack_success()))
+
+
 # ---------------------------------------------------------------- the reference's terms (not normalised)
 @term_factory(entities=("top", "bottom"))
 def stacking_shaping(*, top: int, bottom: int):

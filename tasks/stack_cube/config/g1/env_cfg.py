@@ -1,4 +1,5 @@
-"""GalbotG1-StackCube-v0 configuration (as on the reference platform)."""
+"""GalbotG1-StackCube-v0 configuration (as on the reference platform), its two subtasks on their own and both as the
+phases of GalbotG1-StackCube-Phased-v0."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.config.g1 import postures
+from newton_lab.tasks.common.rewards import phased_rewards
 from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.stack_cube.mdp import events, rewards
 from newton_lab.tasks.stack_cube.mdp.terminations import cube_dropping, grasped_cube, stack_success, stacked_and_released
@@ -72,13 +74,15 @@ def _subtask_observations():
 def cube_2_cfg(head: str = "level") -> TaskCfg:
     """The first subtask on its own: StackCube's world and reset; success when cube_2 is stacked on cube_1 and
     released."""
-    return _world(head, observations=_subtask_observations(), phase_success=[stacked_and_released("cube_2", "cube_1")])
+    return _world(head, observations=_subtask_observations(), rewards=rewards.cube_2_rewards(),
+                  phase_success=[stacked_and_released("cube_2", "cube_1")])
 
 
 def cube_3_cfg(head: str = "level") -> TaskCfg:
     """The second subtask on its own: the cubes reset with cube_2 already on cube_1; success is StackCube's (the
     full stack, released)."""
-    return _world(head, observations=_subtask_observations(), events={"randomize_cube_positions": TermCfg(
+    return _world(head, observations=_subtask_observations(), rewards=rewards.cube_3_rewards(),
+                  events={"randomize_cube_positions": TermCfg(
         func=events.randomize_cube_positions, params={"cubes": CUBES, "prestacked": True})})
 
 
@@ -91,6 +95,7 @@ def phased_cfg(head: str = "level") -> TaskCfg:
             phase("cube_2", "GalbotG1-StackCube-Cube2-v0", terms=("left_arm", "left_gripper")),
             phase("cube_3", "GalbotG1-StackCube-Cube3-v0", terms=("left_arm", "left_gripper")),
         ),
+        rewards=phased_rewards([("cube_2", rewards.cube_2_rewards()), ("cube_3", rewards.cube_3_rewards())]),
         options={"head": head},
         fixed_base=True,
     )
