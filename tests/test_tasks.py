@@ -93,7 +93,8 @@ def test_stack_success_needs_the_full_stack(stack_env):
 def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
     """GalbotG1-StackCube-Phased-v0: the first phase ends when cube_2 sits released on cube_1, the second when the
     full stack does (StackCube's own success); its expert is the two subtasks' plans, the second planned from the
-    poses the first leaves. The second subtask on its own resets with cube_2 already on cube_1."""
+    poses the first leaves. The second subtask on its own resets with cube_2 already on cube_1 (here with the
+    ``cube_yaw="zero"`` option: every cube at yaw 0)."""
     from newton_lab.agents.task_flow import expert_agent
     from newton_lab.envs import make_env
 
@@ -113,11 +114,13 @@ def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
     assert set(phase[:entered]) == {0} and set(phase[entered:]) == {1}
     assert [s[on_1] for s in signals].index(1.0) == entered  # the row moves on in the step cube_2 is let go
 
-    second = make_env("GalbotG1-StackCube-Cube3-v0", num_envs=1, device="cpu", seed=5, randomize=True)
+    second = make_env("GalbotG1-StackCube-Cube3-v0", num_envs=1, device="cpu", seed=5, randomize=True,
+                      task_options={"cube_yaw": "zero"})
     second.reset()
     pose = {n: second.entity_poses[0, e.slot].numpy() for n, e in second.entities.items()}
     assert np.allclose(pose["cube_2"][:3] - pose["cube_1"][:3], (0.0, 0.0, 0.05), atol=1e-4)
     assert np.linalg.norm(pose["cube_3"][:2] - pose["cube_1"][:2]) >= 0.09
+    assert all(np.allclose(pose[c][3:], (0.0, 0.0, 0.0, 1.0), atol=1e-6) for c in ("cube_1", "cube_2", "cube_3"))
 
 
 def test_reach_planner(reach_env):

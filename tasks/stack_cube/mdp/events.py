@@ -22,12 +22,14 @@ CUBE_SIZE = 0.05
 
 
 @term_factory(entities=("cubes",))
-def randomize_cube_positions(*, cubes: tuple[int, int, int], prestacked: bool = False):
-    """Rejection-sample the three ``cubes``' positions at least 0.09 m apart, each with a random yaw. With
-    ``prestacked`` the second cube is then set on the first (same yaw), as the first stacking subtask leaves it:
-    the start of the second subtask on its own (the draws are those of the unstacked layout)."""
+def randomize_cube_positions(*, cubes: tuple[int, int, int], prestacked: bool = False, turned: bool = True):
+    """Rejection-sample the three ``cubes``' positions at least 0.09 m apart, each with a random yaw in ``YAW_RANGE``
+    (``turned``; else yaw 0, the positions unchanged). With ``prestacked`` the second cube is then set on the first
+    (same yaw), as the first stacking subtask leaves it: the start of the second subtask on its own (the draws are
+    those of the unstacked layout)."""
     slots = wp.vec3i(*cubes)
     on_first = bool(prestacked)
+    yaw_scale = 1.0 if turned else 0.0
 
     @wp.func
     def place_three_cubes_apart(ctx: TaskContext, w: int, seed: int, stream: int, randomize: bool):
@@ -47,7 +49,7 @@ def randomize_cube_positions(*, cubes: tuple[int, int, int], prestacked: bool = 
         ps = wp.mat33(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0, p2[0], p2[1], 0.0)
         first = wp.quat_identity()
         for i in range(3):
-            yaw = wp.randf(rng, YAW_RANGE[0], YAW_RANGE[1])
+            yaw = wp.randf(rng, YAW_RANGE[0], YAW_RANGE[1]) * yaw_scale
             q = wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), yaw)
             pos = wp.vec3(ps[i, 0], ps[i, 1], CUBE_Z)
             if i == 0:

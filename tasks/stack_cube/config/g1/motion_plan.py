@@ -100,17 +100,17 @@ def _plan(steps: list[MotionStep]) -> MotionPlan:
     return MotionPlan(steps=tuple(steps), max_joint_step=0.03, settle_steps=12)
 
 
-def plan(head: str = "level") -> MotionPlan:
-    """The expert's plan (the head posture, the ``head`` option, changes nothing the arm does)."""
+def plan(head: str = "level", cube_yaw: str = "random") -> MotionPlan:
+    """The expert's plan (the options change nothing here: the plan reads the head-independent poses at reset)."""
     return _plan(_cube_steps("cube_2", 1) + _cube_steps("cube_3", 2))
 
 
-def cube_2_plan(head: str = "level") -> MotionPlan:
+def cube_2_plan(head: str = "level", cube_yaw: str = "random") -> MotionPlan:
     """The first subtask's plan: cube_2 onto cube_1 (the first half of ``plan``)."""
     return _plan(_cube_steps("cube_2", 1))
 
 
-def cube_3_plan(head: str = "level") -> MotionPlan:
+def cube_3_plan(head: str = "level", cube_yaw: str = "random") -> MotionPlan:
     """The second subtask's plan, resolved from the live poses when it starts: clear the stack (straight up to
     cube_2's transfer height above cube_1, where the first subtask's lift-away goes), then cube_3 onto cube_2."""
     clear = MotionStep(name="clear_the_stack", target=_transfer("cube_2", 1, "cube_1"), quat=_grasp_quat("cube_1"))
