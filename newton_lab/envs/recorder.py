@@ -115,7 +115,8 @@ class EpisodeRecorder:
 
         The host copy is split by array (one (rows, steps, width) copy per array for all rows at once), so that
         each episode's arrays are contiguous: a writer joining hundreds of demos into a pack then copies whole
-        blocks instead of strided column slices of every demo (on the CPU: 0.48 -> 0.2 ms a demo)."""
+        blocks instead of strided column slices of every demo (512 PickCube demos on the CPU: 0.40 -> 0.28 ms a
+        demo, noisy)."""
         rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
         span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
         parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
@@ -129,7 +130,8 @@ class EpisodeRecorder:
         frames = self._frames.shape[2]
         columns = {key: np.ascontiguousarray(host[:, :, sl]) for key, sl in self._slices.items()}
         columns["rewards"] = np.ascontiguousarray(host[:, :, frames])
-        columns.update({f"next_obs/{key}": np.ascontiguousarray(host[:, :, frames + 1 + sl.start: frames + 1 + sl.stop])
+        after = frames + 1  # next observations follow the frames and the reward
+        columns.update({f"next_obs/{key}": np.ascontiguousarray(host[:, :, after + sl.start: after + sl.stop])
                         for key, sl in self.env.obs_terms.items()})
         self._host = {r: ({key: arr[k] for key, arr in columns.items()}, {name: img[k] for name, img in images.items()})
                       for k, r in enumerate(rows)}
@@ -153,7 +155,7 @@ class EpisodeRecorder:
             flat = {key: data[:, sl] for key, sl in self._slices.items()}
             flat["rewards"] = self._rewards[row, :length].cpu().numpy().copy()
             flat.update({f"next_obs/{key}": nxt[:, sl] for key, sl in self.env.obs_terms.items()})
-            images = {name: buf[row, :length].cpu() for name, buf in self._images.items()}
+            images = {name: buf[row, :length].clone() for name, buf in self._images.items()}
         else:
             columns, images = found
             flat = {key: arr[:length] for key, arr in columns.items()}

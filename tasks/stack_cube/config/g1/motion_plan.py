@@ -101,7 +101,7 @@ def _plan(steps: list[MotionStep]) -> MotionPlan:
 
 
 def plan(head: str = "level", cube_yaw: str = "random") -> MotionPlan:
-    """The expert's plan (the options change nothing here: the plan reads the head-independent poses at reset)."""
+    """The expert's plan (the options change nothing it does: it reads the cubes' poses, yaws included, at reset)."""
     return _plan(_cube_steps("cube_2", 1) + _cube_steps("cube_3", 2))
 
 
