@@ -148,3 +148,31 @@ def test_interrupted_collect_still_writes_the_finished_episodes(pick_env, tmp_pa
     assert info["demo_ids"] == [0, 1, 2, 3] and info["total"] == 8
     for demo in info["demo_ids"]:
         assert read_episode(path, demo)["actions"].shape == (2, 8)
+
+
+def test_a_batch_of_episodes_fetched_at_once_equals_each_read_alone(pick_env):
+    """``EpisodeRecorder.episodes`` copies the ended rows to the host in one go and splits the copy by array: every
+    episode's arrays are those ``episode`` reads for its row alone, contiguous, and none is a view of the live
+    buffers (the row's next episode overwrites them)."""
+    from newton_lab.envs.recorder import EpisodeRecorder
+
+    recorder = EpisodeRecorder(pick_env, 8)
+    recorder._frames.uniform_()
+    recorder._rewards.uniform_()
+    recorder._next_obs.uniform_()
+    trees, finite = recorder.episodes([1, 0], [5, 3])
+    assert finite == {0: True, 1: True}
+
+    def leaves(tree, prefix=""):
+        for key, value in tree.items():
+            yield from leaves(value, f"{prefix}{key}/") if isinstance(value, dict) else [(prefix + key, value)]
+
+    for row, length in ((0, 3), (1, 5)):
+        batch, alone = dict(leaves(trees[row])), dict(leaves(recorder.episode(row, length)))
+        assert batch.keys() == alone.keys() and "next_obs/cube_pose" in batch and "obs/cube_pose" in batch
+        for key, value in batch.items():
+            assert value.shape[0] == (1 if key == "initial_state" else length), key
+            assert np.array_equal(value, alone[key]) and value.flags.c_contiguous, key
+    before = trees[1]["actions"].copy()
+    recorder._frames.zero_()
+    assert np.array_equal(trees[1]["actions"], before)  # host copies, not views of the recorder's buffers
