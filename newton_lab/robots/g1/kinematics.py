@@ -22,10 +22,17 @@ from .model import JointIndex, build_g1
 __all__ = ["TcpKinematics", "quat_mul", "quat_rotate"]
 
 
-def _robot_builder() -> tuple[newton.ModelBuilder, JointIndex]:
+def _robot_builder(weld: dict[str, float] | None = None) -> tuple[newton.ModelBuilder, JointIndex]:
     b = newton.ModelBuilder()
     newton.solvers.SolverMuJoCo.register_custom_attributes(b)
-    return b, build_g1(b)
+    return b, build_g1(b, weld)
+
+
+def chain_joints(arm: str) -> tuple[str, ...]:
+    """The joints that move ``arm``'s TCP: the planar base, the legs and the arm (every other joint, the head, the
+    other arm, the grippers and the wheels, leaves that TCP where it is)."""
+    arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
+    return spec.BASE_PLANAR_JOINTS + spec.LEG_JOINTS + arm_joints
 
 
 class _Solve:
@@ -72,17 +79,27 @@ class _Solve:
 
 
 class TcpKinematics:
-    """IK and FK of one arm's TCP for ``n`` problems on ``device``."""
+    """IK and FK of one arm's TCP for ``n`` problems on ``device``. Coordinates in and out are the whole robot's
+    (``robot_coords``); inside, the solves and forward kinematics run on the robot with every joint off the TCP's
+    chain welded (``chain_joints``: 15 degrees of freedom instead of 34), which gives the same TCP for the same
+    chain coordinates and costs less per solve: the LM step's linear algebra grows with the degrees of freedom."""
 
     def __init__(self, n: int, *, device, arm: str = "left"):
         self.n = n
         self.device = wp.get_device(device)
         self.arm = arm
         arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
+        chain = chain_joints(arm)
         with wp.ScopedDevice(self.device):
-            b, self.joints = _robot_builder()
-            self.robot_coords = b.joint_coord_count
-            self.arm_coords = [self.joints.coord[j] for j in arm_joints]
+            whole, whole_joints = _robot_builder()
+            self.robot_coords = whole.joint_coord_count
+            self.arm_coords = [whole_joints.coord[j] for j in arm_joints]
+            b, self.joints = _robot_builder(weld={j: 0.0 for j in spec.ALL_JOINT_NAMES if j not in chain})
+            order = sorted(chain, key=lambda j: self.joints.coord[j])
+            if [self.joints.coord[j] for j in order] != list(range(b.joint_coord_count)):
+                raise ValueError(f"the {arm} arm's chain model has coordinates beside its joints {chain}")
+            self._chain = np.array([whole_joints.coord[j] for j in order])
+            """Whole-robot coordinate of each chain-model coordinate."""
             self._link = self.joints.body[spec.END_EFFECTOR_LINK[arm]]
             self._bodies = b.body_count
             self._model = b.finalize(device=self.device)
@@ -110,7 +127,7 @@ class TcpKinematics:
                 solver = ik.IKSolver(model=self._model, n_problems=k, objectives=[pos, rot, limits],
                                      lambda_initial=0.1, jacobian_mode=ik.IKJacobianType.ANALYTIC,
                                      joint_dof_mask=wp.array(self._mask, dtype=wp.bool))
-                self._solvers[k] = _Solve(pos, rot, solver, k, self.robot_coords)
+                self._solvers[k] = _Solve(pos, rot, solver, k, len(self._chain))
         return self._solvers[k]
 
     def solve(self, q_seed: np.ndarray, pos: np.ndarray, quat: np.ndarray, *, iterations: int = 48) -> np.ndarray:
@@ -127,7 +144,10 @@ class TcpKinematics:
             pad = lambda a: np.concatenate([a, np.repeat(a[:1], k - m, axis=0)])  # noqa: E731
             q_seed, pos, quat = pad(q_seed), pad(pos), pad(quat)
         with wp.ScopedDevice(self.device):
-            return self._solver(k).run(q_seed, pos, quat, iterations)[:m]
+            chain = self._solver(k).run(q_seed[:, self._chain], pos, quat, iterations)[:m]
+        out = q_seed[:m].copy()
+        out[:, self._chain] = chain
+        return out
 
     def tcp_poses(self, q: np.ndarray) -> np.ndarray:
         """TCP poses (m, 7) of ``m <= n`` robot coordinate rows ``q`` (m, 34). Only the ``m`` rows cross between
@@ -137,7 +157,8 @@ class TcpKinematics:
         m = q.shape[0]
         if not 1 <= m <= self.n:
             raise ValueError(f"FK takes 1..{self.n} coordinate rows, got {m}")
-        wp.to_torch(self._fk_state.joint_q)[: m * self.robot_coords].copy_(torch.from_numpy(q.reshape(-1)))
+        chain = np.ascontiguousarray(q[:, self._chain])
+        wp.to_torch(self._fk_state.joint_q)[: chain.size].copy_(torch.from_numpy(chain.reshape(-1)))
         newton.eval_fk(self._fk_model, self._fk_state.joint_q, self._fk_state.joint_qd, self._fk_state)
         body_q = wp.to_torch(self._fk_state.body_q).view(self.n, self._bodies, 7)
         link = body_q[:m, self._link].cpu().numpy().astype(np.float64)
