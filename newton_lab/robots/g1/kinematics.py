@@ -82,7 +82,8 @@ class TcpKinematics:
     """IK and FK of one arm's TCP for ``n`` problems on ``device``. Coordinates in and out are the whole robot's
     (``robot_coords``); inside, the solves and forward kinematics run on the robot with every joint off the TCP's
     chain welded (``chain_joints``: 15 degrees of freedom instead of 34), which gives the same TCP for the same
-    chain coordinates and costs less per solve: the LM step's linear algebra grows with the degrees of freedom."""
+    chain coordinates and costs less per solve where the LM step's linear algebra dominates: on the CPU a 64-problem
+    solve takes 6.9 ms instead of 23.5 (on an H100 the planner's time did not change measurably)."""
 
     def __init__(self, n: int, *, device, arm: str = "left"):
         self.n = n
