@@ -92,20 +92,20 @@ class TcpKinematics:
         arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
         chain = chain_joints(arm)
         with wp.ScopedDevice(self.device):
-            whole, whole_joints = _robot_builder()
+            whole, self.joints = _robot_builder()
             self.robot_coords = whole.joint_coord_count
-            self.arm_coords = [whole_joints.coord[j] for j in arm_joints]
-            b, self.joints = _robot_builder(weld={j: 0.0 for j in spec.ALL_JOINT_NAMES if j not in chain})
-            order = sorted(chain, key=lambda j: self.joints.coord[j])
-            if [self.joints.coord[j] for j in order] != list(range(b.joint_coord_count)):
+            self.arm_coords = [self.joints.coord[j] for j in arm_joints]
+            b, chain_index = _robot_builder(weld={j: 0.0 for j in spec.ALL_JOINT_NAMES if j not in chain})
+            order = sorted(chain, key=lambda j: chain_index.coord[j])
+            if [chain_index.coord[j] for j in order] != list(range(b.joint_coord_count)):
                 raise ValueError(f"the {arm} arm's chain model has coordinates beside its joints {chain}")
-            self._chain = np.array([whole_joints.coord[j] for j in order])
+            self._chain = np.array([self.joints.coord[j] for j in order])
             """Whole-robot coordinate of each chain-model coordinate."""
-            self._link = self.joints.body[spec.END_EFFECTOR_LINK[arm]]
+            self._link = chain_index.body[spec.END_EFFECTOR_LINK[arm]]
             self._bodies = b.body_count
             self._model = b.finalize(device=self.device)
             self._mask = np.zeros(self._model.joint_dof_count, dtype=bool)
-            self._mask[[self.joints.dof[j] for j in arm_joints]] = True
+            self._mask[[chain_index.dof[j] for j in arm_joints]] = True
             self._solvers: dict[int, tuple] = {}
             fk = newton.ModelBuilder()
             newton.solvers.SolverMuJoCo.register_custom_attributes(fk)
