@@ -71,11 +71,12 @@ def reach_env():
 
 def run_until_done(env, agent, max_steps: int):
     """Step every row until each has finished one episode; returns per-row (success, reason, length)
-    and the per-step history of the env's entity poses and signals."""
+    and the per-step history of the env's entity poses and signals. The env is reseeded first, so the rows run the
+    episodes a fresh env runs, whatever ran on the shared fixture before."""
     import numpy as np
     import torch
 
-    env.reset()
+    env.reseed(env.seed)
     agent.reset()
     result = [None] * env.num_envs
     poses, signals = [], []

@@ -17,8 +17,10 @@ NAV_TASKS = {"GalbotG1-BaseNav-v0", "GalbotG1-PickToShelf-Nav-v0", "GalbotG1-Sor
 
 def _expert_rewards(env, agent, max_steps: int):
     """Step ``agent`` until every row has ended one episode. Returns per row ``(success, reason, rewards)`` with the
-    row's rewards up to and including its last step (the reward of the ending step is that of the terminal state)."""
-    env.reset()
+    row's rewards up to and including its last step (the reward of the ending step is that of the terminal state).
+    The env is reseeded first: its episodes are those of a fresh env, whatever other tests ran on it before (the
+    fixtures are shared, and which tests ran before depends on how xdist spread the modules)."""
+    env.reseed(env.seed)
     agent.reset()
     hist, ends = [], [None] * env.num_envs
     for t in range(max_steps):
