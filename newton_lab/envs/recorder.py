@@ -119,26 +119,34 @@ class EpisodeRecorder:
         demo, noisy)."""
         rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
         span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
-        parts = (self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span])
-        stacked = torch.cat(parts, dim=2)
+        stacked = self._stacked(idx, span)
         steps = torch.arange(span, device=idx.device)
         past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
         ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)  # on the env's device: free on a GPU
-        host = stacked.cpu().numpy()
+        columns = self._columns(stacked.cpu().numpy())
         finite = dict(zip(rows, ok.tolist()))
         images = {name: buf[idx, :span].cpu() for name, buf in self._images.items()}
-        frames = self._frames.shape[2]
-        columns = {key: np.ascontiguousarray(host[:, :, sl]) for key, sl in self._slices.items()}
-        columns["rewards"] = np.ascontiguousarray(host[:, :, frames])
-        after = frames + 1  # next observations follow the frames and the reward
-        columns.update({f"next_obs/{key}": np.ascontiguousarray(host[:, :, after + sl.start: after + sl.stop])
-                        for key, sl in self.env.obs_terms.items()})
         self._host = {r: ({key: arr[k] for key, arr in columns.items()}, {name: img[k] for name, img in images.items()})
                       for k, r in enumerate(rows)}
         try:
             return {r: self.episode(r, t) for r, t in zip(rows, lengths)}, finite
         finally:
             self._host = {}
+
+    def _stacked(self, idx: torch.Tensor, span: int) -> torch.Tensor:
+        """(rows, span, frame + reward + next observation) of the rows ``idx``: one gather of every buffer."""
+        return torch.cat((self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span]), dim=2)
+
+    def _columns(self, host: np.ndarray) -> dict[str, np.ndarray]:
+        """A host copy of ``_stacked`` split by array, each (rows, steps, width) and contiguous (``rewards``: (rows,
+        steps))."""
+        frames = self._frames.shape[2]
+        after = frames + 1  # next observations follow the frames and the reward
+        columns = {key: np.ascontiguousarray(host[:, :, sl]) for key, sl in self._slices.items()}
+        columns["rewards"] = np.ascontiguousarray(host[:, :, frames])
+        columns.update({f"next_obs/{key}": np.ascontiguousarray(host[:, :, after + sl.start: after + sl.stop])
+                        for key, sl in self.env.obs_terms.items()})
+        return columns
 
     def episode(self, row: int, length: int) -> dict[str, Any]:
         """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
@@ -150,15 +158,12 @@ class EpisodeRecorder:
         xyz + quaternion xyzw, pinhole frame)."""
         found = self._host.get(row)
         if found is None:  # not fetched: copies, never views of the live buffers (the row's next episode reuses them)
-            data = self._frames[row, :length].cpu().numpy().copy()
-            nxt = self._next_obs[row, :length].cpu().numpy().copy()
-            flat = {key: data[:, sl] for key, sl in self._slices.items()}
-            flat["rewards"] = self._rewards[row, :length].cpu().numpy().copy()
-            flat.update({f"next_obs/{key}": nxt[:, sl] for key, sl in self.env.obs_terms.items()})
+            idx = torch.as_tensor([row], device=self._frames.device)
+            columns = {key: arr[0] for key, arr in self._columns(self._stacked(idx, length).cpu().numpy()).items()}
             images = {name: buf[row, :length].clone() for name, buf in self._images.items()}
         else:
             columns, images = found
-            flat = {key: arr[:length] for key, arr in columns.items()}
+        flat = {key: arr[:length] for key, arr in columns.items()}
         states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
         tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
                                 "next_obs": {}, "rewards": flat.pop("rewards"),
