@@ -12,7 +12,7 @@ _HEAD = TaskOption(name="head", choices=("level", "table"), default="level",
                        "as in PickCube, so that the front head camera sees the cubes)")
 _CUBE_YAW = TaskOption(name="cube_yaw", choices=("random", "zero"), default="random",
                        doc="StackCube tasks: the cubes' yaw at reset; random (within 1 rad, the reference) or zero "
-                           "(the fingers never turn; a diagnosis of policies from pixels)")
+                           "(every cube square to the table's edges)")
 SPEC = register(TaskSpec(
     id="GalbotG1-StackCube-v0",
     cfg=stack_cube_cfg,

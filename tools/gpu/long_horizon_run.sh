@@ -24,6 +24,7 @@
 #          tools/gpu/rerun_wheels.sh), W (work folder, /tmp/w),
 #          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
 #          StackCube: OBS_KEYS=joint_pos,gripper_pos ... single 0 GalbotG1-StackCube-v0 --head table),
+#          CAMS (the policies' cameras, default front_head=96x72:rgb,left_wrist=96x72:rgb),
 #          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3)
 # Each run ends with one JSON line: the evaluation's summary (success_rate, phases, termination_reasons).
 set -uo pipefail
@@ -31,7 +32,7 @@ export PYTHONPATH=$HOME/.cache/gpu_site${REC:+:$HOME/.cache/rerun_site} PYTHONUN
 W=${W:-/tmp/w}; mkdir -p "$W"
 root=$PWD
 N="${PY:-python3} -m newton_lab.cli"
-CAM=(--cameras front_head=96x72:rgb,left_wrist=96x72:rgb --obs-mode sensors)
+CAM=(--cameras "${CAMS:-front_head=96x72:rgb,left_wrist=96x72:rgb}" --obs-mode sensors)
 TRAIN=(--preset vision --image-keys front_head_rgb,left_wrist_rgb --bf16 --lr 3e-4
        ${OBS_KEYS:+--obs-keys "$OBS_KEYS"} ${GPUS:+--gpus "$GPUS"})
 budget() { echo --time-budget-s "${1:-${TB:-300}}"; }
