@@ -16,6 +16,7 @@ from typing import Any
 
 import torch
 import warp as wp
+from torch.profiler import ProfilerActivity, profile, record_function, schedule
 
 from .datasets import list_demos, open_writer, read_episode, zarr_store
 from .datasets._common import sync_tree
@@ -40,26 +41,81 @@ class _Clock:
         return timed
 
 
+TRACE_SKIP_STEPS = 60
+"""Vector steps of the timed run before ``--trace`` records (the queue and the writer in their steady state)."""
+TRACE_STEPS = 20
+"""Vector steps ``--trace`` records (a 4096-row PickCube step is ~10 MB of trace with the Python tracer on)."""
+
+
+class _Trace:
+    """A ``torch.profiler`` window over ``TRACE_STEPS`` vector steps of the timed run (CPU ops, the Python tracer, and
+    on a GPU every kernel and copy of the process, Warp's too, through CUPTI), each stage a labelled range: saved as
+    a Chrome trace (``path``, ``.json.gz``: Perfetto opens it) and a table of the costliest operations
+    (``<path>.txt``). What a GPU timeline shows and the stage clocks cannot: which host call waits for which kernel."""
+
+    def __init__(self, path: Path, device) -> None:
+        self.path = path
+        self.cuda = device.is_cuda
+        acts = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if self.cuda else [])
+        self.prof = profile(activities=acts, with_stack=True, on_trace_ready=self._save,
+                            schedule=schedule(wait=TRACE_SKIP_STEPS, warmup=2, active=TRACE_STEPS, repeat=1))
+
+    def wrap(self, label: str, fn):
+        def labelled(*args, **kwargs):
+            with record_function(label):
+                return fn(*args, **kwargs)
+        return labelled
+
+    def _save(self, prof) -> None:
+        prof.export_chrome_trace(str(self.path))
+        tables = [f"# {self.path.name}: {TRACE_STEPS} vector steps after {TRACE_SKIP_STEPS}"]
+        keys = (("self_cuda_time_total", "self_device_time_total") if self.cuda else ()) + ("cpu_time_total",
+                                                                                            "self_cpu_time_total")
+        averages = prof.key_averages()
+        for key in keys:
+            try:
+                tables += [f"\n## by {key}", averages.table(sort_by=key, row_limit=40, max_name_column_width=70)]
+            except (AttributeError, KeyError, ValueError):  # the CUDA column's name differs across torch versions
+                continue
+        Path(f"{self.path}.txt").write_text("\n".join(tables) + "\n")
+
+
 ZARR_WRITER_PARTS = {"writer_files_s": "files", "writer_sync_s": "sync"}
 """A zarr batch's seconds split (``zarr_store.BATCH_SECONDS``): encoding and writing its demos' files (writer
 processes or threads), and the one ``syncfs`` that makes them durable (disk-bound where the files are many); the
 rest of ``writer_s`` is the lock, the renames and the commit."""
 
 
-def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dict[str, Any]:
+def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace: Path | None = None) -> dict[str, Any]:
     """One ``env.collect`` with physics (``env.step``), agent (``agent.act``) and writer (the background thread's
     ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's
     ``Timers``); the loop's own time is the rest (``loop_s``), of which ``hand_over_s`` passes ended episodes to the
     writer (device->host copy, checks, queueing) and ``drain_s`` waits for the writer after the last step."""
     physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
     handing, draining = _Clock("cpu"), _Clock("cpu")
-    timers = Timers(step=physics.wrap, act=acting.wrap, write=writing.wrap, hand_over=handing.wrap,
-                    drain=draining.wrap)
+    clocks = {"physics": physics, "agent": acting, "writer": writing, "hand-over": handing, "drain": draining}
+    tracer = _Trace(trace, env.device) if trace is not None else None
+
+    def timer(name: str):
+        if tracer is None:
+            return clocks[name].wrap
+        if name == "physics":  # each env step also moves the trace's window on
+            return lambda fn: _stepping(tracer.wrap(name, clocks[name].wrap(fn)), tracer.prof)
+        return lambda fn: tracer.wrap(name, clocks[name].wrap(fn))
+
+    timers = Timers(step=timer("physics"), act=timer("agent"), write=timer("writer"), hand_over=timer("hand-over"),
+                    drain=timer("drain"))
     store_before = dict(zarr_store.BATCH_SECONDS)
+    if tracer is not None:
+        tracer.prof.start()
     t0 = time.perf_counter()
-    ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
-                      only_successes=True, max_attempts=2 * episodes, timers=timers)
-    wall = time.perf_counter() - t0
+    try:
+        ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
+                          only_successes=True, max_attempts=2 * episodes, timers=timers)
+    finally:
+        wall = time.perf_counter() - t0
+        if tracer is not None:
+            tracer.prof.stop()
     ok = ref.metadata["successes"]
     split = ({name: zarr_store.BATCH_SECONDS[part] - store_before[part] for name, part in ZARR_WRITER_PARTS.items()}
              if path.suffix == ".zarr" else {})
@@ -71,17 +127,28 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int) -> dic
             "writer_batches": ref.metadata.get("writer_batches")}
 
 
+def _stepping(fn, prof):
+    def stepped(*args, **kwargs):
+        out = fn(*args, **kwargs)
+        prof.step()
+        return out
+    return stepped
+
+
 def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
                   dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
                   max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None,
-                  replan_batch: int | None = None) -> dict[str, Any]:
+                  replan_batch: int | None = None, replan_wait: int | None = None,
+                  trace: str | Path | None = None) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
     ``started_at`` / ``ended_at`` (Unix seconds) bound the timed run, for ``bench_collect_on_workers``; one
     ``syncfs`` of the dataset's filesystem (``presync_s``) comes before it, and ``start_gate()``, when given, right
-    after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it). ``replan_batch``:
-    the expert's ``PlannerAgent.replan_batch`` (``None``: its default)."""
+    after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it). ``replan_batch``,
+    ``replan_wait``: the expert's ``PlannerAgent`` settings of those names (``None``: its defaults). ``trace``: a
+    ``torch.profiler`` trace of ``TRACE_STEPS`` steps of the timed run to this path (``_Trace``); the stage clocks of a
+    traced run read high."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -91,10 +158,13 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     t0 = time.perf_counter()
     env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=False)
     agent = expert_agent(env)
+    if (replan_batch, replan_wait) != (None, None) and not hasattr(agent, "replan_batch"):
+        raise ValueError(f"--replan-batch / --replan-wait: the expert of {task_id} ({type(agent).__name__}) does not "
+                         f"plan; drop them")
     if replan_batch is not None:
-        if not hasattr(agent, "replan_batch"):
-            raise ValueError(f"--replan-batch: the expert of {task_id} ({type(agent).__name__}) does not plan; drop it")
         agent.replan_batch = replan_batch
+    if replan_wait is not None:
+        agent.replan_wait = replan_wait
     warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
     _collect_timed(env, agent, 1, warm, max_steps)  # compiles the step, the IK solves and the writer path
     first_use = time.perf_counter() - t0
@@ -109,7 +179,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     sync_tree(path.parent)  # earlier writes (a deleted dataset's millions of files) are not charged to this run
     out["presync_s"] = time.perf_counter() - t1
     out["started_at"] = time.time()
-    out.update(_collect_timed(env, agent, episodes, path, max_steps))
+    out.update(_collect_timed(env, agent, episodes, path, max_steps, trace=Path(trace) if trace else None))
     out["ended_at"] = time.time()
     size, inodes = _footprint(path)
     out["bytes_per_demo"] = size / max(out["successful_demos"], 1)

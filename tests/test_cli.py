@@ -110,6 +110,22 @@ def test_bench_collect_splits_the_time(capsys, tmp_path):
     assert "exists" in capsys.readouterr().err
 
 
+@pytest.mark.slow
+def test_bench_collect_traces_a_window_of_steps_with_each_stage_labelled(capsys, tmp_path):
+    import gzip
+
+    trace = tmp_path / "collect.json.gz"
+    assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "0", "--device", "cpu",
+                 "--dataset-path", str(tmp_path / "b.zarr"), "--trace", str(trace)]) == 0
+    events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
+    names = {e.get("name") for e in events}
+    assert {"physics", "agent"} <= names  # the stage ranges
+    assert sum(e.get("name") == "physics" for e in events) == 20  # TRACE_STEPS env steps, no more
+    assert any(e.get("cat") == "python_function" for e in events)  # the Python tracer: which call waits
+    table = (tmp_path / "collect.json.gz.txt").read_text()
+    assert "physics" in table and "self_cpu_time_total" in table
+
+
 REQ = "<required>"
 LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the dataclass-generated one replaced
     "collect": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,

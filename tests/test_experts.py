@@ -75,3 +75,43 @@ def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
     assert runs[0]["success_rate"] == runs[1]["success_rate"] == 1.0, runs
     # an episode starts over when its plan begins (rollout: PlannerAgent.holding): the wait is not counted
     assert abs(runs[1]["average_length"] - runs[0]["average_length"]) <= 1.0, runs
+
+
+def test_a_target_settles_until_the_arm_reaches_it_and_in_full_before_the_gripper_opens():
+    """The gather kernel: in its settle frames a segment ends as soon as every arm joint is within the tolerance
+    (the next segment's first frame is written, the cursor jumps there), and holds while it is not; a segment with
+    no settle (``-1``) holds its frames. The expert's plan: settles end early except before the gripper opens, so a
+    PickCube episode is shorter than with the fixed 12 frames (``settle_tolerance=0``) and succeeds as often."""
+    import dataclasses
+
+    import numpy as np
+    import warp as wp
+
+    from newton_lab.agents.planner.agent import PlannerAgent
+    from newton_lab.kernels.planner import gather_plan_actions
+
+    def gather(q_now: float, settle_at: int, cursor: int) -> tuple[np.ndarray, int]:
+        way = np.zeros((1, 2, 8), dtype=np.float32)
+        way[0, 0, :7], way[0, 1, :7] = 0.5, 1.5  # segment 0 moves to 0.5 in 2 frames, segment 1 to 1.5 in 4
+        arr = lambda a, t=float: wp.array(np.asarray(a), dtype=t, device="cpu")  # noqa: E731
+        cur, act = arr([cursor], int), wp.zeros((1, 8), dtype=float, device="cpu")
+        wp.launch(gather_plan_actions, dim=1, device="cpu", inputs=[
+            arr(way), arr(np.zeros((1, 7))), arr([[0, 14]], int), arr([[2, 4]], int), arr([[settle_at, -1]], int),
+            arr([2], int), arr([18], int), cur, arr(np.full((1, 9), q_now)), arr(np.arange(7), int), 0.01,
+            arr(np.arange(7), int), 7, act])
+        return act.numpy()[0, :7], int(cur.numpy()[0])
+
+    reached, far = gather(0.495, 2, 2), gather(0.4, 2, 2)
+    np.testing.assert_allclose(reached[0], 0.75)  # segment 1's first frame: a quarter of the way on
+    assert reached[1] == 15
+    np.testing.assert_allclose(far[0], 0.5)  # not there yet: holds the target
+    assert far[1] == 3
+    assert gather(0.5, -1, 2)[1] == 3  # no settle: every frame held
+
+    task = "GalbotG1-PickCube-v0"
+    expert = PlannerAgent.from_task(task).plan
+    fixed = dataclasses.replace(expert, settle_tolerance=0.0)
+    runs = [make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
+        agent=PlannerAgent(plan), episodes=8, max_steps=1500, progress=False) for plan in (expert, fixed)]
+    assert runs[0]["success_rate"] == runs[1]["success_rate"] == 1.0, runs
+    assert runs[0]["average_length"] < runs[1]["average_length"] - 10, runs

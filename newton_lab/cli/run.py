@@ -178,12 +178,13 @@ def bench_collect(args: BenchCollectArgs) -> int:
     if args.workers == 1:
         if args.baseline:
             raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")
-        out = bench_collect(args.task, prefill=args.prefill, replan_batch=args.replan_batch, **common)
+        out = bench_collect(args.task, prefill=args.prefill, replan_batch=args.replan_batch,
+                            replan_wait=args.replan_wait, trace=args.trace, **common)
         print(summary(out), file=sys.stderr, flush=True)
         print(json.dumps(out))
     else:
-        if args.replan_batch is not None:
-            raise ValueError("--replan-batch is for one process (--workers 1)")
+        if (args.replan_batch, args.replan_wait, args.trace) != (None, None, None):
+            raise ValueError("--replan-batch, --replan-wait and --trace are for one process (--workers 1)")
         print(json.dumps(bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline,
                                                   **common)))
     return 0

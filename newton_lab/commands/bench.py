@@ -50,6 +50,12 @@ class BenchCollectArgs(BenchEnvArgs):
     replan_batch: int | None = None
     """restarted rows the expert plans together (PlannerAgent.replan_batch); default: one per 64 env rows, 1 below
     128 rows; 1 plans each restarted row at once"""
+    replan_wait: int | None = None
+    """most steps a restarted row holds before the expert plans it (PlannerAgent.replan_wait; default 3): with
+    --replan-batch, how large the batches can grow"""
+    trace: str | None = None
+    """write a torch.profiler trace of 20 steps of the timed run to this path (.json.gz; Perfetto opens it): CPU
+    ops, Python calls and, on a GPU, every kernel and copy (Warp's too); the costliest operations go to <path>.txt"""
     baseline: bool = False
     """with --workers: also time worker 0 alone on one worker's share, before (<stem>_alone) and after (<stem>_alone2)
     the workers' run, and print the scaling, the workers' demos/s over the mean lone rate (same cluster, same demos

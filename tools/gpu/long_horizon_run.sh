@@ -6,6 +6,9 @@
 #
 #   bash tools/gpu/long_horizon_run.sh install
 #   bash tools/gpu/long_horizon_run.sh single GPU TASK [task flags...]    collect 800 -> train -> evaluate
+#   bash tools/gpu/long_horizon_run.sh mimic GPU TASK [task flags...]     collect SRC (16) -> Mimic MIM (1024) -> train on
+#                                                                         both -> evaluate (the PickCube recipe of
+#                                                                         docs/learning.md; the task needs a Mimic variant)
 #   bash tools/gpu/long_horizon_run.sh coherent GPU TASK [task flags...]  collect 600 -> split -> train one policy per
 #                                                                         learned phase (PHASES, default pick,place)
 #                                                                         -> evaluate composed (experts for the rest,
@@ -70,6 +73,21 @@ single)
   stamp "train"
   $N train --dataset-path "$d/demos.hdf5" "${TRAIN[@]}" $(budget) --device "$(train_dev "$g")" --output-dir "$d/pol" \
     2>&1 | tail -1
+  for seed in ${EVAL_SEEDS:-50000}; do
+    stamp "evaluate, seed $seed"
+    $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" --seed "$seed" \
+      $(rec "$d" "$seed") --device "$(dev "$g")" | tail -1
+  done ;;
+mimic)
+  g=$2; task=$3; shift 3; d=$W/$(name_of "$task")$(echo "$@" | tr -d ' -')_mimic; mkdir -p "$d"; cd "$W"
+  collect "${SRC:-16}" 16 "$g" "$task" "$@"
+  stamp "mimic ${MIM:-1024} from them"
+  $N mimic --dataset-path "$d/demos.hdf5" --output-path "$d/mimic.hdf5" --episodes "${MIM:-1024}" \
+    --num-envs "$(( ${MIM:-1024} < 512 ? ${MIM:-1024} : 512 ))" --cameras "${CAM[1]}" \
+    --seed 8 --device "$(dev "$g")" --no-progress | tail -1 | cut -c1-300
+  stamp "train on both"
+  $N train --dataset-path "$d/demos.hdf5" "$d/mimic.hdf5" "${TRAIN[@]}" $(budget) --device "$(train_dev "$g")" \
+    --output-dir "$d/pol" 2>&1 | tail -1
   for seed in ${EVAL_SEEDS:-50000}; do
     stamp "evaluate, seed $seed"
     $N evaluate --task "$task" "$@" "${CAM[@]}" --checkpoint "$d/pol/checkpoint.pt" "${EVAL[@]}" --seed "$seed" \

@@ -72,6 +72,7 @@ class PlannerAgent(BaseAgent):
         gripper = env.robot.arm(arm).gripper
         self._gripper_col = names.index(gripper) if gripper in names else -1
         self._arm_coords = env.joint_coords(arm_joints)
+        self._arm_q = wp.array(self._arm_coords, dtype=int, device=dev)
         self._robot_coords = env.robot_coords
         self._kin = env.robot.kinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
@@ -80,7 +81,9 @@ class PlannerAgent(BaseAgent):
             self._start_q = wp.zeros((n, 7), dtype=float)
             self._seg_start = wp.zeros((n, k), dtype=int)
             self._seg_interp = wp.zeros((n, k), dtype=int)
+            self._seg_settle_at = wp.full((n, k), -1, dtype=int)
             self._num_segments = wp.zeros(n, dtype=int)
+            self._plan_end = wp.zeros(n, dtype=int)
             self._cursor = wp.zeros(n, dtype=int)
             self._plan_length = np.zeros(n, dtype=np.int64)
             self._actions = wp.from_torch(env.current_action().contiguous())
@@ -152,11 +155,18 @@ class PlannerAgent(BaseAgent):
         way = np.zeros((r, k, 8))
         seg_start = np.zeros((r, k), dtype=np.int64)
         seg_interp = np.zeros((r, k), dtype=np.int64)
+        settle_at = np.full((r, k), -1, dtype=np.int64)
         frame = np.zeros(r, dtype=np.int64)
         failed = np.zeros(r, dtype=bool)
         tcp_prev = poses["tcp"][:, :3].copy()  # start of the next straight-line TCP move
         i = 0
-        for step in plan.steps:
+        # a settle may end once the arm is there (MotionPlan.settle_tolerance), but not around the gripper opening:
+        # before it (the carried cube still swings) nor in the step that opens it (the fingers are still opening)
+        steps = plan.steps
+        opening = [j > 0 and s.gripper_open and not steps[j - 1].gripper_open for j, s in enumerate(steps)]
+        early = [plan.settle_steps > 0 and plan.settle_tolerance > 0 and not o and not (j + 1 < len(steps) and
+                 opening[j + 1]) for j, o in enumerate(opening)]
+        for n_step, step in enumerate(plan.steps):
             gripper = self._robot.gripper_open if step.gripper_open else self._robot.gripper_closed
             moves = step.target is not None or step.joints is not None
             if step.joints is not None:
@@ -181,6 +191,8 @@ class PlannerAgent(BaseAgent):
                 way[:, i, 7] = gripper
                 seg_start[:, i] = frame
                 seg_interp[:, i] = n_interp
+                if last and moves and early[n_step]:
+                    settle_at[:, i] = frame + n_interp + max(step.hold - 1, 0)
                 frame = frame + n_interp + (max(step.hold - 1, 0) + (plan.settle_steps if moves else 0) if last else 0)
                 frame = np.maximum(frame, seg_start[:, i] + 1)
                 prev = q_k
@@ -199,6 +211,8 @@ class PlannerAgent(BaseAgent):
         t(self._start_q)[idx] = torch.as_tensor(start, dtype=torch.float32, device=env.torch_device)
         t(self._seg_start)[idx] = torch.as_tensor(seg_start, dtype=torch.int32, device=env.torch_device)
         t(self._seg_interp)[idx] = torch.as_tensor(seg_interp, dtype=torch.int32, device=env.torch_device)
+        t(self._seg_settle_at)[idx] = torch.as_tensor(settle_at, dtype=torch.int32, device=env.torch_device)
+        t(self._plan_end)[idx] = torch.as_tensor(frame, dtype=torch.int32, device=env.torch_device)
         t(self._num_segments)[idx] = k
         t(self._cursor)[idx] = 0
 
@@ -229,8 +243,13 @@ class PlannerAgent(BaseAgent):
                 self._start_q,
                 self._seg_start,
                 self._seg_interp,
+                self._seg_settle_at,
                 self._num_segments,
+                self._plan_end,
                 self._cursor,
+                env.state.joint_q.reshape((env.num_envs, -1)),  # the live state: the settle test reads it
+                self._arm_q,
+                float(self.plan.settle_tolerance),
                 self._arm_cols,
                 self._gripper_col,
                 self._actions,
