@@ -66,6 +66,14 @@ class _Trace:
                 return fn(*args, **kwargs)
         return labelled
 
+    def stepping(self, fn):
+        """``fn`` (the env step) that moves the trace's window on by one step after each call."""
+        def stepped(*args, **kwargs):
+            out = fn(*args, **kwargs)
+            self.prof.step()
+            return out
+        return stepped
+
     def _save(self, prof) -> None:
         prof.export_chrome_trace(str(self.path))
         tables = [f"# {self.path.name}: {TRACE_STEPS} vector steps after {TRACE_SKIP_STEPS}"]
@@ -100,7 +108,7 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
         if tracer is None:
             return clocks[name].wrap
         if name == "physics":  # each env step also moves the trace's window on
-            return lambda fn: _stepping(tracer.wrap(name, clocks[name].wrap(fn)), tracer.prof)
+            return lambda fn: tracer.stepping(tracer.wrap(name, clocks[name].wrap(fn)))
         return lambda fn: tracer.wrap(name, clocks[name].wrap(fn))
 
     timers = Timers(step=timer("physics"), act=timer("agent"), write=timer("writer"), hand_over=timer("hand-over"),
@@ -125,14 +133,6 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
             "loop_s": wall - physics.seconds - acting.seconds, "hand_over_s": handing.seconds,
             "drain_s": draining.seconds, "vector_steps": ref.metadata.get("vector_steps"),
             "writer_batches": ref.metadata.get("writer_batches")}
-
-
-def _stepping(fn, prof):
-    def stepped(*args, **kwargs):
-        out = fn(*args, **kwargs)
-        prof.step()
-        return out
-    return stepped
 
 
 def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
