@@ -73,14 +73,12 @@ class MotionPlan:
     step that opens it, the target is held the full frames."""
     settle_tolerance: float = 0.01
     """Arm joint error [rad] at which a target counts as reached and its settle frames end (0: always the full
-    ``settle_steps``). A demo's still frames are frames a policy cannot place: one observation is followed by "hold"
-    and, a few frames later, by the next move. State policies trained on 100 StackCube-Cube2 expert demos (2-core CPU,
-    the demo pipeline's training config, 40 held-out episodes) stacked 0 of 40 with the full 12 frames everywhere
-    (grasping 29), 20 with no settle at all, 8 settling in full before every gripper change, and 27 (grasping 40) with
-    this rule; on PickCube, 7 of 40 with the full frames, 35 with none, 21 with this rule. Without a settle before the release the
-    expert lets go of a cube that still swings (StackCube-Cube2 92 of 100 instead of 98), and an arm that leaves
-    while the fingers open shifts the segment ends Mimic relies on; with this rule it stacks 97 of 100, in 147 frames
-    on average instead of 192."""
+    ``settle_steps``). Still frames are frames a policy cannot place: one observation is followed by "hold" and, a
+    few frames later, by the next move. State policies on 100 StackCube-Cube2 expert demos (2-core CPU, the demo
+    pipeline's training config, 40 held-out episodes) stacked 0 of 40 with the full frames everywhere and 27 with this
+    rule; PickCube's placed 7 and 21 (docs/benchmarks.md, "StackCube: the still frames"). Releasing on arrival lets go
+    of a cube that still swings (StackCube-Cube2 expert 92 of 100 instead of 98); with this rule it stacks 97 of 100,
+    in 147 frames on average instead of 192."""
     position_tolerance: float = 0.035
     """IK solutions farther than this from the target mark the row's plan as failed [m]."""
     orientation_tolerance: float = 0.15
