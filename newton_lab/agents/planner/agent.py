@@ -73,6 +73,7 @@ class PlannerAgent(BaseAgent):
         self._gripper_col = names.index(gripper) if gripper in names else -1
         self._arm_coords = env.joint_coords(arm_joints)
         self._arm_q = wp.array(self._arm_coords, dtype=int, device=dev)
+        self._joint_q = env.state.joint_q.reshape((n, -1))  # a view of the live state (fixed: the step is captured)
         self._robot_coords = env.robot_coords
         self._kin = env.robot.kinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
@@ -247,7 +248,7 @@ class PlannerAgent(BaseAgent):
                 self._num_segments,
                 self._plan_end,
                 self._cursor,
-                env.state.joint_q.reshape((env.num_envs, -1)),  # the live state: the settle test reads it
+                self._joint_q,  # the settle test reads the arm's joints
                 self._arm_q,
                 float(self.plan.settle_tolerance),
                 self._arm_cols,

@@ -31,8 +31,7 @@ def _robot_builder(weld: dict[str, float] | None = None) -> tuple[newton.ModelBu
 def chain_joints(arm: str) -> tuple[str, ...]:
     """The joints that move ``arm``'s TCP: the planar base, the legs and the arm (every other joint, the head, the
     other arm, the grippers and the wheels, leaves that TCP where it is)."""
-    arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
-    return spec.BASE_PLANAR_JOINTS + spec.LEG_JOINTS + arm_joints
+    return spec.BASE_PLANAR_JOINTS + spec.LEG_JOINTS + spec.JOINT_GROUPS[f"{arm}_arm"]
 
 
 class _Solve:
@@ -89,7 +88,7 @@ class TcpKinematics:
         self.n = n
         self.device = wp.get_device(device)
         self.arm = arm
-        arm_joints = spec.LEFT_ARM_JOINTS if arm == "left" else spec.RIGHT_ARM_JOINTS
+        arm_joints = spec.JOINT_GROUPS[f"{arm}_arm"]
         chain = chain_joints(arm)
         with wp.ScopedDevice(self.device):
             whole, self.joints = _robot_builder()
