@@ -41,8 +41,38 @@ class _Clock:
         return timed
 
 
-TRACE_SKIP_STEPS = 60
-"""Vector steps of the timed run before ``--trace`` records (the queue and the writer in their steady state)."""
+class _DeviceClock:
+    """Seconds the device spends on wrapped calls, from CUDA events around them, read at the end: no host wait, so a
+    step launched asynchronously stays so and the host work that overlaps it is not charged to it. On the CPU, where
+    every call is synchronous, a ``_Clock``."""
+
+    def __init__(self, device) -> None:
+        self.device, self._events, self._host = device, [], _Clock(device)
+
+    def wrap(self, fn):
+        if not self.device.is_cuda:
+            return self._host.wrap(fn)
+
+        def timed(*args, **kwargs):
+            start, end = wp.Event(self.device, enable_timing=True), wp.Event(self.device, enable_timing=True)
+            wp.record_event(start)
+            out = fn(*args, **kwargs)
+            wp.record_event(end)
+            self._events.append((start, end))
+            return out
+        return timed
+
+    @property
+    def seconds(self) -> float:
+        if not self.device.is_cuda:
+            return self._host.seconds
+        wp.synchronize_device(self.device)
+        return sum(wp.get_event_elapsed_time(a, b) for a, b in self._events) / 1e3
+
+
+TRACE_AFTER_STEPS = 300
+"""Vector steps of the timed run before ``--trace`` records, by default: episodes then end every step (PickCube's
+first ones end after ~150 steps at 4096 rows) and the writer's queue is in its steady state."""
 TRACE_STEPS = 20
 """Vector steps ``--trace`` records (a 4096-row PickCube step is ~10 MB of trace with the Python tracer on)."""
 
@@ -53,12 +83,12 @@ class _Trace:
     a Chrome trace (``path``, ``.json.gz``: Perfetto opens it) and a table of the costliest operations
     (``<path>.txt``). What a GPU timeline shows and the stage clocks cannot: which host call waits for which kernel."""
 
-    def __init__(self, path: Path, device) -> None:
-        self.path = path
+    def __init__(self, path: Path, device, after: int = TRACE_AFTER_STEPS) -> None:
+        self.path, self.after = path, after
         self.cuda = device.is_cuda
         acts = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if self.cuda else [])
         self.prof = profile(activities=acts, with_stack=True, on_trace_ready=self._save,
-                            schedule=schedule(wait=TRACE_SKIP_STEPS, warmup=2, active=TRACE_STEPS, repeat=1))
+                            schedule=schedule(wait=after, warmup=2, active=TRACE_STEPS, repeat=1))
 
     def wrap(self, label: str, fn):
         def labelled(*args, **kwargs):
@@ -76,7 +106,7 @@ class _Trace:
 
     def _save(self, prof) -> None:
         prof.export_chrome_trace(str(self.path))
-        tables = [f"# {self.path.name}: {TRACE_STEPS} vector steps after {TRACE_SKIP_STEPS}"]
+        tables = [f"# {self.path.name}: {TRACE_STEPS} vector steps after {self.after}"]
         keys = (("self_cuda_time_total", "self_device_time_total") if self.cuda else ()) + ("cpu_time_total",
                                                                                             "self_cpu_time_total")
         averages = prof.key_averages()
@@ -94,15 +124,20 @@ processes or threads), and the one ``syncfs`` that makes them durable (disk-boun
 rest of ``writer_s`` is the lock, the renames and the commit."""
 
 
-def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace: Path | None = None) -> dict[str, Any]:
-    """One ``env.collect`` with physics (``env.step``), agent (``agent.act``) and writer (the background thread's
+def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace: Path | None = None,
+                   trace_after: int = TRACE_AFTER_STEPS) -> dict[str, Any]:
+    """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``, and
+    ``plan_s`` of it the re-plans the loop runs while the device steps) and writer (the background thread's
     ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's
-    ``Timers``); the loop's own time is the rest (``loop_s``), of which ``hand_over_s`` passes ended episodes to the
-    writer (device->host copy, checks, queueing) and ``drain_s`` waits for the writer after the last step."""
-    physics, acting, writing = _Clock(env.device), _Clock(env.device), _Clock("cpu")
-    handing, draining = _Clock("cpu"), _Clock("cpu")
-    clocks = {"physics": physics, "agent": acting, "writer": writing, "hand-over": handing, "drain": draining}
-    tracer = _Trace(trace, env.device) if trace is not None else None
+    ``Timers``); ``hand_over_s`` passes ended episodes to the writer (gather and copy, trees, checks, queueing, the
+    host part while the device steps) and ``drain_s`` waits for the writer after the last step. On a GPU the host's
+    work overlaps the step, so the stages add up to more than the wall time; ``physics_share`` (physics over wall)
+    near 1 means the device's step bounds the loop."""
+    physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")
+    planning, handing, draining = _Clock("cpu"), _Clock("cpu"), _Clock("cpu")
+    clocks = {"physics": physics, "agent": acting, "plan": planning, "writer": writing, "hand-over": handing,
+              "drain": draining}
+    tracer = _Trace(trace, env.device, trace_after) if trace is not None else None
 
     def timer(name: str):
         if tracer is None:
@@ -111,8 +146,8 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
             return lambda fn: tracer.stepping(tracer.wrap(name, clocks[name].wrap(fn)))
         return lambda fn: tracer.wrap(name, clocks[name].wrap(fn))
 
-    timers = Timers(step=timer("physics"), act=timer("agent"), write=timer("writer"), hand_over=timer("hand-over"),
-                    drain=timer("drain"))
+    timers = Timers(step=timer("physics"), act=timer("agent"), plan=timer("plan"), write=timer("writer"),
+                    hand_over=timer("hand-over"), drain=timer("drain"))
     store_before = dict(zarr_store.BATCH_SECONDS)
     if tracer is not None:
         tracer.prof.start()
@@ -129,8 +164,9 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
              if path.suffix == ".zarr" else {})
     return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
             "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
-            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds, **split,
-            "loop_s": wall - physics.seconds - acting.seconds, "hand_over_s": handing.seconds,
+            "physics_s": physics.seconds, "agent_s": acting.seconds + planning.seconds, "plan_s": planning.seconds,
+            "writer_s": writing.seconds, **split, "physics_share": physics.seconds / wall,
+            "loop_s": wall - physics.seconds - acting.seconds - planning.seconds, "hand_over_s": handing.seconds,
             "drain_s": draining.seconds, "vector_steps": ref.metadata.get("vector_steps"),
             "writer_batches": ref.metadata.get("writer_batches")}
 
@@ -139,7 +175,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
                   dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
                   max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None,
                   replan_batch: int | None = None, replan_wait: int | None = None,
-                  trace: str | Path | None = None) -> dict[str, Any]:
+                  trace: str | Path | None = None, trace_after: int = TRACE_AFTER_STEPS) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
@@ -147,8 +183,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     ``syncfs`` of the dataset's filesystem (``presync_s``) comes before it, and ``start_gate()``, when given, right
     after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it). ``replan_batch``,
     ``replan_wait``: the expert's ``PlannerAgent`` settings of those names (``None``: its defaults). ``trace``: a
-    ``torch.profiler`` trace of ``TRACE_STEPS`` steps of the timed run to this path (``_Trace``); the stage clocks of a
-    traced run read high."""
+    ``torch.profiler`` trace of ``TRACE_STEPS`` steps of the timed run to this path (``_Trace``), after ``trace_after``
+    steps; the stage clocks of a traced run read high."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -179,7 +215,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     sync_tree(path.parent)  # earlier writes (a deleted dataset's millions of files) are not charged to this run
     out["presync_s"] = time.perf_counter() - t1
     out["started_at"] = time.time()
-    out.update(_collect_timed(env, agent, episodes, path, max_steps, trace=Path(trace) if trace else None))
+    out.update(_collect_timed(env, agent, episodes, path, max_steps, trace=Path(trace) if trace else None,
+                              trace_after=trace_after))
     out["ended_at"] = time.time()
     size, inodes = _footprint(path)
     out["bytes_per_demo"] = size / max(out["successful_demos"], 1)
@@ -320,7 +357,8 @@ def summary(out: dict[str, Any]) -> str:
                  f"{name} {s:.2f} s ({1e3 * s / steps:.2f} ms/step)" for name, s in stage.items())
              + (f"; writer files {out['writer_files_s']:.2f} s, sync {out['writer_sync_s']:.2f} s"
                 if "writer_files_s" in out else ""),
-             f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
+             f"agent's re-plans while the device steps {out['plan_s']:.2f} s; physics / wall "
+             f"{out['physics_share']:.2f} (1: the step bounds the loop); hand-over {out['hand_over_s']:.2f} s, "
              f"drain after the last step {out['drain_s']:.2f} s; {out['bytes_per_demo'] / 1e3:.1f} KB and "
              f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches",
              f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "

@@ -116,7 +116,7 @@ def test_bench_collect_traces_a_window_of_steps_with_each_stage_labelled(capsys,
 
     trace = tmp_path / "collect.json.gz"
     assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "0", "--device", "cpu",
-                 "--dataset-path", str(tmp_path / "b.zarr"), "--trace", str(trace)]) == 0
+                 "--dataset-path", str(tmp_path / "b.zarr"), "--trace", str(trace), "--trace-after", "60"]) == 0
     events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
     names = {e.get("name") for e in events}
     assert {"physics", "agent"} <= names  # the stage ranges

@@ -179,7 +179,7 @@ def bench_collect(args: BenchCollectArgs) -> int:
         if args.baseline:
             raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")
         out = bench_collect(args.task, prefill=args.prefill, replan_batch=args.replan_batch,
-                            replan_wait=args.replan_wait, trace=args.trace, **common)
+                            replan_wait=args.replan_wait, trace=args.trace, trace_after=args.trace_after, **common)
         print(summary(out), file=sys.stderr, flush=True)
         print(json.dumps(out))
     else:

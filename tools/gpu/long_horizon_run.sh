@@ -28,7 +28,8 @@
 #          OBS_KEYS (the policy's low-dim keys when the task names them otherwise than the vision preset, e.g.
 #          StackCube: OBS_KEYS=joint_pos,gripper_pos ... single 0 GalbotG1-StackCube-v0 --head table),
 #          CAMS (the policies' cameras, default front_head=96x72:rgb,left_wrist=96x72:rgb),
-#          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3)
+#          DEV=cpu (a tiny trial on the CPU: GPU is ignored), PY (python, default python3),
+#          WAIT_FOR (a coherent run trains only once this file exists: a benchmark on those GPUs first)
 # Each run ends with one JSON line: the evaluation's summary (success_rate, phases, termination_reasons).
 set -uo pipefail
 export PYTHONPATH=$HOME/.cache/gpu_site${REC:+:$HOME/.cache/rerun_site} PYTHONUNBUFFERED=1
@@ -55,6 +56,7 @@ stamp() { echo "== $(date -u +%T) $*"; }
 # train_phase PHASE GPU: one policy on $d/split/PHASE.hdf5 (budget TB_PHASE or TB) into $d/PHASE_pol
 train_phase() {
   local tb=TB_${1^^}
+  while [ -n "${WAIT_FOR:-}" ] && [ ! -e "$WAIT_FOR" ]; do sleep 5; done  # e.g. a benchmark on these GPUs first
   stamp "train $1 on $(train_dev "$2")"
   $N train --dataset-path "$d/split/$1.hdf5" "${TRAIN[@]}" $(budget "${!tb:-}") --device "$(train_dev "$2")" \
     --output-dir "$d/${1}_pol" 2>&1 | tail -1
@@ -124,5 +126,5 @@ bg)
   setsid nohup bash "$root/tools/gpu/long_horizon_run.sh" "$@" > "$log" 2>&1 < /dev/null &
   echo "started: $log" ;;
 *)
-  sed -n 2,28p "$0"; exit 2 ;;
+  sed -n 2,33p "$0"; exit 2 ;;
 esac
