@@ -55,9 +55,9 @@ class _DeviceClock:
 
         def timed(*args, **kwargs):
             start, end = wp.Event(self.device, enable_timing=True), wp.Event(self.device, enable_timing=True)
-            wp.record_event(start)
+            self.device.stream.record_event(start)  # the env's device's stream, where its step runs
             out = fn(*args, **kwargs)
-            wp.record_event(end)
+            self.device.stream.record_event(end)
             self._events.append((start, end))
             return out
         return timed
