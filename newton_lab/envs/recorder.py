@@ -151,7 +151,7 @@ class EpisodeRecorder:
         ok_host = torch.empty(ok.shape, dtype=ok.dtype, pin_memory=True)
         ok_host.copy_(ok, non_blocking=True)
         copied = torch.cuda.Event()
-        copied.record()
+        copied.record(torch.cuda.current_stream(stacked.device))  # the copies' stream (not the current device's)
         return PendingEpisodes(rows, lengths, host, ok_host, images, copied)
 
     def finish_episodes(self, pending: PendingEpisodes) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
