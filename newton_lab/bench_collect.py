@@ -126,17 +126,15 @@ rest of ``writer_s`` is the lock, the renames and the commit."""
 
 def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace: Path | None = None,
                    trace_after: int = TRACE_AFTER_STEPS) -> dict[str, Any]:
-    """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``, and
-    ``plan_s`` of it the re-plans the loop runs while the device steps) and writer (the background thread's
-    ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's
-    ``Timers``); ``hand_over_s`` passes ended episodes to the writer (gather and copy, trees, checks, queueing, the
-    host part while the device steps) and ``drain_s`` waits for the writer after the last step. On a GPU the host's
-    work overlaps the step, so the stages add up to more than the wall time; ``physics_share`` (physics over wall)
-    near 1 means the device's step bounds the loop."""
+    """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``) and
+    writer (the background thread's ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds
+    measured (the rollout's ``Timers``); the loop's own time is the rest (``loop_s``), of which ``hand_over_s`` passes
+    ended episodes to the writer (device->host copy, checks, queueing) and ``drain_s`` waits for the writer after the
+    last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the loop; the rest of the
+    wall is the host's own work."""
     physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")
-    planning, handing, draining = _Clock("cpu"), _Clock("cpu"), _Clock("cpu")
-    clocks = {"physics": physics, "agent": acting, "plan": planning, "writer": writing, "hand-over": handing,
-              "drain": draining}
+    handing, draining = _Clock("cpu"), _Clock("cpu")
+    clocks = {"physics": physics, "agent": acting, "writer": writing, "hand-over": handing, "drain": draining}
     tracer = _Trace(trace, env.device, trace_after) if trace is not None else None
 
     def timer(name: str):
@@ -146,8 +144,8 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
             return lambda fn: tracer.stepping(tracer.wrap(name, clocks[name].wrap(fn)))
         return lambda fn: tracer.wrap(name, clocks[name].wrap(fn))
 
-    timers = Timers(step=timer("physics"), act=timer("agent"), plan=timer("plan"), write=timer("writer"),
-                    hand_over=timer("hand-over"), drain=timer("drain"))
+    timers = Timers(step=timer("physics"), act=timer("agent"), write=timer("writer"), hand_over=timer("hand-over"),
+                    drain=timer("drain"))
     store_before = dict(zarr_store.BATCH_SECONDS)
     if tracer is not None:
         tracer.prof.start()
@@ -164,9 +162,9 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
              if path.suffix == ".zarr" else {})
     return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
             "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
-            "physics_s": physics.seconds, "agent_s": acting.seconds + planning.seconds, "plan_s": planning.seconds,
-            "writer_s": writing.seconds, **split, "physics_share": physics.seconds / wall,
-            "loop_s": wall - physics.seconds - acting.seconds - planning.seconds, "hand_over_s": handing.seconds,
+            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds, **split,
+            "physics_share": physics.seconds / wall, "loop_s": wall - physics.seconds - acting.seconds,
+            "hand_over_s": handing.seconds,
             "drain_s": draining.seconds, "vector_steps": ref.metadata.get("vector_steps"),
             "writer_batches": ref.metadata.get("writer_batches")}
 
@@ -357,11 +355,11 @@ def summary(out: dict[str, Any]) -> str:
                  f"{name} {s:.2f} s ({1e3 * s / steps:.2f} ms/step)" for name, s in stage.items())
              + (f"; writer files {out['writer_files_s']:.2f} s, sync {out['writer_sync_s']:.2f} s"
                 if "writer_files_s" in out else ""),
-             f"agent's re-plans while the device steps {out['plan_s']:.2f} s; physics / wall "
-             f"{out['physics_share']:.2f} (1: the step bounds the loop); hand-over {out['hand_over_s']:.2f} s, "
+             f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
              f"drain after the last step {out['drain_s']:.2f} s; {out['bytes_per_demo'] / 1e3:.1f} KB and "
              f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches",
              f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
+             f"(physics / wall {out['physics_share']:.2f}) "
              f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
              f"ms/step); largest stage: {max(stage, key=stage.get)}"]
     return "\n".join(lines)

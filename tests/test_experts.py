@@ -44,9 +44,7 @@ def test_tasks_without_an_expert_step_as_one_captured_graph():
 
 def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
     """``PlannerAgent(replan_batch=4, replan_wait=3)``: a row whose episode restarts holds its reset targets until
-    four rows wait or the oldest has held for three calls, then they are planned together (by
-    ``plan_while_stepping``, which the loop calls while the step runs, else by the next ``act``) and start their plan
-    at the next ``act``; the expert still
+    four rows wait or the oldest has held for three calls, then they are planned together; the expert still
     succeeds in every episode, and the episode of a row that waited starts over when its plan begins (the
     lengths are those of planning at once). Below 128 rows the default plans each
     restarted row at once."""
@@ -61,24 +59,16 @@ def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
     env.reset()
     agent.reset()
     hold = env.current_action().clone()
-    first = agent.act(env)  # four fresh rows: one batch, due at once, planned while the step runs
-    assert torch.equal(first, hold) and agent.holding().all()
-    agent.plan_while_stepping()
-    second = agent.act(env).clone()  # the plan begins
-    assert not torch.equal(second, hold) and not agent.holding().any()
-    other = PlannerAgent.from_task(task, replan_batch=4, replan_wait=3)
-    other.act(env)
-    torch.testing.assert_close(other.act(env), second, rtol=0, atol=0)  # planned by act itself: the same plan
+    first = agent.act(env)  # four fresh rows: one batch, planned at once
+    assert (agent._waiting_since < 0).all() and not torch.equal(first, hold)
     env.reset([1])
     agent.act(env)
-    assert list(map(int, agent.holding().nonzero()[0])) == [1]
+    assert list(map(int, (agent._waiting_since >= 0).nonzero()[0])) == [1]
     torch.testing.assert_close(agent.act(env)[1], env.current_action()[1])  # still waiting, holding
     agent.act(env)
     assert (agent._waiting_since >= 0).sum() == 1
     agent.act(env)
-    assert (agent._waiting_since < 0).all() and agent.holding()[1]  # held for 3 calls: due alone at the 4th
-    planned = agent.act(env)  # not planned while stepping: this act plans it, the same plan
-    assert not agent.holding().any() and not torch.equal(planned[1], env.current_action()[1])
+    assert (agent._waiting_since < 0).all()  # held for 3 calls: planned alone at the 4th
     runs = [make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
         agent=PlannerAgent.from_task(task, replan_batch=batch), episodes=8, max_steps=1500, progress=False)
         for batch in (None, 4)]

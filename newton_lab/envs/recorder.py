@@ -13,7 +13,6 @@ the step on the device and copy only finished episodes (``episodes``), together 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,21 +21,6 @@ import warp as wp
 
 from ..datasets._common import put
 from ..datasets.states import state_layout
-
-@dataclass(frozen=True)
-class PendingEpisodes:
-    """Ended episodes gathered off the recorder's buffers (``EpisodeRecorder.start_episodes``), their host copy
-    perhaps still under way (``copied``: the CUDA event that marks its end; ``None``: done)."""
-
-    rows: list[int]
-    lengths: list[int]
-    stacked: torch.Tensor
-    """(rows, longest length, frame + reward + next observation) on the host (pinned on a GPU run)."""
-    ok: torch.Tensor
-    """(rows,) every float of the row's steps finite."""
-    images: dict[str, torch.Tensor]
-    copied: Any
-
 
 IMAGE_CHUNK_STEPS = 64
 """Steps by which the per-row image buffers grow (their time capacity is a multiple of it, capped at
@@ -128,48 +112,24 @@ class EpisodeRecorder:
         """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
         buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
         steps (frames, rewards, next observations; images aside) is finite, checked for all rows in one pass.
-        :meth:`start_episodes` then :meth:`finish_episodes`."""
-        return self.finish_episodes(self.start_episodes(rows, lengths))
 
-    def start_episodes(self, rows, lengths) -> PendingEpisodes:
-        """The device half of :meth:`episodes`: gathers the rows' steps into new buffers (the rows' next episodes may
-        overwrite theirs from here on) and, on a GPU, starts their copy into pinned host memory without waiting
-        for it, so that the loop can launch the next step and build the trees (:meth:`finish_episodes`) while the
-        GPU simulates. Image terms are copied at once (pageable: a pinned copy of every frame would pin memory
-        for as long as the writer's queue holds the episode)."""
+        The host copy is split by array (one (rows, steps, width) copy per array for all rows at once), so that
+        each episode's arrays are contiguous: a writer joining hundreds of demos into a pack then copies whole
+        blocks instead of strided column slices of every demo (512 PickCube demos on the CPU: 0.40 -> 0.28 ms a
+        demo, noisy)."""
         rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
         span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
         stacked = self._stacked(idx, span)
         steps = torch.arange(span, device=idx.device)
         past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
         ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)  # on the env's device: free on a GPU
+        columns = self._columns(stacked.cpu().numpy())
+        finite = dict(zip(rows, ok.tolist()))
         images = {name: buf[idx, :span].cpu() for name, buf in self._images.items()}
-        if not stacked.is_cuda:
-            return PendingEpisodes(rows, lengths, stacked, ok, images, None)
-        host = torch.empty(stacked.shape, dtype=stacked.dtype, pin_memory=True)
-        host.copy_(stacked, non_blocking=True)
-        ok_host = torch.empty(ok.shape, dtype=ok.dtype, pin_memory=True)
-        ok_host.copy_(ok, non_blocking=True)
-        copied = torch.cuda.Event()
-        copied.record(torch.cuda.current_stream(stacked.device))  # the copies' stream (not the current device's)
-        return PendingEpisodes(rows, lengths, host, ok_host, images, copied)
-
-    def finish_episodes(self, pending: PendingEpisodes) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
-        """The host half of :meth:`episodes`: waits for the copy :meth:`start_episodes` began and builds the trees.
-
-        The host copy is split by array (one (rows, steps, width) array per key for all rows at once), so that
-        each episode's arrays are contiguous: a writer joining hundreds of demos into a pack then copies whole
-        blocks instead of strided column slices of every demo (512 PickCube demos on the CPU: 0.40 -> 0.28 ms a
-        demo, noisy)."""
-        if pending.copied is not None:
-            pending.copied.synchronize()
-        columns = self._columns(pending.stacked.numpy())
-        finite = dict(zip(pending.rows, pending.ok.tolist()))
-        self._host = {r: ({key: arr[k] for key, arr in columns.items()},
-                          {name: img[k] for name, img in pending.images.items()})
-                      for k, r in enumerate(pending.rows)}
+        self._host = {r: ({key: arr[k] for key, arr in columns.items()}, {name: img[k] for name, img in images.items()})
+                      for k, r in enumerate(rows)}
         try:
-            return {r: self.episode(r, t) for r, t in zip(pending.rows, pending.lengths)}, finite
+            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}, finite
         finally:
             self._host = {}
 

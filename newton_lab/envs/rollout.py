@@ -61,12 +61,9 @@ class Timers:
     """Wraps ``agent.act``."""
     write: Callable[[Callable], Callable] = _same
     """Wraps the dataset writer's batch write (``EpisodeWriter.append_prepared``, called on the writer's thread)."""
-    plan: Callable[[Callable], Callable] = _same
-    """Wraps ``agent.plan_while_stepping`` (the planner's re-plans, while a GPU runs the step just launched)."""
     hand_over: Callable[[Callable], Callable] = _same
-    """Wraps the loop's hand-over of ended episodes (``EpisodeSaver.fetch``: their gather and the start of the
-    device->host copy; ``EpisodeSaver.submit``, after the next step's launch: the trees, the checks and the queueing,
-    waiting while the writer's queue is full)."""
+    """Wraps the loop's hand-over of ended episodes (``EpisodeSaver.fetch``: the device->host copy and the trees;
+    ``EpisodeSaver.submit``: the checks and the queueing, waiting while the writer's queue is full)."""
     drain: Callable[[Callable], Callable] = _same
     """Wraps the wait for the writer after the loop (``EpisodeSaver.close``)."""
 
@@ -160,9 +157,6 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     timers = timers or Timers()
     step, act = timers.step(env.step), timers.act(agent.act)
     holding = getattr(agent, "holding", None)  # rows waiting for a plan (PlannerAgent): their episode starts later
-    plan_while_stepping = getattr(agent, "plan_while_stepping", None)  # (PlannerAgent) work overlapping a GPU step
-    if plan_while_stepping is not None:
-        plan_while_stepping = timers.plan(plan_while_stepping)
     done_reason = getattr(agent, "done_reason", "agent_done")  # e.g. a teleop operator's ``user_exit``
     env.reset()
     agent.reset()
@@ -173,12 +167,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     t0 = time.perf_counter()
     lines, last_line = progress and bar.disable, t0  # not a terminal (a log, Prefect): a line every LOG_EVERY_S
     try:
-        while True:
-            if eps.enough():
-                if saver is not None:  # the last step's episodes: checked now, a non-finite one is no success
-                    eps.successes -= saver.submit()
-                if eps.enough():
-                    break
+        while not eps.enough():
             actions = act(env)
             held = holding() if holding is not None else None
             if recorder is not None:
@@ -187,12 +176,6 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
             vector_steps += 1
             if recorder is not None:
                 recorder.record_outcome(eps.step_in_ep, reward)
-            # host work that does not need this step's outcome, while a GPU simulates it: the agent's pending plans
-            # and the episodes the previous step ended (their trees, checks and queueing)
-            if plan_while_stepping is not None:
-                plan_while_stepping()
-            if saver is not None:
-                eps.successes -= saver.submit()
             if on_step is not None:
                 on_step(reward, info)
             eps.add_step(reward, info, terminated | truncated)
@@ -209,19 +192,21 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 eps.snapshot()  # one device->host copy of the per-row counters
             if saver is not None and len(ended):
                 keep = ended[eps.latched[ended]] if until_successes else ended
-                saver.fetch(keep, eps.host["length"][keep])  # gathered now, built after the next launch
+                saver.fetch(keep, eps.host["length"][keep])
             for row in ended:
                 reason = (REASON_MAX_STEPS if cut[row] else done_reason if agent_done[row]
                           else env.termination_reasons[reasons[row]])
                 rec = eps.record(row, reason)
                 if saver is not None:
-                    saver.save(row, rec)  # checked (and perhaps turned into a diverged failure) by the next submit
+                    rec.update(saver.save(row, rec))
                 eps.records.append(rec)
                 eps.successes += rec["success"]
                 bar.update(1 if not until_successes else int(rec["success"]))
                 bar.set_postfix(success=f"{eps.successes}/{len(eps.records)}")
                 if eps.enough():
                     break
+            if saver is not None:
+                saver.submit()
             restarted = done | cut | agent_done
             eps.clear(restarted if held is None else restarted | held)
             if lines and time.perf_counter() - last_line >= LOG_EVERY_S:

@@ -17,7 +17,7 @@
 #   profile  tools/profile_step.py --full at 4096 envs: the stages of the welded solver model and the full robot's
 #   tasks    tools/physics_table.py for StackCube, PickToShelf and SortToShelf against all joints simulated
 #   camera   newton-lab bench with the front head camera, RGB 128x128, at 4096 envs
-#   overlap  bench-collect of this checkout against BASE_SITE's package (another commit laid out by
+#   collect_ab  bench-collect of this checkout against BASE_SITE's package (another commit laid out by
 #            tools/gpu/lay_out_package.sh), this one again, then this one with --trace (collect_trace.json.gz)
 set -uo pipefail
 export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
@@ -64,16 +64,16 @@ s.sort_stats('tottime').print_stats(40)" "$out/collect.prof" > "$out/collect_pro
   camera)
     run camera $N bench --task GalbotG1-PickCube-v0 --num-envs 4096 --device "$dev" --camera front_head \
       --resolution 128 128 ;;
-  overlap)
-    # this checkout's collection loop (the host's work overlapping the GPU step) against the package laid out in
-    # $BASE_SITE (another commit's, by lay_out_package.sh), new / base / new again, then a traced run of this one
-    rm -rf "$W"/bco*.zarr*
+  collect_ab)
+    # this checkout's collection against the package laid out in $BASE_SITE (another commit's, by
+    # lay_out_package.sh): new / base / new again, then a traced run of this one
+    rm -rf "$W"/bco*.zarr*  # the four runs' datasets
     bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
-    run overlap_new $N $bc --dataset-path "$W/bco_new.zarr"
-    run overlap_base env PYTHONPATH="${BASE_SITE:?BASE_SITE: the other commit laid out}:$PYTHONPATH" $N $bc \
+    run ab_new $N $bc --dataset-path "$W/bco_new.zarr"
+    run ab_base env PYTHONPATH="${BASE_SITE:?BASE_SITE: the other commit laid out}:$PYTHONPATH" $N $bc \
       --dataset-path "$W/bco_base.zarr"
-    run overlap_new2 $N $bc --dataset-path "$W/bco_new2.zarr"
-    run overlap_trace $N $bc --dataset-path "$W/bco_trace.zarr" --trace "$out/collect_trace.json.gz" ;;
-  *) echo "unknown step $step (bench table collect profile tasks camera overlap)"; exit 2 ;;
+    run ab_new2 $N $bc --dataset-path "$W/bco_new2.zarr"
+    run ab_trace $N $bc --dataset-path "$W/bco_trace.zarr" --trace "$out/collect_trace.json.gz" ;;
+  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab)"; exit 2 ;;
   esac
 done

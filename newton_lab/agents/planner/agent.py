@@ -45,8 +45,6 @@ class PlannerAgent(BaseAgent):
         with up to this many still frames)."""
         self._env = None
         self._held: np.ndarray | None = None  # rows whose last action held while they waited (``holding``)
-        self._planning: tuple | None = None  # (rows, plan inputs, plan or None): due, started at the next act
-        self._side = None  # (torch, Warp) views of the CUDA stream of plan_while_stepping
         self.plan_failures = 0
         """Rows whose IK missed a target by more than the plan's tolerances (cumulative)."""
 
@@ -148,17 +146,9 @@ class PlannerAgent(BaseAgent):
         return np.linalg.norm(tcp[:, :3] - pos, axis=1), 2.0 * np.arccos(dot)
 
     def _plan_rows(self, env, rows: np.ndarray) -> None:
-        self._install(env, rows, self._compute(rows, *self._inputs(env, rows)))
-
-    def _inputs(self, env, rows: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        """What a plan of ``rows`` starts from: their live poses and every row's robot coordinates (host copies)."""
-        q_env = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, : self._robot_coords].cpu().numpy()
-        return self._poses(env, rows), q_env
-
-    def _compute(self, rows: np.ndarray, poses: dict[str, np.ndarray], q_env: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The joint-space plan of ``rows`` (host arrays for ``_install``); the IK and FK run on the device's current
-        stream."""
         plan, r = self.plan, len(rows)
+        poses = self._poses(env, rows)
+        q_env = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, : self._robot_coords].cpu().numpy()
         q_seed = q_env.copy()
         prev = q_env[rows][:, self._arm_coords].astype(np.float64)
         start = prev.copy()
@@ -215,13 +205,6 @@ class PlannerAgent(BaseAgent):
                 q_fk[:, self._arm_coords] = prev
                 tcp_prev = self._kin.tcp_poses(q_fk)[:, :3]
         self.plan_failures += int(failed.sum())
-        return way, start, seg_start, seg_interp, settle_at, frame
-
-    def _install(self, env, rows: np.ndarray, planned: tuple[np.ndarray, ...]) -> None:
-        """Write the plan of ``rows`` (from ``_compute``) into the gather kernel's buffers; the rows start it at the
-        next gather."""
-        way, start, seg_start, seg_interp, settle_at, frame = planned
-        k = self._num_waypoints()
         self._plan_length[rows] = frame
         idx = torch.as_tensor(rows, device=env.torch_device)
         t = wp.to_torch
@@ -239,49 +222,20 @@ class PlannerAgent(BaseAgent):
         """Forces a re-plan of ``env_ids`` (all rows when ``None``) at the next ``act``."""
         if self._env is not None:
             self._tracker.forget(env_ids)
-            if self._planning is not None:  # those rows start over too
-                self._tracker.forget(self._planning[0])
-                self._planning = None
-
-    def plan_while_stepping(self) -> None:
-        """Plan the rows that fell due at the last ``act`` (batched re-plans, ``replan_batch`` > 1); the loop calls it
-        right after launching the step. On a GPU the IK and FK run on a stream of their own, so that they overlap the
-        step instead of queueing behind it; the rows hold one more step and start their plan at the next ``act``
-        (which plans them itself when this was not called). Same plans either way."""
-        if self._planning is None or self._planning[2] is not None:
-            return
-        rows, inputs, _ = self._planning
-        if self._env.device.is_cuda:
-            if self._side is None:  # not blocking: its work waits for no other stream's (the step's)
-                side = torch.cuda.Stream(device=self._env.torch_device)
-                self._side = (side, wp.stream_from_torch(side))
-            with wp.ScopedStream(self._side[1], sync_enter=False, sync_exit=False), torch.cuda.stream(self._side[0]):
-                planned = self._compute(rows, *inputs)
-        else:
-            planned = self._compute(rows, *inputs)
-        self._planning = (rows, inputs, planned)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         if self._env is not env:
             self._bind(env)
-        if self._planning is not None:  # due at the last act: planned while the GPU stepped (or now)
-            rows, inputs, planned = self._planning
-            self._install(env, rows, planned if planned is not None else self._compute(rows, *inputs))
-            self._planning = None
         rows = self._tracker.fresh_rows(env, env_ids)
         if env_ids is not None or self._batch <= 1:
             rows = np.union1d(rows, np.flatnonzero(self._waiting_since >= 0))
-            if rows.size:
-                self._plan_rows(env, rows)
         elif rows.size or (self._waiting_since >= 0).any():
             rows = self._rows_due(env, rows)
-            if rows.size:  # planned by plan_while_stepping, started at the next act
-                self._planning = (rows, self._inputs(env, rows), None)
-        self._waiting_since[rows] = -1
+        if rows.size:
+            self._plan_rows(env, rows)
+            self._waiting_since[rows] = -1
         self._acts += 1
         self._held = self._waiting_since >= 0
-        if self._planning is not None:
-            self._held[self._planning[0]] = True
         wp.launch(
             gather_plan_actions,
             dim=env.num_envs,

@@ -66,10 +66,7 @@ class _Solve:
             wp.capture_launch(graph)
         else:
             self._body(iterations)
-        # through torch: its copy runs on the current stream, where numpy() would copy on the null stream and wait for
-        # every other stream's work (a planner on a stream of its own would wait for the env step it overlaps); copied,
-        # since on the CPU it is a view of the buffer the next solve overwrites
-        return wp.to_torch(self.q).cpu().numpy().copy()
+        return self.q.numpy().copy()  # (on the CPU numpy() is a view of the buffer the next solve overwrites)
 
     def _capture(self, iterations: int):
         try:
