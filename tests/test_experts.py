@@ -77,6 +77,25 @@ def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
     assert abs(runs[1]["average_length"] - runs[0]["average_length"]) <= 1.0, runs
 
 
+def test_a_step_that_repeats_the_last_pose_reuses_its_ik_solution():
+    """PickCube opens the gripper where it descended to and StackCube releases each cube where it lowered it: the
+    planner solves such a pose once (one IK solve fewer per plan) and the two waypoints are the same joints, bit for
+    bit."""
+    import numpy as np
+
+    from newton_lab.agents.planner.agent import PlannerAgent
+
+    env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=3, randomize=True, cameras=False)
+    agent = PlannerAgent.from_task(env.task_id)
+    env.reset()
+    agent.act(env)
+    names = [s.name for s in agent.plan.steps]
+    way = agent._waypoints.numpy()
+    descend, release = names.index("descend_to_target"), names.index("open_left_gripper")
+    assert np.array_equal(way[:, descend, :7], way[:, release, :7])
+    assert (way[:, descend, 7] != way[:, release, 7]).all()  # only the gripper differs
+
+
 def test_a_target_settles_until_the_arm_reaches_it_and_in_full_before_the_gripper_opens():
     """The gather kernel: in its settle frames a segment ends as soon as every arm joint is within the tolerance
     (the next segment's first frame is written, the cursor jumps there), and holds while it is not; a segment with

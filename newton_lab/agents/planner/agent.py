@@ -160,6 +160,7 @@ class PlannerAgent(BaseAgent):
         frame = np.zeros(r, dtype=np.int64)
         failed = np.zeros(r, dtype=bool)
         tcp_prev = poses["tcp"][:, :3].copy()  # start of the next straight-line TCP move
+        solved = None  # (point, quat, error) of the last IK solve, whose solution q_seed holds
         i = 0
         # a settle may end once the arm is there (MotionPlan.settle_tolerance), but not around the gripper opening:
         # before it (the carried cube still swings) nor in the step that opens it (the fingers are still opening)
@@ -178,7 +179,11 @@ class PlannerAgent(BaseAgent):
                 targets = []
                 for j in range(1, step.linear + 1):
                     point = tcp_prev + (goal - tcp_prev) * (j / step.linear)
-                    q_all, err = self._solve(q_seed, rows, point, quat)
+                    if solved is not None and np.array_equal(point, solved[0]) and np.array_equal(quat, solved[1]):
+                        q_all, err = q_seed, solved[2]  # the pose just solved (e.g. the gripper opens where it is)
+                    else:
+                        q_all, err = self._solve(q_seed, rows, point, quat)
+                        solved = (point, quat, err)
                     targets.append(q_all[rows][:, self._arm_coords].astype(np.float64))
                     q_seed = q_all
                     failed |= err > plan.position_tolerance
