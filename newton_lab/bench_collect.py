@@ -345,7 +345,8 @@ def _footprint(path: Path) -> tuple[int, int]:
 
 def summary(out: dict[str, Any]) -> str:
     """``bench_collect``'s result in a few lines: demos/s and per GPU-hour, the three stages in seconds and per vector
-    step, the rest of the loop, and whether physics bounds the run (agent + writer per step <= physics per step)."""
+    step, the rest of the loop, whether physics bounds the run (agent + writer per step <= physics per step) and the
+    step's share of the wall time."""
     steps = max(out.get("vector_steps") or 1, 1)
     stage = {name: out[f"{name}_s"] for name in ("physics", "agent", "writer")}
     lines = [f"{out['task']} on {out['device_name']}, {out['num_envs']} envs, {out['format']}: "
@@ -359,7 +360,7 @@ def summary(out: dict[str, Any]) -> str:
              f"drain after the last step {out['drain_s']:.2f} s; {out['bytes_per_demo'] / 1e3:.1f} KB and "
              f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches",
              f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
-             f"(physics / wall {out['physics_share']:.2f}) "
              f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
-             f"ms/step); largest stage: {max(stage, key=stage.get)}"]
+             f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: "
+             f"{max(stage, key=stage.get)}"]
     return "\n".join(lines)

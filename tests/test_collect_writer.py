@@ -98,10 +98,11 @@ def test_the_bench_collect_summary_names_the_stages_and_the_bound():
            "successful_demos": 16384, "wall_s": 10.0, "demos_per_s": 1638.4, "demos_per_hour": 5_898_240.0,
            "physics_s": 5.0, "agent_s": 2.0, "writer_s": 2.5, "writer_files_s": 1.5, "writer_sync_s": 0.5,
            "loop_s": 3.0, "hand_over_s": 1.0, "drain_s": 0.2, "vector_steps": 1000, "bytes_per_demo": 118_000.0,
-           "inodes_per_demo": 0.45, "writer_batches": 64, "physics_bound": True}
+           "inodes_per_demo": 0.45, "writer_batches": 64, "physics_bound": True, "physics_share": 0.5}
     text = summary(out)
     assert "1638 demos/s = 5.90 M demos per GPU-hour" in text and "physics 5.00 s (5.00 ms/step)" in text
-    assert "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step)" in text
+    assert "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step; the step is 50 % of the " \
+           "wall)" in text
     assert "largest stage: physics" in text and "hand-over 1.00 s" in text
 
 
