@@ -71,8 +71,9 @@ class _DeviceClock:
 
 
 TRACE_AFTER_STEPS = 300
-"""Vector steps of the timed run before ``--trace`` records, by default: episodes then end every step (PickCube's
-first ones end after ~150 steps at 4096 rows) and the writer's queue is in its steady state."""
+"""Vector steps of the timed run before ``--trace`` records, by default: past the first episodes' ends (PickCube's
+come after ~150 steps at 4096 rows). The rows start together and their episodes keep ending in bursts, so a
+window may catch few ends (on an H200, steps 300-320 of PickCube held few): move it with ``--trace-after``."""
 TRACE_STEPS = 20
 """Vector steps ``--trace`` records (a 4096-row PickCube step is ~10 MB of trace with the Python tracer on)."""
 

@@ -57,7 +57,7 @@ class BenchCollectArgs(BenchEnvArgs):
     """write a torch.profiler trace of 20 steps of the timed run to this path (.json.gz; Perfetto opens it): CPU
     ops, Python calls and, on a GPU, every kernel and copy (Warp's too); the costliest operations go to <path>.txt"""
     trace_after: int = 300
-    """vector steps of the timed run before --trace records (by then PickCube episodes end every step)"""
+    """vector steps of the timed run before --trace records (past PickCube's first episode ends; they come in bursts)"""
     baseline: bool = False
     """with --workers: also time worker 0 alone on one worker's share, before (<stem>_alone) and after (<stem>_alone2)
     the workers' run, and print the scaling, the workers' demos/s over the mean lone rate (same cluster, same demos
