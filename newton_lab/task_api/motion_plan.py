@@ -60,6 +60,11 @@ class MotionStep:
     linear: int = 1
     """Straight-line TCP move: the segment from the previous TCP target is split into this many IK targets
     (1 = plain joint-space interpolation, which can bow the TCP path near obstacles)."""
+    max_joint_step: float | None = None
+    """This step's largest joint move per control step [rad] (``None``: the plan's): a slow final approach."""
+    settle: bool = True
+    """Hold the target for the plan's settle frames once there (``False``: the next step starts on arrival, e.g. after
+    a slow approach that leaves nothing to settle)."""
 
 
 @dataclass(frozen=True, kw_only=True)

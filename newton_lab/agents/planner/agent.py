@@ -189,17 +189,19 @@ class PlannerAgent(BaseAgent):
                     failed |= err > plan.position_tolerance
             else:
                 targets = [prev]
+            speed = step.max_joint_step or plan.max_joint_step
+            settle = plan.settle_steps if moves and step.settle else 0
             for j, q_k in enumerate(targets):
                 last = j == len(targets) - 1
-                n_interp = np.ceil(np.abs(q_k - prev).max(axis=1) / plan.max_joint_step).astype(np.int64)
+                n_interp = np.ceil(np.abs(q_k - prev).max(axis=1) / speed).astype(np.int64)
                 n_interp = np.maximum(n_interp, 1 if moves else 0)
                 way[:, i, :7] = q_k
                 way[:, i, 7] = gripper
                 seg_start[:, i] = frame
                 seg_interp[:, i] = n_interp
-                if last and moves and early[n_step]:
+                if last and settle and early[n_step]:
                     settle_at[:, i] = frame + n_interp + max(step.hold - 1, 0)
-                frame = frame + n_interp + (max(step.hold - 1, 0) + (plan.settle_steps if moves else 0) if last else 0)
+                frame = frame + n_interp + (max(step.hold - 1, 0) + settle if last else 0)
                 frame = np.maximum(frame, seg_start[:, i] + 1)
                 prev = q_k
                 i += 1
