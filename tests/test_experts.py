@@ -78,9 +78,9 @@ def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
 
 
 def test_a_step_that_repeats_the_last_pose_reuses_its_ik_solution():
-    """PickCube opens the gripper where it descended to and StackCube releases each cube where it lowered it: the
-    planner solves such a pose once (one IK solve fewer per plan) and the two waypoints are the same joints, bit for
-    bit."""
+    """PickCube opens the gripper where it lowered the cube to, and StackCube releases each cube where it lowered
+    it: the planner solves such a pose once (one IK solve fewer per plan) and the two waypoints are the same joints,
+    bit for bit."""
     import numpy as np
 
     from newton_lab.agents.planner.agent import PlannerAgent
@@ -91,7 +91,7 @@ def test_a_step_that_repeats_the_last_pose_reuses_its_ik_solution():
     agent.act(env)
     names = [s.name for s in agent.plan.steps]
     way = agent._waypoints.numpy()
-    descend, release = names.index("descend_to_target"), names.index("open_left_gripper")
+    descend, release = names.index("lower_onto_target"), names.index("open_left_gripper")
     assert np.array_equal(way[:, descend, :7], way[:, release, :7])
     assert (way[:, descend, 7] != way[:, release, 7]).all()  # only the gripper differs
 
