@@ -75,7 +75,7 @@ class MotionPlan:
     settle_steps: int = 12
     """Most extra frames each named target is held (the reference's 12). The hold ends as soon as every arm joint is
     within ``settle_tolerance`` of the target, except around the gripper's opening: in the step before it and in the
-    step that opens it, the target is held the full frames."""
+    step that opens it, the target is held the full frames. A step with ``settle=False`` holds none."""
     settle_tolerance: float = 0.01
     """Arm joint error [rad] at which a target counts as reached and its settle frames end (0: always the full
     ``settle_steps``). Still frames are frames a policy cannot place: one observation is followed by "hold" and, a
