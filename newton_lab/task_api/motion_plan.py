@@ -79,11 +79,8 @@ class MotionPlan:
     settle_tolerance: float = 0.01
     """Arm joint error [rad] at which a target counts as reached and its settle frames end (0: always the full
     ``settle_steps``). Still frames are frames a policy cannot place: one observation is followed by "hold" and, a
-    few frames later, by the next move. State policies on 100 StackCube-Cube2 expert demos (2-core CPU, the demo
-    pipeline's training config, 40 held-out episodes) stacked 0 of 40 with the full frames everywhere and 27 with this
-    rule; PickCube's placed 7 and 21 (docs/benchmarks.md, "StackCube: the still frames"). Releasing on arrival lets go
-    of a cube that still swings (StackCube-Cube2 expert 92 of 100 instead of 98); with this rule it stacks 97 of 100,
-    in 147 frames on average instead of 192."""
+    few frames later, by the next move; state policies trained on experts with fewer of them stack and place far more
+    often (docs/benchmarks.md, "StackCube: the still frames" and "the last 2 cm lowered slowly")."""
     position_tolerance: float = 0.035
     """IK solutions farther than this from the target mark the row's plan as failed [m]."""
     orientation_tolerance: float = 0.15
@@ -99,7 +96,7 @@ def yaw_of(quat_xyzw: np.ndarray) -> np.ndarray:
 
 
 def _step_from_dict(d: dict) -> MotionStep:
-    known = {"name", "target", "quat", "align_yaw", "joints", "gripper", "hold", "linear"}
+    known = {"name", "target", "quat", "align_yaw", "joints", "gripper", "hold", "linear", "max_joint_step", "settle"}
     unknown = set(d) - known
     if unknown:
         raise ValueError(f"motion step {d.get('name')!r} has unknown keys {sorted(unknown)}; valid: {sorted(known)}")
@@ -124,13 +121,15 @@ def _step_from_dict(d: dict) -> MotionStep:
         gripper_open=gripper == "open",
         hold=int(d.get("hold", 1)),
         linear=max(1, int(d.get("linear", 1))),
+        max_joint_step=float(d["max_joint_step"]) if d.get("max_joint_step") else None,
+        settle=bool(d.get("settle", True)),
     )
 
 
 def plan_from_yaml(text: str) -> MotionPlan:
     """Parse a YAML motion plan (keys: max_joint_step, settle_steps, settle_tolerance, position_tolerance,
     orientation_tolerance, arm, steps: [{name, target: {asset, offset} | {pos, frame}, quat, joints,
-    gripper: open|closed, hold}])."""
+    gripper: open|closed, hold, linear, max_joint_step, settle}])."""
     data = yaml.safe_load(text)
     steps = tuple(_step_from_dict(s) for s in data.pop("steps"))
     return MotionPlan(steps=steps, **data)
