@@ -126,10 +126,10 @@ rest of ``writer_s`` is the lock, the renames and the commit."""
 
 
 def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace: Path | None = None,
-                   trace_after: int = TRACE_AFTER_STEPS) -> dict[str, Any]:
+                   trace_after: int = TRACE_AFTER_STEPS, writer: str = "auto") -> dict[str, Any]:
     """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``) and
-    writer (the background thread's ``append_prepared`` calls, split as ``ZARR_WRITER_PARTS`` says for zarr) seconds
-    measured (the rollout's ``Timers``); the loop's own time is the rest (``loop_s``), of which ``hand_over_s`` passes
+    writer (the background thread's ``append_prepared`` calls, or those the writer process reports, split as
+    ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest (``loop_s``), of which ``hand_over_s`` passes
     ended episodes to the writer (device->host copy, checks, queueing) and ``drain_s`` waits for the writer after the
     last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the loop; the rest of the
     wall is the host's own work."""
@@ -153,17 +153,20 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
     t0 = time.perf_counter()
     try:
         ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
-                          only_successes=True, max_attempts=2 * episodes, timers=timers)
+                          only_successes=True, max_attempts=2 * episodes, timers=timers, writer=writer)
     finally:
         wall = time.perf_counter() - t0
         if tracer is not None:
             tracer.prof.stop()
     ok = ref.metadata["successes"]
-    split = ({name: zarr_store.BATCH_SECONDS[part] - store_before[part] for name, part in ZARR_WRITER_PARTS.items()}
-             if path.suffix == ".zarr" else {})
+    spent = ref.metadata.get("writer_seconds")  # a writer process's own clock (its process's zarr split)
+    split = ({name: (spent[part] if spent else zarr_store.BATCH_SECONDS[part] - store_before[part])
+              for name, part in ZARR_WRITER_PARTS.items()} if path.suffix == ".zarr" else {})
+    writer_s = spent["write"] if spent else writing.seconds
     return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
             "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
-            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writing.seconds, **split,
+            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writer_s, **split,
+            "writer": ref.metadata.get("writer"),
             "physics_share": physics.seconds / wall, "loop_s": wall - physics.seconds - acting.seconds,
             "hand_over_s": handing.seconds,
             "drain_s": draining.seconds, "vector_steps": ref.metadata.get("vector_steps"),
@@ -174,7 +177,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
                   dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
                   max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None,
                   replan_batch: int | None = None, replan_wait: int | None = None,
-                  trace: str | Path | None = None, trace_after: int = TRACE_AFTER_STEPS) -> dict[str, Any]:
+                  trace: str | Path | None = None, trace_after: int = TRACE_AFTER_STEPS,
+                  writer: str = "auto") -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
@@ -183,7 +187,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     after the first use (``bench_collect_on_workers`` lines the workers' timed runs up with it). ``replan_batch``,
     ``replan_wait``: the expert's ``PlannerAgent`` settings of those names (``None``: its defaults). ``trace``: a
     ``torch.profiler`` trace of ``TRACE_STEPS`` steps of the timed run to this path (``_Trace``), after ``trace_after``
-    steps; the stage clocks of a traced run read high."""
+    steps; the stage clocks of a traced run read high. ``writer``: ``collect``'s (``"auto"``, ``"thread"``,
+    ``"process"``)."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -201,7 +206,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     if replan_wait is not None:
         agent.replan_wait = replan_wait
     warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
-    _collect_timed(env, agent, 1, warm, max_steps)  # compiles the step, the IK solves and the writer path
+    _collect_timed(env, agent, 1, warm, max_steps, writer=writer)  # compiles the step, the IK solves and the writer path
     first_use = time.perf_counter() - t0
     out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
                            "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
@@ -215,7 +220,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     out["presync_s"] = time.perf_counter() - t1
     out["started_at"] = time.time()
     out.update(_collect_timed(env, agent, episodes, path, max_steps, trace=Path(trace) if trace else None,
-                              trace_after=trace_after))
+                              trace_after=trace_after, writer=writer))
     out["ended_at"] = time.time()
     size, inodes = _footprint(path)
     out["bytes_per_demo"] = size / max(out["successful_demos"], 1)
@@ -232,7 +237,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
             for start in range(0, prefill, 512):
                 w.append_episodes([item] * min(512, prefill - start))
         out["prefill_episodes"], out["prefill_s"] = prefill, time.perf_counter() - t1
-        again = _collect_timed(env, agent, episodes, full, max_steps)
+        again = _collect_timed(env, agent, episodes, full, max_steps, writer=writer)
         out["prefilled_demos_per_s"] = again["demos_per_s"]
         out["prefilled_writer_s"] = again["writer_s"]
     return out
@@ -240,7 +245,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
 
 def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, episodes: int = 16,
                              device: str | None = None, dataset_path: str | Path = "outputs/bench_collect.zarr",
-                             max_steps: int = 1000, baseline: bool = False) -> dict[str, Any]:
+                             max_steps: int = 1000, baseline: bool = False, writer: str = "auto") -> dict[str, Any]:
     """``bench_collect`` on ``workers`` Dask worker processes at once, the way ``--runner dask`` shards collection:
     one worker per GPU on a CUDA host when ``device`` is None or ``"cuda"`` (each sees only its GPU), else
     processes on ``device``. Worker ``i`` collects its share of ``episodes`` with seed ``i`` into its own shard
@@ -269,7 +274,7 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     opts = cluster_options(workers, device, gpus=gpus)
     quiet_shutdown()
     run = functools.partial(bench_collect, task_id, num_envs=num_envs, device="cuda" if gpus else device, prefill=0,
-                            max_steps=max_steps)
+                            max_steps=max_steps, writer=writer)
     with opts.get("cluster_class", LocalCluster)(**opts["cluster_kwargs"]) as cluster, Client(cluster) as client:
         client.wait_for_workers(workers)
         # one task per worker, by name (a restarted worker keeps it): two gated runs on one worker would wait forever
@@ -359,7 +364,8 @@ def summary(out: dict[str, Any]) -> str:
                 if "writer_files_s" in out else ""),
              f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
              f"drain after the last step {out['drain_s']:.2f} s; {out['bytes_per_demo'] / 1e3:.1f} KB and "
-             f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches",
+             f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches "
+             f"({out.get('writer') or 'BackgroundWriter'})",
              f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
              f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
              f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: "

@@ -174,7 +174,7 @@ def bench_collect(args: BenchCollectArgs) -> int:
     from ..bench_collect import bench_collect, bench_collect_on_workers, summary  # deferred: Warp is slow to import
 
     common = {"num_envs": args.num_envs, "episodes": args.episodes, "device": args.device,
-              "dataset_path": args.dataset_path}
+              "dataset_path": args.dataset_path, "writer": args.writer}
     if args.workers == 1:
         if args.baseline:
             raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")

@@ -58,6 +58,9 @@ class BenchCollectArgs(BenchEnvArgs):
     ops, Python calls and, on a GPU, every kernel and copy (Warp's too); the costliest operations go to <path>.txt"""
     trace_after: int = 300
     """vector steps of the timed run before --trace records (past PickCube's first episode ends; they come in bursts)"""
+    writer: Literal["auto", "thread", "process"] = "auto"
+    """who writes the episodes (collect's --writer): a thread, or a process fed shared-memory blocks; auto: the
+    process from 256 rows on"""
     baseline: bool = False
     """with --workers: also time worker 0 alone on one worker's share, before (<stem>_alone) and after (<stem>_alone2)
     the workers' run, and print the scaling, the workers' demos/s over the mean lone rate (same cluster, same demos

@@ -18,10 +18,14 @@ class CollectArgs(CameraArgs, RerunArgs, RolloutArgs):
     """Dataset to append to: .hdf5 / .h5 (robomimic layout) or .zarr."""
     save_end_scenario: str | None = None
     """write the final scene as a scenario YAML (needs --episodes 1 --num-envs 1)"""
+    writer: Literal["auto", "thread", "process"] = "auto"
+    """who writes the episodes: a thread of this process, or a process of its own that gets each step's ended
+    episodes as one shared-memory block; auto: the process from 256 rows on"""
 
     def collect_kwargs(self) -> dict[str, Any]:
         """Keywords of ``env.collect(agent=..., **...)``."""
-        return {**self.rollout_kwargs(), "path": self.dataset_path, "save_end_scenario": self.save_end_scenario}
+        return {**self.rollout_kwargs(), "path": self.dataset_path, "save_end_scenario": self.save_end_scenario,
+                "writer": self.writer}
 
 
 @dataclass(kw_only=True)

@@ -13,13 +13,13 @@ the step on the device and copy only finished episodes (``episodes``), together 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
 import warp as wp
 
-from ..datasets._common import put
+from ..datasets.columns import ColumnLayout, episode_tree, split
 from ..datasets.states import state_layout
 
 IMAGE_CHUNK_STEPS = 64
@@ -55,20 +55,21 @@ class EpisodeRecorder:
             env.render()  # builds the cameras: their pose buffers are fixed views from here on
             for cam in env.camera_specs:
                 self._views[f"datagen/camera_poses/{cam}"] = env.cameras.poses(cam)
-        self._slices: dict[str, slice] = {}
+        frame: dict[str, tuple[int, int]] = {}
         col = 0
         for key, v in self._views.items():
-            self._slices[key] = slice(col, col + v.shape[1])
+            frame[key] = (col, col + v.shape[1])
             col += v.shape[1]
-        self._slices["actions"] = slice(col, col + env.action_dim)
+        frame["actions"] = (col, col + env.action_dim)
         col += env.action_dim
+        self.layout = ColumnLayout(frame, col, {k: (sl.start, sl.stop) for k, sl in env.obs_terms.items()})
+        """Where each array lies in a row of :meth:`fetch`'s ``stacked`` block."""
         self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
         self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
         self._next_obs = torch.zeros(n, max_steps, env.final_obs.shape[1], device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
         self._images = {name: torch.zeros((n, 0, *term.shape), dtype=term.dtype, device=env.torch_device)
                         for name, term in self.image_terms.items()}
-        self._host: dict[int, tuple[Any, ...]] = {}  # row -> host copies made by `episodes`
 
     def _grow_images(self, last: int) -> None:
         """Make the image buffers hold step ``last`` (grown by whole ``IMAGE_CHUNK_STEPS`` chunks)."""
@@ -108,76 +109,52 @@ class EpisodeRecorder:
         self._rewards[self._rows, t] = reward.float()
         self._next_obs[self._rows, t] = self.env.final_obs.float()
 
-    def episodes(self, rows, lengths) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
-        """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
-        buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
-        steps (frames, rewards, next observations; images aside) is finite, checked for all rows in one pass.
-
-        The host copy is split by array (one (rows, steps, width) copy per array for all rows at once), so that
-        each episode's arrays are contiguous: a writer joining hundreds of demos into a pack then copies whole
-        blocks instead of strided column slices of every demo (512 PickCube demos on the CPU: 0.40 -> 0.28 ms a
-        demo, noisy)."""
+    def fetch(self, rows, lengths) -> FetchedRows:
+        """The finished episodes of ``rows`` (``lengths`` steps each), still on the env's device: one gather of every
+        buffer, and whether every recorded float of each row's steps (frames, rewards, next observations; images
+        aside) is finite, checked for all rows in one pass (free on a GPU)."""
         rows, lengths = [int(r) for r in rows], [int(t) for t in lengths]
         span, idx = max(lengths), torch.as_tensor(rows, device=self._frames.device)
         stacked = self._stacked(idx, span)
         steps = torch.arange(span, device=idx.device)
         past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
-        ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)  # on the env's device: free on a GPU
-        columns = self._columns(stacked.cpu().numpy())
-        finite = dict(zip(rows, ok.tolist()))
-        images = {name: buf[idx, :span].cpu() for name, buf in self._images.items()}
-        self._host = {r: ({key: arr[k] for key, arr in columns.items()}, {name: img[k] for name, img in images.items()})
-                      for k, r in enumerate(rows)}
-        try:
-            return {r: self.episode(r, t) for r, t in zip(rows, lengths)}, finite
-        finally:
-            self._host = {}
+        ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)
+        images = {name: buf[idx, :span] for name, buf in self._images.items()}
+        return FetchedRows(rows, lengths, stacked, images, dict(zip(rows, ok.tolist())))
+
+    def episodes(self, rows, lengths) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
+        """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
+        buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
+        steps is finite (:meth:`fetch`). The host copy is split by array (``datasets.columns.split``)."""
+        got = self.fetch(rows, lengths)
+        columns = split(self.layout, got.stacked.cpu().numpy())
+        images = {name: img.cpu().numpy() for name, img in got.images.items()}
+        trees = {r: episode_tree({key: arr[k] for key, arr in columns.items()},
+                                 {name: img[k] for name, img in images.items()}, t)
+                 for k, (r, t) in enumerate(zip(got.rows, got.lengths))}
+        return trees, got.finite
 
     def _stacked(self, idx: torch.Tensor, span: int) -> torch.Tensor:
         """(rows, span, frame + reward + next observation) of the rows ``idx``: one gather of every buffer."""
         return torch.cat((self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span]), dim=2)
 
-    def _columns(self, host: np.ndarray) -> dict[str, np.ndarray]:
-        """A host copy of ``_stacked`` split by array, each (rows, steps, width) and contiguous (``rewards``: (rows,
-        steps))."""
-        frames = self._frames.shape[2]
-        after = frames + 1  # next observations follow the frames and the reward
-        columns = {key: np.ascontiguousarray(host[:, :, sl]) for key, sl in self._slices.items()}
-        columns["rewards"] = np.ascontiguousarray(host[:, :, frames])
-        columns.update({f"next_obs/{key}": np.ascontiguousarray(host[:, :, after + sl.start: after + sl.stop])
-                        for key, sl in self.env.obs_terms.items()})
-        return columns
-
     def episode(self, row: int, length: int) -> dict[str, Any]:
-        """The finished episode of ``row`` as a nested dict of numpy arrays (robomimic layout): ``actions``,
-        ``obs/*`` (image terms too: (T, H, W, 3) uint8 RGB, (T, H, W) float32 depth [m], (T, H, W) int32
-        segmentation), ``next_obs/*`` (the low-dim observation after each step), flat ``states`` (T, joint_q +
-        joint_qd; named by ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step,
-        ``dones`` (T,) zeros (``collect`` sets the last step of a successful episode to 1, as robomimic does),
-        ``initial_state`` (1, D) and ``datagen/*`` (with cameras: ``camera_poses/<camera>`` (T, 7) world pose,
-        xyz + quaternion xyzw, pinhole frame)."""
-        found = self._host.get(row)
-        if found is None:  # not fetched: copies, never views of the live buffers (the row's next episode reuses them)
-            idx = torch.as_tensor([row], device=self._frames.device)
-            columns = {key: arr[0] for key, arr in self._columns(self._stacked(idx, length).cpu().numpy()).items()}
-            images = {name: buf[row, :length].clone() for name, buf in self._images.items()}
-        else:
-            columns, images = found
-        flat = {key: arr[:length] for key, arr in columns.items()}
-        states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
-        tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
-                                "next_obs": {}, "rewards": flat.pop("rewards"),
-                                "dones": np.zeros(length, dtype=np.int64)}
-        for key, arr in flat.items():
-            put(tree, key, arr)
-        for name, img in images.items():
-            tree["obs"][name] = img[:length].cpu().numpy()
-        tree["datagen"]["subtask_signals"] = {
-            k: v[:, 0].astype(bool) for k, v in tree["datagen"].get("subtask_signals", {}).items()
-        }
-        tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
-        tree["initial_state"] = states[:1]
-        return tree
+        """The finished episode of ``row`` as a nested dict of numpy arrays (``datasets.columns.episode_tree``
+        says what it holds); copies, never views of the live buffers (the row's next episode reuses them)."""
+        return self.episodes([row], [length])[0][row]
+
+
+class FetchedRows(NamedTuple):
+    """Finished episodes gathered on the env's device by :meth:`EpisodeRecorder.fetch`."""
+
+    rows: list[int]
+    lengths: list[int]
+    stacked: torch.Tensor
+    """(rows, longest, ``layout.width``) float32: frames, rewards and next observations (``datasets.columns``)."""
+    images: dict[str, torch.Tensor]
+    """Image term -> (rows, longest, ...)."""
+    finite: dict[int, bool]
+    """Row -> every recorded float of its steps is finite (images aside)."""
 
 
 def camera_args(env) -> dict[str, Any]:

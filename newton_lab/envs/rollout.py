@@ -21,7 +21,9 @@ import torch
 from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
+from ..datasets import writer_process
 from ..datasets.background import BackgroundWriter
+from ..datasets.writer_process import ProcessWriter
 from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
 from .recorder import EpisodeRecorder, env_args
@@ -272,7 +274,8 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
 def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
             only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
             dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
-            on_step=None, save_end_scenario=None, max_queued: int | None = None, timers: Timers | None = None):
+            on_step=None, save_end_scenario=None, max_queued: int | None = None, timers: Timers | None = None,
+            writer: str = "auto"):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
 
@@ -287,7 +290,13 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     A queue that holds one episode per row lets the rows' next episodes run while the writer writes the ones that
     ended together (on a GPU thousands end within a few steps; a queue of 256 held the loop until they were written).
 
-    ``timers`` wrap the loop's ``env.step`` and ``agent.act`` and the writer's batch writes (``Timers``).
+    ``timers`` wrap the loop's ``env.step`` and ``agent.act`` and the writer thread's batch writes (``Timers``; a
+    writer process reports its own, ``writer_seconds`` in the summary).
+
+    ``writer``: ``"thread"`` builds each episode's tree here and writes on a thread (``datasets.background``);
+    ``"process"`` hands each step's ended episodes to a writer process as one block in shared memory
+    (``datasets.writer_process``: the trees, checks and encoding run on another interpreter); ``"auto"`` takes the
+    process from ``WRITE_MIN_BATCH`` rows on (where episodes end in bursts of dozens a step), else the thread.
 
     ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML
     (``newton_lab.envs.scenario``) that a following component task can start from; the file must not exist.
@@ -310,11 +319,12 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     recorder = EpisodeRecorder(env, max_steps)
     check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
     store = open_writer(Path(path), task_id=task_id, env_args=args)
-    if timers is not None:
-        store = WrappedWriter(store, timers.write)
-    writer = BackgroundWriter(store, max_queued=max(256, env.num_envs) if max_queued is None else max_queued,
-                              min_batch=WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1,
-                              max_wait_s=WRITE_MAX_WAIT_S)
+    batching = {"max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
+                "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1, "max_wait_s": WRITE_MAX_WAIT_S}
+    if _writer_kind(writer, env.num_envs) == "process":
+        writer = ProcessWriter(store.path, task_id=task_id, layout=recorder.layout, **batching)
+    else:
+        writer = BackgroundWriter(store if timers is None else WrappedWriter(store, timers.write), **batching)
     saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
     timers = timers or Timers()
     saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
@@ -327,7 +337,9 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
         timers.drain(saver.close)()  # waits for the writer: what finished is written, also on Ctrl-C or an error
     summary = _summary(env, records, steps, wall)
     summary.update(task=task_id, path=str(path), saved_demo_ids=saver.saved_ids(), attempts=len(records),
-                   writer_batches=writer.batches)
+                   writer_batches=writer.batches, writer=type(writer).__name__)
+    if isinstance(writer, ProcessWriter):
+        summary["writer_seconds"] = dict(writer.seconds)
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
@@ -335,6 +347,20 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
            "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
     keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
+
+
+WRITER_KINDS = ("auto", "thread", "process")
+
+
+def _writer_kind(writer: str, num_envs: int) -> str:
+    """``collect``'s ``writer`` resolved to ``"thread"`` or ``"process"``."""
+    if writer not in WRITER_KINDS:
+        raise ValueError(f"writer {writer!r} is not one of {', '.join(WRITER_KINDS)}")
+    if writer == "process" and not writer_process.available():
+        raise ValueError("writer 'process' needs os.memfd_create (Linux); use writer 'thread'")
+    if writer == "auto":
+        return "process" if num_envs >= WRITE_MIN_BATCH and writer_process.available() else "thread"
+    return writer
 
 
 def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True,

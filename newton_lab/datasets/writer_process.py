@@ -1,0 +1,334 @@
+"""A writer process for ``collect``: ended episodes cross to it as whole column blocks in shared memory, and it builds
+their trees, checks them and writes them (``datasets.background`` batching, one write session per batch) beside the
+simulation.
+
+Why a process: with thousands of rows the episodes end in bursts (the rows start together), and in one interpreter
+the per-demo Python of a burst (splitting the copy by array, each demo's tree, the writer's checks, the pack's
+encoding) waits for the same lock as the simulation loop; bench-collect on a GPU spent more of each step on that
+than on physics. Here the collecting process copies a burst once, from the device straight into a shared ring
+(``os.memfd_create``: anonymous, freed when both processes let go of it, nothing left in ``/dev/shm`` after a
+kill), and sends one small message; the writer process copies the burst out of the ring at once (the ring's room
+comes back within milliseconds) and does the rest on its own interpreter. Pipes carry pickled messages: the
+standard library's ``multiprocessing`` would start the child by re-importing the caller's main module (the whole
+simulator) and refuses to start one from a Dask worker (a daemonic process).
+
+Crash window: as ``datasets.background`` (an episode is durable once its future is done). If the collecting process is
+killed, the writer process reads the end of its pipe, writes what it has already received and exits.
+"""
+
+from __future__ import annotations
+
+import mmap
+import os
+import pickle
+import subprocess
+import sys
+import threading
+import time
+from collections import deque
+from concurrent.futures import Future
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import zarr_store
+from .background import BackgroundWriter
+from .columns import ColumnLayout, episode_tree, split
+from .storage import EpisodeWriter
+
+RING_BYTES = 1 << 30
+"""Bytes of the shared ring (virtual: pages are backed only once a burst is copied into them)."""
+_ALIGN = 64
+
+
+def available() -> bool:
+    """This platform can run the writer process (Linux: ``os.memfd_create``)."""
+    return hasattr(os, "memfd_create")
+
+
+class _Ring:
+    """First-in first-out allocation of byte ranges in a buffer (the writer frees the bursts in the order they came)."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._taken: deque[tuple[int, int]] = deque()  # (start, end) in order
+
+    def take(self, nbytes: int) -> int | None:
+        """Start of ``nbytes`` free bytes, or None while the ring is too full."""
+        nbytes = -(-nbytes // _ALIGN) * _ALIGN
+        if not self._taken:
+            start = 0 if nbytes <= self.size else None
+        elif self._taken[-1][0] >= self._taken[0][0]:  # in order: room after the newest and before the oldest
+            head, tail = self._taken[-1][1], self._taken[0][0]
+            start = head if head + nbytes <= self.size else (0 if nbytes <= tail else None)
+        else:  # wrapped: the room lies between the newest and the oldest
+            head, tail = self._taken[-1][1], self._taken[0][0]
+            start = head if head + nbytes <= tail else None
+        if start is not None:
+            self._taken.append((start, start + nbytes))
+        return start
+
+    def give_back(self) -> None:
+        """Free the oldest range."""
+        self._taken.popleft()
+
+
+class ProcessWriter:
+    """The collecting side: :meth:`put_block` copies a burst into the ring and queues it; futures give each demo's id
+    once durable (or the write's error). :meth:`close` waits for every queued episode and stops the process."""
+
+    def __init__(self, path: str | Path, *, task_id: str, layout: ColumnLayout, fsync: bool = True,
+                 max_queued: int = 256, max_queued_bytes: int = 1 << 30, min_batch: int = 1, max_wait_s: float = 1.0,
+                 ring_bytes: int = RING_BYTES) -> None:
+        self.path, self.layout = Path(path), layout
+        self.seconds = {"write": 0.0, "files": 0.0, "sync": 0.0}
+        """The writer process's batch writes so far [s]: in all, and for zarr encoding + writing files and syncing."""
+        self.batches = 0
+        self._fd = os.memfd_create("newton_lab_collect", os.MFD_CLOEXEC)
+        os.ftruncate(self._fd, ring_bytes)
+        self._buf = mmap.mmap(self._fd, ring_bytes)
+        self._ring = _Ring(ring_bytes)
+        self._cv = threading.Condition()
+        self._pending: dict[int, Future] = {}  # burst -> its ids
+        self._next = 0
+        self._error: BaseException | None = None
+        self._raised = self._closed = False
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "newton_lab.datasets.writer_process", str(self._fd)], stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE, pass_fds=(self._fd,), close_fds=True)
+        os.set_inheritable(self._fd, False)
+        self._send(("open", str(self.path), task_id, fsync, ring_bytes, layout,
+                    {"max_queued": max_queued, "max_queued_bytes": max_queued_bytes, "min_batch": min_batch,
+                     "max_wait_s": max_wait_s}))
+        self._reader = threading.Thread(target=self._read, name=f"writer process {self.path.name}", daemon=True)
+        self._reader.start()
+
+    def put_block(self, stacked, images: dict[str, Any], demos: list[tuple[int, int, bool, dict[str, Any]]]) -> Future:
+        """Queue the episodes of a block: ``stacked`` (rows, steps, ``layout.width``) float32 (a torch tensor on any
+        device, or numpy), ``images`` term -> (rows, steps, ...) of the same rows, and per demo ``(row in the block,
+        length, success, attrs)``. Blocks while the ring has no room; returns a future of the demos' ids (a list, once
+        all of them are durable) or of the write's error."""
+        arrays = [("", stacked)] + list(images.items())
+        sizes = [int(np.prod(a.shape)) * _itemsize(a) for _, a in arrays]
+        with self._cv:
+            self._raise(always=True)
+            start = None
+            while start is None:
+                start = self._ring.take(sum(-(-n // _ALIGN) * _ALIGN for n in sizes))
+                if start is None:
+                    if len(self._ring._taken) == 0:
+                        raise MemoryError(f"a burst of {sum(sizes) / 2**20:.0f} MiB does not fit the writer's "
+                                          f"{self._ring.size / 2**20:.0f} MiB ring; record fewer rows (--num-envs)")
+                    self._cv.wait(0.5)
+                    self._raise(always=True)
+                    if self._proc.poll() is not None:
+                        raise RuntimeError(f"the writer process of {self.path} exited (code {self._proc.returncode})")
+            burst, self._next = self._next, self._next + 1
+            future = self._pending[burst] = Future()
+        specs, at = [], start
+        for (name, arr), n in zip(arrays, sizes):
+            _copy_into(self._buf, at, arr)
+            specs.append((name, at, tuple(arr.shape), _dtype(arr)))
+            at += -(-n // _ALIGN) * _ALIGN
+        self._send(("burst", burst, specs, demos))
+        with self._cv:
+            self._raise(always=True)
+        return future
+
+    def flush(self) -> None:
+        """Wait until every queued episode is written; raises the write error, if one happened."""
+        with self._cv:
+            while self._pending and self._error is None and self._proc.poll() is None:
+                self._cv.wait(0.5)
+            self._raise(always=True)
+
+    def close(self) -> None:
+        """Write what is queued, stop the process; raises a write error not raised yet."""
+        if self._closed:
+            return
+        self._closed = True
+        self._send(("close",))
+        try:
+            self._proc.stdin.close()
+        except OSError:
+            pass  # the process is gone already: its exit code tells
+        self._proc.wait()
+        self._reader.join()
+        self._buf.close()
+        os.close(self._fd)
+        with self._cv:
+            if self._pending and self._error is None:
+                self._error = RuntimeError(f"the writer process of {self.path} exited (code {self._proc.returncode}) "
+                                           f"before writing {len(self._pending)} bursts of episodes")
+                for future in self._pending.values():
+                    future.set_exception(self._error)
+            self._raise(always=False)
+
+    def _send(self, message: tuple) -> None:
+        """Send one message; a process that is gone becomes the writer's error (raised by the callers)."""
+        try:
+            pickle.dump(message, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self._proc.stdin.flush()
+        except (BrokenPipeError, OSError, ValueError) as e:  # ValueError: the pipe is closed
+            with self._cv:
+                self._error = self._error or RuntimeError(f"the writer process of {self.path} is gone ({e})")
+
+    def _read(self) -> None:
+        """The process's replies: ``free`` (a burst left the ring), ``written`` (its demo ids), ``error``."""
+        while True:
+            try:
+                message = pickle.load(self._proc.stdout)
+            except (EOFError, OSError, pickle.UnpicklingError):
+                with self._cv:
+                    self._cv.notify_all()
+                return
+            kind, burst = message[0], message[1]
+            with self._cv:
+                if kind == "free":
+                    self._ring.give_back()
+                elif kind == "written":
+                    ids, seconds, batches = message[2:]
+                    self.seconds.update(seconds)
+                    self.batches = batches
+                    self._pending.pop(burst).set_result(ids)
+                elif kind == "error":
+                    self._error = self._error or message[2]
+                    if burst in self._pending:
+                        self._pending.pop(burst).set_exception(message[2])
+                self._cv.notify_all()
+
+    def _raise(self, always: bool) -> None:
+        if self._error is not None and (always or not self._raised):
+            self._raised = True
+            raise self._error
+
+    def __enter__(self) -> ProcessWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _itemsize(arr) -> int:
+    return arr.element_size() if hasattr(arr, "element_size") else arr.itemsize
+
+
+def _dtype(arr) -> str:
+    """numpy dtype string of a numpy array or torch tensor."""
+    return str(arr.dtype).removeprefix("torch.") if hasattr(arr, "element_size") else arr.dtype.str
+
+
+def _copy_into(buf: mmap.mmap, at: int, arr) -> None:
+    """Copy ``arr`` (numpy, or a torch tensor on any device: one device->host copy) into ``buf`` at byte ``at``."""
+    if hasattr(arr, "element_size"):
+        import torch  # deferred: only the collecting process has torch; this module also runs in the writer process
+
+        dest = torch.frombuffer(buf, dtype=arr.dtype, count=arr.numel(), offset=at).view(arr.shape)
+        dest.copy_(arr)
+    else:
+        np.frombuffer(buf, dtype=arr.dtype, count=arr.size, offset=at).reshape(arr.shape)[...] = arr
+
+
+# ----------------------------------------------------------------------------- the writer process
+def _serve(fd: int, inbox, outbox) -> None:
+    """Open the dataset, then turn each burst into episodes and queue them on a ``BackgroundWriter``; reply as
+    ``ProcessWriter._read`` expects. Ends at ``close`` or at the end of the pipe (the collector is gone)."""
+    lock = threading.Lock()
+
+    def reply(message: tuple) -> None:
+        with lock:
+            pickle.dump(message, outbox, protocol=pickle.HIGHEST_PROTOCOL)
+            outbox.flush()
+
+    _, path, task_id, fsync, ring_bytes, layout, settings = pickle.load(inbox)
+    buf = mmap.mmap(fd, ring_bytes)
+    store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync)
+    spent = {"write": 0.0}
+
+    def timed(batch):
+        t0 = time.perf_counter()
+        try:
+            return append(batch)
+        finally:
+            spent["write"] += time.perf_counter() - t0
+
+    append, store.append_prepared = store.append_prepared, timed
+    writer = BackgroundWriter(store, **settings)
+
+    def done(burst: int, futures: list[Future]) -> None:
+        errors = [f.exception() for f in futures if f.exception() is not None]
+        if errors:
+            reply(("error", burst, _portable(errors[0])))
+        else:
+            seconds = {"write": spent["write"], "files": zarr_store.BATCH_SECONDS["files"],
+                       "sync": zarr_store.BATCH_SECONDS["sync"]}
+            reply(("written", burst, [f.result() for f in futures], seconds, writer.batches))
+
+    try:
+        while True:
+            try:
+                message = pickle.load(inbox)
+            except EOFError:
+                break
+            if message[0] == "close":
+                break
+            _, burst, specs, demos = message
+            try:
+                arrays = {name: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape)), offset=at).reshape(shape)
+                          for name, at, shape, dtype in specs}
+                columns = split(layout, arrays.pop(""))  # copies: the burst's room in the ring goes back now
+                images = {name: arr.copy() for name, arr in arrays.items()}
+                reply(("free", burst))
+                items = [(episode_tree({k: a[row] for k, a in columns.items()},
+                                       {k: a[row] for k, a in images.items()}, length, success), success, attrs)
+                         for row, length, success, attrs in demos]
+                futures = writer.put_many(items)
+            except Exception as e:  # noqa: BLE001 - handed to the collector
+                reply(("error", burst, _portable(e)))
+                continue
+            _when_all_done(futures, lambda fs, b=burst: done(b, fs))
+    finally:
+        try:
+            writer.close()
+        except Exception:  # noqa: BLE001 - each burst's futures already carry it to the collector
+            pass
+
+
+def _when_all_done(futures: list[Future], callback) -> None:
+    """Call ``callback(futures)`` once, when the last of them is done."""
+    left = [len(futures)]
+    lock = threading.Lock()
+
+    def one(_: Future) -> None:
+        with lock:
+            left[0] -= 1
+            last = left[0] == 0
+        if last:
+            callback(futures)
+
+    if not futures:
+        callback(futures)
+    for f in futures:
+        f.add_done_callback(one)
+
+
+def _portable(error: BaseException) -> BaseException:
+    """``error`` if it survives pickling, else a RuntimeError with its message."""
+    try:
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:  # noqa: BLE001 - any pickling failure
+        return RuntimeError(f"{type(error).__name__}: {error}")
+
+
+def main() -> None:
+    """Entry of the writer process: ``python -m newton_lab.datasets.writer_process FD`` (the ring's descriptor)."""
+    inbox, outbox = sys.stdin.buffer, os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)  # the pipe carries replies only: anything printed, by Python or a library, goes to stderr
+    sys.stdout = sys.stderr
+    _serve(int(sys.argv[1]), inbox, outbox)
+
+
+if __name__ == "__main__":
+    main()

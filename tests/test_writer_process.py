@@ -1,0 +1,126 @@
+"""The writer process of ``collect`` (``datasets.writer_process``): the demos it writes are those the writer thread
+writes, bit for bit (real physics, both formats); its shared ring reuses its room in order; a write error in the
+process reaches the collector in one line; a killed collector leaves a process that writes what it was given and
+exits."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+from newton_lab.agents import PlannerAgent
+from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episode
+from newton_lab.datasets.columns import ColumnLayout
+from newton_lab.datasets.writer_process import ProcessWriter, _Ring
+from newton_lab.envs import make_env
+from newton_lab.envs.rollout import WRITE_MIN_BATCH, _writer_kind
+
+LAYOUT = ColumnLayout({"obs/x": (0, 3), "states/joint_q": (3, 5), "states/joint_qd": (5, 7), "datagen/phase": (7, 8),
+                       "actions": (8, 10)}, 10, {"x": (0, 3)})
+
+
+def _leaves(tree, prefix=""):
+    for key, value in tree.items():
+        yield from _leaves(value, f"{prefix}{key}/") if isinstance(value, dict) else [(prefix + key, value)]
+
+
+@pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
+def test_the_writer_process_writes_the_demos_the_writer_thread_writes(tmp_path, suffix):
+    read = {}
+    for writer in ("thread", "process"):
+        env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=5, randomize=True, cameras=False)
+        path = tmp_path / f"{writer}{suffix}"
+        ref = env.collect(agent=PlannerAgent.from_task(env.task_id), episodes=3, path=path, max_steps=400,
+                          progress=False, writer=writer)
+        assert ref["saved_demo_ids"] == [0, 1, 2] and ref["successes"] == 3
+        assert ref.metadata["writer"] == {"thread": "BackgroundWriter", "process": "ProcessWriter"}[writer]
+        read[writer] = [dict(_leaves(read_episode(path, i))) for i in list_demos(path)]
+    for by_thread, by_process in zip(read["thread"], read["process"], strict=True):
+        assert by_thread.keys() == by_process.keys() and "next_obs/cube_pose" in by_thread
+        for key, value in by_thread.items():
+            assert np.array_equal(value, by_process[key]) and np.asarray(value).dtype == np.asarray(by_process[key]).dtype, key
+        assert by_process["dones"][-1] == 1 and by_process["attrs/success"]
+    assert _writer_kind("auto", WRITE_MIN_BATCH) == "process" and _writer_kind("auto", 2) == "thread"
+    with pytest.raises(ValueError, match="writer 'disk' is not one of auto, thread, process"):
+        _writer_kind("disk", 2)
+
+
+def test_the_ring_hands_out_room_first_in_first_out():
+    ring = _Ring(1024)
+    a, b = ring.take(400), ring.take(400)
+    assert (a, b) == (0, 448) and ring.take(400) is None  # 64-byte aligned; 848 + 448 > 1024
+    ring.give_back()  # a's room is free again: the next range wraps to the start
+    assert ring.take(300) == 0 and ring.take(200) is None  # 320 .. 448 is too small while b is held
+    ring.give_back()
+    assert ring.take(600) == 320  # after the wrapped range, up to the end
+    assert _Ring(64).take(65) is None
+
+
+def _block(rows: int, steps: int, seed: int) -> np.ndarray:
+    return np.random.default_rng(seed).standard_normal((rows, steps, LAYOUT.width)).astype(np.float32)
+
+
+def test_a_write_error_in_the_process_reaches_the_collector_in_one_line(tmp_path):
+    path = tmp_path / "d.zarr"
+    open_writer(path, task_id="t", env_args={})
+    writer = ProcessWriter(path, task_id="t", layout=LAYOUT)
+    ok = writer.put_block(_block(2, 4, 0), {}, [(0, 4, True, {"seed": 1}), (1, 3, False, {"seed": 1})])
+    assert ok.result(timeout=60) == [0, 1]
+    writer.put_block(_block(1, 4, 1), {}, [(0, 4, True, {"success": 1})])  # a reserved attr: refused by the writer
+    with pytest.raises(ValueError) as exc:
+        writer.flush()
+    assert "attr 'success' is set by the writer; pass success= instead" in str(exc.value)
+    assert "\n" not in str(exc.value)
+    writer.close()
+    info = read_dataset_info(path)
+    assert info["demo_ids"] == [0, 1] and info["total"] == 7
+    ep = read_episode(path, 1)
+    block = _block(2, 4, 0)
+    np.testing.assert_array_equal(ep["obs"]["x"], block[1, :3, 0:3])
+    np.testing.assert_array_equal(ep["next_obs"]["x"], block[1, :3, 11:14])
+    np.testing.assert_array_equal(ep["rewards"], block[1, :3, 10])
+    assert ep["dones"].tolist() == [0, 0, 0] and ep["attrs"]["seed"] == 1
+
+
+def test_a_killed_collector_leaves_a_writer_process_that_writes_what_it_got_and_exits(tmp_path):
+    path = tmp_path / "k.zarr"
+    child = textwrap.dedent(f"""
+        import sys, time, numpy as np
+        sys.path.insert(0, {os.path.dirname(__file__)!r})
+        from test_writer_process import LAYOUT, _block
+        from newton_lab.datasets import open_writer
+        from newton_lab.datasets.writer_process import ProcessWriter
+        open_writer({str(path)!r}, task_id="t", env_args={{}})
+        w = ProcessWriter({str(path)!r}, task_id="t", layout=LAYOUT)
+        for i in range(3):
+            w.put_block(_block(4, 6, i), {{}}, [(k, 6, True, {{}}) for k in range(4)])
+        w.flush()
+        print(w._proc.pid, flush=True)
+        time.sleep(600)
+    """)
+    collector = subprocess.Popen([sys.executable, "-c", child], stdout=subprocess.PIPE, text=True)
+    try:
+        writer_pid = int(collector.stdout.readline())
+    finally:
+        collector.send_signal(signal.SIGKILL)
+        collector.wait()
+    deadline = time.time() + 30
+    while time.time() < deadline and os.path.exists(f"/proc/{writer_pid}") and _state(writer_pid) != "Z":
+        time.sleep(0.1)
+    assert not os.path.exists(f"/proc/{writer_pid}") or _state(writer_pid) == "Z", "the writer process lives on"
+    assert read_dataset_info(path)["demo_ids"] == list(range(12))
+
+
+def _state(pid: int) -> str:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return "gone"
