@@ -19,6 +19,9 @@
 #   camera   newton-lab bench with the front head camera, RGB 128x128, at 4096 envs
 #   collect_ab  bench-collect of this checkout against BASE_SITE's package (another commit laid out by
 #            tools/gpu/lay_out_package.sh), this one again, then this one with --trace (collect_trace.json.gz)
+#   writer_ab  bench-collect with the writer thread against the writer process, twice each, alternating; then the
+#            process with the expert's re-plans in batches of 256 rows (--replan-batch 256 --replan-wait 12) and of 128
+#            (8), then the process under cProfile (writer_profile.txt)
 set -uo pipefail
 export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
 W=${W:-/tmp/w}; out=$W/p33; mkdir -p "$out"
@@ -74,6 +77,20 @@ s.sort_stats('tottime').print_stats(40)" "$out/collect.prof" > "$out/collect_pro
       --dataset-path "$W/bco_base.zarr"
     run ab_new2 $N $bc --dataset-path "$W/bco_new2.zarr"
     run ab_trace $N $bc --dataset-path "$W/bco_trace.zarr" --trace "$out/collect_trace.json.gz" ;;
-  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab)"; exit 2 ;;
+  writer_ab)
+    rm -rf "$W"/bcw*.zarr*
+    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
+    for k in 1 2; do
+      run "wr_thread$k" $N $bc --writer thread --dataset-path "$W/bcw_t$k.zarr"
+      run "wr_process$k" $N $bc --writer process --dataset-path "$W/bcw_p$k.zarr"
+    done
+    run wr_replan256 $N $bc --writer process --replan-batch 256 --replan-wait 12 --dataset-path "$W/bcw_r256.zarr"
+    run wr_replan128 $N $bc --writer process --replan-batch 128 --replan-wait 8 --dataset-path "$W/bcw_r128.zarr"
+    run wr_cprofile ${PY:-python3} -m cProfile -o "$out/writer.prof" -m newton_lab.cli $bc --writer process \
+      --dataset-path "$W/bcw_c.zarr"
+    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(50); \
+s.sort_stats('tottime').print_stats(40)" "$out/writer.prof" > "$out/writer_profile.txt" 2>&1
+    grep -h "demos/s\|stages\|hand-over\|physics-bound" "$out"/wr_*.log ;;
+  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab writer_ab)"; exit 2 ;;
   esac
 done
