@@ -139,19 +139,21 @@ def test_collect_drops_a_finite_diverged_episode(pick_env, tmp_path):
         assert ep["attrs"]["termination_reason"] != DIVERGED and np.abs(ep["obs"]["cube_pose"]).max() < 10
 
 
-def test_collect_skips_an_episode_with_a_non_finite_frame(pick_env, tmp_path, monkeypatch):
+@pytest.mark.parametrize("writer", ["thread", "process"])
+def test_collect_skips_an_episode_with_a_non_finite_frame(pick_env, tmp_path, monkeypatch, writer):
     """A non-finite frame the guard did not catch is dropped too, and counted as diverged (the recorded frame
-    itself is poisoned: the finiteness check runs on the copied buffers of all rows that ended together)."""
-    real = rollout.EpisodeRecorder.episodes
+    itself is poisoned: the finiteness check runs on the gathered buffers of all rows that ended together), whoever
+    writes the episodes."""
+    real = rollout.EpisodeRecorder.fetch
 
     def poisoned(self, rows, lengths):
         if 0 in list(rows):
-            self._frames[0, int(lengths[list(rows).index(0)]) - 1, self._slices["obs/cube_pose"].start] = float("nan")
+            self._frames[0, int(lengths[list(rows).index(0)]) - 1, self.layout.frame["obs/cube_pose"][0]] = float("nan")
         return real(self, rows, lengths)
 
-    monkeypatch.setattr(rollout.EpisodeRecorder, "episodes", poisoned)
+    monkeypatch.setattr(rollout.EpisodeRecorder, "fetch", poisoned)
     path = tmp_path / "poisoned.zarr"
-    ref = pick_env.collect(agent=ZeroAgent(), episodes=2, path=path, max_steps=3, progress=False)
+    ref = pick_env.collect(agent=ZeroAgent(), episodes=2, path=path, max_steps=3, progress=False, writer=writer)
     assert ref["diverged"] == 1 and ref["termination_reasons"] == {DIVERGED: 1, "max_steps": 1}
     ids = list_demos(path)
     assert len(ids) == 1 and _frames_finite(read_episode(path, ids[0]))
@@ -167,7 +169,7 @@ def test_finiteness_is_checked_over_each_episode_steps_only(pick_env):
     """The batched check looks at each row's own steps: a NaN left past a shorter episode's end (a stale step of
     an earlier episode in that row's buffer) does not drop it; one inside an episode does."""
     recorder = rollout.EpisodeRecorder(pick_env, 10)
-    col = recorder._slices["obs/cube_pose"].start
+    col = recorder.layout.frame["obs/cube_pose"][0]
     recorder._frames[0, 3, col] = float("nan")  # row 0 ends after 2 steps: stale
     recorder._frames[1, 1, col] = float("nan")  # row 1 runs 4 steps: inside
     trees, finite = recorder.episodes([0, 1], [2, 4])

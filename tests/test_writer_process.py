@@ -72,7 +72,7 @@ def test_a_write_error_in_the_process_reaches_the_collector_in_one_line(tmp_path
     open_writer(path, task_id="t", env_args={})
     writer = ProcessWriter(path, task_id="t", layout=LAYOUT)
     ok = writer.put_block(_block(2, 4, 0), {}, [(0, 4, True, {"seed": 1}), (1, 3, False, {"seed": 1})])
-    assert ok.result(timeout=60) == [0, 1]
+    assert [f.result(timeout=60) for f in ok] == [[0, 1]]
     writer.put_block(_block(1, 4, 1), {}, [(0, 4, True, {"success": 1})])  # a reserved attr: refused by the writer
     with pytest.raises(ValueError) as exc:
         writer.flush()
@@ -87,6 +87,21 @@ def test_a_write_error_in_the_process_reaches_the_collector_in_one_line(tmp_path
     np.testing.assert_array_equal(ep["next_obs"]["x"], block[1, :3, 11:14])
     np.testing.assert_array_equal(ep["rewards"], block[1, :3, 10])
     assert ep["dones"].tolist() == [0, 0, 0] and ep["attrs"]["seed"] == 1
+
+
+def test_a_block_larger_than_a_quarter_of_the_ring_goes_in_parts_of_whole_rows(tmp_path):
+    """Thousands of long episodes with images can end together: their block crosses in parts, none refused."""
+    path = tmp_path / "big.zarr"
+    open_writer(path, task_id="t", env_args={})
+    block, frames = _block(8, 6, 2), np.arange(8 * 6 * 4, dtype=np.uint8).reshape(8, 6, 2, 2)
+    row = block[0].nbytes + frames[0].nbytes
+    with ProcessWriter(path, task_id="t", layout=LAYOUT, ring_bytes=4 * 3 * row) as writer:  # 3 rows a part
+        parts = writer.put_block(block, {"cam": frames}, [(k, 6 - k % 2, True, {}) for k in range(7, -1, -1)])
+        assert [f.result(timeout=60) for f in parts] == [[0, 1, 2], [3, 4, 5], [6, 7]]
+    for demo, k in enumerate(range(7, -1, -1)):
+        ep = read_episode(path, demo)
+        np.testing.assert_array_equal(ep["obs"]["x"], block[k, :6 - k % 2, 0:3])
+        np.testing.assert_array_equal(ep["obs"]["cam"], frames[k, :6 - k % 2])
 
 
 def test_a_killed_collector_leaves_a_writer_process_that_writes_what_it_got_and_exits(tmp_path):

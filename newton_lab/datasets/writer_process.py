@@ -18,6 +18,8 @@ killed, the writer process reads the end of its pipe, writes what it has already
 
 from __future__ import annotations
 
+import cProfile
+import math
 import mmap
 import os
 import pickle
@@ -37,6 +39,8 @@ from .background import BackgroundWriter
 from .columns import ColumnLayout, episode_tree, split
 from .storage import EpisodeWriter
 
+PROFILE_ENV = "NEWTON_LAB_WRITER_PROFILE"
+"""Set to a path: the writer process profiles its batch writes (cProfile) and saves the stats there when it ends."""
 RING_BYTES = 1 << 30
 """Bytes of the shared ring (virtual: pages are backed only once a burst is copied into them)."""
 _ALIGN = 64
@@ -73,6 +77,10 @@ class _Ring:
         """Free the oldest range."""
         self._taken.popleft()
 
+    def held(self) -> int:
+        """Ranges taken and not given back."""
+        return len(self._taken)
+
 
 class ProcessWriter:
     """The collecting side: :meth:`put_block` copies a burst into the ring and queues it; futures give each demo's id
@@ -104,33 +112,49 @@ class ProcessWriter:
         self._reader = threading.Thread(target=self._read, name=f"writer process {self.path.name}", daemon=True)
         self._reader.start()
 
-    def put_block(self, stacked, images: dict[str, Any], demos: list[tuple[int, int, bool, dict[str, Any]]]) -> Future:
+    def put_block(self, stacked, images: dict[str, Any],
+                  demos: list[tuple[int, int, bool, dict[str, Any]]]) -> list[Future]:
         """Queue the episodes of a block: ``stacked`` (rows, steps, ``layout.width``) float32 (a torch tensor on any
         device, or numpy), ``images`` term -> (rows, steps, ...) of the same rows, and per demo ``(row in the block,
-        length, success, attrs)``. Blocks while the ring has no room; returns a future of the demos' ids (a list, once
-        all of them are durable) or of the write's error."""
+        length, success, attrs)``. Blocks while the ring has no room. A block larger than a quarter of the ring (many
+        long episodes with images) goes in parts of whole rows. Returns one future per part: the ids of its demos (a
+        list, once all of them are durable) or the write's error."""
+        row_bytes = sum(math.prod(a.shape[1:]) * _itemsize(a) for a in (stacked, *images.values()))
+        per_part = max(1, self._ring.size // 4 // max(row_bytes, 1))
+        futures = []
+        for first in range(0, len(demos), per_part):
+            part = demos[first:first + per_part]
+            rows = [row for row, _, _, _ in part]
+            if len(part) == len(demos):
+                futures.append(self._put_part(stacked, images, part))
+            else:  # each part's rows, renumbered from 0
+                futures.append(self._put_part(stacked[rows], {k: v[rows] for k, v in images.items()},
+                                              [(k, *rest) for k, (_, *rest) in enumerate(part)]))
+        return futures
+
+    def _put_part(self, stacked, images: dict[str, Any], demos: list) -> Future:
         arrays = [("", stacked)] + list(images.items())
-        sizes = [int(np.prod(a.shape)) * _itemsize(a) for _, a in arrays]
+        sizes = [-(-math.prod(a.shape) * _itemsize(a) // _ALIGN) * _ALIGN for _, a in arrays]
         with self._cv:
             self._raise(always=True)
-            start = None
+            start = self._ring.take(sum(sizes))
             while start is None:
-                start = self._ring.take(sum(-(-n // _ALIGN) * _ALIGN for n in sizes))
-                if start is None:
-                    if len(self._ring._taken) == 0:
-                        raise MemoryError(f"a burst of {sum(sizes) / 2**20:.0f} MiB does not fit the writer's "
-                                          f"{self._ring.size / 2**20:.0f} MiB ring; record fewer rows (--num-envs)")
-                    self._cv.wait(0.5)
-                    self._raise(always=True)
-                    if self._proc.poll() is not None:
-                        raise RuntimeError(f"the writer process of {self.path} exited (code {self._proc.returncode})")
+                if not self._ring.held():
+                    raise MemoryError(f"an episode of {sum(sizes) / 2**20:.0f} MiB does not fit the writer's "
+                                      f"{self._ring.size / 2**20:.0f} MiB ring; record shorter episodes or smaller "
+                                      f"frames, or pass writer='thread'")
+                self._cv.wait(0.5)
+                self._raise(always=True)
+                if self._proc.poll() is not None:
+                    raise RuntimeError(f"the writer process of {self.path} exited (code {self._proc.returncode})")
+                start = self._ring.take(sum(sizes))
             burst, self._next = self._next, self._next + 1
             future = self._pending[burst] = Future()
         specs, at = [], start
         for (name, arr), n in zip(arrays, sizes):
             _copy_into(self._buf, at, arr)
             specs.append((name, at, tuple(arr.shape), _dtype(arr)))
-            at += -(-n // _ALIGN) * _ALIGN
+            at += n
         self._send(("burst", burst, specs, demos))
         with self._cv:
             self._raise(always=True)
@@ -245,12 +269,18 @@ def _serve(fd: int, inbox, outbox) -> None:
     buf = mmap.mmap(fd, ring_bytes)
     store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync)
     spent = {"write": 0.0}
+    profile_to = os.environ.get(PROFILE_ENV)
+    profiler = cProfile.Profile() if profile_to else None
 
     def timed(batch):
         t0 = time.perf_counter()
+        if profiler is not None:
+            profiler.enable()
         try:
             return append(batch)
         finally:
+            if profiler is not None:
+                profiler.disable()
             spent["write"] += time.perf_counter() - t0
 
     append, store.append_prepared = store.append_prepared, timed
@@ -293,6 +323,8 @@ def _serve(fd: int, inbox, outbox) -> None:
             writer.close()
         except Exception:  # noqa: BLE001 - each burst's futures already carry it to the collector
             pass
+        if profiler is not None:
+            profiler.dump_stats(profile_to)
 
 
 def _when_all_done(futures: list[Future], callback) -> None:

@@ -113,8 +113,8 @@ class EpisodeSaver:
                     got = got._replace(stacked=got.stacked[idx], images={k: v[idx] for k, v in got.images.items()})
                     demos = [(i, *rest) for i, (_, *rest) in enumerate(demos)]
                 span = max(length for _, length, _, _ in demos)
-                self._futures.append(self.writer.put_block(got.stacked[:, :span],
-                                                           {k: v[:, :span] for k, v in got.images.items()}, demos))
+                self._futures += self.writer.put_block(got.stacked[:, :span],
+                                                       {k: v[:, :span] for k, v in got.images.items()}, demos)
         if self._batch:
             batch, self._batch = self._batch, []
             self._futures += self.writer.put_many(batch)
@@ -129,6 +129,6 @@ class EpisodeSaver:
 
     def saved_ids(self) -> list[int]:
         """Demo ids of the episodes written, in the order they finished (after :meth:`close`)."""
-        if self.blocks:  # one future per block: its demos' ids
+        if self.blocks:  # one future per part of a block: its demos' ids
             return [demo_id for f in self._futures for demo_id in f.result()]
         return [f.result() for f in self._futures]
