@@ -22,6 +22,9 @@
 #   writer_ab  bench-collect with the writer thread against the writer process, twice each, alternating; then the
 #            process with the expert's re-plans in batches of 256 rows (--replan-batch 256 --replan-wait 12) and of 128
 #            (8), then the process under cProfile (writer_profile.txt)
+#   writer_threads  bench-collect with the writer process at 8 chunk threads (the default on a host of 8 cores or
+#            more) and at 24 (NEWTON_LAB_ZARR_PACK_THREADS), alternating with the writer thread; then 24 threads
+#            with re-plans in batches of 256, and the writer process's own profile (writer_process_profile.txt)
 set -uo pipefail
 export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
 W=${W:-/tmp/w}; out=$W/p33; mkdir -p "$out"
@@ -91,6 +94,22 @@ s.sort_stats('tottime').print_stats(40)" "$out/collect.prof" > "$out/collect_pro
     ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(50); \
 s.sort_stats('tottime').print_stats(40)" "$out/writer.prof" > "$out/writer_profile.txt" 2>&1
     grep -h "demos/s\|stages\|hand-over\|physics-bound" "$out"/wr_*.log ;;
-  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab writer_ab)"; exit 2 ;;
+  writer_threads)
+    rm -rf "$W"/bcx*.zarr*
+    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
+    for k in 1 2; do
+      run "wx_process8_$k" $N $bc --writer process --dataset-path "$W/bcx_p8_$k.zarr"
+      run "wx_process24_$k" env NEWTON_LAB_ZARR_PACK_THREADS=24 $N $bc --writer process \
+        --dataset-path "$W/bcx_p24_$k.zarr"
+      run "wx_thread_$k" $N $bc --writer thread --dataset-path "$W/bcx_t_$k.zarr"
+    done
+    run wx_process24_r256 env NEWTON_LAB_ZARR_PACK_THREADS=24 $N $bc --writer process --replan-batch 256 \
+      --replan-wait 12 --dataset-path "$W/bcx_p24r.zarr"
+    run wx_profile env NEWTON_LAB_WRITER_PROFILE="$out/writer_process.prof" $N $bc --writer process \
+      --dataset-path "$W/bcx_prof.zarr"
+    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(40); \
+s.sort_stats('tottime').print_stats(30)" "$out/writer_process.prof" > "$out/writer_process_profile.txt" 2>&1
+    for f in "$out"/wx_*.log; do echo "## $(basename "$f")"; grep -h "demos/s\|stages\|hand-over" "$f"; done ;;
+  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab writer_ab writer_threads)"; exit 2 ;;
   esac
 done
