@@ -17,13 +17,14 @@ import pytest
 
 from newton_lab.agents import PlannerAgent
 from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episode
-from newton_lab.datasets.columns import ColumnLayout
+from newton_lab.datasets.columns import ColumnLayout, DemoBlock
+from newton_lab.datasets.zarr_packs import read_index
 from newton_lab.datasets.writer_process import ProcessWriter, _Ring
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import WRITE_MIN_BATCH, _writer_kind
 
 LAYOUT = ColumnLayout({"obs/x": (0, 3), "states/joint_q": (3, 5), "states/joint_qd": (5, 7), "datagen/phase": (7, 8),
-                       "actions": (8, 10)}, 10, {"x": (0, 3)})
+                       "datagen/subtask_signals/grasp": (8, 9), "actions": (9, 11)}, 11, {"x": (0, 3)})
 
 
 def _leaves(tree, prefix=""):
@@ -64,7 +65,10 @@ def test_the_ring_hands_out_room_first_in_first_out():
 
 
 def _block(rows: int, steps: int, seed: int) -> np.ndarray:
-    return np.random.default_rng(seed).standard_normal((rows, steps, LAYOUT.width)).astype(np.float32)
+    """Random frames whose next observation is the next frame's observation (as a recorder's are)."""
+    block = np.random.default_rng(seed).standard_normal((rows, steps, LAYOUT.width)).astype(np.float32)
+    block[:, :-1, 12:15] = block[:, 1:, 0:3]
+    return block
 
 
 def test_a_write_error_in_the_process_reaches_the_collector_in_one_line(tmp_path):
@@ -84,9 +88,32 @@ def test_a_write_error_in_the_process_reaches_the_collector_in_one_line(tmp_path
     ep = read_episode(path, 1)
     block = _block(2, 4, 0)
     np.testing.assert_array_equal(ep["obs"]["x"], block[1, :3, 0:3])
-    np.testing.assert_array_equal(ep["next_obs"]["x"], block[1, :3, 11:14])
-    np.testing.assert_array_equal(ep["rewards"], block[1, :3, 10])
+    np.testing.assert_array_equal(ep["next_obs"]["x"], block[1, :3, 12:15])
+    np.testing.assert_array_equal(ep["rewards"], block[1, :3, 11])
     assert ep["dones"].tolist() == [0, 0, 0] and ep["attrs"]["seed"] == 1
+
+
+def test_a_block_is_packed_as_its_demos_trees_would_be(tmp_path):
+    """zarr packs a batch of joined demos (``EpisodeWriter.append_block``) byte for byte as it packs their trees."""
+    frames = np.random.default_rng(4).integers(0, 255, (40, 9, 2, 2, 3), dtype=np.uint8)
+    block = DemoBlock.from_rows(LAYOUT, _block(40, 9, 3), {"cam": frames},
+                                [(k, 3 + k % 7, k % 3 == 0, {"seed": k}) for k in range(39, -1, -1)])
+    joined, trees = tmp_path / "joined.zarr", tmp_path / "trees.zarr"
+    for path in (joined, trees):
+        open_writer(path, task_id="t", env_args={})
+    assert open_writer(joined, task_id="t", env_args={}).append_block(block) == list(range(40))
+    items = list(zip(block.trees(), block.successes, block.attrs))
+    assert open_writer(trees, task_id="t", env_args={}).append_episodes(items) == list(range(40))
+    index = read_index(joined / "data" / "pack_0")
+    assert index == read_index(trees / "data" / "pack_0") and index["arrays"]["next_obs/x"].startswith("next:")
+    for demo in range(40):
+        a, b = dict(_leaves(read_episode(joined, demo))), dict(_leaves(read_episode(trees, demo)))
+        assert a.keys() == b.keys() and "obs/cam" in a and "datagen/subtask_signals/grasp" in a
+        for key, value in a.items():
+            assert np.array_equal(value, b[key]) and np.asarray(value).dtype == np.asarray(b[key]).dtype, key
+    first = read_episode(joined, 0)  # row 39: 3 + 39 % 7 = 7 steps, a success
+    np.testing.assert_array_equal(first["obs"]["cam"], frames[39, :7])
+    assert first["dones"].tolist() == [0] * 6 + [1] and first["attrs"]["seed"] == 39
 
 
 def test_a_block_larger_than_a_quarter_of_the_ring_goes_in_parts_of_whole_rows(tmp_path):

@@ -1,11 +1,13 @@
-"""Episode columns: the per-step arrays of many recorded episodes side by side, one ``(rows, steps, width)`` float32
-block, and the robomimic episode tree of one of them.
+"""Recorded episodes as columns: ``collect``'s per-step arrays of many episodes side by side, and the robomimic episode
+trees they make.
 
 ``collect``'s recorder (``envs.recorder``) stacks every row's frames as ``[frame | reward | next observation]``
-along the last axis; ``ColumnLayout`` names where each array lies in it. It is plain data (picklable, no torch), so
-the episode trees can be built where the episodes are written: in the collecting process (``EpisodeRecorder``) or
-in a writer process of its own (``datasets.writer_process``), which takes that per-demo Python off the simulation's
-interpreter.
+along the last axis of one ``(rows, steps, width)`` float32 block; ``ColumnLayout`` names where each array lies in
+it. A ``DemoBlock`` holds finished episodes of such a block joined along time (each demo's steps after the last
+one's): every array of a whole batch of demos is one slice of it, which is what a zarr pack stores
+(``zarr_packs``), so a writer can pack a batch without building, checking and re-joining one tree per demo. Both
+are plain numpy (picklable, no torch): the same code serves the collecting process and a writer process of its own
+(``datasets.writer_process``).
 """
 
 from __future__ import annotations
@@ -16,6 +18,9 @@ from typing import Any
 import numpy as np
 
 from ._common import put
+
+STATES = ("states/joint_q", "states/joint_qd")
+"""Frame arrays joined side by side into a demo's flat ``states`` (joint_q then joint_qd)."""
 
 
 @dataclass(frozen=True)
@@ -36,40 +41,100 @@ class ColumnLayout:
         return self.frame_width + 1 + max((stop for _, stop in self.next_obs.values()), default=0)
 
 
-def split(layout: ColumnLayout, block: np.ndarray) -> dict[str, np.ndarray]:
-    """A host block ``(rows, steps, layout.width)`` split by array, each ``(rows, steps, width)`` and contiguous
-    (``rewards``: ``(rows, steps)``): a writer joining hundreds of demos into a pack then copies whole blocks instead of
-    strided column slices of every demo (512 PickCube demos on the CPU: 0.40 -> 0.28 ms a demo, noisy)."""
-    after = layout.frame_width + 1  # next observations follow the frame and the reward
-    columns = {key: np.ascontiguousarray(block[:, :, a:b]) for key, (a, b) in layout.frame.items()}
-    columns["rewards"] = np.ascontiguousarray(block[:, :, layout.frame_width])
-    columns.update({f"next_obs/{key}": np.ascontiguousarray(block[:, :, after + a: after + b])
-                    for key, (a, b) in layout.next_obs.items()})
-    return columns
+@dataclass
+class DemoBlock:
+    """Finished episodes joined along time: ``frames`` (sum of lengths, ``layout.width``) float32 and each image
+    term (sum of lengths, ...) hold demo 0's steps, then demo 1's, ...; per demo its length, success and attrs."""
 
+    layout: ColumnLayout
+    frames: np.ndarray
+    images: dict[str, np.ndarray]
+    lengths: list[int]
+    successes: list[bool]
+    attrs: list[dict[str, Any]]
 
-def episode_tree(columns: dict[str, np.ndarray], images: dict[str, np.ndarray], length: int,
-                 success: bool | None = None) -> dict[str, Any]:
-    """One finished episode as a nested dict of numpy arrays (robomimic layout) from its rows of :func:`split`
-    (``(steps, width)`` each, ``steps >= length``) and its image terms (``(steps, ...)`` each): ``actions``, ``obs/*``
-    (image terms too: (T, H, W, 3) uint8 RGB, (T, H, W) float32 depth [m], (T, H, W) int32 segmentation),
-    ``next_obs/*`` (the low-dim observation after each step), flat ``states`` (T, joint_q + joint_qd; named by
-    ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step, ``dones`` (T,) zeros, its last
-    step ``success`` when given (robomimic marks a successful episode's end so), ``initial_state`` (1, D) and
-    ``datagen/*`` (with cameras: ``camera_poses/<camera>`` (T, 7) world pose, xyz + quaternion xyzw, pinhole frame)."""
-    flat = {key: arr[:length] for key, arr in columns.items()}
-    states = np.concatenate([flat.pop("states/joint_q"), flat.pop("states/joint_qd")], axis=1)
-    tree: dict[str, Any] = {"actions": flat.pop("actions"), "states": states, "obs": {}, "datagen": {},
-                            "next_obs": {}, "rewards": flat.pop("rewards"), "dones": np.zeros(length, dtype=np.int64)}
-    if success is not None and length:
-        tree["dones"][-1] = int(success)
-    for key, arr in flat.items():
-        put(tree, key, arr)
-    for name, img in images.items():
-        tree["obs"][name] = np.asarray(img[:length])
-    tree["datagen"]["subtask_signals"] = {
-        k: v[:, 0].astype(bool) for k, v in tree["datagen"].get("subtask_signals", {}).items()
-    }
-    tree["datagen"]["phase"] = tree["datagen"]["phase"][:, 0].astype(np.int32)
-    tree["initial_state"] = states[:1]
-    return tree
+    @classmethod
+    def from_rows(cls, layout: ColumnLayout, stacked: np.ndarray, images: dict[str, np.ndarray],
+                  demos: list[tuple[int, int, bool | None, dict[str, Any]]]) -> DemoBlock:
+        """The demos ``(row, length, success, attrs)`` of a ``(rows, steps, width)`` block and its image terms
+        ``(rows, steps, ...)``, copied out (one gather per array: the block may be reused at once)."""
+        rows = np.asarray([row for row, _, _, _ in demos], dtype=np.int64)
+        lengths = [int(length) for _, length, _, _ in demos]
+        span = stacked.shape[1]
+        inside = np.arange(span)[None, :] < np.asarray(lengths, dtype=np.int64)[:, None]  # (demos, span)
+        whole = len(rows) == stacked.shape[0] and bool((rows == np.arange(len(rows))).all())
+
+        def gather(arr: np.ndarray) -> np.ndarray:
+            return (arr if whole else arr[rows])[inside]
+
+        return cls(layout, gather(stacked), {name: gather(img) for name, img in images.items()}, lengths,
+                   [s for _, _, s, _ in demos], [dict(a) for _, _, _, a in demos])
+
+    @classmethod
+    def join(cls, blocks: list[DemoBlock]) -> DemoBlock:
+        """One block of the demos of ``blocks``, in order."""
+        if len(blocks) == 1:
+            return blocks[0]
+        return cls(blocks[0].layout, np.concatenate([b.frames for b in blocks]),
+                   {name: np.concatenate([b.images[name] for b in blocks]) for name in blocks[0].images},
+                   [n for b in blocks for n in b.lengths], [s for b in blocks for s in b.successes],
+                   [a for b in blocks for a in b.attrs])
+
+    def __len__(self) -> int:
+        return len(self.lengths)
+
+    @property
+    def starts(self) -> np.ndarray:
+        """Each demo's first row in the joined arrays."""
+        return np.concatenate([[0], np.cumsum(self.lengths[:-1], dtype=np.int64)]).astype(np.int64)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every array of the demos, joined, by its path in an episode tree (``obs/<term>``, ``datagen/...``; see
+        :meth:`trees`), contiguous; ``initial_state`` holds one row per demo."""
+        f, lay = self.frames, self.layout
+        out = {key: np.ascontiguousarray(f[:, a:b]) for key, (a, b) in lay.frame.items() if key not in STATES}
+        out["states"] = np.concatenate([f[:, slice(*lay.frame[key])] for key in STATES], axis=1)
+        out["rewards"] = np.ascontiguousarray(f[:, lay.frame_width])
+        after = lay.frame_width + 1
+        out.update({f"next_obs/{key}": np.ascontiguousarray(f[:, after + a:after + b])
+                    for key, (a, b) in lay.next_obs.items()})
+        dones = np.zeros(len(f), dtype=np.int64)
+        ends = self.starts + np.asarray(self.lengths, dtype=np.int64) - 1
+        for end, success in zip(ends.tolist(), self.successes):
+            if success is not None and end >= 0:
+                dones[end] = int(success)
+        out["dones"] = dones
+        for key in [k for k in out if k.startswith("datagen/subtask_signals/")]:
+            out[key] = out[key][:, 0].astype(bool)
+        out["datagen/phase"] = out["datagen/phase"][:, 0].astype(np.int32)
+        out["initial_state"] = out["states"][self.starts]
+        out.update({f"obs/{name}": img for name, img in self.images.items()})
+        return out
+
+    def trees(self) -> list[dict[str, Any]]:
+        """One nested dict of numpy arrays per demo (robomimic layout; views of one joined copy): ``actions``,
+        ``obs/*`` (image terms too: (T, H, W, 3) uint8 RGB, (T, H, W) float32 depth [m], (T, H, W) int32
+        segmentation), ``next_obs/*`` (the low-dim observation after each step), flat ``states`` (T, joint_q +
+        joint_qd; named by ``env_args`` ``state_layout``), ``rewards`` (T,) the env's reward of each step, ``dones``
+        (T,) zeros, the last step 1 for a success (robomimic's mark; a demo whose success is None keeps 0),
+        ``initial_state`` (1, D) and ``datagen/*`` (``subtask_signals/<name>`` (T,) bool, ``phase`` (T,) int32; with
+        cameras ``camera_poses/<camera>`` (T, 7) world pose, xyz + quaternion xyzw, pinhole frame)."""
+        arrays = self.arrays()
+        initial = arrays.pop("initial_state")
+        out = []
+        for k, (start, length) in enumerate(zip(self.starts.tolist(), self.lengths)):
+            tree: dict[str, Any] = {"obs": {}, "datagen": {"subtask_signals": {}}, "next_obs": {}}
+            for key, arr in arrays.items():
+                put(tree, key, arr[start:start + length])
+            tree["initial_state"] = initial[k:k + 1]
+            out.append(tree)
+        return out
+
+    def pack_layout(self, arrays: dict[str, np.ndarray]) -> dict[str, int | None] | None:
+        """The zarr pack index's ``arrays`` for :meth:`arrays` (what ``zarr_packs.layout`` makes of the demos'
+        trees: None per step, 1 for ``initial_state``), or None where a tree holds an empty group (a task without
+        subtask signals), which a pack cannot hold."""
+        if not any(key.startswith("datagen/subtask_signals/") for key in arrays) or not self.layout.next_obs:
+            return None
+        every_step = all(n == 1 for n in self.lengths)  # then initial_state has as many rows as the demo has steps
+        return {key: (None if key != "initial_state" or every_step else 1) for key in arrays}

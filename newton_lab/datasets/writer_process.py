@@ -1,6 +1,6 @@
-"""A writer process for ``collect``: ended episodes cross to it as whole column blocks in shared memory, and it builds
-their trees, checks them and writes them (``datasets.background`` batching, one write session per batch) beside the
-simulation.
+"""A writer process for ``collect``: ended episodes cross to it as whole column blocks in shared memory, and it writes
+them beside the simulation (``datasets.writer_serve``: joined by array, batched, a zarr batch packed straight from
+the columns).
 
 Why a process: with thousands of rows the episodes end in bursts (the rows start together), and in one interpreter
 the per-demo Python of a burst (splitting the copy by array, each demo's tree, the writer's checks, the pack's
@@ -18,7 +18,6 @@ killed, the writer process reads the end of its pipe, writes what it has already
 
 from __future__ import annotations
 
-import cProfile
 import math
 import mmap
 import os
@@ -26,21 +25,16 @@ import pickle
 import subprocess
 import sys
 import threading
-import time
 from collections import deque
 from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
-from . import zarr_store
-from .background import BackgroundWriter
-from .columns import ColumnLayout, episode_tree, split
-from .storage import EpisodeWriter
+from .columns import ColumnLayout
 
-PROFILE_ENV = "NEWTON_LAB_WRITER_PROFILE"
-"""Set to a path: the writer process profiles its batch writes (cProfile) and saves the stats there when it ends."""
 RING_BYTES = 1 << 30
 """Bytes of the shared ring (virtual: pages are backed only once a burst is copied into them)."""
 _ALIGN = 64
@@ -103,7 +97,7 @@ class ProcessWriter:
         self._error: BaseException | None = None
         self._raised = self._closed = False
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", "newton_lab.datasets.writer_process", str(self._fd)], stdin=subprocess.PIPE,
+            [sys.executable, "-m", "newton_lab.datasets.writer_serve", str(self._fd)], stdin=subprocess.PIPE,
             stdout=subprocess.PIPE, pass_fds=(self._fd,), close_fds=True)
         os.set_inheritable(self._fd, False)
         self._send(("open", str(self.path), task_id, fsync, ring_bytes, layout,
@@ -245,122 +239,8 @@ def _dtype(arr) -> str:
 
 def _copy_into(buf: mmap.mmap, at: int, arr) -> None:
     """Copy ``arr`` (numpy, or a torch tensor on any device: one device->host copy) into ``buf`` at byte ``at``."""
-    if hasattr(arr, "element_size"):
-        import torch  # deferred: only the collecting process has torch; this module also runs in the writer process
-
+    if isinstance(arr, torch.Tensor):
         dest = torch.frombuffer(buf, dtype=arr.dtype, count=arr.numel(), offset=at).view(arr.shape)
         dest.copy_(arr)
     else:
         np.frombuffer(buf, dtype=arr.dtype, count=arr.size, offset=at).reshape(arr.shape)[...] = arr
-
-
-# ----------------------------------------------------------------------------- the writer process
-def _serve(fd: int, inbox, outbox) -> None:
-    """Open the dataset, then turn each burst into episodes and queue them on a ``BackgroundWriter``; reply as
-    ``ProcessWriter._read`` expects. Ends at ``close`` or at the end of the pipe (the collector is gone)."""
-    lock = threading.Lock()
-
-    def reply(message: tuple) -> None:
-        with lock:
-            pickle.dump(message, outbox, protocol=pickle.HIGHEST_PROTOCOL)
-            outbox.flush()
-
-    _, path, task_id, fsync, ring_bytes, layout, settings = pickle.load(inbox)
-    buf = mmap.mmap(fd, ring_bytes)
-    store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync)
-    spent = {"write": 0.0}
-    profile_to = os.environ.get(PROFILE_ENV)
-    profiler = cProfile.Profile() if profile_to else None
-
-    def timed(batch):
-        t0 = time.perf_counter()
-        if profiler is not None:
-            profiler.enable()
-        try:
-            return append(batch)
-        finally:
-            if profiler is not None:
-                profiler.disable()
-            spent["write"] += time.perf_counter() - t0
-
-    append, store.append_prepared = store.append_prepared, timed
-    writer = BackgroundWriter(store, **settings)
-
-    def done(burst: int, futures: list[Future]) -> None:
-        errors = [f.exception() for f in futures if f.exception() is not None]
-        if errors:
-            reply(("error", burst, _portable(errors[0])))
-        else:
-            seconds = {"write": spent["write"], "files": zarr_store.BATCH_SECONDS["files"],
-                       "sync": zarr_store.BATCH_SECONDS["sync"]}
-            reply(("written", burst, [f.result() for f in futures], seconds, writer.batches))
-
-    try:
-        while True:
-            try:
-                message = pickle.load(inbox)
-            except EOFError:
-                break
-            if message[0] == "close":
-                break
-            _, burst, specs, demos = message
-            try:
-                arrays = {name: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape)), offset=at).reshape(shape)
-                          for name, at, shape, dtype in specs}
-                columns = split(layout, arrays.pop(""))  # copies: the burst's room in the ring goes back now
-                images = {name: arr.copy() for name, arr in arrays.items()}
-                reply(("free", burst))
-                items = [(episode_tree({k: a[row] for k, a in columns.items()},
-                                       {k: a[row] for k, a in images.items()}, length, success), success, attrs)
-                         for row, length, success, attrs in demos]
-                futures = writer.put_many(items)
-            except Exception as e:  # noqa: BLE001 - handed to the collector
-                reply(("error", burst, _portable(e)))
-                continue
-            _when_all_done(futures, lambda fs, b=burst: done(b, fs))
-    finally:
-        try:
-            writer.close()
-        except Exception:  # noqa: BLE001 - each burst's futures already carry it to the collector
-            pass
-        if profiler is not None:
-            profiler.dump_stats(profile_to)
-
-
-def _when_all_done(futures: list[Future], callback) -> None:
-    """Call ``callback(futures)`` once, when the last of them is done."""
-    left = [len(futures)]
-    lock = threading.Lock()
-
-    def one(_: Future) -> None:
-        with lock:
-            left[0] -= 1
-            last = left[0] == 0
-        if last:
-            callback(futures)
-
-    if not futures:
-        callback(futures)
-    for f in futures:
-        f.add_done_callback(one)
-
-
-def _portable(error: BaseException) -> BaseException:
-    """``error`` if it survives pickling, else a RuntimeError with its message."""
-    try:
-        pickle.loads(pickle.dumps(error))
-        return error
-    except Exception:  # noqa: BLE001 - any pickling failure
-        return RuntimeError(f"{type(error).__name__}: {error}")
-
-
-def main() -> None:
-    """Entry of the writer process: ``python -m newton_lab.datasets.writer_process FD`` (the ring's descriptor)."""
-    inbox, outbox = sys.stdin.buffer, os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # the pipe carries replies only: anything printed, by Python or a library, goes to stderr
-    sys.stdout = sys.stderr
-    _serve(int(sys.argv[1]), inbox, outbox)
-
-
-if __name__ == "__main__":
-    main()

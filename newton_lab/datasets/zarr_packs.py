@@ -59,13 +59,15 @@ def pack_first_of(name: str) -> int | None:
 
 class PackJob(NamedTuple):
     """One pack to write: its folder, per demo its id, attrs (``num_samples`` included) and arrays by path
-    (``{"obs/x": array}``), and the pack's ``layout``."""
+    (``{"obs/x": array}``), and the pack's ``layout``; or, instead of the per-demo arrays, every array already
+    joined (``joined``: a ``columns.DemoBlock``'s ``arrays()``)."""
 
     node: Path
     ids: list[int]
     attrs: list[dict[str, Any]]
-    flats: list[dict[str, np.ndarray]]
+    flats: list[dict[str, np.ndarray]] | None
     layout: dict[str, int | None]
+    joined: dict[str, np.ndarray] | None = None
 
 
 def _flat(tree: dict[str, Any], prefix: str = "") -> dict[str, np.ndarray] | None:
@@ -136,11 +138,16 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks:
     demos = {str(i): [k, s, a] for k, (i, s, a) in enumerate(zip(job.ids, starts, job.attrs))}
 
     def joined(key: str) -> np.ndarray:
+        if job.joined is not None:
+            return job.joined[key]
         parts = [f[key] for f in job.flats]
         return np.stack(parts) if job.layout[key] == 0 else np.concatenate(parts)
 
+    def ndim(key: str) -> int:  # of one demo's array
+        return job.joined[key].ndim if job.joined is not None else job.flats[0][key].ndim
+
     # arrays that repeat another become a reference (``zarr_derived``); images are never compared (nor held at once)
-    values = {key: joined(key) for key in job.layout if job.flats[0][key].ndim < 3}
+    values = {key: joined(key) for key in job.layout if ndim(key) < 3}
     found = derive(values, {k: rows for k, rows in job.layout.items() if k in values}, counts)
     arrays = {key: found.get(key, rows) for key, rows in job.layout.items()}
     write_group(job.node, {"pack": {"arrays": arrays, "demos": demos}})

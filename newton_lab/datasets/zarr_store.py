@@ -163,18 +163,32 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
     On any error the batch is taken out again (the dataset stays as it was). zarr does not cancel the
     sibling writes of a failed one: they can only land in the batch's unique staging folder. The cost per
     demo does not depend on how many the dataset holds (no scan of ``data/``)."""
+    writers = zarr_workers.WRITE_THREADS if fault_injected() else zarr_workers.WRITE_PROCESSES
+    return _append_jobs(path, len(items), sum(int(n) for _, _, n in items), fsync,
+                        lambda stage, ids: batch_jobs(stage, ids, _unpacked(items), writers))
+
+
+def append_joined(path: Path, arrays: dict[str, np.ndarray], layout: dict[str, int | None],
+                  attrs: list[dict[str, Any]], fsync: bool) -> list[int]:
+    """As :func:`append`, for demos whose arrays come joined (``columns.DemoBlock.arrays``; ``attrs`` per demo with
+    its ``num_samples``): one pack, written straight from them."""
+    return _append_jobs(path, len(attrs), sum(int(a["num_samples"]) for a in attrs), fsync,
+                        lambda stage, ids: [PackJob(stage / pack_name(ids[0]), ids, attrs, None, layout, arrays)])
+
+
+def _append_jobs(path: Path, demos: int, samples: int, fsync: bool, make_jobs) -> list[int]:
+    """The batch write of :func:`append`: ``make_jobs(stage, ids)`` gives the write jobs of the ``demos`` new ids."""
     with locked(path) as data:
         next_id, total, count = _counters(data, path)
         _clean_tail(path, next_id)
-        ids = list(range(next_id, next_id + len(items)))
+        ids = list(range(next_id, next_id + demos))
         stage = path / "data" / STAGING / uuid.uuid4().hex
         before = {NEXT_ID: next_id, "total": total, "num_demos": count}
         attempted, names = False, []
         try:
             data.require_group(STAGING)
             write_group(stage, {})
-            writers = zarr_workers.WRITE_THREADS if fault_injected() else zarr_workers.WRITE_PROCESSES
-            jobs = batch_jobs(stage, ids, _unpacked(items), writers)
+            jobs = make_jobs(stage, ids)
             names = [(job.node if isinstance(job, PackJob) else job[0]).name for job in jobs]
             t0 = time.perf_counter()
             zarr_workers.write_batch(path, jobs)
@@ -188,8 +202,7 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
             if fsync:
                 fsync_path(path / "data")
             attempted = True
-            _commit(data, {NEXT_ID: next_id + len(ids), "total": total + sum(int(n) for _, _, n in items),
-                           "num_demos": count + len(ids)})
+            _commit(data, {NEXT_ID: next_id + len(ids), "total": total + samples, "num_demos": count + len(ids)})
             if fsync:
                 fsync_path(path / "data" / "zarr.json")
                 fsync_path(path / "data")

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 import warp as wp
 
-from ..datasets.columns import ColumnLayout, episode_tree, split
+from ..datasets.columns import ColumnLayout, DemoBlock
 from ..datasets.states import state_layout
 
 IMAGE_CHUNK_STEPS = 64
@@ -119,29 +119,37 @@ class EpisodeRecorder:
         steps = torch.arange(span, device=idx.device)
         past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
         ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)
-        images = {name: buf[idx, :span] for name, buf in self._images.items()}
+        images = {name: _padded(buf[idx, :span], span) for name, buf in self._images.items()}
         return FetchedRows(rows, lengths, stacked, images, dict(zip(rows, ok.tolist())))
 
     def episodes(self, rows, lengths) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
         """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
         buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
-        steps is finite (:meth:`fetch`). The host copy is split by array (``datasets.columns.split``)."""
+        steps is finite (:meth:`fetch`). The trees are views of one host copy joined by array
+        (``datasets.columns.DemoBlock``): each episode's arrays are contiguous, so a writer joining hundreds of demos
+        into a pack copies whole blocks instead of strided column slices of every demo (512 PickCube demos on the
+        CPU: 0.40 -> 0.28 ms a demo, noisy)."""
         got = self.fetch(rows, lengths)
-        columns = split(self.layout, got.stacked.cpu().numpy())
-        images = {name: img.cpu().numpy() for name, img in got.images.items()}
-        trees = {r: episode_tree({key: arr[k] for key, arr in columns.items()},
-                                 {name: img[k] for name, img in images.items()}, t)
-                 for k, (r, t) in enumerate(zip(got.rows, got.lengths))}
-        return trees, got.finite
+        block = DemoBlock.from_rows(self.layout, got.stacked.cpu().numpy(),
+                                    {name: img.cpu().numpy() for name, img in got.images.items()},
+                                    [(k, t, None, {}) for k, t in enumerate(got.lengths)])
+        return dict(zip(got.rows, block.trees())), got.finite
 
     def _stacked(self, idx: torch.Tensor, span: int) -> torch.Tensor:
         """(rows, span, frame + reward + next observation) of the rows ``idx``: one gather of every buffer."""
         return torch.cat((self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span]), dim=2)
 
     def episode(self, row: int, length: int) -> dict[str, Any]:
-        """The finished episode of ``row`` as a nested dict of numpy arrays (``datasets.columns.episode_tree``
+        """The finished episode of ``row`` as a nested dict of numpy arrays (``datasets.columns.DemoBlock.trees``
         says what it holds); copies, never views of the live buffers (the row's next episode reuses them)."""
         return self.episodes([row], [length])[0][row]
+
+
+def _padded(images: torch.Tensor, span: int) -> torch.Tensor:
+    """``images`` (rows, steps, ...) with zero frames up to ``span`` steps (buffers not grown yet: nothing recorded)."""
+    if images.shape[1] >= span:
+        return images
+    return torch.cat([images, images.new_zeros((images.shape[0], span - images.shape[1], *images.shape[2:]))], dim=1)
 
 
 class FetchedRows(NamedTuple):
