@@ -48,10 +48,10 @@ class BenchCollectArgs(BenchEnvArgs):
     """Dask worker processes collecting at once (one per GPU with no --device or --device cuda), each into its own
     shard <stem>_w<i>; no prefilled run."""
     replan_batch: int | None = None
-    """restarted rows the expert plans together (PlannerAgent.replan_batch); default: one per 64 env rows, 1 below
-    128 rows; 1 plans each restarted row at once"""
+    """restarted rows the expert plans together (PlannerAgent.replan_batch); default: one per 16 env rows from 128
+    rows on, else 1; 1 plans each restarted row at once"""
     replan_wait: int | None = None
-    """most steps a restarted row holds before the expert plans it (PlannerAgent.replan_wait; default 3): with
+    """most steps a restarted row holds before the expert plans it (PlannerAgent.replan_wait; default 12): with
     --replan-batch, how large the batches can grow"""
     trace: str | None = None
     """write a torch.profiler trace of 20 steps of the timed run to this path (.json.gz; Perfetto opens it): CPU

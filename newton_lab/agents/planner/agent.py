@@ -17,6 +17,12 @@ from ...task_api.registry import lookup
 from ..base import BaseAgent, EpisodeTracker
 
 
+REPLAN_ROWS = 16
+"""Env rows per restarted row of a default re-plan batch (``PlannerAgent.replan_batch``)."""
+REPLAN_MIN_ROWS = 128
+"""Below this many rows every restarted row is planned at once (on a CPU a solve's cost follows its rows)."""
+REPLAN_WAIT = 12
+"""Default most ``act`` calls a restarted row waits for its batch (``PlannerAgent.replan_wait``)."""
 REFINE_POSITION_M = 1e-3
 """A solve whose TCP misses its target by more than this [m] gets ``refine_iterations`` more LM steps."""
 REFINE_ROTATION_RAD = math.radians(0.5)
@@ -27,7 +33,7 @@ class PlannerAgent(BaseAgent):
     """Executes ``plan`` for every row; see ``newton_lab.task_api.motion_plan`` for the step format."""
 
     def __init__(self, plan: MotionPlan, *, ik_iterations: int = 16, refine_iterations: int = 32,
-                 replan_batch: int | None = None, replan_wait: int = 3):
+                 replan_batch: int | None = None, replan_wait: int | None = None):
         self.plan = plan
         self.ik_iterations = ik_iterations
         """LM steps of every IK solve (the targets of PickCube, StackCube, LiftCube, Reach and SortToShelf converge
@@ -36,13 +42,15 @@ class PlannerAgent(BaseAgent):
         """Further LM steps, from the first solve's result, for the rows still off by more than
         ``REFINE_POSITION_M`` or ``REFINE_ROTATION_RAD`` (far or unreachable targets, e.g. PickToShelf's)."""
         self.replan_batch = replan_batch
-        """Restarted rows gathered before they are planned together; ``None``: one per 64 env rows (1 below
-        128 rows, where every restarted row is planned at once). A plan's IK solves cost the same for 1 row or
-        500 on a GPU (they are chains of small kernels), so at 4096 rows, where ~24 episodes restart every
-        step, planning them every few steps instead of every step cuts the agent's time by that factor."""
+        """Restarted rows gathered before they are planned together; ``None``: one per ``REPLAN_ROWS`` env rows
+        from ``REPLAN_MIN_ROWS`` rows on (256 at 4096), else 1 (every restarted row planned at once). A plan's IK
+        solves cost the same for 1 row or 500 on a GPU (chains of small kernels), so at 4096 rows, where ~28 episodes
+        restart every step, planning them every several steps instead of every step cuts the agent's time by that
+        factor (docs/benchmarks.md: 4.1-5.3 -> 2.6-2.9 ms a step on an H100, batches of 64 -> 256)."""
         self.replan_wait = replan_wait
-        """Most ``act`` calls a restarted row holds its reset targets before it is planned (its demo then starts
-        with up to this many still frames)."""
+        """Most ``act`` calls a restarted row holds its reset targets before it is planned (``None``:
+        ``REPLAN_WAIT``). ``collect`` and ``evaluate`` start its episode when its plan comes (``holding``), so the
+        wait adds no still frames to a demo; it only leaves the row idle meanwhile."""
         self._env = None
         self._held: np.ndarray | None = None  # rows whose last action held while they waited (``holding``)
         self.plan_failures = 0
@@ -91,7 +99,9 @@ class PlannerAgent(BaseAgent):
         self._tracker = EpisodeTracker(n)
         self._waiting_since = np.full(n, -1, dtype=np.int64)  # act count at which a row began waiting; -1: none
         self._acts = 0
-        self._batch = self.replan_batch if self.replan_batch is not None else max(1, n // 64)
+        self._batch = (self.replan_batch if self.replan_batch is not None
+                       else max(1, n // REPLAN_ROWS) if n >= REPLAN_MIN_ROWS else 1)
+        self._wait = self.replan_wait if self.replan_wait is not None else REPLAN_WAIT
 
     # ------------------------------------------------------------------ planning
     def _num_waypoints(self) -> int:
@@ -275,7 +285,7 @@ class PlannerAgent(BaseAgent):
 
     def _rows_due(self, env, fresh: np.ndarray) -> np.ndarray:
         """Restarted rows join the waiting ones (holding their reset targets); all of them are due once there
-        are ``replan_batch`` or the oldest has waited ``replan_wait`` calls."""
+        are ``replan_batch`` or the oldest has waited ``replan_wait`` calls (the defaults: ``_bind``)."""
         if fresh.size:
             self._waiting_since[fresh] = self._acts
             idx = torch.as_tensor(fresh, device=env.torch_device)
@@ -284,7 +294,7 @@ class PlannerAgent(BaseAgent):
             self._plan_length[fresh] = np.iinfo(np.int64).max  # not done while waiting
         waiting = np.flatnonzero(self._waiting_since >= 0)
         oldest = self._acts - int(self._waiting_since[waiting].min())
-        due = waiting.size >= self._batch or oldest >= self.replan_wait
+        due = waiting.size >= self._batch or oldest >= self._wait
         return waiting if due else np.zeros(0, dtype=np.int64)
 
     def done(self, env) -> torch.Tensor:
