@@ -20,10 +20,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..datasets import DatasetRef, open_writer
-from ..datasets import writer_process
+from ..datasets import DatasetRef, open_writer, writer_process
 from ..datasets.background import BackgroundWriter
-from ..datasets.writer_process import ProcessWriter
 from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
 from .recorder import EpisodeRecorder, env_args
@@ -295,7 +293,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
 
     ``writer``: ``"thread"`` builds each episode's tree here and writes on a thread (``datasets.background``);
     ``"process"`` hands each step's ended episodes to a writer process as one block in shared memory
-    (``datasets.writer_process``: the trees, checks and encoding run on another interpreter); ``"auto"`` takes the
+    (``datasets.writer_process``: joined, checked, packed and encoded on another interpreter); ``"auto"`` takes the
     process from ``WRITE_MIN_BATCH`` rows on (where episodes end in bursts of dozens a step), else the thread.
 
     ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML
@@ -322,7 +320,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     batching = {"max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
                 "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1, "max_wait_s": WRITE_MAX_WAIT_S}
     if _writer_kind(writer, env.num_envs) == "process":
-        writer = ProcessWriter(store.path, task_id=task_id, layout=recorder.layout, **batching)
+        writer = writer_process.ProcessWriter(store.path, task_id=task_id, layout=recorder.layout, **batching)
     else:
         writer = BackgroundWriter(store if timers is None else WrappedWriter(store, timers.write), **batching)
     saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
@@ -338,7 +336,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     summary = _summary(env, records, steps, wall)
     summary.update(task=task_id, path=str(path), saved_demo_ids=saver.saved_ids(), attempts=len(records),
                    writer_batches=writer.batches, writer=type(writer).__name__)
-    if isinstance(writer, ProcessWriter):
+    if isinstance(writer, writer_process.ProcessWriter):
         summary["writer_seconds"] = dict(writer.seconds)
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
