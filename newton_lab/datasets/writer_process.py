@@ -149,9 +149,7 @@ class ProcessWriter:
             _copy_into(self._buf, at, arr)
             specs.append((name, at, tuple(arr.shape), _dtype(arr)))
             at += n
-        self._send(("burst", burst, specs, demos))
-        with self._cv:
-            self._raise(always=True)
+        self._send(("burst", burst, specs, demos))  # a failure raises at the next put, flush or close
         return future
 
     def flush(self) -> None:
