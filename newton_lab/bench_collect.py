@@ -129,9 +129,9 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
                    trace_after: int = TRACE_AFTER_STEPS, writer: str = "auto") -> dict[str, Any]:
     """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``) and
     writer (the background thread's ``append_prepared`` calls, or those the writer process reports, split as
-    ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest (``loop_s``), of which ``hand_over_s`` passes
-    ended episodes to the writer (device->host copy, checks, queueing) and ``drain_s`` waits for the writer after the
-    last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the loop; the rest of the
+    ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest
+    (``loop_s``), of which ``hand_over_s`` passes ended episodes to the writer (gather, checks, the copy off the
+    device, queueing) and ``drain_s`` waits for the writer after the last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the loop; the rest of the
     wall is the host's own work."""
     physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")
     handing, draining = _Clock("cpu"), _Clock("cpu")
@@ -206,7 +206,7 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     if replan_wait is not None:
         agent.replan_wait = replan_wait
     warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
-    _collect_timed(env, agent, 1, warm, max_steps, writer=writer)  # compiles the step, the IK solves and the writer path
+    _collect_timed(env, agent, 1, warm, max_steps, writer=writer)  # compiles the step, the IK solves, the writer path
     first_use = time.perf_counter() - t0
     out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
                            "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda

@@ -154,7 +154,7 @@ MUTATIONS: tuple[Mutation, ...] = (
               'if rec["termination_reason"] == DIVERGED or (self.only_successes and not rec["success"]):',
               'if self.only_successes and not rec["success"]:', DIV),
     one_patch("non-finite-episode-written", "collect never writes an episode holding a non-finite value",
-              "newton_lab/envs/saver.py", "        if not finite:\n", "        if False:\n", DIV),
+              "newton_lab/envs/saver.py", "        if not got.finite[row]:\n", "        if False:\n", DIV),
     one_patch("non-finite-action-accepted", "a NaN or inf action is refused in one line before stepping",
               "newton_lab/envs/checks.py", "    if not bool(finite.all()):\n", "    if False:\n",
               "tests/test_inputs.py"),

@@ -9,6 +9,8 @@ import json
 import math
 import os
 import re
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -260,3 +262,20 @@ def _fault_from_env() -> None:
 
 
 _fault_from_env()
+
+
+def child_pipes():
+    """(stdin, the original stdout) of a child process that answers its parent on stdout, as binary files; fd 1 then
+    points to stderr, so that nothing printed, by Python or a library, can corrupt the answers."""
+    src, dst = sys.stdin.buffer, os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    return src, dst
+
+
+def start_child(module: str, function: str, *args: str, **popen: Any) -> subprocess.Popen:
+    """A Python process running ``module.function()`` (``args`` in its ``sys.argv[1:]``) on this process's import path,
+    so that it runs this very package wherever the caller was started from; stdin and stdout piped (the child answers
+    through :func:`child_pipes`)."""
+    command = [sys.executable, "-c", f"from {module} import {function}; {function}()", *args]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    return subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, **popen)

@@ -12,6 +12,10 @@ Batching: with ``min_batch`` the thread waits until that many episodes are queue
 the simulation still writes few large batches: each batch has a fixed cost (lock, ``syncfs``, commit), and a zarr
 batch of ``zarr_packs.PACK_MIN_BATCH`` demos or more is packed into a few files instead of ~80 per demo.
 
+Blocks of demos joined by array (``put_block``, a ``columns.DemoBlock``: a writer process's bursts) queue the same
+way, each counting as its demos; the blocks of a batch are joined and written as one (``EpisodeWriter.append_block``,
+which checks them there).
+
 Crash window: an episode is durable once its future is done. A process killed at any moment keeps every
 episode written before; it loses those queued (at most ``max_queued``, held at most ``max_wait_s`` longer with
 ``min_batch``) and the one batch being written (all of that batch or none of it lands, see ``storage``).
@@ -26,7 +30,19 @@ from collections.abc import Iterable, Mapping
 from concurrent.futures import Future
 from typing import Any
 
+from .columns import DemoBlock
 from .storage import EpisodeItem, EpisodeWriter
+
+
+def _runs(batch: list[tuple[Any, Future, int]]) -> list[list[tuple[Any, Future, int]]]:
+    """``batch`` cut where it turns from trees to blocks or back."""
+    runs: list[list[tuple[Any, Future, int]]] = []
+    for entry in batch:
+        if runs and isinstance(entry[0], DemoBlock) == isinstance(runs[-1][0][0], DemoBlock):
+            runs[-1].append(entry)
+        else:
+            runs.append([entry])
+    return runs
 
 
 def _nbytes(tree: dict[str, Any]) -> int:
@@ -54,7 +70,8 @@ class BackgroundWriter:
         self.batches = 0
         """Batches written (one write session each)."""
         self._cv = threading.Condition()
-        self._queue: deque[tuple[tuple[dict, dict, int], Future]] = deque()
+        self._queue: deque[tuple[Any, Future, int]] = deque()  # (prepared tree or DemoBlock, future, episodes)
+        self._episodes = 0  # episodes queued
         self._busy = self._stop = self._closed = self._raised = False
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._loop, name=f"episode writer {writer.path.name}", daemon=True)
@@ -76,12 +93,27 @@ class BackgroundWriter:
         arrays after handing them over."""
         if self._closed:
             raise RuntimeError(f"BackgroundWriter for {self.path} is closed")
-        items = [(self.writer.prepare(ep, success=ok, attrs=attrs), Future()) for ep, ok, attrs in episodes]
-        size = sum(_nbytes(tree) for (tree, _, _), _ in items)
+        items = [(self.writer.prepare(ep, success=ok, attrs=attrs), Future(), 1) for ep, ok, attrs in episodes]
+        self._enqueue(items, sum(_nbytes(tree) for (tree, _, _), _, _ in items))
+        return [f for _, f, _ in items]
+
+    def put_block(self, block: DemoBlock) -> Future:
+        """Queue the demos of a ``columns.DemoBlock`` (they count as ``len(block)`` episodes); they are written with
+        the blocks queued beside them as one block (``EpisodeWriter.append_block``). Returns a future of their ids (a
+        list) once durable, or of the write's error."""
+        if self._closed:
+            raise RuntimeError(f"BackgroundWriter for {self.path} is closed")
+        item = (block, Future(), len(block))
+        self._enqueue([item], block.frames.nbytes + sum(img.nbytes for img in block.images.values()))
+        return item[1]
+
+    def _enqueue(self, items: list[tuple[Any, Future, int]], size: int) -> None:
+        """Add ``(item, future, episodes)`` entries, waiting for room (see :meth:`put_many`)."""
+        count = sum(n for _, _, n in items)
         with self._cv:
             self._raise(always=True)
             room = (lambda: self._error is not None or not self._queue or not self._thread.is_alive()
-                    or (len(self._queue) + len(items) <= self.max_queued
+                    or (self._episodes + count <= self.max_queued
                         and self._bytes + size <= self.max_queued_bytes))
             if not room():
                 self._blocked += 1
@@ -94,9 +126,9 @@ class BackgroundWriter:
             if not self._queue:
                 self._since = time.monotonic()
             self._queue.extend(items)
+            self._episodes += count
             self._bytes += size
             self._cv.notify_all()
-        return [f for _, f in items]
 
     def flush(self) -> None:
         """Wait until every queued episode is written; raises the write error, if one happened."""
@@ -141,7 +173,7 @@ class BackgroundWriter:
 
     def _due(self) -> bool:
         """The queue is to be written now (under the lock; see the module docstring's Batching)."""
-        return bool(self._queue) and (len(self._queue) >= self.min_batch or self._blocked > 0 or self._hurry > 0
+        return bool(self._queue) and (self._episodes >= self.min_batch or self._blocked > 0 or self._hurry > 0
                                       or time.monotonic() - self._since >= self.max_wait_s)
 
     def _loop(self) -> None:
@@ -154,26 +186,39 @@ class BackgroundWriter:
                     return
                 batch = list(self._queue)
                 self._queue.clear()
-                self._bytes = 0
+                self._episodes = self._bytes = 0
                 self._busy = True
                 self._cv.notify_all()  # room in the queue
             try:
-                if self._error is not None:
-                    raise self._error  # nothing is written after a failed batch
-                ids = self.writer.append_prepared([item for item, _ in batch])
-                self.batches += 1
-            except BaseException as e:  # noqa: BLE001 - handed to the caller
-                for _, f in batch:
-                    f.set_exception(e)
-                with self._cv:
-                    self._error = self._error or e
-            else:
-                for (_, f), demo_id in zip(batch, ids):
-                    f.set_result(demo_id)
+                for run in _runs(batch):  # trees and blocks (not mixed by collect) in write sessions of their own
+                    self._write(run)
             finally:
                 with self._cv:
                     self._busy = False
                     self._cv.notify_all()
+
+    def _write(self, run: list[tuple[Any, Future, int]]) -> None:
+        """One write session of queued trees, or of queued blocks joined into one; each future gets its result."""
+        try:
+            if self._error is not None:
+                raise self._error  # nothing is written after a failed batch
+            if isinstance(run[0][0], DemoBlock):
+                ids = self.writer.append_block(DemoBlock.join([block for block, _, _ in run]))
+                results, at = [], 0
+                for _, _, n in run:
+                    results.append(ids[at:at + n])
+                    at += n
+            else:
+                results = self.writer.append_prepared([item for item, _, _ in run])
+            self.batches += 1
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            for _, f, _ in run:
+                f.set_exception(e)
+            with self._cv:
+                self._error = self._error or e
+        else:
+            for (_, f, _), result in zip(run, results):
+                f.set_result(result)
 
     def __enter__(self) -> BackgroundWriter:
         return self

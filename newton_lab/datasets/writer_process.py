@@ -22,8 +22,6 @@ import math
 import mmap
 import os
 import pickle
-import subprocess
-import sys
 import threading
 from collections import deque
 from concurrent.futures import Future
@@ -33,6 +31,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ._common import start_child
 from .columns import ColumnLayout
 
 RING_BYTES = 1 << 30
@@ -96,9 +95,7 @@ class ProcessWriter:
         self._next = 0
         self._error: BaseException | None = None
         self._raised = self._closed = False
-        self._proc = subprocess.Popen(
-            [sys.executable, "-m", "newton_lab.datasets.writer_serve", str(self._fd)], stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE, pass_fds=(self._fd,), close_fds=True)
+        self._proc = start_child("newton_lab.datasets.writer_serve", "main", str(self._fd), pass_fds=(self._fd,))
         os.set_inheritable(self._fd, False)
         self._send(("open", str(self.path), task_id, fsync, ring_bytes, layout,
                     {"max_queued": max_queued, "max_queued_bytes": max_queued_bytes, "min_batch": min_batch,

@@ -1,8 +1,7 @@
-"""The writer process of ``datasets.writer_process`` (``python -m newton_lab.datasets.writer_serve FD``, FD the shared
-ring's descriptor): it copies each burst of ended episodes out of the ring as a ``columns.DemoBlock`` (one gather per
-array), answers ``free`` at once, and a thread writes the queued blocks as batches: ``min_batch`` demos or more, or
-whatever is queued once the oldest has waited ``max_wait_s`` (``datasets.background``'s batching, counted in demos),
-each one ``EpisodeWriter.append_block``: a zarr batch is packed straight from the joined arrays.
+"""The writer process of ``datasets.writer_process`` (:func:`main`, started with the shared ring's descriptor as its
+argument): it copies each burst of ended episodes out of the ring as a ``columns.DemoBlock`` (one gather per
+array), answers ``free`` at once, and queues the block on a ``datasets.background.BackgroundWriter``, which writes
+the queued blocks in batches (``EpisodeWriter.append_block``: a zarr batch is packed straight from the joined arrays).
 
 Replies on stdout, pickled: ``("free", burst)``, ``("written", burst, ids, seconds, batches)``, ``("error", burst,
 exception)``. After a failed batch nothing more is written: every later burst gets the same error. The process ends
@@ -18,12 +17,13 @@ import pickle
 import sys
 import threading
 import time
-from collections import deque
 from typing import Any
 
 import numpy as np
 
 from . import zarr_store
+from .background import BackgroundWriter
+from ._common import child_pipes
 from .columns import DemoBlock
 from .storage import EpisodeWriter
 
@@ -31,88 +31,19 @@ PROFILE_ENV = "NEWTON_LAB_WRITER_PROFILE"
 """Set to a path: the writer process profiles its batch writes (cProfile) and saves the stats there when it ends."""
 
 
-class _Batcher:
-    """A thread writing the queued blocks in batches (see the module docstring); ``put`` blocks while more than
-    ``max_queued`` demos or ``max_queued_bytes`` are queued."""
-
-    def __init__(self, store: EpisodeWriter, reply, *, max_queued: int, max_queued_bytes: int, min_batch: int,
-                 max_wait_s: float) -> None:
-        self.store, self.reply = store, reply
-        self.max_queued, self.max_queued_bytes, self.min_batch, self.max_wait_s = (max_queued, max_queued_bytes,
-                                                                                   min_batch, max_wait_s)
-        self.seconds, self.batches = 0.0, 0
-        self._queue: deque[tuple[int, DemoBlock, float]] = deque()
-        self._demos = self._bytes = 0
-        self._closing = False
-        self._error: BaseException | None = None
-        self._cv = threading.Condition()
-        path = os.environ.get(PROFILE_ENV)
-        self._profile = (cProfile.Profile(), path) if path else None
-        self._thread = threading.Thread(target=self._loop, name="batch writer", daemon=True)
-        self._thread.start()
-
-    def put(self, burst: int, block: DemoBlock) -> None:
-        size = block.frames.nbytes + sum(img.nbytes for img in block.images.values())
-        with self._cv:
-            while (self._queue and self._error is None and (self._demos + len(block) > self.max_queued
-                                                             or self._bytes + size > self.max_queued_bytes)):
-                self._cv.wait(0.5)
-            self._queue.append((burst, block, time.monotonic()))
-            self._demos += len(block)
-            self._bytes += size
-            self._cv.notify_all()
-
-    def close(self) -> None:
-        with self._cv:
-            self._closing = True
-            self._cv.notify_all()
-        self._thread.join()
-        if self._profile is not None:
-            self._profile[0].dump_stats(self._profile[1])
-
-    def _due(self) -> bool:
-        return bool(self._queue) and (self._closing or self._demos >= self.min_batch
-                                      or time.monotonic() - self._queue[0][2] >= self.max_wait_s)
-
-    def _loop(self) -> None:
-        while True:
-            with self._cv:
-                while not self._due() and not (self._closing and not self._queue):
-                    left = self.max_wait_s - (time.monotonic() - self._queue[0][2]) if self._queue else 0.5
-                    self._cv.wait(min(0.5, max(left, 0.001)))
-                if not self._queue:
-                    return
-                batch = list(self._queue)
-                self._queue.clear()
-                self._demos = self._bytes = 0
-                self._cv.notify_all()
-            if self._error is None:
-                self._write(batch)
-            else:  # nothing is written after a failed batch
-                for burst, _, _ in batch:
-                    self.reply(("error", burst, self._error))
-
-    def _write(self, batch: list[tuple[int, DemoBlock, float]]) -> None:
+def _timed(append, spent: dict[str, float], profile: cProfile.Profile | None):
+    """``append`` (``EpisodeWriter.append_block``) adding its seconds to ``spent["write"]`` (and profiled)."""
+    def timed(block: DemoBlock) -> list[int]:
         t0 = time.perf_counter()
-        if self._profile is not None:
-            self._profile[0].enable()
+        if profile is not None:
+            profile.enable()
         try:
-            ids = self.store.append_block(DemoBlock.join([block for _, block, _ in batch]))
-        except BaseException as e:  # noqa: BLE001 - handed to the collector
-            self._error = _portable(e)
-            for burst, _, _ in batch:
-                self.reply(("error", burst, self._error))
-            return
+            return append(block)
         finally:
-            if self._profile is not None:
-                self._profile[0].disable()
-            self.seconds += time.perf_counter() - t0
-        self.batches += 1
-        seconds = {"write": self.seconds, **zarr_store.BATCH_SECONDS}
-        at = 0
-        for burst, block, _ in batch:
-            self.reply(("written", burst, ids[at:at + len(block)], seconds, self.batches))
-            at += len(block)
+            if profile is not None:
+                profile.disable()
+            spent["write"] += time.perf_counter() - t0
+    return timed
 
 
 def serve(fd: int, inbox, outbox) -> None:
@@ -126,7 +57,19 @@ def serve(fd: int, inbox, outbox) -> None:
 
     _, path, task_id, fsync, ring_bytes, layout, settings = pickle.load(inbox)
     buf = mmap.mmap(fd, ring_bytes)
-    batcher = _Batcher(EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync), reply, **settings)
+    store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync)
+    spent = {"write": 0.0}
+    profile_to = os.environ.get(PROFILE_ENV)
+    profile = cProfile.Profile() if profile_to else None
+    store.append_block = _timed(store.append_block, spent, profile)  # the batch writes' clock, reported back
+    writer = BackgroundWriter(store, **settings)
+
+    def done(burst: int, future) -> None:
+        if future.exception() is not None:
+            reply(("error", burst, _portable(future.exception())))
+        else:
+            reply(("written", burst, future.result(), {**spent, **zarr_store.BATCH_SECONDS}, writer.batches))
+
     try:
         while True:
             try:
@@ -147,9 +90,19 @@ def serve(fd: int, inbox, outbox) -> None:
                 reply(("error", burst, _portable(e)))
                 continue
             reply(("free", burst))
-            batcher.put(burst, block)
+            try:
+                future = writer.put_block(block)
+            except Exception as e:  # noqa: BLE001 - a failed batch before: nothing more is written
+                reply(("error", burst, _portable(e)))
+                continue
+            future.add_done_callback(lambda f, b=burst: done(b, f))
     finally:
-        batcher.close()
+        try:
+            writer.close()
+        except Exception:  # noqa: BLE001 - each burst's future already carried it to the collector
+            pass
+        if profile is not None:
+            profile.dump_stats(profile_to)
 
 
 def _portable(error: BaseException) -> BaseException:
@@ -163,11 +116,5 @@ def _portable(error: BaseException) -> BaseException:
 
 def main() -> None:
     """Entry: the ring's descriptor in ``sys.argv[1]``; messages on stdin, replies on the original stdout."""
-    inbox, outbox = sys.stdin.buffer, os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # the pipe carries replies only: anything printed, by Python or a library, goes to stderr
-    sys.stdout = sys.stderr
-    serve(int(sys.argv[1]), inbox, outbox)
+    serve(int(sys.argv[1]), *child_pipes())
 
-
-if __name__ == "__main__":
-    main()

@@ -24,7 +24,6 @@ import functools
 import os
 import pickle
 import subprocess
-import sys
 import threading
 from concurrent.futures import ThreadPoolExecutor, wait
 from pathlib import Path
@@ -33,7 +32,7 @@ from typing import Any
 import numpy as np
 import zarr
 
-from ._common import fault_injected
+from ._common import child_pipes, fault_injected, start_child
 from .zarr_nodes import array_kwargs
 from .zarr_packs import PackJob, write_job
 from .zarr_session import FaultStore
@@ -89,10 +88,7 @@ class WriterProcesses:
         if len(self._procs) == self.n and all(p.poll() is None for p in self._procs):
             return
         self.close()
-        command = [sys.executable, "-c", f"from {__name__} import serve; serve()"]
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-        self._procs = [subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
-                       for _ in range(self.n)]
+        self._procs = [start_child(__name__, "serve") for _ in range(self.n)]
 
     def write(self, jobs: list[Job]) -> list[Leftover]:
         """Write ``jobs`` spread over the processes; returns every process's leftovers. Raises the first error
@@ -210,8 +206,7 @@ def write_with_zarr(path: Path, demo: Path, rel: str, value: np.ndarray) -> None
 def serve() -> None:
     """Child side: answer one pickled job list after another until stdin closes. The answers go to the original
     stdout; anything printed goes to stderr."""
-    src, dst = sys.stdin.buffer, os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)
+    src, dst = child_pipes()
     while True:
         try:
             jobs = pickle.load(src)

@@ -62,8 +62,9 @@ class Timers:
     write: Callable[[Callable], Callable] = _same
     """Wraps the dataset writer's batch write (``EpisodeWriter.append_prepared``, called on the writer's thread)."""
     hand_over: Callable[[Callable], Callable] = _same
-    """Wraps the loop's hand-over of ended episodes (``EpisodeSaver.fetch``: the device->host copy and the trees;
-    ``EpisodeSaver.submit``: the checks and the queueing, waiting while the writer's queue is full)."""
+    """Wraps the loop's hand-over of ended episodes (``EpisodeSaver.fetch``: their gather and finite check on the
+    device; ``EpisodeSaver.submit``: the copy off the device, the trees for a writer thread, and the queueing, waiting
+    while the writer's queue is full)."""
     drain: Callable[[Callable], Callable] = _same
     """Wraps the wait for the writer after the loop (``EpisodeSaver.close``)."""
 

@@ -1,6 +1,6 @@
 """The recording side of ``collect``: the episodes that end in one step are gathered together, checked, and handed as
 one batch to a background writer: a thread (``datasets.background``: one device->host copy, the trees built here) or
-a process (``datasets.writer_process``: the block copied once into shared memory, the trees built there)."""
+a process (``datasets.writer_process``: the block copied once into shared memory, packed there)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from ..datasets.background import BackgroundWriter
+from ..datasets.columns import DemoBlock
 from ..datasets.writer_process import ProcessWriter
 from ..task_api.cfg import DIVERGED
 
@@ -41,83 +42,64 @@ class WrappedWriter:
 
 
 class EpisodeSaver:
-    """Per step: :meth:`fetch` the rows that ended (one copy), :meth:`save` each finished record, then
-    :meth:`submit` the step's episodes to the writer as one batch. :meth:`close` waits for the writer."""
+    """Per step: :meth:`fetch` the rows that ended (one gather, checked finite on the device), :meth:`save` each
+    finished record, then :meth:`submit` the step's episodes to the writer as one batch. :meth:`close` waits for the
+    writer."""
 
     def __init__(self, writer: BackgroundWriter | ProcessWriter, recorder, *, seed: int,
                  only_successes: bool) -> None:
         self.writer, self.recorder, self.seed, self.only_successes = writer, recorder, seed, only_successes
         self.blocks = isinstance(writer, ProcessWriter)
         """Episodes go to the writer as column blocks (a writer process), not as trees."""
-        self._fetched: dict[int, tuple[dict[str, Any], bool]] = {}  # row -> (episode, every float finite)
-        self._batch: list[tuple[dict[str, Any], bool, dict[str, Any]]] = []
-        self._block = None  # blocks: the step's ``FetchedRows``, its row -> index, the demos to write of it
+        self._block = None  # the step's ``FetchedRows``, its row -> index, the demos to write of it
         self._futures: list = []
 
     def fetch(self, rows: np.ndarray, lengths: np.ndarray) -> None:
-        """Gather the episodes of ``rows`` (``lengths`` steps each) in one go and check them finite (trees: copied
-        to the host now; blocks: copied when submitted)."""
-        self._fetched, self._block = {}, None
-        if len(rows) and self.blocks:
+        """Gather the episodes of ``rows`` (``lengths`` steps each) in one go and check them finite."""
+        self._block = None
+        if len(rows):
             got = self.recorder.fetch(rows, lengths)
             self._block = (got, {r: k for k, r in enumerate(got.rows)}, [])
-        elif len(rows):
-            trees, finite = self.recorder.episodes(rows, lengths)
-            self._fetched = {r: (tree, finite[r]) for r, tree in trees.items()}
 
     def save(self, row: int, rec: dict[str, Any]) -> dict[str, Any]:
         """Queue the finished episode of ``row`` (its loop record ``rec``) for writing unless it diverged, holds a
         non-finite value or (``only_successes``) failed; returns the updates to ``rec``."""
         if rec["termination_reason"] == DIVERGED or (self.only_successes and not rec["success"]):
             return {}
-        if self.blocks:
-            return self._save_in_block(row, rec)
-        fetched = self._fetched.pop(row, None)
-        if fetched is not None:
-            episode, finite = fetched
-        else:
-            episode = self.recorder.episode(row, rec["length"])
-            finite = all_finite(episode, skip=self.recorder.image_terms)
-        episode["dones"][-1:] = int(rec["success"])
-        # diverged without tripping the guard: dropped and counted as diverged (images aside: depth holds inf)
-        if not finite:
-            return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
-        attrs = self._attrs(rec)
-        self._batch.append((episode, rec["success"], attrs))
-        return {}
-
-    def _save_in_block(self, row: int, rec: dict[str, Any]) -> dict[str, Any]:
         if self._block is None or row not in self._block[1]:  # not fetched with its step's rows: on its own
             self.submit()
             self.fetch(np.array([row]), np.array([rec["length"]]))
         got, index, demos = self._block
+        # diverged without tripping the guard: dropped and counted as diverged (images aside: depth holds inf)
         if not got.finite[row]:
             return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
-        demos.append((index[row], rec["length"], bool(rec["success"]), self._attrs(rec)))
+        attrs = {"termination_reason": rec["termination_reason"], "env_index": rec["env_index"],
+                 "episode_length": rec["length"], "seed": self.seed}
+        demos.append((index[row], rec["length"], bool(rec["success"]), attrs))
         return {}
 
-    def _attrs(self, rec: dict[str, Any]) -> dict[str, Any]:
-        return {"termination_reason": rec["termination_reason"], "env_index": rec["env_index"],
-                "episode_length": rec["length"], "seed": self.seed}
-
     def submit(self) -> None:
-        """Hand the step's episodes to the writer (blocks while its queue is full)."""
-        self._fetched = {}
-        if self._block is not None:
-            got, _, demos = self._block
-            self._block = None
-            if demos:
-                keep = [k for k, _, _, _ in demos]
-                if keep != list(range(len(got.rows))):  # only the rows to write cross to the writer
-                    idx = torch.as_tensor(keep, device=got.stacked.device)
-                    got = got._replace(stacked=got.stacked[idx], images={k: v[idx] for k, v in got.images.items()})
-                    demos = [(i, *rest) for i, (_, *rest) in enumerate(demos)]
-                span = max(length for _, length, _, _ in demos)
-                self._futures += self.writer.put_block(got.stacked[:, :span],
-                                                       {k: v[:, :span] for k, v in got.images.items()}, demos)
-        if self._batch:
-            batch, self._batch = self._batch, []
-            self._futures += self.writer.put_many(batch)
+        """Hand the step's episodes to the writer (blocks while its queue is full): to a writer process as the block
+        of the rows to write (one copy into shared memory), to the writer thread as their trees (one host copy)."""
+        if self._block is None:
+            return
+        got, _, demos = self._block
+        self._block = None
+        if not demos:
+            return
+        keep = [k for k, _, _, _ in demos]
+        if keep != list(range(len(got.rows))):  # only the rows to write leave the device
+            idx = torch.as_tensor(keep, device=got.stacked.device)
+            got = got._replace(stacked=got.stacked[idx], images={k: v[idx] for k, v in got.images.items()})
+            demos = [(i, *rest) for i, (_, *rest) in enumerate(demos)]
+        span = max(length for _, length, _, _ in demos)
+        stacked, images = got.stacked[:, :span], {k: v[:, :span] for k, v in got.images.items()}
+        if self.blocks:
+            self._futures += self.writer.put_block(stacked, images, demos)
+            return
+        block = DemoBlock.from_rows(self.recorder.layout, stacked.cpu().numpy(),
+                                    {k: v.cpu().numpy() for k, v in images.items()}, demos)
+        self._futures += self.writer.put_many(list(zip(block.trees(), block.successes, block.attrs)))
 
     def close(self) -> None:
         """Submit what is pending and wait until the writer wrote everything (raises the writer's error, e.g.
