@@ -104,7 +104,7 @@ class BackgroundWriter:
         if self._closed:
             raise RuntimeError(f"BackgroundWriter for {self.path} is closed")
         item = (block, Future(), len(block))
-        self._enqueue([item], block.frames.nbytes + sum(img.nbytes for img in block.images.values()))
+        self._enqueue([item], sum(arr.nbytes for arr in block.columns.values()))
         return item[1]
 
     def _enqueue(self, items: list[tuple[Any, Future, int]], size: int) -> None:

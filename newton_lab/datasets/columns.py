@@ -3,8 +3,8 @@ trees they make.
 
 ``collect``'s recorder (``envs.recorder``) stacks every row's frames as ``[frame | reward | next observation]``
 along the last axis of one ``(rows, steps, width)`` float32 block; ``ColumnLayout`` names where each array lies in
-it. A ``DemoBlock`` holds finished episodes of such a block joined along time (each demo's steps after the last
-one's): every array of a whole batch of demos is one slice of it, which is what a zarr pack stores
+it. A ``DemoBlock`` holds finished episodes of such a block split into their arrays, each joined along time (each
+demo's steps after the last one's): every array of a whole batch of demos is one array, which is what a zarr pack stores
 (``zarr_packs``), so a writer can pack a batch without building, checking and re-joining one tree per demo. Both
 are plain numpy (picklable, no torch): the same code serves the collecting process and a writer process of its own
 (``datasets.writer_process``).
@@ -43,12 +43,11 @@ class ColumnLayout:
 
 @dataclass
 class DemoBlock:
-    """Finished episodes joined along time: ``frames`` (sum of lengths, ``layout.width``) float32 and each image
-    term (sum of lengths, ...) hold demo 0's steps, then demo 1's, ...; per demo its length, success and attrs."""
+    """Finished episodes joined along time: each array of ``columns`` (by its path in an episode tree: ``actions``,
+    ``obs/<term>`` image terms included, ``states``, ``rewards``, ``next_obs/<term>``, ``datagen/...``) holds demo
+    0's steps, then demo 1's, ...; per demo its length, success and attrs."""
 
-    layout: ColumnLayout
-    frames: np.ndarray
-    images: dict[str, np.ndarray]
+    columns: dict[str, np.ndarray]
     lengths: list[int]
     successes: list[bool]
     attrs: list[dict[str, Any]]
@@ -57,7 +56,9 @@ class DemoBlock:
     def from_rows(cls, layout: ColumnLayout, stacked: np.ndarray, images: dict[str, np.ndarray],
                   demos: list[tuple[int, int, bool | None, dict[str, Any]]]) -> DemoBlock:
         """The demos ``(row, length, success, attrs)`` of a ``(rows, steps, width)`` block and its image terms
-        ``(rows, steps, ...)``, copied out (one gather per array: the block may be reused at once)."""
+        ``(rows, steps, ...)``, copied out (one gather per array: the block may be reused at once) and split into
+        their arrays here, while the burst is small: splitting a joined batch of thousands of demos instead reads
+        all of it once per array, out of cache (the writer's largest cost at 4096 rows)."""
         rows = np.asarray([row for row, _, _, _ in demos], dtype=np.int64)
         lengths = [int(length) for _, length, _, _ in demos]
         span = stacked.shape[1]
@@ -67,16 +68,25 @@ class DemoBlock:
         def gather(arr: np.ndarray) -> np.ndarray:
             return (arr if whole else arr[rows])[inside]
 
-        return cls(layout, gather(stacked), {name: gather(img) for name, img in images.items()}, lengths,
-                   [s for _, _, s, _ in demos], [dict(a) for _, _, _, a in demos])
+        f = gather(stacked)
+        out = {key: np.ascontiguousarray(f[:, a:b]) for key, (a, b) in layout.frame.items() if key not in STATES}
+        out["states"] = np.concatenate([f[:, slice(*layout.frame[key])] for key in STATES], axis=1)
+        out["rewards"] = np.ascontiguousarray(f[:, layout.frame_width])
+        after = layout.frame_width + 1
+        out.update({f"next_obs/{key}": np.ascontiguousarray(f[:, after + a:after + b])
+                    for key, (a, b) in layout.next_obs.items()})
+        for key in [k for k in out if k.startswith("datagen/subtask_signals/")]:
+            out[key] = out[key][:, 0].astype(bool)
+        out["datagen/phase"] = out["datagen/phase"][:, 0].astype(np.int32)
+        out.update({f"obs/{name}": gather(img) for name, img in images.items()})
+        return cls(out, lengths, [s for _, _, s, _ in demos], [dict(a) for _, _, _, a in demos])
 
     @classmethod
     def join(cls, blocks: list[DemoBlock]) -> DemoBlock:
         """One block of the demos of ``blocks``, in order."""
         if len(blocks) == 1:
             return blocks[0]
-        return cls(blocks[0].layout, np.concatenate([b.frames for b in blocks]),
-                   {name: np.concatenate([b.images[name] for b in blocks]) for name in blocks[0].images},
+        return cls({key: np.concatenate([b.columns[key] for b in blocks]) for key in blocks[0].columns},
                    [n for b in blocks for n in b.lengths], [s for b in blocks for s in b.successes],
                    [a for b in blocks for a in b.attrs])
 
@@ -89,26 +99,16 @@ class DemoBlock:
         return np.concatenate([[0], np.cumsum(self.lengths[:-1], dtype=np.int64)]).astype(np.int64)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Every array of the demos, joined, by its path in an episode tree (``obs/<term>``, ``datagen/...``; see
-        :meth:`trees`), contiguous; ``initial_state`` holds one row per demo."""
-        f, lay = self.frames, self.layout
-        out = {key: np.ascontiguousarray(f[:, a:b]) for key, (a, b) in lay.frame.items() if key not in STATES}
-        out["states"] = np.concatenate([f[:, slice(*lay.frame[key])] for key in STATES], axis=1)
-        out["rewards"] = np.ascontiguousarray(f[:, lay.frame_width])
-        after = lay.frame_width + 1
-        out.update({f"next_obs/{key}": np.ascontiguousarray(f[:, after + a:after + b])
-                    for key, (a, b) in lay.next_obs.items()})
-        dones = np.zeros(len(f), dtype=np.int64)
+        """Every array of the demos, joined, by its path in an episode tree (see :meth:`trees`): ``columns``, then
+        ``dones`` and ``initial_state`` (one row per demo)."""
+        out = dict(self.columns)
+        dones = np.zeros(sum(self.lengths), dtype=np.int64)
         ends = self.starts + np.asarray(self.lengths, dtype=np.int64) - 1
         for end, success in zip(ends.tolist(), self.successes):
             if success is not None and end >= 0:
                 dones[end] = int(success)
         out["dones"] = dones
-        for key in [k for k in out if k.startswith("datagen/subtask_signals/")]:
-            out[key] = out[key][:, 0].astype(bool)
-        out["datagen/phase"] = out["datagen/phase"][:, 0].astype(np.int32)
         out["initial_state"] = out["states"][self.starts]
-        out.update({f"obs/{name}": img for name, img in self.images.items()})
         return out
 
     def trees(self) -> list[dict[str, Any]]:
@@ -134,7 +134,8 @@ class DemoBlock:
         """The zarr pack index's ``arrays`` for :meth:`arrays` (what ``zarr_packs.layout`` makes of the demos'
         trees: None per step, 1 for ``initial_state``), or None where a tree holds an empty group (a task without
         subtask signals), which a pack cannot hold."""
-        if not any(key.startswith("datagen/subtask_signals/") for key in arrays) or not self.layout.next_obs:
+        if not any(key.startswith("datagen/subtask_signals/") for key in arrays) or \
+                not any(key.startswith("next_obs/") for key in arrays):
             return None
         every_step = all(n == 1 for n in self.lengths)  # then initial_state has as many rows as the demo has steps
         return {key: (None if key != "initial_state" or every_step else 1) for key in arrays}

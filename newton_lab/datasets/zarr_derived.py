@@ -54,9 +54,9 @@ def _next(source: np.ndarray, b: np.ndarray, ends: np.ndarray) -> bool:
     probe = min(PROBE_ROWS, int(ends[0]) - 1)
     if probe > 0 and not np.array_equal(rb[:probe], rs[1:probe + 1]):
         return False
-    equal = (rb[:-1] == rs[1:]).all(axis=1)
-    equal[ends[:-1] - 1] = True  # a demo's last row: stored apart
-    return bool(equal.all())
+    shifted = rb[:-1].copy()
+    shifted[ends[:-1] - 1] = rs[ends[:-1]]  # a demo's last row is stored apart: left out of the comparison
+    return np.array_equal(shifted, rs[1:])  # one contiguous comparison (a per-row reduction costs ten times more)
 
 
 def derive(values: dict[str, np.ndarray], layout: dict[str, int | None], counts: list[int]) -> dict[str, Any]:

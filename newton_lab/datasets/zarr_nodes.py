@@ -163,8 +163,8 @@ def inodes_of(tree: dict[str, Any]) -> int:
 def write_group(node: str | Path, attrs: dict[str, Any]) -> None:
     """An empty group ``node`` (a new directory) with ``attrs``."""
     os.mkdir(node)
-    write_file(f"{node}/zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"},
-                                           indent=2).encode())
+    # no indent: json's C encoder serves only unindented output, and a pack's index holds every demo's attrs
+    write_file(f"{node}/zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"}).encode())
 
 
 def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
