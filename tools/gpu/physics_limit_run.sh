@@ -25,6 +25,8 @@
 #   writer_threads  bench-collect with the writer process at 8 chunk threads (the default on a host of 8 cores or
 #            more) and at 24 (NEWTON_LAB_ZARR_PACK_THREADS), alternating with the writer thread; then 24 threads
 #            with re-plans in batches of 256, and the writer process's own profile (writer_process_profile.txt)
+#   writer_column  bench-collect with the writer process (each burst split into its arrays on arrival) against the
+#            writer thread, twice each, alternating; then the writer process's own profile (writer_column_profile.txt)
 set -uo pipefail
 export PYTHONPATH=$HOME/.cache/gpu_site PYTHONUNBUFFERED=1
 W=${W:-/tmp/w}; out=$W/p33; mkdir -p "$out"
@@ -110,6 +112,19 @@ s.sort_stats('tottime').print_stats(40)" "$out/writer.prof" > "$out/writer_profi
     ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(40); \
 s.sort_stats('tottime').print_stats(30)" "$out/writer_process.prof" > "$out/writer_process_profile.txt" 2>&1
     for f in "$out"/wx_*.log; do echo "## $(basename "$f")"; grep -h "demos/s\|stages\|hand-over" "$f"; done ;;
-  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab writer_ab writer_threads)"; exit 2 ;;
+  writer_column)
+    rm -rf "$W"/bcy*.zarr*
+    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
+    for k in 1 2; do
+      run "wy_process_$k" $N $bc --writer process --dataset-path "$W/bcy_p_$k.zarr"
+      run "wy_thread_$k" $N $bc --writer thread --dataset-path "$W/bcy_t_$k.zarr"
+    done
+    run wy_profile env NEWTON_LAB_WRITER_PROFILE="$out/writer_column.prof" $N $bc --writer process \
+      --dataset-path "$W/bcy_prof.zarr"
+    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(40); \
+s.sort_stats('tottime').print_stats(30)" "$out/writer_column.prof" > "$out/writer_column_profile.txt" 2>&1
+    for f in "$out"/wy_*.log; do echo "## $(basename "$f")"; grep -h "demos/s\|stages\|hand-over\|physics-bound" "$f"; done ;;
+  *) echo "unknown step $step (bench table collect profile tasks camera collect_ab writer_ab writer_threads" \
+       "writer_column)"; exit 2 ;;
   esac
 done
