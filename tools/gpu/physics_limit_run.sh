@@ -42,6 +42,17 @@ run() {  # run STEP COMMAND...: the command's output into $out/STEP.log, a line 
   (cd "$W" && "$@") > "$out/$step.log" 2>&1
   echo "== $(date -u +%T) $step done, rc $?, $((SECONDS - t0)) s"
 }
+profile_text() {  # profile_text STATS TEXT: a cProfile file's 40 costliest calls, cumulative and own time
+  ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(40); \
+s.sort_stats('tottime').print_stats(40)" "$1" > "$2" 2>&1
+}
+BC="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
+twice_each() {  # twice_each TAG WRITER...: bench-collect with each --writer in turn, two rounds ($out/TAG_WRITER_K.log)
+  local tag=$1 k w; shift
+  for k in 1 2; do
+    for w in "$@"; do run "${tag}_${w}_$k" $N $BC --writer "$w" --dataset-path "$W/${tag}_${w}_$k.zarr"; done
+  done
+}
 nvidia-smi --query-gpu=index,name --format=csv,noheader | sed -n "$((g + 1))p"
 for step in "${steps[@]}"; do
   case $step in
@@ -55,14 +66,13 @@ for step in "${steps[@]}"; do
       --variant cone=pyramidal,contacts_per_world=32 ;;
   collect)
     rm -rf "$W"/bc33*.zarr*
-    bc="$N bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
+    bc="$N $BC"
     run collect $bc --dataset-path "$W/bc33.zarr"
     run collect_switch ${PY:-python3} -c "import sys; sys.setswitchinterval(5e-4); from newton_lab.cli import main; \
 sys.exit(main(sys.argv[1:]))" ${bc#*-m newton_lab.cli } --dataset-path "$W/bc33s.zarr"
     run collect_cprofile ${PY:-python3} -m cProfile -o "$out/collect.prof" -m newton_lab.cli ${bc#*-m newton_lab.cli } \
       --dataset-path "$W/bc33c.zarr"
-    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(60); \
-s.sort_stats('tottime').print_stats(40)" "$out/collect.prof" > "$out/collect_profile.txt" 2>&1 ;;
+    profile_text "$out/collect.prof" "$out/collect_profile.txt" ;;
   profile)
     run profile ${PY:-python3} "$tools/profile_step.py" --full --num-envs 4096 --device "$dev" ;;
   tasks)
@@ -76,54 +86,43 @@ s.sort_stats('tottime').print_stats(40)" "$out/collect.prof" > "$out/collect_pro
     # this checkout's collection against the package laid out in $BASE_SITE (another commit's, by
     # lay_out_package.sh): new / base / new again, then a traced run of this one
     rm -rf "$W"/bco*.zarr*  # the four runs' datasets
-    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
-    run ab_new $N $bc --dataset-path "$W/bco_new.zarr"
-    run ab_base env PYTHONPATH="${BASE_SITE:?BASE_SITE: the other commit laid out}:$PYTHONPATH" $N $bc \
+    run ab_new $N $BC --dataset-path "$W/bco_new.zarr"
+    run ab_base env PYTHONPATH="${BASE_SITE:?BASE_SITE: the other commit laid out}:$PYTHONPATH" $N $BC \
       --dataset-path "$W/bco_base.zarr"
-    run ab_new2 $N $bc --dataset-path "$W/bco_new2.zarr"
-    run ab_trace $N $bc --dataset-path "$W/bco_trace.zarr" --trace "$out/collect_trace.json.gz" ;;
+    run ab_new2 $N $BC --dataset-path "$W/bco_new2.zarr"
+    run ab_trace $N $BC --dataset-path "$W/bco_trace.zarr" --trace "$out/collect_trace.json.gz" ;;
   writer_ab)
-    rm -rf "$W"/bcw*.zarr*
-    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
-    for k in 1 2; do
-      run "wr_thread$k" $N $bc --writer thread --dataset-path "$W/bcw_t$k.zarr"
-      run "wr_process$k" $N $bc --writer process --dataset-path "$W/bcw_p$k.zarr"
-    done
-    run wr_replan256 $N $bc --writer process --replan-batch 256 --replan-wait 12 --dataset-path "$W/bcw_r256.zarr"
-    run wr_replan128 $N $bc --writer process --replan-batch 128 --replan-wait 8 --dataset-path "$W/bcw_r128.zarr"
-    run wr_cprofile ${PY:-python3} -m cProfile -o "$out/writer.prof" -m newton_lab.cli $bc --writer process \
+    rm -rf "$W"/bcw*.zarr* "$W"/wr_*.zarr*
+    twice_each wr thread process
+    run wr_replan256 $N $BC --writer process --replan-batch 256 --replan-wait 12 --dataset-path "$W/bcw_r256.zarr"
+    run wr_replan128 $N $BC --writer process --replan-batch 128 --replan-wait 8 --dataset-path "$W/bcw_r128.zarr"
+    run wr_cprofile ${PY:-python3} -m cProfile -o "$out/writer.prof" -m newton_lab.cli $BC --writer process \
       --dataset-path "$W/bcw_c.zarr"
-    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(50); \
-s.sort_stats('tottime').print_stats(40)" "$out/writer.prof" > "$out/writer_profile.txt" 2>&1
+    profile_text "$out/writer.prof" "$out/writer_profile.txt"
     grep -h "demos/s\|stages\|hand-over\|physics-bound" "$out"/wr_*.log ;;
   writer_threads)
     rm -rf "$W"/bcx*.zarr*
-    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
     for k in 1 2; do
-      run "wx_process8_$k" $N $bc --writer process --dataset-path "$W/bcx_p8_$k.zarr"
-      run "wx_process24_$k" env NEWTON_LAB_ZARR_PACK_THREADS=24 $N $bc --writer process \
+      run "wx_process8_$k" $N $BC --writer process --dataset-path "$W/bcx_p8_$k.zarr"
+      run "wx_process24_$k" env NEWTON_LAB_ZARR_PACK_THREADS=24 $N $BC --writer process \
         --dataset-path "$W/bcx_p24_$k.zarr"
-      run "wx_thread_$k" $N $bc --writer thread --dataset-path "$W/bcx_t_$k.zarr"
+      run "wx_thread_$k" $N $BC --writer thread --dataset-path "$W/bcx_t_$k.zarr"
     done
-    run wx_process24_r256 env NEWTON_LAB_ZARR_PACK_THREADS=24 $N $bc --writer process --replan-batch 256 \
+    run wx_process24_r256 env NEWTON_LAB_ZARR_PACK_THREADS=24 $N $BC --writer process --replan-batch 256 \
       --replan-wait 12 --dataset-path "$W/bcx_p24r.zarr"
-    run wx_profile env NEWTON_LAB_WRITER_PROFILE="$out/writer_process.prof" $N $bc --writer process \
+    run wx_profile env NEWTON_LAB_WRITER_PROFILE="$out/writer_process.prof" $N $BC --writer process \
       --dataset-path "$W/bcx_prof.zarr"
-    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(40); \
-s.sort_stats('tottime').print_stats(30)" "$out/writer_process.prof" > "$out/writer_process_profile.txt" 2>&1
+    profile_text "$out/writer_process.prof" "$out/writer_process_profile.txt"
     for f in "$out"/wx_*.log; do echo "## $(basename "$f")"; grep -h "demos/s\|stages\|hand-over" "$f"; done ;;
   writer_column)
-    rm -rf "$W"/bcy*.zarr*
-    bc="bench-collect --task GalbotG1-PickCube-v0 --num-envs 4096 --episodes 16384 --prefill 0 --device $dev"
-    for k in 1 2; do
-      run "wy_process_$k" $N $bc --writer process --dataset-path "$W/bcy_p_$k.zarr"
-      run "wy_thread_$k" $N $bc --writer thread --dataset-path "$W/bcy_t_$k.zarr"
-    done
-    run wy_profile env NEWTON_LAB_WRITER_PROFILE="$out/writer_column.prof" $N $bc --writer process \
+    rm -rf "$W"/bcy*.zarr* "$W"/wy_*.zarr*
+    twice_each wy process thread
+    run wy_profile env NEWTON_LAB_WRITER_PROFILE="$out/writer_column.prof" $N $BC --writer process \
       --dataset-path "$W/bcy_prof.zarr"
-    ${PY:-python3} -c "import pstats, sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(40); \
-s.sort_stats('tottime').print_stats(30)" "$out/writer_column.prof" > "$out/writer_column_profile.txt" 2>&1
-    for f in "$out"/wy_*.log; do echo "## $(basename "$f")"; grep -h "demos/s\|stages\|hand-over\|physics-bound" "$f"; done ;;
+    profile_text "$out/writer_column.prof" "$out/writer_column_profile.txt"
+    for f in "$out"/wy_*.log; do
+      echo "## $(basename "$f")"; grep -h "demos/s\|stages\|hand-over\|physics-bound" "$f"
+    done ;;
   *) echo "unknown step $step (bench table collect profile tasks camera collect_ab writer_ab writer_threads" \
        "writer_column)"; exit 2 ;;
   esac
