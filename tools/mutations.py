@@ -125,7 +125,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     one_patch("next-step-reference-off-by-one", "a pack stores an array as a reference only where the bytes repeat",
               "newton_lab/datasets/zarr_derived.py", "    shifted[ends[:-1] - 1] = rs[ends[:-1]]",
               "    shifted[ends[:-1]] = rs[ends[:-1] + 1]",
-              "tests/test_collect_writer.py::"
+              "tests/test_zarr_derived.py", "tests/test_collect_writer.py::"
               "test_arrays_that_repeat_others_are_stored_once_and_read_back_byte_identical"),
     one_patch("burst-next-obs-columns-shifted", "a burst's next observation is split from its own columns",
               "newton_lab/datasets/columns.py",
