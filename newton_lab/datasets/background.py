@@ -45,11 +45,34 @@ def _runs(batch: list[tuple[Any, Future, int]]) -> list[list[tuple[Any, Future, 
     return runs
 
 
+class LatchedErrors:
+    """The write-error rule both background writers keep (this thread, ``writer_process.ProcessWriter``): the first
+    write error is kept (``_error``); every later put, flush or close raises it, except that a close after it was
+    raised once does not raise it again. A context manager that closes on exit."""
+
+    _error: BaseException | None = None
+    _raised = False
+
+    def _raise(self, always: bool) -> None:
+        if self._error is not None and (always or not self._raised):
+            self._raised = True
+            raise self._error
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def _nbytes(tree: dict[str, Any]) -> int:
     return sum(_nbytes(v) if isinstance(v, dict) else v.nbytes for v in tree.values())
 
 
-class BackgroundWriter:
+class BackgroundWriter(LatchedErrors):
     """Writes episodes on a thread beside the caller; ``put`` returns a future of the demo id.
 
     Use as a context manager, or call :meth:`close` (it waits for every queued episode)."""
@@ -72,8 +95,7 @@ class BackgroundWriter:
         self._cv = threading.Condition()
         self._queue: deque[tuple[Any, Future, int]] = deque()  # (prepared tree or DemoBlock, future, episodes)
         self._episodes = 0  # episodes queued
-        self._busy = self._stop = self._closed = self._raised = False
-        self._error: BaseException | None = None
+        self._busy = self._stop = self._closed = False
         self._thread = threading.Thread(target=self._loop, name=f"episode writer {writer.path.name}", daemon=True)
         self._thread.start()
 
@@ -166,11 +188,6 @@ class BackgroundWriter:
     def _idle(self) -> bool:
         return not (self._queue or self._busy) or not self._thread.is_alive()
 
-    def _raise(self, always: bool) -> None:
-        if self._error is not None and (always or not self._raised):
-            self._raised = True
-            raise self._error
-
     def _due(self) -> bool:
         """The queue is to be written now (under the lock; see the module docstring's Batching)."""
         return bool(self._queue) and (self._episodes >= self.min_batch or self._blocked > 0 or self._hurry > 0
@@ -219,12 +236,6 @@ class BackgroundWriter:
         else:
             for (_, f, _), result in zip(run, results):
                 f.set_result(result)
-
-    def __enter__(self) -> BackgroundWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"BackgroundWriter({str(self.path)!r}, max_queued={self.max_queued})"

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 
 from ._common import start_child
+from .background import LatchedErrors
 from .columns import ColumnLayout
 
 RING_BYTES = 1 << 30
@@ -75,7 +76,7 @@ class _Ring:
         return len(self._taken)
 
 
-class ProcessWriter:
+class ProcessWriter(LatchedErrors):
     """The collecting side: :meth:`put_block` copies a burst into the ring and queues it; futures give each demo's id
     once durable (or the write's error). :meth:`close` waits for every queued episode and stops the process."""
 
@@ -93,8 +94,7 @@ class ProcessWriter:
         self._cv = threading.Condition()
         self._pending: dict[int, Future] = {}  # burst -> its ids
         self._next = 0
-        self._error: BaseException | None = None
-        self._raised = self._closed = False
+        self._closed = False
         self._proc = start_child("newton_lab.datasets.writer_serve", "main", str(self._fd), pass_fds=(self._fd,))
         os.set_inheritable(self._fd, False)
         self._send(("open", str(self.path), task_id, fsync, ring_bytes, layout,
@@ -210,17 +210,6 @@ class ProcessWriter:
                     if burst in self._pending:
                         self._pending.pop(burst).set_exception(message[2])
                 self._cv.notify_all()
-
-    def _raise(self, always: bool) -> None:
-        if self._error is not None and (always or not self._raised):
-            self._raised = True
-            raise self._error
-
-    def __enter__(self) -> ProcessWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def _itemsize(arr) -> int:
