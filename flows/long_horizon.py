@@ -20,6 +20,7 @@ from ..datasets.outputs import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .stage_runs import INPUT_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
+from .run_record import StageClock, pipeline_record, write_pipeline_record
 from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
 
 split_task = stage_task(stages.split_stage, "split")
@@ -52,9 +53,10 @@ def has_phases(task_id: str) -> bool:
 def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], eval_episodes: int, num_envs: int,
                           device: str | None, out: str, seed: int = 0, workers: int = 1, eval_max_steps: int = 3000,
                           cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"], task_options: dict[str, Any] | None = None,
-                          gpus: int = 1, record: bool = True) -> dict[str, Any]:
+                          gpus: int = 1, record: bool = True, recipe: str | None = None) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
-    flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included) and a markdown summary.
+    flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
+    run record (``<out>/records/``; ``summary["record"]``).
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
     ``gpus`` > 1 trains each phase data-parallel."""
     runlog.quiet_console(INPUT_ERRORS)
@@ -62,21 +64,26 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
     phases = learned_phases(task_id, options)
+    clock = StageClock()
     demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
                                    task_options=options, max_steps=COLLECT_MAX_STEPS)
+    clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
     (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out)], "split")
+    clock.lap("split")
     log.info("split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items()))
     arts, s_train = results(train_task.map(dataset=[split[p] for p in phases], train_cfg=unmapped(dict(train_cfg)),
                                             out_dir=unmapped(out), name=[f"policy_{p}" for p in phases],
                                             gpus=unmapped(gpus)), "train")
     checkpoints = dict(zip(phases, arts))
+    clock.lap("train")
     for art in arts:
         runlog.publish_loss_curve(art)
     log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
     metrics, s_eval = run_evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers, eval_max_steps,
                                 recording=Path(out) / "evaluation.rrd" if record else None, cameras=cameras, task_options=options,
                                 phase_checkpoints=checkpoints)
+    clock.lap("evaluate")
     log.info("evaluate: %s; success rate %.1f%% over %d episodes; %s", "/".join(s_eval),
              100 * metrics["success_rate"], metrics["episodes"],
              ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in metrics["phases"].items()))
@@ -84,6 +91,9 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
                "learned_phases": phases,
                "artifacts": {"demos": demo_art, "phases": split, "checkpoints": checkpoints},
                "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval}}
+    rec = pipeline_record(summary, clock, seed=seed, device=train_cfg.get("device", device), train_cfg=dict(train_cfg),
+                          cameras=cameras, task_options=options, recipe=recipe)
+    summary["record"] = str(write_pipeline_record(rec, out_dir))
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
     return summary
 

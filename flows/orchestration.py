@@ -26,7 +26,8 @@ from ..task_api.registry import lookup
 from . import runlog
 from .cluster import cluster_options, pins_gpus, quiet_shutdown
 from .long_horizon import has_phases, long_horizon_pipeline
-from .settings import DEMO_RECIPES, check_api_reachable
+from .run_record import StageClock, pipeline_record, write_pipeline_record
+from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, check_api_reachable
 from .stage_runs import (INPUT_ERRORS, collect_task, evaluate_task, mimic_task, run_collect, run_evaluate, run_mimic,
                          run_train, train_task)
 
@@ -90,27 +91,41 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
              train_cfg: dict[str, Any] | None = None, eval_episodes: int = _R["eval_episodes"],
              num_envs: int = _R["num_envs"], device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
              workers: int = _P.workers, eval_max_steps: int = 600, gpus: int = 1,
-             record: bool = _P.record) -> dict[str, Any]:
+             record: bool = _P.record, cameras: str = PIPELINE_CAMERAS, task_options: dict[str, Any] | None = None,
+             recipe: str | None = None) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
-    runner for all); publishes one artifact per stage and a markdown summary (``runlog``) and writes
-    ``<out>/metrics.json``. ``workers`` > 1 shards collection, Mimic and evaluation.
+    runner for all); publishes one artifact per stage and a markdown summary (``runlog``), writes
+    ``<out>/metrics.json`` and a run record (``<out>/records/``; ``summary["record"]``). ``workers`` > 1 shards
+    collection, Mimic and evaluation. ``cameras`` are rendered and recorded by collection, Mimic and evaluation
+    (a visuomotor recipe); ``task_options`` (e.g. ``obs_mode="sensors"``) apply to every env.
     Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
     runlog.quiet_console(INPUT_ERRORS)
     log = get_run_logger()
     out_dir = output_path(Path(out) / "metrics.json").parent
-    demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers)
+    options = dict(task_options or {})
+    clock = StageClock()
+    demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
+                                      task_options=options)
+    clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
-    gen_art, s_mimic = run_mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers)
+    gen_art, s_mimic = run_mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers, cameras=cameras)
+    clock.lap("mimic")
     log.info("mimic: %s", "/".join(s_mimic))
     ckpt_art, s_train = run_train(gen_art, train_cfg, out, gpus)
+    clock.lap("train")
     log.info("train: %s", "/".join(s_train))
     metrics, s_eval = run_evaluate(ckpt_art, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
-                                eval_max_steps, recording=Path(out) / "evaluation.rrd" if record else None)
+                                   eval_max_steps, recording=Path(out) / "evaluation.rrd" if record else None,
+                                   cameras=cameras, task_options=options)
+    clock.lap("evaluate")
     log.info("evaluate: %s; success rate %.1f%% over %d episodes", "/".join(s_eval), 100 * metrics["success_rate"],
              metrics["episodes"])
     summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
                "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art},
                "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval}}
+    rec = pipeline_record(summary, clock, seed=seed, device=(train_cfg or {}).get("device", device),
+                          train_cfg=dict(train_cfg or {}), cameras=cameras, task_options=options, recipe=recipe)
+    summary["record"] = str(write_pipeline_record(rec, out_dir))
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
     runlog.publish_summary(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir)
     return summary

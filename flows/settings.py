@@ -26,13 +26,20 @@ Mish 4000 steps 100 % / -, Mish 5000 steps - / 87.5 %. Earlier: 10 DDIM steps 68
 machine costs about what it saves)."""
 
 DEMO_RECIPES: dict[str, dict[str, Any]] = {
-    # on 2 CPU cores from a fresh clone with cold caches: docs/benchmarks.md, "The demo pipeline"
-    "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 40, "num_envs": 4, "train": DEMO_TRAIN_CFG},
-    # full size on a CUDA device: more Mimic data, the cpu preset's 10k steps, 100 evaluation episodes
-    "gpu": {"demos": 10, "mimic_episodes": 500, "eval_episodes": 100, "num_envs": 50,
-            "train": {**DEMO_TRAIN_CFG, "activation": "mish", "num_inference_steps": 10, "max_steps": 10000}},
+    # on 2 CPU cores from a fresh clone with cold caches: the policy observes state (nothing is rendered)
+    "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 40, "num_envs": 4, "cameras": "none",
+            "task_options": {}, "train": DEMO_TRAIN_CFG},
+    # full size on a CUDA device, from pixels: the policy sees the front head camera (96x72 RGB) and
+    # proprioception only (obs_mode=sensors: no cube or block pose anywhere in its input); 16 expert demos grown
+    # to 1024 by Mimic (rendered from the same camera), the visuomotor preset under bf16 for a fixed wall-clock
+    # budget, 100 held-out randomised evaluation episodes. num_envs bounds each stage's rows (collection uses
+    # one row per demo, evaluation one per episode).
+    "gpu": {"demos": 16, "mimic_episodes": 1024, "eval_episodes": 100, "num_envs": 512,
+            "cameras": "front_head=96x72:rgb", "task_options": {"obs_mode": "sensors"},
+            "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 330}},
 }
-"""Counts and training config of ``newton-lab pipeline`` / ``make demo`` for every flag left unset."""
+"""Counts, cameras, task options and training of ``newton-lab pipeline`` / ``make demo`` for every flag left
+unset (``cameras``: the ``--cameras`` of collection, Mimic and evaluation)."""
 LONG_HORIZON_RECIPES: dict[str, dict[str, Any]] = {
     # The smallest end-to-end run on 2 CPU cores: a few coherent demos, short trainings of the quarter-width
     # visuomotor policy on the front camera, a few evaluation episodes (it shows the flow works; no success is
@@ -54,8 +61,9 @@ LONG_HORIZON_OPTIONS = {"obs_mode": "sensors"}
 """Task options the long-horizon pipeline always sets (policies see no privileged state)."""
 
 PIPELINE_CAMERAS = "none"
-"""``--cameras`` of the pipeline's collect, Mimic and evaluation envs: its policy observes state, so nothing is
-rendered or recorded (image terms would cost a render per step and ~0.9 MB per 298x224 demo)."""
+"""Default ``--cameras`` of the pipeline's collect, Mimic and evaluation envs when a recipe names none: a state
+policy, so nothing is rendered or recorded (image terms would cost a render per step and ~0.9 MB per 298x224
+demo)."""
 
 
 def _sees_cuda() -> bool:

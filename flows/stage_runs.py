@@ -149,16 +149,20 @@ def run_dataset_stage(stage_task, args, *, shards: int, out: str, stage: str, na
 
 def run_collect(task_id, episodes, num_envs, seed, device, out, shards, *, cameras=PIPELINE_CAMERAS, task_options=None,
              max_steps=None):
-    args = CollectArgs(task=task_id, episodes=episodes, num_envs=num_envs, seed=seed, device=device, randomize=True,
+    """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos)."""
+    args = CollectArgs(task=task_id, episodes=episodes, num_envs=min(num_envs, episodes), seed=seed, device=device,
+                       randomize=True,
                        dataset_path=str(Path(out) / "demos.hdf5"), cameras=cameras,
                        task_options=dict(task_options or {}), **({"max_steps": max_steps} if max_steps else {}))
     return run_dataset_stage(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
                               path_field="dataset_path")
 
 
-def run_mimic(source, episodes, num_envs, seed, device, out, shards):
+def run_mimic(source, episodes, num_envs, seed, device, out, shards, *, cameras=PIPELINE_CAMERAS):
+    """Grow ``source`` to ``episodes`` Mimic demos on at most ``num_envs`` rows, rendering ``cameras`` (the
+    source's task options, ``obs_mode`` included, are kept)."""
     args = MimicArgs(dataset_path=source["path"], output_path=str(Path(out) / "mimic.hdf5"), episodes=episodes,
-                     num_envs=num_envs, seed=seed, device=device, cameras=PIPELINE_CAMERAS)
+                     num_envs=min(num_envs, episodes), seed=seed, device=device, cameras=cameras)
     return run_dataset_stage(mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic",
                               path_field="output_path", source=source)
 
@@ -175,7 +179,7 @@ def run_evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, 
     """Evaluate a checkpoint artifact, or a coherent task's ``phase_checkpoints`` (phase -> artifact; checkpoint
     None), in ``shards`` runs with disjoint seeds; the summed metrics (per phase too) and the task states."""
     args = EvaluateArgs(task=task_id, checkpoint=None if checkpoint is None else checkpoint["path"], episodes=episodes,
-                        num_envs=num_envs, seed=seed, device=device, randomize=True, max_steps=max_steps,
+                        num_envs=min(num_envs, episodes), seed=seed, device=device, randomize=True, max_steps=max_steps,
                         cameras=cameras, task_options=dict(task_options or {}))
     shard_args = shard_args_of(args, shards)
     if recording is not None:  # two episodes of the first shard, for the viewer

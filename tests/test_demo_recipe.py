@@ -32,10 +32,26 @@ def test_recipes_resolve_their_devices():
 
 @pytest.mark.parametrize("name", sorted(DEMO_RECIPES))
 def test_recipe_training_configs_are_valid_and_predict_x0(name):
-    cfg = DiffusionPolicyConfig.from_dict({**DEMO_RECIPES[name]["train"], "device": "cpu"})
-    assert cfg.prediction_type == "sample" and cfg.max_steps >= 2000
+    train = PipelineArgs(recipe=name).train_cfg(demo_recipe(name, "cpu" if name == "cpu" else "cuda:0"))
+    cfg = DiffusionPolicyConfig.from_dict(train)
+    assert cfg.prediction_type == "sample" and ((cfg.max_steps or 0) >= 2000 or (cfg.time_budget_s or 0) >= 120)
     for count in ("demos", "mimic_episodes", "eval_episodes", "num_envs"):  # full size: never fewer
         assert DEMO_RECIPES[name][count] >= DEMO_RECIPES["cpu"][count]
+
+
+def test_the_gpu_demo_learns_from_pixels_and_proprioception_only():
+    """The full-size demo's policy sees a camera it records and proprioception; no object pose reaches it."""
+    from newton_lab.task_api.cfg import parse_cameras
+
+    recipe = demo_recipe("gpu", "cuda:0")
+    kwargs = PipelineArgs().pipeline_kwargs(recipe)
+    cfg = DiffusionPolicyConfig.from_dict(kwargs["train_cfg"])
+    recorded = {f"{cam}_{data}" for cam, spec in parse_cameras(kwargs["cameras"]).items() for data in spec["data"]}
+    assert cfg.image_keys and set(cfg.image_keys) <= recorded and cfg.bf16
+    assert kwargs["task_options"] == {"obs_mode": "sensors"} and kwargs["recipe"] == "gpu"
+    assert not any("pose" in k for k in cfg.obs_keys or ()), cfg.obs_keys
+    cpu = PipelineArgs().pipeline_kwargs(demo_recipe("cpu"))  # the CPU recipe stays a state policy
+    assert cpu["cameras"] == "none" and cpu["task_options"] == {}
 
 
 def test_flags_override_the_recipe():

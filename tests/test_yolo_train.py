@@ -1,7 +1,7 @@
 """``newton-lab yolo-train`` / ``yolo-predict``: the parts that need no Ultralytics (it needs torchvision, which has no
 usable CPU build beside torch 2.13): the data specs written for a run, the overlay drawing, the polars-free
 results reader, and the refusals (one line, exit 2, before Warp is imported, nothing written). The training and
-inference themselves run on a GPU host: tools/gpu/yolo_run.sh, docs/data.md#yolo-seg."""
+inference themselves run on a GPU host with Ultralytics installed: docs/data.md#yolo-seg."""
 
 from __future__ import annotations
 

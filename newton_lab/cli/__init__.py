@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from importlib import metadata
 
 from .. import commands as c
+from ..records import set_invocation
 from . import run, teleop, yolo
 from .checks import check_args
 from .parsing import REQUIRED, HelpFormatter, add_arguments, add_verbose, apply_verbose, from_namespace, parse_args
@@ -45,6 +46,8 @@ COMMANDS: dict[str, Command] = {
                              "expert collection demos/s and per hour: physics / agent / writer seconds"),
     "bench-train": Command(c.BenchTrainArgs, run.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
+    "results": Command(c.ResultsArgs, run.results,
+                       "the results page's headline tables from the committed run records (--check: compare only)"),
     "render": Command(c.RenderArgs, run.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),
     "teleop": Command(teleop.TeleopArgs, teleop.teleop,
                       "drive a task from a teleop device (keyboard, replay, gp001, ...); keep / drop / exit each demo"),
@@ -91,6 +94,7 @@ def _write_error() -> type[Exception]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    set_invocation(sys.argv[1:] if argv is None else argv)  # the run records name this command line
     parser = build_parser()
     ns, extra = parser.parse_known_args(argv)
     if extra:  # an unknown flag: one line, with the closest flag of that command

@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..commands import RenderArgs
+from ..commands import RenderArgs, ResultsArgs
 from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
@@ -133,19 +133,29 @@ def export(args: ExportArgs) -> int:
 
 
 def pipeline(args: PipelineArgs) -> int:
+    from .. import tasks as _registered  # noqa: F401  deferred: registering the tasks imports Warp
+
+    long_horizon = bool(lookup(args.task).make_cfg({}).phases)  # a coherent task: the long-horizon flow
+    recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon)
+    kwargs = args.pipeline_kwargs(recipe)
+    if args.dry_run:  # the plan only: nothing is collected, trained or written, Prefect is not started
+        stages = (["collect", "split", "train per learned phase", "evaluate composed"] if long_horizon
+                  else ["collect", "mimic", "train", "evaluate"])
+        print(json.dumps({"plan": {**kwargs, "long_horizon": long_horizon, "stages": stages}}, default=str))
+        return 0
     configure(Path(args.out) / ".prefect")  # before Prefect is imported
     from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
 
-    from ..flows.long_horizon import has_phases, summary_lines as long_horizon_lines  # deferred: as above
+    from ..flows.long_horizon import summary_lines as long_horizon_lines  # deferred: as above
 
-    long_horizon = has_phases(args.task)
-    recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon)
-    summary = run_pipeline(**args.pipeline_kwargs(recipe))
+    summary = run_pipeline(**kwargs)
     metrics = Path(args.out).resolve() / "metrics.json"
     lines = long_horizon_lines if long_horizon else summary_lines
     print("\n".join(lines(summary, args.out, recipe["name"])))
     print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
-    print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"], "metrics": str(metrics)}))
+    print(f"run record: {summary['record']}")
+    print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"], "metrics": str(metrics),
+                      "record": summary["record"]}))
     return 0
 
 
@@ -161,12 +171,23 @@ def view(args: ViewArgs) -> int:
     return 0
 
 
+def write_run_record(kind: str, args, task: str | None, device: str | None, results: dict) -> None:
+    """The benchmark's run record at ``--run-record`` (default under outputs/records/); its path on stderr."""
+    from ..records import command_wall_s, default_path, make_record, write_record
+
+    rec = make_record(kind, task=task, device=device, results=results, wall_s=command_wall_s())
+    path = write_record(rec, args.run_record or default_path(kind, task))
+    print(f"run record: {path}", file=sys.stderr)
+
+
 def bench(args: BenchArgs) -> int:
     from ..bench import bench as measure  # deferred: Warp/Newton are slow to import
 
     cam = {} if args.camera is None else {"camera": args.camera, "resolution": tuple(args.resolution or (128, 128)),
                                           "camera_data": tuple(args.camera_data or ("rgb",))}
-    print(json.dumps(measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)))
+    out = measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)
+    write_run_record("bench", args, args.task, args.device, out)
+    print(json.dumps(out))
     return 0
 
 
@@ -181,20 +202,34 @@ def bench_collect(args: BenchCollectArgs) -> int:
         out = bench_collect(args.task, prefill=args.prefill, replan_batch=args.replan_batch,
                             replan_wait=args.replan_wait, trace=args.trace, trace_after=args.trace_after, **common)
         print(summary(out), file=sys.stderr, flush=True)
-        print(json.dumps(out))
     else:
         if (args.replan_batch, args.replan_wait, args.trace) != (None, None, None):
             raise ValueError("--replan-batch, --replan-wait and --trace are for one process (--workers 1)")
-        print(json.dumps(bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline,
-                                                  **common)))
+        out = bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline, **common)
+    write_run_record("bench-collect", args, args.task, args.device, out)
+    print(json.dumps(out))
     return 0
 
 
 def bench_train(args: BenchTrainArgs) -> int:
     from ..bench import bench_train as measure  # deferred: torch is slow to import
 
-    print(json.dumps(measure(args.dataset_path, batch_size=args.batch_size, steps=args.steps, device=args.device,
-                             preset=args.preset, bf16=args.bf16)))
+    out = measure(args.dataset_path, batch_size=args.batch_size, steps=args.steps, device=args.device,
+                  preset=args.preset, bf16=args.bf16)
+    write_run_record("bench-train", args, out.get("task"), args.device, out)
+    print(json.dumps(out))
+    return 0
+
+
+def results(args: ResultsArgs) -> int:
+    from ..results import update
+
+    fresh = update(args.page, args.records, check=args.check)
+    if args.check and not fresh:
+        print(f"{args.page} does not match the run records in {args.records}; run `newton-lab results` to "
+              "regenerate it", file=sys.stderr)
+        return 1
+    print(f"{args.page}: {'up to date' if fresh else 'regenerated'} from {args.records}")
     return 0
 
 

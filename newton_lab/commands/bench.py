@@ -9,7 +9,16 @@ from ..task_api.registry import DEFAULT_TASK_ID
 
 
 @dataclass(kw_only=True)
-class BenchEnvArgs:
+class RunRecordArgs:
+    """Where a benchmark writes its run record (``newton_lab.records``)."""
+
+    run_record: str | None = None
+    """write the run record (JSON: command, commit, date, device, figures) here (default
+    outputs/records/<command>-<task>-<UTC time>.json)"""
+
+
+@dataclass(kw_only=True)
+class BenchEnvArgs(RunRecordArgs):
     """The env a benchmark times: task, rows and device."""
 
     task: str = DEFAULT_TASK_ID
@@ -68,7 +77,7 @@ class BenchCollectArgs(BenchEnvArgs):
 
 
 @dataclass(kw_only=True)
-class BenchTrainArgs:
+class BenchTrainArgs(RunRecordArgs):
     """``newton-lab bench-train``: diffusion-policy training steps/s, eager vs CUDA-graph step."""
 
     dataset_path: str
@@ -83,3 +92,15 @@ class BenchTrainArgs:
     """also time the steps under bfloat16 autocast (float32 and bf16 side by side)"""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""
+
+
+@dataclass(kw_only=True)
+class ResultsArgs:
+    """``newton-lab results``: the results page's headline tables, generated from the committed run records."""
+
+    records: str = "docs/results"
+    """folder of run records (*.json, written by pipeline and the bench commands)"""
+    page: str = "docs/benchmarks.md"
+    """markdown page whose generated block is rewritten"""
+    check: bool = False
+    """only compare: exit 1 when the page does not match the records"""

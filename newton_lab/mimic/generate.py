@@ -21,7 +21,8 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
     pose, top-k), replays it in the current object frame, and keeps the attempt only if the task's success
     fired at some step. Returns a ``DatasetRef``; its metadata holds ``attempts``, ``successes`` and
     ``success_rate`` (also stored as provenance in the dataset). ``cameras`` (``make_env``'s): ``None`` renders
-    and records the cameras the source dataset recorded (none for a state-only source).
+    and records the cameras the source dataset recorded (none for a state-only source). The task options the
+    source was recorded with (``obs_mode`` among them) are applied where the Mimic variant takes them.
     """
     src = dataset if isinstance(dataset, DatasetRef) else DatasetRef.open(dataset)
     path = Path(src.path)
@@ -37,7 +38,11 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
         recorded = src.info()["env_args"].get("newton_lab", {}).get("cameras") or {}
         cameras = {cam: {"resolution": (c["width"], c["height"]), "data": tuple(c["data"])}
                    for cam, c in recorded.items()} or False
-    env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras)
+    # the source's task options (obs_mode included): the generated demos record what the source's did
+    recorded_options = src.info()["env_args"].get("env_kwargs", {}).get("task_options") or {}
+    options = {k: v for k, v in recorded_options.items() if k in variant.option_names}
+    env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras,
+                   task_options=options)
     sources = load_sources(path, cfg, env.robot.kinematics(256, device=env.device, arm=cfg.arm), task_id=task_id,
                            robot=env.robot)
     agent = MimicAgent(sources, cfg, seed=seed)

@@ -1,0 +1,139 @@
+"""Run records and the results page generated from them: what a record holds, that the committed page matches the
+committed records (no figure typed by hand), that every record was made by a product command, and the pipeline's
+recipe choice on a machine without a GPU (its dry-run plan)."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from newton_lab import records, results
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "benchmarks.md"
+RECORDS = ROOT / "docs" / "results"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _quiet_warp():
+    """Overrides the conftest fixture: most of these tests never import warp."""
+    yield
+
+
+def _record(kind: str, results_: dict, task: str = "GalbotG1-PickCube-v0", command: str | None = None) -> dict:
+    return records.make_record(kind, task=task, device="cpu", results=results_, wall_s=123.4,
+                               command=command or f"newton-lab {kind} --task {task}")
+
+
+def _pipeline_results(successes=97, episodes=100, cameras="front_head=96x72:rgb", sensors=True) -> dict:
+    return {"recipe": "gpu", "seed": 0, "cameras": cameras, "task_options": {"obs_mode": "sensors"} if sensors else {},
+            "counts": {"expert_demos": 16, "expert_success_rate": 1.0, "mimic_demos": 1024, "train_steps": {}},
+            "timings_s": {"collect": 1.0}, "phases": {},
+            "success": {"episodes": episodes, "successes": successes, "rate": successes / episodes,
+                        "eval_seed": 10000}}
+
+
+def test_a_record_names_command_commit_date_and_device(tmp_path):
+    rec = _record("bench", {"env_steps_per_s": 1.0})
+    path = records.write_record(rec, tmp_path / "r.json")
+    back = records.read_record(path)
+    assert back["command"] == "newton-lab bench --task GalbotG1-PickCube-v0"
+    assert re.fullmatch(r"[0-9a-f]{40}|unknown", back["commit"]["sha"]) and isinstance(back["commit"]["dirty"], bool)
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", back["date"])
+    assert back["device"]["kind"] == "cpu" and back["device"]["cores"] >= 1 and back["wall_s"] == 123.4
+    assert back["schema"] == records.SCHEMA and back["versions"]["newton_lab"]
+    assert not list(tmp_path.glob(".*.tmp"))  # written atomically
+    with pytest.raises(ValueError, match="unknown record kind 'benchh'; valid kinds: pipeline, bench"):
+        records.make_record("benchh", task=None, device="cpu", results={})
+
+
+def test_the_cli_command_line_is_what_the_record_names(monkeypatch):
+    monkeypatch.delenv("NEWTON_LAB_COMMAND", raising=False)
+    records.set_invocation(["bench", "--task", "GalbotG1-PickCube-v0", "--resolution", "96 72"])
+    assert records.command_line() == "newton-lab bench --task GalbotG1-PickCube-v0 --resolution '96 72'"
+    monkeypatch.setenv("NEWTON_LAB_COMMAND", "make demo")
+    assert records.command_line() == "make demo"
+    monkeypatch.setenv("NEWTON_LAB_COMMIT", "abc123+dirty")
+    assert records.commit() == {"sha": "abc123", "dirty": True}
+
+
+def test_unreadable_and_foreign_records_are_refused_in_one_line(tmp_path):
+    (tmp_path / "cut.json").write_text('{"schema": 1, "kind"')
+    with pytest.raises(ValueError, match=r"run record .*cut.json is unreadable .*; re-run its command"):
+        records.read_record(tmp_path / "cut.json")
+    (tmp_path / "cut.json").unlink()
+    (tmp_path / "other.json").write_text('{"name": "x"}')
+    with pytest.raises(ValueError, match="lacks .*'command'.*not written by a newton-lab command"):
+        records.read_record(tmp_path / "other.json")
+    (tmp_path / "other.json").unlink()
+    records.write_record(_record("bench", {}, command="bash run.sh"), tmp_path / "script.json")
+    with pytest.raises(ValueError, match="made by 'bash run.sh', not a product command"):
+        results.load_records(tmp_path)
+
+
+def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
+    recs = tmp_path / "results"
+    records.write_record(_record("pipeline", _pipeline_results()), recs / "demo-gpu.json")
+    records.write_record(_record("bench", {"num_envs": 4096, "env_steps_per_s": 1_051_029.0,
+                                           "ratio_env_step_to_bare": 1.032, "camera": "front_head",
+                                           "resolution": [96, 72], "camera_data": ["rgb"],
+                                           "env_steps_per_s_with_camera": 258_800.0,
+                                           "ratio_camera_env_to_ceiling": 0.98}), recs / "bench-gpu.json")
+    records.write_record(_record("bench-collect", {"num_envs": 4096, "successful_demos": 16384,
+                                                   "demos_per_hour": 7.19e6}), recs / "collect-gpu.json")
+    page = tmp_path / "benchmarks.md"
+    page.write_text(f"# Benchmarks\n\nintro\n\n{results.BEGIN}\nold\n{results.END}\n\n## Methods\n")
+    assert results.update(page, recs, check=True) is False  # stale: compare only, nothing written
+    assert "old" in page.read_text()
+    assert results.update(page, recs) is False and results.update(page, recs, check=True) is True
+    text = page.read_text()
+    assert text.startswith("# Benchmarks\n\nintro\n\n") and text.endswith("\n## Methods\n")
+    row = next(line for line in text.splitlines() if line.startswith("| PickCube | CPU"))
+    for part in ("gpu", "front_head 96x72 RGB + proprioception", "16 expert + 1024 Mimic", "100 %",
+                 "**97 / 100** (seed 10000)", "2:03", "[demo-gpu](results/demo-gpu.json)"):
+        assert part in row, (part, row)
+    assert "| 1.05 M | 1.03x bare solver | [bench-gpu](results/bench-gpu.json) |" in text
+    assert "front_head 96x72 rgb | 258.8 k | 0.98x physics + render" in text
+    assert "| 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
+
+
+def test_the_committed_page_matches_the_committed_records():
+    """Every headline figure of docs/benchmarks.md comes from a record in docs/results/ made by a product command."""
+    loaded = results.load_records(RECORDS)  # refuses a record whose command is not a product command
+    assert loaded, "docs/results/ holds no run record"
+    assert results.update(PAGE, RECORDS, check=True), "docs/benchmarks.md is stale: run `newton-lab results`"
+    text = PAGE.read_text()
+    block = text.split(results.BEGIN, 1)[1].split(results.END, 1)[0]
+    rows = [line for line in block.splitlines() if line.startswith("| ") and not line.startswith("| task")
+            and not line.startswith("| preset")]
+    assert rows
+    for line in rows:  # each row links a record that exists
+        link = re.search(r"\]\((results/[^)]+\.json)\) \|$", line)
+        assert link and (PAGE.parent / link.group(1)).is_file(), line
+    for path, rec in loaded:  # and each record shows on the page
+        assert f"({path.relative_to(PAGE.parent)})" in block, path
+
+
+def test_recipe_choice_without_a_gpu_is_the_cpu_one_and_the_gpu_one_sees_pixels():
+    """The dry-run plan of `newton-lab pipeline` on this machine (no CUDA device): the cpu recipe; the gpu recipe
+    asked for by name is the visuomotor one (a camera, obs_mode=sensors, the vision preset under bf16)."""
+    run = [sys.executable, "-m", "newton_lab.cli", "pipeline", "--task", "GalbotG1-PickCube-v0", "--dry-run"]
+    cpu = json.loads(subprocess.run(run, capture_output=True, text=True, check=True, cwd=ROOT).stdout)["plan"]
+    assert cpu["recipe"] == "cpu" and cpu["device"] == "cpu" and cpu["cameras"] == "none"
+    assert cpu["stages"] == ["collect", "mimic", "train", "evaluate"] and cpu["train_cfg"]["device"] == "cpu"
+    gpu = json.loads(subprocess.run(run + ["--recipe", "gpu"], capture_output=True, text=True, check=True,
+                                    cwd=ROOT).stdout)["plan"]
+    assert gpu["recipe"] == "gpu" and gpu["cameras"].startswith("front_head=") and gpu["task_options"] == {
+        "obs_mode": "sensors"}
+    train = gpu["train_cfg"]
+    assert train["device"] == "cuda" and train["bf16"] and train["image_keys"] == ["front_head_rgb"]
+    assert "object_pose" not in train["obs_keys"] and "cube_pose" not in train["obs_keys"]
+    coherent = json.loads(subprocess.run(
+        [*run[:4], "GalbotG1-PickToShelf-v0", "--dry-run", "--recipe", "gpu"], capture_output=True, text=True,
+        check=True, cwd=ROOT).stdout)["plan"]
+    assert coherent["long_horizon"] and coherent["stages"][1] == "split" and coherent["demos"] >= 600
