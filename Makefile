@@ -1,5 +1,5 @@
 # Entry points; each creates / reuses .venv and installs the pinned versions first.
-#   make demo   the Prefect pipeline on PickCube (collect -> mimic -> train -> evaluate); CPU, or CUDA if present
+#   make demo   the Prefect pipeline on PickCube (collect -> mimic -> train -> evaluate); CPU, or from pixels on CUDA
 #   make test   run the test suite (real Newton physics on CPU Warp)
 #   make mutate break each promise on purpose in a scratch copy and check its tests catch it
 PY ?= python3
@@ -11,11 +11,13 @@ $(STAMP): pyproject.toml setup.py tools/install_venv.sh
 	touch $(STAMP)
 
 .PHONY: demo test bench docs docs-serve mutate
-# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 6000 training steps, 40 evaluation episodes; about
-# 5 min on 2 CPU cores from a fresh clone) or, when torch sees a CUDA device, the full-size gpu recipe on it.
+# demo: the cpu recipe (4 expert demos, 100 Mimic demos, 6000 training steps, 40 evaluation episodes; a state
+# policy) or, when torch sees a CUDA device, the gpu recipe on it (a policy from the front camera and
+# proprioception). How long each takes: docs/benchmarks.md, from the run records. The run record names this command.
 # DEMO_ARGS adds flags, e.g. make demo DEMO_ARGS="--recipe cpu".
 DEMO_ARGS ?=
 demo: $(STAMP)
+	NEWTON_LAB_COMMAND="make demo$(if $(DEMO_ARGS), DEMO_ARGS='$(DEMO_ARGS)')" \
 	$(VENV)/bin/newton-lab pipeline --task GalbotG1-PickCube-v0 --out outputs/demo $(DEMO_ARGS)
 
 # Tests run on both cores: one pytest worker per core, each test module kept on one worker (its fixtures build

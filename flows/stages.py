@@ -8,7 +8,9 @@ holds another pipeline's artifacts is refused instead of overwritten.
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
+import multiprocessing
 import shutil
 from pathlib import Path
 from typing import Any
@@ -112,14 +114,33 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
     for leftover in (list(run_dir.iterdir()) if resume else [run_dir]):
         if leftover.name != RESUME_NAME:
             _fresh(leftover)
-    ckpt = Policy.from_backend(BACKEND).train(dataset["path"], {**train_cfg, "output_dir": str(run_dir)},
-                                              resume=resume, gpus=gpus)
+    cfg = {**train_cfg, "output_dir": str(run_dir)}
+    if str(train_cfg.get("device", "cpu")).startswith("cuda") and gpus == 1:
+        ckpt = _train_in_own_process(dataset["path"], cfg, resume)
+    else:
+        ckpt = Policy.from_backend(BACKEND).train(dataset["path"], cfg, resume=resume, gpus=gpus)
     log_path = Path(ckpt).parent / "train_log.json"
     log = json.loads(log_path.read_text()) if log_path.exists() else {}
     curve = [{k: e[k] for k in ("epoch", "steps", "loss", "lr")} for e in log.get("epoch_log", [])]
     return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=log.get("final_loss"),
                                                steps=log.get("steps"), wall_time_s=log.get("wall_time_s"),
                                                loss_curve=curve))
+
+
+def _train(path: str, cfg: dict[str, Any], resume: bool) -> str:
+    from ..policies import Policy  # deferred: torch is slow to import
+
+    return str(Policy.from_backend(BACKEND).train(path, cfg, resume=resume))
+
+
+def _train_in_own_process(path: str, cfg: dict[str, Any], resume: bool) -> str:
+    """A CUDA training in a process of its own: the flow maps a coherent task's phase trainings onto threads of one
+    process, and a CUDA-graph capture in one thread forbids the CUDA calls of another (torch's capture is
+    process-global); processes also keep one training's failure from taking the flow down. Spawned, so the child
+    has a CUDA context of its own."""
+    ctx = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        return pool.submit(_train, path, cfg, resume).result()
 
 
 def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -> dict[str, dict[str, Any]]:

@@ -39,8 +39,15 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     without one run their component's expert"""
 
     def policy_device(self) -> str:
-        """Torch device of the evaluated policies: the env's CUDA device (the policy runs beside it), else cpu."""
-        return self.device if self.device is not None and self.device.startswith("cuda") else "cpu"
+        """Torch device of the evaluated policies: the env's CUDA device (the policy runs beside it; with no
+        ``--device``, Warp's default device), else cpu."""
+        device = self.device
+        if device is None:
+            import warp as wp  # deferred: only the evaluation asks, and it builds a Warp env right after
+
+            default = wp.get_device()
+            device = f"cuda:{default.ordinal}" if default.is_cuda else "cpu"
+        return device if device.startswith("cuda") else "cpu"
 
     def phase_checkpoints(self) -> dict[str, str]:
         """``--phase-checkpoint`` as phase name -> checkpoint path (one-line error for a malformed entry)."""
