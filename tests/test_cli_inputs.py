@@ -75,19 +75,79 @@ BAD = [
     ("split --dataset-path pts.hdf5 --out parts --phases pick,plase",
      "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place"),
     ("split --dataset-path pts.hdf5 --phases pick", "--phases selects the phases of a split by phase: give --out"),
+    # a damaged or foreign dataset to append to: read from its header (h5py / zarr metadata), before Warp
+    ("collect --dataset-path file.zarr", "file.zarr is not a newton_lab dataset or is damaged (not a zarr directory)"),
+    ("collect --dataset-path junk.hdf5", "junk.hdf5 is not a newton_lab dataset or is damaged"),
+    ("collect --dataset-path folder.hdf5", "folder.hdf5 is not a newton_lab dataset or is damaged (it is a folder"),
+    ("collect --task GalbotG1-Reach-v0 --dataset-path src.hdf5",
+     "src.hdf5 holds a dataset of task 'GalbotG1-PickCube-v0', not 'GalbotG1-Reach-v0'"),
+    # a dataset's recording set is part of what it is: other cameras or task options are not appended
+    ("collect --cameras front_head=96x72 --dataset-path cam.hdf5",
+     "cam.hdf5 was recorded with cameras none, not front_head=96x72; append with --cameras none"),
+    ("collect --obs-mode sensors --dataset-path cam.hdf5", "cam.hdf5 was recorded with --obs-mode state, not sensors"),
+    # cameras: a mount, a resolution, data the G1 has, each once
+    ("collect --cameras bogus=96x72 --dataset-path x.hdf5", "--cameras: unknown camera 'bogus'"),
+    ("collect --cameras front_haed=96x72 --dataset-path x.hdf5", "(did you mean front_head?)"),
+    ("collect --cameras front_head=96x72:rgbd --dataset-path x.hdf5", "data 'rgbd' (did you mean rgb?) is unknown"),
+    ("collect --cameras front_head=96x72:rgb+rgb --dataset-path x.hdf5", "names data rgb+rgb with a repeat"),
+    ("collect --cameras front_head=2x2 --dataset-path x.hdf5", "resolution 2x2 is out of range; width and height"),
+    ("collect --cameras front_head=96x72,front_head=96x72 --dataset-path x.hdf5",
+     "names camera front_head twice; give each camera once"),
+    ("bench --camera left_wirst", "--camera: unknown camera 'left_wirst' (did you mean left_wrist?)"),
+    ("bench --camera front_head --resolution 1 1", "resolution 1x1 is out of range"),
+    # numbers in range: seeds Warp's kernels and numpy take, rows the memory holds, retries, GPUs the machine has
+    ("collect --seed 99999999999999999999 --dataset-path x.hdf5", "--seed must be an integer in [0, 1073741823]"),
+    ("collect --seed -1 --dataset-path x.hdf5", "--seed must be an integer in [0, 1073741823]"),
+    ("collect --num-envs 10000000 --dataset-path x.hdf5", "--num-envs 10,000,000 needs about 4,883 GiB"),
+    ("pipeline --retries -1", "--retries must be an integer >= 0 (0: no retry), got -1"),
+    ("pipeline --gpus 0", "--gpus must be an integer >= 1, got 0"),
+    ("pipeline --eval-max-steps 0", "--eval-max-steps must be an integer >= 1, got 0"),
+    ("pipeline --task GalbotG1-PickToShelf-v0 --mimic-episodes 4",
+     "GalbotG1-PickToShelf-v0 is a coherent task: its pipeline takes more coherent demos (--demos)"),
+    ("pipeline --runner dask --address nonsense", "--address 'nonsense' is not a scheduler address"),
+    ("pipeline --address tcp://10.0.0.5:8786", "names a Dask scheduler; add --runner dask"),
+    ("train --dataset-path src.hdf5 --gpus 4096 --device cpu", "--gpus 4096: with no CUDA device each is a gloo"),
+    # checkpoints: the header (zip + pickle, no torch) gives the format and the task
+    ("evaluate --checkpoint trunc.pt", "--checkpoint trunc.pt is not a newton_lab diffusion-policy checkpoint or is "
+     "damaged (not a torch.save zip, or truncated)"),
+    ("evaluate --checkpoint text.pt", "--checkpoint text.pt is not a newton_lab diffusion-policy checkpoint"),
+    ("evaluate --checkpoint earlier", "--checkpoint earlier is a folder; give the checkpoint file in it"),
+    ("evaluate --checkpoint pick.pt --task GalbotG1-Reach-v0",
+     "--checkpoint pick.pt was trained for GalbotG1-PickCube-v0 but the env runs GalbotG1-Reach-v0"),
+    ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint plase=pick.pt",
+     "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place"),
+    ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint pick=pick.pt",
+     "but phase 'pick' of GalbotG1-PickToShelf-v0 runs GalbotG1-PickToShelf-Pick-v0; give that phase a checkpoint"),
+    ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint nav=text.pt",
+     "--phase-checkpoint nav=text.pt is not a newton_lab diffusion-policy checkpoint"),
+    ("evaluate --task GalbotG1-PickCube-v0 --phase-checkpoint pick=pick.pt",
+     "--phase-checkpoint is for the phases of a coherent task, and GalbotG1-PickCube-v0 has none"),
+    # split: a new folder, at least one phase
+    ("split --dataset-path pts.hdf5 --out afile", "--out afile is a file; split into a new folder"),
+    ("split --dataset-path pts.hdf5 --out earlier", "--out earlier is a folder that holds files already"),
+    ("split --dataset-path pts.hdf5 --out new --phases ,", "--phases ',' names no phase"),
+    # train: what its run found only after torch loaded
+    ("train --dataset-path src.hdf5 --preset cpuu", "--preset 'cpuu' (did you mean cpu?) is unknown"),
+    ("train --dataset-path src.hdf5 --obs-keys cube_pose,cube_poze", "records no observation 'cube_poze' (did you"),
+    ("train --dataset-path cam.hdf5 --image-keys front_head_rgb", "records no image 'front_head_rgb'"),
+    ("train --dataset-path src.hdf5 --resume", "no resume file outputs/policy/resume.pt: nothing to resume there"),
+    ("train --dataset-path src.hdf5 --lr 0", "--lr must be > 0, got 0.0"),
+    ("train --dataset-path src.hdf5 --init-checkpoint reach.pt",
+     "--init-checkpoint reach.pt was trained for GalbotG1-Reach-v0 and src.hdf5 holds GalbotG1-PickCube-v0"),
 ]
 CPU_SECONDS = 2.0
 """Each refusal's CPU time, interpreter start included (0.2-0.6 s here; importing Warp first took 5-12 s on 2 cores).
 CPU time and not wall time: the latter grows with whatever else runs on the cores (up to 1.5 s measured at a load
 of 7 on 2 cores)."""
-CHECK = "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); sys.exit(rc if 'warp' not in sys.modules else 99)"
+CHECK = ("import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); "
+         "sys.exit(rc if 'warp' not in sys.modules and 'torch' not in sys.modules else 99)")
 
 
 @pytest.mark.parametrize("argv,message", BAD, ids=[b[0] for b in BAD])
-def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message):
+def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message, checkpoints):
     make_dataset(tmp_path / "src.hdf5")  # a source dataset (demos 0, 1, 2), for the checks that need one
     make_coherent_dataset(tmp_path / "pts.hdf5")
-    (tmp_path / "junk.hdf5").write_bytes(b"not a dataset")
+    make_fixtures(tmp_path, checkpoints)
     before = tree(tmp_path)
     start = cpu_of_children()
     out = subprocess.run([sys.executable, "-c", CHECK, *argv.split()], cwd=tmp_path, capture_output=True, text=True)
@@ -96,6 +156,67 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message
     assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
     assert tree(tmp_path) == before
     assert seconds < CPU_SECONDS, f"{seconds:.2f} s of CPU"
+
+
+@pytest.fixture(scope="module")
+def checkpoints(tmp_path_factory) -> dict[str, bytes]:
+    """Checkpoints as ``torch.save`` writes them (the header the checks read: format, version, config, info), of
+    PickCube and Reach, and a truncated one."""
+    import io
+
+    import torch
+
+    from newton_lab.policies.diffusion import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
+
+    out = {}
+    for name, task in (("pick.pt", "GalbotG1-PickCube-v0"), ("reach.pt", "GalbotG1-Reach-v0")):
+        buf = io.BytesIO()
+        torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "diffusion", "config": {},
+                    "weights": {"w": torch.zeros(64)}, "normalizers": {}, "info": {"task_id": task}}, buf)
+        out[name] = buf.getvalue()
+    out["trunc.pt"] = out["pick.pt"][: len(out["pick.pt"]) // 2]
+    out["text.pt"] = b"a checkpoint, honest\n"
+    return out
+
+
+def make_fixtures(root: Path, checkpoints: dict[str, bytes]) -> None:
+    """What the bad-input cases refer to beside src.hdf5 and pts.hdf5."""
+    from newton_lab.datasets import open_writer
+    from test_lerobot_export import ENV_ARGS, make_episode
+
+    (root / "junk.hdf5").write_bytes(b"not a dataset")
+    (root / "file.zarr").write_bytes(b"a file named .zarr")
+    (root / "folder.hdf5").mkdir()
+    (root / "afile").write_text("a file")
+    (root / "earlier").mkdir()
+    (root / "earlier" / "pick.hdf5").write_text("an earlier split's file")
+    for name, data in checkpoints.items():
+        (root / name).write_bytes(data)
+    args = {"env_kwargs": {"task_options": {"obs_mode": "state"}},
+            "newton_lab": {**ENV_ARGS["newton_lab"], "cameras": {}}}  # recorded state only, no camera
+    with open_writer(root / "cam.hdf5", task_id="GalbotG1-PickCube-v0", env_args=args, fsync=False) as w:
+        w.append_episode(make_episode(0, 5, None, False, 1), success=True)
+
+
+def test_the_checkpoint_header_reader_agrees_with_the_checkpoint_format():
+    """``cli.headers`` reads checkpoints without torch: its format tag and version are the policy's."""
+    from newton_lab.cli import headers
+    from newton_lab.policies import diffusion
+
+    assert (headers.CHECKPOINT_FORMAT, headers.CHECKPOINT_VERSION) == (diffusion.CHECKPOINT_FORMAT,
+                                                                       diffusion.CHECKPOINT_VERSION)
+
+
+def test_phases_and_mimic_sources_read_from_source_match_the_registry():
+    """The coherent tasks' phases (name, component) and the Mimic variants' sources that the checks read from the
+    task packages' source are the registry's."""
+    import newton_lab.tasks  # noqa: F401
+    from newton_lab.task_api.catalog import declared_phases, declared_sources
+    from newton_lab.task_api.registry import list_tasks, lookup
+
+    phases = {t: tuple((p.name, p.task_id) for p in lookup(t).make_cfg({}).phases) for t in list_tasks()}
+    assert declared_phases() == {t: p for t, p in phases.items() if p}
+    assert declared_sources() == {t: lookup(t).source_task for t in list_tasks() if lookup(t).source_task}
 
 
 def make_coherent_dataset(path: Path) -> None:

@@ -3,6 +3,7 @@ the flag and the fix, before Warp, Newton or torch is imported and before any fi
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -10,18 +11,29 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..commands import (BenchTrainArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs,
-                        camera_option)
-from ..task_api.catalog import check_task_id, check_task_options, did_you_mean
+from ..commands import (BenchArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
+                        SplitArgs, TrainArgs, ViewArgs, camera_option)
+from ..task_api.catalog import check_task_id, check_task_options, declared_phases, did_you_mean
+from ..task_api.cfg import IMAGE_DATA
+from .file_checks import check_append, check_checkpoints, check_train
 
 COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
                 "batch_size", "rerun_worlds", "rerun_image_every", "max_attempts", "train_steps", "epochs",
-                "checkpoint_every_steps")
+                "checkpoint_every_steps", "eval_max_steps", "gpus")
 """Fields that count something: an integer >= 1 when given."""
 DEVICE = re.compile(r"cpu|cuda(:\d+)?")
 """The devices a command takes: Warp's and torch's names for the CPU and a CUDA GPU."""
 RUNNERS = ("local", "dask")
 """The pipeline's task runners."""
+SEED_MAX = 2**30 - 1
+"""Largest ``--seed``: Warp's reset kernels take 32-bit seeds, and the pipeline derives seed + 1 (Mimic) and
+seed + 10000 (evaluation) from it; numpy takes no negative seed."""
+ENV_BYTES = 512 << 10
+"""Memory one env row takes, with a margin [bytes] (the model, state and solver data of one world with its contact
+buffers: 160 KB measured on the CPU for Reach, 230 KB for PickToShelf). ``--num-envs`` beyond the machine's memory divided by
+this is refused before any allocation (a 10,000,000-row request tried to allocate gigabytes for 25 s before)."""
+ADDRESS = re.compile(r"(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9a-fA-F:]+\]|[\w.\-]+):\d{1,5}")
+"""A Dask scheduler address: [protocol://]host:port."""
 DATASET_FIELDS = ("dataset_path", "output_path")
 """Fields naming a dataset file: its suffix picks the format."""
 EXISTING_FIELDS = {MimicArgs: ("dataset_path",), EvaluateArgs: ("checkpoint",), ViewArgs: ("dataset",),
@@ -70,10 +82,26 @@ def check_args(args: Any) -> None:
         raise ValueError(f"{_label(args, sim)} {value!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
     if value is not None and str(value).startswith("cuda"):
         check_cuda_device(_label(args, sim), str(value), cuda_devices())
+    if "seed" in names and (not isinstance(args.seed, int) or isinstance(args.seed, bool)
+                            or not 0 <= args.seed <= SEED_MAX):
+        raise ValueError(f"--seed must be an integer in [0, {SEED_MAX}] (Warp's kernels take 32-bit seeds), got "
+                         f"{args.seed!r}")
+    if "retries" in names and (not isinstance(args.retries, int) or isinstance(args.retries, bool)
+                               or args.retries < 0):
+        raise ValueError(f"--retries must be an integer >= 0 (0: no retry), got {args.retries!r}")
+    if "num_envs" in names and args.num_envs is not None:
+        check_num_envs(args.num_envs)
+    if "gpus" in names and args.gpus > 1:
+        check_gpus(args.gpus, getattr(args, "device", None))
+    if isinstance(args, PipelineArgs):
+        check_pipeline(args)
     if "runner" in names and args.runner not in RUNNERS:
         raise ValueError(f"--runner {args.runner!r}{did_you_mean(args.runner, RUNNERS)}: use {' or '.join(RUNNERS)}")
     if "cameras" in names:
-        camera_option(args.cameras)
+        check_cameras(camera_option(args.cameras))
+    if isinstance(args, BenchArgs) and args.camera is not None:
+        check_cameras({args.camera: {"resolution": tuple(args.resolution or (128, 128)),
+                                     "data": tuple(args.camera_data or ("rgb",))}}, "--camera")
     for name in names & {"checkpoint_every_s", "time_budget_s"}:
         value = getattr(args, name)
         if value is not None and not value > 0:
@@ -88,13 +116,9 @@ def check_args(args: Any) -> None:
                 raise ValueError(f"{_label(args, name)} {path}: unknown dataset suffix; use one of "
                                  f"{', '.join(SUFFIXES)}")
     if isinstance(args, EvaluateArgs):
-        phases = args.phase_checkpoints()
-        if phases and args.checkpoint:
-            raise ValueError("give --checkpoint (one policy for the whole task) or --phase-checkpoint (one per phase "
-                             "of a coherent task), not both")
-        for phase, path in phases.items():
-            if not Path(path).exists():
-                raise FileNotFoundError(f"--phase-checkpoint {phase}={path}: {path} does not exist; check the path")
+        check_checkpoints(args)
+    if isinstance(args, SplitArgs):
+        check_split_out(args)
     for name in EXISTING_FIELDS.get(type(args), ()):
         value = getattr(args, name)
         if value is not None and not Path(value).exists():
@@ -104,6 +128,10 @@ def check_args(args: Any) -> None:
     for cls, name in DATASET_INPUTS.items():
         if isinstance(args, cls):
             check_datasets(args, name)
+    if isinstance(args, CollectArgs) and Path(args.dataset_path).exists():
+        check_append(args)
+    if isinstance(args, TrainArgs):
+        check_train(args)
 
 
 def cuda_devices() -> int | str:
@@ -167,3 +195,91 @@ def check_writable(path: Path) -> None:
 
         raise OutputPathError(f"cannot write {path}: {path.parent} takes no new file ({exc.strerror}); "
                               "choose a writable path") from None
+
+
+def _memory_bytes() -> int | None:
+    """This machine's physical memory [bytes], or None where the system does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_num_envs(num_envs: int, memory: int | None = None) -> None:
+    """Refuse more env rows than the machine's memory holds (``ENV_BYTES`` each), before anything is allocated."""
+    memory = _memory_bytes() if memory is None else memory
+    if memory and num_envs * ENV_BYTES > memory:
+        most = memory // ENV_BYTES
+        raise ValueError(f"--num-envs {num_envs:,} needs about {num_envs * ENV_BYTES / 2**30:,.0f} GiB "
+                         f"({ENV_BYTES >> 10} KiB per row) and this machine has {memory / 2**30:,.0f} GiB; use at "
+                         f"most --num-envs {most:,}")
+
+
+def check_gpus(gpus: int, device: str | None) -> None:
+    """``--gpus`` N > 1 asks for N data-parallel processes: one CUDA device each, or (``--device cpu``) one CPU core
+    each for gloo; refuse more than the machine has."""
+    devices = cuda_devices() if device is None or str(device).startswith("cuda") else 0
+    if isinstance(devices, int) and devices > 0:
+        if gpus > devices:
+            raise ValueError(f"--gpus {gpus}: this machine has {devices} CUDA device{'s' * (devices > 1)}; use "
+                             f"--gpus {devices} or fewer")
+        return
+    if device is not None and str(device).startswith("cuda"):
+        return  # the device check said why there is none
+    cores = os.cpu_count() or 1
+    if gpus > cores:
+        raise ValueError(f"--gpus {gpus}: with no CUDA device each is a gloo process on a CPU core, and this machine "
+                         f"has {cores}; use --gpus {cores} or fewer")
+
+
+def check_pipeline(args: PipelineArgs) -> None:
+    """The pipeline's flags that no stage would refuse before Prefect starts."""
+    if args.mimic_episodes is not None and args.task in declared_phases():
+        raise ValueError(f"{args.task} is a coherent task: its pipeline takes more coherent demos (--demos) instead "
+                         "of Mimic; drop --mimic-episodes")
+    if args.address is not None:
+        if args.runner != "dask":
+            raise ValueError(f"--address {args.address} names a Dask scheduler; add --runner dask, or drop "
+                             "--address")
+        if not ADDRESS.fullmatch(args.address):
+            raise ValueError(f"--address {args.address!r} is not a scheduler address; write [tcp://]HOST:PORT, e.g. "
+                             "tcp://10.0.0.5:8786")
+
+
+def check_cameras(cameras: Any, label: str = "--cameras") -> None:
+    """Each camera of a ``make_env(cameras=...)`` dict is a mount of the robot, at a resolution in its range, with
+    data it renders (once each)."""
+    if not isinstance(cameras, dict):
+        return
+    from ..robots.registry import camera_facts  # deferred: numpy, only when cameras are named
+
+    mounts, lo, hi = camera_facts()
+    for name, spec in cameras.items():
+        if name not in mounts:
+            raise ValueError(f"{label}: unknown camera {name!r}{did_you_mean(name, mounts)}; the G1's cameras are "
+                             f"{', '.join(mounts)}")
+        res = spec if isinstance(spec, tuple) else spec.get("resolution", ())
+        if len(res) != 2 or not all(lo <= v <= hi for v in res):
+            raise ValueError(f"{label}: camera {name!r} resolution {'x'.join(map(str, res))} is out of range; width "
+                             f"and height are in [{lo}, {hi}] px, e.g. {name}=96x72")
+        data = () if isinstance(spec, tuple) else tuple(spec.get("data", ()))
+        for d in data:
+            if d not in IMAGE_DATA:
+                raise ValueError(f"{label}: camera {name!r} data {d!r}{did_you_mean(d, IMAGE_DATA)} is unknown; use "
+                                 f"{', '.join(IMAGE_DATA)}, joined with +")
+        if len(set(data)) != len(data):
+            raise ValueError(f"{label}: camera {name!r} names data {'+'.join(data)} with a repeat; name each once")
+
+
+def check_split_out(args: SplitArgs) -> None:
+    """``split --out`` is a new folder (or an empty one), and ``--phases`` names at least one phase."""
+    if args.phases is not None and not args.phase_names():
+        raise ValueError(f"--phases {args.phases!r} names no phase; give comma-separated names, e.g. --phases "
+                         "pick,place")
+    if args.out is None:
+        return
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out} is a file; split into a new folder")
+    if out.is_dir() and any(out.iterdir()):
+        raise FileExistsError(f"--out {out} is a folder that holds files already; split into a new folder")

@@ -45,6 +45,8 @@ def _existing(path: str | Path) -> tuple[Path, ModuleType, str]:
     p, backend, fmt = _backend(path)
     if not p.exists():
         raise FileNotFoundError(f"dataset {p} does not exist; check the path")
+    if fmt == "hdf5" and p.is_dir():
+        raise damaged(p, "it is a folder, and an HDF5 dataset is one file; a zarr dataset is named .zarr")
     return p, backend, fmt
 
 

@@ -164,3 +164,60 @@ def check_task_id(task_id: str) -> None:
     if known and task_id not in known:
         raise ValueError(f"unknown task id {task_id!r}{did_you_mean(task_id, known)}; valid ids: "
                          f"{', '.join(known)} (see `newton-lab tasks`)")
+
+
+def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str], ...]]:
+    """Coherent task id -> its phases as (phase name, component task id), for one task package: the
+    ``TaskSpec(id=..., cfg=NAME)`` of its ``__init__`` and the literal ``phase("name", "task id", ...)`` calls in the
+    body of the function ``NAME`` (any module of the package)."""
+    cfgs: dict[str, str] = {}  # cfg function name -> task id
+    for node in ast.walk(ast.parse((package / "__init__.py").read_text())):
+        if isinstance(node, ast.Call) and _call_name(node) == "TaskSpec":
+            kw = {k.arg: k.value for k in node.keywords}
+            task_id, cfg = _literal(kw.get("id")), kw.get("cfg")
+            if isinstance(task_id, str) and isinstance(cfg, ast.Name):
+                cfgs[cfg.id] = task_id
+    out: dict[str, tuple[tuple[str, str], ...]] = {}
+    for module in sorted(package.rglob("*.py")):
+        for fn in ast.walk(ast.parse(module.read_text())):
+            if not isinstance(fn, ast.FunctionDef) or fn.name not in cfgs:
+                continue
+            phases = tuple((node.args[0].value, node.args[1].value) for node in ast.walk(fn)
+                           if isinstance(node, ast.Call) and _call_name(node) == "phase" and len(node.args) >= 2
+                           and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args[:2]))
+            if phases:
+                out[cfgs[fn.name]] = phases
+    return out
+
+
+@functools.cache
+def declared_phases() -> dict[str, tuple[tuple[str, str], ...]]:
+    """Coherent task id -> its phases, in order, as (phase name, component task id), read from the task packages'
+    source (no import of the tasks); a task that is not coherent is absent. tests/test_cli.py checks it against
+    the registry."""
+    out: dict[str, tuple[tuple[str, str], ...]] = {}
+    for init in _task_inits():
+        out.update(_phases_in(init.parent))
+    return out
+
+
+@functools.cache
+def declared_sources() -> dict[str, str]:
+    """Mimic variant id -> the id of the task it is a variant of (``mimic_variant(SPEC, id=...)``), from source."""
+    out: dict[str, str] = {}
+    for init in _task_inits():
+        tree = ast.parse(init.read_text())
+        spec_ids: dict[str, str] = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call) and node.value.args:
+                inner = node.value.args[0]
+                if isinstance(inner, ast.Call) and _call_name(inner) == "TaskSpec":
+                    task_id = _literal({k.arg: k.value for k in inner.keywords}.get("id"))
+                    spec_ids.update({t.id: task_id for t in node.targets if isinstance(t, ast.Name)})
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and _call_name(node) == "mimic_variant" and node.args:
+                task_id = _literal({k.arg: k.value for k in node.keywords}.get("id"))
+                source = node.args[0].id if isinstance(node.args[0], ast.Name) else None
+                if isinstance(task_id, str) and spec_ids.get(source):
+                    out[task_id] = spec_ids[source]
+    return out

@@ -1,0 +1,152 @@
+"""The checks of ``check_args`` that read the files a command names, light: a dataset's header (h5py / zarr
+metadata: task, cameras, task options, observation terms), a checkpoint's header (``headers.checkpoint_header``:
+format, task) and the training presets (read from source). Each refuses in one line before Warp or torch loads."""
+
+from __future__ import annotations
+
+import ast
+import functools
+import importlib.util
+from pathlib import Path
+
+from ..commands import CollectArgs, EvaluateArgs, TrainArgs, camera_option
+from ..task_api.catalog import declared_phases, declared_sources, did_you_mean
+from .headers import checkpoint_header
+
+
+def trained_for(trained: str | None, task_id: str) -> bool:
+    """A policy trained on ``trained`` runs on ``task_id``: the same task, its Mimic variant's source, or a
+    component of a coherent ``task_id`` (``newton_lab.policies.agent._compatible_task``, from source)."""
+    if trained is None or trained == task_id:
+        return True
+    return (declared_sources().get(task_id) == trained
+            or trained in [c for _, c in declared_phases().get(task_id, ())])
+
+
+def check_checkpoints(args: EvaluateArgs) -> None:
+    """``evaluate``'s checkpoints: each one's header (format, task), and each phase a phase of a coherent task."""
+    phases = args.phase_checkpoints()
+    if phases and args.checkpoint:
+        raise ValueError("give --checkpoint (one policy for the whole task) or --phase-checkpoint (one per phase "
+                         "of a coherent task), not both")
+    if args.checkpoint is not None:
+        trained = checkpoint_header(args.checkpoint, "--checkpoint")["info"].get("task_id")
+        if not trained_for(trained, args.task):
+            raise ValueError(f"--checkpoint {args.checkpoint} was trained for {trained} but the env runs {args.task}; "
+                             f"evaluate it on --task {trained}")
+    if not phases:
+        return
+    task_phases = dict(declared_phases().get(args.task, ()))
+    if not task_phases:
+        raise ValueError(f"--phase-checkpoint is for the phases of a coherent task, and {args.task} has none; use "
+                         "--checkpoint, or a coherent task: " + ", ".join(declared_phases()))
+    for phase, path in phases.items():
+        if phase not in task_phases:
+            raise ValueError(f"--phase-checkpoint {phase}={path}: {args.task} has no phase {phase!r}"
+                             f"{did_you_mean(phase, task_phases)}; its phases: {', '.join(task_phases)}")
+        if not Path(path).exists():
+            raise FileNotFoundError(f"--phase-checkpoint {phase}={path}: {path} does not exist; check the path")
+        trained = checkpoint_header(path, f"--phase-checkpoint {phase}=")["info"].get("task_id")
+        component = task_phases[phase]
+        if trained is not None and component not in (trained, declared_sources().get(trained)):
+            raise ValueError(f"checkpoint {path} was trained for {trained}, but phase {phase!r} of {args.task} runs "
+                             f"{component}; give that phase a checkpoint of {component}")
+
+
+def check_append(args: CollectArgs) -> None:
+    """``collect`` onto an existing dataset: it opens, holds this task, and was recorded with the cameras and task
+    options given now (a dataset's recording set is part of what it is; ``default`` cameras and options left unset
+    are compared when the env is built, ``datasets.storage``)."""
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    path = args.dataset_path
+    info = read_dataset_info(path)  # a one-line ValueError if it is no dataset or is damaged
+    if info["task_id"] != args.task:
+        raise ValueError(f"{path} holds a dataset of task {info['task_id']!r}, not {args.task!r}; choose another "
+                         f"path for {args.task!r}")
+    recorded = info["env_args"].get("newton_lab", {}).get("cameras")
+    wanted = camera_option(args.cameras)
+    if recorded is not None and wanted is not None:
+        now = {} if wanted is False else {
+            name: ((spec if isinstance(spec, tuple) else spec["resolution"]),
+                   tuple(spec.get("data", ())) if isinstance(spec, dict) else None)
+            for name, spec in wanted.items()}
+        before = {name: ((c["width"], c["height"]), tuple(c.get("data", ()))) for name, c in recorded.items()}
+        same = now.keys() == before.keys() and all(
+            now[n][0] == before[n][0] and (now[n][1] is None or now[n][1] == before[n][1]) for n in now)
+        if not same:
+            raise ValueError(f"{path} was recorded with cameras {_cameras_text(before)}, not {args.cameras}; append "
+                             f"with --cameras {_cameras_text(before)}, or collect into another path")
+    options = info["env_args"].get("env_kwargs", {}).get("task_options")
+    if isinstance(options, dict):
+        for name, value in args.task_options.items():
+            if value is not None and name in options and options[name] != value:
+                flag = "--" + name.replace("_", "-")
+                raise ValueError(f"{path} was recorded with {flag} {options[name]}, not {value}; append with "
+                                 f"{flag} {options[name]}, or collect into another path")
+
+
+def _cameras_text(cameras: dict[str, tuple]) -> str:
+    """A recorded camera set as ``--cameras`` spells it."""
+    if not cameras:
+        return "none"
+    return ",".join(f"{n}={w}x{h}" + (f":{'+'.join(d)}" if d else "") for n, ((w, h), d) in cameras.items())
+
+
+@functools.cache
+def train_presets() -> tuple[str, ...]:
+    """The names of ``newton_lab.policies.config.PRESETS``, read from its source (importing it imports torch)."""
+    spec = importlib.util.find_spec("newton_lab.policies")
+    for root in (spec.submodule_search_locations or []) if spec else []:
+        for node in ast.walk(ast.parse((Path(root) / "config.py").read_text())):
+            target = node.target if isinstance(node, ast.AnnAssign) else None
+            if isinstance(target, ast.Name) and target.id == "PRESETS" and isinstance(node.value, ast.Dict):
+                return tuple(k.value for k in node.value.keys if isinstance(k, ast.Constant))
+    return ()
+
+
+def check_train(args: TrainArgs) -> None:
+    """``train``'s slips that its run would find only after torch is imported: the preset, the observation and
+    camera keys against the dataset, the numbers, the resume file, the init checkpoint."""
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    presets = train_presets()
+    if presets and args.preset not in presets:
+        raise ValueError(f"--preset {args.preset!r}{did_you_mean(args.preset, presets)} is unknown; use one of "
+                         f"{', '.join(presets)}")
+    for name in ("lr", "obs_min_range", "weight_decay"):
+        value = getattr(args, name)
+        if value is not None and (value < 0 or (name == "lr" and value == 0)):
+            raise ValueError(f"--{name.replace('_', '-')} must be {'> 0' if name == 'lr' else '>= 0'}, got {value!r}")
+    if args.num_workers is not None and args.num_workers < 0:
+        raise ValueError(f"--num-data-workers must be an integer >= 0, got {args.num_workers!r}")
+    info = read_dataset_info(args.dataset_path[0])
+    newton = info["env_args"].get("newton_lab", {})
+    terms = newton.get("obs_terms")
+    for key in (args.obs_keys or "").split(","):
+        if key.strip() and terms is not None and key.strip() not in terms:
+            raise ValueError(f"--obs-keys: {args.dataset_path[0]} records no observation {key.strip()!r}"
+                             f"{did_you_mean(key.strip(), terms)}; its terms: {', '.join(sorted(terms))}")
+    cameras = newton.get("cameras")
+    if args.image_keys and cameras is not None:
+        images = [f"{c}_{d}" for c, spec in cameras.items() for d in spec.get("data", ())]
+        for key in (k.strip() for k in args.image_keys.split(",") if k.strip()):
+            if key not in images:
+                raise ValueError(f"--image-keys: {args.dataset_path[0]} records no image {key!r}"
+                                 f"{did_you_mean(key, images)}; its images: {', '.join(images) or 'none'} (record "
+                                 "cameras with collect --cameras)")
+    out = Path(args.output_dir)
+    resume = out / "resume.pt"
+    if args.resume and not resume.is_file():
+        raise FileNotFoundError(f"no resume file {resume}: nothing to resume there; check --output-dir, or train "
+                                "without --resume to start from step 0")
+    if not args.resume and resume.exists():
+        raise FileExistsError(f"{resume} holds an interrupted run; continue it with --resume or delete that file to "
+                              "start over")
+    if args.init_checkpoint is not None:
+        trained = checkpoint_header(args.init_checkpoint, "--init-checkpoint")["info"].get("task_id")
+        task = info["task_id"]
+        if trained is not None and trained != task:
+            raise ValueError(f"--init-checkpoint {args.init_checkpoint} was trained for {trained} and "
+                             f"{args.dataset_path[0]} holds {task}; continue it on a dataset of {trained}, or train "
+                             "from scratch")
