@@ -9,9 +9,13 @@ moved on to the next phase (the last phase: when the episode succeeded).
 
 from __future__ import annotations
 
+import errno
 import multiprocessing
 import os
+import shutil
+import signal
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -21,6 +25,9 @@ import numpy as np
 from ..robots.registry import robot_binding
 from ..task_api.catalog import did_you_mean
 from ..task_api.registry import lookup
+from ._common import DatasetWriteError, die_with_parent
+from .interrupts import Interrupted
+from .outputs import output_path
 from .ref import DatasetRef
 from .filter_keys import read_filter_keys, set_filter_keys
 from .storage import open_writer, read_dataset_info, read_episodes
@@ -104,6 +111,11 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
     taken = [str(o) for o in outs.values() if o.exists()]
     if taken:
         raise FileExistsError(f"{taken} already exist; split into a new folder")
+    output_path(out_dir / "x", create=False)  # out_dir, or a folder above it, a file: refused now
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_stages(out_dir)
+    stage = out_dir.parent / f".{out_dir.name}.{os.getpid()}.partial"  # beside out_dir: renamed into it when done
+    stage.mkdir()
     jobs = []
     for p, ph in chosen:
         comp = lookup(ph.task_id)
@@ -112,21 +124,80 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
         joints = [j for t in comp.actions for j in groups[t.group]]
         args = {**env_args, "env_name": ph.task_id,
                 "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints, "phases": []}}
-        jobs.append(_PhaseJob(path, outs[ph.name], ph.name, p, p == len(cfg.phases) - 1, ph.task_id,
+        jobs.append(_PhaseJob(path, stage / outs[ph.name].name, ph.name, p, p == len(cfg.phases) - 1, ph.task_id,
                               [columns.index(j) for j in joints], args))
     workers = min(len(jobs), workers or os.cpu_count() or 1)
     if multiprocessing.current_process().daemon:  # e.g. a Dask worker: a daemonic process may not start children
         workers = 1
-    if workers > 1:  # spawn: the parent may hold a CUDA context, which a forked child must not inherit
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            saved = list(pool.map(_write_phase, jobs))
-    else:
-        saved = [_write_phase(job) for job in jobs]
+    try:
+        if workers > 1:  # spawn: the parent may hold a CUDA context, which a forked child must not inherit
+            context = multiprocessing.get_context("spawn")  # the writers die with this process, even on SIGKILL
+            with ProcessPoolExecutor(workers, mp_context=context, initializer=_phase_writer,
+                                     initargs=(os.getpid(),)) as pool:
+                try:
+                    saved = list(pool.map(_write_phase, jobs))
+                except KeyboardInterrupt:
+                    _stop(pool)
+                    raise
+        else:
+            saved = [_write_phase(job) for job in jobs]
+        _publish(stage, out_dir, [o.name for o in outs.values()])
+    except KeyboardInterrupt as exc:  # Ctrl-C / SIGTERM
+        raise Interrupted(f"interrupted: the split into {out_dir} was dropped, nothing written there; run it again",
+                          getattr(exc, "signum", signal.SIGINT)) from None
+    except BrokenProcessPool:
+        raise DatasetWriteError(f"a phase writer of the split into {out_dir} ended abruptly (killed, or out of "
+                                f"memory); nothing was written to {out_dir}: run the split again", errno.EIO) from None
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)  # what a failed or interrupted split wrote: never a partial output
     refs: dict[str, DatasetRef] = {}
     for job, ids in zip(jobs, saved):
-        ref = DatasetRef(job.out, task_id=job.task_id, metadata={"saved_demo_ids": ids, "episodes": len(ids)})
+        ref = DatasetRef(outs[job.name], task_id=job.task_id,
+                         metadata={"saved_demo_ids": ids, "episodes": len(ids)})
         refs[job.name] = ref.record("split", config={"source": str(path), "phase": job.name, "phase_index": job.index})
     return refs
+
+
+def _phase_writer(parent: int) -> None:
+    """A phase writer's start: it dies with the splitting process (even on SIGKILL) and leaves Ctrl-C to it."""
+    die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """End a pool's phase writers now (their unfinished files are in the stage, removed after)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.kill()
+    for process in processes:
+        process.join()
+
+
+def _publish(stage: Path, out_dir: Path, names: list[str]) -> None:
+    """Move a finished split from ``stage`` into ``out_dir``: one rename of the folder when ``out_dir`` is new or
+    empty (all phases appear at once), else file by file (none replaces an existing file)."""
+    if not out_dir.exists() or (out_dir.is_dir() and not any(out_dir.iterdir())):
+        os.replace(stage, out_dir)  # rename(2) replaces an empty folder
+        return
+    for name in names:
+        if (out_dir / name).exists():
+            raise FileExistsError(f"{out_dir / name} appeared while the split ran; split into a new folder")
+        os.rename(stage / name, out_dir / name)
+
+
+def remove_stale_stages(out_dir: Path) -> None:
+    """Remove what splits into ``out_dir`` that were killed left beside it (``.<name>.<pid>.partial``, its process
+    gone)."""
+    for stage in out_dir.parent.glob(f".{out_dir.name}.*.partial"):
+        try:
+            os.kill(int(stage.name.rsplit(".", 2)[-2]), 0)
+        except ValueError:
+            continue
+        except ProcessLookupError:
+            shutil.rmtree(stage, ignore_errors=True)
+        except PermissionError:  # alive, another user's
+            continue
 
 
 def split_train_val(path: str | Path, val_ratio: float = 0.1, *, seed: int = 0,

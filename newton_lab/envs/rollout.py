@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer, writer_process
 from ..datasets.background import BackgroundWriter
+from ..datasets.interrupts import Interrupted, stop_requests
 from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
 from .recorder import EpisodeRecorder, env_args
@@ -139,7 +140,7 @@ class _Episodes:
 
 def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, saver=None,
          until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
-         on_step=None, timers: Timers | None = None):
+         on_step=None, timers: Timers | None = None, stop=None):
     """Shared loop; returns per-episode records, vector steps and wall time.
 
     Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
@@ -148,7 +149,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     ``agent_done``; a teleop operator's ``done`` is ``user_exit``).
     ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
     (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
-    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``).
+    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (``datasets.interrupts.StopRequest``):
+    once set, the loop ends after the step in flight (its ended episodes are handed over; the others are dropped).
     """
     if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -210,6 +212,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 saver.submit()
             restarted = done | cut | agent_done
             eps.clear(restarted if held is None else restarted | held)
+            if stop:
+                break
             if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
                 last_line = time.perf_counter()
                 print(f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "
@@ -328,12 +332,17 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     timers = timers or Timers()
     saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
     try:
-        records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
-                                    recorder=saver.recorder, saver=saver, until_successes=only_successes,
-                                    max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
-                                    on_step=on_step, timers=timers)
+        with stop_requests() as stop:  # Ctrl-C / SIGTERM: the loop ends between two steps
+            records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
+                                        recorder=saver.recorder, saver=saver, until_successes=only_successes,
+                                        max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
+                                        on_step=on_step, timers=timers, stop=stop)
     finally:
         timers.drain(saver.close)()  # waits for the writer: what finished is written, also on Ctrl-C or an error
+    if stop:
+        kept = len(saver.saved_ids())
+        raise Interrupted(f"interrupted: {kept} finished episode{'s' * (kept != 1)} of this run kept in {path} (the "
+                          "episodes in flight were dropped); run again to append more", stop.signum)
     summary = _summary(env, records, steps, wall)
     summary.update(task=task_id, path=str(path), saved_demo_ids=saver.saved_ids(), attempts=len(records),
                    writer_batches=writer.batches, writer=type(writer).__name__)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -28,6 +29,8 @@ from typing import Any
 
 import torch
 import torch.distributed as dist
+
+from ..datasets._common import die_with_parent
 
 
 def world() -> tuple[int, int]:
@@ -126,7 +129,8 @@ def launch(datasets: list[str], cfg: dict[str, Any], gpus: int, *, resume: bool 
         request.write_text(json.dumps({"datasets": datasets, "cfg": cfg, "resume": resume, "answer": str(answer)}))
         command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={gpus}",
                    "-m", "newton_lab.policies.data_parallel_rank", str(request)]
-        code = subprocess.run(command, check=False).returncode
+        parent = os.getpid()  # torchrun (and so its workers) ends with this process, even when it is SIGKILLed
+        code = subprocess.run(command, check=False, preexec_fn=lambda: die_with_parent(parent, signal.SIGTERM)).returncode
         if code != 0 or not answer.exists():
             raise RuntimeError(f"data-parallel training over {gpus} processes failed (torchrun exit status {code}); "
                                "the workers' errors are printed above")

@@ -5,14 +5,17 @@ runs a second copy of it."""
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
+from ..datasets._common import die_with_parent
 from .data_parallel import is_main, leave
 from .train import train
 
 
 def main(request_path: str) -> int:
+    die_with_parent(os.getppid())  # torchrun started this rank: when it ends (even by SIGKILL), so does the rank
     request = json.loads(Path(request_path).read_text())
     try:
         path = train(request["datasets"], request["cfg"], resume=request["resume"])

@@ -24,6 +24,7 @@ from typing import Any
 import torch
 from tqdm import tqdm
 
+from ..datasets.interrupts import Interrupted, stop_requests
 from ..datasets.outputs import output_path
 from . import data_parallel
 from .data import SequenceDataset
@@ -182,8 +183,10 @@ class Checkpointer:
 
 
 def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep, task_id: str,
-          cfg: DiffusionPolicyConfig, run: Progress, checkpointer: Checkpointer) -> None:
-    """Optimiser steps until ``run.total`` (re-planned to ``cfg.time_budget_s``), from ``run.step`` on."""
+          cfg: DiffusionPolicyConfig, run: Progress, checkpointer: Checkpointer, stop=None) -> None:
+    """Optimiser steps until ``run.total`` (re-planned to ``cfg.time_budget_s``), from ``run.step`` on. ``stop``
+    (``datasets.interrupts.StopRequest``) set: the resume point is saved after the step in flight and
+    ``Interrupted`` raised."""
     lr_factor = warmup_cosine(cfg.warmup_steps, lambda: run.total)
     t0 = time.perf_counter() - run.elapsed_s  # a resumed run's budget counts the time before the interruption
     policy.model.train()
@@ -216,9 +219,12 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
                 if run.step >= run.total:
                     break
                 set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
-                if checkpointer.due(run.step) and data_parallel.is_main():
+                if (checkpointer.due(run.step) or stop) and data_parallel.is_main():
                     run.elapsed_s = time.perf_counter() - t0
                     checkpointer.save(run)
+                if stop:
+                    raise Interrupted(f"interrupted at step {run.step} of {run.total}: the resume point is saved in "
+                                      f"{checkpointer.path}; continue with --resume", stop.signum)
             run.epochs.append({"epoch": len(run.epochs) + 1,
                                "loss": data_parallel.mean_over_ranks(torch.stack(run.losses).mean()).item(),
                                "steps": run.step, "lr": cfg.lr * lr_factor(run.step)})
@@ -270,28 +276,32 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
     elif cfg.init_checkpoint is not None:
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
-    read_from = time.perf_counter()
-    data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
-                           pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
-    if cfg.progress and data_parallel.is_main():
-        print(f"diffusion policy {data.task_id}: {len(data.demos)} demos, {len(data):,} windows read in "
-              f"{time.perf_counter() - read_from:.1f} s", file=sys.stderr, flush=True)
-    if state is not None:
-        check_resumable(state, cfg, data, out_dir)
-        policy = restore_policy(state, cfg)
-    elif start is None:
-        policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
-    else:
-        policy = _continue(start, data, cfg)
-    data_parallel.same_start(policy)
-    stepper = make_train_step(policy, data, cfg)
-    per_epoch = steps_per_epoch(data, cfg.batch_size * data_parallel.world()[1])
-    total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
-    run = Progress(total=total, cap=total) if state is None else _resume(state, policy, stepper)
-    if out_dir.is_dir():
-        remove_stale_temps(out_dir)
-    checkpointer = Checkpointer(cfg, out_dir, policy, stepper, data)
-    _loop(policy, stepper, data.task_id, cfg, run, checkpointer)
+    # Ctrl-C / SIGTERM from here on: a resume point after the first step that ends after it; in one process only
+    # (ranks would stop at different steps, and the others would wait for them in the next all-reduce)
+    with stop_requests() as stop:
+        read_from = time.perf_counter()
+        data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
+                               pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
+        if cfg.progress and data_parallel.is_main():
+            print(f"diffusion policy {data.task_id}: {len(data.demos)} demos, {len(data):,} windows read in "
+                  f"{time.perf_counter() - read_from:.1f} s", file=sys.stderr, flush=True)
+        if state is not None:
+            check_resumable(state, cfg, data, out_dir)
+            policy = restore_policy(state, cfg)
+        elif start is None:
+            policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
+        else:
+            policy = _continue(start, data, cfg)
+        data_parallel.same_start(policy)
+        stepper = make_train_step(policy, data, cfg)
+        per_epoch = steps_per_epoch(data, cfg.batch_size * data_parallel.world()[1])
+        total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
+        run = Progress(total=total, cap=total) if state is None else _resume(state, policy, stepper)
+        if out_dir.is_dir():
+            remove_stale_temps(out_dir)
+        checkpointer = Checkpointer(cfg, out_dir, policy, stepper, data)
+        _loop(policy, stepper, data.task_id, cfg, run, checkpointer,
+              stop=stop if data_parallel.world()[1] == 1 else None)
 
     training = {"final_loss": run.epochs[-1]["loss"], "epochs": len(run.epochs), "steps": run.step,
                 "wall_time_s": round(run.elapsed_s, 3), "init_checkpoint": cfg.init_checkpoint,

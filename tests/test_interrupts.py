@@ -1,0 +1,165 @@
+"""Interrupts and kills are ends, not crashes: Ctrl-C (SIGINT) during collect, train and split exits 130 with one
+line saying what was kept and where, every finished item kept; a SIGKILLed split leaves no phase writer running and
+no partial output that looks finished (the next split runs)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_lerobot_export import make_dataset
+
+TASK = "GalbotG1-PickToShelf-v0"
+RUN = "import sys; from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))"
+
+
+def newton_lab(*argv: str, cwd: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", RUN, *argv], cwd=cwd, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def wait_for(condition, what: str, limit_s: float = 240.0) -> None:
+    """Poll ``condition`` until it holds (a generous limit: a loaded 2-core machine is slow; not a timing check)."""
+    end = time.monotonic() + limit_s
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError(f"never saw {what}")
+        time.sleep(0.05)
+
+
+def children(pid: int) -> list[int]:
+    """The pids of ``pid``'s children (Linux /proc)."""
+    out = []
+    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+        try:
+            out += [int(c) for c in task.read_text().split()]
+        except OSError:
+            pass
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def make_splittable(path: Path, demos: int, steps: int) -> None:
+    """A dataset recorded on the coherent PickToShelf (action columns of all its components, ``datagen/phase`` a
+    third of each episode per phase), made without an env."""
+    import newton_lab.tasks  # noqa: F401
+    from newton_lab.datasets import open_writer
+    from newton_lab.robots.registry import robot_binding
+    from newton_lab.task_api.registry import lookup
+
+    names: list[str] = []
+    cfg = lookup(TASK).make_cfg({})
+    for ph in cfg.phases:
+        comp = lookup(ph.task_id)
+        comp = comp.cfg(**comp.accepted({}))
+        groups = robot_binding(comp.robot).joint_groups
+        names += [j for t in comp.actions for j in groups[t.group] if j not in names]
+    args = {"newton_lab": {"action_joint_names": names, "phases": [p.name for p in cfg.phases],
+                           "obs_terms": {"q": [0, 40]}}}
+    rng = np.random.default_rng(0)
+    with open_writer(path, task_id=TASK, env_args=args, fsync=False) as w:
+        w.append_episodes([({"actions": rng.standard_normal((steps, len(names))).astype(np.float32),
+                             "obs": {"q": rng.standard_normal((steps, 40)).astype(np.float32)},
+                             "dones": np.zeros(steps, dtype=np.int64),
+                             "datagen": {"phase": np.repeat(np.arange(3, dtype=np.int32), -(-steps // 3))[:steps]}},
+                            True, None) for _ in range(demos)])
+
+
+def test_a_killed_split_leaves_no_writer_and_nothing_that_looks_finished(tmp_path):
+    """SIGKILL while the phase writers write: they end with it (a parent-death signal), the output folder does not
+    appear (the phases are written in a stage beside it, renamed into place when all are done), and the next split
+    removes the stage and writes every demo."""
+    from newton_lab.datasets import read_dataset_info
+
+    make_splittable(tmp_path / "c.hdf5", demos=400, steps=60)
+    split = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
+    stage = tmp_path / f".parts.{split.pid}.partial"
+    wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
+    assert split.poll() is None, split.communicate()
+    writers = children(split.pid)
+    assert writers
+    split.kill()
+    split.communicate()
+    wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=30)
+    assert not (tmp_path / "parts").exists() and stage.exists()
+    again = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
+    out, err = again.communicate(timeout=600)
+    assert again.returncode == 0, err
+    assert sorted(p.name for p in (tmp_path / "parts").iterdir()) == ["nav.hdf5", "pick.hdf5", "place.hdf5"]
+    assert all(read_dataset_info(tmp_path / "parts" / f"{p}.hdf5")["num_demos"] == 400 for p in ("pick", "nav"))
+    assert not stage.exists() and not list(tmp_path.glob(".parts.*"))
+
+
+def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path):
+    from newton_lab.datasets import read_dataset_info
+
+    path = tmp_path / "r.hdf5"
+
+    def demos() -> int:
+        try:
+            return read_dataset_info(path)["num_demos"]
+        except (OSError, ValueError):  # not there yet, or being written
+            return 0
+
+    run = newton_lab("collect", "--task", "GalbotG1-Reach-v0", "--episodes", "100000", "--num-envs", "2",
+                     "--max-steps", "5", "--cameras", "none", "--no-progress", "--dataset-path", str(path),
+                     cwd=tmp_path)
+    wait_for(lambda: demos() >= 2 or run.poll() is not None, "two episodes written")
+    run.send_signal(signal.SIGINT)
+    out, err = run.communicate(timeout=120)
+    lines = [line for line in err.splitlines() if "CUDA driver" not in line]
+    assert run.returncode == 130 and len(lines) == 1, err
+    kept = read_dataset_info(path)["num_demos"]
+    assert f"newton-lab collect: interrupted: {kept} finished episodes of this run kept in {path}" in lines[0]
+    assert kept >= 2
+
+
+def test_ctrl_c_during_train_saves_the_resume_point(tmp_path):
+    """The run stops after the step in flight, writes resume.pt and says so; --resume continues from it."""
+    make_dataset(tmp_path / "d.hdf5")
+    argv = ("train", "--dataset-path", "d.hdf5", "--preset", "cpu", "--output-dir", "pol",
+            "--checkpoint-every-steps", "100000", "--checkpoint-every-s", "100000", "--max-steps", "300")
+    run = newton_lab(*argv, cwd=tmp_path)
+    read = []
+
+    def training() -> bool:  # the first line on stderr: the data is read, the loop starts
+        read.append(run.stderr.readline())
+        return "windows read" in read[-1] or run.poll() is not None
+
+    wait_for(training, "training to start")
+    run.send_signal(signal.SIGINT)  # while the model is built, or in the first steps: stops after the next step
+    _, err = run.communicate(timeout=120)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert run.returncode == 130 and len(lines) == 1, err
+    assert "newton-lab train: interrupted at step " in lines[0] and "pol/resume.pt; continue with --resume" in lines[0]
+    step = int(lines[0].split("interrupted at step ")[1].split()[0])
+    assert 1 <= step < 300
+    assert (tmp_path / "pol" / "resume.pt").is_file() and not (tmp_path / "pol" / "checkpoint.pt").exists()
+    again = newton_lab(*argv, "--resume", cwd=tmp_path)
+    out, err = again.communicate(timeout=600)
+    assert again.returncode == 0, err
+    log = json.loads((tmp_path / "pol" / "train_log.json").read_text())
+    assert log["resumed_at_steps"] == [step] and log["steps"] == 300
+    assert (tmp_path / "pol" / "checkpoint.pt").is_file() and not (tmp_path / "pol" / "resume.pt").exists()
+
+
+@pytest.fixture(autouse=True)
+def _no_stray_children():
+    """Nothing this module starts outlives its test."""
+    yield
+    assert not [c for c in children(os.getpid()) if alive(c)]
