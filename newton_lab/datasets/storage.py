@@ -138,11 +138,17 @@ def _cameras_text(cameras: Mapping[str, tuple]) -> str:
     return ",".join(f"{n}={w}x{h}:{'+'.join(d)}" for n, (w, h, d) in cameras.items()) or "none"
 
 
-def check_same_recording(path: Path, recorded: Mapping[str, Any], new: Mapping[str, Any]) -> None:
+def check_same_recording(path: Path, recorded: Mapping[str, Any], new: Mapping[str, Any],
+                         option_defaults: Mapping[str, Any] | None = None) -> None:
     """Appending to ``path`` (recorded with env_args ``recorded``) demos made with env_args ``new``: refused in one
     line when they record other cameras, other observation terms or other task options (a dataset's recording set
-    is part of what it is; demos that mix them train and export wrongly)."""
+    is part of what it is; demos that mix them train and export wrongly). ``option_defaults``: the task's option
+    defaults, for an option one side left unset (else only options both sides name are compared)."""
     before, now = recording_set(recorded), recording_set(new)
+    if before is not None and now is not None and option_defaults:
+        for side in (before, now):
+            side["task_options"] = {**{k: v for k, v in option_defaults.items() if v is not None},
+                                    **side["task_options"]}
     if before is None or now is None:
         return
     if before["cameras"] != now["cameras"]:
@@ -173,9 +179,10 @@ class EpisodeWriter:
         """Episodes this writer has appended."""
 
     @classmethod
-    def open(cls, path: str | Path, *, task_id: str, env_args: Mapping[str, Any],
-             fsync: bool = True) -> EpisodeWriter:
-        """Create ``path`` or append to it if it holds a dataset of the same task."""
+    def open(cls, path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True,
+             option_defaults: Mapping[str, Any] | None = None) -> EpisodeWriter:
+        """Create ``path`` or append to it if it holds a dataset of the same task, recorded with the same cameras,
+        observation terms and task options (``check_same_recording``; ``option_defaults``: the task's)."""
         if not isinstance(task_id, str) or not task_id:
             raise ValueError("task_id must be a non-empty str")
         p, backend, fmt = _backend(path)
@@ -199,7 +206,7 @@ class EpisodeWriter:
         if existing != task_id:
             raise ValueError(f"{p} holds a dataset of task {existing!r}, not {task_id!r}; "
                              f"choose another path for {task_id!r}")
-        check_same_recording(p, meta["env_args"], env)
+        check_same_recording(p, meta["env_args"], env, option_defaults)
         return cls(p, backend, fmt, task_id, fsync)
 
     def prepare(self, episode: Mapping[str, Any], *, success: bool,
@@ -293,7 +300,8 @@ class EpisodeWriter:
         return f"EpisodeWriter({str(self.path)!r}, task_id={self.task_id!r}, format={self.format!r})"
 
 
-def open_writer(path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True) -> EpisodeWriter:
+def open_writer(path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True,
+                option_defaults: Mapping[str, Any] | None = None) -> EpisodeWriter:
     """Alias of :meth:`EpisodeWriter.open`."""
-    return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync)
+    return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync, option_defaults=option_defaults)
 

@@ -25,6 +25,7 @@ from ..datasets.background import BackgroundWriter
 from ..datasets.interrupts import Interrupted, stop_requests
 from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
+from ..task_api.registry import lookup
 from .recorder import EpisodeRecorder, env_args
 from .saver import EpisodeSaver, WrappedWriter, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
@@ -321,7 +322,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     args["env_name"] = task_id
     recorder = EpisodeRecorder(env, max_steps)
     check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
-    store = open_writer(Path(path), task_id=task_id, env_args=args)
+    store = open_writer(Path(path), task_id=task_id, env_args=args, option_defaults=_option_defaults(env.task_id))
     batching = {"max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
                 "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1, "max_wait_s": WRITE_MAX_WAIT_S}
     if _writer_kind(writer, env.num_envs) == "process":
@@ -355,6 +356,14 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
            "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
     keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
+
+
+def _option_defaults(task_id: str) -> dict[str, Any]:
+    """The defaults of the options ``task_id`` takes (an appended dataset compares the options a run left unset)."""
+    try:
+        return {o.name: o.default for o in lookup(task_id).all_options}
+    except (KeyError, ValueError):  # an env of a task the registry does not hold (built from a cfg)
+        return {}
 
 
 WRITER_KINDS = ("auto", "thread", "process")
