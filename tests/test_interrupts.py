@@ -163,3 +163,36 @@ def _no_stray_children():
     """Nothing this module starts outlives its test."""
     yield
     assert not [c for c in children(os.getpid()) if alive(c)]
+
+
+def limited(limit_bytes: int):
+    """A ``preexec_fn``: files of the child stop growing at ``limit_bytes`` and a write past it fails with EFBIG (a
+    refused write, as on a full disk or a quota, without a small file system)."""
+    import resource
+
+    def apply() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+
+    return apply
+
+
+@pytest.mark.parametrize("command", ["train", "split"])
+def test_a_refused_write_ends_train_and_split_in_one_line_leaving_nothing_half_written(tmp_path, command):
+    """A write the disk refuses (here: past a file-size limit, EFBIG) ends ``train`` (torch.save) and ``split`` (a
+    phase writer's HDF5 write) with exit status 1 and one line; no temporary or partial file is left."""
+    if command == "train":
+        make_dataset(tmp_path / "d.hdf5")
+        argv = ["train", "--dataset-path", "d.hdf5", "--preset", "cpu", "--max-steps", "2", "--output-dir", "pol"]
+        limit, words = 100_000, "the disk refused a write (short write) while writing pol/checkpoint.pt; free space"
+    else:
+        make_splittable(tmp_path / "c.hdf5", demos=40, steps=60)
+        argv = ["split", "--dataset-path", "c.hdf5", "--out", "parts"]
+        limit, words = 300_000, "while splitting into parts: the split was dropped, nothing written there"
+    before = {p.name for p in tmp_path.iterdir()}
+    out = subprocess.run([sys.executable, "-c", RUN, *argv], cwd=tmp_path, capture_output=True, text=True,
+                         preexec_fn=limited(limit))
+    errors = [line for line in out.stderr.splitlines() if "windows read" not in line]
+    assert out.returncode == 1 and len(errors) == 1 and words in errors[0], out.stderr
+    left = {str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.name not in before and p.is_file()}
+    assert not left, left

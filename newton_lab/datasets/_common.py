@@ -158,6 +158,9 @@ class DatasetWriteError(OSError):
         super().__init__(message)
         self.errno = err
 
+    def __reduce__(self):  # crosses process boundaries (a phase writer of split): both arguments
+        return type(self), (self.args[0], self.errno)
+
 
 STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.EROFS})
 """OS errors of the medium that end a write session as a :class:`DatasetWriteError`."""

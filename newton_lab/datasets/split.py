@@ -145,6 +145,10 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
     except KeyboardInterrupt as exc:  # Ctrl-C / SIGTERM
         raise Interrupted(f"interrupted: the split into {out_dir} was dropped, nothing written there; run it again",
                           getattr(exc, "signum", signal.SIGINT)) from None
+    except DatasetWriteError as exc:  # its message names a file of the stage, which is removed
+        what = "disk full" if exc.errno == errno.ENOSPC else os.strerror(exc.errno).lower()
+        raise DatasetWriteError(f"{what} while splitting into {out_dir}: the split was dropped, nothing written "
+                                "there; free space and run it again", exc.errno) from None
     except BrokenProcessPool:
         raise DatasetWriteError(f"a phase writer of the split into {out_dir} ended abruptly (killed, or out of "
                                 f"memory); nothing was written to {out_dir}: run the split again", errno.EIO) from None

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 import warnings
 from pathlib import Path
 from typing import Any
@@ -12,6 +14,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from ..datasets._common import STORAGE_ERRNOS, DatasetWriteError
 from ..datasets.outputs import output_path
 from .config import ARCHITECTURE_FIELDS, PRESETS, DiffusionPolicyConfig  # noqa: F401  (re-exported)
 from .data_parallel import draw_rows
@@ -23,6 +26,10 @@ from .vision import ImageEncoder
 
 CHECKPOINT_FORMAT = "newton_lab.policies.diffusion"
 CHECKPOINT_VERSION = 1
+FULL_BELOW_BYTES = 1 << 20
+"""Free bytes under which a failed ``torch.save`` (torch reports a short write as a RuntimeError) is a full disk."""
+SHORT_WRITE = ("unexpected pos", "file write failed", "PytorchStreamWriter failed")
+"""How torch's RuntimeError says a write came up short (the disk, a quota or a file size limit refused it)."""
 
 
 class VisuomotorNet(nn.Module):
@@ -48,6 +55,26 @@ def _link_new(src: Path, dst: Path) -> None:
                 out.write(inp.read())
         except FileExistsError:
             raise FileExistsError(f"{dst} already exists; pass overwrite=True or choose another path") from None
+
+
+def save_file(payload: dict[str, Any], file: Any, path: Path) -> None:
+    """``torch.save(payload, file)`` (a path, or an open file, and its flush), for ``path``: a write the disk refuses
+    (full, or failing) is one line (``DatasetWriteError``: exit status 1 on the command line) instead of torch's
+    RuntimeError; the caller removes the temporary file."""
+    try:
+        torch.save(payload, file)
+        if hasattr(file, "flush"):
+            file.flush()
+            os.fsync(file.fileno())
+    except (RuntimeError, OSError) as exc:
+        code = getattr(exc, "errno", None)
+        short = isinstance(exc, RuntimeError) and any(w in str(exc) for w in SHORT_WRITE)
+        if code in STORAGE_ERRNOS or short:
+            full = code == errno.ENOSPC or (code is None and shutil.disk_usage(path.parent).free < FULL_BELOW_BYTES)
+            what = "disk full" if full else f"the disk refused a write ({os.strerror(code) if code else 'short write'})"
+            raise DatasetWriteError(f"{what} while writing {path}; free space and run again (a training run that "
+                                    "wrote a resume point goes on from it with --resume)", code or errno.ENOSPC) from None
+        raise
 
 
 class DiffusionPolicy(nn.Module):
@@ -193,7 +220,7 @@ class DiffusionPolicy(nn.Module):
         output_path(path)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         try:
-            torch.save(self.checkpoint(), tmp)
+            save_file(self.checkpoint(), tmp, path)
             if overwrite:
                 os.replace(tmp, path)
             else:

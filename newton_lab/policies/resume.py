@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from ..datasets.outputs import output_path
-from .diffusion import ARCHITECTURE_FIELDS, DiffusionPolicy, DiffusionPolicyConfig
+from .diffusion import ARCHITECTURE_FIELDS, DiffusionPolicy, DiffusionPolicyConfig, save_file
 from .normalize import MinMaxNormalizer
 
 RESUME_NAME = "resume.pt"
@@ -74,9 +74,7 @@ def write_atomic(payload: dict[str, Any], path: Path) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as f:
-            torch.save(payload, f)
-            f.flush()
-            os.fsync(f.fileno())
+            save_file(payload, f, path)  # a full disk: one line
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
