@@ -196,3 +196,21 @@ def test_a_refused_write_ends_train_and_split_in_one_line_leaving_nothing_half_w
     assert out.returncode == 1 and len(errors) == 1 and words in errors[0], out.stderr
     left = {str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.name not in before and p.is_file()}
     assert not left, left
+
+
+def descendants(pid: int) -> list[int]:
+    return [d for c in children(pid) for d in (c, *descendants(c))]
+
+
+def test_a_killed_data_parallel_train_leaves_no_process(tmp_path):
+    """``train --gpus 2 --device cpu`` runs torchrun and two gloo ranks; SIGKILL of the command ends them all (torchrun
+    gets SIGTERM from the kernel when its parent dies, and ends its ranks)."""
+    make_dataset(tmp_path / "d.hdf5")
+    run = newton_lab("train", "--dataset-path", "d.hdf5", "--preset", "cpu", "--max-steps", "100000", "--gpus", "2",
+                     "--device", "cpu", "--output-dir", "pol", cwd=tmp_path)
+    wait_for(lambda: len(descendants(run.pid)) >= 3 or run.poll() is not None, "torchrun and its two ranks")
+    assert run.poll() is None, run.communicate()
+    started = descendants(run.pid)
+    run.kill()
+    run.communicate()
+    wait_for(lambda: not any(alive(p) for p in started), "torchrun and its ranks ending", limit_s=60)

@@ -17,6 +17,7 @@ import sys
 import time
 import warnings
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -277,8 +278,9 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
     # Ctrl-C / SIGTERM from here on: a resume point after the first step that ends after it; in one process only
-    # (ranks would stop at different steps, and the others would wait for them in the next all-reduce)
-    with stop_requests() as stop:
+    # (ranks would stop at different steps, and the others would wait for them in the next all-reduce; torchrun
+    # ends its ranks with SIGTERM, which must stay fatal there)
+    with stop_requests() if data_parallel.world()[1] == 1 else nullcontext() as stop:
         read_from = time.perf_counter()
         data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
                                pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
@@ -300,8 +302,7 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         if out_dir.is_dir():
             remove_stale_temps(out_dir)
         checkpointer = Checkpointer(cfg, out_dir, policy, stepper, data)
-        _loop(policy, stepper, data.task_id, cfg, run, checkpointer,
-              stop=stop if data_parallel.world()[1] == 1 else None)
+        _loop(policy, stepper, data.task_id, cfg, run, checkpointer, stop=stop)
 
     training = {"final_loss": run.epochs[-1]["loss"], "epochs": len(run.epochs), "steps": run.step,
                 "wall_time_s": round(run.elapsed_s, 3), "init_checkpoint": cfg.init_checkpoint,
