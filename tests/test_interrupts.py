@@ -214,3 +214,29 @@ def test_a_killed_data_parallel_train_leaves_no_process(tmp_path):
     run.kill()
     run.communicate()
     wait_for(lambda: not any(alive(p) for p in started), "torchrun and its ranks ending", limit_s=60)
+
+
+def test_a_killed_collect_leaves_no_writer_process(tmp_path):
+    """SIGKILL of ``collect --writer process``: the writer process reads the end of its pipe, writes what it was
+    given and exits; the dataset stays readable."""
+    from newton_lab.datasets import read_dataset_info
+
+    path = tmp_path / "r.zarr"
+    run = newton_lab("collect", "--task", "GalbotG1-Reach-v0", "--episodes", "100000", "--num-envs", "2",
+                     "--max-steps", "5", "--cameras", "none", "--no-progress", "--writer", "process",
+                     "--dataset-path", str(path), cwd=tmp_path)
+
+    def demos() -> int:
+        try:
+            return read_dataset_info(path)["num_demos"]
+        except (OSError, ValueError):
+            return 0
+
+    wait_for(lambda: demos() >= 2 or run.poll() is not None, "two episodes written")
+    assert run.poll() is None, run.communicate()
+    writers = descendants(run.pid)
+    assert writers
+    run.kill()
+    run.communicate()
+    wait_for(lambda: not any(alive(p) for p in writers), "the writer process ending", limit_s=60)
+    assert read_dataset_info(path)["num_demos"] >= 2
