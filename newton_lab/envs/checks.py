@@ -45,7 +45,11 @@ def row_mask(env_ids, num_envs: int) -> np.ndarray:
     if env_ids is None:
         mask[:] = True
         return mask
-    given = torch.as_tensor(env_ids).cpu()
+    try:
+        given = torch.as_tensor(env_ids).cpu()
+    except (TypeError, ValueError, RuntimeError):
+        raise ValueError(f"env_ids must be None (every row) or integer row indices (a list, numpy array or tensor), "
+                         f"got {type(env_ids).__name__} {str(env_ids)[:60]}") from None
     if given.numel() and (given.dtype.is_floating_point or given.dtype.is_complex or given.dtype == torch.bool):
         raise ValueError(f"env_ids must be integer row indices, got dtype {given.dtype}; pass e.g. "
                          f"torch.nonzero(mask).flatten() for a boolean mask")

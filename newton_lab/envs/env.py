@@ -62,6 +62,9 @@ class NewtonEnv:
     ):
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if not getattr(cfg, "task_id", None):
+            raise ValueError("this TaskCfg names no task: TaskSpec.cfg() neither names it nor resolves its generic "
+                             "terms; build the env with make_env(task_id), or from TaskSpec.make_cfg(options)")
         self.cfg = cfg
         self.task_id = cfg.task_id
         self.num_envs = num_envs
@@ -205,7 +208,7 @@ class NewtonEnv:
             signals of the state the step reached; ``info["signals"]`` belong to ``obs``). A row whose
             physics diverged (non-finite or beyond ``cfg.divergence_bounds``) ends with reason ``diverged``.
         """
-        self.actions.copy_(self.check_actions(actions))
+        self.actions.copy_(self.check_actions(actions).detach())  # a policy's graph never reaches the env's buffer
         self.launch_step()
         return self.obs, self.reward, self.terminated, self.truncated, self.info
 

@@ -9,6 +9,7 @@ episode, nor any episode holding a non-finite value, and both summaries count th
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -313,6 +314,9 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     termination reasons, diverged, saved_demo_ids, ...); ``ref["success_rate"]`` reads it.
     """
     task_id = dataset_task_id or env.task_id
+    _check_agent(agent)
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise ValueError(f"path must name the dataset to write (.hdf5, .h5 or .zarr), got {path!r}")
     if save_end_scenario is not None:
         if env.num_envs != 1 or episodes != 1:
             raise ValueError(f"save_end_scenario needs num_envs=1 and episodes=1, got {env.num_envs} and {episodes}")
@@ -358,6 +362,12 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
 
 
+def _check_agent(agent) -> None:
+    if not callable(getattr(agent, "act", None)):
+        raise ValueError(f"agent must have an act(env) method (e.g. newton_lab.agents.expert_agent(env)), got "
+                         f"{type(agent).__name__}")
+
+
 def _option_defaults(task_id: str) -> dict[str, Any]:
     """The defaults of the options ``task_id`` takes (an appended dataset compares the options a run left unset)."""
     try:
@@ -383,6 +393,7 @@ def _writer_kind(writer: str, num_envs: int) -> str:
 def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True,
              on_step=None) -> dict[str, Any]:
     """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
+    _check_agent(agent)
     records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
                                 on_step=on_step)
     summary = _summary(env, records, steps, wall)

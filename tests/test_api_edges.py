@@ -1,0 +1,53 @@
+"""The API's edges answer in the project's one-line form: rows named by something that is no row index, collect
+without an agent or a path, an env from an unresolved TaskCfg; and a step with actions that require grad leaves the
+env's action buffer out of the autograd graph."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+TASK = "GalbotG1-Reach-v0"
+
+
+@pytest.fixture(scope="module")
+def env():
+    from newton_lab.envs import make_env
+
+    return make_env(TASK, num_envs=2, device="cpu", cameras=False)
+
+
+@pytest.mark.parametrize("ids", ["rows", [None], {"a": 1}, object()])
+def test_reset_with_something_that_is_no_row_index_is_one_line(env, ids):
+    with pytest.raises(ValueError, match="env_ids must be None .every row. or integer row indices") as err:
+        env.reset(ids)
+    assert "\n" not in str(err.value)
+
+
+def test_collect_without_an_agent_or_a_path_is_one_line_and_writes_nothing(env, tmp_path):
+    from newton_lab.agents import expert_agent
+
+    with pytest.raises(ValueError, match="agent must have an act.env. method"):
+        env.collect(agent=None, episodes=1, path=tmp_path / "x.hdf5", progress=False)
+    with pytest.raises(ValueError, match="path must name the dataset to write"):
+        env.collect(agent=expert_agent(env), episodes=1, path=None, progress=False)
+    with pytest.raises(ValueError, match="agent must have an act.env. method"):
+        env.evaluate(agent=None, episodes=1, progress=False)
+    assert not list(tmp_path.iterdir())
+
+
+def test_an_env_from_an_unresolved_cfg_names_make_cfg():
+    import newton_lab.tasks  # noqa: F401
+    from newton_lab.envs.env import NewtonEnv
+    from newton_lab.task_api.registry import lookup
+
+    with pytest.raises(ValueError, match=r"TaskSpec.make_cfg\(options\)"):
+        NewtonEnv(lookup("GalbotG1-PickCube-v0").cfg(), num_envs=1, device="cpu")
+
+
+def test_actions_that_require_grad_leave_the_env_out_of_the_graph(env):
+    actions = env.current_action().clone().requires_grad_(True)
+    env.step(actions * 1.0)
+    env.step(actions * 1.0)
+    assert not env.actions.requires_grad and env.actions.grad_fn is None
+    assert env.actions.cpu().numpy().shape == (2, env.action_dim)
