@@ -51,3 +51,28 @@ def test_actions_that_require_grad_leave_the_env_out_of_the_graph(env):
     env.step(actions * 1.0)
     assert not env.actions.requires_grad and env.actions.grad_fn is None
     assert env.actions.cpu().numpy().shape == (2, env.action_dim)
+
+
+def test_a_read_only_zarr_dataset_is_called_read_only_not_damaged(tmp_path, monkeypatch):
+    """Appending to a zarr dataset its user may read but not write (permission denied, a read-only mount; simulated:
+    the test runs as root) says so, not that the dataset is damaged; nothing is written."""
+    import errno
+    import os
+
+    from newton_lab.datasets import open_writer, read_dataset_info, zarr_session
+    from test_lerobot_export import ENV_ARGS, TASK, make_dataset, make_episode
+
+    path = make_dataset(tmp_path / "d.zarr")
+    real_open = os.open
+
+    def read_only(file, flags, *args, **kwargs):
+        if str(file).endswith("zarr.json") and flags & (os.O_RDWR | os.O_WRONLY):
+            raise PermissionError(errno.EACCES, "Permission denied", str(file))
+        return real_open(file, flags, *args, **kwargs)
+
+    monkeypatch.setattr(zarr_session.os, "open", read_only)
+    with pytest.raises(ValueError, match=r"d.zarr is read-only here \(Permission denied\); it was left untouched"):
+        with open_writer(path, task_id=TASK, env_args=ENV_ARGS) as w:
+            w.append_episode(make_episode(9, 5), success=True)
+    monkeypatch.undo()
+    assert read_dataset_info(path)["num_demos"] == 3
