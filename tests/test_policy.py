@@ -410,6 +410,13 @@ def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
     with pytest.raises(ValueError, match="cannot continue from .*observation sizes") as err:
         Policy.from_backend("diffusion").train(tmp_path / "wide.hdf5", {**cfg, "output_dir": str(tmp_path / "w")})
     assert "\n" not in str(err.value)
+    # another task's dataset: said as such (not as an observation key the dataset lacks)
+    with open_writer(tmp_path / "other.hdf5", task_id="GalbotG1-Reach-v0",
+                     env_args={"newton_lab": {"action_joint_names": JOINTS}}, fsync=False) as w:
+        w.append_episode(demo_arrays(), success=True)
+    with pytest.raises(ValueError, match=f"cannot continue from .*: it was trained for {TASK}, the dataset is "
+                                         "GalbotG1-Reach-v0"):
+        Policy.from_backend("diffusion").train(tmp_path / "other.hdf5", {**cfg, "output_dir": str(tmp_path / "o")})
 
 
 def test_train_cli_flags(dataset, tmp_path, capsys):

@@ -25,6 +25,7 @@ from typing import Any
 import torch
 from tqdm import tqdm
 
+from ..datasets import read_dataset_info
 from ..datasets.interrupts import Interrupted, stop_requests
 from ..datasets.outputs import output_path
 from . import data_parallel
@@ -276,6 +277,10 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         cfg = resumed_config(state, cfg)
     elif cfg.init_checkpoint is not None:
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
+        trained, task = start.info.get("task_id"), read_dataset_info(paths[0])["task_id"]
+        if trained not in (None, task):  # before its observation keys are looked for in another task's data
+            raise ValueError(f"cannot continue from {cfg.init_checkpoint}: it was trained for {trained}, the dataset "
+                             f"is {task}; train from scratch (no init_checkpoint) or pick a dataset of {trained}")
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
     # Ctrl-C / SIGTERM from here on: a resume point after the first step that ends after it; in one process only
     # (ranks would stop at different steps, and the others would wait for them in the next all-reduce; torchrun
