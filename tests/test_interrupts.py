@@ -240,3 +240,21 @@ def test_a_killed_collect_leaves_no_writer_process(tmp_path):
     run.communicate()
     wait_for(lambda: not any(alive(p) for p in writers), "the writer process ending", limit_s=60)
     assert read_dataset_info(path)["num_demos"] >= 2
+
+
+def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path):
+    """Ctrl-C while the phase writers write: the writers are stopped, the stage removed, no --out folder appears, and
+    one line says so (exit status 130)."""
+    make_splittable(tmp_path / "c.hdf5", demos=400, steps=60)
+    split = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
+    stage = tmp_path / f".parts.{split.pid}.partial"
+    wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
+    assert split.poll() is None, split.communicate()
+    writers = children(split.pid)
+    split.send_signal(signal.SIGINT)
+    _, err = split.communicate(timeout=120)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert split.returncode == 130 and len(lines) == 1, err
+    assert "newton-lab split: interrupted: the split into parts was dropped, nothing written there" in lines[0]
+    assert not (tmp_path / "parts").exists() and not stage.exists()
+    wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=30)
