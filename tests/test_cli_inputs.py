@@ -114,6 +114,9 @@ BAD = [
     ("evaluate --checkpoint earlier", "--checkpoint earlier is a folder; give the checkpoint file in it"),
     ("evaluate --checkpoint pick.pt --task GalbotG1-Reach-v0",
      "--checkpoint pick.pt was trained for GalbotG1-PickCube-v0 but the env runs GalbotG1-Reach-v0"),
+    ("evaluate --checkpoint vis.pt --cameras none", "--checkpoint vis.pt sees front_head_rgb at 96x72 px, which "
+     "--cameras none does not render; evaluate with --cameras front_head=96x72"),
+    ("evaluate --checkpoint vis.pt --cameras front_head=64x48", "which --cameras front_head=64x48 does not render"),
     ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint plase=pick.pt",
      "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place"),
     ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint pick=pick.pt",
@@ -174,6 +177,11 @@ def checkpoints(tmp_path_factory) -> dict[str, bytes]:
         torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "diffusion", "config": {},
                     "weights": {"w": torch.zeros(64)}, "normalizers": {}, "info": {"task_id": task}}, buf)
         out[name] = buf.getvalue()
+    buf = io.BytesIO()  # a visuomotor policy: it sees the front camera's RGB at 96 x 72
+    torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "diffusion",
+                "config": {"image_keys": ["front_head_rgb"]}, "weights": {"w": torch.zeros(64)}, "normalizers": {},
+                "info": {"task_id": "GalbotG1-PickCube-v0", "image_shapes": {"front_head_rgb": [72, 96, 3]}}}, buf)
+    out["vis.pt"] = buf.getvalue()
     out["trunc.pt"] = out["pick.pt"][: len(out["pick.pt"]) // 2]
     out["text.pt"] = b"a checkpoint, honest\n"
     return out

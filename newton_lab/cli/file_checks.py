@@ -30,10 +30,12 @@ def check_checkpoints(args: EvaluateArgs) -> None:
         raise ValueError("give --checkpoint (one policy for the whole task) or --phase-checkpoint (one per phase "
                          "of a coherent task), not both")
     if args.checkpoint is not None:
-        trained = checkpoint_header(args.checkpoint, "--checkpoint")["info"].get("task_id")
+        header = checkpoint_header(args.checkpoint, "--checkpoint")
+        trained = header["info"].get("task_id")
         if not trained_for(trained, args.task):
             raise ValueError(f"--checkpoint {args.checkpoint} was trained for {trained} but the env runs {args.task}; "
                              f"evaluate it on --task {trained}")
+        check_policy_cameras(f"--checkpoint {args.checkpoint}", header, args.cameras)
     if not phases:
         return
     task_phases = dict(declared_phases().get(args.task, ()))
@@ -51,6 +53,26 @@ def check_checkpoints(args: EvaluateArgs) -> None:
         if trained is not None and component not in (trained, declared_sources().get(trained)):
             raise ValueError(f"checkpoint {path} was trained for {trained}, but phase {phase!r} of {args.task} runs "
                              f"{component}; give that phase a checkpoint of {component}")
+
+
+def check_policy_cameras(label: str, header: dict, cameras: str) -> None:
+    """A policy that sees cameras (its ``image_keys``) is evaluated with ``--cameras`` that render them at the
+    trained size; ``default`` (the task's cameras) is checked when the env is built."""
+    keys = list(header["config"].get("image_keys") or ())
+    wanted = camera_option(cameras)
+    if not keys or wanted is None:
+        return
+    shapes = header["info"].get("image_shapes") or {}
+    need = {k.rsplit("_", 1)[0]: (shapes[k][1], shapes[k][0]) for k in keys if len(shapes.get(k, ())) >= 2}
+    fix = ",".join(f"{cam}={w}x{h}" for cam, (w, h) in need.items())
+    for key in keys:
+        cam, data = key.rsplit("_", 1)
+        spec = (wanted or {}).get(cam)
+        res = spec if isinstance(spec, tuple) else (spec or {}).get("resolution")
+        datas = ("rgb",) if isinstance(spec, tuple) else tuple((spec or {}).get("data", ("rgb",)))
+        if spec is None or data not in datas or (cam in need and tuple(res) != need[cam]):
+            raise ValueError(f"{label} sees {key} at {'x'.join(map(str, need.get(cam, ('?', '?'))))} px, which "
+                             f"--cameras {cameras} does not render; evaluate with --cameras {fix}")
 
 
 def check_append(args: CollectArgs) -> None:
