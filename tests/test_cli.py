@@ -167,7 +167,12 @@ def test_generated_parser_keeps_every_flag_and_default():
 
 def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "c.pt").write_bytes(b"")
+    import torch
+
+    from newton_lab.policies.diffusion import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
+
+    torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "config": {},  # the header the CLI reads
+                "info": {"task_id": "GalbotG1-Reach-v0"}}, tmp_path / "c.pt")
     a = parse_args(CollectArgs, ["--task", "GalbotG1-SortToShelf-Pick-v0", "--num-envs", "2", "--sorting-object",
                                  "red_cube", "--randomize"])
     assert isinstance(a, CollectArgs) and a.num_envs == 2 and a.randomize and a.episodes == 1
@@ -176,10 +181,11 @@ def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
     from test_policy import write_dataset  # inputs must open: two real (tiny) datasets
 
     write_dataset(tmp_path / "a.hdf5"), write_dataset(tmp_path / "b.hdf5")
-    t = parse_args(TrainArgs, ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys", "x, y"])
+    t = parse_args(TrainArgs, ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys",
+                               "cube_pose, robot_joint_pos"])
     cfg = t.train_cfg({"default": {"epochs": 7}})
     assert t.datasets() == ["a.hdf5", "b.hdf5"] and cfg["lr"] == 0.001 and cfg["epochs"] == 7
-    assert cfg["obs_keys"] == ("x", "y") and "batch_size" not in cfg
+    assert cfg["obs_keys"] == ("cube_pose", "robot_joint_pos") and "batch_size" not in cfg
     # an example's own defaults: a required checkpoint, randomised resets on (--no-randomize turns them off)
     example = {"checkpoint": REQUIRED, "randomize": True, "task": "GalbotG1-Reach-v0"}
     e = parse_args(EvaluateArgs, ["--checkpoint", "c.pt", "--no-randomize"], defaults=example, exclude=("task",))

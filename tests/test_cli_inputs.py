@@ -125,12 +125,26 @@ BAD = [
      "--phase-checkpoint nav=text.pt is not a newton_lab diffusion-policy checkpoint"),
     ("evaluate --task GalbotG1-PickCube-v0 --phase-checkpoint pick=pick.pt",
      "--phase-checkpoint is for the phases of a coherent task, and GalbotG1-PickCube-v0 has none"),
+    # what a run found only after Warp loaded: scenarios, recordings, Mimic's source and output, split's source
+    ("collect --save-end-scenario s.yaml --num-envs 2 --dataset-path x.hdf5",
+     "--save-end-scenario needs --num-envs 1 and --episodes 1, got 2 and 1"),
+    ("collect --task GalbotG1-PickToShelf-Nav-v0 --init-scenario nope.yaml --dataset-path x.hdf5",
+     "scenario file nope.yaml does not exist; check the path (or save one with --save-end-scenario)"),
+    ("collect --rerun-save x.txt --dataset-path x.hdf5", "--rerun-save x.txt: a rerun recording is an .rrd file"),
+    ("mimic --dataset-path reach.pt.hdf5 --episodes 2", "task 'GalbotG1-Reach-v0' has no Mimic variant"),
+    ("mimic --dataset-path src.hdf5 --output-path pts.hdf5 --episodes 2",
+     "pts.hdf5 holds a dataset of task 'GalbotG1-PickToShelf-v0', not 'GalbotG1-PickCube-v0'; choose another"),
+    ("split --dataset-path src.hdf5 --out parts", "src.hdf5 was recorded on GalbotG1-PickCube-v0, which has no phases"),
+    ("pipeline --out afile", "cannot write afile/.prefect: its parent afile is a file; choose another path"),
+    ("bench-collect --workers 1 --baseline", "--baseline compares --workers W (W >= 2) with one worker alone"),
+    ("train --dataset-path src.hdf5 pts.hdf5", "pts.hdf5 (GalbotG1-PickToShelf-v0) does not match src.hdf5"),
+    ("train --dataset-path src.hdf5 --output-dir afile", "cannot write afile/checkpoint.pt: its parent afile is a file"),
     # split: a new folder, at least one phase
     ("split --dataset-path pts.hdf5 --out afile", "--out afile is a file; split into a new folder"),
     ("split --dataset-path pts.hdf5 --out earlier", "--out earlier is a folder that holds files already"),
     ("split --dataset-path pts.hdf5 --out new --phases ,", "--phases ',' names no phase"),
     # train: what its run found only after torch loaded
-    ("train --dataset-path src.hdf5 --preset cpuu", "--preset 'cpuu' (did you mean cpu?) is unknown"),
+    ("train --dataset-path src.hdf5 --preset cpuu", "unknown training preset 'cpuu' (did you mean cpu?); valid"),
     ("train --dataset-path src.hdf5 --obs-keys cube_pose,cube_poze", "records no observation 'cube_poze' (did you"),
     ("train --dataset-path cam.hdf5 --image-keys front_head_rgb", "records no image 'front_head_rgb'"),
     ("train --dataset-path src.hdf5 --resume", "no resume file outputs/policy/resume.pt: nothing to resume there"),
@@ -204,6 +218,8 @@ def make_fixtures(root: Path, checkpoints: dict[str, bytes]) -> None:
             "newton_lab": {**ENV_ARGS["newton_lab"], "cameras": {}}}  # recorded state only, no camera
     with open_writer(root / "cam.hdf5", task_id="GalbotG1-PickCube-v0", env_args=args, fsync=False) as w:
         w.append_episode(make_episode(0, 5, None, False, 1), success=True)
+    with open_writer(root / "reach.pt.hdf5", task_id="GalbotG1-Reach-v0", env_args=ENV_ARGS, fsync=False) as w:
+        w.append_episode(make_episode(0, 5, None, False, 1), success=True)  # a task without a Mimic variant
 
 
 def test_the_checkpoint_header_reader_agrees_with_the_checkpoint_format():

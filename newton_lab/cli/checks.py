@@ -11,9 +11,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..commands import (BenchArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
+from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
                         SplitArgs, TrainArgs, ViewArgs, camera_option)
-from ..task_api.catalog import check_task_id, check_task_options, declared_phases, did_you_mean
+from ..task_api.catalog import check_task_id, check_task_options, declared_phases, declared_sources, did_you_mean
 from ..task_api.cfg import IMAGE_DATA
 from .file_checks import check_append, check_checkpoints, check_train
 
@@ -95,6 +95,7 @@ def check_args(args: Any) -> None:
         check_gpus(args.gpus, getattr(args, "device", None))
     if isinstance(args, PipelineArgs):
         check_pipeline(args)
+    check_run_options(args, names)
     if "runner" in names and args.runner not in RUNNERS:
         raise ValueError(f"--runner {args.runner!r}{did_you_mean(args.runner, RUNNERS)}: use {' or '.join(RUNNERS)}")
     if "cameras" in names:
@@ -165,12 +166,34 @@ def check_datasets(args: Any, name: str) -> None:
             raise FileNotFoundError(f"{_label(args, name)} {path} does not exist; check the path")
         info = read_dataset_info(path)  # a one-line ValueError if it is no dataset or is damaged
         ids = info["demo_ids"]
+        if isinstance(args, SplitArgs) and args.out and info["task_id"] not in declared_phases():
+            raise ValueError(f"{path} was recorded on {info['task_id']}, which has no phases; nothing to split (a "
+                             "coherent task's dataset splits by phase: " + ", ".join(declared_phases()) + ")")
+        if isinstance(args, MimicArgs):
+            check_mimic_output(args, path, info["task_id"])
         if isinstance(args, SplitArgs) and args.phases:
             check_split_phases(args, path, info)
         if isinstance(args, ViewArgs) and args.episode not in ids:
             listed = ", ".join(map(str, ids[:5])) + (", ..." if len(ids) > 5 else "")
             raise ValueError(f"--episode {args.episode}: {path} has no episode {args.episode}; its {len(ids)} "
                              f"episodes: {listed or 'none'}")
+
+
+def check_mimic_output(args: MimicArgs, path: str, task_id: str) -> None:
+    """Mimic's source task has a Mimic variant, and an existing output dataset holds that variant's demos."""
+    variants = [v for v, source in declared_sources().items() if source == task_id]
+    if not variants:
+        raise ValueError(f"task {task_id!r} has no Mimic variant; tasks with one: "
+                         f"{', '.join(sorted(set(declared_sources().values())))}")
+    src = Path(path)
+    out = Path(args.output_path) if args.output_path else src.with_name(f"{src.stem}_mimic{src.suffix}")
+    if out.exists():
+        from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+        held = read_dataset_info(out)["task_id"]  # a one-line ValueError if it is no dataset or is damaged
+        if held != task_id:  # Mimic's demos are recorded under their source's task id
+            raise ValueError(f"{out} holds a dataset of task {held!r}, not {task_id!r}; choose another "
+                             "--output-path")
 
 
 def check_split_phases(args: SplitArgs, path: str, info: dict[str, Any]) -> None:
@@ -244,6 +267,29 @@ def check_pipeline(args: PipelineArgs) -> None:
         if not ADDRESS.fullmatch(args.address):
             raise ValueError(f"--address {args.address!r} is not a scheduler address; write [tcp://]HOST:PORT, e.g. "
                              "tcp://10.0.0.5:8786")
+
+
+def check_run_options(args: Any, names: set[str]) -> None:
+    """Flags whose misuse a run found only after Warp loaded: a scenario saved from more than one row or episode, an
+    --init-scenario that does not exist, a rerun recording not named .rrd, bench-collect's one-worker baseline."""
+    if isinstance(args, CollectArgs) and args.save_end_scenario is not None:
+        if args.num_envs != 1 or args.episodes != 1:
+            raise ValueError(f"--save-end-scenario needs --num-envs 1 and --episodes 1, got {args.num_envs} and "
+                             f"{args.episodes}")
+        if Path(args.save_end_scenario).exists():
+            raise FileExistsError(f"scenario file {args.save_end_scenario} already exists; choose a new path")
+    scenario = (getattr(args, "task_options", None) or {}).get("init_scenario")
+    if scenario is not None and not Path(scenario).is_file():
+        raise FileNotFoundError(f"scenario file {scenario} does not exist; check the path (or save one with "
+                                "--save-end-scenario)")
+    if "rerun_save" in names and args.rerun_save is not None and Path(args.rerun_save).suffix.lower() != ".rrd":
+        raise ValueError(f"--rerun-save {args.rerun_save}: a rerun recording is an .rrd file; name it e.g. run.rrd")
+    if isinstance(args, BenchCollectArgs) and args.workers == 1 and args.baseline:
+        raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")
+    if isinstance(args, PipelineArgs):
+        from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+        output_path(Path(args.out) / ".prefect", create=False)  # --out (or a folder above it) a file: refused now
 
 
 def check_cameras(cameras: Any, label: str = "--cameras") -> None:

@@ -131,11 +131,12 @@ def check_train(args: TrainArgs) -> None:
     """``train``'s slips that its run would find only after torch is imported: the preset, the observation and
     camera keys against the dataset, the numbers, the resume file, the init checkpoint."""
     from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+    from ..datasets.outputs import output_path  # deferred: as above
 
     presets = train_presets()
     if presets and args.preset not in presets:
-        raise ValueError(f"--preset {args.preset!r}{did_you_mean(args.preset, presets)} is unknown; use one of "
-                         f"{', '.join(presets)}")
+        raise ValueError(f"--preset: unknown training preset {args.preset!r}{did_you_mean(args.preset, presets)}; "
+                         f"valid presets: {', '.join(presets)}")
     for name in ("lr", "obs_min_range", "weight_decay"):
         value = getattr(args, name)
         if value is not None and (value < 0 or (name == "lr" and value == 0)):
@@ -143,6 +144,13 @@ def check_train(args: TrainArgs) -> None:
     if args.num_workers is not None and args.num_workers < 0:
         raise ValueError(f"--num-data-workers must be an integer >= 0, got {args.num_workers!r}")
     info = read_dataset_info(args.dataset_path[0])
+    first = (info["task_id"], info["env_args"].get("newton_lab", {}).get("action_joint_names"))
+    for other in args.dataset_path[1:]:
+        more = read_dataset_info(other)
+        if (more["task_id"], more["env_args"].get("newton_lab", {}).get("action_joint_names")) != first:
+            raise ValueError(f"{other} ({more['task_id']}) does not match {args.dataset_path[0]} ({info['task_id']}): "
+                             "datasets trained together need the same task and action columns")
+    output_path(Path(args.output_dir) / "checkpoint.pt", create=False)  # --output-dir (or a folder above) a file
     newton = info["env_args"].get("newton_lab", {})
     terms = newton.get("obs_terms")
     for key in (args.obs_keys or "").split(","):
