@@ -124,6 +124,10 @@ def launch(datasets: list[str], cfg: dict[str, Any], gpus: int, *, resume: bool 
     if torch.device(cfg.get("device", "cpu")).type == "cuda" and gpus > torch.cuda.device_count():
         raise ValueError(f"--gpus {gpus} needs {gpus} GPUs, this host shows {torch.cuda.device_count()}; "
                          f"use --gpus {torch.cuda.device_count()} or fewer")
+    cores = os.cpu_count() or 1
+    if torch.device(cfg.get("device", "cpu")).type != "cuda" and gpus > cores:  # ~250 MB of memory each
+        raise ValueError(f"--gpus {gpus}: with --device cpu each is a gloo process on a CPU core, and this host has "
+                         f"{cores}; use --gpus {cores} or fewer")
     with tempfile.TemporaryDirectory(prefix="newton_lab_ddp_") as folder:
         request, answer = Path(folder) / "request.json", Path(folder) / "checkpoint.json"
         request.write_text(json.dumps({"datasets": datasets, "cfg": cfg, "resume": resume, "answer": str(answer)}))
