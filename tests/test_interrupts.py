@@ -258,3 +258,31 @@ def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path):
     assert "newton-lab split: interrupted: the split into parts was dropped, nothing written there" in lines[0]
     assert not (tmp_path / "parts").exists() and not stage.exists()
     wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=30)
+
+
+def test_ctrl_c_during_mimic_keeps_every_generated_demo_in_one_line(tmp_path):
+    """Mimic generates through collect: Ctrl-C keeps every finished demo in the output and says how many."""
+    from newton_lab.datasets import read_dataset_info
+
+    source = tmp_path / "src.hdf5"
+    out = subprocess.run([sys.executable, "-c", RUN, "collect", "--task", "GalbotG1-PickCube-v0", "--num-envs", "2",
+                          "--episodes", "2", "--max-steps", "300", "--randomize", "--no-progress", "--cameras", "none",
+                          "--dataset-path", str(source)], cwd=tmp_path, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    path = tmp_path / "mimic.hdf5"
+
+    def demos() -> int:
+        try:
+            return read_dataset_info(path)["num_demos"]
+        except (OSError, ValueError):
+            return 0
+
+    run = newton_lab("mimic", "--dataset-path", str(source), "--output-path", str(path), "--episodes", "10000",
+                     "--num-envs", "2", "--no-progress", cwd=tmp_path)
+    wait_for(lambda: demos() >= 1 or run.poll() is not None, "a generated demo written", limit_s=600)
+    run.send_signal(signal.SIGINT)
+    _, err = run.communicate(timeout=300)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert run.returncode == 130 and len(lines) == 1, err
+    kept = read_dataset_info(path)["num_demos"]
+    assert f"newton-lab mimic: interrupted: {kept} finished episode" in lines[0] and str(path) in lines[0]
