@@ -313,3 +313,14 @@ def test_the_device_count_comes_from_the_driver_in_a_child_process():
             "print('libcuda.so' in open('/proc/self/maps').read())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_env_rows_are_checked_against_the_memory_that_holds_them():
+    """``--num-envs`` times the per-row estimate against the machine's (or, for cuda, the GPU's) memory: a GPU host's
+    16384 rows pass, ten million do not, and the line names the largest count that fits."""
+    from newton_lab.cli.checks import ENV_BYTES, check_num_envs
+
+    check_num_envs(16384, memory=80 << 30)
+    with pytest.raises(ValueError) as err:
+        check_num_envs(10_000_000, memory=80 << 30)
+    assert f"use at most --num-envs {(80 << 30) // ENV_BYTES:,}" in str(err.value) and "\n" not in str(err.value)

@@ -90,7 +90,7 @@ def check_args(args: Any) -> None:
                                or args.retries < 0):
         raise ValueError(f"--retries must be an integer >= 0 (0: no retry), got {args.retries!r}")
     if "num_envs" in names and args.num_envs is not None:
-        check_num_envs(args.num_envs)
+        check_num_envs(args.num_envs, device=getattr(args, "device", None))
     if "gpus" in names and args.gpus > 1:
         check_gpus(args.gpus, getattr(args, "device", None))
     if isinstance(args, PipelineArgs):
@@ -228,14 +228,43 @@ def _memory_bytes() -> int | None:
         return None
 
 
-def check_num_envs(num_envs: int, memory: int | None = None) -> None:
-    """Refuse more env rows than the machine's memory holds (``ENV_BYTES`` each), before anything is allocated."""
+def check_num_envs(num_envs: int, memory: int | None = None, device: str | None = None) -> None:
+    """Refuse more env rows than the memory that holds them takes (``ENV_BYTES`` each), before anything is allocated:
+    the GPU's for ``cuda[:N]`` (asked of the driver in a child process, only for a request of more than 1 GiB), else
+    this machine's."""
+    where = "this machine has"
+    if memory is None and device is not None and str(device).startswith("cuda") and num_envs * ENV_BYTES > 1 << 30:
+        memory = cuda_memory(int(str(device).partition(":")[2] or 0))
+        where = f"{device} has" if memory else where
     memory = _memory_bytes() if memory is None else memory
     if memory and num_envs * ENV_BYTES > memory:
         most = memory // ENV_BYTES
         raise ValueError(f"--num-envs {num_envs:,} needs about {num_envs * ENV_BYTES / 2**30:,.0f} GiB "
-                         f"({ENV_BYTES >> 10} KiB per row) and this machine has {memory / 2**30:,.0f} GiB; use at "
-                         f"most --num-envs {most:,}")
+                         f"({ENV_BYTES >> 10} KiB per row) and {where} {memory / 2**30:,.0f} GiB; use at most "
+                         f"--num-envs {most:,}")
+
+
+CUDA_MEMORY = """
+import ctypes, sys
+cuda = ctypes.CDLL("libcuda.so.1")
+dev, total = ctypes.c_int(0), ctypes.c_size_t(0)
+err = cuda.cuInit(0) or cuda.cuDeviceGet(ctypes.byref(dev), int(sys.argv[1]))
+err = err or cuda.cuDeviceTotalMem_v2(ctypes.byref(total), dev)
+print(total.value if not err else "")
+"""
+"""Prints the total memory of CUDA device argv[1] [bytes], or nothing."""
+
+
+def cuda_memory(index: int) -> int | None:
+    """Total memory of CUDA device ``index`` [bytes] from the driver, in a child process; None when it does not say
+    (the device check has refused a missing device already)."""
+    try:
+        out = subprocess.run([sys.executable, "-I", "-S", "-c", CUDA_MEMORY, str(index)], capture_output=True,
+                             text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    answer = out.stdout.strip()
+    return int(answer) if answer.isdigit() else None
 
 
 def check_gpus(gpus: int, device: str | None) -> None:
