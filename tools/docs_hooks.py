@@ -1,5 +1,6 @@
 """MkDocs hook of the user guide (``hooks:`` in ``mkdocs.yml``): a page line ``<!-- generated: NAME -->`` is
-replaced by the markdown that ``tools/docs_tables.py`` builds from the code (``tasks``, ``robot``, ``cli``), so the
+replaced by the markdown that ``tools/docs_tables.py`` builds from the code (``tasks``, ``robot``, ``cli``,
+``recipes``), so the
 reference tables are never typed by hand. Each table is built once per build.
 """
 
@@ -15,7 +16,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # tools/ is no package
 import docs_tables  # noqa: E402
 
 MARKER = re.compile(r"^<!-- generated: ([a-z_]+) -->$", re.M)
-GENERATORS = {"tasks": docs_tables.tasks_page, "robot": docs_tables.robot_page, "cli": docs_tables.cli_page}
+GENERATORS = {"tasks": docs_tables.tasks_page, "robot": docs_tables.robot_page, "cli": docs_tables.cli_page,
+              "recipes": docs_tables.recipes_page}
 
 
 @functools.cache

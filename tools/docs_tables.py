@@ -262,3 +262,34 @@ def cli_page() -> str:
             rows.append([" ".join(f"`{o}`" for o in action.option_strings), text + default])
         parts.append(f"## {name}\n\n{cmd.help}\n\n" + (_table(["flag", "what"], rows) if rows else ""))
     return "\n\n".join(parts) + "\n"
+
+
+# ------------------------------------------------------------------------------------------------ recipes
+def recipes_page() -> str:
+    """The pipeline's recipes (``newton_lab.flows.settings``): counts, what the policy sees, training."""
+    from newton_lab.flows.settings import DEMO_RECIPES, LONG_HORIZON_RECIPES, LONG_HORIZON_OPTIONS
+
+    def training(train: dict) -> str:
+        parts = [f"preset `{train['preset']}`" if "preset" in train else "quarter-width U-Net"]
+        if train.get("bf16"):
+            parts.append("bf16")
+        if train.get("time_budget_s"):
+            parts.append(f"{train['time_budget_s']:.0f} s")
+        elif train.get("max_steps"):
+            parts.append(f"{train['max_steps']} steps")
+        return ", ".join(parts)
+
+    def sees(recipe: dict, options: dict) -> str:
+        cams = recipe.get("cameras", "none")
+        if cams == "none":
+            return "state"
+        views = ", ".join(f"`{c}`" for c in cams.split(","))
+        return views + (" + proprioception" if options.get("obs_mode") == "sensors" else " + state")
+
+    rows = [[f"`{name}`", "single task", str(r["demos"]), str(r["mimic_episodes"]), sees(r, r.get("task_options", {})),
+             training(r["train"]), str(r["eval_episodes"]), str(r["num_envs"])] for name, r in DEMO_RECIPES.items()]
+    rows += [[f"`{name}`", "coherent task", str(r["demos"]), "–", sees(r, LONG_HORIZON_OPTIONS),
+              training(r["train"]) + " per learned phase", str(r["eval_episodes"]), str(r["num_envs"])]
+             for name, r in LONG_HORIZON_RECIPES.items()]
+    return _table(["recipe", "task", "expert demos", "Mimic demos", "policy sees", "training", "evaluation episodes",
+                   "most env rows"], rows) + "\n"

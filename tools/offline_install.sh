@@ -9,8 +9,8 @@
 #         versions of this checkout's .venv, so both hosts run the same), leaves out what the target already has
 #         (--skip: pip names) and folders it never uses (--exclude: top-level folder names, e.g. rerun_cli, the
 #         rerun viewer binary, on a host without a screen: recordings are written without it), installs the rest
-#         into one folder, packs it with xz and splits it into .offline/p1, p2, ... (each at most --part-mb MB,
-#         with this script beside it).
+#         into one folder, packs it with xz and splits it into .offline/p1, p2, ... (each at most --part-mb
+#         MiB, default 56: a 64 MiB transfer keeps room for the repository; this script beside each part).
 #   there (from the repository root; one transfer per part, in order):
 #     bash .offline/pN/offline_install.sh stage      copies part N to ~/.cache/newton_lab_stage
 #     bash .offline/pN/offline_install.sh install    (after the last part) unpacks into ~/.cache/newton_lab_site
@@ -28,7 +28,7 @@ stage=${NEWTON_LAB_STAGE:-$HOME/.cache/newton_lab_stage}
 SKIP_DEFAULT="torch numpy pillow h5py scipy pyarrow triton setuptools pip wheel"
 
 pack() {
-  local py=3.12 part_mb=60 skip=$SKIP_DEFAULT exclude="" with=""
+  local py=3.12 part_mb=56 skip=$SKIP_DEFAULT exclude="" with=""
   while [ $# -gt 0 ]; do
     case $1 in
       --python) py=$2; shift 2 ;;
@@ -41,7 +41,7 @@ pack() {
   done
   local pip=${PIP:-.venv/bin/pip} work out=.offline
   [ -x "$pip" ] || { echo "no $pip: run 'make .venv/.installed' first (the pack pins the venv's versions)" >&2; exit 2; }
-  work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
+  work=$(mktemp -d); trap "rm -rf '$work'" EXIT
   local skip_re; skip_re=$(echo "$skip" | tr ' ' '\n' | sed '/^$/d' | tr 'A-Z_' 'a-z-' | paste -sd'|')
   # the project's own requirements at the venv's versions, without what the target has
   $pip freeze 2>/dev/null | grep -v '^-e\|@ file\|^newton[-_]lab' > "$work/freeze.txt"
