@@ -89,9 +89,12 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
         learned = f"**{s['successes']} / {s['episodes']}** (seed {s['eval_seed']})"
         data = f"{counts.get('expert_demos')} expert" + (f" + {counts['mimic_demos']} Mimic"
                                                          if counts.get("mimic_demos") else "")
+        phases = res.get("phases") or {}
+        per_phase = (", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in phases.items())
+                     if len(phases) > 1 else "–")
         rows.append([f"{_short(rec['task'])}{_options(rec)}", rec["device"]["name"], res.get("recipe") or "–",
-                     _sees(res), data, _rate(counts.get("expert_success_rate")), learned, _mmss(rec.get("wall_s")),
-                     _link(path, page_dir)])
+                     _sees(res), data, _rate(counts.get("expert_success_rate")), learned, per_phase,
+                     _mmss(rec.get("wall_s")), _link(path, page_dir)])
     return rows
 
 
@@ -105,12 +108,12 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
         width, height = r.get("resolution") or ("?", "?")
         camera = f"{cam} {width}x{height} {'+'.join(r.get('camera_data') or ['rgb'])}" if cam else "none"
         rows.append([_short(rec["task"]), rec["device"]["name"], str(r["num_envs"]), "none",
-                     _k(r["env_steps_per_s"]), f"{r['ratio_env_step_to_bare']:.2f}x bare solver",
+                     _k(r["env_steps_per_s"]), f"step time {r['ratio_env_step_to_bare']:.2f}x the bare solver's",
                      _link(path, page_dir)])
         if cam:
             rows.append([_short(rec["task"]), rec["device"]["name"], str(r["num_envs"]), camera,
                          _k(r.get("env_steps_per_s_with_camera")),
-                         f"{r['ratio_camera_env_to_ceiling']:.2f}x physics + render"
+                         f"rate {r['ratio_camera_env_to_ceiling']:.2f}x the physics + render ceiling"
                          if "ratio_camera_env_to_ceiling" in r else "–", _link(path, page_dir)])
     return rows
 
@@ -144,9 +147,10 @@ def headline(records, page_dir: Path) -> str:
     parts = []
     sections = [
         ("Learned policies", ["task", "device", "recipe", "policy sees", "demos", "expert", "learned (held-out)",
-                              "time to policy", "record"], policy_rows),
+                              "per phase (passed/reached)", "time to policy", "record"], policy_rows),
         ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], env_step_rows),
-        ("Expert collection", ["task", "device", "envs", "demos", "demos per hour", "record"], collection_rows),
+        ("Expert collection", ["task", "device", "envs", "demos", "demos per device-hour", "record"],
+         collection_rows),
         ("Training throughput", ["preset", "device", "batch", "images", "samples/s", "record"], training_rows),
     ]
     for title, header, rows_of in sections:

@@ -3,7 +3,7 @@
 Layers, lowest first; a module may import its own layer and the ones below, never one above:
 
     robots, assets  ->  kernels  ->  task_api  ->  tasks  ->  datasets  ->  envs  ->  agents  ->  mimic
-    ->  policies  ->  viz  ->  commands, bench, bench_collect, cli, flows
+    ->  policies  ->  viz  ->  commands, bench, bench_collect, cli, flows, records, results
 
 Also: no import cycle between modules or between packages, no ``importlib`` of project modules by name,
 imports at module top (a deliberately deferred import says ``deferred`` in a comment on its line), no
@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = {"newton_lab": "newton_lab", "newton_lab.kernels": "kernels", "newton_lab.tasks": "tasks",
            "newton_lab.flows": "flows", "newton_lab.assets": "assets"}
 LAYERS = [("robots", "assets"), ("kernels",), ("task_api",), ("tasks",), ("datasets",), ("envs",), ("agents",),
-          ("mimic",), ("policies",), ("viz",), ("commands", "bench", "bench_collect", "cli", "flows")]
+          ("mimic",), ("policies",), ("viz",),
+          ("commands", "bench", "bench_collect", "cli", "flows", "records", "results")]
 RANK = {unit: i for i, units in enumerate(LAYERS) for unit in units}
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80

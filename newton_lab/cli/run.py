@@ -16,6 +16,8 @@ from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
 from ..flows.settings import configure, demo_recipe
+from ..records import command_wall_s, default_path, make_record, write_record
+from ..results import update
 from ..task_api.registry import list_tasks, lookup
 
 COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
@@ -173,8 +175,6 @@ def view(args: ViewArgs) -> int:
 
 def write_run_record(kind: str, args, task: str | None, device: str | None, results: dict) -> None:
     """The benchmark's run record at ``--run-record`` (default under outputs/records/); its path on stderr."""
-    from ..records import command_wall_s, default_path, make_record, write_record
-
     rec = make_record(kind, task=task, device=device, results=results, wall_s=command_wall_s())
     path = write_record(rec, args.run_record or default_path(kind, task))
     print(f"run record: {path}", file=sys.stderr)
@@ -222,8 +222,6 @@ def bench_train(args: BenchTrainArgs) -> int:
 
 
 def results(args: ResultsArgs) -> int:
-    from ..results import update
-
     fresh = update(args.page, args.records, check=args.check)
     if args.check and not fresh:
         print(f"{args.page} does not match the run records in {args.records}; run `newton-lab results` to "
