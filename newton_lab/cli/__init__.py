@@ -46,6 +46,8 @@ COMMANDS: dict[str, Command] = {
                              "expert collection demos/s and per hour: physics / agent / writer seconds"),
     "bench-train": Command(c.BenchTrainArgs, run.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
+    "suite": Command(c.SuiteArgs, run.suite,
+                     "every headline row of the results page, one product command each, records copied, page rebuilt"),
     "results": Command(c.ResultsArgs, run.results,
                        "the results page's headline tables from the committed run records (--check: compare only)"),
     "render": Command(c.RenderArgs, run.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),

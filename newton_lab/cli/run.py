@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..commands import RenderArgs, ResultsArgs
+from ..commands import RenderArgs, ResultsArgs, SuiteArgs
 from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
@@ -219,6 +219,27 @@ def bench_train(args: BenchTrainArgs) -> int:
     write_run_record("bench-train", args, out.get("task"), args.device, out)
     print(json.dumps(out))
     return 0
+
+
+def suite(args: SuiteArgs) -> int:
+    from ..flows.suite_rows import rows_of
+
+    rows = rows_of(args.recipe, args.only)
+    if args.dry_run:
+        for row in rows:
+            print(f"{row.name}: newton-lab {' '.join(row.command(Path(args.out), '<UTC time>'))}")
+        return 0
+    configure(Path(args.out) / ".prefect")  # before Prefect is imported
+    from ..flows.suite import suite as run_suite  # deferred: Prefect is slow to import, and after configure
+
+    summary = run_suite(recipe=args.recipe, out=str(Path(args.out).resolve()), records=args.records, page=args.page,
+                        only=args.only)
+    for r in summary["rows"]:
+        state = "ok" if r["exit"] == 0 else f"failed (exit {r['exit']})"
+        print(f"{r['row']:<32} {state:<18} {r.get('record', '')}")
+    print(json.dumps({"recipe": args.recipe, "failed": [r["row"] for r in summary["rows"] if r["exit"] != 0],
+                      "page": summary.get("page")}))
+    return 0 if all(r["exit"] == 0 for r in summary["rows"]) else 1
 
 
 def results(args: ResultsArgs) -> int:

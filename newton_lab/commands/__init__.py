@@ -12,13 +12,13 @@ argument object into the keywords of the library call it drives (``make_env``, `
 
 from __future__ import annotations
 
-from .bench import BenchArgs, BenchCollectArgs, BenchTrainArgs, ResultsArgs
+from .bench import BenchArgs, BenchCollectArgs, BenchTrainArgs, ResultsArgs, SuiteArgs
 from .env import (CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksArgs,
                   camera_option)
 from .workflow import (RECIPE_FIELDS, TRAIN_OVERRIDES, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                        PipelineArgs, SplitArgs, TrainArgs, ViewArgs)
 
-__all__ = ["BenchArgs", "BenchCollectArgs", "BenchTrainArgs", "ResultsArgs", "CameraArgs", "EnvArgs",
+__all__ = ["BenchArgs", "BenchCollectArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs", "CameraArgs", "EnvArgs",
            "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option", "RECIPE_FIELDS",
            "TRAIN_OVERRIDES", "CollectArgs", "EvaluateArgs", "ExportArgs", "MimicArgs", "PipelineArgs",
            "SplitArgs", "TrainArgs", "ViewArgs"]

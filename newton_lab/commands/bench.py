@@ -104,3 +104,23 @@ class ResultsArgs:
     """markdown page whose generated block is rewritten"""
     check: bool = False
     """only compare: exit 1 when the page does not match the records"""
+
+
+@dataclass(kw_only=True)
+class SuiteArgs:
+    """``newton-lab suite``: every headline row of the results page, one product command each, one after another;
+    each row's run record is copied into --records and the page regenerated."""
+
+    recipe: Literal["gpu", "cpu"] = "gpu"
+    """gpu: the learned-policy rows (PickCube demo, PickToShelf, SortToShelf per object, StackCube-Phased) and the
+    benchmarks on cuda:0; cpu: the demo and the CPU env-step row"""
+    out: str = "outputs/suite"
+    """folder of the rows' outputs (one subfolder per row)"""
+    records: str = "docs/results"
+    """where each row's record is copied, as <row>-<device>.json"""
+    page: str = "docs/benchmarks.md"
+    """results page regenerated from --records at the end"""
+    only: list[str] | None = None
+    """run only these rows (names: --dry-run lists them)"""
+    dry_run: bool = False
+    """print each row's command and run nothing"""

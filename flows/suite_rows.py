@@ -1,0 +1,79 @@
+"""The rows of the suite (``newton-lab suite``): every headline row of the results page as one ``newton-lab``
+command, per recipe. Kept apart from the flow (``suite``) so that ``--dry-run`` and the checks need no Prefect."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+SORTING_OBJECTS = ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")
+"""SortToShelf's objects (the task option ``sorting_object``): one row each."""
+
+
+@dataclass(frozen=True)
+class Row:
+    """One headline row: its name (the record's file stem) and its ``newton-lab`` arguments, where ``{out}`` is the
+    suite's output folder and ``{stamp}`` the suite's UTC start time."""
+
+    name: str
+    args: tuple[str, ...]
+
+    def command(self, out: Path, stamp: str) -> list[str]:
+        return [a.format(out=out, stamp=stamp) for a in self.args]
+
+    @property
+    def is_pipeline(self) -> bool:
+        return self.args[0] == "pipeline"
+
+
+def _pipeline(name: str, task_id: str, recipe: str, *options: str) -> Row:
+    return Row(name, ("pipeline", "--task", task_id, *options, "--recipe", recipe, "--out", f"{{out}}/{name}"))
+
+
+def _bench(name: str, *args: str) -> Row:
+    return Row(name, (*args, "--run-record", f"{{out}}/records/{name}.json"))
+
+
+ROWS: dict[str, list[Row]] = {
+    "gpu": [
+        _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "gpu"),
+        _pipeline("picktoshelf", "GalbotG1-PickToShelf-v0", "gpu"),
+        *[_pipeline(f"sorttoshelf-{o}", "GalbotG1-SortToShelf-v0", "gpu", "--sorting-object", o)
+          for o in SORTING_OBJECTS],
+        _pipeline("stackcube-phased", "GalbotG1-StackCube-Phased-v0", "gpu", "--head", "table"),
+        _bench("bench-pickcube-4096", "bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "4096", "--steps",
+               "200", "--device", "cuda:0", "--camera", "front_head", "--resolution", "96", "72"),
+        _bench("bench-collect-pickcube-4096", "bench-collect", "--task", "GalbotG1-PickCube-v0", "--num-envs",
+               "4096", "--episodes", "16384", "--device", "cuda:0", "--prefill", "0", "--dataset-path",
+               "{out}/bench_collect_{stamp}/demos.zarr"),
+        _bench("bench-train-vision", "bench-train", "--dataset-path", "{out}/pickcube-demo/mimic.hdf5", "--preset",
+               "vision", "--batch-size", "256", "--steps", "100", "--bf16", "--device", "cuda"),
+    ],
+    "cpu": [
+        _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "cpu"),
+        _bench("bench-pickcube-4", "bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "4", "--steps", "200",
+               "--device", "cpu"),
+    ],
+}
+"""The rows of each recipe, in the order they run (bench-train reads the demo's Mimic dataset)."""
+
+
+def rows_of(recipe: str, only: list[str] | None = None) -> list[Row]:
+    """The rows of ``recipe``, or those of them named in ``only`` (one-line error for an unknown name)."""
+    if recipe not in ROWS:
+        raise ValueError(f"unknown suite recipe {recipe!r}; valid recipes: {', '.join(ROWS)}")
+    rows = ROWS[recipe]
+    unknown = sorted(set(only or ()) - {r.name for r in rows})
+    if unknown:
+        raise ValueError(f"unknown suite row(s) {unknown}; rows of the {recipe} recipe: "
+                         f"{', '.join(r.name for r in rows)}")
+    return [r for r in rows if not only or r.name in only]
+
+
+def device_slug(record: dict[str, Any]) -> str:
+    """``h200`` for an NVIDIA H200, ``cpu`` for the CPU: the device part of a committed record's name."""
+    device = record["device"]
+    if device["kind"] != "cuda":
+        return "cpu"
+    return device["name"].replace("NVIDIA", "").strip().split()[0].lower()
