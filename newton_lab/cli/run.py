@@ -16,6 +16,7 @@ from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
 from ..flows.settings import configure, demo_recipe
+from ..flows.suite_rows import rows_of
 from ..records import command_wall_s, default_path, make_record, write_record
 from ..results import update
 from ..task_api.registry import list_tasks, lookup
@@ -222,8 +223,6 @@ def bench_train(args: BenchTrainArgs) -> int:
 
 
 def suite(args: SuiteArgs) -> int:
-    from ..flows.suite_rows import rows_of
-
     rows = rows_of(args.recipe, args.only)
     if args.dry_run:
         for row in rows:
