@@ -7,6 +7,8 @@ Artifacts (keys; the Artifacts tab of the pipeline run and Prefect's artifact pa
   the Mimic one adds the generation rate (successes / attempts).
 - ``train-loss-curve``: the epoch loss curve (epoch, steps, mean loss, learning rate).
 - ``evaluation``: success rate, episodes, mean length, termination reasons and subtask signals.
+- ``evaluation-phases`` (a coherent task): per phase, the rows that reached it, passed it, and why the others
+  stopped.
 - ``newton-lab-pipeline``: the markdown summary of the whole run.
 """
 
@@ -24,6 +26,8 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 ARTIFACT_KEYS = {"collect": "collect-dataset", "mimic": "mimic-dataset", "train": "train-loss-curve",
                  "evaluate": "evaluation", "pipeline": "newton-lab-pipeline"}
 """Artifact key of each stage (and of the pipeline summary)."""
+PHASES_ARTIFACT_KEY = "evaluation-phases"
+"""A coherent task's evaluation per phase: one row per phase (reached, passed, where the others stopped)."""
 
 LOSS_ROWS = 100
 """Most rows of the loss-curve artifact (longer curves are subsampled, the last epoch kept)."""
@@ -97,6 +101,12 @@ def publish_evaluation(metrics: dict[str, Any]) -> None:
         rows += [(f"phase {k}: passed / reached", f"{v['passed']} / {v['reached']}") for k, v in phases.items()]
     create_table_artifact(table=[{"metric": k, "value": str(v)} for k, v in rows], key=ARTIFACT_KEYS["evaluate"],
                           description=f"evaluate stage: {metrics['successes']}/{metrics['episodes']} successes")
+    if len(phases) > 1:
+        create_table_artifact(
+            table=[{"phase": k, "reached": v["reached"], "passed": v["passed"],
+                    "stopped": ", ".join(f"{r} {n}" for r, n in v["stalled"].items()) or "none"}
+                   for k, v in phases.items()],
+            key=PHASES_ARTIFACT_KEY, description="evaluate stage: where the composed task's rows stopped, per phase")
 
 
 def publish_summary(task_id: str, demos, gen, ckpt, metrics, out: Path) -> None:

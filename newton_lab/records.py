@@ -84,12 +84,20 @@ def _cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
+def _load() -> list[float] | None:
+    """The host's load averages over 1, 5 and 15 minutes: above the core count, the figures shared the CPU."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return None
+
+
 def device_info(device: str | None) -> dict[str, Any]:
-    """``{"kind": "cuda" | "cpu", "name", "count", "cpu", "cores"}`` of the device a command ran on; a CUDA
-    device's name comes from torch or Warp, whichever is loaded (``NVIDIA H200``)."""
+    """``{"kind": "cuda" | "cpu", "name", "count", "cpu", "cores", "load_average_1_5_15"}`` of the device a command
+    ran on; a CUDA device's name comes from torch or Warp, whichever is loaded (``NVIDIA H200``)."""
     cores = os.cpu_count() or 1
     info: dict[str, Any] = {"kind": "cpu", "name": f"CPU ({cores} cores)", "count": 0, "cpu": _cpu_name(),
-                            "cores": cores}
+                            "cores": cores, "load_average_1_5_15": _load()}
     if device is None or str(device).startswith("cuda"):
         name, count = _cuda_name(device)
         if name:

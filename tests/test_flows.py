@@ -165,9 +165,17 @@ def test_pipeline_runs_then_is_cached(run):
     rec = Path(first["evaluation"]["recording"])  # two evaluation episodes, for the viewer
     assert rec == out / "evaluation.rrd" and rec.stat().st_size > 0
     assert first["stage_states"] == {s: ["Completed"] for s in STAGES}
+    record = json.loads(Path(first["record"]).read_text())  # the run record: what ran, where, what it measured
+    assert Path(first["record"]).parent == out / "records" and record["kind"] == "pipeline"
+    assert record["task"] == "GalbotG1-PickCube-v0" and record["device"]["kind"] == "cpu"
+    res = record["results"]
+    assert res["success"]["episodes"] == 2 and res["success"]["eval_seed"] == TINY.get("seed", 0) + 10_000
+    assert res["counts"]["expert_demos"] == 2 and res["counts"]["mimic_demos"] == 2
+    assert set(res["timings_s"]) == {*STAGES, "flow"} and res["stage_states"] == first["stage_states"]
     second = pipeline(out=str(out), **TINY)
     assert second["artifacts"] == first["artifacts"]
     assert second["stage_states"] == {s: ["Cached"] for s in STAGES}  # the re-run computed nothing
+    assert second["record"] != first["record"] and Path(first["record"]).is_file()  # a record of its own
 
 
 def test_transient_error_is_retried(run):

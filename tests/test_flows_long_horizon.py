@@ -49,6 +49,11 @@ def test_every_stage_ran_and_the_composed_task_was_evaluated(first_run):
     assert ev["phases"]["pick"]["reached"] == 2  # every row starts in pick; later phases only if it passed
     assert "recording" not in ev and not (out / "evaluation.rrd").exists()  # --no-record: rerun-sdk not needed
     assert "phase pick" in stdout and "composed" in stdout and "passed" in stdout
+    record = json.loads(Path(json.loads(stdout.strip().splitlines()[-1])["record"]).read_text())
+    assert record["command"].startswith(f"newton-lab pipeline --task {TASK} --recipe cpu")
+    assert record["results"]["learned_phases"] == ["pick", "place"] and record["results"]["recipe"] == "cpu"
+    assert set(record["results"]["phases"]) == {"pick", "nav", "place"}
+    assert set(record["results"]["timings_s"]) == {"collect", "split", "train", "evaluate", "flow"}
     # the phase datasets carry the component task and only the phase's columns; each policy trained on its own
     phases = summary["artifacts"]["phases"]
     for name, component in (("pick", "Pick"), ("place", "Place"), ("nav", "Nav")):
