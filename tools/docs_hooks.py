@@ -1,7 +1,9 @@
 """MkDocs hook of the user guide (``hooks:`` in ``mkdocs.yml``): a page line ``<!-- generated: NAME -->`` is
 replaced by the markdown that ``tools/docs_tables.py`` builds from the code (``tasks``, ``robot``, ``cli``,
 ``recipes``), so the
-reference tables are never typed by hand. Each table is built once per build.
+reference tables are never typed by hand. Each table is built once per build. An inline
+``<!-- figure: NAME -->`` (``demo_cpu``, ``demo_gpu``) is replaced by a figure read from the newest run record in
+``docs/results/``, linked to it (``docs_tables.FIGURES``): time promises are the records', never typed.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # tools/ is no package
 import docs_tables  # noqa: E402
 
 MARKER = re.compile(r"^<!-- generated: ([a-z_]+) -->$", re.M)
+FIGURE = re.compile(r"<!-- figure: ([a-z_]+) -->")
 GENERATORS = {"tasks": docs_tables.tasks_page, "robot": docs_tables.robot_page, "cli": docs_tables.cli_page,
               "recipes": docs_tables.recipes_page}
 
@@ -29,5 +32,14 @@ def generated(name: str) -> str:
 
 
 def on_page_markdown(markdown: str, page, config, files) -> str:  # noqa: ARG001  (MkDocs hook signature)
-    """Replace each ``<!-- generated: NAME -->`` line of a page by its table."""
-    return MARKER.sub(lambda m: generated(m.group(1)), markdown)
+    """Replace each ``<!-- generated: NAME -->`` line of a page by its table, each ``<!-- figure: NAME -->`` by
+    its figure."""
+    markdown = MARKER.sub(lambda m: generated(m.group(1)), markdown)
+    return FIGURE.sub(lambda m: figure(m.group(1), page.file.src_uri), markdown)
+
+
+def figure(name: str, page: str) -> str:
+    """The text of inline figure ``name`` on the page ``page`` (its path under ``docs/``)."""
+    if name not in docs_tables.FIGURES:
+        raise ValueError(f"unknown figure {name!r} on {page}; known: {sorted(docs_tables.FIGURES)}")
+    return docs_tables.FIGURES[name](page)

@@ -293,3 +293,49 @@ def recipes_page() -> str:
              for name, r in LONG_HORIZON_RECIPES.items()]
     return _table(["recipe", "task", "expert demos", "Mimic demos", "policy sees", "training", "evaluation episodes",
                    "most env rows"], rows) + "\n"
+
+
+# ------------------------------------------------------------------------------------------------ figures
+RESULTS = ROOT / "docs" / "results"
+DEMO_TASK = "GalbotG1-PickCube-v0"
+
+
+def demo_record(recipe: str) -> tuple[Path, dict] | None:
+    """The newest committed run record of the demo pipeline (PickCube) with ``recipe`` (``cpu`` or ``gpu``), by
+    its date; ``None`` when there is none."""
+    from newton_lab.results import load_records
+
+    found = [(path, rec) for path, rec in load_records(RESULTS)
+             if rec.get("kind") == "pipeline" and rec.get("task") == DEMO_TASK
+             and (rec.get("results") or {}).get("recipe") == recipe and rec.get("wall_s")]
+    return max(found, key=lambda item: item[1]["date"]) if found else None
+
+
+def _minutes(seconds: float) -> str:
+    m, s = divmod(int(round(seconds)), 60)
+    return f"{m}:{s:02d}"
+
+
+def _device(rec: dict) -> str:
+    dev = rec["device"]
+    if dev.get("kind") == "cpu":
+        return f"{dev.get('cores', '?')} CPU cores"
+    return f"{dev.get('count', 1)}× {dev.get('name', dev.get('kind'))}"
+
+
+def demo_figure(recipe: str, page: str) -> str:
+    """``make demo``'s wall time with ``recipe`` as the newest record states it, linked to that record from the
+    page ``page`` (a path under ``docs/``); a sentence saying there is no record yet when there is none."""
+    found = demo_record(recipe)
+    to_docs = "../" * page.count("/")
+    if found is None:
+        return (f"not recorded yet with the {recipe} recipe (the [Benchmarks]({to_docs}benchmarks.md) page lists "
+                "every run record)")
+    path, rec = found
+    return (f"{_minutes(rec['wall_s'])} (min:s) on {_device(rec)}, {rec['date'][:10]} "
+            f"([run record]({to_docs}results/{path.name}))")
+
+
+FIGURES = {"demo_cpu": lambda page: demo_figure("cpu", page), "demo_gpu": lambda page: demo_figure("gpu", page)}
+"""Inline figures (``<!-- figure: NAME -->`` in a page, ``tools/docs_hooks.py``): each is read from a run record,
+never typed."""

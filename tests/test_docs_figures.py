@@ -1,0 +1,103 @@
+"""Time promises come from run records, never typed: no sentence of the README or the user guide puts a duration
+next to ``make demo``, ``make test`` or the test suite; the demo's wall time appears only where a page asks for it
+(``<!-- figure: demo_cpu -->``, ``demo_gpu``), and the docs hook fills it from the newest committed record of
+that recipe (``tools/docs_tables.py``), linked to the record."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))  # tools/ is no package
+
+import docs_hooks  # noqa: E402
+import docs_tables  # noqa: E402
+
+SUBJECT = re.compile(r"`make demo`|make demo\b|`make test`|make test\b|\b(?:the|test|whole) suite\b", re.I)
+DURATION = re.compile(r"\b\d+(?:[.,]\d+)?\s*(?:minutes?|mins?|hours?|seconds?|s|h)\b|\b\d+:\d\d\b|"
+                      r"\b(?:a|an|one|two|three|four|five|ten|fifteen|twenty|few)\s+(?:minutes?|hours?)\b|"
+                      r"\b(?:two|three|four|five|ten|fifteen|twenty|few)\s+seconds\b",
+                      re.I)
+GENERATED = re.compile(r"<!-- results: generated.*?<!-- results: end -->", re.S)
+
+
+def _prose_pages() -> list[Path]:
+    return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+
+
+def _sentences(text: str):
+    text = GENERATED.sub("", text)
+    for paragraph in re.split(r"\n\s*\n", text):
+        for sentence in re.split(r"(?<=[.!?])\s+", " ".join(paragraph.split())):
+            yield sentence
+
+
+def typed_promises(text: str) -> list[str]:
+    """Sentences of ``text`` that state a duration of the demo or the suite by hand."""
+    return [s for s in _sentences(text) if SUBJECT.search(s) and DURATION.search(s)]
+
+
+def test_no_page_types_a_time_for_the_demo_or_the_suite():
+    found = [f"{page.relative_to(ROOT)}: {s}" for page in _prose_pages() for s in typed_promises(page.read_text())]
+    assert not found, "typed time promises (use <!-- figure: demo_cpu --> or link Benchmarks):\n" + "\n".join(found)
+
+
+def test_the_scan_finds_typed_promises():
+    assert typed_promises("`make demo` runs the pipeline (about 5 minutes).")
+    assert typed_promises("The suite runs in about 7 minutes on 2 cores.")
+    assert typed_promises("make demo   # the PickCube pipeline on the CPU (about 5 minutes)")
+    assert typed_promises("It fits in the 10 minutes the README promises for make demo.")
+    assert not typed_promises("`make demo` took <!-- figure: demo_cpu -->. Training takes 600 s.")
+    assert not typed_promises("make test builds a second environment.")
+
+
+def test_the_home_page_asks_for_both_demo_figures():
+    text = (ROOT / "docs" / "index.md").read_text()
+    assert "<!-- figure: demo_cpu -->" in text and "<!-- figure: demo_gpu -->" in text
+
+
+def _record(folder: Path, name: str, recipe: str, date: str, wall_s: float, kind: str = "cpu") -> None:
+    base = json.loads((ROOT / "docs" / "results" / "pickcube-demo-h200.json").read_text())
+    base.update(date=date, wall_s=wall_s, command="make demo")
+    base["device"] = {"kind": kind, "name": "x86_64", "count": 1, "cpu": "x86_64", "cores": 2}
+    base["results"]["recipe"] = recipe
+    (folder / name).write_text(json.dumps(base))
+
+
+def test_the_demo_figure_is_the_newest_record_of_its_recipe(tmp_path, monkeypatch):
+    monkeypatch.setattr(docs_tables, "RESULTS", tmp_path)
+    assert "not recorded yet" in docs_tables.demo_figure("cpu", "index.md")
+    _record(tmp_path, "old.json", "cpu", "2026-11-01T00:00:00Z", 300.0)
+    _record(tmp_path, "new.json", "cpu", "2026-11-29T00:00:00Z", 576.4)
+    _record(tmp_path, "gpu.json", "gpu", "2026-12-01T00:00:00Z", 100.0, kind="cuda")
+    text = docs_tables.demo_figure("cpu", "index.md")
+    assert "9:36" in text and "(results/new.json)" in text and "2 CPU cores" in text and "2026-11-29" in text
+    assert "(../results/new.json)" in docs_tables.demo_figure("cpu", "tutorial/simple_task.md")
+    assert "1:40" in docs_tables.demo_figure("gpu", "index.md")
+
+
+def test_the_hook_fills_figures_from_the_committed_records():
+    page = SimpleNamespace(file=SimpleNamespace(src_uri="index.md"))
+    out = docs_hooks.on_page_markdown("took <!-- figure: demo_gpu --> here", page, None, None)
+    found = docs_tables.demo_record("gpu")
+    if found is None:
+        assert "not recorded yet" in out
+    else:
+        path, rec = found
+        minutes, seconds = divmod(int(round(rec["wall_s"])), 60)
+        assert f"{minutes}:{seconds:02d}" in out and f"results/{path.name}" in out
+    assert "<!--" not in out
+
+
+def test_a_copy_of_the_committed_records_loads(tmp_path):
+    """Every committed record is one the figures can read (a product command made it)."""
+    for path in (ROOT / "docs" / "results").glob("*.json"):
+        shutil.copy(path, tmp_path / path.name)
+    from newton_lab.results import load_records
+
+    assert load_records(tmp_path)
