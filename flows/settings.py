@@ -19,7 +19,7 @@ DEMO_TRAIN_CFG: dict[str, Any] = {
 """The demo's diffusion policy: the ``cpu`` preset's quarter-width U-Net with SiLU (a step takes 0.82x the Mish
 one on 2 CPU cores), predicting the clean action chunk (x0) instead of the noise, 5 DDIM steps at inference.
 Measured on the demo's 100 Mimic demos, the same 40 held-out episodes (evaluation seed 10000) each, training seed
-0 / 1 (docs/benchmarks.md, "The demo pipeline"): 2500 steps 80 % / -, 5000 steps 100 % / 90 %, 6000 steps - / 92.5 %;
+0 / 1 (benchmarks history, "The demo pipeline"): 2500 steps 80 % / -, 5000 steps 100 % / 90 %, 6000 steps - / 92.5 %;
 Mish 4000 steps 100 % / -, Mish 5000 steps - / 87.5 %. Earlier: 10 DDIM steps 68 % and action_horizon 4 60 % at
 2500 steps; epsilon prediction 0-5 % after 3000-5000 steps. 6000 steps take about 2.8 min on 2 CPU cores
 (``compile=True`` makes a step ~0.55x as long once torch's compile cache is warm, but its first compile on a fresh

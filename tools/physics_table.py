@@ -1,5 +1,5 @@
 """A task's physics settings against variants of them: env-steps/s and expert success, side by side in one process,
-as a markdown table (docs/benchmarks.md, "Per-task physics settings").
+as a markdown table (benchmarks history, "Per-task physics settings").
 
     python tools/physics_table.py [--device cuda:0] [--num-envs 4096] [--episodes 100] [--tasks ID ...]
         [--variant iterations=5,contact_filter=gripper_only ...] [--out table.md]

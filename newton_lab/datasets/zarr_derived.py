@@ -12,7 +12,7 @@ Index entries beside the ``rows`` of the plain layout (``zarr_packs`` module doc
 
 Why: a PickCube demo's ``next_obs/*`` are its ``obs/*`` one step on, and ``datagen/tcp_pose`` and
 ``datagen/object_poses/cube`` equal ``obs/tcp_pose`` and ``obs/cube_pose``: about a third of its stored bytes
-(docs/benchmarks.md, the collection writer). Sources are arrays stored in full (a reference never points at
+(benchmarks history, the collection writer). Sources are arrays stored in full (a reference never points at
 another reference); a reader that predates this layout fails on such an index (its rows are not numbers) instead of
 returning wrong rows.
 """

@@ -3,7 +3,7 @@
 groups of a small batch on ``WRITE_THREADS`` threads; with ``NEWTON_LAB_ZARR_WRITE_PROCESSES`` >= 1, a large
 batch's demos are encoded and written by that many child processes instead, each fed its share through a pipe.
 
-Why threads by default (``tools/collect_writer_cost.py``, docs/benchmarks.md): the processes were there for the
+Why threads by default (``tools/collect_writer_cost.py``, benchmarks history): the processes were there for the
 ~10 ms of Python per demo group (~80 files); a pack's Python is per array, not per demo, and what is left, zstd and
 writing, runs without the GIL. The processes cost a pickled copy of every array through a pipe and back out (the
 feed is sequential), and a batch of ~140 demos used only two of them (``zarr_packs.PACK_MIN_PART``).

@@ -6,7 +6,7 @@ every body of the solver's model). Between two substeps of one control step noth
 coordinates or the bodies but the wheel drive, which turns the base twist by the current yaw and reads it from
 MuJoCo-Warp's ``qpos`` there (``qpos_source``), so ``ControlStepPhysics`` pushes once, runs each substep's control
 and MuJoCo-Warp step, and pulls once. On the GPU that drops ~9 launches a substep of the ~108 (Newton's forward
-kinematics among them): PickCube 1.13x at 4096 envs on an H100 (docs/benchmarks.md).
+kinematics among them): PickCube 1.13x at 4096 envs on an H100 (benchmarks history).
 
 Why hand-written: Newton 1.8 has no public call for "several MuJoCo-Warp steps between one push and one pull"
 (its ``update_data_interval`` did a part of this and is deprecated). The calls below are ``SolverMuJoCo``'s own

@@ -61,7 +61,7 @@ class DiffusionPolicyConfig:
     """DDIM denoising steps at inference (eta 0)."""
     prediction_type: str = "epsilon"
     """What the U-Net predicts: "epsilon" (the noise, Chi et al.) or "sample" (the clean actions x0; on
-    PickCube it succeeds after 3k steps where epsilon needs about 10k, see docs/benchmarks.md, "Policies")."""
+    PickCube it succeeds after 3k steps where epsilon needs about 10k, see benchmarks history, "Policies")."""
     lr: float = 1e-4
     """AdamW peak learning rate."""
     weight_decay: float = 1e-6

@@ -80,7 +80,7 @@ class MotionPlan:
     """Arm joint error [rad] at which a target counts as reached and its settle frames end (0: always the full
     ``settle_steps``). Still frames are frames a policy cannot place: one observation is followed by "hold" and, a
     few frames later, by the next move; state policies trained on experts with fewer of them stack and place far more
-    often (docs/benchmarks.md, "StackCube: the still frames" and "the last 2 cm lowered slowly")."""
+    often (benchmarks history, "StackCube: the still frames" and "the last 2 cm lowered slowly")."""
     position_tolerance: float = 0.035
     """IK solutions farther than this from the target mark the row's plan as failed [m]."""
     orientation_tolerance: float = 0.15

@@ -5,7 +5,7 @@ The defaults are the solver every task ran with before tasks could choose (Newto
 iterations, 10 line-search iterations, every robot collision geom against every scene object and the ground),
 with the robot's idle joints welded (``weld_idle_joints``: the measured lever). A task that declares cheaper
 settings justifies them by a measurement: steps/s gained and the expert's success kept (``tools/physics_table.py``
-prints both side by side; docs/benchmarks.md, "Per-task physics settings").
+prints both side by side; benchmarks history, "Per-task physics settings").
 """
 
 from __future__ import annotations

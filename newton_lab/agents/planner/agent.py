@@ -46,7 +46,7 @@ class PlannerAgent(BaseAgent):
         from ``REPLAN_MIN_ROWS`` rows on (256 at 4096), else 1 (every restarted row planned at once). A plan's IK
         solves cost the same for 1 row or 500 on a GPU (chains of small kernels), so at 4096 rows, where ~28 episodes
         restart every step, planning them every several steps instead of every step cuts the agent's time by that
-        factor (docs/benchmarks.md: 4.1-5.3 -> 2.6-2.9 ms a step on an H100, batches of 64 -> 256)."""
+        factor (benchmarks history: 4.1-5.3 -> 2.6-2.9 ms a step on an H100, batches of 64 -> 256)."""
         self.replan_wait = replan_wait
         """Most ``act`` calls a restarted row holds its reset targets before it is planned (``None``:
         ``REPLAN_WAIT``). ``collect`` and ``evaluate`` start its episode when its plan comes (``holding``), so the

@@ -33,7 +33,7 @@ the 2-core CPU at 4 envs; the expert 100/100 under both cones, and the ``make de
 elliptic cone 297/300 under this one against 300/300). No contact filter: ``gripper_only()`` with 5 iterations (the
 most expert solves use is 4) ran at 0.98x on an H100 at 4096 envs, and a filter lets an arm pass through the cube,
 which a learned policy's evaluation must not get for free; contact capacities cut to 32 a world (expert peak 14)
-gained nothing measurable (docs/benchmarks.md, "Per-task physics settings")."""
+gained nothing measurable (benchmarks history, "Per-task physics settings")."""
 
 
 def pick_cube_cfg() -> TaskCfg:

@@ -3,7 +3,7 @@
 The reference holds the cube still above the block for 12 frames before it opens the gripper; here the last 2 cm are
 lowered at 0.004 rad a step and the gripper opens on arrival. On the 2-core CPU (100 expert demos, the demo
 pipeline's training config at 6,000 steps, 80 held-out randomised episodes) a state policy placed **54 of 80**
-against 38 with the still frames, where it stalled; the expert places 100 of 100 either way (docs/benchmarks.md)."""
+against 38 with the still frames, where it stalled; the expert places 100 of 100 either way (benchmarks history)."""
 
 from __future__ import annotations
 

@@ -63,7 +63,7 @@ goal_reached = nav.goal_reached(goal_xy=NAV_GOAL_XY, radius=NAV_SUCCESS_RADIUS)
 
 PHYSICS = PhysicsCfg()
 """The physics of every component and the coherent task: the default solver and no contact filter (no filter or
-iteration cap gained anything on an H100; docs/benchmarks.md, "Per-task physics settings"); expert peaks: 12
+iteration cap gained anything on an H100; benchmarks history, "Per-task physics settings"); expert peaks: 12
 contacts, 43 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
 
 

@@ -34,7 +34,7 @@ def _dropped(obj: SortingObject) -> TerminationTermCfg:
 
 PHYSICS = PhysicsCfg()
 """The physics of every component and the coherent task: the default solver and no contact filter (no filter or
-iteration cap gained anything on an H100; docs/benchmarks.md, "Per-task physics settings"); expert peaks: 18
+iteration cap gained anything on an H100; benchmarks history, "Per-task physics settings"); expert peaks: 18
 contacts, 61 constraint rows per world (Newton's default capacities: 48 contacts, 64 rows)."""
 
 

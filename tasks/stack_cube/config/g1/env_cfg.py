@@ -22,7 +22,7 @@ PHYSICS = PhysicsCfg(
 )
 """StackCube's physics (its subtasks' and the phased task's too): the pyramidal friction cone, 1.54x on an H200 at
 4096 envs and 1.61x on the 2-core CPU, the expert 98/100 under both cones. No contact filter (``gripper_only()`` with
-8 iterations ran at 1.01x on an H100 at 4096 envs; docs/benchmarks.md, "Per-task physics settings")."""
+8 iterations ran at 1.01x on an H100 at 4096 envs; benchmarks history, "Per-task physics settings")."""
 
 
 HEADS = {"level": postures.LEVEL_HEAD, "table": postures.TABLE_TOP_HEAD}
