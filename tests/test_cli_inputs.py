@@ -134,6 +134,7 @@ BAD = [
     ("mimic --dataset-path reach.pt.hdf5 --episodes 2", "task 'GalbotG1-Reach-v0' has no Mimic variant"),
     ("mimic --dataset-path src.hdf5 --output-path pts.hdf5 --episodes 2",
      "pts.hdf5 holds a dataset of task 'GalbotG1-PickToShelf-v0', not 'GalbotG1-PickCube-v0'; choose another"),
+    ("mimic --dataset-path src.hdf5 --episodes 2", "src.hdf5: actions do not hold the left arm joints; Mimic needs"),
     ("split --dataset-path src.hdf5 --out parts", "src.hdf5 was recorded on GalbotG1-PickCube-v0, which has no phases"),
     ("pipeline --out afile", "cannot write afile/.prefect: its parent afile is a file; choose another path"),
     ("bench-collect --workers 1 --baseline", "--baseline compares --workers W (W >= 2) with one worker alone"),
@@ -235,12 +236,14 @@ def test_phases_and_mimic_sources_read_from_source_match_the_registry():
     """The coherent tasks' phases (name, component) and the Mimic variants' sources that the checks read from the
     task packages' source are the registry's."""
     import newton_lab.tasks  # noqa: F401
-    from newton_lab.task_api.catalog import declared_phases, declared_sources
+    from newton_lab.task_api.catalog import declared_mimic_arms, declared_phases, declared_sources
     from newton_lab.task_api.registry import list_tasks, lookup
 
     phases = {t: tuple((p.name, p.task_id) for p in lookup(t).make_cfg({}).phases) for t in list_tasks()}
     assert declared_phases() == {t: p for t, p in phases.items() if p}
     assert declared_sources() == {t: lookup(t).source_task for t in list_tasks() if lookup(t).source_task}
+    assert declared_mimic_arms() == {lookup(t).source_task: lookup(t).mimic.arm for t in list_tasks()
+                                     if lookup(t).source_task}
 
 
 def make_coherent_dataset(path: Path) -> None:

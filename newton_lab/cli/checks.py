@@ -13,7 +13,8 @@ from typing import Any
 
 from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs,
                         SplitArgs, TrainArgs, ViewArgs, camera_option)
-from ..task_api.catalog import check_task_id, check_task_options, declared_phases, declared_sources, did_you_mean
+from ..task_api.catalog import (check_task_id, check_task_options, declared_mimic_arms, declared_phases,
+                                declared_sources, did_you_mean)
 from ..task_api.cfg import IMAGE_DATA
 from .file_checks import check_append, check_checkpoints, check_train
 
@@ -170,7 +171,7 @@ def check_datasets(args: Any, name: str) -> None:
             raise ValueError(f"{path} was recorded on {info['task_id']}, which has no phases; nothing to split (a "
                              "coherent task's dataset splits by phase: " + ", ".join(declared_phases()) + ")")
         if isinstance(args, MimicArgs):
-            check_mimic_output(args, path, info["task_id"])
+            check_mimic_output(args, path, info)
         if isinstance(args, SplitArgs) and args.phases:
             check_split_phases(args, path, info)
         if isinstance(args, ViewArgs) and args.episode not in ids:
@@ -179,21 +180,34 @@ def check_datasets(args: Any, name: str) -> None:
                              f"episodes: {listed or 'none'}")
 
 
-def check_mimic_output(args: MimicArgs, path: str, task_id: str) -> None:
-    """Mimic's source task has a Mimic variant, and an existing output dataset holds that variant's demos."""
+def check_mimic_output(args: MimicArgs, path: str, info: dict[str, Any]) -> None:
+    """Mimic's source: its task has a Mimic variant and its actions command the arm the variant segments; an existing
+    output dataset holds demos of the same task."""
+    task_id = info["task_id"]
     variants = [v for v, source in declared_sources().items() if source == task_id]
     if not variants:
         raise ValueError(f"task {task_id!r} has no Mimic variant; tasks with one: "
                          f"{', '.join(sorted(set(declared_sources().values())))}")
     src = Path(path)
     out = Path(args.output_path) if args.output_path else src.with_name(f"{src.stem}_mimic{src.suffix}")
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+    from ..datasets.outputs import output_path  # deferred: as above
+
+    output_path(out, create=False)  # a file on its path: refused now
     if out.exists():
-        from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
 
         held = read_dataset_info(out)["task_id"]  # a one-line ValueError if it is no dataset or is damaged
         if held != task_id:  # Mimic's demos are recorded under their source's task id
             raise ValueError(f"{out} holds a dataset of task {held!r}, not {task_id!r}; choose another "
                              "--output-path")
+    names = info["env_args"].get("newton_lab", {}).get("action_joint_names")
+    arm = declared_mimic_arms().get(task_id, "left")
+    if names is not None:
+        from ..robots.g1.spec import JOINT_GROUPS  # deferred: numpy, only for mimic
+
+        if not all(j in names for j in JOINT_GROUPS.get(f"{arm}_arm", ())):
+            raise ValueError(f"{path}: actions do not hold the {arm} arm joints; Mimic needs arm joint-target actions "
+                             "(demos of the task's expert, newton-lab collect)")
 
 
 def check_split_phases(args: SplitArgs, path: str, info: dict[str, Any]) -> None:

@@ -221,3 +221,18 @@ def declared_sources() -> dict[str, str]:
                 if isinstance(task_id, str) and spec_ids.get(source):
                     out[task_id] = spec_ids[source]
     return out
+
+
+@functools.cache
+def declared_mimic_arms() -> dict[str, str]:
+    """Task id -> the arm its Mimic variant segments (``MimicCfg(arm=...)``, default ``left``), for every task that
+    has a variant, from source: a package's ``MimicCfg`` calls give its tasks' arm."""
+    sources = set(declared_sources().values())
+    out: dict[str, str] = {}
+    for init in _task_inits():
+        arms = [_literal({k.arg: k.value for k in node.keywords}.get("arm")) or "left"
+                for module in sorted(init.parent.rglob("*.py")) for node in ast.walk(ast.parse(module.read_text()))
+                if isinstance(node, ast.Call) and _call_name(node) == "MimicCfg"]
+        for task_id in set(_ids_in(init.read_text())) & sources:
+            out[task_id] = arms[0] if arms else "left"
+    return out
