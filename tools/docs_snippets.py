@@ -259,14 +259,17 @@ def check_cli(line: str) -> list[str]:
 
 
 def check_listing(snippet: Snippet) -> list[str]:
-    """A listing's lines must be the file's, in the file's order (an excerpt may leave lines out)."""
+    """A listing's lines must be the file's text, in the file's order: an excerpt may leave lines out, and a long
+    line may be shown wrapped (whitespace and line breaks are free), but nothing else may differ."""
     path = ROOT / snippet.listing
     if not path.is_file():
         return [f"{snippet.where}: no file {snippet.listing}"]
-    lines = iter(line.rstrip() for line in path.read_text().splitlines())
-    for shown in (line.rstrip() for line in snippet.code.splitlines() if line.strip()):
-        if not any(line == shown for line in lines):
-            return [f"{snippet.where}: {shown.strip()!r} is not in {snippet.listing} (or out of order)"]
+    text, at = " ".join(path.read_text().split()), 0
+    for shown in (" ".join(line.split()) for line in snippet.code.splitlines() if line.strip()):
+        found = text.find(shown, at)
+        if found < 0:
+            return [f"{snippet.where}: {shown!r} is not in {snippet.listing} (or out of order)"]
+        at = found + len(shown)
     return []
 
 
