@@ -76,3 +76,18 @@ def test_a_read_only_zarr_dataset_is_called_read_only_not_damaged(tmp_path, monk
             w.append_episode(make_episode(9, 5), success=True)
     monkeypatch.undo()
     assert read_dataset_info(path)["num_demos"] == 3
+
+
+@pytest.mark.parametrize("seed", [2**31, -1, 10**30, 1.5, True])
+def test_a_seed_outside_what_the_kernels_take_is_refused_before_the_build(seed, tmp_path):
+    """Warp's reset kernels take 32-bit seeds and HDF5 stores the seed as an integer: a seed outside [0, 2**31 - 1]
+    is refused when the env is made (it used to fail in the first write, after the dataset file was made)."""
+    from newton_lab.envs import make_env
+
+    with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2147483647\]"):
+        make_env(TASK, num_envs=1, device="cpu", cameras=False, seed=seed)
+
+
+def test_reseed_takes_the_same_range(env):
+    with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2147483647\], got -3"):
+        env.reseed(-3)

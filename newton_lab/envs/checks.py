@@ -58,3 +58,16 @@ def row_mask(env_ids, num_envs: int) -> np.ndarray:
         raise ValueError(f"env_ids must lie in [0, {num_envs}), got {ids.tolist()}")
     mask[ids] = True
     return mask
+
+
+SEED_RANGE = (0, 2**31 - 1)
+"""Seeds the env takes: Warp's reset kernels take a 32-bit seed, numpy no negative one, and HDF5 stores it as an
+integer attribute (a larger Python int failed there, after the dataset file was made)."""
+
+
+def check_seed(seed) -> int:
+    """``seed`` as an int in ``SEED_RANGE``, or a one-line ``ValueError``."""
+    lo, hi = SEED_RANGE
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not lo <= int(seed) <= hi:
+        raise ValueError(f"seed must be an integer in [{lo}, {hi}], got {seed!r}")
+    return int(seed)

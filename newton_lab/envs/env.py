@@ -31,7 +31,7 @@ from . import rollout
 from .actuation import Actuation
 from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coordinates
 from .cameras import Cameras, ImageViews, resolve_cameras
-from .checks import check_actions, row_mask
+from .checks import check_actions, check_seed, row_mask
 from .joint_space import SolverJointSpace, check_welded_reset
 from .launches import StepLaunches
 from .scene import build_scene, with_welded_solver
@@ -70,7 +70,7 @@ class NewtonEnv:
         self.num_envs = num_envs
         self.device = wp.get_device(device)
         self.torch_device = torch.device(wp.device_to_torch(self.device))
-        self.seed = 0 if seed is None else int(seed)
+        self.seed = 0 if seed is None else check_seed(seed)
         self.randomize = bool(randomize)
         self.robot: RobotBinding = robot_binding(cfg.robot)
         """The robot's facts (``robots.binding.RobotBinding``): joint groups, arms, TCP, gripper range, cameras, its
@@ -224,9 +224,7 @@ class NewtonEnv:
         """Restart the reset randomisation from ``seed`` and reset every row: the rows then start the episodes a
         new env built with ``seed`` starts (episode counters back to 0, the captured step re-recorded with the
         new seed). Returns ``(obs, info)``."""
-        if not isinstance(seed, int) or isinstance(seed, bool):
-            raise ValueError(f"seed must be an int, got {seed!r}")
-        self.seed = seed
+        self.seed = check_seed(seed)
         if self._graph is not None:
             with wp.ScopedDevice(self.device):
                 self._graph = self._launches.capture()
