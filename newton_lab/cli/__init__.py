@@ -36,6 +36,8 @@ COMMANDS: dict[str, Command] = {
                         "run a policy checkpoint (or the expert planner) and report the success rate"),
     "mimic": Command(c.MimicArgs, run.mimic, "expand source demos with Mimic (successes only)"),
     "train": Command(c.TrainArgs, run.train, "train a diffusion policy on a dataset"),
+    "train-rl": Command(c.TrainRLArgs, run.train_rl,
+                        "PPO (rsl_rl) on a task's dense reward: checkpoint, curve, resume point, tensorboard log"),
     "split": Command(c.SplitArgs, run.split,
                      "robomimic train/valid filter keys (mask/), or one dataset per phase (--out)"),
     "export": Command(c.ExportArgs, run.export, "export a dataset to LeRobot v3"),

@@ -18,6 +18,8 @@ CHECKPOINT_FORMAT = "newton_lab.policies.diffusion"
 """``newton_lab.policies.diffusion.CHECKPOINT_FORMAT`` (tests/test_cli_inputs.py checks they agree)."""
 CHECKPOINT_VERSION = 1
 """``newton_lab.policies.diffusion.CHECKPOINT_VERSION``: the newest this newton_lab reads."""
+RL_CHECKPOINT_FORMAT = "newton_lab.policies.rl"
+"""``newton_lab.policies.rl.agent.CHECKPOINT_FORMAT``: a PPO actor (``newton-lab train-rl``), version 1 too."""
 SAFE = {("collections", "OrderedDict"): collections.OrderedDict, ("builtins", "set"): set,
         ("builtins", "frozenset"): frozenset, ("builtins", "slice"): slice}
 """Non-torch globals a checkpoint's pickle may name (what ``torch.load(weights_only=True)`` accepts too)."""
@@ -69,7 +71,7 @@ def checkpoint_header(path: str | Path, label: str = "checkpoint") -> dict[str, 
         raise damaged(" ".join(f"{type(exc).__name__}: {exc}".split())[:160]) from None
     except OSError as exc:
         raise damaged(exc.strerror or type(exc).__name__) from None
-    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
+    if not isinstance(payload, dict) or payload.get("format") not in (CHECKPOINT_FORMAT, RL_CHECKPOINT_FORMAT):
         raise damaged("missing or unknown 'format' tag")
     if not isinstance(payload.get("version"), int) or payload["version"] > CHECKPOINT_VERSION:
         raise damaged(f"checkpoint version {payload.get('version')!r} is not supported (this newton_lab reads <= "

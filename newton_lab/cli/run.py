@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..commands import RenderArgs, ResultsArgs, SuiteArgs
+from ..commands import RenderArgs, ResultsArgs, SuiteArgs, TrainRLArgs
 from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
@@ -20,6 +20,7 @@ from ..flows.suite_rows import rows_of
 from ..records import command_wall_s, default_path, make_record, write_record
 from ..results import update
 from ..task_api.registry import list_tasks, lookup
+from .headers import checkpoint_header
 
 COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
                        "termination_reasons", "diverged", "subtask_signals")
@@ -70,14 +71,24 @@ def collect(args: CollectArgs) -> int:
     return 0
 
 
+def load_agent(path: str, device: str):
+    """The agent of a policy checkpoint: a diffusion policy (``train``) or a PPO actor (``train-rl``), by its
+    format tag (read without loading the weights)."""
+    from ..policies.agent import PolicyAgent  # deferred: torch is slow to import
+    from ..policies.rl.agent import CHECKPOINT_FORMAT as RL_FORMAT, RLPolicyAgent  # deferred: as above
+
+    if checkpoint_header(path)["format"] == RL_FORMAT:
+        return RLPolicyAgent.from_checkpoint(path, device=device)
+    return PolicyAgent.from_checkpoint(path, device=device)
+
+
 def evaluate(args: EvaluateArgs) -> int:
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
-    from ..policies.agent import PolicyAgent, phase_policy_agent  # deferred: torch is slow to import
+    from ..policies.agent import phase_policy_agent  # deferred: torch is slow to import
 
-    checkpoint_agent = (PolicyAgent.from_checkpoint(args.checkpoint, device=args.policy_device())
-                        if args.checkpoint else None)
+    checkpoint_agent = load_agent(args.checkpoint, args.policy_device()) if args.checkpoint else None
     env = make_env(args.task, **args.env_kwargs())
     phases = args.phase_checkpoints()
     agent = (phase_policy_agent(env, phases, device=args.policy_device()) if phases
@@ -110,6 +121,20 @@ def train(args: TrainArgs) -> int:
     path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS), resume=args.resume,
                                                   gpus=args.gpus)
     print(json.dumps({"checkpoint": str(path)}))
+    return 0
+
+
+def train_rl(args: TrainRLArgs) -> int:
+    from ..policies.rl.train import train_ppo  # deferred: rsl_rl, torch and Warp are slow to import
+
+    path = train_ppo(args.task, args.ppo_config(), args.output_dir, resume=args.resume)
+    curve = json.loads((path.parent / "curve.json").read_text())
+    final = curve[-1] if curve else {}
+    out = {"checkpoint": str(path), "curve": str(path.parent / "curve.json"), "iterations": final.get("iteration"),
+           "env_steps": final.get("env_steps"), "wall_s": final.get("wall_s"),
+           "success_rate": final.get("success_rate"), "env_steps_per_s": final.get("env_steps_per_s")}
+    write_run_record("train-rl", args, args.task, args.device, {**out, "curve_rows": curve})
+    print(json.dumps(out))
     return 0
 
 

@@ -1,0 +1,53 @@
+"""Arguments of ``newton-lab train-rl``: PPO on a task's dense reward."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..task_api.registry import DEFAULT_TASK_ID
+
+
+@dataclass(kw_only=True)
+class TrainRLArgs:
+    """``newton-lab train-rl``: PPO (rsl_rl) on a task's dense reward, from state (or ``--obs-mode sensors``:
+    proprioception for the actor, the objects' poses for the critic)."""
+
+    task: str = DEFAULT_TASK_ID
+    """task id (see `newton-lab tasks`)"""
+    num_envs: int = 4096
+    """parallel env rows"""
+    device: str = "cuda:0"
+    """Warp and torch device (cpu for a small trial)"""
+    seed: int = 0
+    """seed of the env's reset randomisation and of the networks"""
+    iterations: int = 1500
+    """PPO iterations (each: --steps-per-env env steps on every row, then the update)"""
+    time_budget_s: float | None = None
+    """stop after the chunk of iterations that crosses this wall-clock budget [s]"""
+    steps_per_env: int = 24
+    """env steps per row in each iteration's rollout"""
+    chunk_iterations: int = 25
+    """iterations between resume points and curve rows"""
+    hidden_dims: list[int] | None = None
+    """hidden layer widths of the actor and the critic (default 256 128 64)"""
+    learning_rate: float = 1e-3
+    """Adam's initial learning rate (adapted to the KL target)"""
+    output_dir: str = "outputs/ppo"
+    """folder of checkpoint.pt, curve.json, resume.pt and the tensorboard log"""
+    resume: bool = False
+    """continue the interrupted run in --output-dir from its resume.pt"""
+    run_record: str | None = None
+    """write the run record (JSON) here (default outputs/records/train-rl-<task>-<UTC time>.json)"""
+    task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
+
+    def ppo_config(self):
+        """The ``PPOConfig`` of these arguments."""
+        from ..policies.rl.train import PPOConfig  # deferred: rsl_rl and torch are slow to import
+
+        return PPOConfig(num_envs=self.num_envs, device=self.device, seed=self.seed,
+                         task_options=dict(self.task_options), iterations=self.iterations,
+                         time_budget_s=self.time_budget_s, chunk_iterations=self.chunk_iterations,
+                         num_steps_per_env=self.steps_per_env,
+                         **({"hidden_dims": tuple(self.hidden_dims)} if self.hidden_dims else {}),
+                         learning_rate=self.learning_rate)

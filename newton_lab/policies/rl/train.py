@@ -1,0 +1,161 @@
+"""PPO on a task's dense reward through rsl_rl (the library mjlab and IsaacLab train with): ``train_ppo(task, cfg)``.
+
+The run is cut into chunks of ``cfg.chunk_iterations`` PPO iterations; after each chunk the runner's state is saved
+(``resume.pt``: models, optimiser, iteration, the action map) and a row is added to ``curve.json`` (iteration,
+env steps, wall seconds, env-steps/s with the update included, success rate and mean return of the episodes that
+ended in the chunk). A killed run continues from its last chunk with ``resume=True``; ``cfg.time_budget_s`` ends the
+run after the chunk that crosses it. rsl_rl writes its tensorboard log into the same folder. The result is
+``checkpoint.pt``: the deterministic actor, its observation normaliser and the action map, which ``RLPolicyAgent``
+(and ``newton-lab evaluate --checkpoint``) runs.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from rsl_rl.runners import OnPolicyRunner
+
+from ...envs import make_env
+from .actions import ActionScales
+from .vec_env import RslRlVecEnv
+
+CHECKPOINT_FORMAT = "newton_lab.policies.rl"
+"""``format`` tag of an RL checkpoint (the diffusion policy's is ``newton_lab.policies.diffusion``)."""
+CHECKPOINT_VERSION = 1
+RESUME_NAME = "resume.pt"
+
+
+@dataclass(kw_only=True)
+class PPOConfig:
+    """A PPO run: env rows and device, the rollout and update sizes, the networks, when to stop."""
+
+    num_envs: int = 4096
+    device: str = "cuda:0"
+    seed: int = 0
+    task_options: dict[str, Any] = field(default_factory=dict)
+    iterations: int = 1500
+    """PPO iterations (each: num_steps_per_env env steps on every row, then the update)"""
+    time_budget_s: float | None = None
+    """stop after the chunk that crosses this wall-clock budget [s]"""
+    chunk_iterations: int = 25
+    """iterations between resume points and curve rows"""
+    num_steps_per_env: int = 24
+    hidden_dims: tuple[int, ...] = (256, 128, 64)
+    learning_rate: float = 1e-3
+    num_learning_epochs: int = 5
+    num_mini_batches: int = 4
+    entropy_coef: float = 0.005
+    gamma: float = 0.99
+    lam: float = 0.95
+    desired_kl: float = 0.01
+    init_noise_std: float = 1.0
+    scales: ActionScales = field(default_factory=ActionScales)
+
+    def runner_cfg(self) -> dict[str, Any]:
+        """rsl_rl's ``OnPolicyRunner`` configuration (actor on ``policy``, critic on ``critic``)."""
+        mlp = {"hidden_dims": list(self.hidden_dims), "activation": "elu", "obs_normalization": True}
+        return {
+            "num_steps_per_env": self.num_steps_per_env, "save_interval": 10 ** 9, "logger": "tensorboard",
+            "obs_groups": {"actor": ["policy"], "critic": ["critic"]},
+            "actor": {"class_name": "MLPModel", **mlp,
+                      "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": self.init_noise_std}},
+            "critic": {"class_name": "MLPModel", **mlp},
+            "algorithm": {"class_name": "PPO", "learning_rate": self.learning_rate,
+                          "num_learning_epochs": self.num_learning_epochs, "num_mini_batches": self.num_mini_batches,
+                          "entropy_coef": self.entropy_coef, "gamma": self.gamma, "lam": self.lam,
+                          "desired_kl": self.desired_kl, "schedule": "adaptive", "clip_param": 0.2,
+                          "value_loss_coef": 1.0, "max_grad_norm": 1.0, "use_clipped_value_loss": True},
+        }
+
+
+def train_ppo(task_id: str, cfg: PPOConfig, output_dir: str | Path, *, resume: bool = False,
+              progress: bool = True) -> Path:
+    """Train PPO on ``task_id`` into ``output_dir`` (``checkpoint.pt``, ``curve.json``, ``resume.pt``, tensorboard
+    events); ``resume``: continue the run whose ``resume.pt`` is there. Returns the checkpoint's path."""
+    out = Path(output_dir)
+    resume_path = out / RESUME_NAME
+    if resume and not resume_path.is_file():
+        raise FileNotFoundError(f"nothing to resume in {out} (no {RESUME_NAME}); start the run without --resume")
+    if not resume and (out / "checkpoint.pt").exists():
+        raise FileExistsError(f"{out} holds a finished run; choose a new --output-dir (or --resume an interrupted one)")
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(cfg.seed)
+    env = make_env(task_id, num_envs=cfg.num_envs, device=cfg.device, seed=cfg.seed, randomize=True,
+                   task_options=cfg.task_options, cameras=False)
+    saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
+    vec = RslRlVecEnv(env, cfg.scales)
+    if saved is not None:  # the action map of the interrupted run (its start posture)
+        vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
+        vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
+    runner = OnPolicyRunner(vec, cfg.runner_cfg(), log_dir=str(out), device=str(env.torch_device))
+    curve: list[dict[str, Any]] = []
+    elapsed = 0.0
+    if saved is not None:
+        runner.alg.load(saved["runner"], None, True)
+        runner.current_learning_iteration = saved["iteration"]
+        curve, elapsed = saved["curve"], saved["elapsed_s"]
+        torch.set_rng_state(saved["torch_rng"])
+    steps_per_iteration = cfg.num_envs * cfg.num_steps_per_env
+    while _done(curve) < cfg.iterations and not (cfg.time_budget_s and elapsed >= cfg.time_budget_s):
+        n = min(cfg.chunk_iterations, cfg.iterations - _done(curve))
+        t0 = time.perf_counter()
+        runner.learn(num_learning_iterations=n)
+        runner.current_learning_iteration += 1  # rsl_rl leaves it at the last iteration run
+        seconds = time.perf_counter() - t0
+        elapsed += seconds
+        counts = vec.take_episode_counts()
+        row = {"iteration": _done(curve) + n, "env_steps": (_done(curve) + n) * steps_per_iteration,
+               "wall_s": round(elapsed, 2), "env_steps_per_s": n * steps_per_iteration / seconds, **counts}
+        curve.append(row)
+        _save_resume(resume_path, runner, vec, curve, elapsed)
+        for snapshot in out.glob("model_*.pt"):  # rsl_rl's own end-of-learn save: resume.pt holds the same
+            snapshot.unlink()
+        if progress:
+            rate = "–" if row["success_rate"] is None else f"{row['success_rate']:.0%}"
+            print(f"ppo {task_id}: iteration {row['iteration']}/{cfg.iterations}, success {rate}, "
+                  f"{row['env_steps_per_s']:,.0f} env-steps/s, {elapsed:.0f} s", file=sys.stderr, flush=True)
+    (out / "curve.json").write_text(json.dumps(curve, indent=1))
+    path = out / "checkpoint.pt"
+    tmp = out / ".checkpoint.pt.tmp"
+    torch.save(_checkpoint(task_id, env, cfg, runner, vec, curve), tmp)
+    tmp.replace(path)
+    return path
+
+
+def _done(curve: list[dict[str, Any]]) -> int:
+    return curve[-1]["iteration"] if curve else 0
+
+
+def _save_resume(path: Path, runner, vec: RslRlVecEnv, curve, elapsed: float) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save({"runner": runner.alg.save(), "iteration": runner.current_learning_iteration, "curve": curve,
+                "elapsed_s": elapsed, "action_map": vec.action_map.state(), "torch_rng": torch.get_rng_state()}, tmp)
+    tmp.replace(path)
+
+
+def _checkpoint(task_id: str, env, cfg: PPOConfig, runner, vec: RslRlVecEnv, curve) -> dict[str, Any]:
+    """The deterministic actor (TorchScript), what it observes and how its actions map."""
+    actor = runner.alg.get_policy()
+    config = {k: v for k, v in asdict(cfg).items() if k not in ("device",)}
+    return {"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "ppo",
+            "config": config,
+            "info": {"task_id": task_id, "task_options": dict(env.cfg.options), "obs_dim": int(env.obs.shape[1]),
+                     "action_joint_names": list(env.action_joint_names), "image_keys": [],
+                     "iterations": _done(curve), "final": curve[-1] if curve else None},
+            "action_map": vec.action_map.state(), "actor_script": _scripted(actor)}
+
+
+def _scripted(actor) -> torch.Tensor:
+    """The actor as TorchScript, its bytes in a uint8 tensor (rsl_rl's deterministic export: normaliser, MLP, mean
+    action), so that running it needs neither rsl_rl nor its model classes, and the checkpoint loads with
+    ``weights_only``."""
+    buf = io.BytesIO()
+    torch.jit.save(torch.jit.script(actor.as_jit().cpu()), buf)  # as_jit copies: training's model stays
+    return torch.frombuffer(bytearray(buf.getvalue()), dtype=torch.uint8)

@@ -1,0 +1,73 @@
+"""The batched env as rsl_rl's ``VecEnv``: torch tensors on the env's device, straight from the captured step.
+
+Observations are a ``TensorDict`` of two groups: ``policy`` (the env's observation vector: every term of the task
+in ``obs_mode="state"``, proprioception only with ``obs_mode="sensors"``) and ``critic`` (the policy's plus the
+privileged object poses when the policy does not see them: the critic is thrown away after training, so it may
+read what the robot cannot measure). ``dones`` is terminated or truncated; ``extras["time_outs"]`` marks the
+truncated rows (PPO bootstraps their value), and ``extras["log"]`` the success rate of the episodes that ended in
+the step. Rows that end are reset inside the step (their ``obs`` is the new episode's first), as rsl_rl expects.
+"""
+
+from __future__ import annotations
+
+import torch
+from rsl_rl.env import VecEnv
+from tensordict import TensorDict
+
+from .actions import ActionMap, ActionScales
+
+
+class RslRlVecEnv(VecEnv):
+    """``env`` (a ``NewtonEnv``) stepped by PPO actions through ``ActionMap``; ``privileged``: a second env of the
+    same task and seed in state mode is not needed, the critic reads ``env.entity_poses`` directly."""
+
+    def __init__(self, env, scales: ActionScales | None = None) -> None:
+        self.env = env
+        self.num_envs = env.num_envs
+        self.num_actions = env.action_dim
+        self.device = env.torch_device
+        self.max_episode_length = int(env.cfg.max_episode_steps)
+        self.cfg = {"task_id": env.task_id, "task_options": dict(env.cfg.options)}
+        env.reset()
+        self.action_map = ActionMap(env, scales)
+        self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+        self.sensors = env.cfg.options.get("obs_mode") == "sensors"
+        self.returns = torch.zeros(self.num_envs, device=self.device)
+        self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
+
+    def _observations(self) -> TensorDict:
+        policy = self.env.obs.clone()
+        critic = policy
+        if self.sensors:  # the critic also sees where the objects are
+            critic = torch.cat([policy, self.env.entity_poses.reshape(self.num_envs, -1)], dim=1)
+        return TensorDict({"policy": policy, "critic": critic}, batch_size=[self.num_envs], device=self.device)
+
+    def get_observations(self) -> TensorDict:
+        return self._observations()
+
+    def step(self, actions: torch.Tensor):
+        _, reward, terminated, truncated, info = self.env.step(self.action_map(actions))
+        dones = terminated | truncated
+        reward = reward.clone()
+        self.returns += reward
+        self.episode_length_buf += 1
+        extras: dict = {"time_outs": truncated.clone()}
+        if bool(dones.any()):
+            ended = dones.nonzero().flatten()
+            ok = info["success"][ended].float()
+            self.ended["episodes"] += int(ended.numel())
+            self.ended["successes"] += int(ok.sum().item())
+            self.ended["return_sum"] += float(self.returns[ended].sum().item())
+            extras["log"] = {"/success_rate": ok.mean()}
+            self.returns[ended] = 0.0
+            self.episode_length_buf[ended] = 0
+        return self._observations(), reward, dones.long(), extras
+
+    def take_episode_counts(self) -> dict[str, float]:
+        """Episodes ended, successes and mean return since the last call (then reset)."""
+        n = self.ended["episodes"]
+        out = {"episodes": n, "successes": self.ended["successes"],
+               "success_rate": self.ended["successes"] / n if n else None,
+               "mean_return": self.ended["return_sum"] / n if n else None}
+        self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
+        return out
