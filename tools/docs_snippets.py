@@ -20,6 +20,7 @@ page writes (only training and rollouts of a checkpoint are cut). On such a page
 - a block marked ``<!-- write-file -->`` whose fence has ``title="PATH"`` is a file the reader writes: the run
   writes it to ``PATH`` (the check compiles Python and parses YAML);
 - ``mkdir -p DIR`` lines run;
+- a block marked ``<!-- fails: why -->`` shows a command that is refused: it runs, and passes only when refused;
 - a ``text`` block marked ``<!-- output -->`` is what the runnable block before it prints (stdout and stderr, as
   a terminal shows them), and the run compares
   them: whitespace and line breaks are free, ``...`` stands for anything, every other character must match, and
@@ -58,6 +59,8 @@ INCLUDE = re.compile(r'^--8<-- "([^"]+)"$', re.M)
 """A ``pymdownx.snippets`` line: the block shows that repository file."""
 CHECK_ONLY = re.compile(r"<!--\s*check-only:\s*(.+?)\s*-->\s*$")
 WRITE_FILE = re.compile(r"<!--\s*write-file\s*-->\s*$")
+FAILS = re.compile(r"<!--\s*fails:\s*(.+?)\s*-->\s*$")
+"""A block whose command must be refused (a page showing an error): it runs, and passes only when it fails."""
 OUTPUT = re.compile(r"<!--\s*output(?::\s*(.+?))?\s*-->\s*$")
 IN_COPY = re.compile(r"^<!--\s*run-in:\s*a scratch copy of the repository\s*-->\s*$", re.M)
 SMALL = 2
@@ -83,6 +86,8 @@ class Snippet:
     """The repository file a ``title="path"`` block shows (whole or in part)."""
     writes: str | None = None
     """The file a ``<!-- write-file -->`` block has the reader write (a path from the working folder)."""
+    fails: str | None = None
+    """Why the block's command must be refused (``<!-- fails: why -->``): the run passes only when it is."""
 
     @property
     def where(self) -> str:
@@ -138,8 +143,10 @@ def snippets(path: Path) -> list[Snippet]:
             reason = "a listing of the repository's file (the tasks package imports it)"
         if reason is None and lang == "bash" and "--device cuda" in code:
             reason = "needs a CUDA device"
+        fails = FAILS.search(before)
         out.append(Snippet(str(path.relative_to(ROOT)), text[:m.start()].count("\n") + 1, lang, code, reason,
-                           title.group(1) if title and writes is None else None, writes))
+                           title.group(1) if title and writes is None else None, writes,
+                           fails.group(1) if fails else None))
     return out
 
 
@@ -199,13 +206,15 @@ def compare_output(shown: str, printed: str, tolerance: str = "exact") -> str | 
         else:
             parts.append(r"\s*" + re.escape(t.group()) if t.group() in ",:;)]}" else re.escape(t.group()))
     pattern = re.compile("".join(parts), re.S)
-    candidates = list(pattern.finditer(printed))
-    if not candidates:
+    match, off, pos = pattern.search(printed), [], 0
+    if match is None:
         return f"the printed output has no text of this shape; it printed:\n{printed[-3000:]}"
-    for match in candidates:
+    while match is not None:  # every place the shape starts, until one holds the numbers
         off = [(s, g) for s, g in zip(numbers, match.groups()) if not _close(s, g, tolerance)]
         if not off:
             return None
+        pos = match.start() + 1
+        match = pattern.search(printed, pos)
     return (f"numbers outside the tolerance ({tolerance}): "
             + ", ".join(f"shown {s}, printed {g}" for s, g in off) + f"\nprinted:\n{printed[-3000:]}")
 
@@ -416,12 +425,19 @@ def _run(path: Path, workdir: Path, sizes: bool) -> dict:
                     wrote.append(snippet.writes)
                     continue
                 with contextlib.redirect_stdout(tee), contextlib.redirect_stderr(_Tee(sys.stderr, tee.kept)):
-                    if snippet.lang == "python":
-                        code = shrink_python(snippet.code) if sizes else snippet.code
-                        exec(compile(code, snippet.where, "exec"), namespace)
+                    try:
+                        if snippet.lang == "python":
+                            code = shrink_python(snippet.code) if sizes else snippet.code
+                            exec(compile(code, snippet.where, "exec"), namespace)
+                        else:
+                            for line in commands(snippet.code):
+                                _run_line(line, sizes)
+                    except Exception:
+                        if not snippet.fails:
+                            raise
                     else:
-                        for line in commands(snippet.code):
-                            _run_line(line, sizes)
+                        if snippet.fails:
+                            raise RuntimeError(f"the page says this is refused ({snippet.fails}), but it ran")
             except BaseException as exc:  # noqa: BLE001  (SystemExit of a script included)
                 return {"page": page, "ran": ran, "failed": snippet.where, "error": f"{type(exc).__name__}: {exc}",
                         "trace": traceback.format_exc()[-3000:], "wrote": wrote}
