@@ -104,6 +104,7 @@ BAD = [
     ("pipeline --eval-max-steps 0", "--eval-max-steps must be an integer >= 1, got 0"),
     ("pipeline --task GalbotG1-PickToShelf-v0 --mimic-episodes 4",
      "GalbotG1-PickToShelf-v0 is a coherent task: its pipeline takes more coherent demos (--demos)"),
+    ("pipeline --task GalbotG1-Reach-v0", "GalbotG1-Reach-v0 has no Mimic variant, and the pipeline runs collect"),
     ("pipeline --runner dask --address nonsense", "--address 'nonsense' is not a scheduler address"),
     ("pipeline --address tcp://10.0.0.5:8786", "names a Dask scheduler; add --runner dask"),
     ("train --dataset-path src.hdf5 --gpus 4096 --device cpu", "--gpus 4096: with no CUDA device each is a gloo"),

@@ -300,6 +300,11 @@ def check_gpus(gpus: int, device: str | None) -> None:
 
 def check_pipeline(args: PipelineArgs) -> None:
     """The pipeline's flags that no stage would refuse before Prefect starts."""
+    mimicked = sorted(set(declared_sources().values()))
+    if args.task not in declared_phases() and args.task not in mimicked:
+        raise ValueError(f"{args.task} has no Mimic variant, and the pipeline runs collect -> mimic -> train -> "
+                         f"evaluate; pipelines run on {', '.join(mimicked)} and the coherent tasks "
+                         f"{', '.join(declared_phases())}")
     if args.mimic_episodes is not None and args.task in declared_phases():
         raise ValueError(f"{args.task} is a coherent task: its pipeline takes more coherent demos (--demos) instead "
                          "of Mimic; drop --mimic-episodes")
