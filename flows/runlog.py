@@ -42,6 +42,10 @@ def describe_inputs(kwargs: dict[str, Any]) -> str:
         return ", ".join(f"{k} {getattr(args, k)}" for k in fields if getattr(args, k, None) is not None)
     if "source" in kwargs and "dataset" not in kwargs:  # split
         return f"source {kwargs['source']['path']} -> {kwargs.get('out_dir')}"
+    if "ppo" in kwargs:  # train-rl
+        ppo = kwargs["ppo"]
+        return (f"task {kwargs['task_id']}, {ppo.get('iterations')} PPO iterations on {ppo.get('num_envs')} rows, "
+                f"device {ppo.get('device')} -> {kwargs.get('out_dir')}")
     cfg = kwargs.get("train_cfg") or {}
     return (f"dataset {kwargs['dataset']['path']}, {cfg.get('max_steps')} steps, batch {cfg.get('batch_size')}, "
             f"device {cfg.get('device')} -> {kwargs.get('out_dir')}")

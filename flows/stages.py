@@ -143,6 +143,28 @@ def _train_in_own_process(path: str, cfg: dict[str, Any], resume: bool) -> str:
         return pool.submit(_train, path, cfg, resume).result()
 
 
+def rl_train_stage(*, task_id: str, ppo: dict[str, Any], out_dir: str, name: str = "ppo") -> dict[str, Any]:
+    """PPO on ``task_id`` (``ppo``: ``PPOConfig`` fields) -> checkpoint artifact of kind ``rl checkpoint`` with the
+    run's curve; an interrupted run (its folder holds a ``resume.pt``) continues from its last chunk."""
+    from ..policies.rl.train import RESUME_NAME, PPOConfig, train_ppo  # deferred: rsl_rl and torch are slow
+
+    out = Path(out_dir)
+    inputs = {"stage": "train-rl", "task_id": task_id, "ppo": ppo}
+    if (done := _guard(out, name, inputs)) is not None:
+        return done
+    run_dir = out / name
+    resume = (run_dir / RESUME_NAME).is_file()
+    if not resume:
+        _fresh(run_dir)
+    ckpt = train_ppo(task_id, PPOConfig(**ppo), run_dir, resume=resume)
+    curve = json.loads((run_dir / "curve.json").read_text())
+    final = curve[-1] if curve else {}
+    return _finish(out, name, inputs, artifact(ckpt, "rl checkpoint", iterations=final.get("iteration"),
+                                               env_steps=final.get("env_steps"), wall_time_s=final.get("wall_s"),
+                                               success_rate=final.get("success_rate"),
+                                               env_steps_per_s=final.get("env_steps_per_s"), curve=curve))
+
+
 def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -> dict[str, dict[str, Any]]:
     """A coherent task's dataset artifact split by phase -> {phase name: dataset artifact} in ``<out_dir>/<name>/``
     (``newton_lab.datasets.split_by_phase``)."""
@@ -175,6 +197,10 @@ def evaluate_stage(*, checkpoint: dict[str, Any] | None = None, args: EvaluateAr
     env = make_env(args.task, **args.env_kwargs())
     if phase_checkpoints:
         agent = phase_policy_agent(env, {p: a["path"] for p, a in phase_checkpoints.items()}, device=policy_device)
+    elif checkpoint is not None and checkpoint.get("kind") == "rl checkpoint":
+        from ..policies.rl.agent import RLPolicyAgent  # deferred: only a PPO checkpoint needs it
+
+        agent = RLPolicyAgent.from_checkpoint(args.checkpoint, device=policy_device)
     else:
         agent = PolicyAgent(Policy.from_backend(BACKEND).load_policy(args.checkpoint, device=policy_device))
     logger = None

@@ -93,3 +93,24 @@ def test_train_rl_refusals_are_one_line(run, tmp_path):
     nothing = cli("train-rl", *TINY, "--output-dir", str(tmp_path / "none"), "--resume", cwd=tmp_path)
     assert nothing.returncode == 2 and "nothing to resume" in nothing.stderr, nothing.stderr[-2000:]
     assert "Traceback" not in finished.stderr + nothing.stderr
+
+
+def test_the_train_rl_flow_trains_evaluates_records_and_is_cached(tmp_path):
+    """The Prefect flow: PPO as a cached stage, then the actor on held-out episodes, and a run record."""
+    from newton_lab.flows import settings
+
+    settings.configure(tmp_path / "prefect_home")
+    from prefect.testing.utilities import prefect_test_harness  # deferred: Prefect reads settings.configure's home
+
+    from newton_lab.flows.rl import train_rl  # deferred: imports Prefect (after settings.configure)
+
+    ppo = {"num_envs": 4, "device": "cpu", "iterations": 1, "chunk_iterations": 1, "num_steps_per_env": 8,
+           "hidden_dims": [32, 32]}
+    with prefect_test_harness(server_startup_timeout=120):
+        first = train_rl(TASK, ppo, out=str(tmp_path / "out"), eval_episodes=2, eval_max_steps=20)
+        again = train_rl(TASK, ppo, out=str(tmp_path / "out"), eval_episodes=2, eval_max_steps=20)
+    assert first["stage_states"]["train"] == ["Completed"] and again["stage_states"]["train"] == ["Cached"]
+    assert first["evaluation"]["episodes"] == 2 and first["checkpoint"]["kind"] == "rl checkpoint"
+    record = json.loads(Path(first["record"]).read_text())
+    assert record["kind"] == "train-rl" and record["results"]["success"]["eval_seed"] == 10_000
+    assert record["results"]["iterations"] == 1 and len(record["results"]["curve_rows"]) == 1

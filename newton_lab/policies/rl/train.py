@@ -15,6 +15,7 @@ import io
 import json
 import sys
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -157,5 +158,7 @@ def _scripted(actor) -> torch.Tensor:
     action), so that running it needs neither rsl_rl nor its model classes, and the checkpoint loads with
     ``weights_only``."""
     buf = io.BytesIO()
-    torch.jit.save(torch.jit.script(actor.as_jit().cpu()), buf)  # as_jit copies: training's model stays
+    with warnings.catch_warnings():  # torch 2.13 calls TorchScript deprecated; rsl_rl exports its actor so
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.jit.save(torch.jit.script(actor.as_jit().cpu()), buf)  # as_jit copies: training's model stays
     return torch.frombuffer(bytearray(buf.getvalue()), dtype=torch.uint8)
