@@ -125,7 +125,8 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
                 preset: str = "default", bf16: bool = False) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
-    autocast (keys ``..._bf16``)."""
+    autocast (keys ``..._bf16``). Also where a step's time goes (``step_breakdown``), the achieved TFLOP/s at the
+    fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
     data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon, obs_keys=cfg.obs_keys,
@@ -157,7 +158,65 @@ def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, devic
         out[f"{name}_final_loss"] = final
     if len(kinds) == 2:
         out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]
+    out.update(step_breakdown(data, dataclasses.replace(cfg, bf16=bf16), steps=min(steps, 20)))
+    best = max(v for k, v in out.items() if k.endswith("_samples_per_s"))
+    out["achieved_tflops"] = out["flops_per_sample"] * best / 1e12  # at the fastest variant's samples/s
+    if on_cuda:
+        out["gpu_mem_peak_mib"] = torch.cuda.max_memory_allocated(device) / 2**20
     return out
+
+
+def step_breakdown(data: SequenceDataset, cfg: DiffusionPolicyConfig, steps: int = 20) -> dict[str, Any]:
+    """Where one training step's time goes, each stage timed apart with the device synchronised around it
+    (``breakdown_ms``: the batch's gather from the windows, the forward pass and loss, the backward pass, the
+    optimiser step with the EMA update; eager, so the sum exceeds a captured step), and the step's floating-point
+    work (``flops_per_sample``: forward and backward, counted by ``torch.utils.flop_counter`` on one step)."""
+    from torch.utils.flop_counter import FlopCounterMode  # deferred: only this measurement counts operations
+
+    torch.manual_seed(0)
+    device = torch.device(cfg.device)
+    policy = DiffusionPolicy.from_dataset(data, cfg).to(device)
+    opt = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, fused=device.type in ("cuda", "cpu"))
+    obs, actions = data.obs.to(device), data.actions.to(device)
+    images = {k: v.to(device) for k, v in data.images.items()}
+    obs_index, action_index = data.obs_index.to(device), data.action_index.to(device)
+    gen = torch.Generator(device=device).manual_seed(0)
+
+    def sync() -> float:
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+        return time.perf_counter()
+
+    def batch() -> dict[str, Any]:
+        idx = torch.randint(len(data), (cfg.batch_size,), device=device, generator=gen)
+        frames = obs_index[idx]
+        out = {"obs": obs[frames], "actions": actions[action_index[idx]]}
+        if images:
+            out["images"] = {k: v[frames] for k, v in images.items()}
+        return out
+
+    spent = {"data": 0.0, "forward": 0.0, "backward": 0.0, "optimizer": 0.0}
+    warmup = 3
+    for i in range(steps + warmup):
+        t0 = sync()
+        b = batch()
+        t1 = sync()
+        loss = policy.compute_loss(b)
+        t2 = sync()
+        loss.backward()
+        t3 = sync()
+        opt.step()
+        opt.zero_grad(set_to_none=True)
+        policy.ema.update(policy.model)
+        t4 = sync()
+        if i >= warmup:
+            for name, dt in zip(spent, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+                spent[name] += dt
+    with FlopCounterMode(display=False) as counter:
+        policy.compute_loss(batch()).backward()
+    opt.zero_grad(set_to_none=True)
+    return {"breakdown_ms": {k: 1e3 * v / steps for k, v in spent.items()},
+            "flops_per_sample": counter.get_total_flops() / cfg.batch_size}
 
 
 from .bench_collect import bench_collect, bench_collect_on_workers  # noqa: E402,F401 - re-exported (the CLI)

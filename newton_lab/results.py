@@ -137,8 +137,10 @@ def training_rows(records, page_dir: Path) -> list[list[str]]:
             continue
         r = rec["results"]
         best = max((v for k, v in r.items() if k.endswith("_samples_per_s")), default=None)
+        tflops = r.get("achieved_tflops")
         rows.append([r.get("preset", "–"), rec["device"]["name"], str(r.get("batch_size")),
-                     ", ".join(r.get("image_keys") or []) or "state", _k(best), _link(path, page_dir)])
+                     ", ".join(r.get("image_keys") or []) or "state", _k(best),
+                     "–" if tflops is None else f"{tflops:.1f}", _link(path, page_dir)])
     return rows
 
 
@@ -151,7 +153,8 @@ def headline(records, page_dir: Path) -> str:
         ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], env_step_rows),
         ("Expert collection", ["task", "device", "envs", "demos", "demos per device-hour", "record"],
          collection_rows),
-        ("Training throughput", ["preset", "device", "batch", "images", "samples/s", "record"], training_rows),
+        ("Training throughput", ["preset", "device", "batch", "images", "samples/s", "TFLOP/s", "record"],
+         training_rows),
     ]
     for title, header, rows_of in sections:
         rows = rows_of(records, page_dir)

@@ -448,14 +448,18 @@ def test_graph_safe_ema_update_matches_the_eager_one():
         torch.testing.assert_close(pa, pb)
 
 
-def test_train_bench_prints_the_eager_rate_on_cpu(dataset, capsys):
+def test_train_bench_prints_the_eager_rate_on_cpu(dataset, capsys, tmp_path):
     from newton_lab.cli import main
 
     assert main(["bench-train", "--dataset-path", str(dataset), "--batch-size", "8", "--steps", "3",
-                 "--preset", "cpu"]) == 0
+                 "--preset", "cpu", "--run-record", str(tmp_path / "record.json")]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["EagerTrainStep_steps_per_s"] > 0 and np.isfinite(out["EagerTrainStep_final_loss"])
     assert "CudaGraphTrainStep_steps_per_s" not in out  # no capture without CUDA
+    assert set(out["breakdown_ms"]) == {"data", "forward", "backward", "optimizer"}
+    assert all(v > 0 for v in out["breakdown_ms"].values()) and out["flops_per_sample"] > 0
+    assert out["achieved_tflops"] > 0 and "gpu_mem_peak_mib" not in out
+    assert json.loads((tmp_path / "record.json").read_text())["kind"] == "bench-train"
 
 
 def test_errors_are_one_line(tmp_path, dataset):
