@@ -178,7 +178,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
                   max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None,
                   replan_batch: int | None = None, replan_wait: int | None = None,
                   trace: str | Path | None = None, trace_after: int = TRACE_AFTER_STEPS,
-                  writer: str = "auto") -> dict[str, Any]:
+                  writer: str = "auto", cameras: bool | dict = False,
+                  task_options: dict[str, Any] | None = None) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
@@ -188,7 +189,9 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     ``replan_wait``: the expert's ``PlannerAgent`` settings of those names (``None``: its defaults). ``trace``: a
     ``torch.profiler`` trace of ``TRACE_STEPS`` steps of the timed run to this path (``_Trace``), after ``trace_after``
     steps; the stage clocks of a traced run read high. ``writer``: ``collect``'s (``"auto"``, ``"thread"``,
-    ``"process"``)."""
+    ``"process"``). ``cameras`` (``make_env``'s): the views rendered and recorded every step; their render and the
+    frames' copy into the episode buffers are ``record_s`` (the loop's time besides the hand-over and the drain).
+    ``task_options``: the task's options (e.g. ``obs_mode``)."""
     from .agents import expert_agent  # deferred: the agents import the planner's IK
 
     path = Path(dataset_path)
@@ -196,7 +199,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
         raise FileExistsError(f"{path} exists; bench-collect writes a fresh dataset (choose a new --dataset-path)")
     output_path(path)
     t0 = time.perf_counter()
-    env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=False)
+    env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras,
+                   task_options=task_options)
     agent = expert_agent(env)
     if (replan_batch, replan_wait) != (None, None) and not hasattr(agent, "replan_batch"):
         raise ValueError(f"--replan-batch / --replan-wait: the expert of {task_id} ({type(agent).__name__}) does not "
@@ -225,6 +229,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     size, inodes = _footprint(path)
     out["bytes_per_demo"] = size / max(out["successful_demos"], 1)
     out["inodes_per_demo"] = inodes / max(out["successful_demos"], 1)  # what a zarr dataset spends of an ext4 disk
+    out["record_s"] = max(out["loop_s"] - out["hand_over_s"] - out["drain_s"], 0.0)  # render + frames per step
+    out["cameras"] = {name: [spec.width, spec.height, list(spec.data)] for name, spec in env.camera_specs.items()}
     out["physics_s_per_step"] = out["physics_s"] / max(out["vector_steps"] or 1, 1)
     out["agent_plus_writer_s_per_step"] = (out["agent_s"] + out["writer_s"]) / max(out["vector_steps"] or 1, 1)
     out["physics_bound"] = out["agent_plus_writer_s_per_step"] <= out["physics_s_per_step"]
@@ -245,7 +251,9 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
 
 def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, episodes: int = 16,
                              device: str | None = None, dataset_path: str | Path = "outputs/bench_collect.zarr",
-                             max_steps: int = 1000, baseline: bool = False, writer: str = "auto") -> dict[str, Any]:
+                             max_steps: int = 1000, baseline: bool = False, writer: str = "auto",
+                             cameras: bool | dict = False, task_options: dict[str, Any] | None = None
+                             ) -> dict[str, Any]:
     """``bench_collect`` on ``workers`` Dask worker processes at once, the way ``--runner dask`` shards collection:
     one worker per GPU on a CUDA host when ``device`` is None or ``"cuda"`` (each sees only its GPU), else
     processes on ``device``. Worker ``i`` collects its share of ``episodes`` with seed ``i`` into its own shard
@@ -274,7 +282,7 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
     opts = cluster_options(workers, device, gpus=gpus)
     quiet_shutdown()
     run = functools.partial(bench_collect, task_id, num_envs=num_envs, device="cuda" if gpus else device, prefill=0,
-                            max_steps=max_steps, writer=writer)
+                            max_steps=max_steps, writer=writer, cameras=cameras, task_options=task_options)
     with opts.get("cluster_class", LocalCluster)(**opts["cluster_kwargs"]) as cluster, Client(cluster) as client:
         client.wait_for_workers(workers)
         # one task per worker, by name (a restarted worker keeps it): two gated runs on one worker would wait forever
@@ -363,11 +371,12 @@ def summary(out: dict[str, Any]) -> str:
              + (f"; writer files {out['writer_files_s']:.2f} s, sync {out['writer_sync_s']:.2f} s"
                 if "writer_files_s" in out else ""),
              f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
-             f"drain after the last step {out['drain_s']:.2f} s; {out['bytes_per_demo'] / 1e3:.1f} KB and "
+             f"drain after the last step {out['drain_s']:.2f} s, render and frames {out.get('record_s', 0):.2f} s; "
+             f"{out['bytes_per_demo'] / 1e3:.1f} KB and "
              f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches "
              f"({out.get('writer') or 'BackgroundWriter'})",
              f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
              f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
              f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: "
-             f"{max(stage, key=stage.get)}"]
+             f"{max({**stage, 'render and frames': out.get('record_s', 0.0)}.items(), key=lambda kv: kv[1])[0]}"]
     return "\n".join(lines)

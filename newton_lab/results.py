@@ -124,7 +124,8 @@ def collection_rows(records, page_dir: Path) -> list[list[str]]:
         if rec["kind"] != "bench-collect":
             continue
         r = rec["results"]
-        rows.append([_short(rec["task"]), rec["device"]["name"], str(r.get("num_envs", "–")),
+        cams = ", ".join(f"{name} {w}x{h}" for name, (w, h, _) in (r.get("cameras") or {}).items()) or "none"
+        rows.append([_short(rec["task"]), rec["device"]["name"], str(r.get("num_envs", "–")), cams,
                      str(r.get("successful_demos", r.get("episodes", "–"))), _k(r.get("demos_per_hour")),
                      _link(path, page_dir)])
     return rows
@@ -151,7 +152,7 @@ def headline(records, page_dir: Path) -> str:
         ("Learned policies", ["task", "device", "recipe", "policy sees", "demos", "expert", "learned (held-out)",
                               "per phase (passed/reached)", "time to policy", "record"], policy_rows),
         ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], env_step_rows),
-        ("Expert collection", ["task", "device", "envs", "demos", "demos per device-hour", "record"],
+        ("Expert collection", ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "record"],
          collection_rows),
         ("Training throughput", ["preset", "device", "batch", "images", "samples/s", "TFLOP/s", "record"],
          training_rows),

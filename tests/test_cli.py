@@ -98,7 +98,7 @@ def test_bench_prints_side_by_side_figures(capsys):
 def test_bench_collect_splits_the_time(capsys, tmp_path):
     path = tmp_path / "b.hdf5"
     assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "20", "--device", "cpu",
-                 "--dataset-path", str(path)]) == 0
+                 "--dataset-path", str(path), "--run-record", str(tmp_path / "record.json")]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["successful_demos"] == 2 and out["demos_per_hour"] == pytest.approx(3600 * out["demos_per_s"])
     assert min(out["physics_s"], out["agent_s"], out["writer_s"], out["first_use_s"]) > 0
@@ -106,8 +106,24 @@ def test_bench_collect_splits_the_time(capsys, tmp_path):
     assert out["inodes_per_demo"] == 0.5  # one HDF5 file for the two demos
     assert out["prefill_episodes"] == 20 and out["prefilled_demos_per_s"] > 0 and out["presync_s"] >= 0
     assert "writer_sync_s" not in out  # the split is zarr's
+    assert out["cameras"] == {} and json.loads((tmp_path / "record.json").read_text())["kind"] == "bench-collect"
     assert main(["bench-collect", "--dataset-path", str(path), "--device", "cpu"]) == 2  # never overwrites
     assert "exists" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_bench_collect_with_cameras_times_their_render_apart(capsys, tmp_path):
+    assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "0", "--device", "cpu",
+                 "--cameras", "front_head=32x24:rgb", "--obs-mode", "sensors", "--dataset-path",
+                 str(tmp_path / "c.zarr"), "--run-record", str(tmp_path / "record.json")]) == 0
+    captured = capsys.readouterr()
+    out = json.loads(captured.out.strip().splitlines()[-1])
+    assert out["cameras"] == {"front_head": [32, 24, ["rgb"]]} and out["successful_demos"] == 2
+    assert out["record_s"] > 0 and "render and frames" in captured.err
+    from newton_lab.datasets import read_dataset_info
+
+    info = read_dataset_info(tmp_path / "c.zarr")
+    assert info["env_args"]["env_kwargs"]["task_options"]["obs_mode"] == "sensors"
 
 
 @pytest.mark.slow
@@ -116,7 +132,8 @@ def test_bench_collect_traces_a_window_of_steps_with_each_stage_labelled(capsys,
 
     trace = tmp_path / "collect.json.gz"
     assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "0", "--device", "cpu",
-                 "--dataset-path", str(tmp_path / "b.zarr"), "--trace", str(trace), "--trace-after", "60"]) == 0
+                 "--dataset-path", str(tmp_path / "b.zarr"), "--trace", str(trace), "--trace-after", "60",
+                 "--run-record", str(tmp_path / "record.json")]) == 0
     events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
     names = {e.get("name") for e in events}
     assert {"physics", "agent"} <= names  # the stage ranges

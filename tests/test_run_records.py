@@ -99,7 +99,7 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
         assert part in row, (part, row)
     assert "| 1.05 M | step time 1.03x the bare solver's | [bench-gpu](results/bench-gpu.json) |" in text
     assert "front_head 96x72 rgb | 258.8 k | rate 0.98x the physics + render ceiling" in text
-    assert "| 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
+    assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
 
 
 def test_the_committed_page_matches_the_committed_records():

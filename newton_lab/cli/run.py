@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..commands import RenderArgs, ResultsArgs, SuiteArgs, TrainRLArgs
+from ..commands import RenderArgs, ResultsArgs, SuiteArgs, TrainRLArgs, camera_option
 from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
@@ -221,7 +221,8 @@ def bench_collect(args: BenchCollectArgs) -> int:
     from ..bench_collect import bench_collect, bench_collect_on_workers, summary  # deferred: Warp is slow to import
 
     common = {"num_envs": args.num_envs, "episodes": args.episodes, "device": args.device,
-              "dataset_path": args.dataset_path, "writer": args.writer}
+              "dataset_path": args.dataset_path, "writer": args.writer, "cameras": camera_option(args.cameras),
+              "task_options": dict(args.task_options)}
     if args.workers == 1:
         if args.baseline:
             raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, field
+from typing import Any, Literal
 
 from ..task_api.registry import DEFAULT_TASK_ID
 
@@ -74,6 +74,10 @@ class BenchCollectArgs(BenchEnvArgs):
     """with --workers: also time worker 0 alone on one worker's share, before (<stem>_alone) and after (<stem>_alone2)
     the workers' run, and print the scaling, the workers' demos/s over the mean lone rate (same cluster, same demos
     per GPU)"""
+    cameras: str = "none"
+    """views rendered and recorded every step, as collect's --cameras: none (state only), default (the task's) or
+    <camera>=<W>x<H>[:<data>+...][,...] (e.g. front_head=96x72:rgb,left_wrist=96x72:rgb)"""
+    task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
 
 
 @dataclass(kw_only=True)
