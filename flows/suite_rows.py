@@ -42,6 +42,10 @@ ROWS: dict[str, list[Row]] = {
         *[_pipeline(f"sorttoshelf-{o}", "GalbotG1-SortToShelf-v0", "gpu", "--sorting-object", o)
           for o in SORTING_OBJECTS],
         _pipeline("stackcube-phased", "GalbotG1-StackCube-Phased-v0", "gpu", "--head", "table"),
+        *[_bench(f"rl-{name}", "train-rl", "--task", task, "--num-envs", "4096", "--device", "cuda:0",
+                 "--time-budget-s", budget, "--eval-episodes", "100", "--output-dir", f"{{out}}/rl-{name}")
+          for name, task, budget in (("reach", "GalbotG1-Reach-v0", "120"), ("liftcube", "GalbotG1-LiftCube-v0", "120"),
+                                     ("pickcube", "GalbotG1-PickCube-v0", "300"))],
         _bench("bench-pickcube-4096", "bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "4096", "--steps",
                "200", "--device", "cuda:0", "--camera", "front_head", "--resolution", "96", "72"),
         _bench("bench-collect-pickcube-4096", "bench-collect", "--task", "GalbotG1-PickCube-v0", "--num-envs",

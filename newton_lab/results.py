@@ -3,8 +3,8 @@ typed twice: ``newton-lab results`` rewrites the block between ``BEGIN`` and ``E
 from the records in ``docs/results/``, and ``--check`` fails when the page and the records disagree.
 
 Tables: learned policies (per task: expert success, learned success with its episodes and held-out seed, what
-the policy sees, time to policy), env-steps/s with and without cameras, expert demos per GPU-hour, training
-samples/s. Every row names its device and links its record.
+the policy sees, time to policy), PPO runs, env-steps/s with and without cameras, expert demos per GPU-hour,
+training samples/s. Every row names its device and links its record.
 """
 
 from __future__ import annotations
@@ -98,6 +98,20 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
     return rows
 
 
+def rl_rows(records, page_dir: Path) -> list[list[str]]:
+    rows = []
+    for path, rec in records:
+        if rec["kind"] != "train-rl":
+            continue
+        r = rec["results"]
+        ev = r.get("evaluation")
+        learned = f"**{ev['successes']} / {ev['episodes']}** (seed {ev['eval_seed']})" if ev else "–"
+        rows.append([f"{_short(rec['task'])}{_options(rec)}", rec["device"]["name"], str(r.get("num_envs", "–")),
+                     str(r.get("iterations")), _k(r.get("env_steps_per_s")), learned, _mmss(rec.get("wall_s")),
+                     _link(path, page_dir)])
+    return rows
+
+
 def env_step_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
     for path, rec in records:
@@ -151,6 +165,8 @@ def headline(records, page_dir: Path) -> str:
     sections = [
         ("Learned policies", ["task", "device", "recipe", "policy sees", "demos", "expert", "learned (held-out)",
                               "per phase (passed/reached)", "time to policy", "record"], policy_rows),
+        ("Reinforcement learning (PPO)", ["task", "device", "envs", "iterations", "env-steps/s with the update",
+                                          "learned (held-out)", "time to policy", "record"], rl_rows),
         ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], env_step_rows),
         ("Expert collection", ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "record"],
          collection_rows),

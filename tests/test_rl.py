@@ -114,3 +114,15 @@ def test_the_train_rl_flow_trains_evaluates_records_and_is_cached(tmp_path):
     record = json.loads(Path(first["record"]).read_text())
     assert record["kind"] == "train-rl" and record["results"]["success"]["eval_seed"] == 10_000
     assert record["results"]["iterations"] == 1 and len(record["results"]["curve_rows"]) == 1
+
+
+def test_train_rl_evaluates_its_actor_on_held_out_episodes(tmp_path):
+    done = cli("train-rl", *TINY, "--iterations", "1", "--output-dir", str(tmp_path / "e"), "--eval-episodes", "2",
+               "--run-record", str(tmp_path / "r.json"), cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    ev = json.loads(done.stdout.strip().splitlines()[-1])["evaluation"]
+    assert ev["episodes"] == 2 and ev["eval_seed"] == 10_000 and 0 <= ev["rate"] <= 1
+    from newton_lab.results import rl_rows
+
+    rows = rl_rows([(tmp_path / "r.json", json.loads((tmp_path / "r.json").read_text()))], tmp_path)
+    assert rows and rows[0][0] == "Reach" and f"/ 2** (seed 10000)" in rows[0][5]
