@@ -62,6 +62,9 @@ ROWS: dict[str, list[Row]] = {
         _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "cpu"),
         _bench("bench-pickcube-4", "bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "4", "--steps", "200",
                "--device", "cpu"),
+        _bench("rl-reach", "train-rl", "--task", "GalbotG1-Reach-v0", "--num-envs", "128", "--device", "cpu",
+               "--iterations", "60", "--chunk-iterations", "10", "--eval-episodes", "16", "--output-dir",
+               "{out}/rl-reach"),
     ],
 }
 """The rows of each recipe, in the order they run (bench-train reads the demo's Mimic dataset)."""
