@@ -6,6 +6,7 @@ also writes a task, has its own file (``tests/test_tutorial_simple_task.py``).""
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -37,3 +38,18 @@ def test_the_chapter_runs_as_written_and_prints_what_it_shows(page, tmp_path):
         f"{result['failed']}: {result['error']}\n{result['trace']}\n{result.get('log', '')[-3000:]}"
     assert result["outputs_compared"] == len(docs_snippets.outputs(page)) > 0
     assert result["stray"] == [], f"the page's commands left files outside outputs/: {result['stray']}"
+
+
+def test_the_component_chapter_writes_a_task_of_its_own():
+    """Chapter 2 writes ``tasks/my_place/`` (its plan, its package, the scenario the reader saved): a new id, named
+    on the page, in a folder that is not in the working tree."""
+    from newton_lab.task_api.catalog import declared_task_ids
+
+    page = CHAPTERS[0]
+    written = {s.writes: s.code for s in docs_snippets.snippets(page) if s.writes}
+    assert set(written) == {"tasks/my_place/__init__.py", "tasks/my_place/config/g1/place_plan.yaml"}
+    assert "cp outputs/pts/nav_end.yaml tasks/my_place/config/g1/start.yaml" in page.read_text()
+    ids = re.findall(r'\bid="([^"]+)"', written["tasks/my_place/__init__.py"])
+    assert ids == ["GalbotG1-MyPlace-v0"] and f"`{ids[0]}`" in page.read_text()
+    assert not set(ids) & set(declared_task_ids())
+    assert not (ROOT / "tasks" / "my_place").exists(), "tasks/my_place is in the working tree: the chapter writes it"

@@ -12,14 +12,17 @@ is marked on the line above its fence::
 
 and is then only checked. A line with ``--device cuda`` is check-only by itself.
 
-A page the reader builds on (the tutorial's first chapter writes a task package) says so in one line,
+A page the reader builds on (the tutorial's chapters: two of them write a task package) says so in one line,
 ``<!-- run-in: a scratch copy of the repository -->``: it runs in a copy of the working tree (``tools/mutations.py``'s
 ``scratch_copy``, every ``newton_lab`` package importing from the copy), from the copy's root, at the sizes the
-page writes (only training and rollouts of a checkpoint are cut). On such a page:
+page writes (only training and rollouts of a checkpoint are cut). Commands run in this process until the page
+writes a file after the task packages were read here; from then on each runs in a process of its own, as a
+reader's does, and sees the package just written (Python blocks share one namespace, as in a notebook). On such
+a page:
 
 - a block marked ``<!-- write-file -->`` whose fence has ``title="PATH"`` is a file the reader writes: the run
   writes it to ``PATH`` (the check compiles Python and parses YAML);
-- ``mkdir -p DIR`` lines run;
+- ``mkdir -p DIR`` and ``cp FILE NEW_FILE`` lines run (a copy is a file the page writes);
 - a block marked ``<!-- fails: why -->`` shows a command that is refused: it runs, and passes only when refused;
 - a ``text`` block marked ``<!-- output -->`` is what the runnable block before it prints (stdout and stderr, as
   a terminal shows them), and the run compares
@@ -42,6 +45,7 @@ import os
 import re
 import runpy
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -364,9 +368,13 @@ class _Tee(io.TextIOBase):
         return False
 
 
-def _run_line(line: str, sizes: bool = True) -> None:
+def _run_line(line: str, sizes: bool = True, process: bool = False) -> list[str]:
+    """Run one command line (in a process of its own if ``process``); the files it made that a page writes
+    (``cp``)."""
     words = shlex.split(shrink(line, sizes))
-    if words[0] == "newton-lab":
+    if process and words[0] in ("newton-lab", "python"):
+        _run_process(words)
+    elif words[0] == "newton-lab":
         from newton_lab.cli import main
 
         try:
@@ -385,16 +393,47 @@ def _run_line(line: str, sizes: bool = True) -> None:
     elif words[:2] == ["mkdir", "-p"] and len(words) > 2 and not sizes:
         for folder in words[2:]:
             Path(folder).mkdir(parents=True, exist_ok=True)
+    elif words[0] == "cp" and len(words) == 3 and not sizes:
+        _inside(words[2])
+        shutil.copyfile(words[1], words[2])
+        return [words[2]]
     else:
         raise ValueError(f"cannot run {words[0]!r} here: mark the block <!-- check-only: why -->")
+    return []
+
+
+def _imported() -> bool:
+    """Whether this process has read the task packages (it would not see one written now)."""
+    return any(name in sys.modules for name in ("newton_lab.tasks", "newton_lab.task_api.catalog"))
+
+
+def _run_process(words: list[str]) -> None:
+    """A reader's command in a process of its own (it sees the task packages the page wrote before it), its output
+    passed on to this process's (possibly captured) streams."""
+    script = Path(sys.executable).parent / "newton-lab"
+    if words[0] == "newton-lab":
+        argv = [str(script), *words[1:]] if script.is_file() else \
+            [sys.executable, "-c", "import sys; from newton_lab.cli import main; sys.exit(main())", *words[1:]]
+    else:
+        argv = [sys.executable, *words[1:]]
+    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, check=False,
+                          env={**os.environ, "PYTHONUNBUFFERED": "1"})  # both streams in the order printed
+    sys.stdout.write(proc.stdout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"exit status {proc.returncode}")
+
+
+def _inside(name: str) -> Path:
+    path = Path(name)
+    if path.is_absolute() or ".." in path.parts:
+        raise ValueError(f"a written file must be a path inside the working folder: {path}")
+    if path.exists():
+        raise FileExistsError(f"{path} exists already; the page writes it from nothing")
+    return path
 
 
 def _write(snippet: Snippet) -> None:
-    path = Path(snippet.writes)
-    if path.is_absolute() or ".." in path.parts:
-        raise ValueError(f"{snippet.where}: a written file must be a path inside the working folder: {path}")
-    if path.exists():
-        raise FileExistsError(f"{snippet.where}: {path} exists already; the page writes it from nothing")
+    path = _inside(snippet.writes)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(snippet.code)
 
@@ -411,6 +450,7 @@ def _run(path: Path, workdir: Path, sizes: bool) -> dict:
     workdir.mkdir(parents=True, exist_ok=True)
     namespace: dict = {"__name__": "__docs__"}
     ran, wrote, start, here = 0, [], time.perf_counter(), Path.cwd()
+    process = False  # set once the page writes a file after this process imported the task packages
     printed: dict[int, str] = {}
     page = str(path.relative_to(ROOT))
     os.chdir(workdir)
@@ -421,6 +461,7 @@ def _run(path: Path, workdir: Path, sizes: bool) -> dict:
             tee = _Tee(sys.stdout)
             try:
                 if snippet.writes:
+                    process = process or _imported()
                     _write(snippet)
                     wrote.append(snippet.writes)
                     continue
@@ -431,7 +472,9 @@ def _run(path: Path, workdir: Path, sizes: bool) -> dict:
                             exec(compile(code, snippet.where, "exec"), namespace)
                         else:
                             for line in commands(snippet.code):
-                                _run_line(line, sizes)
+                                if line.startswith("cp "):
+                                    process = process or _imported()
+                                wrote += _run_line(line, sizes, process)
                     except Exception:
                         if not snippet.fails:
                             raise
@@ -490,7 +533,7 @@ def run_in_copy(path: Path, copy: Path) -> dict:
         return {"page": page, "ran": 0, "failed": page, "error": f"exit status {proc.returncode}",
                 "trace": (proc.stdout + proc.stderr)[-5000:]}
     result = json.loads(out.read_text())[0]
-    result["stray"] = sorted(_tree(copy) - before - set(writes))
+    result["stray"] = sorted(_tree(copy) - before - set(writes) - set(result.get("wrote", ())))
     result["log"] = (proc.stdout + proc.stderr)[-20000:]
     return result
 
