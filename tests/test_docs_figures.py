@@ -101,3 +101,15 @@ def test_a_copy_of_the_committed_records_loads(tmp_path):
     from newton_lab.results import load_records
 
     assert load_records(tmp_path)
+
+
+def test_the_readme_states_the_recipes_sizes():
+    """The README's demo sizes are the recipes' (``newton_lab.flows.settings.DEMO_RECIPES``), the settings the
+    records were made with."""
+    from newton_lab.flows.settings import DEMO_RECIPES
+
+    text = " ".join((ROOT / "README.md").read_text().split())
+    cpu, gpu = DEMO_RECIPES["cpu"], DEMO_RECIPES["gpu"]
+    assert (f"cpu recipe — {cpu['demos']} expert demos, {cpu['mimic_episodes']} Mimic demos" in text
+            and f"{cpu['eval_episodes']} held-out randomised evaluation episodes" in text), "README's cpu recipe"
+    assert f"{gpu['demos']} expert demos grown to {gpu['mimic_episodes']} by Mimic" in text, "README's gpu recipe"
