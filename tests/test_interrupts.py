@@ -26,8 +26,9 @@ def newton_lab(*argv: str, cwd: Path) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True)
 
 
-def wait_for(condition, what: str, limit_s: float = 240.0) -> None:
-    """Poll ``condition`` until it holds (a generous limit: a loaded 2-core machine is slow; not a timing check)."""
+def wait_for(condition, what: str, limit_s: float = 900.0) -> None:
+    """Poll ``condition`` until it holds (a generous limit: 2 cores under a load of 6 are slow; not a timing
+    check)."""
     end = time.monotonic() + limit_s
     while not condition():
         if time.monotonic() > end:
@@ -95,10 +96,10 @@ def test_a_killed_split_leaves_no_writer_and_nothing_that_looks_finished(tmp_pat
     assert writers
     split.kill()
     split.communicate()
-    wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=30)
+    wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=120)
     assert not (tmp_path / "parts").exists() and stage.exists()
     again = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
-    out, err = again.communicate(timeout=600)
+    out, err = again.communicate(timeout=900)
     assert again.returncode == 0, err
     assert sorted(p.name for p in (tmp_path / "parts").iterdir()) == ["nav.hdf5", "pick.hdf5", "place.hdf5"]
     assert all(read_dataset_info(tmp_path / "parts" / f"{p}.hdf5")["num_demos"] == 400 for p in ("pick", "nav"))
@@ -121,7 +122,7 @@ def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path
                      cwd=tmp_path)
     wait_for(lambda: demos() >= 2 or run.poll() is not None, "two episodes written")
     run.send_signal(signal.SIGINT)
-    out, err = run.communicate(timeout=120)
+    out, err = run.communicate(timeout=900)
     lines = [line for line in err.splitlines() if "CUDA driver" not in line]
     assert run.returncode == 130 and len(lines) == 1, err
     kept = read_dataset_info(path)["num_demos"]
@@ -143,7 +144,7 @@ def test_ctrl_c_during_train_saves_the_resume_point(tmp_path):
 
     wait_for(training, "training to start")
     run.send_signal(signal.SIGINT)  # while the model is built, or in the first steps: stops after the next step
-    _, err = run.communicate(timeout=120)
+    _, err = run.communicate(timeout=900)
     lines = [line for line in err.splitlines() if line.strip()]
     assert run.returncode == 130 and len(lines) == 1, err
     assert "newton-lab train: interrupted at step " in lines[0] and "pol/resume.pt; continue with --resume" in lines[0]
@@ -151,7 +152,7 @@ def test_ctrl_c_during_train_saves_the_resume_point(tmp_path):
     assert 1 <= step < 300
     assert (tmp_path / "pol" / "resume.pt").is_file() and not (tmp_path / "pol" / "checkpoint.pt").exists()
     again = newton_lab(*argv, "--resume", cwd=tmp_path)
-    out, err = again.communicate(timeout=600)
+    out, err = again.communicate(timeout=900)
     assert again.returncode == 0, err
     log = json.loads((tmp_path / "pol" / "train_log.json").read_text())
     assert log["resumed_at_steps"] == [step] and log["steps"] == 300
@@ -160,9 +161,12 @@ def test_ctrl_c_during_train_saves_the_resume_point(tmp_path):
 
 @pytest.fixture(autouse=True)
 def _no_stray_children():
-    """Nothing this module starts outlives its test."""
+    """Nothing this module starts outlives its test (a test that failed midway leaves none running either)."""
     yield
-    assert not [c for c in children(os.getpid()) if alive(c)]
+    stray = [c for c in children(os.getpid()) if alive(c)]
+    for pid in stray:
+        os.kill(pid, signal.SIGKILL)
+    assert not stray
 
 
 def limited(limit_bytes: int):
@@ -213,7 +217,7 @@ def test_a_killed_data_parallel_train_leaves_no_process(tmp_path):
     started = descendants(run.pid)
     run.kill()
     run.communicate()
-    wait_for(lambda: not any(alive(p) for p in started), "torchrun and its ranks ending", limit_s=60)
+    wait_for(lambda: not any(alive(p) for p in started), "torchrun and its ranks ending", limit_s=120)
 
 
 def test_a_killed_collect_leaves_no_writer_process(tmp_path):
@@ -238,7 +242,7 @@ def test_a_killed_collect_leaves_no_writer_process(tmp_path):
     assert writers
     run.kill()
     run.communicate()
-    wait_for(lambda: not any(alive(p) for p in writers), "the writer process ending", limit_s=60)
+    wait_for(lambda: not any(alive(p) for p in writers), "the writer process ending", limit_s=120)
     assert read_dataset_info(path)["num_demos"] >= 2
 
 
@@ -252,12 +256,12 @@ def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path):
     assert split.poll() is None, split.communicate()
     writers = children(split.pid)
     split.send_signal(signal.SIGINT)
-    _, err = split.communicate(timeout=120)
+    _, err = split.communicate(timeout=900)
     lines = [line for line in err.splitlines() if line.strip()]
     assert split.returncode == 130 and len(lines) == 1, err
     assert "newton-lab split: interrupted: the split into parts was dropped, nothing written there" in lines[0]
     assert not (tmp_path / "parts").exists() and not stage.exists()
-    wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=30)
+    wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=120)
 
 
 def test_ctrl_c_during_mimic_keeps_every_generated_demo_in_one_line(tmp_path):
@@ -279,9 +283,9 @@ def test_ctrl_c_during_mimic_keeps_every_generated_demo_in_one_line(tmp_path):
 
     run = newton_lab("mimic", "--dataset-path", str(source), "--output-path", str(path), "--episodes", "10000",
                      "--num-envs", "2", "--no-progress", cwd=tmp_path)
-    wait_for(lambda: demos() >= 1 or run.poll() is not None, "a generated demo written", limit_s=600)
+    wait_for(lambda: demos() >= 1 or run.poll() is not None, "a generated demo written", limit_s=900)
     run.send_signal(signal.SIGINT)
-    _, err = run.communicate(timeout=300)
+    _, err = run.communicate(timeout=900)
     lines = [line for line in err.splitlines() if line.strip()]
     assert run.returncode == 130 and len(lines) == 1, err
     kept = read_dataset_info(path)["num_demos"]
