@@ -37,8 +37,8 @@ class TrainRLArgs:
     """folder of checkpoint.pt, curve.json, resume.pt and the tensorboard log"""
     resume: bool = False
     """continue the interrupted run in --output-dir from its resume.pt"""
-    eval_episodes: int = 0
-    """then evaluate the actor on this many held-out randomised episodes (seed + 10000; 0: no evaluation)"""
+    eval_episodes: int | None = None
+    """then evaluate the actor on this many held-out randomised episodes (seed + 10000; default: no evaluation)"""
     run_record: str | None = None
     """write the run record (JSON) here (default outputs/records/train-rl-<task>-<UTC time>.json)"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
