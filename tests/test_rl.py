@@ -1,6 +1,7 @@
 """PPO through rsl_rl on the batched env, on the CPU at its smallest size: ``newton-lab train-rl`` writes a checkpoint,
-its curve, a resume point and a run record; the same seed trains the same actor; an interrupted run resumes from its
-last chunk; ``evaluate --checkpoint`` runs the PPO actor as it runs a diffusion policy; bad input is one line."""
+its curve, a resume point, a tensorboard log and a run record, and evaluates its actor on held-out episodes; the
+same seed trains the same actor; an interrupted run resumes from its last chunk; ``evaluate --checkpoint`` runs the
+PPO actor as it runs a diffusion policy; the Prefect flow caches the training; bad input is one line."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.load` is deprecated")
 TASK = "GalbotG1-Reach-v0"
 TINY = ["--task", TASK, "--num-envs", "4", "--device", "cpu", "--steps-per-env", "8", "--chunk-iterations", "1",
         "--hidden-dims", "32", "32"]
+TINY_PPO = {"num_envs": 4, "device": "cpu", "chunk_iterations": 1, "num_steps_per_env": 8, "hidden_dims": (32, 32)}
 
 
 def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -31,11 +33,17 @@ def actor_output(path: Path) -> torch.Tensor:
     return actor(torch.linspace(-1, 1, ckpt["info"]["obs_dim"]).unsqueeze(0))
 
 
+def train(out: Path, iterations: int, resume: bool = False) -> Path:
+    from newton_lab.policies.rl.train import PPOConfig, train_ppo  # deferred: rsl_rl, Warp
+
+    return train_ppo(TASK, PPOConfig(iterations=iterations, **TINY_PPO), out, resume=resume, progress=False)
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("ppo")
     done = cli("train-rl", *TINY, "--iterations", "2", "--output-dir", str(tmp / "a"), "--run-record",
-               str(tmp / "a.json"), cwd=tmp)
+               str(tmp / "a.json"), "--eval-episodes", "2", cwd=tmp)
     assert done.returncode == 0, done.stderr[-3000:]
     return tmp, json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -49,27 +57,31 @@ def test_train_rl_writes_checkpoint_curve_resume_point_log_and_record(run):
     assert all(r["env_steps_per_s"] > 0 for r in curve)
     assert (folder / "resume.pt").is_file() and list(folder.glob("events.out.tfevents.*"))  # tensorboard
     assert not list(folder.glob("model_*.pt"))  # rsl_rl's own snapshots: resume.pt holds the same
-    record = json.loads((tmp / "a.json").read_text())
-    assert record["kind"] == "train-rl" and record["command"].startswith(f"newton-lab train-rl --task {TASK}")
     ckpt = torch.load(folder / "checkpoint.pt", weights_only=True)
     assert ckpt["format"] == "newton_lab.policies.rl" and ckpt["info"]["task_id"] == TASK
     assert actor_output(folder / "checkpoint.pt").shape == (1, 7)
 
 
-def test_the_same_seed_trains_the_same_actor(run, tmp_path):
-    tmp, _ = run
-    again = cli("train-rl", *TINY, "--iterations", "2", "--output-dir", str(tmp_path / "b"), cwd=tmp_path)
-    assert again.returncode == 0, again.stderr[-3000:]
-    assert torch.equal(actor_output(tmp / "a" / "checkpoint.pt"), actor_output(tmp_path / "b" / "checkpoint.pt"))
+def test_its_actor_is_evaluated_on_held_out_episodes_and_recorded(run):
+    tmp, out = run
+    ev = out["evaluation"]
+    assert ev["episodes"] == 2 and ev["eval_seed"] == 10_000 and 0 <= ev["rate"] <= 1
+    record = json.loads((tmp / "a.json").read_text())
+    assert record["kind"] == "train-rl" and record["command"].startswith(f"newton-lab train-rl --task {TASK}")
+    from newton_lab.results import rl_rows
+
+    rows = rl_rows([(tmp / "a.json", record)], tmp)
+    assert rows and rows[0][0] == "Reach" and "/ 2** (seed 10000)" in rows[0][5]
 
 
-def test_an_interrupted_run_resumes_from_its_last_chunk(tmp_path):
-    first = cli("train-rl", *TINY, "--iterations", "1", "--output-dir", str(tmp_path / "r"), cwd=tmp_path)
-    assert first.returncode == 0, first.stderr[-3000:]
+def test_the_same_seed_trains_the_same_actor_and_a_resumed_run_continues(tmp_path):
+    first = train(tmp_path / "b", 2)
+    again = train(tmp_path / "c", 2)
+    assert torch.equal(actor_output(first), actor_output(again))
+    train(tmp_path / "r", 1)
     (tmp_path / "r" / "checkpoint.pt").unlink()  # as a run killed after its first chunk leaves it
     row = json.loads((tmp_path / "r" / "curve.json").read_text())[0]
-    more = cli("train-rl", *TINY, "--iterations", "2", "--output-dir", str(tmp_path / "r"), "--resume", cwd=tmp_path)
-    assert more.returncode == 0, more.stderr[-3000:]
+    train(tmp_path / "r", 2, resume=True)
     curve = json.loads((tmp_path / "r" / "curve.json").read_text())
     assert [r["iteration"] for r in curve] == [1, 2] and curve[0] == row  # continued, not restarted
 
@@ -104,8 +116,7 @@ def test_the_train_rl_flow_trains_evaluates_records_and_is_cached(tmp_path):
 
     from newton_lab.flows.rl import train_rl  # deferred: imports Prefect (after settings.configure)
 
-    ppo = {"num_envs": 4, "device": "cpu", "iterations": 1, "chunk_iterations": 1, "num_steps_per_env": 8,
-           "hidden_dims": [32, 32]}
+    ppo = {**TINY_PPO, "iterations": 1, "hidden_dims": [32, 32]}
     with prefect_test_harness(server_startup_timeout=120):
         first = train_rl(TASK, ppo, out=str(tmp_path / "out"), eval_episodes=2, eval_max_steps=20)
         again = train_rl(TASK, ppo, out=str(tmp_path / "out"), eval_episodes=2, eval_max_steps=20)
@@ -114,15 +125,3 @@ def test_the_train_rl_flow_trains_evaluates_records_and_is_cached(tmp_path):
     record = json.loads(Path(first["record"]).read_text())
     assert record["kind"] == "train-rl" and record["results"]["success"]["eval_seed"] == 10_000
     assert record["results"]["iterations"] == 1 and len(record["results"]["curve_rows"]) == 1
-
-
-def test_train_rl_evaluates_its_actor_on_held_out_episodes(tmp_path):
-    done = cli("train-rl", *TINY, "--iterations", "1", "--output-dir", str(tmp_path / "e"), "--eval-episodes", "2",
-               "--run-record", str(tmp_path / "r.json"), cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    ev = json.loads(done.stdout.strip().splitlines()[-1])["evaluation"]
-    assert ev["episodes"] == 2 and ev["eval_seed"] == 10_000 and 0 <= ev["rate"] <= 1
-    from newton_lab.results import rl_rows
-
-    rows = rl_rows([(tmp_path / "r.json", json.loads((tmp_path / "r.json").read_text()))], tmp_path)
-    assert rows and rows[0][0] == "Reach" and f"/ 2** (seed 10000)" in rows[0][5]

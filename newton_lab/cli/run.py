@@ -125,6 +125,12 @@ def train(args: TrainArgs) -> int:
 
 
 def train_rl(args: TrainRLArgs) -> int:
+    out_dir = Path(args.output_dir)  # refused before rsl_rl, torch and Warp load
+    if args.resume and not (out_dir / "resume.pt").is_file():
+        raise FileNotFoundError(f"nothing to resume in {out_dir} (no resume.pt); start the run without --resume")
+    if not args.resume and (out_dir / "checkpoint.pt").exists():
+        raise FileExistsError(f"{out_dir} holds a finished run; choose a new --output-dir (or --resume an "
+                              "interrupted one)")
     from ..policies.rl.train import train_ppo  # deferred: rsl_rl, torch and Warp are slow to import
 
     path = train_ppo(args.task, args.ppo_config(), args.output_dir, resume=args.resume)
