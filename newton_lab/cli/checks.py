@@ -203,9 +203,9 @@ def check_mimic_output(args: MimicArgs, path: str, info: dict[str, Any]) -> None
     names = info["env_args"].get("newton_lab", {}).get("action_joint_names")
     arm = declared_mimic_arms().get(task_id, "left")
     if names is not None:
-        from ..robots.g1.spec import JOINT_GROUPS  # deferred: numpy, only for mimic
+        from ..robots.registry import joint_group_facts  # deferred: numpy, only for mimic
 
-        if not all(j in names for j in JOINT_GROUPS.get(f"{arm}_arm", ())):
+        if not all(j in names for j in joint_group_facts().get(f"{arm}_arm", ())):
             raise ValueError(f"{path}: actions do not hold the {arm} arm joints; Mimic needs arm joint-target actions "
                              "(demos of the task's expert, newton-lab collect)")
 

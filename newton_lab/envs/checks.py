@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
+
+from ..task_api.registry import lookup
 
 
 def check_actions(actions, *, num_envs: int, action_dim: int, device: torch.device,
@@ -71,3 +76,38 @@ def check_seed(seed) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not lo <= int(seed) <= hi:
         raise ValueError(f"seed must be an integer in [{lo}, {hi}], got {seed!r}")
     return int(seed)
+
+
+def check_agent(agent) -> None:
+    """``agent`` has an ``act(env)`` method."""
+    if not callable(getattr(agent, "act", None)):
+        raise ValueError(f"agent must have an act(env) method (e.g. newton_lab.agents.expert_agent(env)), got "
+                         f"{type(agent).__name__}")
+
+
+def check_counts(*, episodes, max_steps) -> None:
+    """A rollout's ``episodes`` and ``max_steps`` are integers >= 1."""
+    if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+
+
+def check_collect(num_envs: int, *, agent, path, episodes, save_end_scenario) -> None:
+    """``collect``'s inputs: an agent, a dataset path, and a scenario file to write only for one row and episode."""
+    check_agent(agent)
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise ValueError(f"path must name the dataset to write (.hdf5, .h5 or .zarr), got {path!r}")
+    if save_end_scenario is not None:
+        if num_envs != 1 or episodes != 1:
+            raise ValueError(f"save_end_scenario needs num_envs=1 and episodes=1, got {num_envs} and {episodes}")
+        if Path(save_end_scenario).exists():
+            raise FileExistsError(f"scenario file {save_end_scenario} already exists; choose a new path")
+
+
+def option_defaults(task_id: str) -> dict[str, Any]:
+    """The defaults of the options ``task_id`` takes (an appended dataset compares the options a run left unset)."""
+    try:
+        return {o.name: o.default for o in lookup(task_id).all_options}
+    except (KeyError, ValueError):  # an env of a task the registry does not hold (built from a cfg)
+        return {}

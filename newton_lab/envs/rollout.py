@@ -9,7 +9,6 @@ episode, nor any episode holding a non-finite value, and both summaries count th
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from collections.abc import Callable
@@ -26,7 +25,7 @@ from ..datasets.background import BackgroundWriter
 from ..datasets.interrupts import Interrupted, stop_requests
 from ..datasets.room import check_room
 from ..task_api.cfg import DIVERGED
-from ..task_api.registry import lookup
+from .checks import check_agent, check_collect, check_counts, option_defaults
 from .recorder import EpisodeRecorder, env_args
 from .saver import EpisodeSaver, WrappedWriter, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
@@ -154,10 +153,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (``datasets.interrupts.StopRequest``):
     once set, the loop ends after the step in flight (its ended episodes are handed over; the others are dropped).
     """
-    if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
-        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
-    if not isinstance(max_steps, int) or max_steps < 1:
-        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    check_counts(episodes=episodes, max_steps=max_steps)
     n = env.num_envs
     timers = timers or Timers()
     step, act = timers.step(env.step), timers.act(agent.act)
@@ -314,19 +310,12 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     termination reasons, diverged, saved_demo_ids, ...); ``ref["success_rate"]`` reads it.
     """
     task_id = dataset_task_id or env.task_id
-    _check_agent(agent)
-    if not isinstance(path, (str, os.PathLike)) or not str(path):
-        raise ValueError(f"path must name the dataset to write (.hdf5, .h5 or .zarr), got {path!r}")
-    if save_end_scenario is not None:
-        if env.num_envs != 1 or episodes != 1:
-            raise ValueError(f"save_end_scenario needs num_envs=1 and episodes=1, got {env.num_envs} and {episodes}")
-        if Path(save_end_scenario).exists():
-            raise FileExistsError(f"scenario file {save_end_scenario} already exists; choose a new path")
+    check_collect(env.num_envs, agent=agent, path=path, episodes=episodes, save_end_scenario=save_end_scenario)
     args = env_args(env)
     args["env_name"] = task_id
     recorder = EpisodeRecorder(env, max_steps)
     check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
-    store = open_writer(Path(path), task_id=task_id, env_args=args, option_defaults=_option_defaults(env.task_id))
+    store = open_writer(Path(path), task_id=task_id, env_args=args, option_defaults=option_defaults(env.task_id))
     batching = {"max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
                 "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1, "max_wait_s": WRITE_MAX_WAIT_S}
     if _writer_kind(writer, env.num_envs) == "process":
@@ -362,20 +351,6 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
 
 
-def _check_agent(agent) -> None:
-    if not callable(getattr(agent, "act", None)):
-        raise ValueError(f"agent must have an act(env) method (e.g. newton_lab.agents.expert_agent(env)), got "
-                         f"{type(agent).__name__}")
-
-
-def _option_defaults(task_id: str) -> dict[str, Any]:
-    """The defaults of the options ``task_id`` takes (an appended dataset compares the options a run left unset)."""
-    try:
-        return {o.name: o.default for o in lookup(task_id).all_options}
-    except (KeyError, ValueError):  # an env of a task the registry does not hold (built from a cfg)
-        return {}
-
-
 WRITER_KINDS = ("auto", "thread", "process")
 
 
@@ -393,7 +368,7 @@ def _writer_kind(writer: str, num_envs: int) -> str:
 def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True,
              on_step=None) -> dict[str, Any]:
     """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
-    _check_agent(agent)
+    check_agent(agent)
     records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
                                 on_step=on_step)
     summary = _summary(env, records, steps, wall)

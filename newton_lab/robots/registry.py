@@ -55,3 +55,13 @@ def camera_facts(name: str = DEFAULT_ROBOT) -> tuple[tuple[str, ...], int, int]:
     robot = robot_binding(name)
     lo, hi = robot.camera_resolution
     return tuple(robot.camera_mounts), int(lo), int(hi)
+
+
+def joint_group_facts(name: str = DEFAULT_ROBOT) -> dict[str, tuple[str, ...]]:
+    """Joint group -> joint names of robot ``name``, from its pure-data spec (no Newton), for the command line's
+    checks; a registered robot's binding answers for it."""
+    if name in BUILTIN_ROBOTS and name not in _ROBOTS:
+        from .g1.spec import JOINT_GROUPS  # deferred: numpy; the G1's binding imports Newton
+
+        return {k: tuple(v) for k, v in JOINT_GROUPS.items()}
+    return {k: tuple(v) for k, v in robot_binding(name).joint_groups.items()}
