@@ -161,9 +161,11 @@ def test_ctrl_c_during_train_saves_the_resume_point(tmp_path):
 
 @pytest.fixture(autouse=True)
 def _no_stray_children():
-    """Nothing this module starts outlives its test (a test that failed midway leaves none running either)."""
+    """Nothing this module starts outlives its test (a test that failed midway leaves none running either). Children
+    the worker had before the test are another module's (a test server of the same pytest worker) and not counted."""
+    before = set(children(os.getpid()))
     yield
-    stray = [c for c in children(os.getpid()) if alive(c)]
+    stray = [c for c in children(os.getpid()) if alive(c) and c not in before]
     for pid in stray:
         os.kill(pid, signal.SIGKILL)
     assert not stray
