@@ -218,8 +218,13 @@ def test_a_killed_data_parallel_train_leaves_no_process(tmp_path):
     assert run.poll() is None, run.communicate()
     started = descendants(run.pid)
     run.kill()
-    run.communicate()
-    wait_for(lambda: not any(alive(p) for p in started), "torchrun and its ranks ending", limit_s=120)
+    run.wait(timeout=60)  # not communicate(): a rank left alive would hold the pipes open, and it would never return
+    try:
+        wait_for(lambda: not any(alive(p) for p in started), "torchrun and its ranks ending", limit_s=120)
+    finally:
+        for pid in started:
+            if alive(pid):
+                os.kill(pid, signal.SIGKILL)
 
 
 def test_a_killed_collect_leaves_no_writer_process(tmp_path):

@@ -10,12 +10,18 @@ import sys
 from pathlib import Path
 
 from ..datasets._common import die_with_parent
-from .data_parallel import is_main, leave
-from .train import train
+
+# torchrun started this rank: when it ends (even by SIGKILL), so does the rank. Set before torch loads (seconds on a
+# busy machine): a torchrun killed meanwhile would otherwise leave the rank running, reparented to init.
+if os.getppid() == 1:  # torchrun ended before this rank got here
+    sys.exit(1)
+die_with_parent(os.getppid())
+
+from .data_parallel import is_main, leave  # noqa: E402  deferred: after the parent-death signal (imports torch)
+from .train import train  # noqa: E402  deferred: as above
 
 
 def main(request_path: str) -> int:
-    die_with_parent(os.getppid())  # torchrun started this rank: when it ends (even by SIGKILL), so does the rank
     request = json.loads(Path(request_path).read_text())
     try:
         path = train(request["datasets"], request["cfg"], resume=request["resume"])
