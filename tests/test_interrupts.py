@@ -87,7 +87,7 @@ def test_a_killed_split_leaves_no_writer_and_nothing_that_looks_finished(tmp_pat
     removes the stage and writes every demo."""
     from newton_lab.datasets import read_dataset_info
 
-    make_splittable(tmp_path / "c.hdf5", demos=400, steps=60)
+    make_splittable(tmp_path / "c.hdf5", demos=1600, steps=60)  # long enough to be caught writing on a quiet machine
     split = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
     stage = tmp_path / f".parts.{split.pid}.partial"
     wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
@@ -256,7 +256,7 @@ def test_a_killed_collect_leaves_no_writer_process(tmp_path):
 def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path):
     """Ctrl-C while the phase writers write: the writers are stopped, the stage removed, no --out folder appears, and
     one line says so (exit status 130)."""
-    make_splittable(tmp_path / "c.hdf5", demos=400, steps=60)
+    make_splittable(tmp_path / "c.hdf5", demos=1600, steps=60)  # long enough to be caught writing on a quiet machine
     split = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
     stage = tmp_path / f".parts.{split.pid}.partial"
     wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
