@@ -79,11 +79,14 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
 
 
+def _of_kind(records, kind: str):
+    """The (path, record) pairs of ``records`` whose kind is ``kind``."""
+    return [(path, rec) for path, rec in records if rec["kind"] == kind]
+
+
 def policy_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
-    for path, rec in records:
-        if rec["kind"] != "pipeline":
-            continue
+    for path, rec in _of_kind(records, "pipeline"):
         res = rec["results"]
         s, counts = res["success"], res["counts"]
         learned = f"**{s['successes']} / {s['episodes']}** (seed {s['eval_seed']})"
@@ -100,9 +103,7 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
 
 def rl_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
-    for path, rec in records:
-        if rec["kind"] != "train-rl":
-            continue
+    for path, rec in _of_kind(records, "train-rl"):
         r = rec["results"]
         ev = r.get("evaluation")
         learned = f"**{ev['successes']} / {ev['episodes']}** (seed {ev['eval_seed']})" if ev else "–"
@@ -114,9 +115,7 @@ def rl_rows(records, page_dir: Path) -> list[list[str]]:
 
 def env_step_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
-    for path, rec in records:
-        if rec["kind"] != "bench":
-            continue
+    for path, rec in _of_kind(records, "bench"):
         r = rec["results"]
         cam = r.get("camera")
         width, height = r.get("resolution") or ("?", "?")
@@ -134,9 +133,7 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
 
 def collection_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
-    for path, rec in records:
-        if rec["kind"] != "bench-collect":
-            continue
+    for path, rec in _of_kind(records, "bench-collect"):
         r = rec["results"]
         cams = ", ".join(f"{name} {w}x{h}" for name, (w, h, _) in (r.get("cameras") or {}).items()) or "none"
         rows.append([_short(rec["task"]), rec["device"]["name"], str(r.get("num_envs", "–")), cams,
@@ -147,9 +144,7 @@ def collection_rows(records, page_dir: Path) -> list[list[str]]:
 
 def training_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
-    for path, rec in records:
-        if rec["kind"] != "bench-train":
-            continue
+    for path, rec in _of_kind(records, "bench-train"):
         r = rec["results"]
         best = max((v for k, v in r.items() if k.endswith("_samples_per_s")), default=None)
         tflops = r.get("achieved_tflops")
