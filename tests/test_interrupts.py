@@ -82,6 +82,16 @@ def make_splittable(path: Path, demos: int, steps: int) -> None:
                             True, None) for _ in range(demos)])
 
 
+def split_caught_writing(tmp_path: Path, data: str):
+    """``split`` of ``data`` into ``parts``, once its three phase writers are writing: (the process, its stage folder,
+    its writer pids)."""
+    split = newton_lab("split", "--dataset-path", data, "--out", "parts", cwd=tmp_path)
+    stage = tmp_path / f".parts.{split.pid}.partial"
+    wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
+    assert split.poll() is None, split.communicate()
+    return split, stage, children(split.pid)
+
+
 def test_a_killed_split_leaves_no_writer_and_nothing_that_looks_finished(tmp_path):
     """SIGKILL while the phase writers write: they end with it (a parent-death signal), the output folder does not
     appear (the phases are written in a stage beside it, renamed into place when all are done), and the next split
@@ -89,11 +99,7 @@ def test_a_killed_split_leaves_no_writer_and_nothing_that_looks_finished(tmp_pat
     from newton_lab.datasets import read_dataset_info
 
     make_splittable(tmp_path / "c.hdf5", demos=400, steps=60)
-    split = newton_lab("split", "--dataset-path", "c.hdf5", "--out", "parts", cwd=tmp_path)
-    stage = tmp_path / f".parts.{split.pid}.partial"
-    wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
-    assert split.poll() is None, split.communicate()
-    writers = children(split.pid)
+    split, stage, writers = split_caught_writing(tmp_path, "c.hdf5")
     assert writers
     split.kill()
     split.communicate()
@@ -260,11 +266,7 @@ def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path):
     for demos in (1600, 6400):  # a split that ends before the signal lands is no interruption: a larger one then
         data = tmp_path / f"c{demos}.hdf5"
         make_splittable(data, demos=demos, steps=60)
-        split = newton_lab("split", "--dataset-path", data.name, "--out", "parts", cwd=tmp_path)
-        stage = tmp_path / f".parts.{split.pid}.partial"
-        wait_for(lambda: len(list(stage.glob("*.hdf5"))) == 3 or split.poll() is not None, "the phase writers writing")
-        assert split.poll() is None, split.communicate()
-        writers = children(split.pid)
+        split, stage, writers = split_caught_writing(tmp_path, data.name)
         split.send_signal(signal.SIGINT)
         _, err = split.communicate(timeout=900)
         if split.returncode != 0:
