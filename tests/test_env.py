@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -9,6 +11,7 @@ import warp as wp
 
 from newton_lab.envs import make_env
 from newton_lab.robots.g1 import spec
+from newton_lab.task_api.registry import lookup
 from newton_lab.tasks.common.config.g1 import postures
 
 
@@ -93,6 +96,27 @@ def test_captured_step_matches_eager(pick_env, eager_env):
     # not vacuous: the run went through both ends of an episode and the resets after them
     assert seen == {"terminated": 1, "truncated": 1}
     assert (pick_env.episode_count == counts + 1).all()
+
+
+def test_captured_step_matches_eager_with_an_exchange_every_substep():
+    """``PhysicsCfg(sync_every_substep=True)`` steps each substep as a whole ``solver.step`` (the other loop of
+    ``StepLaunches.simulate``): the graph recorded from it runs every one of the ``decimation`` substeps, as eager
+    stepping does, so the arm reaches the same coordinates on both."""
+    task = "GalbotG1-PickCube-v0"
+    physics = dataclasses.replace(lookup(task).make_cfg({}).physics, sync_every_substep=True)
+    captured, eager = (make_env(task, num_envs=1, device="cpu", seed=3, randomize=True, cameras=False,
+                                physics=physics, capture=capture) for capture in (True, False))
+    assert captured.step_graph is not None and eager.step_graph is None
+    assert captured.physics_exchange == eager.physics_exchange == "substep"
+    start = _q(captured)
+    torch.testing.assert_close(start, _q(eager))
+    for t in range(6):
+        a = captured.current_action()
+        a[:, :7] += 0.05 * (t + 1)  # the arm joints move towards new targets every step
+        captured.step(a)
+        eager.step(a.clone())
+        torch.testing.assert_close(_q(captured), _q(eager), atol=1e-5, rtol=0, msg=lambda m, t=t: f"step {t}: {m}")
+    assert float((_q(captured) - start).abs().max()) > 0.01  # not vacuous: the arm did move
 
 
 def test_step_returns_views_of_warp_buffers(pick_env):
