@@ -4,7 +4,8 @@ from the records in ``docs/results/``, and ``--check`` fails when the page and t
 
 Tables: learned policies (per task: expert success, learned success with its episodes and held-out seed, what
 the policy sees, time to policy), PPO runs, env-steps/s with and without cameras, expert demos per GPU-hour,
-training samples/s. Every row names its device and links its record.
+training samples/s, seconds from a bad command line to its one-line refusal. Every row names its device and links
+its record.
 """
 
 from __future__ import annotations
@@ -154,6 +155,26 @@ def training_rows(records, page_dir: Path) -> list[list[str]]:
     return rows
 
 
+def _load(rec: dict[str, Any]) -> str:
+    """The host's 1-minute load average when the record was written, of its cores (above 1: the CPU was shared)."""
+    load, cores = rec["device"].get("load_average_1_5_15"), rec["device"].get("cores")
+    return "–" if not load else f"{load[0]:.1f} on {cores} cores"
+
+
+def refusal_rows(records, page_dir: Path) -> list[list[str]]:
+    rows = []
+    for path, rec in _of_kind(records, "bench-refusals"):
+        r = rec["results"]
+        wall, cpu = r["wall_s"], r["cpu_s"]
+        slowest = r["slowest"][0] if r.get("slowest") else None
+        rows.append([rec["device"]["name"], str(r["cases"]), f"{r['refused']} / {r['cases']}",
+                     f"{r['under_2_s']} / {r['cases']}",
+                     f"{wall['median']:.2f} / {wall['p95']:.2f} / {wall['max']:.2f}",
+                     f"{cpu['median']:.2f} / {cpu['max']:.2f}", _load(rec),
+                     f"`{slowest['argv']}` {slowest['wall_s']:.2f} s" if slowest else "–", _link(path, page_dir)])
+    return rows
+
+
 def headline(records, page_dir: Path) -> str:
     """The markdown of the headline tables (empty tables are left out)."""
     parts = []
@@ -167,6 +188,10 @@ def headline(records, page_dir: Path) -> str:
          collection_rows),
         ("Training throughput", ["preset", "device", "batch", "images", "samples/s", "TFLOP/s", "record"],
          training_rows),
+        ("Refusals of bad input", ["device", "cases", "refused in one line, exit 2, nothing written", "under 2 s",
+                                   "seconds to the refusal: median / p95 / max",
+                                   "CPU seconds: median / max", "load (1 min)", "slowest case", "record"],
+         refusal_rows),
     ]
     for title, header, rows_of in sections:
         rows = rows_of(records, page_dir)

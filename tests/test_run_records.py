@@ -102,6 +102,39 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
     assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
 
 
+def test_bench_refusals_times_each_case_in_a_fresh_process_and_its_table_shows_the_spread(tmp_path, monkeypatch,
+                                                                                         capsys):
+    """Two cases in fresh ``newton-lab`` processes: one refused as the table says, one the table gets wrong (it is
+    answered, exit 0, with no line on stderr): exit status 1, that case named on stderr, both in the record, whose
+    row shows 1 of 2 refused and the seconds' spread."""
+    from newton_lab.cli import bench_refusals, main
+
+    monkeypatch.setattr(bench_refusals, "CASES", [("view nope.hdf5", "dataset nope.hdf5 does not exist"),
+                                                  ("--version", "words it never prints")])
+    rec_path = tmp_path / "results" / "bench-refusals-cpu.json"
+    assert main(["bench-refusals", "--run-record", str(rec_path)]) == 1
+    err = capsys.readouterr().err
+    assert "not refused as the table says: newton-lab --version (exit 0, one line False" in err
+    rec = records.read_record(rec_path)
+    r = rec["results"]
+    assert rec["kind"] == "bench-refusals" and rec["command"].startswith("newton-lab bench-refusals")
+    assert (r["cases"], r["refused"], r["exit_2"], r["unchanged"]) == (2, 1, 1, 2)
+    first, second = r["per_case"]
+    assert first["refused"] and first["exit"] == 2 and first["one_line"] and first["words"]
+    assert not second["refused"] and second["exit"] == 0 and not second["one_line"]
+    assert 0 < r["wall_s"]["median"] <= r["wall_s"]["p95"] <= r["wall_s"]["max"] == max(first["wall_s"],
+                                                                                      second["wall_s"])
+    assert {s["argv"] for s in r["slowest"]} == {"view nope.hdf5", "--version"} and r["command"] == "newton-lab"
+    page = tmp_path / "benchmarks.md"
+    page.write_text(f"{results.BEGIN}\n{results.END}\n")
+    results.update(page, rec_path.parent)
+    row = next(line for line in page.read_text().splitlines() if line.startswith("| CPU"))
+    assert "| 2 | 1 / 2 |" in row and f"{r['wall_s']['median']:.2f} / " in row, row
+    assert row.endswith("[bench-refusals-cpu](results/bench-refusals-cpu.json) |"), row
+    assert main(["bench-refusals", "--only", "nope"]) == 2
+    assert "--only nope: no case of the bad-input table runs those commands; its commands: " in capsys.readouterr().err
+
+
 def test_the_committed_page_matches_the_committed_records():
     """Every headline figure of docs/benchmarks.md comes from a record in docs/results/ made by a product command."""
     loaded = results.load_records(RECORDS)  # refuses a record whose command is not a product command
@@ -110,7 +143,7 @@ def test_the_committed_page_matches_the_committed_records():
     text = PAGE.read_text()
     block = text.split(results.BEGIN, 1)[1].split(results.END, 1)[0]
     rows = [line for line in block.splitlines() if line.startswith("| ") and not line.startswith("| task")
-            and not line.startswith("| preset")]
+            and not line.startswith("| preset") and not line.startswith("| device")]
     assert rows
     for line in rows:  # each row links a record that exists
         link = re.search(r"\]\((results/[^)]+\.json)\) \|$", line)

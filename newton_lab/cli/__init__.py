@@ -48,6 +48,8 @@ COMMANDS: dict[str, Command] = {
                              "expert collection demos/s and per hour: physics / agent / writer seconds"),
     "bench-train": Command(c.BenchTrainArgs, run.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
+    "bench-refusals": Command(c.BenchRefusalsArgs, run.bench_refusals,
+                              "each case of the bad-input table in a fresh newton-lab process: seconds to its refusal"),
     "suite": Command(c.SuiteArgs, run.suite,
                      "every headline row of the results page, one product command each, records copied, page rebuilt"),
     "results": Command(c.ResultsArgs, run.results,

@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..commands import RenderArgs, ResultsArgs, SuiteArgs, TrainRLArgs, camera_option
+from ..commands import BenchRefusalsArgs, RenderArgs, ResultsArgs, SuiteArgs, TrainRLArgs, camera_option
 from ..commands import (BenchArgs, BenchCollectArgs, BenchTrainArgs, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                         PipelineArgs, RerunArgs, SplitArgs, TasksArgs, TrainArgs, ViewArgs)
 from ..flows.report import summary_lines
@@ -21,6 +21,7 @@ from ..records import command_wall_s, default_path, make_record, write_record
 from ..results import update
 from ..task_api.registry import list_tasks, lookup
 from .headers import checkpoint_header
+from .pipeline_ends import ends_in_one_line
 
 COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
                        "termination_reasons", "diverged", "subtask_signals")
@@ -187,12 +188,13 @@ def pipeline(args: PipelineArgs) -> int:
                   else ["collect", "mimic", "train", "evaluate"])
         print(json.dumps({"plan": {**kwargs, "long_horizon": long_horizon, "stages": stages}}, default=str))
         return 0
-    configure(Path(args.out) / ".prefect")  # before Prefect is imported
-    from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
+    with ends_in_one_line(args.out):  # Ctrl-C: one line, exit 130; SIGKILL: no server or worker left running
+        configure(Path(args.out) / ".prefect")  # before Prefect is imported
+        from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
 
-    from ..flows.long_horizon import summary_lines as long_horizon_lines  # deferred: as above
+        summary = run_pipeline(**kwargs)
+    from ..flows.long_horizon import summary_lines as long_horizon_lines  # deferred: Prefect is slow to import
 
-    summary = run_pipeline(**kwargs)
     metrics = Path(args.out).resolve() / "metrics.json"
     lines = long_horizon_lines if long_horizon else summary_lines
     print("\n".join(lines(summary, args.out, recipe["name"])))
@@ -262,6 +264,20 @@ def bench_train(args: BenchTrainArgs) -> int:
     write_run_record("bench-train", args, out.get("task"), args.device, out)
     print(json.dumps(out))
     return 0
+
+
+def bench_refusals(args: BenchRefusalsArgs) -> int:
+    from .bench_refusals import bench_refusals as measure  # deferred: its sample files need h5py, zarr and torch
+
+    def progress(case: dict) -> None:
+        if not case["refused"]:
+            print(f"not refused as the table says: newton-lab {case['argv']} (exit {case['exit']}, one line "
+                  f"{case['one_line']}, words {case['words']}, folder unchanged {case['unchanged']})", file=sys.stderr)
+
+    out = measure(args.only, on_case=progress)
+    write_run_record("bench-refusals", args, None, "cpu", out)
+    print(json.dumps({k: v for k, v in out.items() if k != "per_case"}))
+    return 0 if out["refused"] == out["cases"] else 1
 
 
 def suite(args: SuiteArgs) -> int:

@@ -12,14 +12,14 @@ argument object into the keywords of the library call it drives (``make_env``, `
 
 from __future__ import annotations
 
-from .bench import BenchArgs, BenchCollectArgs, BenchTrainArgs, ResultsArgs, SuiteArgs
+from .bench import BenchArgs, BenchCollectArgs, BenchRefusalsArgs, BenchTrainArgs, ResultsArgs, SuiteArgs
 from .env import (CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksArgs,
                   camera_option)
 from .rl import TrainRLArgs
 from .workflow import (RECIPE_FIELDS, TRAIN_OVERRIDES, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                        PipelineArgs, SplitArgs, TrainArgs, ViewArgs)
 
-__all__ = ["BenchArgs", "BenchCollectArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs", "CameraArgs", "EnvArgs",
+__all__ = ["BenchArgs", "BenchCollectArgs", "BenchRefusalsArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs", "CameraArgs", "EnvArgs",
            "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option", "RECIPE_FIELDS",
            "TRAIN_OVERRIDES", "CollectArgs", "EvaluateArgs", "ExportArgs", "MimicArgs", "PipelineArgs",
            "SplitArgs", "TrainArgs", "TrainRLArgs", "ViewArgs"]

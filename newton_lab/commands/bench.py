@@ -1,4 +1,4 @@
-"""Arguments of the benchmarks: ``bench``, ``bench-collect``, ``bench-train``."""
+"""Arguments of the benchmarks: ``bench``, ``bench-collect``, ``bench-train``, ``bench-refusals``."""
 
 from __future__ import annotations
 
@@ -96,6 +96,14 @@ class BenchTrainArgs(RunRecordArgs):
     """also time the steps under bfloat16 autocast (float32 and bf16 side by side)"""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""
+
+
+@dataclass(kw_only=True)
+class BenchRefusalsArgs(RunRecordArgs):
+    """``newton-lab bench-refusals``: every case of the bad-input table in a fresh ``newton-lab`` process, timed."""
+
+    only: list[str] | None = None
+    """time only the cases of these commands (e.g. split view; default: every case)"""
 
 
 @dataclass(kw_only=True)

@@ -1,0 +1,85 @@
+"""``newton-lab pipeline`` stopped midway, on the embedded Prefect server (uvicorn, started by Prefect's ephemeral
+mode): Ctrl-C ends it in one line (the stages that finished, where) with exit status 130, and neither Ctrl-C nor
+SIGKILL leaves the server or any other process of the pipeline running."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from test_interrupts import RUN, alive, descendants, wait_for
+
+ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-episodes", "400", "--train-steps", "3",
+        "--eval-episodes", "2", "--num-envs", "2", "--device", "cpu", "--out", "out")
+"""A pipeline whose Mimic stage runs long after collect has finished."""
+
+
+def start_pipeline(cwd: Path) -> subprocess.Popen:
+    """The pipeline in a process of its own, on its embedded server (no user server configured); its stderr in
+    ``cwd/stderr.txt`` (a file: a child left alive would hold a pipe open)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}
+    with open(cwd / "stderr.txt", "w") as err:
+        return subprocess.Popen([sys.executable, "-c", RUN, *ARGV], cwd=cwd, stdout=subprocess.DEVNULL, stderr=err,
+                                env=env)
+
+
+def server_of(pid: int) -> list[int]:
+    """The pids of ``pid``'s descendants that run uvicorn (the embedded Prefect server)."""
+    out = []
+    for d in descendants(pid):
+        try:
+            if b"uvicorn" in Path(f"/proc/{d}/cmdline").read_bytes():
+                out.append(d)
+        except OSError:
+            pass
+    return out
+
+
+def end_all(pids: list[int]) -> float:
+    """Seconds until none of ``pids`` runs (then kill what a failed test left running)."""
+    start = time.monotonic()
+    try:
+        wait_for(lambda: not any(alive(p) for p in pids), "the pipeline's processes ending", limit_s=60)
+    finally:
+        for pid in pids:
+            if alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    return time.monotonic() - start
+
+
+def test_ctrl_c_during_pipeline_keeps_the_finished_stages_in_one_line(tmp_path):
+    """SIGINT while Mimic runs: exit 130, one line naming the finished stage and the folder; the collect stage's
+    manifest and dataset stay (the same command answers it from them); the server and the watchdog end."""
+    run = start_pipeline(tmp_path)
+    manifest = tmp_path / "out" / "demos.manifest.json"
+    wait_for(lambda: (manifest.exists() and server_of(run.pid)) or run.poll() is not None, "collect finished")
+    assert run.poll() is None, (tmp_path / "stderr.txt").read_text()
+    started = descendants(run.pid)
+    run.send_signal(signal.SIGINT)
+    run.wait(timeout=120)
+    end_all(started)
+    lines = [line for line in (tmp_path / "stderr.txt").read_text().splitlines() if line.strip()]
+    assert run.returncode == 130 and len(lines) == 1, lines
+    assert lines[0] == "newton-lab pipeline: interrupted: finished stages kept in out: demos; the same command " \
+                       "resumes from them", lines
+    assert manifest.exists() and (tmp_path / "out" / "demos.hdf5").exists()
+    assert not (tmp_path / "out" / "mimic.manifest.json").exists()
+
+
+def test_a_killed_pipeline_leaves_no_process(tmp_path):
+    """SIGKILL once the server runs and collect has begun: the server, the watchdog and anything a stage started
+    end with the pipeline (a watchdog on its pid)."""
+    run = start_pipeline(tmp_path)
+    wait_for(lambda: server_of(run.pid) and (tmp_path / "out" / "demos.hdf5").exists() or run.poll() is not None,
+             "the server up and collect writing")
+    assert run.poll() is None, (tmp_path / "stderr.txt").read_text()
+    started = descendants(run.pid)
+    assert server_of(run.pid)
+    run.kill()
+    run.wait(timeout=60)
+    seconds = end_all(started)
+    print(f"the pipeline's {len(started)} processes ended {seconds:.2f} s after its SIGKILL")
