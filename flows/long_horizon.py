@@ -19,7 +19,7 @@ from prefect import flow, get_run_logger, unmapped
 from ..datasets.outputs import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
-from .stage_runs import INPUT_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
+from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 from .run_record import StageClock, pipeline_record, write_pipeline_record
 from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
 
@@ -59,7 +59,7 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     run record (``<out>/records/``; ``summary["record"]``).
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
     ``gpus`` > 1 trains each phase data-parallel."""
-    runlog.quiet_console(INPUT_ERRORS)
+    runlog.quiet_console(REPORTED_ERRORS)
     log = get_run_logger()
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}

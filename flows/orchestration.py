@@ -28,7 +28,7 @@ from .cluster import cluster_options, pins_gpus, quiet_shutdown
 from .long_horizon import has_phases, long_horizon_pipeline
 from .run_record import StageClock, pipeline_record, write_pipeline_record
 from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, check_api_reachable
-from .stage_runs import (INPUT_ERRORS, collect_task, evaluate_task, mimic_task, run_collect, run_evaluate, run_mimic,
+from .stage_runs import (REPORTED_ERRORS, collect_task, evaluate_task, mimic_task, run_collect, run_evaluate, run_mimic,
                          run_train, train_task)
 
 VALID_RUNNERS = ("local", "dask")
@@ -99,7 +99,7 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     collection, Mimic and evaluation. ``cameras`` are rendered and recorded by collection, Mimic and evaluation
     (a visuomotor recipe); ``task_options`` (e.g. ``obs_mode="sensors"``) apply to every env.
     Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
-    runlog.quiet_console(INPUT_ERRORS)
+    runlog.quiet_console(REPORTED_ERRORS)
     log = get_run_logger()
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = dict(task_options or {})
@@ -161,7 +161,7 @@ def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address:
                 kwargs["device"] = "cuda"  # each worker's own GPU
     for t in (collect_task, mimic_task, train_task, evaluate_task):
         t.retries = retries
-    runlog.quiet_console(INPUT_ERRORS)
+    runlog.quiet_console(REPORTED_ERRORS)
     return flow_fn.with_options(**options)(workers=workers if runner == "dask" else 1, **kwargs)
 
 

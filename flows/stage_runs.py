@@ -17,6 +17,7 @@ from prefect import get_run_logger, task, unmapped
 from prefect.cache_policies import INPUTS
 
 from ..commands import CollectArgs, EvaluateArgs, MimicArgs
+from ..datasets import DatasetWriteError
 from . import runlog, stages
 from .artifacts import artifact
 from .settings import PIPELINE_CAMERAS
@@ -28,6 +29,9 @@ EVAL_RECORDED_EPISODES = 2
 
 INPUT_ERRORS = (ValueError, TypeError, KeyError, FileNotFoundError, FileExistsError)
 """Failures caused by a stage's input: a retry would fail the same way, so they are not retried."""
+REPORTED_ERRORS = (*INPUT_ERRORS, DatasetWriteError)
+"""Failures the command line reports in one line (an input error; a write the disk refused: disk full, a quota):
+their tracebacks stay off the console."""
 
 
 def retry_transient(task, task_run, state) -> bool:
@@ -44,7 +48,7 @@ def stage_task(fn, name: str):
 
     @functools.wraps(fn)
     def run(**kwargs):
-        runlog.quiet_console(INPUT_ERRORS)
+        runlog.quiet_console(REPORTED_ERRORS)
         runlog.fault_point(name)
         log = get_run_logger()
         log.info("%s: %s", name, runlog.describe_inputs(kwargs))

@@ -256,20 +256,23 @@ def test_output_folder_of_another_pipeline_is_refused(tmp_path):
 
 
 def test_console_leaves_failures_to_the_caller():
-    """Prefect's console handler drops flow tracebacks, input-error tracebacks and 'Finished in state Failed'
-    lines (the caller reports them once); a stage's other errors and every other record still print."""
+    """Prefect's console handler drops flow tracebacks, the tracebacks of input errors and of writes the disk
+    refused, and 'Finished in state Failed' lines (the caller reports them once, in one line); a stage's other errors
+    and every other record still print."""
     import logging
 
-    from newton_lab.flows.orchestration import INPUT_ERRORS  # deferred: Prefect is slow to import
+    from newton_lab.datasets import DatasetWriteError
+    from newton_lab.flows.orchestration import REPORTED_ERRORS  # deferred: Prefect is slow to import
     from newton_lab.flows.runlog import CallerReports
 
     def record(name, msg, exc=None):
         return logging.LogRecord(name, logging.ERROR, __file__, 1, msg, None,
                                  (type(exc), exc, None) if exc else None)
 
-    keep = CallerReports(INPUT_ERRORS).filter
+    keep = CallerReports(REPORTED_ERRORS).filter
     assert not keep(record("prefect.flow_runs", "Encountered exception", RuntimeError("x")))
     assert not keep(record("prefect.task_runs", "Task run failed", ValueError("bad input")))
+    assert not keep(record("prefect.task_runs", "Task run failed", DatasetWriteError("disk full after 1 episode", 28)))
     assert not keep(record("prefect.task_runs", "Finished in state Failed('x')"))
     assert keep(record("prefect.task_runs", "Task run failed", OSError("disk")))
     assert keep(record("prefect.task_runs", "train: done in 3.0 s"))

@@ -1,6 +1,6 @@
 """``newton-lab pipeline`` stopped midway, on the embedded Prefect server (uvicorn, started by Prefect's ephemeral
 mode): Ctrl-C ends it in one line (the stages that finished, where) with exit status 130, and neither Ctrl-C nor
-SIGKILL leaves the server or any other process of the pipeline running."""
+SIGKILL leaves the server or any other process of the pipeline running; a full disk ends it in one line too."""
 
 from __future__ import annotations
 
@@ -18,10 +18,10 @@ ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-e
 """A pipeline whose Mimic stage runs long after collect has finished."""
 
 
-def start_pipeline(cwd: Path) -> subprocess.Popen:
+def start_pipeline(cwd: Path, **extra_env: str) -> subprocess.Popen:
     """The pipeline in a process of its own, on its embedded server (no user server configured); its stderr in
     ``cwd/stderr.txt`` (a file: a child left alive would hold a pipe open)."""
-    env = {k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}, **extra_env}
     with open(cwd / "stderr.txt", "w") as err:
         return subprocess.Popen([sys.executable, "-c", RUN, *ARGV], cwd=cwd, stdout=subprocess.DEVNULL, stderr=err,
                                 env=env)
@@ -83,3 +83,18 @@ def test_a_killed_pipeline_leaves_no_process(tmp_path):
     run.wait(timeout=60)
     seconds = end_all(started)
     print(f"the pipeline's {len(started)} processes ended {seconds:.2f} s after its SIGKILL")
+
+
+def test_a_full_disk_ends_the_pipeline_in_one_line(tmp_path):
+    """The writer's test seam refuses collect's tenth write with ENOSPC: exit status 1 and one line (Prefect's
+    traceback of the failed stage stays off the console); no stage looks finished, and no process is left."""
+    run = start_pipeline(tmp_path, NEWTON_LAB_TEST_WRITE_FAULT="10")
+    started: list[int] = []
+    while run.poll() is None:  # the processes it starts, to see them end with it
+        started += [p for p in descendants(run.pid) if p not in started]
+        time.sleep(0.2)
+    end_all(started)
+    lines = [line for line in (tmp_path / "stderr.txt").read_text().splitlines() if line.strip()]
+    assert run.returncode == 1 and len(lines) == 1, lines
+    assert lines[0].startswith("newton-lab pipeline: error: disk full after 0 episodes; ") and "demos.hdf5" in lines[0]
+    assert not list((tmp_path / "out").glob("*.manifest.json"))
