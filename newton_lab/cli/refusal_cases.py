@@ -87,6 +87,8 @@ CASES: list[tuple[str, str]] = [
     ("collect --cameras front_head=96x72 --dataset-path cam.hdf5",
      "cam.hdf5 was recorded with cameras none, not front_head=96x72; append with --cameras none"),
     ("collect --obs-mode sensors --dataset-path cam.hdf5", "cam.hdf5 was recorded with --obs-mode state, not sensors"),
+    ("collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object blue_cuboid --dataset-path sort.hdf5",
+     "sort.hdf5 was recorded with --sorting-object red_cube, not blue_cuboid; append with --sorting-object red_cube"),
     # cameras: a mount, a resolution, data the G1 has, each once
     ("collect --cameras bogus=96x72 --dataset-path x.hdf5", "--cameras: unknown camera 'bogus'"),
     ("collect --cameras front_haed=96x72 --dataset-path x.hdf5", "(did you mean front_head?)"),
@@ -225,7 +227,8 @@ def checkpoint_files() -> dict[str, bytes]:
 
 def make_inputs(root: Path, checkpoints: dict[str, bytes] | None = None) -> None:
     """Write into ``root`` what the cases name: datasets (src.hdf5: PickCube, demos 0, 1, 2; pts.hdf5: recorded on
-    the coherent PickToShelf; cam.hdf5: state only, no camera; reach.pt.hdf5: Reach, which has no Mimic variant),
+    the coherent PickToShelf; cam.hdf5: state only, no camera; reach.pt.hdf5: Reach, which has no Mimic variant; sort.hdf5: SortToShelf's
+    pick of the red cube),
     damaged ones (junk.hdf5, file.zarr, folder.hdf5), a file and a non-empty folder in the way (afile, earlier/)
     and the checkpoints (``checkpoints``: those of :func:`checkpoint_files`, made when not given)."""
     root = Path(root)
@@ -235,6 +238,8 @@ def make_inputs(root: Path, checkpoints: dict[str, bytes] | None = None) -> None
     _dataset(root / "cam.hdf5", TASK, {"env_kwargs": {"task_options": {"obs_mode": "state"}},
                                        "newton_lab": {**ENV_ARGS["newton_lab"], "cameras": {}}})
     _dataset(root / "reach.pt.hdf5", "GalbotG1-Reach-v0", ENV_ARGS)
+    _dataset(root / "sort.hdf5", "GalbotG1-SortToShelf-Pick-v0",
+             {**ENV_ARGS, "env_kwargs": {"task_options": {"sorting_object": "red_cube"}}})
     (root / "junk.hdf5").write_bytes(b"not a dataset")
     (root / "file.zarr").write_bytes(b"a file named .zarr")
     (root / "folder.hdf5").mkdir()
