@@ -4,7 +4,7 @@
     python examples/08_teleop.py --device replay --replay-dataset data/pick_cube_demos.hdf5 --no-realtime
 
 Type ``done`` + Enter to end an episode, then answer keep, drop or exit (end of input = exit). Flags: those of
-``newton-lab teleop`` (``TeleopArgs`` in ``newton_lab.cli.teleop``); add ``--rerun`` to watch the cameras live.
+``newton-lab teleop`` (``TeleopArgs`` in ``newton_lab.commands.teleop``); add ``--rerun`` to watch the cameras live.
 """
 
 from __future__ import annotations
@@ -14,23 +14,19 @@ import json
 from newton_lab.agents import TeleopAgent
 from newton_lab.agents.teleop import teleop_session
 from newton_lab.cli import parse_args
-from newton_lab.cli.teleop import TeleopArgs, check
+from newton_lab.commands import TeleopArgs
 from newton_lab.envs import make_env
 
 DEFAULTS = {"task": "GalbotG1-PickCube-Teleop-v0", "dataset_path": "data/pick_cube_teleop.hdf5"}
 
 
 def main() -> None:
-    args = parse_args(TeleopArgs, description=__doc__, defaults=DEFAULTS)
-    check(args)
-    device_kwargs = ({"path": args.replay_dataset, "demo": args.replay_demo, "mode": args.replay_mode}
-                     if args.device == "replay" else {})
+    args = parse_args(TeleopArgs, description=__doc__, defaults=DEFAULTS)  # checked as newton-lab teleop checks
     # the task's contract is checked before the device opens: an unsupported task fails here, in one line
-    agent = TeleopAgent.from_device(args.device, task=args.task, no_frame_policy=args.no_frame_policy, **device_kwargs)
+    agent = TeleopAgent.from_device(args.device, **args.agent_kwargs())
     try:
         env = make_env(args.task, **args.env_kwargs())
-        summary = teleop_session(env, agent, path=args.dataset_path, max_steps=args.max_steps, keep=args.keep,
-                                 realtime=not args.no_realtime)
+        summary = teleop_session(env, agent, **args.session_kwargs())
     finally:
         agent.close()
     print(json.dumps(summary))

@@ -3,7 +3,7 @@
 Layers, lowest first; a module may import its own layer and the ones below, never one above:
 
     robots, assets  ->  kernels  ->  task_api  ->  tasks  ->  datasets  ->  envs  ->  agents  ->  mimic
-    ->  policies  ->  viz  ->  commands, bench, bench_collect, cli, flows, records, results
+    ->  policies  ->  perception  ->  viz  ->  commands, bench, bench_collect, cli, flows, records, results
 
 Also: no import cycle between modules or between packages, no ``importlib`` of project modules by name,
 imports at module top (a deliberately deferred import says ``deferred`` in a comment on its line), no
@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = {"newton_lab": "newton_lab", "newton_lab.kernels": "kernels", "newton_lab.tasks": "tasks",
            "newton_lab.flows": "flows", "newton_lab.assets": "assets"}
 LAYERS = [("robots", "assets"), ("kernels",), ("task_api",), ("tasks",), ("datasets",), ("envs",), ("agents",),
-          ("mimic",), ("policies",), ("viz",),
+          ("mimic",), ("policies",), ("perception",), ("viz",),
           ("commands", "bench", "bench_collect", "cli", "flows", "records", "results")]
 RANK = {unit: i for i, units in enumerate(LAYERS) for unit in units}
 MAX_MODULE_LINES = 400
@@ -95,6 +95,21 @@ GRAPH = {m: sorted({_owner(t) for t, _ in _imports(m)} - {m}) for m in MODULES}
 def test_every_unit_has_a_layer():
     units = {_unit(m) for m in MODULES} - {None}
     assert units <= set(RANK), f"modules outside the layer list: {sorted(units - set(RANK))}"
+
+
+CONTRIBUTING = ROOT / "docs" / "contributing.md"
+LAYER_LINE = re.compile(r"imports point one way[^:]*:\s*(.*?);", re.S)
+"""contributing.md's statement of the layers: units in backticks, ``→`` between layers, ``,`` within one."""
+
+
+def test_contributing_states_the_layer_order():
+    """docs/contributing.md lists the layers this test enforces, in the same order, with the same units."""
+    found = LAYER_LINE.search(CONTRIBUTING.read_text())
+    assert found, f"{CONTRIBUTING.name}: no 'imports point one way: ...;' line"
+    stated = [set(re.findall(r"`([a-z_]+)`", layer)) for layer in found.group(1).split("→")]
+    assert stated == [set(units) for units in LAYERS], (
+        f"{CONTRIBUTING.name} states the layers {stated}; tests/test_architecture.py's LAYERS are "
+        f"{[set(u) for u in LAYERS]}: change the page to match")
 
 
 def test_no_upward_import():
@@ -191,6 +206,21 @@ def test_imports_at_module_top():
 def test_module_size():
     long = {m: n for m, p in MODULES.items() if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
     assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+MAX_CLI_MODULE_LINES = 150
+"""The command line parses and calls: a feature's work lives in the library, its arguments in ``commands/``."""
+
+
+def test_the_command_line_parses_and_calls():
+    """No ``newton_lab/cli/`` module over ``MAX_CLI_MODULE_LINES`` lines, and every argument dataclass (a class
+    named ``...Args``) is defined in ``newton_lab.commands``."""
+    long = {m: n for m, p in MODULES.items() if m.startswith("newton_lab.cli")
+            and (n := len(p.read_text().splitlines())) > MAX_CLI_MODULE_LINES}
+    assert not long, f"command-line modules over {MAX_CLI_MODULE_LINES} lines (move the work into the library): {long}"
+    stray = [f"{m}.{node.name}" for m, tree in TREES.items() if not m.startswith("newton_lab.commands")
+             for node in ast.walk(tree) if isinstance(node, ast.ClassDef) and node.name.endswith("Args")]
+    assert not stray, f"argument dataclasses outside newton_lab/commands/: {stray}"
 
 
 def _is_warp(fn: ast.FunctionDef) -> bool:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from newton_lab.cli.refusal_cases import CASES, checkpoint_files, make_inputs
+from newton_lab.commands.refusal_cases import CASES, checkpoint_files, make_inputs
 
 CPU_SECONDS = 2.0
 """Each refusal's CPU time, interpreter start included (0.2-0.6 s here; importing Warp first took 5-12 s on 2 cores).
@@ -41,8 +41,8 @@ def checkpoints() -> dict[str, bytes]:
 
 
 def test_the_checkpoint_header_reader_agrees_with_the_checkpoint_format():
-    """``cli.headers`` reads checkpoints without torch: its format tag and version are the policy's."""
-    from newton_lab.cli import headers
+    """``commands.checkpoint_headers`` reads checkpoints without torch: its format tag and version are the policy's."""
+    from newton_lab.commands import checkpoint_headers as headers
     from newton_lab.policies import diffusion
 
     assert (headers.CHECKPOINT_FORMAT, headers.CHECKPOINT_VERSION) == (diffusion.CHECKPOINT_FORMAT,
@@ -103,7 +103,7 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
 ])
 def test_a_cuda_device_the_machine_lacks_is_refused(device, devices, words):
     """The GPU side of the device check (CI has no GPU): what the driver's count gives."""
-    from newton_lab.cli.checks import check_cuda_device
+    from newton_lab.commands.device_checks import check_cuda_device
 
     with pytest.raises(ValueError) as err:
         check_cuda_device("--device", device, devices)
@@ -115,11 +115,11 @@ def test_a_cuda_device_the_machine_lacks_is_refused(device, devices, words):
 def test_the_device_count_comes_from_the_driver_in_a_child_process():
     """This process never loads the CUDA driver for the check (it may fork workers later); without a driver the
     count says why."""
-    from newton_lab.cli.checks import cuda_devices
+    from newton_lab.commands.device_checks import cuda_devices
 
     answer = cuda_devices()
     assert isinstance(answer, int) or "libcuda.so.1" in answer or "CUDA error" in answer, answer
-    code = ("from newton_lab.cli.checks import cuda_devices; cuda_devices(); "
+    code = ("from newton_lab.commands.device_checks import cuda_devices; cuda_devices(); "
             "print('libcuda.so' in open('/proc/self/maps').read())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
@@ -128,7 +128,7 @@ def test_the_device_count_comes_from_the_driver_in_a_child_process():
 def test_env_rows_are_checked_against_the_memory_that_holds_them():
     """``--num-envs`` times the per-row estimate against the machine's (or, for cuda, the GPU's) memory: a GPU host's
     16384 rows pass, ten million do not, and the line names the largest count that fits."""
-    from newton_lab.cli.checks import ENV_BYTES, check_num_envs
+    from newton_lab.commands.device_checks import ENV_BYTES, check_num_envs
 
     check_num_envs(16384, memory=80 << 30)
     with pytest.raises(ValueError) as err:

@@ -5,6 +5,7 @@ inference themselves run on a GPU host with Ultralytics installed: docs/data.md#
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -15,9 +16,10 @@ import pytest
 import yaml
 from PIL import Image
 
-from newton_lab.cli import yolo
+from newton_lab.commands.perception import YoloPredictArgs, YoloTrainArgs, check_yolo_predict, check_yolo_train
 from newton_lab.datasets.yolo import (OVERLAY_COLORS, YoloWriter, default_imgsz, mask_iou, montage, overlay,
                                       read_export, training_specs)
+from newton_lab.perception.train import results_csv, seg_metrics
 
 NAMES = ["red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"]
 SQUARE = np.array([[0.1, 0.1], [0.4, 0.1], [0.4, 0.5], [0.1, 0.5]])
@@ -87,26 +89,26 @@ def test_overlay_tints_outlines_and_keeps_the_rest():
 
 def test_results_csv_without_polars(tmp_path):
     (tmp_path / "results.csv").write_text("epoch,train/box_loss,metrics/mAP50(M)\n1,2.5,0.1\n2,1.5,0.4\n")
-    got = yolo._results_csv(SimpleNamespace(csv=tmp_path / "results.csv"))
+    got = results_csv(SimpleNamespace(csv=tmp_path / "results.csv"))
     assert got == {"epoch": [1.0, 2.0], "train/box_loss": [2.5, 1.5], "metrics/mAP50(M)": [0.1, 0.4]}
-    assert yolo._results_csv(SimpleNamespace(csv=tmp_path / "missing.csv")) == {}
+    assert results_csv(SimpleNamespace(csv=tmp_path / "missing.csv")) == {}
 
 
 def test_seg_metrics_reads_mask_and_box_map():
     m = SimpleNamespace(seg=SimpleNamespace(map50=0.95, map=0.71, ap50=np.array([0.9, 1.0])),
                         box=SimpleNamespace(map50=0.97, map=0.8), ap_class_index=np.array([1, 3]))
-    assert yolo._seg_metrics(m, dict(enumerate(NAMES))) == {
+    assert seg_metrics(m, dict(enumerate(NAMES))) == {
         "mask_map50": 0.95, "mask_map50_95": 0.71, "box_map50": 0.97, "box_map50_95": 0.8,
         "mask_ap50_per_class": {"blue_cuboid": 0.9, "green_cylinder": 1.0}}
 
 
 def test_missing_ultralytics_is_refused_after_the_arguments(tmp_path, monkeypatch):
     ds = export(tmp_path / "ds", ["train", "val"])
-    monkeypatch.setattr(yolo.importlib.util, "find_spec", lambda name: None)
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     with pytest.raises(ValueError, match=r"ultralytics is not installed here; pip install ultralytics==8\.4\.190"):
-        yolo.check_train(yolo.YoloTrainArgs(dataset=str(ds), device="cpu", output_dir=str(tmp_path / "run")))
+        check_yolo_train(YoloTrainArgs(dataset=str(ds), device="cpu", output_dir=str(tmp_path / "run")))
     with pytest.raises(ValueError, match="ultralytics is not installed here"):
-        yolo.check_predict(yolo.YoloPredictArgs(weights=str(ds / "data.yaml"), output_dir=str(tmp_path / "p")))
+        check_yolo_predict(YoloPredictArgs(weights=str(ds / "data.yaml"), output_dir=str(tmp_path / "p")))
     assert not (tmp_path / "run").exists() and not (tmp_path / "p").exists()
 
 

@@ -1,7 +1,8 @@
 """The ``newton-lab`` console script: ``tasks``, ``collect``, ``evaluate``, ``bench``, ``bench-train``, ...
 
 Every command's flags are generated from its argument dataclass in ``newton_lab.commands`` (one argument
-model for the CLI, the examples and the Prefect stages); ``run`` holds what each command does.
+model for the CLI, the examples and the Prefect stages); ``workflow``, ``env``, ``bench``, ``rl`` and ``perception``
+hold what each command does (a call into the library and a printed summary).
 """
 
 from __future__ import annotations
@@ -13,11 +14,11 @@ from dataclasses import dataclass
 from importlib import metadata
 
 from .. import commands as c
+from ..commands.checks import check_args
 from ..records import set_invocation
-from . import run, teleop, yolo
-from .checks import check_args
-from .parsing import REQUIRED, HelpFormatter, add_arguments, add_verbose, apply_verbose, from_namespace, parse_args
-from .parsing import make_output_dirs, unrecognized
+from . import bench, env, perception, rl, workflow
+from .flags import REQUIRED, HelpFormatter, add_arguments, from_namespace
+from .parsing import add_verbose, apply_verbose, make_output_dirs, parse_args, unrecognized
 
 
 @dataclass(frozen=True)
@@ -30,38 +31,39 @@ class Command:
 
 
 COMMANDS: dict[str, Command] = {
-    "tasks": Command(c.TasksArgs, run.list_task_ids, "list registered task ids"),
-    "collect": Command(c.CollectArgs, run.collect, "collect expert episodes into HDF5 (.hdf5/.h5) or zarr (.zarr)"),
-    "evaluate": Command(c.EvaluateArgs, run.evaluate,
+    "tasks": Command(c.TasksArgs, env.list_task_ids, "list registered task ids"),
+    "collect": Command(c.CollectArgs, workflow.collect,
+                       "collect expert episodes into HDF5 (.hdf5/.h5) or zarr (.zarr)"),
+    "evaluate": Command(c.EvaluateArgs, workflow.evaluate,
                         "run a policy checkpoint (or the expert planner) and report the success rate"),
-    "mimic": Command(c.MimicArgs, run.mimic, "expand source demos with Mimic (successes only)"),
-    "train": Command(c.TrainArgs, run.train, "train a diffusion policy on a dataset"),
-    "train-rl": Command(c.TrainRLArgs, run.train_rl,
+    "mimic": Command(c.MimicArgs, workflow.mimic, "expand source demos with Mimic (successes only)"),
+    "train": Command(c.TrainArgs, workflow.train, "train a diffusion policy on a dataset"),
+    "train-rl": Command(c.TrainRLArgs, rl.train_rl,
                         "PPO (rsl_rl) on a task's dense reward: checkpoint, curve, resume point, tensorboard log"),
-    "split": Command(c.SplitArgs, run.split,
+    "split": Command(c.SplitArgs, workflow.split,
                      "robomimic train/valid filter keys (mask/), or one dataset per phase (--out)"),
-    "export": Command(c.ExportArgs, run.export, "export a dataset to LeRobot v3"),
-    "pipeline": Command(c.PipelineArgs, run.pipeline, "Prefect flow: collect -> mimic -> train -> evaluate"),
-    "view": Command(c.ViewArgs, run.view, "replay a recorded episode into rerun by re-applying its states"),
-    "bench": Command(c.BenchArgs, run.bench, "env-steps/s of the captured step vs the bare solver on the same model"),
-    "bench-collect": Command(c.BenchCollectArgs, run.bench_collect,
+    "export": Command(c.ExportArgs, workflow.export, "export a dataset to LeRobot v3"),
+    "pipeline": Command(c.PipelineArgs, workflow.pipeline, "Prefect flow: collect -> mimic -> train -> evaluate"),
+    "view": Command(c.ViewArgs, workflow.view, "replay a recorded episode into rerun by re-applying its states"),
+    "bench": Command(c.BenchArgs, bench.bench, "env-steps/s of the captured step vs the bare solver on the same model"),
+    "bench-collect": Command(c.BenchCollectArgs, bench.bench_collect,
                              "expert collection demos/s and per hour: physics / agent / writer seconds"),
-    "bench-train": Command(c.BenchTrainArgs, run.bench_train,
+    "bench-train": Command(c.BenchTrainArgs, bench.bench_train,
                            "diffusion-policy training steps/s: eager vs CUDA-graph step"),
-    "bench-refusals": Command(c.BenchRefusalsArgs, run.bench_refusals,
+    "bench-refusals": Command(c.BenchRefusalsArgs, bench.bench_refusals,
                               "each case of the bad-input table in a fresh newton-lab process: seconds to its refusal"),
-    "suite": Command(c.SuiteArgs, run.suite,
+    "suite": Command(c.SuiteArgs, bench.suite,
                      "every headline row of the results page, one product command each, records copied, page rebuilt"),
-    "results": Command(c.ResultsArgs, run.results,
+    "results": Command(c.ResultsArgs, bench.results,
                        "the results page's headline tables from the committed run records (--check: compare only)"),
-    "render": Command(c.RenderArgs, run.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),
-    "teleop": Command(teleop.TeleopArgs, teleop.teleop,
+    "render": Command(c.RenderArgs, env.render, "one camera frame of a task as a PNG: RGB | depth | segmentation"),
+    "teleop": Command(c.TeleopArgs, env.teleop,
                       "drive a task from a teleop device (keyboard, replay, gp001, ...); keep / drop / exit each demo"),
-    "yolo-export": Command(yolo.YoloExportArgs, yolo.yolo_export,
+    "yolo-export": Command(c.YoloExportArgs, perception.yolo_export,
                            "YOLO-seg dataset (images, polygon labels, data.yaml) of the sorting objects"),
-    "yolo-train": Command(yolo.YoloTrainArgs, yolo.yolo_train,
+    "yolo-train": Command(c.YoloTrainArgs, perception.yolo_train,
                           "train YOLO-seg (Ultralytics) on a yolo-export folder; mask mAP on a held-out export"),
-    "yolo-predict": Command(yolo.YoloPredictArgs, yolo.yolo_predict,
+    "yolo-predict": Command(c.YoloPredictArgs, perception.yolo_predict,
                             "a trained YOLO-seg model on fresh renders of the camera: overlay PNGs"),
 }
 """Subcommands in ``--help`` order."""

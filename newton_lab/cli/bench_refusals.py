@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .refusal_cases import CASES, make_inputs
+from ..commands.refusal_cases import CASES, make_inputs
 
 SLOWEST = 5
 """How many of the slowest cases the record names."""

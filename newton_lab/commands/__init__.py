@@ -6,20 +6,23 @@ A field ``num_envs`` is the flag ``--num-envs``; ``bool`` fields are switches; `
 optional; fields without a default are required; ``list[str]`` fields take one or more values; field
 metadata may set ``flags`` (the spellings, default ``--field-name``) or ``positional``. Methods turn an
 argument object into the keywords of the library call it drives (``make_env``, ``env.collect``, ``mimic``,
-``Policy.train``, ``run_pipeline``), so no caller re-lists them.
+``Policy.train``, ``run_pipeline``, ``perception``'s YOLO calls), so no caller re-lists them. ``checks`` refuses bad
+values in one line before Warp, Newton or torch is imported (``check_args``).
 """
 
 
 from __future__ import annotations
 
 from .bench import BenchArgs, BenchCollectArgs, BenchRefusalsArgs, BenchTrainArgs, ResultsArgs, SuiteArgs
-from .env import (CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksArgs,
-                  camera_option)
+from .env import CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksArgs, camera_option
+from .perception import YoloExportArgs, YoloPredictArgs, YoloTrainArgs
 from .rl import TrainRLArgs
+from .teleop import TeleopArgs
 from .workflow import (RECIPE_FIELDS, TRAIN_OVERRIDES, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
                        PipelineArgs, SplitArgs, TrainArgs, ViewArgs)
 
-__all__ = ["BenchArgs", "BenchCollectArgs", "BenchRefusalsArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs", "CameraArgs", "EnvArgs",
-           "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option", "RECIPE_FIELDS",
-           "TRAIN_OVERRIDES", "CollectArgs", "EvaluateArgs", "ExportArgs", "MimicArgs", "PipelineArgs",
-           "SplitArgs", "TrainArgs", "TrainRLArgs", "ViewArgs"]
+__all__ = ["BenchArgs", "BenchCollectArgs", "BenchRefusalsArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs",
+           "CameraArgs", "EnvArgs", "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option",
+           "RECIPE_FIELDS", "TRAIN_OVERRIDES", "CollectArgs", "EvaluateArgs", "ExportArgs", "MimicArgs", "PipelineArgs",
+           "SplitArgs", "TeleopArgs", "TrainArgs", "TrainRLArgs", "ViewArgs", "YoloExportArgs", "YoloPredictArgs",
+           "YoloTrainArgs"]

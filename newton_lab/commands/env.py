@@ -9,6 +9,7 @@ from typing import Any
 from ..task_api.cfg import camera_option
 from ..task_api.registry import DEFAULT_TASK_ID
 
+
 @dataclass(kw_only=True)
 class EnvArgs:
     """Which task, how many rows, where, how seeded: everything ``make_env`` takes."""

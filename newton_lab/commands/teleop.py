@@ -1,17 +1,14 @@
-"""``newton-lab teleop``: drive a task from a teleop device, one episode at a time, and keep / drop / exit each
-(``newton_lab.agents.teleop``). The key map, a live status line and the review prompt are on the terminal; with
-``--rerun`` the cameras and the scene stream to the rerun viewer."""
+"""``newton-lab teleop``: the arguments of an operator session (``newton_lab.agents.teleop.teleop_session``), and
+their one-line checks before Warp is imported."""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from ..commands import CameraArgs, EnvArgs, RerunArgs
-from .run import rerun_hook
+from .env import CameraArgs, EnvArgs, RerunArgs
 
-TELEOP_TASK = "GalbotG1-PickCube-Teleop-v0"
 DEVICE_NAMES = ("keyboard", "replay", "gp001", "galbot_remote", "remote", "spacemouse", "gamepad")
 """``agents.teleop.devices.DEVICES`` (spelled here so a typo is refused before anything heavy is imported)."""
 
@@ -20,7 +17,7 @@ DEVICE_NAMES = ("keyboard", "replay", "gp001", "galbot_remote", "remote", "space
 class TeleopArgs(CameraArgs, RerunArgs, EnvArgs):
     """``newton-lab teleop``: operator episodes of a task into a dataset, each reviewed (keep / drop / exit)."""
 
-    task: str = TELEOP_TASK
+    task: str = "GalbotG1-PickCube-Teleop-v0"
     """task id with a teleop contract (e.g. GalbotG1-PickCube-Teleop-v0, GalbotG1-StackCube-v0)"""
     device: str = "keyboard"
     """teleop device: keyboard, replay, gp001, spacemouse or gamepad"""
@@ -43,12 +40,23 @@ class TeleopArgs(CameraArgs, RerunArgs, EnvArgs):
     sim_device: str | None = None
     """Warp device of the simulation, e.g. cpu or cuda:0 (--device names the teleop device here)"""
 
-    def env_kwargs(self):
+    def env_kwargs(self) -> dict[str, Any]:
         """``make_env`` keywords: the simulation runs on ``--sim-device``."""
         return {**super().env_kwargs(), "device": self.sim_device}
 
+    def agent_kwargs(self) -> dict[str, Any]:
+        """Keywords of ``TeleopAgent.from_device(self.device, **...)``."""
+        replay = ({"path": self.replay_dataset, "demo": self.replay_demo, "mode": self.replay_mode}
+                  if self.device == "replay" else {})
+        return {"task": self.task, "no_frame_policy": self.no_frame_policy, **replay}
 
-def check(args: TeleopArgs) -> None:
+    def session_kwargs(self) -> dict[str, Any]:
+        """Keywords of ``teleop_session(env, agent, **...)`` (less its ``on_step`` hook)."""
+        return {"path": self.dataset_path, "max_steps": self.max_steps, "keep": self.keep,
+                "realtime": not self.no_realtime}
+
+
+def check_teleop(args: TeleopArgs) -> None:
     """One-line errors before Warp is imported."""
     if args.device not in DEVICE_NAMES:
         raise ValueError(f"--device {args.device!r} is unknown; valid devices: {', '.join(DEVICE_NAMES)}")
@@ -63,28 +71,3 @@ def check(args: TeleopArgs) -> None:
         raise ValueError(f"--num-envs {args.num_envs}: one operator drives one env; use --num-envs 1")
     if args.keep is not None and args.keep < 1:
         raise ValueError(f"--keep must be an integer >= 1, got {args.keep}")
-
-
-def teleop(args: TeleopArgs) -> int:
-    check(args)
-    from ..agents.teleop import TeleopAgent, teleop_session  # deferred: Warp/Newton are slow to import
-    from ..envs import make_env  # deferred: Warp/Newton are slow to import
-
-    kwargs = ({"path": args.replay_dataset, "demo": args.replay_demo, "mode": args.replay_mode}
-              if args.device == "replay" else {})
-    agent = TeleopAgent.from_device(args.device, task=args.task, no_frame_policy=args.no_frame_policy, **kwargs)
-    try:
-        env = make_env(args.task, **args.env_kwargs())
-        hook, close = rerun_hook(args, env)
-        try:
-            summary = teleop_session(env, agent, path=args.dataset_path, max_steps=args.max_steps, keep=args.keep,
-                                     realtime=not args.no_realtime, on_step=hook)
-        finally:
-            close()
-    finally:
-        agent.close()
-    lat = summary["latency"]
-    print(f"latency device frame -> action applied: mean {lat['mean_ms']:.2f} ms, max {lat['max_ms']:.2f} ms "
-          f"({lat.get('max_control_steps', 0):.2f} control steps) over {lat['frames']} frames")
-    print(json.dumps({"task": args.task, "device": args.device, **summary}))
-    return 0

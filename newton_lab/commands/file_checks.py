@@ -1,6 +1,7 @@
 """The checks of ``check_args`` that read the files a command names, light: a dataset's header (h5py / zarr
-metadata: task, cameras, task options, observation terms), a checkpoint's header (``headers.checkpoint_header``:
-format, task) and the training presets (read from source). Each refuses in one line before Warp or torch loads."""
+metadata: task, cameras, task options, observation terms, episodes), a checkpoint's header
+(``checkpoint_headers.checkpoint_header``: format, task), the training presets (read from source) and a split's
+output folder. Each refuses in one line before Warp or torch loads."""
 
 from __future__ import annotations
 
@@ -8,10 +9,19 @@ import ast
 import functools
 import importlib.util
 from pathlib import Path
+from typing import Any
 
-from ..commands import CollectArgs, EvaluateArgs, TrainArgs, camera_option
-from ..task_api.catalog import declared_phases, declared_sources, did_you_mean
-from .headers import checkpoint_header
+from ..task_api.catalog import declared_mimic_arms, declared_phases, declared_sources, did_you_mean
+from .checkpoint_headers import checkpoint_header
+from .env import camera_option
+from .workflow import CollectArgs, EvaluateArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
+
+
+def flag_of(args: Any, name: str) -> str:
+    """How the command line spells field ``name``: ``--flag-name``, or the bare name of a positional."""
+    if args.__dataclass_fields__[name].metadata.get("positional"):
+        return name
+    return f"--{name.replace('_', '-')}"
 
 
 def trained_for(trained: str | None, task_id: str) -> bool:
@@ -180,3 +190,82 @@ def check_train(args: TrainArgs) -> None:
             raise ValueError(f"--init-checkpoint {args.init_checkpoint} was trained for {trained} and "
                              f"{args.dataset_path[0]} holds {task}; continue it on a dataset of {trained}, or train "
                              "from scratch")
+
+
+def check_datasets(args: Any, name: str) -> None:
+    """The dataset(s) a command reads exist and open (and ``view``'s episode is in its dataset): one line each."""
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    value = getattr(args, name)
+    for path in value if isinstance(value, list) else [value]:
+        if not Path(path).exists():
+            raise FileNotFoundError(f"{flag_of(args, name)} {path} does not exist; check the path")
+        info = read_dataset_info(path)  # a one-line ValueError if it is no dataset or is damaged
+        ids = info["demo_ids"]
+        if isinstance(args, SplitArgs) and args.out and info["task_id"] not in declared_phases():
+            raise ValueError(f"{path} was recorded on {info['task_id']}, which has no phases; nothing to split (a "
+                             "coherent task's dataset splits by phase: " + ", ".join(declared_phases()) + ")")
+        if isinstance(args, MimicArgs):
+            check_mimic_output(args, path, info)
+        if isinstance(args, SplitArgs) and args.phases:
+            check_split_phases(args, path, info)
+        if isinstance(args, ViewArgs) and args.episode not in ids:
+            listed = ", ".join(map(str, ids[:5])) + (", ..." if len(ids) > 5 else "")
+            raise ValueError(f"--episode {args.episode}: {path} has no episode {args.episode}; its {len(ids)} "
+                             f"episodes: {listed or 'none'}")
+
+
+def check_mimic_output(args: MimicArgs, path: str, info: dict[str, Any]) -> None:
+    """Mimic's source: its task has a Mimic variant and its actions command the arm the variant segments; an existing
+    output dataset holds demos of the same task."""
+    task_id = info["task_id"]
+    variants = [v for v, source in declared_sources().items() if source == task_id]
+    if not variants:
+        raise ValueError(f"task {task_id!r} has no Mimic variant; tasks with one: "
+                         f"{', '.join(sorted(set(declared_sources().values())))}")
+    src = Path(path)
+    out = Path(args.output_path) if args.output_path else src.with_name(f"{src.stem}_mimic{src.suffix}")
+    from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
+    from ..datasets.outputs import output_path  # deferred: as above
+
+    output_path(out, create=False)  # a file on its path: refused now
+    if out.exists():
+
+        held = read_dataset_info(out)["task_id"]  # a one-line ValueError if it is no dataset or is damaged
+        if held != task_id:  # Mimic's demos are recorded under their source's task id
+            raise ValueError(f"{out} holds a dataset of task {held!r}, not {task_id!r}; choose another "
+                             "--output-path")
+    names = info["env_args"].get("newton_lab", {}).get("action_joint_names")
+    arm = declared_mimic_arms().get(task_id, "left")
+    if names is not None:
+        from ..robots.registry import joint_group_facts  # deferred: numpy, only for mimic
+
+        if not all(j in names for j in joint_group_facts().get(f"{arm}_arm", ())):
+            raise ValueError(f"{path}: actions do not hold the {arm} arm joints; Mimic needs arm joint-target actions "
+                             "(demos of the task's expert, newton-lab collect)")
+
+
+def check_split_phases(args: SplitArgs, path: str, info: dict[str, Any]) -> None:
+    """``split --phases`` names phases that the dataset's task has (as recorded in its ``env_args``; a dataset
+    recorded before the phase names were is checked after the task is built), and only with ``--out``."""
+    if not args.out:
+        raise ValueError("--phases selects the phases of a split by phase: give --out too")
+    from ..datasets.split import check_phase_names  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    recorded = info["env_args"].get("newton_lab", {}).get("phases")
+    if recorded is not None:
+        check_phase_names(path, info["task_id"], recorded, args.phase_names())
+
+
+def check_split_out(args: SplitArgs) -> None:
+    """``split --out`` is a new folder (or an empty one), and ``--phases`` names at least one phase."""
+    if args.phases is not None and not args.phase_names():
+        raise ValueError(f"--phases {args.phases!r} names no phase; give comma-separated names, e.g. --phases "
+                         "pick,place")
+    if args.out is None:
+        return
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out} is a file; split into a new folder")
+    if out.is_dir() and any(out.iterdir()):
+        raise FileExistsError(f"--out {out} is a folder that holds files already; split into a new folder")

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..datasets import open_writer
-from .headers import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
+from .checkpoint_headers import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
 
 CASES: list[tuple[str, str]] = [
     ("collect --episodes 0 --dataset-path x.hdf5", "--episodes must be an integer >= 1"),
