@@ -17,11 +17,10 @@ from newton_lab.envs import NewtonEnv, make_env
 from newton_lab.envs.scene import build_scene
 from newton_lab.kernels.actions import KIND_CODE
 from newton_lab.robots.binding import RobotBinding
-from newton_lab.robots.bound import BoundRobot
+from newton_lab.robots.bound import ACTION_KINDS, BoundRobot
 from newton_lab.robots.g1 import spec
-from newton_lab.robots.g1.binding import ACTION_KINDS, G1Binding
-from newton_lab.robots.g1.mecanum import twist_to_wheels_torch, wheel_gains, wheels_to_twist_torch
-from newton_lab.robots.g1.packers import base_twist_to_wheel_velocities
+from newton_lab.robots.g1.mecanum import wheel_gains
+from newton_lab.robots.mecanum import twist_to_wheels_torch, wheels_to_twist_torch
 from newton_lab.robots.registry import register_robot, robot_binding, robot_names
 from newton_lab.task_api.cfg import ActionTermCfg
 from newton_lab.task_api.registry import lookup
@@ -40,8 +39,8 @@ def layout(pick_cfg):
         return build_scene(pick_cfg, 1, "cpu")
 
 
-def _bind(layout, *terms: ActionTermCfg) -> G1Binding:
-    return G1Binding.from_layout(layout, actions=list(terms), arm="left")
+def _bind(layout, *terms: ActionTermCfg, arm: str = "left") -> BoundRobot:
+    return BoundRobot.from_layout(robot_binding("g1"), layout, actions=list(terms), arm=arm)
 
 
 # ---------------------------------------------------------------- the robot behind one binding
@@ -73,14 +72,6 @@ def test_a_second_robot_is_one_registration(layout):
     assert bound.context.gripper_closed == 1.5
 
 
-def test_g1_binding_is_the_generic_binding_of_the_g1(layout):
-    terms = [ActionTermCfg(name="arm", group="left_arm", type="relative")]
-    g1, generic = G1Binding.from_layout(layout, actions=terms), BoundRobot.from_layout(robot_binding(), layout,
-                                                                                      actions=terms)
-    assert g1.context == generic.context and g1.actions.joint_names == generic.actions.joint_names
-    assert np.array_equal(g1.actions.index, generic.actions.index)
-
-
 # ---------------------------------------------------------------- robot half of the context
 def test_robot_context_from_joint_index(layout, pick_cfg):
     ctx = _bind(layout).context
@@ -91,10 +82,10 @@ def test_robot_context_from_joint_index(layout, pick_cfg):
     assert ctx.arm_coords == tuple(coord[j] for j in spec.LEFT_ARM_JOINTS)
     assert ctx.tcp_body == layout.joints.body["left_arm_link7"]
     assert ctx.tcp_offset_pos == spec.TCP_OFFSET_POS and ctx.tcp_offset_quat == spec.TCP_OFFSET_QUAT
-    right = G1Binding.from_layout(layout, actions=[], arm="right").context
+    right = _bind(layout, arm="right").context
     assert right.arm_coords == tuple(coord[j] for j in spec.RIGHT_ARM_JOINTS)
     with pytest.raises(ValueError, match="unknown arm 'middle'"):
-        G1Binding.from_layout(layout, actions=[], arm="middle")
+        _bind(layout, arm="middle")
 
 
 def test_env_context_is_the_binding(pick_env):
@@ -274,8 +265,7 @@ def test_mecanum_formula_reference_vectors_and_inverse():
     lin, yaw = wheel_gains()
     assert (lin, yaw) == pytest.approx((7.0711, 10.0161), abs=1e-4)
     twist = torch.tensor([[0.2, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.0, 1.0], [0.1, -0.3, 0.7]])
-    wheels = twist_to_wheels_torch(twist)
+    wheels = twist_to_wheels_torch(twist, (lin, yaw))
     assert_close(wheels[:3], torch.tensor([[-1.4142, -1.4142, 1.4142, 1.4142], [1.4142, -1.4142, -1.4142, 1.4142],
                                            [10.0161] * 4]), atol=1e-4, rtol=0)
-    assert_close(wheels_to_twist_torch(wheels), twist, atol=1e-6, rtol=0)
-    assert_close(base_twist_to_wheel_velocities(twist[:, 0], twist[:, 1], twist[:, 2]), wheels)
+    assert_close(wheels_to_twist_torch(wheels, (lin, yaw)), twist, atol=1e-6, rtol=0)

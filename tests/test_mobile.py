@@ -11,9 +11,17 @@ import torch
 import warp as wp
 
 from newton_lab.robots.g1 import spec
-from newton_lab.robots.g1.packers import base_twist_to_wheel_velocities
+from newton_lab.robots.mecanum import twist_to_wheels_torch
+from newton_lab.robots.registry import robot_binding
 
 COHERENT = "GalbotG1-PickToShelf-v0"
+
+
+def base_twist_to_wheel_velocities(vx: float, vy: float, wz: float, *, num_envs: int) -> torch.Tensor:
+    """The G1's four wheel speeds [rad/s] for the base twist (vx, vy [m/s], wz [rad/s]), one row per env: the formula
+    the nav agents apply (``robots.mecanum`` with the robot's gains)."""
+    twist = torch.tensor([[vx, vy, wz]], dtype=torch.float32).repeat(num_envs, 1)
+    return twist_to_wheels_torch(twist, robot_binding("g1").wheel_gains)
 
 
 @pytest.fixture(scope="module")

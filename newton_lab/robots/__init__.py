@@ -1,1 +1,1 @@
-"""Robot descriptions: pure-data specs, model building and action packers."""
+"""Robot descriptions: pure-data specs, model building, the robot binding and its registry."""

@@ -8,8 +8,8 @@ mixing matrix ``MIX`` (4 x 3, entries +-1) and the gains of :func:`wheel_gains` 
 ``MIX``'s columns are orthogonal with squared norm 4, so the exact (least-squares) inverse is
 ``twist = (MIX^T @ wheels / 4) / (lin, lin, yaw)``. :func:`twist_to_wheels` and :func:`wheels_to_twist` are
 the ``@wp.func`` pair every user calls: the env's ``drive_base`` kernel (wheel columns -> planar base
-velocity), and, through :func:`twist_to_wheels_torch` / :func:`wheels_to_twist_torch`, the packers and the
-nav agents on torch tensors. A robot's gains come from its wheel radius and offsets
+velocity), and, through :func:`twist_to_wheels_torch` / :func:`wheels_to_twist_torch`, the nav and teleop
+agents on torch tensors. A robot's gains come from its wheel radius and offsets
 (``RobotBinding.wheel_gains``; the G1's: ``robots.g1.mecanum``).
 """
 
@@ -82,7 +82,7 @@ def _map_rows(kernel, rows: torch.Tensor, width_in: int, width_out: int, lin: fl
     out = torch.empty(src.shape[0], width_out, dtype=torch.float32, device=src.device)
     if src.shape[0] == 0:
         return out
-    wp.init()  # no-op once Warp is up (a packer may be the first Warp user of the process)
+    wp.init()  # no-op once Warp is up (an agent may be the first Warp user of the process)
     device = wp.device_from_torch(src.device)
     stream = wp.stream_from_torch(src.device) if device.is_cuda else None
     wp.launch(
