@@ -74,16 +74,33 @@ def test_its_actor_is_evaluated_on_held_out_episodes_and_recorded(run):
     assert rows and rows[0][0] == "Reach" and "/ 2** (seed 10000)" in rows[0][5]
 
 
-def test_the_same_seed_trains_the_same_actor_and_a_resumed_run_continues(tmp_path):
+def _curve(folder: Path) -> list[dict]:
+    """The run's curve without its timings."""
+    rows = json.loads((folder / "curve.json").read_text())
+    return [{k: v for k, v in r.items() if k not in ("wall_s", "env_steps_per_s")} for r in rows]
+
+
+def test_the_same_seed_trains_the_same_actor_and_a_resumed_run_repeats_the_uninterrupted_one(tmp_path):
     first = train(tmp_path / "b", 2)
     again = train(tmp_path / "c", 2)
     assert torch.equal(actor_output(first), actor_output(again))
     train(tmp_path / "r", 1)
     (tmp_path / "r" / "checkpoint.pt").unlink()  # as a run killed after its first chunk leaves it
-    row = json.loads((tmp_path / "r" / "curve.json").read_text())[0]
-    train(tmp_path / "r", 2, resume=True)
-    curve = json.loads((tmp_path / "r" / "curve.json").read_text())
-    assert [r["iteration"] for r in curve] == [1, 2] and curve[0] == row  # continued, not restarted
+    resumed = train(tmp_path / "r", 2, resume=True)
+    assert [r["iteration"] for r in _curve(tmp_path / "r")] == [1, 2]
+    assert _curve(tmp_path / "r") == _curve(tmp_path / "b")  # the same rows, not a restart
+    assert torch.equal(actor_output(resumed), actor_output(first))
+
+
+def test_a_short_run_raises_the_reward_of_a_step(tmp_path):
+    """Six iterations of 16 rows: the mean reward of a step in the last chunk is above the first chunk's (a fixed
+    seed, so the run is the same every time)."""
+    from newton_lab.policies.rl.train import PPOConfig, train_ppo  # deferred: rsl_rl, Warp
+
+    cfg = PPOConfig(iterations=6, **{**TINY_PPO, "num_envs": 16, "chunk_iterations": 2})
+    train_ppo(TASK, cfg, tmp_path / "up", progress=False)
+    rewards = [r["mean_step_reward"] for r in _curve(tmp_path / "up")]
+    assert len(rewards) == 3 and rewards[-1] > rewards[0], rewards
 
 
 def test_evaluate_runs_the_ppo_actor_and_refuses_another_task(run):

@@ -56,10 +56,39 @@ open(f"{work}/reqs.txt", "w").write("\n".join(keep) + "\n")
 pins = [l for l in open(f"{work}/freeze.txt") if not skip.match(name(l))]
 open(f"{work}/constraints.txt", "w").write("".join(pins))
 PY
+  # Every distribution the venv installed for those requirements (their closure through the installed metadata),
+  # pinned to the venv's version and downloaded without a second resolution: pip's resolver would look for the
+  # skipped packages (torch) on the index for the target platform, where this pin may not exist.
+  "$(dirname "$pip")/python" - "$work" "$skip_re" <<'PY'
+import re, sys
+from importlib import metadata
+from packaging.requirements import Requirement
+work, skip = sys.argv[1], re.compile(rf"^({sys.argv[2]})$")
+norm = lambda n: re.sub(r"[-_.]+", "-", n).lower()
+todo = [Requirement(l) for l in open(f"{work}/reqs.txt").read().split("\n") if l.strip()]
+seen, pins = set(), []
+while todo:
+    req = todo.pop()
+    n = norm(req.name)
+    if n in seen or skip.match(n):
+        continue
+    seen.add(n)
+    try:
+        dist = metadata.distribution(req.name)
+    except metadata.PackageNotFoundError:  # a --with requirement: resolved by pip below
+        continue
+    pins.append(f"{req.name}=={dist.version}")
+    for extra in req.extras or {""}:
+        for r in map(Requirement, dist.requires or []):
+            if r.marker is None or r.marker.evaluate({"extra": extra}):
+                todo.append(r)
+open(f"{work}/closure.txt", "w").write("\n".join(sorted(pins)) + "\n")
+PY
   local plat=(--only-binary=:all: --python-version "$py" --implementation cp --platform manylinux_2_28_x86_64
               --platform manylinux_2_27_x86_64 --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64
               --platform manylinux1_x86_64)
-  $pip download -q "${plat[@]}" -r "$work/reqs.txt" -c "$work/constraints.txt" -d "$work/wheels"
+  $pip download -q --no-deps "${plat[@]}" -r "$work/closure.txt" -d "$work/wheels"
+  [ -z "$with" ] || $pip download -q "${plat[@]}" $with -c "$work/constraints.txt" -d "$work/wheels"
   for w in "$work"/wheels/*.whl; do  # what the target has (and its CUDA stack) stays there
     n=$(basename "$w" | cut -d- -f1 | tr 'A-Z_' 'a-z-')
     if [[ $n =~ ^($skip_re)$ || $n == nvidia-* ]]; then rm "$w"; fi

@@ -33,6 +33,9 @@ class TrainRLArgs:
     """hidden layer widths of the actor and the critic (default 256 128 64)"""
     learning_rate: float = 1e-3
     """Adam's initial learning rate (adapted to the KL target)"""
+    end_on_success: bool = False
+    """end training episodes at the task's success (default: they run to the time limit, so that PPO is not taught
+    to hover outside the success region; see PPOConfig.end_on_success)"""
     output_dir: str = "outputs/ppo"
     """folder of checkpoint.pt, curve.json, resume.pt and the tensorboard log"""
     resume: bool = False
@@ -52,4 +55,4 @@ class TrainRLArgs:
                          time_budget_s=self.time_budget_s, chunk_iterations=self.chunk_iterations,
                          num_steps_per_env=self.steps_per_env,
                          **({"hidden_dims": tuple(self.hidden_dims)} if self.hidden_dims else {}),
-                         learning_rate=self.learning_rate)
+                         learning_rate=self.learning_rate, end_on_success=self.end_on_success)

@@ -23,6 +23,7 @@ def make_env(
     capture: bool = True,
     cameras: bool | dict[str, Any] | str | None = None,
     physics: PhysicsCfg | None = None,
+    terminate_on_success: bool | None = None,
     **options: Any,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
@@ -37,6 +38,8 @@ def make_env(
     CLI's text for any of these (``"none"``, ``"front_head=96x72:rgb"``).
     ``physics`` replaces the task's physics settings (``TaskCfg.physics``, ``task_api.physics.PhysicsCfg``), e.g.
     ``PhysicsCfg()`` for the settings every task ran with before choosing its own (``tools/physics_table.py``).
+    ``terminate_on_success``: whether the last phase's success ends the episode (``None``: the task's choice,
+    ``TaskCfg.terminate_on_success``); reinforcement learning trains with ``False`` (``policies.rl.train``).
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
@@ -47,6 +50,8 @@ def make_env(
     cfg = spec.make_cfg({**(task_options or {}), **options})
     if physics is not None:
         cfg = dataclasses.replace(cfg, physics=physics)
+    if terminate_on_success is not None:
+        cfg = dataclasses.replace(cfg, terminate_on_success=bool(terminate_on_success))
     prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
     return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture,
                      cameras=cameras)

@@ -5,7 +5,9 @@ in ``obs_mode="state"``, proprioception only with ``obs_mode="sensors"``) and ``
 privileged object poses when the policy does not see them: the critic is thrown away after training, so it may
 read what the robot cannot measure). ``dones`` is terminated or truncated; ``extras["time_outs"]`` marks the
 truncated rows (PPO bootstraps their value), and ``extras["log"]`` the success rate of the episodes that ended in
-the step. Rows that end are reset inside the step (their ``obs`` is the new episode's first), as rsl_rl expects.
+the step: an episode counts as a success when the task's success held at any of its steps (training envs may
+run on past success, ``PPOConfig.end_on_success``). Rows that end are reset inside the step (their ``obs`` is the
+new episode's first), as rsl_rl expects.
 """
 
 from __future__ import annotations
@@ -33,7 +35,19 @@ class RslRlVecEnv(VecEnv):
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self.sensors = env.cfg.options.get("obs_mode") == "sensors"
         self.returns = torch.zeros(self.num_envs, device=self.device)
+        self.succeeded = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
+        self.reward_sum, self.reward_steps = torch.zeros((), device=self.device), 0
+
+    def restart(self, seed: int) -> None:
+        """Reseed and reset every row (``env.reseed``) and forget the running episodes' returns: a chunk of PPO
+        iterations that starts here depends only on ``seed`` and the runner's state, so a resumed run continues as
+        the uninterrupted one did."""
+        self.env.actions.zero_()  # as a new env's: its last-action observation term reads them after the reset
+        self.env.reseed(seed)
+        self.returns.zero_()
+        self.succeeded.zero_()
+        self.episode_length_buf.zero_()
 
     def _observations(self) -> TensorDict:
         policy = self.env.obs.clone()
@@ -50,24 +64,32 @@ class RslRlVecEnv(VecEnv):
         dones = terminated | truncated
         reward = reward.clone()
         self.returns += reward
+        self.reward_sum += reward.sum()
+        self.reward_steps += self.num_envs
+        self.succeeded |= info["success"]
         self.episode_length_buf += 1
         extras: dict = {"time_outs": truncated.clone()}
         if bool(dones.any()):
             ended = dones.nonzero().flatten()
-            ok = info["success"][ended].float()
+            ok = self.succeeded[ended].float()
             self.ended["episodes"] += int(ended.numel())
             self.ended["successes"] += int(ok.sum().item())
             self.ended["return_sum"] += float(self.returns[ended].sum().item())
             extras["log"] = {"/success_rate": ok.mean()}
             self.returns[ended] = 0.0
+            self.succeeded[ended] = False
             self.episode_length_buf[ended] = 0
         return self._observations(), reward, dones.long(), extras
 
     def take_episode_counts(self) -> dict[str, float]:
-        """Episodes ended, successes and mean return since the last call (then reset)."""
+        """Episodes ended, successes, their mean return and the mean reward of a step since the last call (then
+        reset)."""
         n = self.ended["episodes"]
         out = {"episodes": n, "successes": self.ended["successes"],
                "success_rate": self.ended["successes"] / n if n else None,
-               "mean_return": self.ended["return_sum"] / n if n else None}
+               "mean_return": self.ended["return_sum"] / n if n else None,
+               "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None}
         self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
+        self.reward_sum.zero_()
+        self.reward_steps = 0
         return out

@@ -6,13 +6,21 @@ import warp as wp
 
 from newton_lab.kernels.context import TaskContext
 
-from .terminations import goal_distance
+from .terminations import SUCCESS_RADIUS, goal_distance
 
 
 @wp.func
 def position_tanh(ctx: TaskContext, w: int) -> float:
     """1 - tanh(d / 0.1)."""
     return 1.0 - wp.tanh(goal_distance(ctx, w) / 0.1)
+
+
+@wp.func
+def position_tanh_fine(ctx: TaskContext, w: int) -> float:
+    """1 - tanh(d / 0.02): the term that pays for the last centimetres, at the scale of the success radius (2 cm).
+    The reference's two terms (-d and the 0.1 m tanh) differ by under 0.02 a step between 5 cm and 2 cm, and a
+    PPO actor settled about 5 cm short of its goals without this term."""
+    return 1.0 - wp.tanh(goal_distance(ctx, w) / SUCCESS_RADIUS)
 
 
 @wp.func

@@ -1,4 +1,5 @@
-"""GalbotG1-Reach-v0 configuration (as on the reference platform: left arm absolute targets, 12 s episodes)."""
+"""GalbotG1-Reach-v0 configuration (as on the reference platform: left arm absolute targets, 12 s episodes; one
+reward term added, ``position_tanh_fine``, see its docstring)."""
 
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ def reach_cfg() -> TaskCfg:
         rewards={
             "position_error": RewardTermCfg(func=terminations.goal_distance, weight=-0.2),
             "position_tanh": RewardTermCfg(func=rewards.position_tanh, weight=0.1),
+            "position_tanh_fine": RewardTermCfg(func=rewards.position_tanh_fine, weight=0.1),
             "action_rate": RewardTermCfg(func=action_rate, weight=-1e-4),
             "joint_vel": RewardTermCfg(func=rewards.arm_joint_vel, weight=-1e-4),
         },
