@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from test_interrupts import RUN, alive, descendants, wait_for
 
 ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-episodes", "400", "--train-steps", "3",
@@ -18,13 +20,13 @@ ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-e
 """A pipeline whose Mimic stage runs long after collect has finished."""
 
 
-def start_pipeline(cwd: Path, **extra_env: str) -> subprocess.Popen:
+def start_pipeline(cwd: Path, *extra: str, **extra_env: str) -> subprocess.Popen:
     """The pipeline in a process of its own, on its embedded server (no user server configured); its stderr in
     ``cwd/stderr.txt`` (a file: a child left alive would hold a pipe open)."""
     env = {**{k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}, **extra_env}
     with open(cwd / "stderr.txt", "w") as err:
-        return subprocess.Popen([sys.executable, "-c", RUN, *ARGV], cwd=cwd, stdout=subprocess.DEVNULL, stderr=err,
-                                env=env)
+        return subprocess.Popen([sys.executable, "-c", RUN, *ARGV, *extra], cwd=cwd, stdout=subprocess.DEVNULL,
+                                stderr=err, env=env)
 
 
 def server_of(pid: int) -> list[int]:
@@ -70,19 +72,22 @@ def test_ctrl_c_during_pipeline_keeps_the_finished_stages_in_one_line(tmp_path):
     assert not (tmp_path / "out" / "mimic.manifest.json").exists()
 
 
-def test_a_killed_pipeline_leaves_no_process(tmp_path):
-    """SIGKILL once the server runs and collect has begun: the server, the watchdog and anything a stage started
-    end with the pipeline (a watchdog on its pid)."""
-    run = start_pipeline(tmp_path)
-    wait_for(lambda: server_of(run.pid) and (tmp_path / "out" / "demos.hdf5").exists() or run.poll() is not None,
-             "the server up and collect writing")
+@pytest.mark.parametrize("runner", ["local", "dask"])
+def test_a_killed_pipeline_leaves_no_process(tmp_path, runner):
+    """SIGKILL once the server runs and a stage has begun (local: collect writing; dask: the two worker processes
+    up): the server, the Dask workers, the watchdog and anything a stage started end with the pipeline (a watchdog
+    on its pid)."""
+    dask = ("--runner", "dask", "--workers", "2") if runner == "dask" else ()
+    run = start_pipeline(tmp_path, *dask)
+    begun = (lambda: len(descendants(run.pid)) >= 4) if dask else (tmp_path / "out" / "demos.hdf5").exists
+    wait_for(lambda: server_of(run.pid) and begun() or run.poll() is not None, "the server up and a stage begun")
     assert run.poll() is None, (tmp_path / "stderr.txt").read_text()
     started = descendants(run.pid)
     assert server_of(run.pid)
     run.kill()
     run.wait(timeout=60)
     seconds = end_all(started)
-    print(f"the pipeline's {len(started)} processes ended {seconds:.2f} s after its SIGKILL")
+    print(f"{runner}: the pipeline's {len(started)} processes ended {seconds:.2f} s after its SIGKILL")
 
 
 def test_a_full_disk_ends_the_pipeline_in_one_line(tmp_path):

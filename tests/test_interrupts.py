@@ -113,7 +113,9 @@ def test_a_killed_split_leaves_no_writer_and_nothing_that_looks_finished(tmp_pat
     assert not stage.exists() and not list(tmp_path.glob(".parts.*"))
 
 
-def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path, signum):
+    """Ctrl-C (SIGINT) or SIGTERM: exit status 130 / 143, one line, every finished episode kept."""
     from newton_lab.datasets import read_dataset_info
 
     path = tmp_path / "r.hdf5"
@@ -128,10 +130,10 @@ def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path
                      "--max-steps", "5", "--cameras", "none", "--no-progress", "--dataset-path", str(path),
                      cwd=tmp_path)
     wait_for(lambda: demos() >= 2 or run.poll() is not None, "two episodes written")
-    run.send_signal(signal.SIGINT)
+    run.send_signal(signum)
     out, err = run.communicate(timeout=900)
     lines = [line for line in err.splitlines() if "CUDA driver" not in line]
-    assert run.returncode == 130 and len(lines) == 1, err
+    assert run.returncode == 128 + signum and len(lines) == 1, err
     kept = read_dataset_info(path)["num_demos"]
     assert f"newton-lab collect: interrupted: {kept} finished episodes of this run kept in {path}" in lines[0]
     assert kept >= 2
@@ -190,11 +192,16 @@ def limited(limit_bytes: int):
     return apply
 
 
-@pytest.mark.parametrize("command", ["train", "split"])
+@pytest.mark.parametrize("command", ["train", "split", "export"])
 def test_a_refused_write_ends_train_and_split_in_one_line_leaving_nothing_half_written(tmp_path, command):
-    """A write the disk refuses (here: past a file-size limit, EFBIG) ends ``train`` (torch.save) and ``split`` (a
-    phase writer's HDF5 write) with exit status 1 and one line; no temporary or partial file is left."""
-    if command == "train":
+    """A write the disk refuses (here: past a file-size limit, EFBIG) ends ``train`` (torch.save), ``split`` (a
+    phase writer's HDF5 write) and ``export`` (a parquet file) with exit status 1 and one line; no temporary or
+    partial file is left."""
+    if command == "export":
+        make_dataset(tmp_path / "d.hdf5", lengths=(300, 300, 300))
+        argv = ["export", "--dataset-path", "d.hdf5", "--root", "lerobot"]
+        limit, words = 20_000, "the disk refused a write (File too large): "
+    elif command == "train":
         make_dataset(tmp_path / "d.hdf5")
         argv = ["train", "--dataset-path", "d.hdf5", "--preset", "cpu", "--max-steps", "2", "--output-dir", "pol"]
         limit, words = 100_000, "the disk refused a write (short write) while writing pol/checkpoint.pt; free space"

@@ -8,6 +8,8 @@ hold what each command does (a call into the library and a printed summary).
 from __future__ import annotations
 
 import argparse
+import errno
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -136,6 +138,9 @@ def error_line(exc: Exception) -> str:
     path, and not its bare errno; else its first argument (a KeyError's without the quotes)."""
     if isinstance(exc, OSError) and exc.errno is not None and exc.strerror:
         where = f"{exc.filename}: " if exc.filename is not None else ""
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):  # the medium, not the path: a full disk, a quota
+            return (f"the disk refused a write ({os.strerror(exc.errno)}): {where}{exc.strerror}; free space and run "
+                    "it again")
         return f"{where}{exc.strerror} (errno {exc.errno}); check the path and its permissions"
     return str(exc.args[0]) if exc.args else str(exc)
 
