@@ -16,7 +16,7 @@ from typing import Any
 
 from prefect import flow, get_run_logger, unmapped
 
-from ..datasets.outputs import output_path
+from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task

@@ -21,7 +21,7 @@ from urllib.parse import urlparse
 from prefect import flow, get_run_logger
 
 from ..commands import PipelineArgs
-from ..datasets.outputs import output_path
+from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog
 from .cluster import cluster_options, pins_gpus, quiet_shutdown

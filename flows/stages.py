@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from ..commands import CollectArgs, EvaluateArgs, MimicArgs
-from ..datasets.contained import contained
-from ..datasets.outputs import output_path
+from ..datasets.files.inside_root import contained
+from ..datasets.files.output_paths import output_path
 from .artifacts import artifact
 
 BACKEND = "diffusion"

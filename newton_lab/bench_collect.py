@@ -18,9 +18,10 @@ import torch
 import warp as wp
 from torch.profiler import ProfilerActivity, profile, record_function, schedule
 
-from .datasets import list_demos, open_writer, read_episode, zarr_store
-from .datasets._common import sync_tree
-from .datasets.outputs import output_path
+from .datasets import list_demos, open_writer, read_episode
+from .datasets.zarr import store as zarr_store
+from .datasets.files.durability import sync_tree
+from .datasets.files.output_paths import output_path
 from .envs import make_env
 from .envs.rollout import Timers, env_args
 from .flows.cluster import cluster_options, pins_gpus, quiet_shutdown, visible_gpus
@@ -120,7 +121,7 @@ class _Trace:
 
 
 ZARR_WRITER_PARTS = {"writer_files_s": "files", "writer_sync_s": "sync"}
-"""A zarr batch's seconds split (``zarr_store.BATCH_SECONDS``): encoding and writing its demos' files (writer
+"""A zarr batch's seconds split (``zarr.store.BATCH_SECONDS``): encoding and writing its demos' files (writer
 processes or threads), and the one ``syncfs`` that makes them durable (disk-bound where the files are many); the
 rest of ``writer_s`` is the lock, the renames and the commit."""
 

@@ -59,7 +59,8 @@ def test_a_read_only_zarr_dataset_is_called_read_only_not_damaged(tmp_path, monk
     import errno
     import os
 
-    from newton_lab.datasets import open_writer, read_dataset_info, zarr_session
+    from newton_lab.datasets import open_writer, read_dataset_info
+    from newton_lab.datasets.zarr import session as zarr_session
     from test_lerobot_export import ENV_ARGS, TASK, make_dataset, make_episode
 
     path = make_dataset(tmp_path / "d.zarr")

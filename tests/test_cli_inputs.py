@@ -3,7 +3,6 @@ file is written (the working folder is left as it was)."""
 
 from __future__ import annotations
 
-import os
 import resource
 import subprocess
 import sys
@@ -79,15 +78,15 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     the dataset holds, and that episode stays readable."""
     from newton_lab.datasets import read_dataset_info, read_episode
 
-    env = {**os.environ, "NEWTON_LAB_TEST_WRITE_FAULT": "140"}  # inside the second episode's writes
     argv = ["collect", "--episodes", "4", "--num-envs", "1", "--max-steps", "5", "--dataset-path", "d.hdf5",
             "--no-progress", "--cameras", "none"]
     # A writer queue of one episode makes every batch one episode: with the default queue, a writer thread that
     # the OS schedules late takes episodes 1 and 2 as one batch, and the fault then rolls both back.
+    # The fault is armed by this launcher through the writers' seam: the 140th write is inside the second episode's.
     one_per_batch = ("import sys; from newton_lab.envs import rollout; rollout.collect.__kwdefaults__['max_queued'] = 1;"
+                     " from newton_lab.datasets.files.write_faults import inject_write_fault; inject_write_fault(140);"
                      " from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))")
-    out = subprocess.run([sys.executable, "-c", one_per_batch, *argv], cwd=tmp_path, capture_output=True,
-                         text=True, env=env)
+    out = subprocess.run([sys.executable, "-c", one_per_batch, *argv], cwd=tmp_path, capture_output=True, text=True)
     errors = [line for line in out.stderr.splitlines() if "CUDA driver" not in line]
     assert out.returncode == 1 and len(errors) == 1, out.stderr
     assert "disk full after 1 episode; d.hdf5 holds 1 finished episode" in errors[0]

@@ -14,7 +14,7 @@ import pytest
 
 from newton_lab.agents import PlannerAgent, ZeroAgent
 from newton_lab.datasets import read_dataset_info, read_episode, state_tree
-from newton_lab.datasets.zarr_nodes import inodes_of
+from newton_lab.datasets.zarr.nodes import inodes_of
 
 
 @pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
@@ -115,7 +115,7 @@ def test_collect_writes_episodes_that_end_together_as_one_batch(pick_env, tmp_pa
 def test_collect_refuses_a_zarr_run_the_inodes_cannot_hold(pick_env, tmp_path, monkeypatch):
     """Before anything is written: a zarr collection whose demos need more inodes than the filesystem has free
     is refused in one line with the numbers and the fix; HDF5 (one file) is not affected."""
-    import newton_lab.datasets.room as room
+    import newton_lab.datasets.zarr.inodes as room
 
     real = os.statvfs(tmp_path)
     free = type("Stat", (), {"f_files": 10_000, "f_favail": 500, "f_ffree": 500, "f_bavail": real.f_bavail,

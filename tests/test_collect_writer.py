@@ -12,8 +12,9 @@ import pytest
 import zarr
 
 from newton_lab.datasets import EpisodeWriter, list_demos, read_episodes
-from newton_lab.datasets import zarr_packs, zarr_workers
-from newton_lab.datasets.background import BackgroundWriter
+from newton_lab.datasets.zarr import packs as zarr_packs
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
+from newton_lab.datasets.writers.background_thread import BackgroundWriter
 from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
 
 
@@ -67,12 +68,9 @@ def _leaves(tree: dict):
 
 
 @pytest.mark.parametrize("threads", [1, 3])
-def test_a_packed_batch_on_chunk_threads_reads_back_as_written(tmp_path, monkeypatch, threads):
+def test_a_packed_batch_on_chunk_threads_reads_back_as_written(tmp_path, threads):
     """Arrays of several ~1 MB chunks and an edge chunk, strided views among them: one pack for the batch, the
     demos read back as given, and zarr-python reads the pack's rows one demo after another."""
-    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 4)
-    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 0)
-    monkeypatch.setattr(zarr_workers, "PACK_THREADS", threads)
     rng = np.random.default_rng(0)
     episodes = []
     for s in range(6):
@@ -81,7 +79,8 @@ def test_a_packed_batch_on_chunk_threads_reads_back_as_written(tmp_path, monkeyp
         ep["obs"]["wide"] = wide[:, 8:]  # a strided view: 16 KB a row, 64 rows a chunk, 195 rows in all
         episodes.append(ep)
     path = tmp_path / "p.zarr"
-    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+    settings = ZarrWriteSettings(pack_min_batch=4, pack_threads=threads)
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS, zarr_settings=settings) as w:
         assert w.append_episodes([(ep, True, {"seed": s}) for s, ep in enumerate(episodes)]) == list(range(6))
     assert sorted(p.name for p in (path / "data").iterdir() if p.is_dir()) == ["pack_0"]
     for s, got in enumerate(read_episodes(path, range(6))):
@@ -117,13 +116,12 @@ def _with_repeats(seed: int, steps: int) -> dict:
             "other": np.zeros((steps, 2), np.float32)}
 
 
-def test_arrays_that_repeat_others_are_stored_once_and_read_back_byte_identical(tmp_path, monkeypatch):
-    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 4)
+def test_arrays_that_repeat_others_are_stored_once_and_read_back_byte_identical(tmp_path):
     episodes = [_with_repeats(s, 10 + s) for s in range(5)]
     episodes[3]["datagen"]["zero"][2, 1] = -0.0  # equal to 0.0 as a value, not as bytes: stored apart
     episodes[4]["next_obs"]["q"][3, 0] += 1  # one interior row off: next_obs/q stored in full
-    path = tmp_path / "d.zarr"
-    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+    path, packed = tmp_path / "d.zarr", ZarrWriteSettings(pack_min_batch=4)
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS, zarr_settings=packed) as w:
         w.append_episodes([(ep, True, None) for ep in episodes])
     arrays = zarr_packs.read_index(path / "data" / "pack_0")["arrays"]
     assert {k: v for k, v in arrays.items() if isinstance(v, str)} == {

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from newton_lab.datasets import open_writer
-from newton_lab.datasets.contained import OutsidePathError, contained
+from newton_lab.datasets.files.inside_root import OutsidePathError, contained
 from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3
 
 TASK = "GalbotG1-PickCube-v0"

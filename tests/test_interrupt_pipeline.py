@@ -20,12 +20,15 @@ ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-e
 """A pipeline whose Mimic stage runs long after collect has finished."""
 
 
-def start_pipeline(cwd: Path, *extra: str, **extra_env: str) -> subprocess.Popen:
+def start_pipeline(cwd: Path, *extra: str, write_fault: int | None = None) -> subprocess.Popen:
     """The pipeline in a process of its own, on its embedded server (no user server configured); its stderr in
-    ``cwd/stderr.txt`` (a file: a child left alive would hold a pipe open)."""
-    env = {**{k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}, **extra_env}
+    ``cwd/stderr.txt`` (a file: a child left alive would hold a pipe open). ``write_fault``: the dataset write of
+    that process that the writers' test seam refuses with ENOSPC (armed by the launcher)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}
+    arm = "" if write_fault is None else ("from newton_lab.datasets.files.write_faults import inject_write_fault; "
+                                          f"inject_write_fault({write_fault}); ")
     with open(cwd / "stderr.txt", "w") as err:
-        return subprocess.Popen([sys.executable, "-c", RUN, *ARGV, *extra], cwd=cwd, stdout=subprocess.DEVNULL,
+        return subprocess.Popen([sys.executable, "-c", arm + RUN, *ARGV, *extra], cwd=cwd, stdout=subprocess.DEVNULL,
                                 stderr=err, env=env)
 
 
@@ -93,7 +96,7 @@ def test_a_killed_pipeline_leaves_no_process(tmp_path, runner):
 def test_a_full_disk_ends_the_pipeline_in_one_line(tmp_path):
     """The writer's test seam refuses collect's tenth write with ENOSPC: exit status 1 and one line (Prefect's
     traceback of the failed stage stays off the console); no stage looks finished, and no process is left."""
-    run = start_pipeline(tmp_path, NEWTON_LAB_TEST_WRITE_FAULT="10")
+    run = start_pipeline(tmp_path, write_fault=10)
     started: list[int] = []
     while run.poll() is None:  # the processes it starts, to see them end with it
         started += [p for p in descendants(run.pid) if p not in started]

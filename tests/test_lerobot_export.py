@@ -15,7 +15,8 @@ import pyarrow as pa  # a dependency of the project (the export writes parquet):
 import pyarrow.parquet as pq
 import pytest
 
-from newton_lab.datasets import open_writer, read_episode, zarr_packs
+from newton_lab.datasets import open_writer, read_episode
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
 from newton_lab.datasets.ref import DatasetRef
 from newton_lab.datasets.lerobot import writer as lr  # the export reads episodes through it
 from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3
@@ -91,9 +92,9 @@ def make_dataset(path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int
 def dataset(request, tmp_path, monkeypatch) -> Path:
     if request.param != "zarr packs":
         return make_dataset(tmp_path / f"src{request.param}")
-    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 2)  # the demos as one batch, packed
     path = tmp_path / "src.zarr"
-    with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
+    packed = ZarrWriteSettings(pack_min_batch=2)  # the demos as one batch, packed
+    with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False, zarr_settings=packed) as w:
         w.append_episodes([(make_episode(i, steps, None, False), i != 1,
                             {"termination_reason": "success" if i != 1 else "timeout"})
                            for i, steps in enumerate(LENGTHS)])

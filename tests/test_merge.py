@@ -7,7 +7,7 @@ from test_storage import ENV_ARGS, FORMATS, TASK, assert_tree_equal, fingerprint
 
 from newton_lab.datasets import EpisodeWriter, list_demos, read_dataset_info, read_episode
 from newton_lab.datasets import merge as merge_module
-from newton_lab.datasets._common import inject_write_fault
+from newton_lab.datasets.files.write_faults import inject_write_fault
 from newton_lab.datasets.merge import merge_datasets
 
 

@@ -61,9 +61,9 @@ def test_the_scratch_copy_imports_its_own_code(tmp_path):
     pre = subprocess.run([sys.executable, "-c", tool.PREFLIGHT, str(copy)], cwd=copy, env=env, capture_output=True,
                          text=True, timeout=300, check=False)
     assert pre.returncode == 0, pre.stderr[-2000:]
-    contained = copy / "newton_lab" / "datasets" / "contained.py"
+    contained = copy / "newton_lab" / "datasets" / "files" / "inside_root.py"
     contained.write_text(contained.read_text() + "\nMUTANT = True\n")
-    probe = "from newton_lab.datasets import contained; print(contained.MUTANT, contained.__file__)"
+    probe = "from newton_lab.datasets.files import inside_root; print(inside_root.MUTANT, inside_root.__file__)"
     proc = subprocess.run([sys.executable, "-c", probe], cwd=copy, env=env, capture_output=True, text=True,
                           timeout=300, check=False)
     assert proc.returncode == 0 and proc.stdout.split()[0] == "True", proc.stderr[-2000:]

@@ -1,11 +1,10 @@
 """Durability order of both writers, checked through their I/O the way SQLite's crash tests use a VFS: every write,
 sync, rename and unlink of one append is logged, and a power cut at any point must find the commit marker only
 after the data it commits is on disk (the journal before the bytes it saves are overwritten, the commit synced
-before the append returns). Also ENOSPC inside a zarr writer process. No physics."""
+before the append returns). No physics."""
 
 from __future__ import annotations
 
-import errno
 import os
 import pathlib
 from collections.abc import Callable
@@ -13,9 +12,10 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from newton_lab.datasets import _common, _journal, list_demos, open_writer, read_dataset_info, read_episode
-from newton_lab.datasets import zarr_nodes, zarr_session, zarr_store, zarr_workers
-from newton_lab.datasets.storage import DatasetWriteError
+from newton_lab.datasets.files import durability
+from newton_lab.datasets import list_demos, open_writer, read_episode
+from newton_lab.datasets.hdf5 import journal as _journal
+from newton_lab.datasets.zarr import nodes as zarr_nodes, session as zarr_session, store as zarr_store
 
 STEPS = 30
 
@@ -104,9 +104,9 @@ def disk(monkeypatch) -> Disk:
     monkeypatch.setattr(os, "rename", rename)
     monkeypatch.setattr(os, "replace", replace)
     monkeypatch.setattr(pathlib.Path, "unlink", unlink)
-    real_syncfs = _common._syncfs
+    real_syncfs = durability._syncfs
     if real_syncfs is not None:
-        monkeypatch.setattr(_common, "_syncfs", lambda fd: (d.syncfs(), real_syncfs(fd))[1])
+        monkeypatch.setattr(durability, "_syncfs", lambda fd: (d.syncfs(), real_syncfs(fd))[1])
     # HDF5: every byte goes through the journaled file's _write_all (data file and journal alike)
     real_write_all = _journal._write_all
 
@@ -129,7 +129,6 @@ def disk(monkeypatch) -> Disk:
         d.write(os.path.abspath(os.path.join(str(self.root), key)))
 
     monkeypatch.setattr(zarr_session.FaultStore, "_set", store_set)
-    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 0)
     return d
 
 
@@ -182,33 +181,3 @@ def test_zarr_append_syncs_the_batch_before_its_commit_and_the_commit_before_ret
     assert disk.lost(str(path)) == [], "the append returned with its commit not yet durable"
     for s in range(4):
         np.testing.assert_array_equal(read_episode(path, s)["actions"], episode(s)["actions"])
-
-
-def test_disk_full_inside_a_zarr_writer_process_fails_the_batch_and_keeps_the_dataset(tmp_path, monkeypatch):
-    """The fault is armed in the writer processes only (``NEWTON_LAB_TEST_WRITE_FAULT`` read as they start), so
-    the batch really is written by them: ENOSPC there ends the append in one line, nothing of the batch is
-    committed or left behind, and the next append (space again, new processes) continues the ids."""
-    path = tmp_path / "ds.zarr"
-    monkeypatch.setattr(zarr_workers, "PROCESS_MIN_BATCH", 2)
-    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 1)
-    monkeypatch.setattr(zarr_workers, "_shared", None)
-    monkeypatch.setenv("NEWTON_LAB_TEST_WRITE_FAULT", "40:ENOSPC")
-    try:
-        with open_writer(path, task_id="pick_cube", env_args={}) as w:
-            assert w.append_episode(episode(0), success=True, attrs={"seed": 0}) == 0  # one demo: on a thread
-            assert not _common.fault_injected()  # this process writes on
-            with pytest.raises(DatasetWriteError) as exc:
-                w.append_episodes([(episode(s), True, {"seed": s}) for s in range(1, 5)])
-            assert zarr_workers.shared().pids, "the batch did not go to the writer processes"
-        assert exc.value.errno == errno.ENOSPC
-        assert str(exc.value) == f"disk full after 1 episode; {path} holds 1 finished episode"
-        assert list_demos(path) == [0] and read_dataset_info(path)["total"] == STEPS
-        assert sorted(os.listdir(path / "data")) == ["demo_0", "zarr.json"]
-        zarr_workers.shared().close()
-        monkeypatch.delenv("NEWTON_LAB_TEST_WRITE_FAULT")
-        with open_writer(path, task_id="pick_cube", env_args={}) as w:
-            assert w.append_episodes([(episode(s), True, {"seed": s}) for s in (1, 2)]) == [1, 2]
-    finally:
-        if zarr_workers._shared is not None:
-            zarr_workers._shared.close()
-    np.testing.assert_array_equal(read_episode(path, 2)["obs"]["rgb"], episode(2)["obs"]["rgb"])

@@ -1,6 +1,6 @@
-"""One rule for every output path (``newton_lab.datasets.outputs``): missing parent folders are created, a file where
-one of them should be is refused in one line (the problem and the fix), and nothing on disk is lost. Checked on the
-helper itself and through the writers of a dataset, a checkpoint and an export. Fast, no physics."""
+"""One rule for every output path (``newton_lab.datasets.files.output_paths``): missing parent folders are created, a
+file where one of them should be is refused in one line (the problem and the fix), and nothing on disk is lost. Checked
+on the helper itself and through the writers of a dataset, a checkpoint and an export. Fast, no physics."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from test_lerobot_export import make_dataset
 
-from newton_lab.datasets import list_demos, open_writer, room
+from newton_lab.datasets import list_demos, open_writer
+from newton_lab.datasets.zarr import inodes as room
 from newton_lab.datasets.lerobot import export_lerobot
-from newton_lab.datasets.outputs import OutputPathError, output_path
+from newton_lab.datasets.files.output_paths import OutputPathError, output_path
 from newton_lab.datasets.yolo import YoloWriter
 from newton_lab.policies.resume import write_atomic
 

@@ -21,7 +21,7 @@ import zarr
 from newton_lab.datasets import (FORMAT_VERSION, EpisodeWriter, delete_demos, list_demos, open_writer,
                                  read_dataset_info, read_episode, read_episodes, read_filter_keys, set_filter_keys,
                                  split_train_val, state_tree)
-from newton_lab.datasets._common import inject_write_fault
+from newton_lab.datasets.files.write_faults import inject_write_fault
 
 ROOT = Path(__file__).resolve().parents[1]
 TASK = "pick_cube"
@@ -134,8 +134,8 @@ def test_refuses_dataset_of_another_task(tmp_path, suffix):
 
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_creates_missing_parents_refuses_a_file_parent(tmp_path, suffix):
-    """The rule of every output (``datasets.outputs``): missing folders are created, a file where one should be
-    is refused in one line and left as it was."""
+    """The rule of every output (``datasets.files.output_paths``): missing folders are created, a file where one
+    should be is refused in one line and left as it was."""
     path = tmp_path / "no" / "such" / f"ds{suffix}"
     with open_writer(path, task_id=TASK, env_args={}) as w:
         w.append_episode(make_episode(0, steps=3), success=True)
@@ -357,7 +357,7 @@ def test_failed_filter_key_write_keeps_the_old_keys(tmp_path, suffix):
 def test_out_of_inodes_is_told_apart_from_a_full_disk(tmp_path, monkeypatch):
     """ENOSPC with bytes left but no free inode (a zarr dataset of many demos on ext4): the one line says so,
     how much space is still free, and what to do; the dataset keeps what it held."""
-    import newton_lab.datasets.room as room
+    import newton_lab.datasets.zarr.inodes as room
 
     path = tmp_path / "ds.zarr"
     write_small(path, 2)
@@ -433,7 +433,7 @@ def test_hdf5_tree_writer_and_reader_match_h5py_high_level(tmp_path):
     """The HDF5 writer creates plain arrays through h5py's low-level API: the file is byte for byte the one that
     ``create_dataset`` writes (types incl. bool and non-contiguous input, layout, no filters, no times); the reader
     returns what h5py's ``Group.items`` / ``Dataset[()]`` return (gzip chunks, byte strings, 0-d, empty)."""
-    from newton_lab.datasets import hdf5_store
+    from newton_lab.datasets.hdf5 import store as hdf5_store
 
     rng = np.random.default_rng(0)
     tree = {"f32": rng.random((17, 7), dtype=np.float32), "f64": rng.random(5), "i64": np.arange(9),
@@ -549,7 +549,8 @@ KILL_POINT_CHILD = f"""
 import os, signal, sys
 sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
 from test_storage import make_episode
-from newton_lab.datasets import EpisodeWriter, _journal
+from newton_lab.datasets import EpisodeWriter
+from newton_lab.datasets.hdf5 import journal as _journal
 point = sys.argv[2]
 if point == "mid_flush":
     orig_save, count = _journal.JournaledFile._save, [0]
@@ -610,7 +611,7 @@ def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
     path = tmp_path / f"ds{suffix}"
     write_demos(path, [0])
     before = fingerprint(path)
-    module = "zarr_packs" if suffix == ".zarr" else "hdf5_store"  # where each store calls its per-demo writer
+    module = "zarr.packs" if suffix == ".zarr" else "hdf5.store"  # where each store calls its per-demo writer
     store = __import__(f"newton_lab.datasets.{module}", fromlist=["append"])
     name = "write_demo" if suffix == ".zarr" else "_write_tree"
     real = getattr(store, name)
@@ -633,11 +634,11 @@ def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
 
 
 def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
-    """The zarr append path writes nodes with plain file writes (``zarr_nodes``): every array's metadata equals
+    """The zarr append path writes nodes with plain file writes (``zarr.nodes``): every array's metadata equals
     zarr-python's for the same array, and zarr-python reads back the values (edge chunks, byte order, 0-d)."""
     from zarr.storage import LocalStore
 
-    from newton_lab.datasets import zarr_nodes
+    from newton_lab.datasets.zarr import nodes as zarr_nodes
 
     rng = np.random.default_rng(3)
     tree = {"long": rng.standard_normal((5000, 64)).astype(np.float32),  # 1.28 MB: two time chunks, the last padded
@@ -667,12 +668,12 @@ def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
 
 
 def test_zarr_plain_reader_matches_zarr_python(tmp_path):
-    """``zarr_nodes.read_tree`` reads arrays of the plain layout from their files, chunks zarr left out as the fill
+    """``zarr.nodes.read_tree`` reads arrays of the plain layout from their files, chunks zarr left out as the fill
     value, and hands every other array (another codec, 0-d, empty, a NaN fill value) to zarr-python."""
     from zarr.codecs import BloscCodec
     from zarr.storage import LocalStore
 
-    from newton_lab.datasets import zarr_nodes
+    from newton_lab.datasets.zarr import nodes as zarr_nodes
 
     rng = np.random.default_rng(5)
     g = zarr.open_group(store=LocalStore(tmp_path / "z"), mode="w", zarr_format=3)
@@ -703,75 +704,3 @@ def test_zarr_plain_reader_matches_zarr_python(tmp_path):
         assert got.dtype == np.asarray(value).dtype and got.shape == np.shape(value), name
         np.testing.assert_array_equal(got, value, err_msg=name)
     assert zarr_nodes.read_tree(tmp_path / "z", ("nested/ints", "nested", "missing"), fallback).keys() == {"nested"}
-
-
-def _to_processes(monkeypatch, processes: int = 2) -> None:
-    """Send every zarr batch of >= 2 demos to ``processes`` fresh writer processes."""
-    from newton_lab.datasets import zarr_workers
-
-    monkeypatch.setattr(zarr_workers, "PROCESS_MIN_BATCH", 2)
-    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", processes)
-    monkeypatch.setattr(zarr_workers, "_shared", None)
-
-
-def _close_pool() -> None:
-    from newton_lab.datasets import zarr_workers
-
-    if zarr_workers._shared is not None:
-        zarr_workers._shared.close()
-
-
-def test_zarr_batch_on_writer_processes_matches_the_thread_path(tmp_path, monkeypatch):
-    """A large zarr batch is written by worker processes; its demos read back as written, like a small batch's."""
-    _to_processes(monkeypatch)
-    try:
-        with EpisodeWriter.open(tmp_path / "p.zarr", task_id=TASK, env_args=ENV_ARGS) as w:
-            ids = w.append_episodes([(make_episode(s), True, {"seed": s}) for s in range(6)])
-        from newton_lab.datasets import zarr_workers
-        assert ids == list(range(6)) and len(zarr_workers.shared().pids) == 2  # the processes wrote it
-    finally:
-        _close_pool()
-    assert read_dataset_info(tmp_path / "p.zarr")["total"] == 1200
-    for s in range(6):
-        assert_tree_equal({k: v for k, v in read_episode(tmp_path / "p.zarr", s).items() if k != "attrs"},
-                          make_episode(s))
-
-
-def test_zarr_writer_process_killed_mid_batch_commits_nothing_of_it(tmp_path, monkeypatch):
-    """SIGKILL of a writer process while a batch is being written: the append fails in one line, the dataset
-    holds exactly the demos before it, and the next append (on new processes) continues the ids."""
-    from newton_lab.datasets import zarr_store, zarr_workers
-
-    path = tmp_path / "k.zarr"
-    write_demos(path, [0, 1])
-    _to_processes(monkeypatch)
-    stage = path / "data" / zarr_store.STAGING
-    big = [(make_episode(s), True, {"seed": s}) for s in range(2, 26)]  # ~20k chunk files: seconds of writing
-    result: dict = {}
-
-    def append():
-        try:
-            with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
-                result["ids"] = w.append_episodes(big)
-        except Exception as e:  # noqa: BLE001 - checked below
-            result["error"] = e
-
-    thread = threading.Thread(target=append)
-    thread.start()
-    try:
-        deadline = time.monotonic() + 120
-        while not any(stage.glob("*/demo_*/actions")) and time.monotonic() < deadline and thread.is_alive():
-            time.sleep(0.01)  # wait until the writer processes are writing demos
-        assert thread.is_alive(), result
-        os.kill(zarr_workers.shared().pids[0], signal.SIGKILL)
-        thread.join(120)
-        assert "ids" not in result
-        message = str(result["error"])
-        assert "writer process died" in message and "none of the batch was committed" in message
-        assert "\n" not in message
-        assert list_demos(path) == [0, 1] and read_dataset_info(path)["total"] == 400
-        with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
-            assert w.append_episodes([(make_episode(s), True, None) for s in (2, 3)]) == [2, 3]
-    finally:
-        _close_pool()
-    assert_tree_equal({k: v for k, v in read_episode(path, 3).items() if k != "attrs"}, make_episode(3))

@@ -1,4 +1,4 @@
-"""The writer process of ``collect`` (``datasets.writer_process``): the demos it writes are those the writer thread
+"""The writer process of ``collect`` (``datasets.writers.process``): the demos it writes are those the writer thread
 writes, bit for bit (real physics, both formats); its shared ring reuses its room in order; a write error in the
 process reaches the collector in one line; a killed collector leaves a process that writes what it was given and
 exits."""
@@ -17,9 +17,9 @@ import pytest
 
 from newton_lab.agents import PlannerAgent
 from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episode
-from newton_lab.datasets.columns import ColumnLayout, DemoBlock
-from newton_lab.datasets.zarr_packs import read_index
-from newton_lab.datasets.writer_process import ProcessWriter, _Ring
+from newton_lab.datasets.writers.columns import ColumnLayout, DemoBlock
+from newton_lab.datasets.zarr.packs import read_index
+from newton_lab.datasets.writers.process import ProcessWriter, _Ring
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import WRITE_MIN_BATCH, _writer_kind
 
@@ -138,7 +138,7 @@ def test_a_killed_collector_leaves_a_writer_process_that_writes_what_it_got_and_
         sys.path.insert(0, {os.path.dirname(__file__)!r})
         from test_writer_process import LAYOUT, _block
         from newton_lab.datasets import open_writer
-        from newton_lab.datasets.writer_process import ProcessWriter
+        from newton_lab.datasets.writers.process import ProcessWriter
         open_writer({str(path)!r}, task_id="t", env_args={{}})
         w = ProcessWriter({str(path)!r}, task_id="t", layout=LAYOUT)
         for i in range(3):

@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import zarr
 
-from newton_lab.datasets import _common, delete_demos, list_demos, open_writer, read_dataset_info, read_episode
-from newton_lab.datasets.background import BackgroundWriter
+from newton_lab.datasets.files import locking
+from newton_lab.datasets import delete_demos, list_demos, open_writer, read_dataset_info, read_episode
+from newton_lab.datasets.writers.background_thread import BackgroundWriter
 from newton_lab.datasets.storage import DatasetLockedError, DatasetWriteError, inject_write_fault
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -124,7 +125,7 @@ def test_locked_dataset_ends_in_one_line_naming_the_holder(tmp_path, suffix, mon
     holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(lock_file)], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "LOCKED"
-        monkeypatch.setattr(_common, "LOCK_WAIT_S", 0.5)
+        monkeypatch.setattr(locking, "LOCK_WAIT_S", 0.5)
         start = time.monotonic()
         with pytest.raises(DatasetLockedError) as exc, open_writer(path, task_id=TASK, env_args={}) as w:
             w.append_episode(episode(1), success=True)
@@ -195,6 +196,8 @@ FULL_CHILD = """
 import sys
 from test_writers import episode
 from newton_lab.datasets import open_writer
+from newton_lab.datasets.files.write_faults import inject_write_fault
+inject_write_fault(int(sys.argv[2]))  # the disk fills at this write
 w = open_writer(sys.argv[1], task_id="pick_cube", env_args={})
 for seed in range(100):
     w.append_episode(episode(seed), success=True, attrs={"seed": seed})
@@ -202,12 +205,13 @@ for seed in range(100):
 
 
 @pytest.mark.parametrize("suffix", FORMATS)
-def test_fault_seam_reaches_subprocesses(tmp_path, suffix):
-    """``NEWTON_LAB_TEST_WRITE_FAULT`` (honoured under pytest only) lets CLI tests fill the disk."""
+def test_a_full_disk_ends_a_writing_process_in_one_line(tmp_path, suffix):
+    """The write-fault seam, armed by the test's own child process (never by the environment), fills its disk: the
+    process exits 1 with one line saying what the dataset holds."""
     path = tmp_path / f"ds{suffix}"
     # 400 writes: a zarr episode takes ~105 (its rgb frames are one chunk each)
-    proc = subprocess.run([sys.executable, "-c", FULL_CHILD, str(path)], check=False, capture_output=True, text=True,
-                          env=dict(child_env(), NEWTON_LAB_TEST_WRITE_FAULT="400"), timeout=120)
+    proc = subprocess.run([sys.executable, "-c", FULL_CHILD, str(path), "400"], check=False, capture_output=True,
+                          text=True, env=child_env(), timeout=120)
     assert proc.returncode == 1 and "Segmentation" not in proc.stderr
     last = proc.stderr.strip().splitlines()[-1]
     held = len(list_demos(path))
@@ -219,7 +223,9 @@ def test_fault_seam_reaches_subprocesses(tmp_path, suffix):
 BATCH_CHILD = """
 import os, signal, sys
 from test_writers import episode
-from newton_lab.datasets import _journal, hdf5_store, open_writer, zarr_packs, zarr_store
+from newton_lab.datasets.hdf5 import journal as _journal, store as hdf5_store
+from newton_lab.datasets import open_writer
+from newton_lab.datasets.zarr import packs as zarr_packs, store as zarr_store
 path, point = sys.argv[1], sys.argv[2]
 store = zarr_store if path.endswith(".zarr") else hdf5_store
 w = open_writer(path, task_id="pick_cube", env_args={})
@@ -287,7 +293,8 @@ def test_sigkill_mid_batch_keeps_earlier_batches_and_none_of_the_killed_one(tmp_
 
 def _forbid_walks(monkeypatch) -> None:
     """Fail the test if an append walks the demos already stored (HDF5 ``_committed``, zarr ``_scan``)."""
-    from newton_lab.datasets import hdf5_store, zarr_store
+    from newton_lab.datasets.hdf5 import store as hdf5_store
+    from newton_lab.datasets.zarr import store as zarr_store
 
     def walk(*args, **kwargs):
         raise AssertionError("append walked the existing demos")

@@ -1,4 +1,4 @@
-"""A pack stores an array as a reference to another (``zarr_derived``) only where every byte it stands for repeats:
+"""A pack stores an array as a reference to another (``zarr.derived``) only where every byte it stands for repeats:
 the next-step reference leaves out exactly each demo's last row, and nothing else. Fast, no physics."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from newton_lab.datasets.zarr_derived import NEXT, derive, rebuild
+from newton_lab.datasets.zarr.derived import NEXT, derive, rebuild
 
 COUNTS = [1, 5, 2, 9, 1, 4]  # demos of one step too: their only row is their last
 

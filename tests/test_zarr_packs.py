@@ -1,4 +1,4 @@
-"""Packed zarr demos (``datasets/zarr_packs``): a large batch lands as a few ``pack_<first id>`` groups and reads,
+"""Packed zarr demos (``datasets/zarr/packs``): a large batch lands as a few ``pack_<first id>`` groups and reads,
 deletes, merges and recovers from a kill like ``demo_<i>`` groups. Fast, no physics; the pack threshold is lowered
 so that small batches pack."""
 
@@ -15,17 +15,15 @@ import zarr
 
 from newton_lab.datasets import (DatasetWriteError, EpisodeWriter, delete_demos, list_demos, read_dataset_info,
                                  read_episode, read_episodes, read_filter_keys, set_filter_keys)
-from newton_lab.datasets import zarr_packs, zarr_workers
-from newton_lab.datasets._common import inject_write_fault
+from newton_lab.datasets.zarr import packs as zarr_packs
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
+from newton_lab.datasets.files.write_faults import inject_write_fault
 from newton_lab.datasets.merge import merge_datasets
 from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
 
 
-@pytest.fixture(autouse=True)
-def small_packs(monkeypatch):
-    """Batches of 4 demos or more pack, at least 2 demos a pack."""
-    monkeypatch.setattr(zarr_packs, "PACK_MIN_BATCH", 4)
-    monkeypatch.setattr(zarr_packs, "PACK_MIN_PART", 2)
+SMALL_PACKS = ZarrWriteSettings(pack_min_batch=4)
+"""Batches of 4 demos or more pack."""
 
 
 def episode(seed: int) -> dict:
@@ -33,7 +31,7 @@ def episode(seed: int) -> dict:
 
 
 def append(path, seeds) -> list[int]:
-    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS, zarr_settings=SMALL_PACKS) as w:
         return w.append_episodes([(episode(s), s % 2 == 0, {"seed": s}) for s in seeds])
 
 
@@ -69,31 +67,17 @@ def test_a_large_batch_is_packed_and_reads_back_as_written(tmp_path):
 
 def test_the_room_check_counts_a_pack_as_written(tmp_path):
     path = tmp_path / "r.zarr"
-    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS, zarr_settings=SMALL_PACKS) as w:
         w.append_episodes([(make_episode(s, steps=30), True, None) for s in range(5)])
     assert names(path) == ["pack_0"]
     files = sum(1 for _ in (path / "data" / "pack_0").rglob("*")) + 1  # and the pack's folder
     assert zarr_packs.inodes_of_pack(make_episode(0, steps=30), 5) == files
 
 
-def test_a_batch_is_split_over_the_writer_processes(tmp_path, monkeypatch):
-    monkeypatch.setattr(zarr_workers, "PROCESS_MIN_BATCH", 2)
-    monkeypatch.setattr(zarr_workers, "WRITE_PROCESSES", 2)
-    monkeypatch.setattr(zarr_workers, "_shared", None)
-    try:
-        path = tmp_path / "w.zarr"
-        assert append(path, range(7)) == list(range(7))
-        assert len(zarr_workers.shared().pids) == 2 and names(path) == ["pack_0", "pack_3"]
-    finally:
-        zarr_workers.shared().close()
-    for s, ep in zip(range(7), read_episodes(path, range(7))):
-        assert_tree_equal(ep, episode(s))
-
-
 def test_demos_of_different_layouts_are_written_one_group_each(tmp_path):
     path = tmp_path / "mixed.zarr"
     odd = {**episode(4), "extra": np.zeros((24, 2), np.float32)}
-    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
+    with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS, zarr_settings=SMALL_PACKS) as w:
         w.append_episodes([(episode(s), True, None) for s in range(4)] + [(odd, True, None)])
     assert names(path) == [f"demo_{i}" for i in range(5)]
     assert_tree_equal(without_attrs(read_episode(path, 4)), odd)
@@ -152,7 +136,7 @@ def test_merging_packed_shards_writes_packs(tmp_path):
     a, b = tmp_path / "a.zarr", tmp_path / "b.zarr"
     append(a, range(5))
     append(b, range(5, 9))
-    merged = merge_datasets([a, b], tmp_path / "m.zarr").path
+    merged = merge_datasets([a, b], tmp_path / "m.zarr", zarr_settings=SMALL_PACKS).path
     assert names(merged) == ["pack_0", "pack_5"]
     for s, ep in zip(range(9), read_episodes(merged, range(9), attrs=True)):
         assert ep["attrs"]["source"] == f"{'a' if s < 5 else 'b'}.zarr:{s if s < 5 else s - 5}"
@@ -163,7 +147,7 @@ def test_merging_packed_shards_writes_packs(tmp_path):
 KILL_CHILD = """
 import os, signal, sys
 from test_zarr_packs import append
-from newton_lab.datasets import zarr_store
+from newton_lab.datasets.zarr import store as zarr_store
 print("BATCH", *append(sys.argv[1], range(5)), flush=True)
 zarr_store._commit = lambda *args: os.kill(os.getpid(), signal.SIGKILL)  # packs renamed into place, not committed
 append(sys.argv[1], range(5, 11))
@@ -176,7 +160,7 @@ def test_sigkill_before_a_pack_batch_commits(tmp_path):
 
     path = tmp_path / "s.zarr"
     proc = subprocess.run([sys.executable, "-c", KILL_CHILD, str(path)], check=False, capture_output=True, text=True,
-                          env=dict(child_env(), NEWTON_LAB_ZARR_PACK_MIN="4"), timeout=120)
+                          env=child_env(), timeout=120)
     assert proc.returncode == -9 and proc.stdout.splitlines() == ["BATCH 0 1 2 3 4"], proc.stderr
     assert "pack_5" in names(path)  # really torn: the killed batch's pack is in place
     assert list_demos(path) == [0, 1, 2, 3, 4] and read_dataset_info(path)["total"] == sum(range(20, 25))

@@ -4,13 +4,12 @@
 zarr dataset under ``--dir``. Each demo is a distinct copy (its floats scaled by 1 + k * 1e-7, so that no two
 compress as one). Prints one JSON line: the writer thread's seconds (``writer_s``, what ``bench-collect`` reports,
 split into ``writer_files_s`` / ``writer_sync_s``), the caller's seconds handing the demos over (``feed_s``) and
-waiting for the writer at the end (``drain_s``), writer demos/s, CPU milliseconds per demo (this process's threads and
-its writer processes: what a busy host pays), bytes and files per demo. ``--profile`` also
-prints the 25 costliest calls of one batch written in this thread (cProfile; the writer processes' own work shows
-as the wait on their answers).
+waiting for the writer at the end (``drain_s``), writer demos/s, CPU milliseconds per demo (this process's threads:
+what a busy host pays), bytes and files per demo. ``--profile`` also prints the 25 costliest calls of one batch
+written in this thread (cProfile).
 
     .venv/bin/python tools/collect_writer_cost.py --source src.zarr --dir /tmp/wc [--demos 2048] [--batch 140]
-        [--processes 2] [--profile] [--loop PYTHON_MS WAIT_MS PER_STEP]
+        [--profile] [--loop PYTHON_MS WAIT_MS PER_STEP]
 
 ``--loop`` feeds as a collect loop does instead (the writer gathering as ``collect``'s does) and adds the loop's
 slowdown: its seconds over steps x (PYTHON_MS + WAIT_MS), the GIL the writer takes from the loop.
@@ -22,7 +21,6 @@ import argparse
 import cProfile
 import inspect
 import json
-import os
 import pstats
 import shutil
 import time
@@ -31,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episodes
-from newton_lab.datasets import zarr_store
-from newton_lab.datasets.background import BackgroundWriter
+from newton_lab.datasets.zarr import store as zarr_store
+from newton_lab.datasets.writers.background_thread import BackgroundWriter
 
 
 def _scaled(tree: dict, k: int) -> dict:
@@ -47,15 +45,8 @@ def _footprint(path: Path) -> tuple[int, int]:
 
 
 def _cpu_s() -> float:
-    """CPU seconds of this process (every thread) and of its writer processes so far (``/proc``: they live on)."""
-    from newton_lab.datasets import zarr_workers
-
-    total = time.process_time()
-    for pid in zarr_workers._shared.pids if zarr_workers._shared is not None else []:
-        with open(f"/proc/{pid}/stat") as f:
-            fields = f.read().rsplit(")", 1)[1].split()
-        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
-    return total
+    """CPU seconds of this process (every thread) so far."""
+    return time.process_time()
 
 
 def _python(n: int) -> None:
@@ -166,16 +157,11 @@ def main() -> None:
     p.add_argument("--dir", required=True, type=Path)
     p.add_argument("--demos", type=int, default=2048)
     p.add_argument("--batch", type=int, default=140)
-    p.add_argument("--processes", type=int, default=None, help="writer processes (default: the store's)")
     p.add_argument("--profile", action="store_true")
     p.add_argument("--loop", nargs=3, type=float, metavar=("PYTHON_MS", "WAIT_MS", "PER_STEP"),
                    help="feed as a collect loop does: each step PYTHON_MS of Python (holding the GIL), WAIT_MS of "
                         "waiting (releasing it, as a GPU sync), then PER_STEP demos queued; prints the loop's slowdown")
     a = p.parse_args()
-    if a.processes is not None:
-        os.environ["NEWTON_LAB_ZARR_WRITE_PROCESSES"] = str(a.processes)
-        from newton_lab.datasets import zarr_workers
-        zarr_workers.WRITE_PROCESSES = a.processes
     loop = None if a.loop is None else (a.loop[0], a.loop[1], int(a.loop[2]))
     print(json.dumps(measure(a.source, a.dir, a.demos, a.batch, a.profile, loop)))
 

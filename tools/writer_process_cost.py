@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from newton_lab.datasets import list_demos, open_writer, read_episodes
-from newton_lab.datasets.writer_process import ProcessWriter
+from newton_lab.datasets.writers.process import ProcessWriter
 from newton_lab.envs import make_env
 from newton_lab.envs.recorder import EpisodeRecorder, env_args
 
@@ -57,6 +57,7 @@ def main() -> None:
     ap.add_argument("--per-burst", type=int, default=28)
     ap.add_argument("--gap-ms", type=float, default=6.0)
     ap.add_argument("--min-batch", type=int, default=256)
+    ap.add_argument("--profile", default=None, help="save a cProfile of the writer process's batch writes here")
     args = ap.parse_args()
     env = make_env(TASK, num_envs=1, device="cpu", seed=0, randomize=True, cameras=False)
     layout = EpisodeRecorder(env, 8).layout
@@ -65,7 +66,8 @@ def main() -> None:
     path = Path(args.dir) / "writer_process_cost.zarr"
     shutil.rmtree(path, ignore_errors=True)
     open_writer(path, task_id=TASK, env_args=env_args(env))
-    writer = ProcessWriter(path, task_id=TASK, layout=layout, max_queued=4096, min_batch=args.min_batch)
+    writer = ProcessWriter(path, task_id=TASK, layout=layout, max_queued=4096, min_batch=args.min_batch,
+                           profile_to=args.profile)
     time.sleep(1.0)  # the process has started
     t0 = time.perf_counter()
     for b in range(args.bursts):

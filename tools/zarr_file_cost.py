@@ -1,13 +1,13 @@
 """What file creation costs the zarr writer on one filesystem, and whether two writers at once share it.
 
-Takes one stored demo (``--source``, any dataset), has the zarr writer processes write it ``--demos`` times into
-``--dir`` as the store does in a batch (``zarr_workers.WriterProcesses``, ``--processes`` of them, started before
-the clock), then one ``syncfs``: once as one group per demo (``demo_<i>``), once packed (``zarr_packs``, one pack
-per process); beside it the same bytes as one file per demo and as one file, each also synced.
+Takes one stored demo (``--source``, any dataset), has the zarr store's batch writer write it ``--demos`` times into
+``--dir`` as the store does in a batch (``zarr.batch_writes.write_batch``, ``--threads`` threads), then one
+``syncfs``: once as one group per demo (``demo_<i>``), once packed (``zarr.packs``, one pack); beside it the same
+bytes as one file per demo and as one file, each also synced.
 ``--copies 2`` runs two such writers at once (two processes, as two Dask workers on one host would), each in its
 own folder. One JSON line per writer; the folders are removed afterwards.
 
-    .venv/bin/python tools/zarr_file_cost.py --source D.zarr --dir /path/on/disk [--demos 4096] [--processes 8]
+    .venv/bin/python tools/zarr_file_cost.py --source D.zarr --dir /path/on/disk [--demos 4096] [--threads 8]
         [--copies 2]
 """
 
@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from newton_lab.datasets import list_demos, read_episode
-from newton_lab.datasets._common import sync_tree
-from newton_lab.datasets.zarr_packs import batch_jobs
-from newton_lab.datasets.zarr_workers import WriterProcesses
+from newton_lab.datasets.files.durability import sync_tree
+from newton_lab.datasets.zarr.batch_writes import write_batch
+from newton_lab.datasets.zarr.packs import batch_jobs
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
 
 
 def _arrays(tree: dict) -> dict:
@@ -56,7 +57,7 @@ def _timed(fn, folder: Path) -> tuple[float, float]:
     return t1 - t0, time.perf_counter() - t1
 
 
-def measure(source: str, root: Path, demos: int, processes: int) -> dict:
+def measure(source: str, root: Path, demos: int, threads: int) -> dict:
     tree = _arrays(read_episode(source, list_demos(source)[0]))
     num_samples = len(tree["actions"])
     shutil.rmtree(root, ignore_errors=True)
@@ -64,25 +65,18 @@ def measure(source: str, root: Path, demos: int, processes: int) -> dict:
     for folder in folders.values():
         folder.mkdir(parents=True)
     sync_tree(root)
-    writers = WriterProcesses(processes)
-    try:
-        warm = root / "warm"  # start the processes (interpreter, imports) outside the timed write
-        warm.mkdir()
-        writers.write([(warm / f"demo_{i}", {"num_samples": num_samples}, tree) for i in range(processes)])
-        shutil.rmtree(warm)
-        trees = [_copied(tree) for _ in range(demos)]  # each demo its own arrays, pickled to the processes in full
-        jobs = [(folders["zarr"] / f"demo_{i}", {"num_samples": num_samples}, t) for i, t in enumerate(trees)]
-        zarr_s = _timed(lambda: writers.write(jobs), folders["zarr"])
-        packs = batch_jobs(folders["packed"], list(range(demos)), [(t, {}, num_samples) for t in trees], processes)
-        packed_s = _timed(lambda: writers.write(packs), folders["packed"])
-    finally:
-        writers.close()
+    settings = ZarrWriteSettings(write_threads=threads, pack_threads=threads, pack_min_batch=1)
+    trees = [_copied(tree) for _ in range(demos)]  # each demo its own arrays
+    jobs = [(folders["zarr"] / f"demo_{i}", {"num_samples": num_samples}, t) for i, t in enumerate(trees)]
+    zarr_s = _timed(lambda: write_batch(folders["zarr"], jobs, settings), folders["zarr"])
+    packs = batch_jobs(folders["packed"], list(range(demos)), [(t, {}, num_samples) for t in trees], 1)
+    packed_s = _timed(lambda: write_batch(folders["packed"], packs, settings), folders["packed"])
     demo = list(folders["zarr"].glob("demo_0/**/*"))
     size = sum(p.stat().st_size for p in demo if p.is_file())
     blob = os.urandom(size)
     per_demo_s = _timed(lambda: _write_files(folders["per_demo"], blob, demos), folders["per_demo"])
     single_s = _timed(lambda: _write_files(folders["single"], blob * demos, 1), folders["single"])
-    out = {"dir": str(root), "demos": demos, "processes": processes, "bytes_per_demo": size,
+    out = {"dir": str(root), "demos": demos, "threads": threads, "bytes_per_demo": size,
            "inodes_per_demo": len(demo) + 1, "zarr_write_s": zarr_s[0], "zarr_sync_s": zarr_s[1],
            "packs": len(packs), "packed_inodes_per_demo": sum(1 for _ in folders["packed"].rglob("*")) / demos,
            "packed_write_s": packed_s[0], "packed_sync_s": packed_s[1],
@@ -97,14 +91,14 @@ def main() -> None:
     parser.add_argument("--source", required=True, help="a dataset (.zarr or .hdf5) whose first demo is written")
     parser.add_argument("--dir", required=True, help="a folder on the filesystem to measure (removed afterwards)")
     parser.add_argument("--demos", type=int, default=4096)
-    parser.add_argument("--processes", type=int, default=8, help="writer processes per writer")
+    parser.add_argument("--threads", type=int, default=8, help="writer threads per writer")
     parser.add_argument("--copies", type=int, default=1, help="writers at once, each in <dir>/<i>")
     args = parser.parse_args()
     if args.copies == 1:
-        print(json.dumps(measure(args.source, Path(args.dir), args.demos, args.processes)))
+        print(json.dumps(measure(args.source, Path(args.dir), args.demos, args.threads)))
         return
     runs = [subprocess.Popen([sys.executable, __file__, "--source", args.source, "--dir", f"{args.dir}/{i}",
-                              "--demos", str(args.demos), "--processes", str(args.processes)])
+                              "--demos", str(args.demos), "--threads", str(args.threads)])
             for i in range(args.copies)]
     sys.exit(max(run.wait() for run in runs))
 

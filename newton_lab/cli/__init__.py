@@ -127,8 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:  # the system refused something midway (permissions, a read-only file system, ...)
         print(f"newton-lab {ns.command}: error: {error_line(exc)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as exc:  # Ctrl-C / SIGTERM: an end, not a crash (datasets.interrupts.Interrupted says
-        # what was kept, and where); 130 / 143 as a shell reports a process ended by the signal
+    except KeyboardInterrupt as exc:  # Ctrl-C / SIGTERM: an end, not a crash (datasets.writers.interrupts.Interrupted
+        # says what was kept, and where); 130 / 143 as a shell reports a process ended by the signal
         print(f"newton-lab {ns.command}: {exc.args[0] if exc.args else 'interrupted'}", file=sys.stderr)
         return getattr(exc, "exit_status", 130)
 

@@ -38,7 +38,7 @@ def render(args: RenderArgs) -> int:
     from PIL import Image  # deferred: only this command writes pictures
 
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
-    from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
+    from ..datasets.files.output_paths import output_path  # deferred: datasets imports h5py and zarr (~1 s)
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.cameras import picture  # deferred: Warp/Newton are slow to import
 

@@ -31,13 +31,13 @@ OUTPUT_FIELDS = {c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_sav
                  c.MimicArgs: ("output_path",), c.ExportArgs: ("root",), c.ViewArgs: ("save",)}
 """Fields naming an output file (or new folder), per argument class (and its subclasses): the command or
 example creates their parent folder (``collect --dataset-path data/demos.hdf5`` into a missing ``data/``) before
-Warp is imported, by the rule of the Python API (``newton_lab.datasets.outputs``)."""
+Warp is imported, by the rule of the Python API (``newton_lab.datasets.files.output_paths``)."""
 
 
 def make_output_dirs(args: object) -> None:
     """Create the parent folder of each ``OUTPUT_FIELDS`` path of ``args`` (after ``check_args``); a file where one
     of its folders should be, or a folder that takes no new file, is refused in one line (``OutputPathError``)."""
-    from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
+    from ..datasets.files.output_paths import output_path  # deferred: datasets imports h5py and zarr (~1 s)
 
     for cls, names in OUTPUT_FIELDS.items():
         for name in names if isinstance(args, cls) else ():

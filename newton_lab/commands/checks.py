@@ -130,7 +130,7 @@ def check_writable(path: Path) -> None:
         with tempfile.TemporaryFile(dir=path.parent):
             pass
     except OSError as exc:  # permission denied, a read-only file system, a folder that takes no files (/proc)
-        from ..datasets.outputs import OutputPathError  # deferred: as above
+        from ..datasets.files.output_paths import OutputPathError  # deferred: as above
 
         raise OutputPathError(f"cannot write {path}: {path.parent} takes no new file ({exc.strerror}); "
                               "choose a writable path") from None
@@ -176,7 +176,7 @@ def check_run_options(args: Any, names: set[str]) -> None:
             and (args.replan_batch, args.replan_wait, args.trace) != (None, None, None)):
         raise ValueError("--replan-batch, --replan-wait and --trace are for one process (--workers 1)")
     if isinstance(args, PipelineArgs):
-        from ..datasets.outputs import output_path  # deferred: the datasets package imports h5py and zarr (~1 s)
+        from ..datasets.files.output_paths import output_path  # deferred: datasets imports h5py and zarr (~1 s)
 
         output_path(Path(args.out) / ".prefect", create=False)  # --out (or a folder above it) a file: refused now
 

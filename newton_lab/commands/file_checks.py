@@ -141,7 +141,7 @@ def check_train(args: TrainArgs) -> None:
     """``train``'s slips that its run would find only after torch is imported: the preset, the observation and
     camera keys against the dataset, the numbers, the resume file, the init checkpoint."""
     from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
-    from ..datasets.outputs import output_path  # deferred: as above
+    from ..datasets.files.output_paths import output_path  # deferred: as above
 
     presets = train_presets()
     if presets and args.preset not in presets:
@@ -226,7 +226,7 @@ def check_mimic_output(args: MimicArgs, path: str, info: dict[str, Any]) -> None
     src = Path(path)
     out = Path(args.output_path) if args.output_path else src.with_name(f"{src.stem}_mimic{src.suffix}")
     from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
-    from ..datasets.outputs import output_path  # deferred: as above
+    from ..datasets.files.output_paths import output_path  # deferred: as above
 
     output_path(out, create=False)  # a file on its path: refused now
     if out.exists():

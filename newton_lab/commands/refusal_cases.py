@@ -52,7 +52,7 @@ CASES: list[tuple[str, str]] = [
     ("collect --epsiodes 2", "unrecognized arguments: --epsiodes (did you mean --episodes?) 2"),
     ("bench-train --dataset-path src.hdf5 --batchsize 8", "--batchsize (did you mean --batch-size?)"),
     ("collect --task GalbotG1-PickCube-v0 --dataset-path d/x.txt", "unknown dataset suffix"),  # no d/ left behind
-    # an output under a file: the rule of every output (datasets/outputs.py), one line (was `error: 17`)
+    # an output under a file: the rule of every output (datasets/files/output_paths.py), one line (was `error: 17`)
     ("collect --dataset-path src.hdf5/x.hdf5", "cannot write src.hdf5/x.hdf5: its parent src.hdf5 is a file; choose"),
     ("mimic --dataset-path src.hdf5 --output-path src.hdf5/d/m.hdf5", "src.hdf5, on its path, is a file; choose"),
     # an output folder that cannot be made or takes no file (permission denied, read-only file system, /proc)

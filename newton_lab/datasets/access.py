@@ -1,4 +1,4 @@
-"""Dataset access by format: the suffix picks the backend (``hdf5_store`` / ``zarr_store``), the root attrs are
+"""Dataset access by format: the suffix picks the backend (``hdf5.store`` / ``zarr.store``), the root attrs are
 checked, demo ids are parsed and a write the disk refuses becomes one line; and every operation on a dataset other
 than appending episodes (``storage.EpisodeWriter``): its info, its demo list, reading episodes, deleting demos,
 setting root attrs.
@@ -19,9 +19,11 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from . import hdf5_store, zarr_store
-from .room import out_of_room
-from ._common import FORMAT_VERSION, STORAGE_ERRNOS, DatasetWriteError, damaged, demo_id_of, py_scalar
+from .files.errors import STORAGE_ERRNOS, DatasetWriteError, damaged
+from .files.layout import FORMAT_VERSION, demo_id_of, py_scalar
+from .hdf5 import store as hdf5_store
+from .zarr import store as zarr_store
+from .zarr.inodes import out_of_room
 
 SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}

@@ -6,18 +6,20 @@ from pathlib import Path
 
 from .ref import DatasetRef
 from .storage import open_writer, read_dataset_info, read_episodes
+from .zarr.settings import ZarrWriteSettings
 
 MERGE_BATCH = 256
 """Demos per write session (one durable batch each). One session per demo made a merge cost 30-80 ms a demo
 on this 2-core machine, so merging the shards of a multi-GPU run took longer than collecting them."""
 
 
-def merge_datasets(paths, out, *, progress=None) -> DatasetRef:
+def merge_datasets(paths, out, *, progress=None, zarr_settings: ZarrWriteSettings | None = None) -> DatasetRef:
     """Append every demo of ``paths`` (in order) to the new dataset ``out``; demo ids are renumbered
     0..N-1, each demo's attrs gain ``source`` (``<file name>:<id>``), and each source's provenance is kept in the
     merged dataset's provenance. A source of ``out``'s format is copied as stored (``append_copies``: no
     decode / encode, except into zarr packs); another is read and written again. Writes ``MERGE_BATCH`` demos per
-    durable batch; ``progress(done, total)`` is called after each."""
+    durable batch; ``progress(done, total)`` is called after each. ``zarr_settings``: how a zarr ``out`` is written
+    (``open_writer``)."""
     paths = [Path(p) for p in paths]
     out = Path(out)
     if out.exists():
@@ -28,7 +30,7 @@ def merge_datasets(paths, out, *, progress=None) -> DatasetRef:
         raise ValueError(f"cannot merge datasets of different tasks {sorted(tasks)}")
     task_id = tasks.pop()
     saved, total = [], sum(i["num_demos"] for i in infos)
-    with open_writer(out, task_id=task_id, env_args=infos[0]["env_args"]) as writer:
+    with open_writer(out, task_id=task_id, env_args=infos[0]["env_args"], zarr_settings=zarr_settings) as writer:
         for p, info in zip(paths, infos):
             ids = info["demo_ids"]
             for start in range(0, len(ids), MERGE_BATCH):

@@ -25,12 +25,13 @@ import numpy as np
 from ..robots.registry import robot_binding
 from ..task_api.catalog import did_you_mean
 from ..task_api.registry import lookup
-from ._common import DatasetWriteError, die_with_parent
-from .interrupts import Interrupted
-from .outputs import output_path
-from .ref import DatasetRef
+from .files.errors import DatasetWriteError
+from .files.output_paths import output_path
 from .filter_keys import read_filter_keys, set_filter_keys
+from .ref import DatasetRef
 from .storage import open_writer, read_dataset_info, read_episodes
+from .writers.child_process import die_with_parent
+from .writers.interrupts import Interrupted
 
 
 def _slice(node: Any, sel: np.ndarray, steps: int) -> Any:

@@ -12,7 +12,7 @@ Layout (both formats)::
                      train / valid written by ``split_train_val`` (``newton-lab split``)
 
 robomimic's ``SequenceDataset`` reads these files as they are. Format 1 datasets (nested ``states``, no
-rewards / dones / next_obs) stay readable. zarr packs a large batch's demos (``zarr_packs``:
+rewards / dones / next_obs) stay readable. zarr packs a large batch's demos (``zarr.packs``:
 ``data/pack_<first id>/<array>``, the demos one after another, their ids, rows and attrs in the pack's attrs); the
 readers return the same trees and attrs for both layouts.
 
@@ -32,7 +32,7 @@ grow with the dataset (one written before ``next_demo_id`` existed is walked onc
 
 One writer protocol for both formats: every write session (append, delete, attrs) holds an
 exclusive ``flock`` (HDF5: on the file; zarr: on the store's root ``zarr.json``), queued fairly and
-waited for at most ``_common.LOCK_WAIT_S`` (10 s), else a one-line :class:`DatasetLockedError`
+waited for at most ``files.locking.LOCK_WAIT_S`` (10 s), else a one-line :class:`DatasetLockedError`
 naming the holder's pid; demo ids are allocated under that lock from ``next_demo_id``, so
 writers in several processes interleave their appends and ids never collide. A write the disk
 refuses (ENOSPC, EIO, ...) rolls the session back and raises one line, :class:`DatasetWriteError`
@@ -51,11 +51,12 @@ import numpy as np
 from .access import (BACKENDS, SUFFIXES, _as_id, _backend, _episodes, _existing, _medium_errors, _missing_id,
                      _root_meta, delete_demos, list_demos, read_dataset_info, read_episode, read_episodes,
                      set_dataset_attrs)
-from .columns import DemoBlock
-from .outputs import output_path
-from .zarr_packs import PACK_MIN_BATCH
-from ._common import (FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, DatasetLockedError, DatasetWriteError,
-                      StoredDemo, dumps_env_args, inject_write_fault, py_scalar)
+from .files.errors import DatasetLockedError, DatasetWriteError
+from .files.layout import FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, StoredDemo, dumps_env_args, py_scalar
+from .files.output_paths import output_path
+from .files.write_faults import inject_write_fault
+from .writers.columns import DemoBlock
+from .zarr.settings import DEFAULT_ZARR_SETTINGS, ZarrWriteSettings
 
 TIME_ALIGNED = ("obs", "next_obs", "states", "rewards", "dones")  # every array under these has T rows
 EpisodeItem = tuple[Mapping[str, Any], bool, Mapping[str, Any] | None]
@@ -172,17 +173,26 @@ def check_same_recording(path: Path, recorded: Mapping[str, Any], new: Mapping[s
 class EpisodeWriter:
     """Appends episodes to one dataset; nothing is held open between appends."""
 
-    def __init__(self, path: Path, backend: ModuleType, fmt: str, task_id: str, fsync: bool) -> None:
+    def __init__(self, path: Path, backend: ModuleType, fmt: str, task_id: str, fsync: bool,
+                 zarr_settings: ZarrWriteSettings) -> None:
         self.path, self.format, self.task_id = path, fmt, task_id
         self._backend, self._fsync, self._closed = backend, fsync, False
+        self.zarr_settings = zarr_settings
+        """How a zarr batch is written (packs, threads); unused by HDF5."""
+        self._batch_options = {"settings": zarr_settings} if fmt == "zarr" else {}
         self.appended = 0
         """Episodes this writer has appended."""
 
     @classmethod
     def open(cls, path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True,
-             option_defaults: Mapping[str, Any] | None = None) -> EpisodeWriter:
+             option_defaults: Mapping[str, Any] | None = None,
+             zarr_settings: ZarrWriteSettings | None = None) -> EpisodeWriter:
         """Create ``path`` or append to it if it holds a dataset of the same task, recorded with the same cameras,
-        observation terms and task options (``check_same_recording``; ``option_defaults``: the task's)."""
+        observation terms and task options (``check_same_recording``; ``option_defaults``: the task's).
+        ``zarr_settings``: how zarr batches are written (default ``DEFAULT_ZARR_SETTINGS``)."""
+        if zarr_settings is not None and not isinstance(zarr_settings, ZarrWriteSettings):
+            raise TypeError(f"zarr_settings must be a ZarrWriteSettings, got {type(zarr_settings).__name__}")
+        zarr_settings = zarr_settings or DEFAULT_ZARR_SETTINGS
         if not isinstance(task_id, str) or not task_id:
             raise ValueError("task_id must be a non-empty str")
         p, backend, fmt = _backend(path)
@@ -198,7 +208,7 @@ class EpisodeWriter:
             try:
                 with _medium_errors(p, backend, "while creating it"):
                     backend.create(p, root, fsync)
-                return cls(p, backend, fmt, task_id, fsync)
+                return cls(p, backend, fmt, task_id, fsync, zarr_settings)
             except FileExistsError:
                 pass  # created concurrently: validate it like any existing dataset
         meta = _root_meta(p, backend.read_root(p))
@@ -207,7 +217,7 @@ class EpisodeWriter:
             raise ValueError(f"{p} holds a dataset of task {existing!r}, not {task_id!r}; "
                              f"choose another path for {task_id!r}")
         check_same_recording(p, meta["env_args"], env, option_defaults)
-        return cls(p, backend, fmt, task_id, fsync)
+        return cls(p, backend, fmt, task_id, fsync, zarr_settings)
 
     def prepare(self, episode: Mapping[str, Any], *, success: bool,
                 attrs: Mapping[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any], int]:
@@ -229,18 +239,18 @@ class EpisodeWriter:
         if not batch:
             return []
         with _medium_errors(self.path, self._backend, f"after {_episodes(self.appended)}"):
-            ids = self._backend.append(self.path, list(batch), self._fsync)
+            ids = self._backend.append(self.path, list(batch), self._fsync, **self._batch_options)
         self.appended += len(ids)
         return ids
 
     def append_block(self, block: DemoBlock) -> list[int]:
         """Write the demos of a ``columns.DemoBlock`` as one durable batch (see :meth:`append_episodes`); returns
-        their ids. zarr packs a batch of ``zarr_packs.PACK_MIN_BATCH`` demos or more straight from the block's
+        their ids. zarr packs a batch of ``zarr_settings.pack_min_batch`` demos or more straight from the block's
         joined arrays (no tree per demo, no re-joining); smaller batches, HDF5 and tasks whose trees hold an empty
         group go demo by demo."""
         if self._closed:
             raise RuntimeError(f"EpisodeWriter for {self.path} is closed")
-        arrays = block.arrays() if self.format == "zarr" and len(block) >= PACK_MIN_BATCH else None
+        arrays = block.arrays() if self.format == "zarr" and len(block) >= self.zarr_settings.pack_min_batch else None
         layout = block.pack_layout(arrays) if arrays is not None else None
         if layout is None:
             return self.append_prepared([self.prepare(tree, success=bool(ok), attrs=a)
@@ -248,7 +258,7 @@ class EpisodeWriter:
         attrs = [{**_demo_attrs(bool(ok), a), "num_samples": int(n)}
                  for ok, a, n in zip(block.successes, block.attrs, block.lengths)]
         with _medium_errors(self.path, self._backend, f"after {_episodes(self.appended)}"):
-            ids = self._backend.append_joined(self.path, arrays, layout, attrs, self._fsync)
+            ids = self._backend.append_joined(self.path, arrays, layout, attrs, self._fsync, **self._batch_options)
         self.appended += len(ids)
         return ids
 
@@ -301,7 +311,9 @@ class EpisodeWriter:
 
 
 def open_writer(path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True,
-                option_defaults: Mapping[str, Any] | None = None) -> EpisodeWriter:
+                option_defaults: Mapping[str, Any] | None = None,
+                zarr_settings: ZarrWriteSettings | None = None) -> EpisodeWriter:
     """Alias of :meth:`EpisodeWriter.open`."""
-    return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync, option_defaults=option_defaults)
+    return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync, option_defaults=option_defaults,
+                              zarr_settings=zarr_settings)
 

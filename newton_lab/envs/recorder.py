@@ -19,7 +19,7 @@ import numpy as np
 import torch
 import warp as wp
 
-from ..datasets.columns import ColumnLayout, DemoBlock
+from ..datasets.writers.columns import ColumnLayout, DemoBlock
 from ..datasets.states import state_layout
 
 IMAGE_CHUNK_STEPS = 64
@@ -126,8 +126,8 @@ class EpisodeRecorder:
         """The finished episodes of ``rows`` (``lengths`` steps each) with one device->host copy of their
         buffers (and one per image term): row -> :meth:`episode`, and row -> whether every recorded float of its
         steps is finite (:meth:`fetch`). The trees are views of one host copy joined by array
-        (``datasets.columns.DemoBlock``): each episode's arrays are contiguous, so a writer joining hundreds of demos
-        into a pack copies whole blocks instead of strided column slices of every demo (512 PickCube demos on the
+        (``datasets.writers.columns.DemoBlock``): each episode's arrays are contiguous, so a writer joining hundreds of
+        demos into a pack copies whole blocks instead of strided column slices of every demo (512 PickCube demos on the
         CPU: 0.40 -> 0.28 ms a demo, noisy)."""
         got = self.fetch(rows, lengths)
         block = DemoBlock.from_rows(self.layout, got.stacked.cpu().numpy(),
@@ -140,8 +140,9 @@ class EpisodeRecorder:
         return torch.cat((self._frames[idx, :span], self._rewards[idx, :span, None], self._next_obs[idx, :span]), dim=2)
 
     def episode(self, row: int, length: int) -> dict[str, Any]:
-        """The finished episode of ``row`` as a nested dict of numpy arrays (``datasets.columns.DemoBlock.trees``
-        says what it holds); copies, never views of the live buffers (the row's next episode reuses them)."""
+        """The finished episode of ``row`` as a nested dict of numpy arrays
+        (``datasets.writers.columns.DemoBlock.trees`` says what it holds); copies, never views of the live buffers (the
+        row's next episode reuses them)."""
         return self.episodes([row], [length])[0][row]
 
 
@@ -158,7 +159,8 @@ class FetchedRows(NamedTuple):
     rows: list[int]
     lengths: list[int]
     stacked: torch.Tensor
-    """(rows, longest, ``layout.width``) float32: frames, rewards and next observations (``datasets.columns``)."""
+    """(rows, longest, ``layout.width``) float32: frames, rewards and next observations
+    (``datasets.writers.columns``)."""
     images: dict[str, torch.Tensor]
     """Image term -> (rows, longest, ...)."""
     finite: dict[int, bool]

@@ -20,10 +20,11 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from ..datasets import DatasetRef, open_writer, writer_process
-from ..datasets.background import BackgroundWriter
-from ..datasets.interrupts import Interrupted, stop_requests
-from ..datasets.room import check_room
+from ..datasets import DatasetRef, open_writer
+from ..datasets.writers import process as writer_process
+from ..datasets.writers.background_thread import BackgroundWriter
+from ..datasets.writers.interrupts import Interrupted, stop_requests
+from ..datasets.zarr.inodes import check_room
 from ..task_api.cfg import DIVERGED
 from .checks import check_agent, check_collect, check_counts, option_defaults
 from .recorder import EpisodeRecorder, env_args
@@ -150,7 +151,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     ``agent_done``; a teleop operator's ``done`` is ``user_exit``).
     ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
     (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
-    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (``datasets.interrupts.StopRequest``):
+    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (a ``writers.interrupts.StopRequest``):
     once set, the loop ends after the step in flight (its ended episodes are handed over; the others are dropped).
     """
     check_counts(episodes=episodes, max_steps=max_steps)
@@ -281,8 +282,8 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     layout or ``.zarr`` v3, same logical tree).
 
     The episodes that end in one step are copied to the host together and written by a background thread
-    (``datasets.background``), many per write session, while the simulation goes on; ``collect`` waits for
-    it before returning (also on Ctrl-C or an error, so every finished episode is written). An episode is
+    (``datasets.writers.background_thread``), many per write session, while the simulation goes on; ``collect`` waits
+    for it before returning (also on Ctrl-C or an error, so every finished episode is written). An episode is
     durable once written: a run killed (SIGKILL) keeps every episode written before and loses at most the
     batch being written (all of it or none lands) and those queued behind it (at most ``max_queued``, by default
     256 or one per env row, whichever is more, and 1 GiB of arrays; the simulation waits while the queue is full;
@@ -294,9 +295,10 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     ``timers`` wrap the loop's ``env.step`` and ``agent.act`` and the writer thread's batch writes (``Timers``; a
     writer process reports its own, ``writer_seconds`` in the summary).
 
-    ``writer``: ``"thread"`` builds each episode's tree here and writes on a thread (``datasets.background``);
+    ``writer``: ``"thread"`` builds each episode's tree here and writes on a thread
+    (``datasets.writers.background_thread``);
     ``"process"`` hands each step's ended episodes to a writer process as one block in shared memory
-    (``datasets.writer_process``: joined, checked, packed and encoded on another interpreter); ``"auto"`` takes the
+    (``datasets.writers.process``: joined, checked, packed and encoded on another interpreter); ``"auto"`` takes the
     process from ``WRITE_MIN_BATCH`` rows on (where episodes end in bursts of dozens a step), else the thread.
 
     ``save_end_scenario`` (one env, one episode): write the scene the episode ended in as a scenario YAML

@@ -1,6 +1,6 @@
 """The recording side of ``collect``: the episodes that end in one step are gathered together, checked, and handed as
-one batch to a background writer: a thread (``datasets.background``: one device->host copy, the trees built here) or
-a process (``datasets.writer_process``: the block copied once into shared memory, packed there)."""
+one batch to a background writer: a thread (``datasets.writers.background_thread``: one device->host copy, the trees
+built here) or a process (``datasets.writers.process``: the block copied once into shared memory, packed there)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..datasets.background import BackgroundWriter
-from ..datasets.columns import DemoBlock
-from ..datasets.writer_process import ProcessWriter
+from ..datasets.writers.background_thread import BackgroundWriter
+from ..datasets.writers.columns import DemoBlock
+from ..datasets.writers.process import ProcessWriter
 from ..task_api.cfg import DIVERGED
 
 

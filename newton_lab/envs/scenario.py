@@ -29,7 +29,7 @@ import numpy as np
 import warp as wp
 import yaml
 
-from ..datasets.outputs import output_path
+from ..datasets.files.output_paths import output_path
 
 SCHEMA = "newton_lab/scenario-v1"
 ROBOT = "robot"

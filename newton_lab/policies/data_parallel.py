@@ -30,7 +30,7 @@ from typing import Any
 import torch
 import torch.distributed as dist
 
-from ..datasets._common import die_with_parent
+from ..datasets.writers.child_process import die_with_parent
 
 
 def world() -> tuple[int, int]:

@@ -9,7 +9,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..datasets._common import die_with_parent
+from ..datasets.writers.child_process import die_with_parent
 
 # torchrun started this rank: when it ends (even by SIGKILL), so does the rank. Set before torch loads (seconds on a
 # busy machine): a torchrun killed meanwhile would otherwise leave the rank running, reparented to init.

@@ -14,8 +14,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..datasets._common import STORAGE_ERRNOS, DatasetWriteError
-from ..datasets.outputs import output_path
+from ..datasets.files.errors import STORAGE_ERRNOS, DatasetWriteError
+from ..datasets.files.output_paths import output_path
 from .config import ARCHITECTURE_FIELDS, PRESETS, DiffusionPolicyConfig  # noqa: F401  (re-exported)
 from .data_parallel import draw_rows
 from .ema import EMA

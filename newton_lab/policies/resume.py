@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..datasets.outputs import output_path
+from ..datasets.files.output_paths import output_path
 from .diffusion import ARCHITECTURE_FIELDS, DiffusionPolicy, DiffusionPolicyConfig, save_file
 from .normalize import MinMaxNormalizer
 

@@ -26,8 +26,8 @@ import torch
 from tqdm import tqdm
 
 from ..datasets import read_dataset_info
-from ..datasets.interrupts import Interrupted, stop_requests
-from ..datasets.outputs import output_path
+from ..datasets.writers.interrupts import Interrupted, stop_requests
+from ..datasets.files.output_paths import output_path
 from . import data_parallel
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
@@ -187,7 +187,7 @@ class Checkpointer:
 def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep, task_id: str,
           cfg: DiffusionPolicyConfig, run: Progress, checkpointer: Checkpointer, stop=None) -> None:
     """Optimiser steps until ``run.total`` (re-planned to ``cfg.time_budget_s``), from ``run.step`` on. ``stop``
-    (``datasets.interrupts.StopRequest``) set: the resume point is saved after the step in flight and
+    (``datasets.writers.interrupts.StopRequest``) set: the resume point is saved after the step in flight and
     ``Interrupted`` raised."""
     lr_factor = warmup_cosine(cfg.warmup_steps, lambda: run.total)
     t0 = time.perf_counter() - run.elapsed_s  # a resumed run's budget counts the time before the interruption

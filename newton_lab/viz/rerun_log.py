@@ -20,7 +20,7 @@ import torch
 import warp as wp
 
 from ..datasets import read_dataset_info, read_episode, state_tree
-from ..datasets.outputs import output_path
+from ..datasets.files.output_paths import output_path
 from ..envs import make_env
 from .blueprint import default_blueprint, eye_for
 from .camera_log import (

@@ -15,7 +15,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from ..contained import OutsidePathError, contained
+from ..files.inside_root import OutsidePathError, contained
 from .tables import CODEBASE_VERSION, EPISODE_COLUMNS, INDEX_FEATURES, PNG_SIGNATURE, STATS, TIMESTAMP_TOLERANCE_S
 from .video import VIDEO_COLUMNS, probe
 

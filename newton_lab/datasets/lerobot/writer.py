@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .._common import fsync_path
-from ..outputs import output_path
+from ..files.durability import fsync_path
+from ..files.output_paths import output_path
 from ..storage import read_dataset_info, read_episode, read_episodes
 from .tables import (CHUNKS_SIZE, CODEBASE_VERSION, DATA_FILES_SIZE_IN_MB, DATA_PATH, EPISODES_PATH, IMAGE_NAMES,
                      IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, VIDEO_PATH,

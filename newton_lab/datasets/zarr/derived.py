@@ -1,9 +1,9 @@
 """Arrays of a zarr pack stored once: a per-step array (rank 1 or 2: images are never compared, nor held whole at
 once) whose bytes repeat another array of the same pack is written as a reference in the pack's index
-(``zarr_packs``), and readers rebuild it. Lossless: bytes are compared, never values (-0.0 and 0.0 differ, NaNs
+(``zarr.packs``), and readers rebuild it. Lossless: bytes are compared, never values (-0.0 and 0.0 differ, NaNs
 are compared as stored).
 
-Index entries beside the ``rows`` of the plain layout (``zarr_packs`` module docstring):
+Index entries beside the ``rows`` of the plain layout (``zarr.packs`` module docstring):
 
 - ``"same:<source>"``: the array equals ``<source>`` row for row; nothing is stored under its name.
 - ``"next:<source>"``: each demo's rows are ``<source>``'s rows one step on, then one more row: the array stored

@@ -5,9 +5,9 @@ trees they make.
 along the last axis of one ``(rows, steps, width)`` float32 block; ``ColumnLayout`` names where each array lies in
 it. A ``DemoBlock`` holds finished episodes of such a block split into their arrays, each joined along time (each
 demo's steps after the last one's): every array of a whole batch of demos is one array, which is what a zarr pack stores
-(``zarr_packs``), so a writer can pack a batch without building, checking and re-joining one tree per demo. Both
+(``zarr.packs``), so a writer can pack a batch without building, checking and re-joining one tree per demo. Both
 are plain numpy (picklable, no torch): the same code serves the collecting process and a writer process of its own
-(``datasets.writer_process``).
+(``datasets.writers.process``).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ._common import put
+from ..files.layout import put
 
 STATES = ("states/joint_q", "states/joint_qd")
 """Frame arrays joined side by side into a demo's flat ``states`` (joint_q then joint_qd)."""
@@ -131,7 +131,7 @@ class DemoBlock:
         return out
 
     def pack_layout(self, arrays: dict[str, np.ndarray]) -> dict[str, int | None] | None:
-        """The zarr pack index's ``arrays`` for :meth:`arrays` (what ``zarr_packs.layout`` makes of the demos'
+        """The zarr pack index's ``arrays`` for :meth:`arrays` (what ``zarr.packs.layout`` makes of the demos'
         trees: None per step, 1 for ``initial_state``), or None where a tree holds an empty group (a task without
         subtask signals), which a pack cannot hold."""
         if not any(key.startswith("datagen/subtask_signals/") for key in arrays) or \

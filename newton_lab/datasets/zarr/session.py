@@ -18,8 +18,11 @@ from typing import Any
 import zarr
 from zarr.storage import LocalStore
 
-from ._common import PARTIAL_PREFIX, damaged, fsync_path, lock_exclusive, write_fault_point
-
+from ..files.durability import fsync_path
+from ..files.errors import damaged
+from ..files.layout import PARTIAL_PREFIX
+from ..files.locking import lock_exclusive
+from ..files.write_faults import write_fault_point
 
 _io = threading.Condition()
 _in_flight: dict[str, int] = {}  # store root -> writes under way

@@ -9,8 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import PARTIAL_PREFIX, damaged, fsync_path
-from .zarr_session import fsync_tree, locked, node_attrs, open_root, remove_node
+from ..files.durability import fsync_path
+from ..files.errors import damaged
+from ..files.layout import PARTIAL_PREFIX
+from .session import fsync_tree, locked, node_attrs, open_root, remove_node
 
 
 def read_masks(path: Path) -> dict[str, list[str]]:

@@ -10,7 +10,7 @@ is written; the error is raised in the caller, with its one-line message, at the
 Batching: with ``min_batch`` the thread waits until that many episodes are queued (or the oldest has waited
 ``max_wait_s``, or a ``put`` is blocked, or ``flush`` / ``close`` asks) before it writes, so that a writer faster than
 the simulation still writes few large batches: each batch has a fixed cost (lock, ``syncfs``, commit), and a zarr
-batch of ``zarr_packs.PACK_MIN_BATCH`` demos or more is packed into a few files instead of ~80 per demo.
+batch of ``zarr.packs.PACK_MIN_BATCH`` demos or more is packed into a few files instead of ~80 per demo.
 
 Blocks of demos joined by array (``put_block``, a ``columns.DemoBlock``: a writer process's bursts) queue the same
 way, each counting as its demos; the blocks of a batch are joined and written as one (``EpisodeWriter.append_block``,
@@ -30,8 +30,8 @@ from collections.abc import Iterable, Mapping
 from concurrent.futures import Future
 from typing import Any
 
+from ..storage import EpisodeItem, EpisodeWriter
 from .columns import DemoBlock
-from .storage import EpisodeItem, EpisodeWriter
 
 
 def _runs(batch: list[tuple[Any, Future, int]]) -> list[list[tuple[Any, Future, int]]]:
@@ -46,7 +46,7 @@ def _runs(batch: list[tuple[Any, Future, int]]) -> list[list[tuple[Any, Future, 
 
 
 class LatchedErrors:
-    """The write-error rule both background writers keep (this thread, ``writer_process.ProcessWriter``): the first
+    """The write-error rule both background writers keep (this thread, ``writers.process.ProcessWriter``): the first
     write error is kept (``_error``); every later put, flush or close raises it, except that a close after it was
     raised once does not raise it again. A context manager that closes on exit."""
 

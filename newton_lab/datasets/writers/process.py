@@ -1,6 +1,6 @@
 """A writer process for ``collect``: ended episodes cross to it as whole column blocks in shared memory, and it writes
-them beside the simulation (``datasets.writer_serve``: joined by array, batched, a zarr batch packed straight from
-the columns).
+them beside the simulation (``datasets.writers.process_main``: joined by array, batched, a zarr batch packed straight
+from the columns).
 
 Why a process: with thousands of rows the episodes end in bursts (the rows start together), and in one interpreter
 the per-demo Python of a burst (splitting the copy by array, each demo's tree, the writer's checks, the pack's
@@ -12,8 +12,9 @@ comes back within milliseconds) and does the rest on its own interpreter. Pipes 
 standard library's ``multiprocessing`` would start the child by re-importing the caller's main module (the whole
 simulator) and refuses to start one from a Dask worker (a daemonic process).
 
-Crash window: as ``datasets.background`` (an episode is durable once its future is done). If the collecting process is
-killed, the writer process reads the end of its pipe, writes what it has already received and exits.
+Crash window: as ``datasets.writers.background_thread`` (an episode is durable once its future is done). If the
+collecting process is killed, the writer process reads the end of its pipe, writes what it has already received and
+exits.
 """
 
 from __future__ import annotations
@@ -31,8 +32,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from ._common import start_child
-from .background import LatchedErrors
+from ..zarr.settings import ZarrWriteSettings
+from .background_thread import LatchedErrors
+from .child_process import start_child
 from .columns import ColumnLayout
 
 RING_BYTES = 1 << 30
@@ -82,7 +84,10 @@ class ProcessWriter(LatchedErrors):
 
     def __init__(self, path: str | Path, *, task_id: str, layout: ColumnLayout, fsync: bool = True,
                  max_queued: int = 256, max_queued_bytes: int = 1 << 30, min_batch: int = 1, max_wait_s: float = 1.0,
-                 ring_bytes: int = RING_BYTES) -> None:
+                 ring_bytes: int = RING_BYTES, zarr_settings: ZarrWriteSettings | None = None,
+                 profile_to: str | Path | None = None) -> None:
+        """``zarr_settings``: how the process writes zarr batches (default ``DEFAULT_ZARR_SETTINGS``);
+        ``profile_to``: a path where the process saves a cProfile of its batch writes when it ends."""
         self.path, self.layout = Path(path), layout
         self.seconds = {"write": 0.0, "files": 0.0, "sync": 0.0}
         """The writer process's batch writes so far [s]: in all, and for zarr encoding + writing files and syncing."""
@@ -95,11 +100,12 @@ class ProcessWriter(LatchedErrors):
         self._pending: dict[int, Future] = {}  # burst -> its ids
         self._next = 0
         self._closed = False
-        self._proc = start_child("newton_lab.datasets.writer_serve", "main", str(self._fd), pass_fds=(self._fd,))
+        self._proc = start_child("newton_lab.datasets.writers.process_main", "main", str(self._fd),
+                                 pass_fds=(self._fd,))
         os.set_inheritable(self._fd, False)
         self._send(("open", str(self.path), task_id, fsync, ring_bytes, layout,
                     {"max_queued": max_queued, "max_queued_bytes": max_queued_bytes, "min_batch": min_batch,
-                     "max_wait_s": max_wait_s}))
+                     "max_wait_s": max_wait_s}, zarr_settings, None if profile_to is None else str(profile_to)))
         self._reader = threading.Thread(target=self._read, name=f"writer process {self.path.name}", daemon=True)
         self._reader.start()
 

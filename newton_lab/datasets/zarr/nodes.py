@@ -30,7 +30,8 @@ from numcodecs import Zstd
 from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
-from ._common import StoredDemo, demo_name, nest, time_chunks, write_fault_point
+from ..files.layout import StoredDemo, demo_name, nest, time_chunks
+from ..files.write_faults import write_fault_point
 
 IMAGE_ZSTD_LEVEL = 3
 """zstd level of image arrays (one frame per chunk)."""

@@ -17,7 +17,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from ._common import lock_exclusive, write_fault_point
+from ..files.locking import lock_exclusive
+from ..files.write_faults import write_fault_point
 
 MAGIC = b"NLJOURN1"
 _HEAD = struct.Struct("<8sQI")  # magic, original size, crc32 of the first two

@@ -1,4 +1,4 @@
-"""robomimic-layout HDF5 backend: one short-lived, journaled file handle per write (see ``_journal``)."""
+"""robomimic-layout HDF5 backend: one short-lived, journaled file handle per write (see ``hdf5.journal``)."""
 
 from __future__ import annotations
 
@@ -14,10 +14,12 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import _common as common
-from . import _journal as journal
-from ._common import (NEXT_ID, PARTIAL_PREFIX, StoredDemo, damaged, demo_id_of, demo_name, from_stored, fsync_path,
-                      locked_error)
+from ..files import locking
+from ..files.durability import fsync_path
+from ..files.errors import damaged
+from ..files.layout import NEXT_ID, PARTIAL_PREFIX, StoredDemo, demo_id_of, demo_name, from_stored, nest
+from ..files.locking import locked_error
+from . import journal
 
 # Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
 LIBVER = ("earliest", "v110")
@@ -25,8 +27,8 @@ LIBVER = ("earliest", "v110")
 
 def _open_read(path: Path) -> h5py.File:
     """Open for reading (after rolling back a killed writer); waits while a writer holds the lock."""
-    deadline = time.monotonic() + common.LOCK_WAIT_S
-    journal.recover(path, common.LOCK_WAIT_S)
+    deadline = time.monotonic() + locking.LOCK_WAIT_S
+    journal.recover(path, locking.LOCK_WAIT_S)
     while True:
         try:
             return h5py.File(path, "r")
@@ -43,12 +45,12 @@ def _open_read(path: Path) -> h5py.File:
 @contextmanager
 def _open_write(path: Path, fsync: bool) -> Iterator[h5py.File]:
     """Journaled read-write session under the writer lock: all of it lands on disk, or none of it (even on
-    SIGKILL). The lock is taken first (it queues writers fairly, see ``_common.lock_exclusive``)."""
+    SIGKILL). The lock is taken first (it queues writers fairly, see ``files.locking.lock_exclusive``)."""
     if not path.exists():
         raise FileNotFoundError(f"dataset {path} does not exist; check the path")
     if not path.is_file():
         raise damaged(path, "not a file")
-    with journal.journaled(path, common.LOCK_WAIT_S, fsync) as fobj:
+    with journal.journaled(path, locking.LOCK_WAIT_S, fsync) as fobj:
         try:
             h5py.File(path, "r", locking=False).close()  # same checks as readers; this session holds the lock
             f = h5py.File(fobj, "r+", libver=LIBVER)
@@ -149,7 +151,7 @@ def _read_keys(g: h5py.Group, keys: tuple[str, ...] | None) -> dict[str, Any]:
     """``_read_tree`` of only the arrays named by ``keys`` ("actions", "obs/front_head_rgb"; all when None)."""
     if keys is None:
         return _read_tree(g)
-    return common.nest({k: _read_array(g[k].id) for k in keys if isinstance(g.get(k), h5py.Dataset)})
+    return nest({k: _read_array(g[k].id) for k in keys if isinstance(g.get(k), h5py.Dataset)})
 
 
 def _attrs(obj: h5py.HLObject) -> dict[str, Any]:

@@ -1,10 +1,10 @@
 """zarr v3 backend (directory store): a batch of demos is written under a staging folder, renamed to
-``demo_<i>`` groups (small batches) or ``pack_<first id>`` groups (batches of ``zarr_packs.PACK_MIN_BATCH`` demos
-or more, see ``zarr_packs``) and committed by advancing the ``data`` attr ``next_demo_id``; a ``demo_<i>`` without
+``demo_<i>`` groups (small batches) or ``pack_<first id>`` groups (batches of ``ZarrWriteSettings.pack_min_batch`` demos
+or more, see ``zarr.packs``) and committed by advancing the ``data`` attr ``next_demo_id``; a ``demo_<i>`` without
 ``num_samples``, or a ``demo_<i>`` / ``pack_<i>`` with ``i >= next_demo_id``, is a leftover (readers skip it, the
 next append removes it).
 
-Writers (append, delete, root attrs) hold the writer lock of both formats (``_common.lock_exclusive``)
+Writers (append, delete, root attrs) hold the writer lock of both formats (``files.locking.lock_exclusive``)
 on the store's root ``zarr.json``, a file written once at creation and never replaced, so they are
 serialised and demo ids come from ``next_demo_id``. Readers take no lock.
 """
@@ -24,13 +24,16 @@ import numpy as np
 import zarr
 from zarr.storage import LocalStore
 
-from ._common import (NEXT_ID, PARTIAL_PREFIX, StoredDemo, damaged, demo_id_of, demo_name, fault_injected,
-                      from_stored, fsync_path, sync_tree)
-from .zarr_masks import read_masks, set_masks, write_masks
-from .zarr_nodes import read_tree, write_group
-from .zarr_packs import PackJob, PackReader, batch_jobs, pack_first_of, pack_name
-from .zarr_session import data_group, drain, fsync_tree, locked, node_attrs, open_root, remove_node
-from . import zarr_packs, zarr_workers
+from ..files.durability import fsync_path, sync_tree
+from ..files.errors import damaged
+from ..files.layout import NEXT_ID, PARTIAL_PREFIX, StoredDemo, demo_id_of, demo_name, from_stored
+from . import batch_writes
+from . import packs as zarr_packs
+from .masks import read_masks, set_masks, write_masks
+from .nodes import read_tree, write_group
+from .packs import PackJob, PackReader, batch_jobs, pack_first_of, pack_name
+from .session import data_group, drain, fsync_tree, locked, node_attrs, open_root, remove_node
+from .settings import ZarrWriteSettings
 
 BATCH_SECONDS = {"files": 0.0, "sync": 0.0}
 """Seconds this process's zarr batch appends spent encoding and writing their demos' files (writer processes or
@@ -41,6 +44,9 @@ __all__ = ["create", "read_root", "append", "set_root_attrs", "info", "read", "r
            "set_masks"]
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/{demo,pack}_<i>: a batch being written
+
+Item = tuple[Any, dict[str, Any], int]
+"""A demo of a batch: (tree or ``StoredDemo``, attrs, num_samples)."""
 
 
 def _scan(path: Path, limit: int | None = None) -> tuple[dict[int, dict[str, Any]], list[Path]]:
@@ -153,9 +159,10 @@ def _commit(data: zarr.Group, counters: dict[str, int]) -> None:
     data.attrs.update(counters)
 
 
-def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool) -> list[int]:
+def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool,
+           settings: ZarrWriteSettings) -> list[int]:
     """Under the lock, write ``items`` ((tree, attrs, num_samples), ...) as one batch: each demo (or each pack of
-    demos, ``zarr_packs.batch_jobs``) into ``data/_partial_batches/<uuid>/demo_<i>`` (``pack_<i>``), one
+    demos, ``zarr.packs.batch_jobs``) into ``data/_partial_batches/<uuid>/demo_<i>`` (``pack_<i>``), one
     ``syncfs``, rename each into ``data/``, then commit by advancing ``next_demo_id`` (and ``total`` /
     ``num_demos``) in ``data/zarr.json``. Readers list only ``demo_<i>`` / ``pack_<i>`` with ``i < next_demo_id``:
     a batch is visible entirely or not at all, also after SIGKILL.
@@ -163,20 +170,21 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
     On any error the batch is taken out again (the dataset stays as it was). zarr does not cancel the
     sibling writes of a failed one: they can only land in the batch's unique staging folder. The cost per
     demo does not depend on how many the dataset holds (no scan of ``data/``)."""
-    writers = zarr_workers.WRITE_THREADS if fault_injected() else zarr_workers.WRITE_PROCESSES
-    return _append_jobs(path, len(items), sum(int(n) for _, _, n in items), fsync,
-                        lambda stage, ids: batch_jobs(stage, ids, _unpacked(items), writers))
+    min_batch = settings.pack_min_batch
+    return _append_jobs(path, len(items), sum(int(n) for _, _, n in items), fsync, settings,
+                        lambda stage, ids: batch_jobs(stage, ids, _unpacked(items, min_batch), min_batch))
 
 
 def append_joined(path: Path, arrays: dict[str, np.ndarray], layout: dict[str, int | None],
-                  attrs: list[dict[str, Any]], fsync: bool) -> list[int]:
+                  attrs: list[dict[str, Any]], fsync: bool, settings: ZarrWriteSettings) -> list[int]:
     """As :func:`append`, for demos whose arrays come joined (``columns.DemoBlock.arrays``; ``attrs`` per demo with
     its ``num_samples``): one pack, written straight from them."""
-    return _append_jobs(path, len(attrs), sum(int(a["num_samples"]) for a in attrs), fsync,
+    return _append_jobs(path, len(attrs), sum(int(a["num_samples"]) for a in attrs), fsync, settings,
                         lambda stage, ids: [PackJob(stage / pack_name(ids[0]), ids, attrs, None, layout, arrays)])
 
 
-def _append_jobs(path: Path, demos: int, samples: int, fsync: bool, make_jobs) -> list[int]:
+def _append_jobs(path: Path, demos: int, samples: int, fsync: bool, settings: ZarrWriteSettings,
+                 make_jobs) -> list[int]:
     """The batch write of :func:`append`: ``make_jobs(stage, ids)`` gives the write jobs of the ``demos`` new ids."""
     with locked(path) as data:
         next_id, total, count = _counters(data, path)
@@ -191,7 +199,7 @@ def _append_jobs(path: Path, demos: int, samples: int, fsync: bool, make_jobs) -
             jobs = make_jobs(stage, ids)
             names = [(job.node if isinstance(job, PackJob) else job[0]).name for job in jobs]
             t0 = time.perf_counter()
-            zarr_workers.write_batch(path, jobs)
+            batch_writes.write_batch(path, jobs, settings)
             t1 = time.perf_counter()
             if fsync:
                 sync_tree(stage)
@@ -214,12 +222,12 @@ def _append_jobs(path: Path, demos: int, samples: int, fsync: bool, make_jobs) -
     return ids
 
 
-def _unpacked(items: list[tuple[Any, dict[str, Any], int]]) -> list[tuple[Any, dict[str, Any], int]]:
+def _unpacked(items: list[Item], pack_min_batch: int) -> list[Item]:
     """``items`` with each copy (``StoredDemo``) of a packed demo read back as its tree and its source attrs updated
     with the item's (a pack's files hold many demos: there are none to copy); in a batch large enough to be packed,
     every copy (its demos then land in packs too)."""
     wanted: dict[Path, list[int]] = {}
-    every = len(items) >= zarr_packs.PACK_MIN_BATCH
+    every = len(items) >= pack_min_batch
     for k, (tree, _, _) in enumerate(items):
         if isinstance(tree, StoredDemo) and (every or not (tree.path / "data" / demo_name(tree.demo_id)).is_dir()):
             wanted.setdefault(tree.path, []).append(k)

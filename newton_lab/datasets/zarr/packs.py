@@ -3,17 +3,17 @@ demos one after another along time, instead of one ``data/demo_<i>`` group (~80 
 
 Why: on one ext4 disk the per-demo layout made file creation, not physics, bound collection (two GPUs writing
 330 k files per 4096 demos each thrashed the volume), and a filesystem's inodes ran out long before its bytes. A
-pack of 512 PickCube demos is ~150 files. The logical layout is unchanged: readers (``zarr_store.read_many``) map a
+pack of 512 PickCube demos is ~150 files. The logical layout is unchanged: readers (``zarr.store.read_many``) map a
 demo id to its pack and rows and return the same tree a ``demo_<i>`` group gives. A per-step array whose bytes repeat
 another of the pack (``next_obs/<term>``: ``obs/<term>`` one step on) is stored once, as a reference in the index
-(``zarr_derived``), and rebuilt when read.
+(``zarr.derived``), and rebuilt when read.
 
 A pack group's attrs hold its index, ``{"pack": {"arrays": {path: rows}, "demos": {id: [k, start, attrs]}}}``:
 ``rows`` is ``null`` for arrays with one row per step (demo ``k`` holds rows ``start .. start + num_samples``),
 ``c >= 1`` for arrays of ``c`` rows per demo (rows ``k*c .. (k+1)*c``, e.g. ``initial_state``), ``0`` for one scalar
-per demo (row ``k``), or a reference ``"same:<array>"`` / ``"next:<array>"`` (``zarr_derived``). The ids of a pack
+per demo (row ``k``), or a reference ``"same:<array>"`` / ``"next:<array>"`` (``zarr.derived``). The ids of a pack
 are ``first .. first + n - 1`` when written; a delete drops ids from the index (the rows stay until the pack is
-empty, then the pack goes). Arrays are stored as ``zarr_nodes`` stores a demo's (same codecs, ~1 MB time chunks,
+empty, then the pack goes). Arrays are stored as ``zarr.nodes`` stores a demo's (same codecs, ~1 MB time chunks,
 one image frame per chunk), so zarr-python reads them as well (a referenced array: its source, and for ``next``
 each demo's last row under its own name).
 """
@@ -33,16 +33,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ._common import StoredDemo, demo_name, fsync_path, nest
-from .zarr_derived import derive, rebuild, rebuild_needs_last, source_of, stored_value
-from .zarr_nodes import (DECODER, chunk_grid, chunk_shape, node_meta, plain_dtype, write_array, write_demo, write_file,
-                         write_group)
+from ..files.durability import fsync_path
+from ..files.layout import StoredDemo, demo_name, nest
+from .derived import derive, rebuild, rebuild_needs_last, source_of, stored_value
+from .nodes import (DECODER, chunk_grid, chunk_shape, node_meta, plain_dtype, write_array, write_demo, write_file,
+                    write_group)
 
 PACK_RE = re.compile(r"^pack_(\d+)$")
-PACK_MIN_BATCH = int(os.environ.get("NEWTON_LAB_ZARR_PACK_MIN", "32"))
-"""Batches of at least this many demos (of one layout) are written as packs; smaller ones as ``demo_<i>`` groups."""
-PACK_MIN_PART = 64
-"""Demos per pack at least when a batch is split over several writers."""
 CACHE_BYTES = 64 << 20
 """Decoded chunks a reader keeps (demos read one after another share their packs' chunks)."""
 
@@ -114,24 +111,22 @@ def layout(items: list[tuple[Any, dict[str, Any], int]]) -> tuple[dict[str, int 
     return out, flats
 
 
-def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any], int]], writers: int) -> list:
-    """The write jobs of a batch (``(tree, attrs, num_samples)`` per demo id): ``PackJob``s of consecutive ids, one
-    per writer with ``PACK_MIN_PART`` demos each at least, when it is large and of one layout; else one
+def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any], int]],
+               pack_min_batch: int) -> list:
+    """The write jobs of a batch (``(tree, attrs, num_samples)`` per demo id): one ``PackJob`` of all of them when
+    the batch has ``pack_min_batch`` demos or more (``ZarrWriteSettings``) of one layout; else one
     ``(folder, attrs, tree)`` per demo. Folders go under ``stage``."""
     attrs = [{**a, "num_samples": int(n)} for _, a, n in items]
-    found = layout(items) if len(items) >= PACK_MIN_BATCH else None
+    found = layout(items) if len(items) >= pack_min_batch else None
     if found is None:
         return [(stage / demo_name(i), a, tree) for i, a, (tree, _, _) in zip(ids, attrs, items)]
     shared, flats = found
-    parts = max(1, min(writers, len(items) // PACK_MIN_PART))
-    bounds = [len(items) * k // parts for k in range(parts + 1)]
-    return [PackJob(stage / pack_name(ids[a]), ids[a:b], attrs[a:b], flats[a:b], shared)
-            for a, b in zip(bounds, bounds[1:])]
+    return [PackJob(stage / pack_name(ids[0]), ids, attrs, flats, shared)]
 
 
 def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks: Any = None) -> None:
     """The pack group ``job.node`` with its index and every array of its demos one after another;
-    ``fallback(relpath, value)`` writes an array ``zarr_nodes`` does not. Not durable until the caller syncs. With
+    ``fallback(relpath, value)`` writes an array ``zarr.nodes`` does not. Not durable until the caller syncs. With
     ``tasks`` (anything with ``append``) each chunk's encoding and file go there as calls (``write_array``)."""
     counts = [int(a["num_samples"]) for a in job.attrs]
     starts = np.cumsum([0] + counts[:-1]).tolist()
@@ -146,7 +141,7 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks:
     def ndim(key: str) -> int:  # of one demo's array
         return job.joined[key].ndim if job.joined is not None else job.flats[0][key].ndim
 
-    # arrays that repeat another become a reference (``zarr_derived``); images are never compared (nor held at once)
+    # arrays that repeat another become a reference (``zarr.derived``); images are never compared (nor held at once)
     values = {key: joined(key) for key in job.layout if ndim(key) < 3}
     found = derive(values, {k: rows for k, rows in job.layout.items() if k in values}, counts)
     arrays = {key: found.get(key, rows) for key, rows in job.layout.items()}
@@ -248,7 +243,7 @@ class PackReader:
         flat = {}
         for key in sorted(arrays if keys is None else [key for key in keys if key in arrays]):
             rows, source = arrays[key], source_of(arrays[key])
-            if source is not None:  # stored once, under ``source`` (``zarr_derived``)
+            if source is not None:  # stored once, under ``source`` (``zarr.derived``)
                 last = self._rows(f"{name}/{key}", k, k + 1) if rebuild_needs_last(rows) else None
                 flat[key] = rebuild(rows, self._array(name, source, arrays[source], k, start, attrs), last)
                 continue

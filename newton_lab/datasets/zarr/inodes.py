@@ -1,5 +1,5 @@
 """Room on the dataset's filesystem: a zarr demo written alone is a folder of ~80 files and folders (packed with
-others, see ``zarr_packs``, a fraction of one), so a large zarr collection can use up a filesystem's inodes (ext4:
+others, see ``zarr.packs``, a fraction of one), so a large zarr collection can use up a filesystem's inodes (ext4:
 one per 16 KiB of disk by default) long before its bytes. ``check_room`` refuses such a collection before anything
 is written; ``out_of_room`` names what a refused write ran out of."""
 
@@ -10,22 +10,25 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .zarr_nodes import inodes_of
-from . import zarr_packs
+from . import packs as zarr_packs
+from .nodes import inodes_of
+from .settings import DEFAULT_ZARR_SETTINGS, ZarrWriteSettings
 
 
-def check_room(path: str | Path, demos: int, tree: dict[str, Any], batch: int = 1) -> None:
+def check_room(path: str | Path, demos: int, tree: dict[str, Any], batch: int = 1,
+               settings: ZarrWriteSettings = DEFAULT_ZARR_SETTINGS) -> None:
     """Refuse (one-line ``ValueError``) writing ``demos`` demos shaped like ``tree``, in batches of ``batch`` demos
     (a collection's: its envs, which end together at most), to the zarr dataset ``path`` when even one chunk per
     array would need more inodes than its filesystem has free (``tree`` may be one step long: image arrays, one
-    chunk per frame, then count one frame; a batch large enough to be packed counts as one pack). HDF5, one file,
+    chunk per frame, then count one frame; a batch large enough to be packed, ``settings.pack_min_batch``, counts as
+    one pack). HDF5, one file,
     and filesystems that report no inode count pass."""
     path = Path(path)
     folder = next((p for p in (path, *path.parents) if p.is_dir()), None)  # missing folders are made on its filesystem
     if path.suffix != ".zarr" or folder is None:
         return
     st = os.statvfs(folder)
-    packed = batch >= zarr_packs.PACK_MIN_BATCH
+    packed = batch >= settings.pack_min_batch
     need = math.ceil(demos / batch) * zarr_packs.inodes_of_pack(tree, batch) if packed else demos * inodes_of(tree)
     if st.f_files and need > st.f_favail:
         raise ValueError(f"{path}: {demos} zarr demos need at least {need:,} inodes ({need / demos:.3g} a demo) "

@@ -1,7 +1,8 @@
-"""The writer process of ``datasets.writer_process`` (:func:`main`, started with the shared ring's descriptor as its
+"""The writer process of ``datasets.writers.process`` (:func:`main`, started with the shared ring's descriptor as its
 argument): it copies each burst of ended episodes out of the ring as a ``columns.DemoBlock`` (one gather per
-array), answers ``free`` at once, and queues the block on a ``datasets.background.BackgroundWriter``, which writes
-the queued blocks in batches (``EpisodeWriter.append_block``: a zarr batch is packed straight from the joined arrays).
+array), answers ``free`` at once, and queues the block on a ``datasets.writers.background_thread.BackgroundWriter``,
+which writes the queued blocks in batches (``EpisodeWriter.append_block``: a zarr batch is packed straight from the
+joined arrays).
 
 Replies on stdout, pickled: ``("free", burst)``, ``("written", burst, ids, seconds, batches)``, ``("error", burst,
 exception)``. After a failed batch nothing more is written: every later burst gets the same error. The process ends
@@ -12,7 +13,6 @@ from __future__ import annotations
 
 import cProfile
 import mmap
-import os
 import pickle
 import sys
 import threading
@@ -21,14 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from . import zarr_store
-from .background import BackgroundWriter
-from ._common import child_pipes
+from ..storage import EpisodeWriter
+from ..zarr import store as zarr_store
+from .background_thread import BackgroundWriter
+from .child_process import child_pipes
 from .columns import DemoBlock
-from .storage import EpisodeWriter
-
-PROFILE_ENV = "NEWTON_LAB_WRITER_PROFILE"
-"""Set to a path: the writer process profiles its batch writes (cProfile) and saves the stats there when it ends."""
 
 
 def _timed(append, spent: dict[str, float], profile: cProfile.Profile | None):
@@ -55,11 +52,10 @@ def serve(fd: int, inbox, outbox) -> None:
             pickle.dump(message, outbox, protocol=pickle.HIGHEST_PROTOCOL)
             outbox.flush()
 
-    _, path, task_id, fsync, ring_bytes, layout, settings = pickle.load(inbox)
+    _, path, task_id, fsync, ring_bytes, layout, settings, zarr_settings, profile_to = pickle.load(inbox)
     buf = mmap.mmap(fd, ring_bytes)
-    store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync)
+    store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync, zarr_settings=zarr_settings)
     spent = {"write": 0.0}
-    profile_to = os.environ.get(PROFILE_ENV)
     profile = cProfile.Profile() if profile_to else None
     store.append_block = _timed(store.append_block, spent, profile)  # the batch writes' clock, reported back
     writer = BackgroundWriter(store, **settings)
