@@ -42,13 +42,13 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
     ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it (``_ceiling``)."""
     cams = False if camera is None else {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
     env = make_env(task_id, num_envs=num_envs, device=device, seed=0, cameras=cams, physics=physics)
-    step_graph = env.step_graph
+    step_graph = env.sim.step_graph
     if step_graph is None:
         raise RuntimeError(f"step capture is unavailable on {env.device}; benchmark needs Warp graph capture")
-    env.actions.copy_(env.current_action())
+    env.buffers.actions.copy_(env.current_action())
     with wp.ScopedDevice(env.device):
         with wp.ScopedCapture(device=env.device) as cap:
-            env.simulate()
+            env.sim.simulate()
     bare_graph = cap.graph
     t_env = _time_graph(lambda: wp.capture_launch(step_graph), steps, env.device)
     t_bare = _time_graph(lambda: wp.capture_launch(bare_graph), steps, env.device)
@@ -74,10 +74,10 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
 
 def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
     """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
-    reading ``env.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of one
+    reading ``env.sensors.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of one
     view per world at the same poses and resolution (BVH refit + render, captured)."""
     env.render()  # builds and captures the render graph
-    cams = env.cameras
+    cams = env.sensors.cameras
     render_graph = cams.render_graph
     if render_graph is None:
         raise RuntimeError(f"camera render capture is unavailable on {env.device}")
@@ -98,11 +98,11 @@ def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
 
         bare_render()  # compiles before the capture
         with wp.ScopedCapture(device=env.device) as cap:
-            env.simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
+            env.sim.simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
             bare_render()
     ceiling_graph = cap.graph
 
-    step_graph = env.step_graph
+    step_graph = env.sim.step_graph
 
     def env_with_camera():
         wp.capture_launch(step_graph)

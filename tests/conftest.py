@@ -84,11 +84,11 @@ def run_until_done(env, agent, max_steps: int):
     poses, signals = [], []
     for _ in range(max_steps):
         _, _, term, trunc, info = env.step(agent.act(env))
-        poses.append(env.entity_poses.clone())
+        poses.append(env.buffers.entity_poses.clone())
         signals.append(info["signals"].clone())
         for row in np.nonzero((term | trunc).numpy())[0]:
             if result[row] is None:
-                result[row] = (bool(info["success"][row]), env.termination_reasons[int(info["termination_reason"][row])],
+                result[row] = (bool(info["success"][row]), env.task.termination_reasons[int(info["termination_reason"][row])],
                                int(info["episode_length"][row]))
         if all(r is not None for r in result):
             break

@@ -27,13 +27,28 @@ def test_reset_with_something_that_is_no_row_index_is_one_line(env, ids):
 def test_collect_without_an_agent_or_a_path_is_one_line_and_writes_nothing(env, tmp_path):
     from newton_lab.agents import expert_agent
 
-    with pytest.raises(ValueError, match="agent must have an act.env. method"):
+    with pytest.raises(ValueError, match="agent NoneType lacks .'act', 'reset', 'done', 'holding'.; subclass "
+                                         "newton_lab.agents.BaseAgent"):
         env.collect(agent=None, episodes=1, path=tmp_path / "x.hdf5", progress=False)
     with pytest.raises(ValueError, match="path must name the dataset to write"):
         env.collect(agent=expert_agent(env), episodes=1, path=None, progress=False)
-    with pytest.raises(ValueError, match="agent must have an act.env. method"):
+    with pytest.raises(ValueError, match="subclass newton_lab.agents.BaseAgent"):
         env.evaluate(agent=None, episodes=1, progress=False)
     assert not list(tmp_path.iterdir())
+
+
+def test_an_agent_with_act_alone_is_refused_before_the_rollout_names_base_agent(env):
+    """A rollout calls the agent's hooks (``reset``, ``done``, ``holding``, ``done_reason``) without probing for
+    them: an object with ``act`` alone is refused in one line that names the template to subclass."""
+
+    class ActOnly:
+        def act(self, env, env_ids=None):
+            return env.current_action()
+
+    with pytest.raises(ValueError, match=r"agent ActOnly lacks \['reset', 'done', 'holding'\]; subclass "
+                                         r"newton_lab.agents.BaseAgent") as err:
+        env.evaluate(agent=ActOnly(), episodes=1, progress=False)
+    assert "\n" not in str(err.value)
 
 
 def test_an_env_from_an_unresolved_cfg_names_make_cfg():
@@ -49,8 +64,8 @@ def test_actions_that_require_grad_leave_the_env_out_of_the_graph(env):
     actions = env.current_action().clone().requires_grad_(True)
     env.step(actions * 1.0)
     env.step(actions * 1.0)
-    assert not env.actions.requires_grad and env.actions.grad_fn is None
-    assert env.actions.cpu().numpy().shape == (2, env.action_dim)
+    assert not env.buffers.actions.requires_grad and env.buffers.actions.grad_fn is None
+    assert env.buffers.actions.cpu().numpy().shape == (2, env.action_dim)
 
 
 def test_a_read_only_zarr_dataset_is_called_read_only_not_damaged(tmp_path, monkeypatch):
@@ -92,3 +107,23 @@ def test_a_seed_outside_what_the_kernels_take_is_refused_before_the_build(seed, 
 def test_reseed_takes_the_same_range(env):
     with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2147483647\], got -3"):
         env.reseed(-3)
+
+
+def test_stack_cube_reference_rewards_opted_in_after_make_cfg_resolve_in_the_env():
+    """The opt-in that StackCube's ``reference_rewards`` documents (``dataclasses.replace(cfg, rewards=...)`` on a
+    ``make_cfg`` result) builds an env: the env resolves the new terms, their counters after the resolved ones'."""
+    import dataclasses
+
+    from newton_lab.envs.env import NewtonEnv
+    from newton_lab.task_api.registry import lookup
+    from newton_lab.task_api.terms import unresolved_terms
+    from newton_lab.tasks.stack_cube.mdp.rewards import reference_rewards
+
+    made = lookup("GalbotG1-StackCube-v0").make_cfg()
+    cfg = dataclasses.replace(made, rewards=reference_rewards())
+    generic = ["rewards.cube_2_on_cube_1", "rewards.cube_3_on_cube_2", "rewards.stack_success"]
+    assert unresolved_terms(cfg) == generic  # action_rate is a plain @wp.func
+    env = NewtonEnv(cfg, num_envs=1, device="cpu", cameras=False)
+    assert not unresolved_terms(env.cfg) and env.cfg.hold_slots >= made.hold_slots
+    _, reward, *_ = env.step(env.current_action())
+    assert torch.isfinite(reward).all() and -0.01 <= float(reward[0]) <= 24.0

@@ -8,8 +8,9 @@ Layers, lowest first; a module may import its own layer and the ones below, neve
 Also: no import cycle between modules or between packages, no ``importlib`` of project modules by name,
 imports at module top (a deliberately deferred import says ``deferred`` in a comment on its line), no
 module over 400 lines, no function over 80 lines except Warp kernels / funcs. The env's narrow surface: no
-private attribute of an env object touched outside ``newton_lab/envs/`` and no run-time patching of project code
-in the library. The robot behind one binding: a robot package is imported only by ``robots/`` and by that robot's
+private attribute of an env object touched outside ``newton_lab/envs/``, at most 30 public names on the env class
+and, outside ``envs/``, only those and the names of its parts (``env.sim``, ``env.task``, ``env.sensors``,
+``env.joints``, ``env.buffers``), and no run-time patching of project code in the library. The robot behind one binding: a robot package is imported only by ``robots/`` and by that robot's
 task configs.
 """
 
@@ -256,7 +257,7 @@ ENV_OWNER = "newton_lab/envs/"
 """The one place that may touch the env's private attributes (and those of its cameras / actuation objects)."""
 ENV_OBJECT_NAMES = r"^(.*_)?(env|envs|cams|cameras|actuation|launches|binding)$"
 """How an env object is recognised without running anything: the name it is reached by, the last part of the
-expression before the dot (``env``, ``pick_env``, ``self._env``, ``env.cameras``, ``cams``, ``eager_env``...).
+expression before the dot (``env``, ``pick_env``, ``self._env``, ``env.sensors.cameras``, ``cams``, ``eager_env``...).
 The project names its envs and their parts so everywhere; a private attribute is ``_name`` (not a dunder)."""
 
 
@@ -270,7 +271,7 @@ def _source_files(folders) -> dict[str, ast.Module]:
 
 
 def _last_name(node: ast.AST) -> str | None:
-    """The name an expression ends in: ``env`` for ``env``, ``cameras`` for ``env.cameras``, ``f`` for ``f()``."""
+    """The name an expression ends in: ``env`` for ``env``, ``cameras`` for ``env.sensors.cameras``, ``f`` for ``f()``."""
     if isinstance(node, ast.Name):
         return node.id
     if isinstance(node, ast.Attribute):
@@ -310,6 +311,75 @@ def test_no_private_access_to_env_objects_outside_envs():
     bad = _private_env_access(_source_files(ENV_SURFACE_FOLDERS))
     assert not bad, ("private attributes of env objects used outside newton_lab/envs/ (use the env's public surface, "
                      "newton_lab/envs/env.py's docstring lists it):\n" + "\n".join(bad))
+
+
+ENV_CLASS = ("newton_lab/envs/env.py", "NewtonEnv")
+ENV_PARTS_FILE = "newton_lab/envs/parts.py"
+ENV_PARTS = {"sim": "EnvSim", "task": "EnvTask", "sensors": "EnvSensors", "joints": "EnvJoints", "buffers": "EnvBuffers"}
+"""The env's named parts: ``env.<part>`` is an object of ``newton_lab/envs/parts.py``'s class."""
+MAX_ENV_NAMES = 30
+"""Public names the env class defines (attributes, methods, properties): the rest is behind its parts."""
+ENV_NAMES = r"^(.*_)?env$"
+"""A ``NewtonEnv`` (not its parts, nor a list of envs) is reached by a name ending in ``env``."""
+GYMNASIUM_NAMES = {"unwrapped", "action_space", "observation_space", "single_action_space", "single_observation_space",
+                   "close", "metadata", "spec", "np_random", "render_mode"}
+"""What a gymnasium wrapper named ``env`` in the tests adds (``newton_lab/envs/gym.py``'s classes are read too)."""
+NOT_ENV_CALLS = {n for n in dir(dict) + dir(str) if not n.startswith("_")}
+"""Methods of the dicts and strings also named ``env`` (a process environment, ``q_env`` rows): never env names."""
+
+
+def _class_names(path: str, name: str) -> set[str]:
+    """Public names class ``name`` of ``path`` defines: methods and properties, class fields, ``self.x = ...``."""
+    cls = next(n for n in ast.walk(ast.parse((ROOT / path).read_text())) if isinstance(n, ast.ClassDef) and n.name == name)
+    names = {n.name for n in cls.body if isinstance(n, ast.FunctionDef)}
+    for node in ast.walk(cls):
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        for t in (e for t in targets for e in (t.elts if isinstance(t, ast.Tuple) else [t])):
+            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id == "self":
+                names.add(t.attr)
+            elif isinstance(t, ast.Name) and node in cls.body:
+                names.add(t.id)
+    return {n for n in names if not n.startswith("_")}
+
+
+def test_the_env_defines_at_most_30_public_names_and_its_parts():
+    names = _class_names(*ENV_CLASS)
+    assert len(names) <= MAX_ENV_NAMES, f"NewtonEnv defines {len(names)} public names: {sorted(names)}"
+    assert set(ENV_PARTS) <= names, f"NewtonEnv lacks its parts {sorted(set(ENV_PARTS) - names)}"
+
+
+def _off_surface(files: dict[str, ast.Module]) -> list[str]:
+    """``file:line expression`` of every ``env.x`` outside ``envs/`` whose ``x`` the env does not define, and every
+    ``env.<part>.x`` whose ``x`` that part does not define."""
+    gym = {n for c in ("NewtonGymEnv", "NewtonVectorEnv") for n in _class_names("newton_lab/envs/gym.py", c)}
+    surface = _class_names(*ENV_CLASS) | gym | GYMNASIUM_NAMES | NOT_ENV_CALLS
+    parts = {part: _class_names(ENV_PARTS_FILE, cls) for part, cls in ENV_PARTS.items()}
+    env_like, bad = re.compile(ENV_NAMES), []
+    for rel, tree in files.items():
+        if rel.startswith(ENV_OWNER):
+            continue
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Attribute) or node.attr.startswith("__"):
+                continue
+            base = node.value
+            if isinstance(base, ast.Name | ast.Attribute) and env_like.match(_last_name(base)) and node.attr not in surface:
+                bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on the env)")
+            elif (isinstance(base, ast.Attribute) and base.attr in parts and env_like.match(_last_name(base.value) or "")
+                  and node.attr not in parts[base.attr]):
+                bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on env.{base.attr})")
+    return bad
+
+
+def test_code_outside_envs_reaches_the_env_through_its_surface_and_parts():
+    bad = _off_surface(_source_files(ENV_SURFACE_FOLDERS))
+    assert not bad, ("names that are not on the env's surface (newton_lab/envs/env.py) or its parts "
+                     "(newton_lab/envs/parts.py):\n" + "\n".join(bad))
+
+
+def test_the_surface_rule_flags_an_old_name_and_a_name_a_part_lacks():
+    src = ast.parse("env.step(a)\nenv.joint_coords(n)\npick_env.sim.model\nenv.sim.obs_terms\nenv.task.obs_terms\n")
+    assert sorted(b.split(" ", 1)[1] for b in _off_surface({"tests/x.py": src})) == [
+        "env.joint_coords (not on the env)", "env.sim.obs_terms (not on env.sim)"]
 
 
 MONKEYPATCH_ALLOWED: set[tuple[str, str]] = set()
@@ -381,7 +451,7 @@ PRIVATE = """
 env._graph
 pick_env._ctx.phase
 self._env._obs
-env.cameras._groups
+env.sensors.cameras._groups
 getattr(cams, "_graph")
 other._x
 env.__class__
@@ -395,7 +465,7 @@ def test_the_surface_rules_catch_what_they_name():
         "env.step (an env object)", "env.step (an env object)", "setattr(module, 'fn', wrap)"])
     private = _private_env_access({"tests/x.py": ast.parse(PRIVATE)})
     assert sorted(p.split(" ", 1)[1] for p in private) == sorted([
-        "env._graph", "pick_env._ctx", "self._env._obs", "env.cameras._groups", "getattr(cams, '_graph')"])
+        "env._graph", "pick_env._ctx", "self._env._obs", "env.sensors.cameras._groups", "getattr(cams, '_graph')"])
     assert not _private_env_access({ENV_OWNER + "env.py": ast.parse(PRIVATE)})
 
 

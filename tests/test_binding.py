@@ -46,12 +46,12 @@ def _bind(layout, *terms: ActionTermCfg, arm: str = "left") -> BoundRobot:
 # ---------------------------------------------------------------- the robot behind one binding
 def test_the_env_reads_the_robot_its_task_names(pick_env, pick_cfg):
     g1 = robot_binding("g1")
-    assert pick_cfg.robot == "g1" and pick_env.robot is g1 and pick_env.binding.robot is g1
+    assert pick_cfg.robot == "g1" and pick_env.robot is g1 and pick_env.joints.binding.robot is g1
     assert "g1" in robot_names()
     assert g1.arm("left").joints == spec.LEFT_ARM_JOINTS and g1.arm("right").gripper == spec.RIGHT_GRIPPER_JOINT
     assert g1.wheel_gains == pytest.approx(wheel_gains())
     assert (g1.gripper_open, g1.gripper_closed) == (spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED)
-    assert pick_env.joint_coords(g1.base_planar_joints) == [pick_env.binding.context.base_coord + i for i in range(3)]
+    assert pick_env.joints.coords(g1.base_planar_joints) == [pick_env.joints.binding.context.base_coord + i for i in range(3)]
     with pytest.raises(ValueError, match="unknown robot 'h1'; registered robots: .*g1"):
         robot_binding("h1")
     with pytest.raises(ValueError, match="unknown arm 'middle'"):
@@ -89,7 +89,7 @@ def test_robot_context_from_joint_index(layout, pick_cfg):
 
 
 def test_env_context_is_the_binding(pick_env):
-    ctx, bound = pick_env.task_context, pick_env.binding.context
+    ctx, bound = pick_env.task.context, pick_env.joints.binding.context
     assert ctx.robot_coords == bound.robot_coords == 34
     assert (ctx.base_coord, ctx.leg_coord, ctx.gripper_coord, ctx.tcp_body) == (
         bound.base_coord, bound.leg_coord, bound.gripper_coord, bound.tcp_body)
@@ -144,7 +144,7 @@ def test_relative_action_adds_to_the_current_target(pick_cfg):
                                                  ActionTermCfg(name="gripper_action", group="left_gripper",
                                                                type="binary")])
     env = NewtonEnv(cfg, num_envs=2, device="cpu", capture=False)
-    coords = [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]
+    coords = [env.sim.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]
     targets = lambda: wp.to_torch(env.control.joint_target_q).view(2, -1)[:, coords].clone()  # noqa: E731
     start = targets()
     hold = env.current_action()
@@ -185,16 +185,16 @@ def test_spec_limits_are_in_the_model(layout):
 def _close_gripper(env, steps: int) -> tuple[list[float], float]:
     """Command the gripper closed from open; per-step positions and the peak speed over every substep."""
     env.reset()
-    c, d = (getattr(env.layout.joints, k)[spec.LEFT_GRIPPER_JOINT] for k in ("coord", "dof"))
+    c, d = (getattr(env.sim.layout.joints, k)[spec.LEFT_GRIPPER_JOINT] for k in ("coord", "dof"))
     q, qd = wp.to_torch(env.state.joint_q), wp.to_torch(env.state.joint_qd)
-    env.actions.copy_(env.current_action())
-    env.actions[:, env.action_joint_names.index(spec.LEFT_GRIPPER_JOINT)] = spec.GRIPPER_CLOSED
+    env.buffers.actions.copy_(env.current_action())
+    env.buffers.actions[:, env.action_joint_names.index(spec.LEFT_GRIPPER_JOINT)] = spec.GRIPPER_CLOSED
     positions, peak = [], 0.0
     with wp.ScopedDevice(env.device):
         for _ in range(steps):
-            env.apply_actions()
+            env.sim.apply_actions()
             for _ in range(env.cfg.decimation):
-                env.substep()
+                env.sim.substep()
                 peak = max(peak, abs(float(qd[d])))
             positions.append(float(q[c]))
     return positions, peak
@@ -204,8 +204,8 @@ def test_gripper_velocity_limit_on_real_physics():
     env = make_env(PICK, num_envs=1, device="cpu", capture=False)
     limited, peak = _close_gripper(env, 16)
     # the same env with its setpoint limit switched off: the drive as it was before the limit
-    env.actuation.max_step.zero_()
-    env.actuation.dof_limited.zero_()
+    env.joints.actuation.max_step.zero_()
+    env.joints.actuation.dof_limited.zero_()
     free, free_peak = _close_gripper(env, 16)
     print(f"gripper closing: before peak {free_peak:.2f} rad/s (first step {free[0] / 0.05:.2f} rad/s), "
           f"after peak {peak:.2f} rad/s (first step {limited[0] / 0.05:.2f} rad/s)")
@@ -216,7 +216,7 @@ def test_gripper_velocity_limit_on_real_physics():
     assert limited[0] > 0.05, "the gripper still leaves 'open' within one control step"
     assert limited[-1] == pytest.approx(spec.GRIPPER_CLOSED, abs=0.01)  # closed after 0.8 s
     # the command (the target agents hold) is the closed value at once; the drive's setpoint follows it
-    c = env.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
+    c = env.sim.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
     assert float(wp.to_torch(env.control.joint_target_q)[c]) == pytest.approx(spec.GRIPPER_CLOSED)
 
 
@@ -225,10 +225,10 @@ def test_reset_rows_restart_their_setpoints():
     a = env.current_action()
     a[:, env.action_joint_names.index(spec.LEFT_GRIPPER_JOINT)] = spec.GRIPPER_CLOSED
     env.step(a)
-    c = env.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
-    assert 0.0 < float(wp.to_torch(env.drive.joint_target_q)[c]) < spec.GRIPPER_CLOSED
+    c = env.sim.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
+    assert 0.0 < float(wp.to_torch(env.sim.drive.joint_target_q)[c]) < spec.GRIPPER_CLOSED
     env.reset()
-    assert float(wp.to_torch(env.drive.joint_target_q)[c]) == float(wp.to_torch(env.control.joint_target_q)[c])
+    assert float(wp.to_torch(env.sim.drive.joint_target_q)[c]) == float(wp.to_torch(env.control.joint_target_q)[c])
 
 
 def test_a_gripper_placed_by_hand_stays_where_it_was_placed():
@@ -237,12 +237,12 @@ def test_a_gripper_placed_by_hand_stays_where_it_was_placed():
     open and the drive pulls the gripper open again, until ``sync_drive``."""
     env = make_env(PICK, num_envs=2, device="cpu", capture=False)
     env.reset()
-    c = env.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
+    c = env.sim.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]
     column = lambda a: wp.to_torch(a).view(2, -1)[:, c].tolist()  # noqa: E731
-    env.set_joint_positions([spec.LEFT_GRIPPER_JOINT], [spec.GRIPPER_CLOSED], env_ids=[1])
-    for array in (env.state.joint_q, env.control.joint_target_q, env.drive.joint_target_q):
+    env.joints.set_positions([spec.LEFT_GRIPPER_JOINT], [spec.GRIPPER_CLOSED], env_ids=[1])
+    for array in (env.state.joint_q, env.control.joint_target_q, env.sim.drive.joint_target_q):
         assert column(array) == pytest.approx([spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED])
-    assert env.joint_positions([spec.LEFT_GRIPPER_JOINT])[:, 0].tolist() == pytest.approx([0.0, spec.GRIPPER_CLOSED])
+    assert env.joints.positions([spec.LEFT_GRIPPER_JOINT])[:, 0].tolist() == pytest.approx([0.0, spec.GRIPPER_CLOSED])
     for _ in range(3):
         env.step(env.current_action())  # hold every target
     assert column(env.state.joint_q)[1] == pytest.approx(spec.GRIPPER_CLOSED, abs=0.05)
@@ -251,13 +251,13 @@ def test_a_gripper_placed_by_hand_stays_where_it_was_placed():
     env.reset()
     for array in (env.state.joint_q, env.control.joint_target_q):
         wp.to_torch(array).view(2, -1)[1, c] = spec.GRIPPER_CLOSED
-    assert column(env.drive.joint_target_q)[1] == spec.GRIPPER_OPEN  # stale
+    assert column(env.sim.drive.joint_target_q)[1] == spec.GRIPPER_OPEN  # stale
     env.step(env.current_action())
     assert column(env.state.joint_q)[1] < spec.GRIPPER_CLOSED - 0.2  # pulled open by the stale setpoint
-    env.sync_drive([1])
-    assert column(env.drive.joint_target_q) == pytest.approx([spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED])
+    env.joints.sync_drive([1])
+    assert column(env.sim.drive.joint_target_q) == pytest.approx([spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED])
     with pytest.raises(ValueError, match=r"values has shape \(2,\); pass \(1,\) or \(1, 1\)"):
-        env.set_joint_positions([spec.LEFT_GRIPPER_JOINT], [0.0, 1.0], env_ids=[0])
+        env.joints.set_positions([spec.LEFT_GRIPPER_JOINT], [0.0, 1.0], env_ids=[0])
 
 
 # ---------------------------------------------------------------- the one wheel formula

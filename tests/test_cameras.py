@@ -96,35 +96,35 @@ def test_intrinsics_follow_the_reference_lens():
 def test_image_terms_are_zero_copy_views(cam_env):
     env = cam_env
     env.reset()
-    assert list(env.image_terms) == [f"{cam}_{data}" for cam in ("front_head", "left_wrist") for data in ALL]
-    rgb, depth, seg = (env.images[f"front_head_{data}"] for data in ALL)
+    assert list(env.sensors.image_terms) == [f"{cam}_{data}" for cam in ("front_head", "left_wrist") for data in ALL]
+    rgb, depth, seg = (env.sensors.images[f"front_head_{data}"] for data in ALL)
     assert (rgb.shape, rgb.dtype) == ((2, H, W, 3), torch.uint8)
     assert (depth.shape, depth.dtype) == ((2, H, W), torch.float32)
     assert (seg.shape, seg.dtype) == ((2, H, W), torch.int32)
-    group, = env.cameras.view_groups  # 2 cameras x 2 worlds: 4 views, camera-major
+    group, = env.sensors.cameras.view_groups  # 2 cameras x 2 worlds: 4 views, camera-major
     assert group.poses.shape == (4,)
     assert rgb.data_ptr() == wp.to_torch(group.color).data_ptr()
-    assert env.images["left_wrist_rgb"].data_ptr() == rgb.data_ptr() + 2 * H * W * 4
+    assert env.sensors.images["left_wrist_rgb"].data_ptr() == rgb.data_ptr() + 2 * H * W * 4
     assert seg.data_ptr() == wp.to_torch(group.segmentation).data_ptr()
-    assert env.images["front_head_rgb"] is rgb  # the same view every read
+    assert env.sensors.images["front_head_rgb"] is rgb  # the same view every read
 
 
 def test_render_only_when_images_are_read_and_capture_matches_eager(cam_env):
     env = cam_env
     env.reset()
-    view = env.images["front_head_segmentation"]
+    view = env.sensors.images["front_head_segmentation"]
     before = view.clone()
     action = env.current_action()
     action[:, :7] += 0.3  # swing the arm: the wrist and gripper move in the head view
     for _ in range(5):
         env.step(action)
-    assert env.cameras.stale and torch.equal(view, before)  # stepping rendered nothing
+    assert env.sensors.cameras.stale and torch.equal(view, before)  # stepping rendered nothing
     captured = {k: v.clone() for k, v in env.render().items()}
-    assert not env.cameras.stale
-    assert env.cameras.render_graph is not None  # the render is one captured graph
+    assert not env.sensors.cameras.stale
+    assert env.sensors.cameras.render_graph is not None  # the render is one captured graph
     assert not torch.equal(captured["front_head_segmentation"], before)
-    env.cameras.render(force=True, eager=True)  # the same render, eager
-    for name, img in env.images.items():
+    env.sensors.cameras.render(force=True, eager=True)  # the same render, eager
+    for name, img in env.sensors.images.items():
         assert torch.equal(img, captured[name]), name
 
 
@@ -134,17 +134,17 @@ def test_projection_matches_segmentation(cam_env):
     (y > 0.22) can be partly behind the gripper's fingers at reset; its mask is then cut and those rows are
     left out."""
     env = cam_env
-    names = env.cameras.segmentation_names
+    names = env.sensors.cameras.segmentation_names
     cube = names.index("cube")
     robot = np.array([n.startswith("robot/") for n in names])
-    K = env.cameras.intrinsics("front_head")
+    K = env.sensors.cameras.intrinsics("front_head")
     seen, checked = [], 0
     for _ in range(15):
         env.reset()
-        seg = env.images["front_head_segmentation"].numpy()
-        depth = env.images["front_head_depth"].numpy()
-        poses = env.cameras.poses("front_head").numpy()
-        centres = env.entity_poses[:, env.entities["cube"].slot, :3].numpy()
+        seg = env.sensors.images["front_head_segmentation"].numpy()
+        depth = env.sensors.images["front_head_depth"].numpy()
+        poses = env.sensors.cameras.poses("front_head").numpy()
+        centres = env.buffers.entity_poses[:, env.task.entities["cube"].slot, :3].numpy()
         for row in range(env.num_envs):
             uv, z = _project(poses[row], centres[row], K)
             mask = seg[row] == cube
@@ -162,8 +162,8 @@ def test_projection_matches_segmentation(cam_env):
 def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
     env = cam_env
     env.reset()
-    names = env.cameras.segmentation_names
-    seg = env.images["front_head_segmentation"].numpy()
+    names = env.sensors.cameras.segmentation_names
+    seg = env.sensors.images["front_head_segmentation"].numpy()
     for row in range(env.num_envs):
         ids = {names[i] for i in np.unique(seg[row])}
         assert {"cube", "blue_block", "table", "robot/left_gripper"} <= ids, ids
@@ -175,11 +175,11 @@ def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
         cube_u = _centroid(seg[row] == names.index("cube"))[0]
         block_u = _centroid(seg[row] == names.index("blue_block"))[0]
         assert cube_u < W / 2 and cube_u < block_u
-    env.cameras.randomize = False  # the model's own colours (randomize=True also randomises the look)
+    env.sensors.cameras.randomize = False  # the model's own colours (randomize=True also randomises the look)
     try:
-        rgb = env.images["front_head_rgb"].numpy()
+        rgb = env.sensors.images["front_head_rgb"].numpy()
     finally:
-        env.cameras.randomize = True
+        env.sensors.cameras.randomize = True
     red = rgb[0][seg[0] == names.index("cube")].astype(int)
     assert (red[:, 0] > red[:, 1] + 40).all()  # the cube renders red
 
@@ -191,13 +191,13 @@ def test_left_wrist_view_sees_the_cube_while_grasping(cam_env):
     env.reset()
     agent = expert_agent(env)
     agent.reset()
-    names = env.cameras.segmentation_names
-    k = env.signal_names.index("grasped_cube")
+    names = env.sensors.cameras.segmentation_names
+    k = env.task.signal_names.index("grasped_cube")
     checked = set()
     for _ in range(150):
         env.step(agent.act(env))
         for row in set(np.nonzero(env.info["signals"][:, k].numpy() > 0.5)[0].tolist()) - checked:
-            cube = env.images["left_wrist_segmentation"][row].numpy() == names.index("cube")
+            cube = env.sensors.images["left_wrist_segmentation"][row].numpy() == names.index("cube")
             assert cube.sum() >= 20, f"row {row}: cube hardly in the wrist view"
             assert W / 3 < _centroid(cube)[0] < 2 * W / 3
             checked.add(row)
@@ -209,10 +209,10 @@ def test_left_wrist_view_sees_the_cube_while_grasping(cam_env):
 def test_state_only_envs_do_no_camera_work(stack_env):
     stack_env.reset()
     stack_env.step(stack_env.current_action())
-    assert stack_env.image_terms == {} and stack_env.render() == {}
-    assert not stack_env.cameras.built  # no sensor, no buffers, no graph
+    assert stack_env.sensors.image_terms == {} and stack_env.render() == {}
+    assert not stack_env.sensors.cameras.built  # no sensor, no buffers, no graph
     with pytest.raises(KeyError, match="renders none") as err:
-        stack_env.images["front_head_rgb"]
+        stack_env.sensors.images["front_head_rgb"]
     assert "\n" not in str(err.value)
 
 
@@ -282,8 +282,8 @@ def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp
 
 # ---------------------------------------------------------------- vision randomisation
 def _cube_colour(env, row):
-    seg = env.images["front_head_segmentation"][row].numpy()
-    return env.images["front_head_rgb"][row].numpy()[seg == env.cameras.segmentation_names.index("cube")].mean(0)
+    seg = env.sensors.images["front_head_segmentation"][row].numpy()
+    return env.sensors.images["front_head_rgb"][row].numpy()[seg == env.sensors.cameras.segmentation_names.index("cube")].mean(0)
 
 
 def test_vision_randomisation_changes_per_reset_and_replays(cam_env):
@@ -300,13 +300,13 @@ def test_vision_randomisation_changes_per_reset_and_replays(cam_env):
     env.reseed(21)  # the same seed and episodes: the same pictures
     for name, img in env.render().items():
         assert torch.equal(img, first[name]), name
-    env.cameras.randomize = False
+    env.sensors.cameras.randomize = False
     try:
         red = _cube_colour(env, 0)
         assert red[0] > red[1] + 40  # the cube's own red
-        assert np.array_equal(env.model.shape_color.numpy(), env.cameras.base_shape_colors.numpy())
+        assert np.array_equal(env.model.shape_color.numpy(), env.sensors.cameras.base_shape_colors.numpy())
     finally:
-        env.cameras.randomize = True
+        env.sensors.cameras.randomize = True
 
 
 def _angle_deg(q1, q2):
@@ -320,12 +320,12 @@ def test_camera_jitter_is_bounded(cam_env):
     moved = []
     for _ in range(3):
         env.reset()
-        jittered = {c: env.cameras.poses(c).numpy().copy() for c in ("front_head", "left_wrist")}
-        env.cameras.randomize = False
+        jittered = {c: env.sensors.cameras.poses(c).numpy().copy() for c in ("front_head", "left_wrist")}
+        env.sensors.cameras.randomize = False
         try:
-            nominal = {c: env.cameras.poses(c).numpy().copy() for c in jittered}
+            nominal = {c: env.sensors.cameras.poses(c).numpy().copy() for c in jittered}
         finally:
-            env.cameras.randomize = True
+            env.sensors.cameras.randomize = True
         for c in jittered:
             for row in range(env.num_envs):
                 d = float(np.linalg.norm(jittered[c][row, :3] - nominal[c][row, :3]))
@@ -340,17 +340,17 @@ def test_objects_named_by_their_colour_keep_its_hue():
     their channels by at most +-20 % (times the row's brightness), while the table gets a new colour per reset."""
     env = make_env("GalbotG1-SortToShelf-Pick-v0", num_envs=2, device="cpu", seed=3, randomize=True,
                    cameras={"front_head": {"resolution": (32, 24), "data": ("rgb",)}})
-    names = env.cameras.segmentation_names
+    names = env.sensors.cameras.segmentation_names
     objects = [names.index(n) for n in ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")]
-    env.cameras.randomize = False
+    env.sensors.cameras.randomize = False
     try:
-        base = env.cameras.id_colors()[0]
+        base = env.sensors.cameras.id_colors()[0]
     finally:
-        env.cameras.randomize = True
+        env.sensors.cameras.randomize = True
     tables = []
     for _ in range(3):
         env.reset()
-        colors = env.cameras.id_colors()
+        colors = env.sensors.cameras.id_colors()
         for row in range(env.num_envs):
             for i in objects:
                 ratio = colors[row, i] / base[i]
@@ -367,8 +367,8 @@ def test_stack_cube_from_pixels_sees_its_cubes_by_colour():
     def seen(head):
         env = make_env("GalbotG1-StackCube-v0", task_options={"head": head}, num_envs=2, device="cpu", seed=3,
                        randomize=True, cameras={"front_head": {"resolution": (96, 72), "data": ("segmentation",)}})
-        names = env.cameras.segmentation_names
-        seg = env.images["front_head_segmentation"].numpy()
+        names = env.sensors.cameras.segmentation_names
+        seg = env.sensors.images["front_head_segmentation"].numpy()
         return env, names, [{names[i] for i in np.unique(seg[row])} for row in range(env.num_envs)]
 
     cubes = {"cube_1", "cube_2", "cube_3"}
@@ -376,12 +376,12 @@ def test_stack_cube_from_pixels_sees_its_cubes_by_colour():
     assert all(not (ids & cubes) for ids in level), level
     env, names, table = seen("table")
     assert all(cubes <= ids for ids in table), table
-    env.cameras.randomize = False
+    env.sensors.cameras.randomize = False
     try:
-        base = env.cameras.id_colors()[0]
+        base = env.sensors.cameras.id_colors()[0]
     finally:
-        env.cameras.randomize = True
-    colors = env.cameras.id_colors()
+        env.sensors.cameras.randomize = True
+    colors = env.sensors.cameras.id_colors()
     for row in range(env.num_envs):
         for cube in sorted(cubes):
             i = names.index(cube)

@@ -34,7 +34,7 @@ def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
     t = ep["attrs"]["num_samples"]
     assert ep["attrs"]["success"] and ep["attrs"]["termination_reason"] == "success"
     assert ep["actions"].shape == (t, 8) and ep["actions"].dtype == np.float32
-    for term, sl in pick_env.obs_terms.items():
+    for term, sl in pick_env.task.obs_terms.items():
         assert ep["obs"][term].shape == (t, sl.stop - sl.start)
     states = state_tree(ep["states"], info["env_args"])  # flat (T, D) states, named by env_args
     layout = info["env_args"]["newton_lab"]["state_layout"]
@@ -45,7 +45,7 @@ def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
     assert ep["rewards"].shape == (t,) and ep["rewards"].dtype == np.float32
     np.testing.assert_allclose(ep["rewards"].sum(), summary["reward_totals"][0], rtol=1e-4, atol=1e-4)
     assert ep["dones"].tolist() == [0] * (t - 1) + [1]  # robomimic: 1 on the last step of a success
-    for term in pick_env.obs_terms:  # next_obs: the observation after each step, the last one before the reset
+    for term in pick_env.task.obs_terms:  # next_obs: the observation after each step, the last one before the reset
         np.testing.assert_array_equal(ep["next_obs"][term][:-1], ep["obs"][term][1:])
     assert ep["next_obs"]["cube_pose"][-1, 2] > ep["obs"]["cube_pose"][0, 2] + 0.01  # lifted, not the reset pose
     cube = states["rigid_object"]["cube"]["root_pose"]

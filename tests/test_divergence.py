@@ -22,7 +22,7 @@ FAULT = 1e30
 
 
 def test_reason_codes_match_their_names(pick_env):
-    names = pick_env.termination_reasons
+    names = pick_env.task.termination_reasons
     assert names[: len(BUILTIN_TERMINATION_REASONS)] == list(BUILTIN_TERMINATION_REASONS)
     assert names[fuse.REASON_SUCCESS] == "success" and names[fuse.REASON_TIME_OUT] == "time_out"
     assert names[fuse.REASON_DIVERGED] == DIVERGED and fuse.FIRST_FAILURE_REASON == len(BUILTIN_TERMINATION_REASONS)
@@ -31,13 +31,13 @@ def test_reason_codes_match_their_names(pick_env):
     term = next(iter(pick_env.cfg.terminations.values()))
     cfg = dataclasses.replace(pick_env.cfg, terminations={DIVERGED: term})
     with pytest.raises(ValueError, match="may not be named"):
-        build_task_kernels(cfg, pick_env.obs_terms)
+        build_task_kernels(cfg, pick_env.task.obs_terms)
 
 
 def _run(env, steps: int, fault_step: int | None, fault_row: int = 1):
     """Reset every row with fresh episode counters (same seeded draws) and step a fixed action sequence; the
     fault row gets ``FAULT`` in its first column at ``fault_step``. Returns the per-step history."""
-    env.episode_count.zero_()
+    env.buffers.episode_count.zero_()
     env.reset()
     base = env.current_action().clone()
     hist = {k: [] for k in ("obs", "q", "qd", "body_q", "reward", "reason", "count")}
@@ -54,7 +54,7 @@ def _run(env, steps: int, fault_step: int | None, fault_row: int = 1):
         hist["body_q"].append(wp.to_torch(env.state.body_q).view(n, -1).clone())
         hist["reward"].append(reward.clone())
         hist["reason"].append(info["termination_reason"].clone())
-        hist["count"].append(env.episode_count.clone())
+        hist["count"].append(env.buffers.episode_count.clone())
     return {k: torch.stack(v) for k, v in hist.items()}
 
 
@@ -63,10 +63,10 @@ def test_faulty_row_diverges_resets_alone_and_others_are_bitwise_unchanged(pick_
     clean = _run(env, steps, None)
     faulty = _run(env, steps, fault_step)
     # the faulty row reports `diverged` within a few steps, and once
-    reasons = [env.termination_reasons[int(r)] for r in faulty["reason"][:, 1]]
+    reasons = [env.task.termination_reasons[int(r)] for r in faulty["reason"][:, 1]]
     hit = reasons.index(DIVERGED)
     assert fault_step <= hit <= fault_step + 3 and reasons.count(DIVERGED) == 1
-    assert DIVERGED not in [env.termination_reasons[int(r)] for r in clean["reason"].flatten()]
+    assert DIVERGED not in [env.task.termination_reasons[int(r)] for r in clean["reason"].flatten()]
     assert int(faulty["count"][hit, 1]) == int(faulty["count"][hit - 1, 1]) + 1  # it reset in that step
     assert float(faulty["reward"][hit, 1]) == 0.0
     # from the reset on, its new episode is finite: observation, state and the solver's data of its world
@@ -123,7 +123,7 @@ class TeleportingAgent(ZeroAgent):
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         if self.calls == self.at:
-            wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[self.row, env.entities["cube"].coord] = 60.0
+            wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[self.row, env.task.entities["cube"].coord] = 60.0
         self.calls += 1
         return super().act(env).clone()
 
@@ -179,7 +179,7 @@ def test_finiteness_is_checked_over_each_episode_steps_only(pick_env):
 
 def _cube_dof(env) -> int:
     """World-local first velocity coordinate of the cube's free joint (linear [m/s] x, y, z, then angular)."""
-    joint = list(env.model.joint_q_start.numpy()).index(env.entities["cube"].coord)
+    joint = list(env.model.joint_q_start.numpy()).index(env.task.entities["cube"].coord)
     return int(env.model.joint_qd_start.numpy()[joint])
 
 
@@ -202,24 +202,24 @@ def test_finite_state_beyond_the_bounds_is_diverged(pick_env, case):
     ``diverged`` in the very step, the other row does not notice; a cube inside the bounds is left alone."""
     env = pick_env
     pos, twist, diverges = BOUNDS_CASES[case]
-    env.episode_count.zero_()
+    env.buffers.episode_count.zero_()
     env.reset()
     try:
         q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
         qd = wp.to_torch(env.state.joint_qd).view(env.num_envs, -1)
-        coord, dof = env.entities["cube"].coord, _cube_dof(env)
+        coord, dof = env.task.entities["cube"].coord, _cube_dof(env)
         q[1, coord:coord + 3] = torch.tensor(pos, dtype=q.dtype)
         if twist is not None:
             qd[1, dof:dof + 6] = torch.tensor(twist, dtype=qd.dtype)
-        count = env.episode_count.clone()
+        count = env.buffers.episode_count.clone()
         _, _, terminated, _, info = env.step(env.current_action())
-        reasons = [env.termination_reasons[int(r)] for r in info["termination_reason"]]
+        reasons = [env.task.termination_reasons[int(r)] for r in info["termination_reason"]]
         assert reasons[0] == "none" and not bool(terminated[0])
         if diverges:
             assert reasons[1] == DIVERGED and bool(terminated[1])
-            assert int(env.episode_count[1]) == int(count[1]) + 1  # it reset in that step
+            assert int(env.buffers.episode_count[1]) == int(count[1]) + 1  # it reset in that step
         else:
             assert reasons[1] == "none" and not bool(terminated[1])
-            assert (env.episode_count == count).all()
+            assert (env.buffers.episode_count == count).all()
     finally:
         env.reset()

@@ -34,15 +34,15 @@ def test_one_task_kernel_launch_per_step(eager_env, monkeypatch):
 
     monkeypatch.setattr(wp, "launch", counting)
     eager_env.step(eager_env.current_action())
-    assert sum(k is eager_env.kernels.task for k in launched) == 1
+    assert sum(k is eager_env.task.kernels.task for k in launched) == 1
     # the observation kernel runs twice: before the masked reset (``final_obs``, the terminal observation of rows
     # that finish) and after it (``obs``); the fused task logic still runs once
-    assert sum(k is eager_env.kernels.observe for k in launched) == 2
-    assert sum(k is eager_env.kernels.reset for k in launched) == 1
+    assert sum(k is eager_env.task.kernels.observe for k in launched) == 2
+    assert sum(k is eager_env.task.kernels.reset for k in launched) == 1
 
 
 def test_step_is_one_captured_graph(pick_env):
-    assert pick_env.step_graph is not None
+    assert pick_env.sim.step_graph is not None
 
 
 STEP_INFO_KEYS = ("success", "success_latched", "done", "termination_reason", "episode_length", "phase", "signals",
@@ -55,8 +55,8 @@ def _step_outputs(env, out) -> dict[str, torch.Tensor]:
     obs, reward, terminated, truncated, info = out
     assert set(STEP_INFO_KEYS) == set(info), "a new info entry: compare it below too"
     got = {"obs": obs, "reward": reward, "terminated": terminated, "truncated": truncated,
-           "final_obs": env.final_obs, "joint_q": wp.to_torch(env.state.joint_q), "episode_count": env.episode_count,
-           "entity_poses": env.entity_poses, "tcp_pose": env.tcp_pose}
+           "final_obs": env.buffers.final_obs, "joint_q": wp.to_torch(env.state.joint_q), "episode_count": env.buffers.episode_count,
+           "entity_poses": env.buffers.entity_poses, "tcp_pose": env.buffers.tcp_pose}
     got.update({f"info[{k}]": info[k] for k in STEP_INFO_KEYS})
     return {k: (v.clone() if isinstance(v, torch.Tensor) else torch.as_tensor(np.array(v))) for k, v in got.items()}
 
@@ -66,14 +66,14 @@ def test_captured_step_matches_eager(pick_env, eager_env):
     (its cube teleported 60 m: ``diverged``, finite) and a row that times out, and the new episodes after them."""
     env_steps = pick_env.cfg.max_episode_steps
     for env in (pick_env, eager_env):  # same seed and episode counters -> same reset draws
-        env.episode_count.zero_()
+        env.buffers.episode_count.zero_()
         env.reset()
         # close to the time limit: row 0 is truncated inside the run, row 1 (terminated first) is not
-        wp.to_torch(env.task_context.episode_step)[:] = env_steps - 8
+        wp.to_torch(env.task.context.episode_step)[:] = env_steps - 8
     torch.testing.assert_close(_q(pick_env), _q(eager_env))
-    counts = pick_env.episode_count.clone()
+    counts = pick_env.buffers.episode_count.clone()
     seen = {"terminated": 0, "truncated": 0}
-    cube = pick_env.entities["cube"].coord
+    cube = pick_env.task.entities["cube"].coord
     for t in range(15):
         a = pick_env.current_action()
         a[:, 3] += 0.01 * t
@@ -81,7 +81,7 @@ def test_captured_step_matches_eager(pick_env, eager_env):
             for env in (pick_env, eager_env):
                 wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[1, cube] = 60.0
         for env in (pick_env, eager_env):  # outputs only the step writes: a graph that skips one is caught
-            for view in (env.final_obs, env.info["step_signals"], env.reward):
+            for view in (env.buffers.final_obs, env.info["step_signals"], env.reward):
                 view.fill_(7.0)
         captured = _step_outputs(pick_env, pick_env.step(a))
         eager = _step_outputs(eager_env, eager_env.step(a.clone()))
@@ -95,7 +95,7 @@ def test_captured_step_matches_eager(pick_env, eager_env):
         seen["truncated"] += int(captured["truncated"].sum())
     # not vacuous: the run went through both ends of an episode and the resets after them
     assert seen == {"terminated": 1, "truncated": 1}
-    assert (pick_env.episode_count == counts + 1).all()
+    assert (pick_env.buffers.episode_count == counts + 1).all()
 
 
 def test_captured_step_matches_eager_with_an_exchange_every_substep():
@@ -121,10 +121,10 @@ def test_captured_step_matches_eager_with_an_exchange_every_substep():
 
 def test_step_returns_views_of_warp_buffers(pick_env):
     obs, reward, terminated, truncated, info = pick_env.step(pick_env.current_action())
-    assert obs.data_ptr() == wp.to_torch(pick_env.buffers.obs).data_ptr()
-    assert reward.data_ptr() == wp.to_torch(pick_env.buffers.reward).data_ptr()
-    assert obs.shape == (2, pick_env.obs_dim) and terminated.dtype == torch.bool
-    assert set(pick_env.obs_terms) == {"actions", "robot_joint_pos", "tcp_pose", "gripper_pos", "cube_pose",
+    assert obs.data_ptr() == wp.to_torch(pick_env.buffers.arrays.obs).data_ptr()
+    assert reward.data_ptr() == wp.to_torch(pick_env.buffers.arrays.reward).data_ptr()
+    assert obs.shape == (2, pick_env.task.obs_dim) and terminated.dtype == torch.bool
+    assert set(pick_env.task.obs_terms) == {"actions", "robot_joint_pos", "tcp_pose", "gripper_pos", "cube_pose",
                                        "blue_block_pos"}
 
 
@@ -136,33 +136,33 @@ def test_reset_touches_only_selected_rows(pick_env):
     for _ in range(10):
         env.step(a)
     q_before, body_before = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7).clone()
-    count_before = env.episode_count.numpy().copy()
+    count_before = env.buffers.episode_count.numpy().copy()
     env.reset([1])
     q_after, body_after = _q(env), wp.to_torch(env.state.body_q).view(2, -1, 7)
     assert torch.equal(q_after[0], q_before[0]) and torch.equal(body_after[0], body_before[0])
-    arm = env.joint_coords(spec.LEFT_ARM_JOINTS)
+    arm = env.joints.coords(spec.LEFT_ARM_JOINTS)
     torch.testing.assert_close(q_after[1, arm], torch.tensor(postures.TABLE_TOP_LEFT_ARM), atol=1e-6, rtol=0)
     assert not torch.allclose(q_before[1, arm], q_after[1, arm])
-    assert (env.episode_count.numpy() - count_before).tolist() == [0, 1]
-    assert int(env.info["episode_length"][1]) >= 0 and int(wp.to_torch(env.task_context.episode_step)[1]) == 0
+    assert (env.buffers.episode_count.numpy() - count_before).tolist() == [0, 1]
+    assert int(env.info["episode_length"][1]) >= 0 and int(wp.to_torch(env.task.context.episode_step)[1]) == 0
 
 
 def test_randomisation_is_seeded_per_row_and_episode(pick_env, eager_env):
     for env in (pick_env, eager_env):  # same seed and episode counters -> same draws
-        env.episode_count.zero_()
+        env.buffers.episode_count.zero_()
         env.reset()
-    cube = pick_env.entities["cube"].slot
-    a, b = pick_env.entity_poses[:, cube, :3].clone(), eager_env.entity_poses[:, cube, :3].clone()
+    cube = pick_env.task.entities["cube"].slot
+    a, b = pick_env.buffers.entity_poses[:, cube, :3].clone(), eager_env.buffers.entity_poses[:, cube, :3].clone()
     torch.testing.assert_close(a, b)
     assert not torch.allclose(a[0], a[1])  # rows draw independently
     assert ((a[:, 0] >= -0.38) & (a[:, 0] <= -0.22) & (a[:, 1] >= 0.12) & (a[:, 1] <= 0.26)).all()
     pick_env.reset()
-    assert not torch.allclose(pick_env.entity_poses[:, cube, :3], a)  # a new episode draws anew
+    assert not torch.allclose(pick_env.buffers.entity_poses[:, cube, :3], a)  # a new episode draws anew
 
 
 def test_no_randomisation_by_default():
     env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=5)
-    cube = env.entity_poses[:, env.entities["cube"].slot, :3]
+    cube = env.buffers.entity_poses[:, env.task.entities["cube"].slot, :3]
     torch.testing.assert_close(cube, torch.tensor([[-0.30, 0.18, 0.125]] * 2), atol=1e-6, rtol=0)
 
 
@@ -180,9 +180,9 @@ def test_time_out_truncates_and_auto_resets(reach_env):
         assert not (term | trunc).any()
     _, _, term, trunc, info = env.step(hold)
     assert trunc.all() and not term.any()
-    assert [env.termination_reasons[int(r)] for r in info["termination_reason"]] == ["time_out", "time_out"]
+    assert [env.task.termination_reasons[int(r)] for r in info["termination_reason"]] == ["time_out", "time_out"]
     assert info["episode_length"].tolist() == [limit, limit]
-    assert wp.to_torch(env.task_context.episode_step).tolist() == [0, 0]
+    assert wp.to_torch(env.task.context.episode_step).tolist() == [0, 0]
 
 
 def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
@@ -203,16 +203,16 @@ def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
 def test_each_action_column_is_clipped_to_its_range(eager_env):
     """``apply_actions`` writes ``clamp(scale * a, low, high)`` to each column's joint target: far past the
     gripper's clip (open .. closed) lands on the bound, an unbounded arm column passes through."""
-    env, amap = eager_env, eager_env.binding.actions
+    env, amap = eager_env, eager_env.joints.binding.actions
     env.reset()
     grip = amap.kinds.index("binary")
     assert np.isfinite([amap.low[grip], amap.high[grip]]).all() and amap.high[grip] > amap.low[grip]
     targets = wp.to_torch(env.control.joint_target_q).view(env.num_envs, -1)
     for value, expected in ((50.0, amap.high[grip]), (-50.0, amap.low[grip]), (0.5, 0.5)):
-        env.actions.copy_(env.current_action())
-        env.actions[:, grip] = value
-        env.actions[:, 0] = 0.7  # an absolute arm column, unbounded
-        env.apply_actions()
+        env.buffers.actions.copy_(env.current_action())
+        env.buffers.actions[:, grip] = value
+        env.buffers.actions[:, 0] = 0.7  # an absolute arm column, unbounded
+        env.sim.apply_actions()
         torch.testing.assert_close(targets[:, int(amap.index[grip])], torch.full((2,), float(expected)))
         torch.testing.assert_close(targets[:, int(amap.index[0])], torch.full((2,), 0.7 * float(amap.scale[0])))
     env.reset()
@@ -231,5 +231,5 @@ def test_a_task_whose_step_cannot_be_captured_says_so_and_steps_eagerly(monkeypa
     message = str(caught[0].message)
     assert "\n" not in message and "GalbotG1-Reach-v0" in message and "stepping eagerly" in message
     assert "graph capture is not supported here" in message
-    assert env.step_graph is None
+    assert env.sim.step_graph is None
     assert torch.isfinite(env.step(env.current_action())[0]).all()

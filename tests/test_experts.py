@@ -28,7 +28,7 @@ def _cases() -> list[tuple[str, dict]]:
                          "-".join(map(str, v.values())) or "default")
 def test_expert_succeeds_in_every_randomised_episode(task_id, options):
     env = make_env(task_id, num_envs=2, device="cpu", seed=100, randomize=True, task_options=options, cameras=False)
-    assert env.step_graph is not None, f"{task_id}: its step is not one captured graph"
+    assert env.sim.step_graph is not None, f"{task_id}: its step is not one captured graph"
     summary = env.evaluate(agent=expert_agent(env), episodes=4, max_steps=3000, progress=False)
     assert summary["success_rate"] == 1.0, (task_id, options, summary["termination_reasons"])
 
@@ -39,7 +39,7 @@ def test_tasks_without_an_expert_step_as_one_captured_graph():
     left_out = [t for t in list_tasks() if lookup(t).expert is None and not lookup(t).cfg().phases]
     for task_id in left_out:
         env = make_env(task_id, num_envs=1, device="cpu", seed=0, cameras=False)
-        assert env.step_graph is not None, f"{task_id}: its step is not one captured graph"
+        assert env.sim.step_graph is not None, f"{task_id}: its step is not one captured graph"
 
 
 def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():

@@ -44,14 +44,14 @@ def test_make_vec_gives_one_batched_env_with_spaces(vec):
     assert isinstance(vec.unwrapped, ngym.NewtonVectorEnv) and vec.num_envs == 2 and env.num_envs == 2
     assert vec.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
     single = vec.single_observation_space
-    images = list(getattr(env, "image_terms", {}))
-    assert list(single.keys()) == list(env.obs_terms) + images
-    assert sum(single[k].shape[0] for k in env.obs_terms) == env.obs_dim
+    images = list(env.sensors.image_terms)
+    assert list(single.keys()) == list(env.task.obs_terms) + images
+    assert sum(single[k].shape[0] for k in env.task.obs_terms) == env.task.obs_dim
     assert all(vec.observation_space[k].shape == (2, *single[k].shape) for k in single)
     act = vec.single_action_space
     assert act.shape == (env.action_dim,) and vec.action_space.shape == (2, env.action_dim)
     assert np.isfinite(act.low).all() and np.isfinite(act.high).all() and (act.low < act.high).all()
-    grip = env.action_joint_names.index(env.action_joint_names[env.binding.actions.kinds.index("binary")])
+    grip = env.action_joint_names.index(env.action_joint_names[env.joints.binding.actions.kinds.index("binary")])
     assert act.low[grip] == pytest.approx(0.0) and act.high[grip] == pytest.approx(1.2)
 
 
@@ -98,7 +98,7 @@ def test_auto_reset_rows_carry_final_obs_and_final_info(short_vec):
     assert truncated.all() and info["_final_obs"].all() and info["_final_info"].all()
     assert info["final_info"]["episode_length"].tolist() == [3, 3]
     assert (info["final_info"]["termination_reason"] == short_vec.termination_reasons.index("time_out")).all()
-    state_space = gymnasium.spaces.Dict({k: short_vec.single_observation_space[k] for k in short_vec.env.obs_terms})
+    state_space = gymnasium.spaces.Dict({k: short_vec.single_observation_space[k] for k in short_vec.env.task.obs_terms})
     for row in range(2):
         final = info["final_obs"][row]
         assert state_space.contains(final)  # the state terms (camera images show the current state only)

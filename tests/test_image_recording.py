@@ -1,5 +1,5 @@
 """Image recording (issue 13): collect and mimic write the env's image terms per frame into HDF5 and zarr, one
-frame per chunk, compressed; the recorded frames are what ``env.images`` showed at that step; a SIGKILLed image
+frame per chunk, compressed; the recorded frames are what ``env.sensors.images`` showed at that step; a SIGKILLed image
 collect keeps every finished episode readable; a state-only env renders nothing."""
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import zarr
 
+from newton_lab.agents import BaseAgent
 from newton_lab.datasets import read_dataset_info, read_episode
 from test_crash_campaign import read_all
 
@@ -79,7 +80,7 @@ def test_cli_collect_writes_full_size_rgb_frames_one_per_chunk(tmp_path, suffix)
     assert report["video_keys"] == ["observation.images.front_head_rgb"] and report["episodes"] == 2
 
 
-class Capture:
+class Capture(BaseAgent):
     """Wraps an agent; keeps a copy of every image term and camera pose as the agent saw them before each step."""
 
     def __init__(self, inner):
@@ -89,8 +90,8 @@ class Capture:
         return self.inner.reset(*a, **k)
 
     def act(self, env):
-        shot = {name: env.images[name].clone() for name in env.image_terms}
-        shot["pose"] = env.cameras.poses("front_head").clone()
+        shot = {name: env.sensors.images[name].clone() for name in env.sensors.image_terms}
+        shot["pose"] = env.sensors.cameras.poses("front_head").clone()
         self.frames.append(shot)
         return self.inner.act(env)
 
@@ -109,7 +110,7 @@ def test_recorded_frames_equal_env_images(cam_env, tmp_path):
         assert ep["obs"]["front_head_depth"].dtype == np.float32 and ep["obs"]["front_head_depth"].shape == (5, 72, 96)
         assert ep["obs"]["front_head_segmentation"].dtype == np.int32
         for t in range(5):
-            for name in cam_env.image_terms:
+            for name in cam_env.sensors.image_terms:
                 np.testing.assert_array_equal(ep["obs"][name][t], agent.frames[t][name][row].numpy())
             np.testing.assert_allclose(ep["datagen"]["camera_poses"]["front_head"][t], agent.frames[t]["pose"][row])
         depth = ep["obs"]["front_head_depth"]
@@ -127,7 +128,7 @@ def test_state_only_env_records_and_renders_nothing(pick_env, tmp_path):
     ep = read_episode(path, 0)
     assert not [k for k in ep["obs"] if k.startswith("front_head")] and "camera_poses" not in ep["datagen"]
     assert read_dataset_info(path)["env_args"]["newton_lab"]["cameras"] == {}
-    assert not pick_env.cameras.built  # no camera was ever built
+    assert not pick_env.sensors.cameras.built  # no camera was ever built
 
 
 def test_bad_cameras_option_is_one_line(capsys):

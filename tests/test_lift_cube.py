@@ -23,12 +23,12 @@ def test_lift_cube_is_registered_and_listed():
 
 def test_lift_cube_expert_lifts_the_cube():
     env = make_env(TASK, num_envs=1, device="cpu", seed=2, randomize=True)
-    start_z = float(env.entity_poses[0, env.entities["cube"].slot, 2])
+    start_z = float(env.buffers.entity_poses[0, env.task.entities["cube"].slot, 2])
     result, poses, signals = run_until_done(env, expert_agent(env), 400)
     assert result[0][:2] == (True, "success"), result
-    z = poses[:, 0, env.entities["cube"].slot, 2]
+    z = poses[:, 0, env.task.entities["cube"].slot, 2]
     assert float(z.max()) >= start_z + 0.10
-    assert bool((signals[:, 0, env.signal_names.index("grasped_cube")] > 0.5).any())
+    assert bool((signals[:, 0, env.task.signal_names.index("grasped_cube")] > 0.5).any())
 
 
 def test_lift_cube_needs_the_lift_not_just_the_grasp():

@@ -46,26 +46,26 @@ def shelf_run(shelf_env):
     env = shelf_env
     env.reset()
     agent = TaskFlowAgent.from_env(env)
-    bar = env.entities["bar"].slot
+    bar = env.task.entities["bar"].slot
     phases, bars, tcps, done_at, results = [], [], [], [None] * 4, [None] * 4
-    jp = env.obs_terms["robot_joint_pos"]
-    wheel_cols, base_cols = env.joint_coords(spec.BASE_WHEEL_JOINTS), env.joint_coords(spec.BASE_PLANAR_JOINTS)
+    jp = env.task.obs_terms["robot_joint_pos"]
+    wheel_cols, base_cols = env.joints.coords(spec.BASE_WHEEL_JOINTS), env.joints.coords(spec.BASE_PLANAR_JOINTS)
     wheel_q, wheel_obs, base_gap = 0.0, 0.0, 0.0
     for t in range(700):
         pre_phase = env.info["phase"].clone()
         _, _, term, trunc, info = env.step(agent.act(env))
         phases.append(torch.where(term | trunc, pre_phase, info["phase"]).clone())
-        bars.append(env.entity_poses[:, bar, :3].clone())
-        tcps.append(env.tcp_pose[:, :3].clone())
-        wheels = env.joint_positions(spec.BASE_WHEEL_JOINTS)
+        bars.append(env.buffers.entity_poses[:, bar, :3].clone())
+        tcps.append(env.buffers.tcp_pose[:, :3].clone())
+        wheels = env.joints.positions(spec.BASE_WHEEL_JOINTS)
         obs_q = env.obs[:, jp]
         wheel_q = max(wheel_q, float(wheels.abs().max()))
         wheel_obs = max(wheel_obs, float(obs_q[:, wheel_cols].abs().max()))
-        base_gap = max(base_gap, float((obs_q[:, base_cols] - env.joint_positions(spec.BASE_PLANAR_JOINTS)).abs().max()))
+        base_gap = max(base_gap, float((obs_q[:, base_cols] - env.joints.positions(spec.BASE_PLANAR_JOINTS)).abs().max()))
         for r in np.nonzero((term | trunc).numpy())[0]:
             if done_at[r] is None:
                 done_at[r] = t
-                results[r] = (bool(info["success"][r]), env.termination_reasons[int(info["termination_reason"][r])])
+                results[r] = (bool(info["success"][r]), env.task.termination_reasons[int(info["termination_reason"][r])])
         if all(d is not None for d in done_at):
             break
     return {"phase": torch.stack(phases), "bar": torch.stack(bars), "tcp": torch.stack(tcps), "done_at": done_at,
@@ -80,7 +80,7 @@ def test_commanded_twist_moves_base(nav_env):
     wheels = base_twist_to_wheel_velocities(vx, vy, wz, num_envs=env.num_envs)
     for _ in range(40):  # 2 s at 20 Hz
         env.step(wheels)
-    pose = env.joint_positions(spec.BASE_PLANAR_JOINTS)[0].numpy().astype(np.float64)
+    pose = env.joints.positions(spec.BASE_PLANAR_JOINTS)[0].numpy().astype(np.float64)
     # integrate the base-frame twist exactly: a circular arc of radius v / wz
     yaw = wz * 2.0
     x = (vx * math.sin(yaw) + vy * (math.cos(yaw) - 1.0)) / wz
@@ -94,7 +94,7 @@ def test_inactive_wheels_give_zero_twist(nav_env):
     env.reset()
     for _ in range(10):
         env.step(torch.zeros(env.num_envs, 4))
-    pose = env.joint_positions(spec.BASE_PLANAR_JOINTS)
+    pose = env.joints.positions(spec.BASE_PLANAR_JOINTS)
     assert float(pose.abs().max()) < 1e-3
 
 
@@ -107,8 +107,8 @@ def test_base_nav_expert_reaches_goal(nav_env):
 
 def test_wheel_clip_and_obs_layout(nav_env):
     assert nav_env.action_joint_names == spec.BASE_WHEEL_JOINTS
-    assert list(nav_env.obs_terms) == ["actions", "base_xy", "goal_xy", "vector_to_goal"]
-    assert nav_env.obs_dim == 10
+    assert list(nav_env.task.obs_terms) == ["actions", "base_xy", "goal_xy", "vector_to_goal"]
+    assert nav_env.task.obs_dim == 10
 
 
 # ---------------------------------------------------------------- agents composed per row
@@ -154,7 +154,7 @@ def test_sequence_agent_refuses_a_wrong_done_mask(nav_env):
 def test_union_action_layout(shelf_env):
     env = shelf_env
     assert env.action_joint_names == spec.LEFT_ARM_JOINTS + (spec.LEFT_GRIPPER_JOINT,) + spec.BASE_WHEEL_JOINTS
-    assert list(env.action_terms) == ["arm_action", "gripper_action", "base_action"]
+    assert list(env.joints.action_terms) == ["arm_action", "gripper_action", "base_action"]
     assert [p.name for p in env.cfg.phases] == ["pick", "nav", "place"]
 
 
@@ -162,42 +162,42 @@ def test_inactive_terms_hold(shelf_env):
     """Phase pick ignores the wheels (base stays); phase nav ignores arm/gripper (targets hold)."""
     env = shelf_env
     env.reset()
-    start = env.joint_positions(spec.BASE_PLANAR_JOINTS).clone()
+    start = env.joints.positions(spec.BASE_PLANAR_JOINTS).clone()
     act = env.current_action()
     act[:, 7] = spec.GRIPPER_CLOSED
     act[:, 8:12] = base_twist_to_wheel_velocities(0.3, 0.0, 0.0, num_envs=env.num_envs)
     for _ in range(5):
         env.step(act)
-    assert float((env.joint_positions(spec.BASE_PLANAR_JOINTS) - start).abs().max()) < 1e-3
+    assert float((env.joints.positions(spec.BASE_PLANAR_JOINTS) - start).abs().max()) < 1e-3
     tq = wp.to_torch(env.control.joint_target_q).view(env.num_envs, -1)
-    assert float(tq[0, env.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]]) == pytest.approx(spec.GRIPPER_CLOSED)
+    assert float(tq[0, env.sim.layout.joints.coord[spec.LEFT_GRIPPER_JOINT]]) == pytest.approx(spec.GRIPPER_CLOSED)
     # row 0 in the nav phase: the arm command is ignored, the wheels drive
     env.reset()
     env.info["phase"][0] = 1
-    held = tq[0, [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]].clone()
+    held = tq[0, [env.sim.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]].clone()
     act = env.current_action()
     act[:, :7] += 0.3
     act[:, 8:12] = base_twist_to_wheel_velocities(0.3, 0.0, 0.0, num_envs=env.num_envs)
     for _ in range(5):
         env.step(act)
-    moved = env.joint_positions(spec.BASE_PLANAR_JOINTS)[:, 0] - start[:, 0]
+    moved = env.joints.positions(spec.BASE_PLANAR_JOINTS)[:, 0] - start[:, 0]
     assert float(moved[0]) > 0.03 and float(moved[1:].abs().max()) < 1e-3
-    after = tq[0, [env.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]]
+    after = tq[0, [env.sim.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]]
     assert torch.allclose(after, held)
-    assert float(tq[1, env.layout.joints.coord["left_arm_joint1"]]) == pytest.approx(float(act[1, 0]))
+    assert float(tq[1, env.sim.layout.joints.coord["left_arm_joint1"]]) == pytest.approx(float(act[1, 0]))
 
 
 def test_nav_failure_ends_episode(shelf_env):
     env = shelf_env
     env.reset()
     env.info["phase"][2] = 1
-    c = env.layout.entity_coord[env.entities["bar"].slot]
+    c = env.sim.layout.entity_coord[env.task.entities["bar"].slot]
     q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
     q[2, c: c + 3] = torch.tensor([-1.0, -1.0, 0.1])  # the bar stands on the floor, away from the table
     newton_fk(env)
     _, _, term, _, info = env.step(env.current_action())
     assert bool(term[2]) and not bool(term[0])
-    assert env.termination_reasons[int(info["termination_reason"][2])] == "nav_bar_dropped"
+    assert env.task.termination_reasons[int(info["termination_reason"][2])] == "nav_bar_dropped"
     assert int(info["phase"][2]) == 0, "the row was reset"
 
 
@@ -239,13 +239,14 @@ def test_bar_stays_in_hand_from_pick_to_place(shelf_run):
 
 
 def test_coherent_records_phase_and_splits(shelf_env, tmp_path):
+    from newton_lab.agents import BaseAgent
     from newton_lab.datasets import list_demos, read_dataset_info, read_episode
     from newton_lab.datasets.split import split_by_phase
 
     env = shelf_env
     env.reset()
 
-    class HoldThenNav:  # holds still; moves every row to the nav phase after two steps (test only)
+    class HoldThenNav(BaseAgent):  # holds still; moves every row to the nav phase after two steps (test only)
         calls = 0
 
         def act(self, env, env_ids=None):
@@ -253,12 +254,6 @@ def test_coherent_records_phase_and_splits(shelf_env, tmp_path):
             if HoldThenNav.calls == 3:
                 env.info["phase"][:] = 1
             return env.current_action()
-
-        def reset(self, env_ids=None):
-            pass
-
-        def done(self, env):
-            return torch.zeros(env.num_envs, dtype=torch.bool)
 
     ref = env.collect(agent=HoldThenNav(), episodes=1, path=tmp_path / "c.hdf5", max_steps=5, progress=False)
     ep = read_episode(ref.path, ref["saved_demo_ids"][0])
@@ -300,10 +295,10 @@ def test_scenario_round_trip(tmp_path):
     path = capture_scenario(env, 0).save(tmp_path / "end.yaml")
     with pytest.raises(FileExistsError):
         capture_scenario(env, 0).save(path)
-    back = load_scenario(path).overlay(env.layout, env.layout.default_q, task_id=env.task_id)
-    robot = env.layout.robot_coords
+    back = load_scenario(path).overlay(env.sim.layout, env.sim.layout.default_q, task_id=env.task_id)
+    robot = env.sim.layout.robot_coords
     assert np.abs(back[:robot] - q[:robot]).max() < 1e-3
-    c = env.layout.entity_coord[env.entities["bar"].slot]
+    c = env.sim.layout.entity_coord[env.task.entities["bar"].slot]
     assert np.abs(back[c:c + 3] - q[c:c + 3]).max() < 1e-3
     # the option path: an env started from the saved scenario resets to it
     env2 = make_env("GalbotG1-PickToShelf-Nav-v0", num_envs=1, device="cpu", task_options={"init_scenario": str(path)})
@@ -332,7 +327,7 @@ def test_bad_scenario_documents(doc, match):
 def test_scenario_names_unknown_joint_and_object(shelf_env, tmp_path):
     from newton_lab.envs.scenario import ScenarioError, parse_scenario
 
-    lay = shelf_env.layout
+    lay = shelf_env.sim.layout
     doc = {"schema": "newton_lab/scenario-v1", "articulations": {"robot": {"joint_position": {"elbow": 1.0}}}}
     with pytest.raises(ScenarioError, match="unknown joint 'elbow'"):
         parse_scenario(doc, "s.yaml").overlay(lay, lay.default_q, task_id=COHERENT)
@@ -394,9 +389,9 @@ def test_sort_to_shelf_upper_row_with_leg_lift():
         if bool(term[0] | trunc[0]):
             break
         if phase == 2:
-            lift_in_place.append(float(env.joint_positions(["leg_joint1"])[0, 0]))
-    assert bool(info["success"][0]), env.termination_reasons[int(info["termination_reason"][0])]
+            lift_in_place.append(float(env.joints.positions(["leg_joint1"])[0, 0]))
+    assert bool(info["success"][0]), env.task.termination_reasons[int(info["termination_reason"][0])]
     assert min(lift_in_place) > 0.15, "legs lifted for the upper row while placing"
-    final = env.terminal_joint_q[0].numpy()
-    c = env.layout.entity_coord[env.entities["red_cube"].slot]
+    final = env.buffers.terminal_joint_q[0].numpy()
+    c = env.sim.layout.entity_coord[env.task.entities["red_cube"].slot]
     assert np.linalg.norm(final[c:c + 2] - np.asarray(OBJECTS["red_cube"].target[:2])) < 0.10

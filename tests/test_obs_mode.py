@@ -35,13 +35,13 @@ def test_sensors_observation_does_not_see_the_cube():
                        cameras=False)
         obs, _ = env.reset()
         before = obs.clone()
-        c = env.entities["cube"].coord
+        c = env.task.entities["cube"].coord
         q = wp.to_torch(env.state.joint_q).view(1, -1)
         q[0, c:c + 3] += torch.tensor([0.05, -0.04, 0.0])
         newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
-        env.observe()
+        env.sim.observe()
         seen[mode] = bool((env.obs - before).abs().max() > 1e-6)
-        assert "cube_pose" in env.obs_terms if mode == "state" else "cube_pose" not in env.obs_terms
+        assert "cube_pose" in env.task.obs_terms if mode == "state" else "cube_pose" not in env.task.obs_terms
     assert seen == {"state": True, "sensors": False}
 
 
@@ -52,7 +52,7 @@ def test_unknown_obs_mode_is_one_line():
 
 def test_task_options_as_keywords():
     env = make_env("GalbotG1-PickCube-v0", device="cpu", obs_mode="sensors", cameras=False)
-    assert env.cfg.options == {"obs_mode": "sensors"} and "cube_pose" not in env.obs_terms
+    assert env.cfg.options == {"obs_mode": "sensors"} and "cube_pose" not in env.task.obs_terms
     with pytest.raises(ValueError, match="unknown task option"):
         make_env("GalbotG1-PickCube-v0", device="cpu", sorting_object="red_cube")
     with pytest.raises(ValueError, match="given twice"):

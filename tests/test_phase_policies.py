@@ -26,8 +26,8 @@ class ConstantPolicy:
         self.cfg = SimpleNamespace(obs_horizon=2, action_horizon=4, image_keys=list(images or []))
         self.obs_keys = list(obs_keys)
         self.info = {"task_id": component, "action_joint_names": names,
-                     "obs_dims": {k: env.obs_terms[k].stop - env.obs_terms[k].start for k in obs_keys if k in
-                                  env.obs_terms}}
+                     "obs_dims": {k: env.task.obs_terms[k].stop - env.task.obs_terms[k].start for k in obs_keys if k in
+                                  env.task.obs_terms}}
 
     def predict_action(self, history, generator=None):
         n = history.shape[0]

@@ -132,14 +132,14 @@ def test_a_declared_non_colliding_pair_makes_no_contact(physics):
                    physics=filtered(PICK) if physics == "filtered" else None)
     labels = env.model.body_label
     link = next(i for i, name in enumerate(labels) if name.endswith("/" + LINK))
-    cube = env.entities["cube"]
+    cube = env.task.entities["cube"]
     q = env.state.joint_q.numpy()
     link_pos = env.state.body_q.numpy()[link][:3]
     q[cube.coord:cube.coord + 7] = [*link_pos, 0.0, 0.0, 0.0, 1.0]
     env.state.joint_q.assign(q)
     env.state.joint_qd.zero_()
     newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
-    env.simulate()  # one control step of physics (5 substeps)
+    env.sim.simulate()  # one control step of physics (5 substeps)
     moved = env.state.joint_q.numpy()[cube.coord:cube.coord + 3] - link_pos
     contacts = _contacts_of(env, link, cube.body)
     if physics == "filtered":
@@ -267,13 +267,13 @@ def test_a_reset_that_moves_a_welded_joint_is_refused_in_one_line():
     from newton_lab.envs.joint_space import check_welded_reset
 
     env = make_env(PICK, num_envs=1, device="cpu", seed=0, cameras=False)
-    names = list(env.layout.welded)
+    names = list(env.sim.layout.welded)
     assert "head_joint2" in names
-    reset = env.joint_positions(names).clone()
-    check_welded_reset(PICK, env.layout, reset, env.layout.default_q)  # the task's own reset passes
+    reset = env.joints.positions(names).clone()
+    check_welded_reset(PICK, env.sim.layout, reset, env.sim.layout.default_q)  # the task's own reset passes
     reset[0, names.index("head_joint2")] += 0.3
     with pytest.raises(ValueError, match="moves welded joint 'head_joint2'.*weld_idle_joints=False") as err:
-        check_welded_reset(PICK, env.layout, reset, env.layout.default_q)
+        check_welded_reset(PICK, env.sim.layout, reset, env.sim.layout.default_q)
     assert "\n" not in str(err.value)
 
 
@@ -292,7 +292,7 @@ def test_exchanging_the_state_once_a_control_step_steps_the_same_physics(task_id
 
     envs = {sync: make_env(task_id, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False,
                            physics=physics(sync)) for sync in (True, False)}
-    assert (envs[False].physics_exchange, envs[True].physics_exchange) == ("control_step", "substep")
+    assert (envs[False].sim.physics_exchange, envs[True].sim.physics_exchange) == ("control_step", "substep")
     agents = {sync: expert_agent(env) for sync, env in envs.items()}
     start = wp.to_torch(envs[False].state.joint_q).clone()
     for _ in range(60):
@@ -300,5 +300,5 @@ def test_exchanging_the_state_once_a_control_step_steps_the_same_physics(task_id
             env.step(agents[sync].act(env))
         q = {sync: wp.to_torch(env.state.joint_q).clone() for sync, env in envs.items()}
         torch.testing.assert_close(q[False], q[True], atol=1e-5, rtol=0)
-        torch.testing.assert_close(envs[False].tcp_pose, envs[True].tcp_pose, atol=1e-5, rtol=0)
+        torch.testing.assert_close(envs[False].buffers.tcp_pose, envs[True].buffers.tcp_pose, atol=1e-5, rtol=0)
     assert float((q[False] - start).abs().max()) > 0.05  # the arm or the base did move

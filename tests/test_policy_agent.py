@@ -18,7 +18,7 @@ class RecordingPolicy:
         self.cfg = SimpleNamespace(obs_horizon=2, action_horizon=3)
         self.obs_keys = obs_keys
         self.info = {"task_id": env.task_id, "action_joint_names": list(env.action_joint_names),
-                     "obs_dims": {k: env.obs_terms[k].stop - env.obs_terms[k].start for k in obs_keys}}
+                     "obs_dims": {k: env.task.obs_terms[k].stop - env.task.obs_terms[k].start for k in obs_keys}}
         self.calls = []
         self.env = env
 
@@ -44,7 +44,7 @@ def test_history_is_per_row(reach_env):
     env.reset([1])  # only row 1 starts over: new goal, refilled history, immediate re-plan
     agent.act(env)
     assert len(policy.calls) == 3 and policy.calls[-1].shape[0] == 1
-    goal = env.obs[1, env.obs_terms["pose_command"]]
+    goal = env.obs[1, env.task.obs_terms["pose_command"]]
     torch.testing.assert_close(policy.calls[-1][0], goal.expand(2, 3))
 
 

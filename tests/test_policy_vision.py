@@ -141,11 +141,11 @@ def test_image_policy_overfits_two_demos_and_replays_one(image_demos, tmp_path):
         finally:
             torch.set_num_threads(threads)
         env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=0, randomize=True, cameras=CAMERAS)
-        cube, first_cubes = env.layout.entity_names.index("cube"), []
+        cube, first_cubes = env.sim.layout.entity_names.index("cube"), []
 
         def on_step(reward, info, env=env, cube=cube, first_cubes=first_cubes):
             if not first_cubes:
-                first_cubes.append(env.entity_poses[:, cube, :3].cpu().numpy().copy())
+                first_cubes.append(env.buffers.entity_poses[:, cube, :3].cpu().numpy().copy())
 
         result = env.evaluate(agent=PolicyAgent.from_checkpoint(path), episodes=2, max_steps=300, progress=False,
                               on_step=on_step)

@@ -36,10 +36,10 @@ def test_every_task_steps(task_id):
 
     env = make_env(task_id, num_envs=1, device="cpu", randomize=True)
     obs, reward, term, trunc, info = env.step(ZeroAgent().act(env))
-    assert obs.shape == (1, env.obs_dim) and torch.isfinite(obs).all() and torch.isfinite(reward).all()
+    assert obs.shape == (1, env.task.obs_dim) and torch.isfinite(obs).all() and torch.isfinite(reward).all()
     assert not (term | trunc).any()
     assert env.action_dim == len(env.action_joint_names)
-    assert sum(s.stop - s.start for s in env.obs_terms.values()) == env.obs_dim
-    count = int(env.episode_count[0])
+    assert sum(s.stop - s.start for s in env.task.obs_terms.values()) == env.task.obs_dim
+    count = int(env.buffers.episode_count[0])
     obs, _ = env.reset()
-    assert torch.isfinite(obs).all() and int(env.episode_count[0]) == count + 1, "reset starts a new episode"
+    assert torch.isfinite(obs).all() and int(env.buffers.episode_count[0]) == count + 1, "reset starts a new episode"

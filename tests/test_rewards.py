@@ -28,7 +28,7 @@ def _expert_rewards(env, agent, max_steps: int):
         hist.append(reward.clone())
         for row in np.nonzero((term | trunc).numpy())[0]:
             if ends[row] is None:
-                ends[row] = (t, bool(info["success"][row]), env.termination_reasons[int(info["termination_reason"][row])])
+                ends[row] = (t, bool(info["success"][row]), env.task.termination_reasons[int(info["termination_reason"][row])])
         if all(e is not None for e in ends):
             break
     rewards = torch.stack(hist).numpy()
@@ -48,7 +48,7 @@ def _assert_rises_to_max(success: bool, reason: str, r: np.ndarray) -> None:
 
 def _place(env, row: int, name: str, pos) -> None:
     """Teleport a dynamic entity (free-joint coordinates, zero velocity; the next step uses them)."""
-    c = env.layout.entity_coord[env.entities[name].slot]
+    c = env.sim.layout.entity_coord[env.task.entities[name].slot]
     wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[row, c : c + 7] = torch.tensor([*pos, 0.0, 0.0, 0.0, 1.0])
     wp.to_torch(env.state.joint_qd).view(env.num_envs, -1)[row] = 0.0
 
@@ -103,7 +103,7 @@ def test_pick_cube_reward_rises_along_the_expert_episode(pick_env):
 def test_pick_cube_reward_by_state(pick_env):
     env = pick_env
     env.reset()
-    block = env.entity_poses[0, env.entities["blue_block"].slot, :3].tolist()
+    block = env.buffers.entity_poses[0, env.task.entities["blue_block"].slot, :3].tolist()
     _place(env, 0, "cube", (block[0], block[1], block[2] + 0.035))  # row 0: released on the block
     _place(env, 1, "cube", (block[0], block[1] + 0.25, 0.125))  # row 1: on the table, far from the open hand
     _, reward, term, _, info = _step_with_gripper(env, 0.0)
@@ -166,7 +166,7 @@ def test_coherent_reward_rises_through_the_phases(task_id, options):
         if bool(term[0] | trunc[0]):
             break
     r, phases = np.asarray(rewards), np.asarray(phases)
-    _assert_rises_to_max(bool(info["success"][0]), env.termination_reasons[int(info["termination_reason"][0])], r)
+    _assert_rises_to_max(bool(info["success"][0]), env.task.termination_reasons[int(info["termination_reason"][0])], r)
     for p in range(3):  # phase p's rewards lie in [p/3, (p+1)/3]
         rp = r[phases == p]
         assert len(rp) and rp.min() >= p / 3 - 1e-5 and rp.max() <= (p + 1) / 3 + 1e-5, (p, rp.min(), rp.max())

@@ -12,8 +12,8 @@ from newton_lab.agents import PlannerAgent
 
 def _place(env, row: int, name: str, pos, quat=(0.0, 0.0, 0.0, 1.0)) -> None:
     """Teleport a dynamic entity (writes its free-joint coordinates; the solver picks them up)."""
-    e = env.entities[name]
-    c = env.layout.entity_coord[e.slot]
+    e = env.task.entities[name]
+    c = env.sim.layout.entity_coord[e.slot]
     q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
     q[row, c : c + 7] = torch.tensor([*pos, *quat])
     wp.to_torch(env.state.joint_qd).view(env.num_envs, -1)[row] = 0.0
@@ -29,9 +29,9 @@ def test_pick_cube_planner_lifts_and_places(pick_env):
     env = pick_env
     result, poses, signals = run_until_done(env, PlannerAgent.from_task(env.task_id), 400)
     assert [r[:2] for r in result] == [(True, "success"), (True, "success")]
-    cube = env.entities["cube"].slot
+    cube = env.task.entities["cube"].slot
     z = poses[:, :, cube, 2]
-    grasped = signals[:, :, env.signal_names.index("grasped_cube")] > 0.5
+    grasped = signals[:, :, env.task.signal_names.index("grasped_cube")] > 0.5
     for row in range(2):
         assert grasped[:, row].any()
         assert float(z[grasped[:, row], row].max()) > 0.125 + 0.08  # lifted while grasped
@@ -40,7 +40,7 @@ def test_pick_cube_planner_lifts_and_places(pick_env):
 def test_pick_cube_success_only_on_the_block_with_open_gripper(pick_env):
     env = pick_env
     env.reset()
-    block = env.entity_poses[0, env.entities["blue_block"].slot, :3].tolist()
+    block = env.buffers.entity_poses[0, env.task.entities["blue_block"].slot, :3].tolist()
     on_block = (block[0], block[1], block[2] + 0.035)
     cases = {
         "on block, open": (on_block, 0.0, True),
@@ -61,7 +61,7 @@ def test_stack_cube_planner_builds_the_stack(stack_env):
     env = stack_env
     result, poses, signals = run_until_done(env, PlannerAgent.from_task(env.task_id), 900)
     assert result[0][:2] == (True, "success")
-    fired = {n: np.nonzero(signals[:, 0, k].numpy() > 0.5)[0] for k, n in enumerate(env.signal_names)}
+    fired = {n: np.nonzero(signals[:, 0, k].numpy() > 0.5)[0] for k, n in enumerate(env.task.signal_names)}
     first = {n: (idx[0] if len(idx) else None) for n, idx in fired.items()}
     # the last subtask's signal is the success step itself, which ends (and resets) the episode
     assert first["cube_2_grasped"] < first["cube_2_on_cube_1"] < first["cube_3_grasped"], first
@@ -75,7 +75,7 @@ def test_stack_success_needs_the_full_stack(stack_env):
     _place(env, 0, "cube_2", (base[0], base[1], base[2] + 0.05))
     _place(env, 0, "cube_3", (-0.22, 0.25, 0.125))
     _, reward, term, _, info = env.step(_gripper_action(env, 0.0))
-    sig = dict(zip(env.signal_names, info["signals"][0].tolist()))
+    sig = dict(zip(env.task.signal_names, info["signals"][0].tolist()))
     assert sig["cube_2_on_cube_1"] == 1.0 and sig["cube_3_on_cube_2"] == 0.0
     assert not bool(info["success"][0]) and not bool(term[0])
     env.reset()
@@ -86,7 +86,7 @@ def test_stack_success_needs_the_full_stack(stack_env):
     assert bool(info["success"][0]) and bool(term[0])
     assert abs(float(reward[0]) - 1.0) < 1e-5  # the dense reward's maximum (every stage done)
     # the success step resets the row: its observation signals show the new episode, the step signals the stack
-    step_sig = dict(zip(env.signal_names, info["step_signals"][0].tolist()))
+    step_sig = dict(zip(env.task.signal_names, info["step_signals"][0].tolist()))
     assert step_sig["cube_3_on_cube_2"] == 1.0 and info["signals"][0].tolist() != info["step_signals"][0].tolist()
 
 
@@ -108,8 +108,8 @@ def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
             break
         phase.append(int(info["phase"][0]))
         signals.append(info["signals"][0].tolist())
-    assert bool(info["success"][0]) and env.termination_reasons[int(info["termination_reason"][0])] == "success"
-    on_1 = env.signal_names.index("cube_2_on_cube_1")
+    assert bool(info["success"][0]) and env.task.termination_reasons[int(info["termination_reason"][0])] == "success"
+    on_1 = env.task.signal_names.index("cube_2_on_cube_1")
     entered = phase.index(1)
     assert set(phase[:entered]) == {0} and set(phase[entered:]) == {1}
     assert [s[on_1] for s in signals].index(1.0) == entered  # the row moves on in the step cube_2 is let go

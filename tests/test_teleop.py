@@ -298,7 +298,7 @@ def test_tcp_jog_moves_each_joint_at_most_005_rad_per_step(pick_env):
     jog = TcpJog(env, "left")
     assert jog.max_joint_step == 0.05
     start = jog(env, np.zeros(4)).copy()  # the start pose: no motion
-    arm_q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, env.joint_coords(spec.LEFT_ARM_JOINTS)]
+    arm_q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, env.joints.coords(spec.LEFT_ARM_JOINTS)]
     np.testing.assert_allclose(start, arm_q.cpu().numpy(), atol=0.05)
     commands = [start]
     target = np.array([0.12, -0.10, 0.10, 0.6])  # 18 cm and 34 degrees of yaw away

@@ -128,7 +128,7 @@ def test_view_replays_recorded_states_and_logs_episode_events(pick_env, tmp_path
     assert len(ended) >= 1 and f"after {ep['attrs']['num_samples']} steps" in " ".join(ended)
     rrd = tmp_path / "replay.rrd"
     poses = replay_episode(ref.path, 0, save=rrd)
-    cube = pick_env.entities["cube"].body
+    cube = pick_env.task.entities["cube"].body
     states = state_tree(ep["states"], read_dataset_info(ref.path)["env_args"])
     np.testing.assert_allclose(poses[:, cube], states["rigid_object"]["cube"]["root_pose"], atol=1e-5)
     assert _rows(rrd)["/world/0/cube"] == ep["attrs"]["num_samples"]
@@ -214,8 +214,8 @@ def cam_run(cam_env, tmp_path_factory):
         action = agent.act(env)
         _, reward, _, _, info = env.step(action)
         logger.on_step(reward, info)
-        kept["images"].append({d: env.images[f"{CAMERA}_{d}"].cpu().numpy().copy() for d in CAM_DATA})
-        kept["poses"].append(env.cameras.poses(CAMERA).cpu().numpy().copy())
+        kept["images"].append({d: env.sensors.images[f"{CAMERA}_{d}"].cpu().numpy().copy() for d in CAM_DATA})
+        kept["poses"].append(env.sensors.cameras.poses(CAMERA).cpu().numpy().copy())
         kept["body_q"].append(env.state.body_q.numpy().copy())
         n = env.num_envs
         kept["states"].append(np.concatenate([wp.to_torch(env.state.joint_q).view(n, -1).cpu().numpy(),
@@ -228,7 +228,7 @@ def cam_run(cam_env, tmp_path_factory):
 def test_each_camera_is_a_pinhole_with_its_image_streams(cam_env, cam_run):
     """Per drawn row: a static Pinhole (K, 96x72, RUB axes) with the segmentation names, then one camera pose and
     one RGB / depth / segmentation frame per logged step, equal to the env's images."""
-    rrd, names = cam_run["rrd"], list(cam_env.cameras.segmentation_names)
+    rrd, names = cam_run["rrd"], list(cam_env.sensors.cameras.segmentation_names)
     assert [c.name for c in cam_run["logger"].cameras] == [CAMERA]
     views, stack = [], [cam_run["logger"].blueprint.root_container]  # the blueprint's 2D panels: row 0's camera
     while stack:
@@ -240,7 +240,7 @@ def test_each_camera_is_a_pinhole_with_its_image_streams(cam_env, cam_run):
     for w in range(2):
         path = f"/world/{w}/cameras/{CAMERA}"
         np.testing.assert_allclose(np.reshape(_values(rrd, path, "Pinhole:image_from_camera")[None], (3, 3)).T,
-                                   cam_env.cameras.intrinsics(CAMERA), rtol=1e-6)
+                                   cam_env.sensors.cameras.intrinsics(CAMERA), rtol=1e-6)
         assert _values(rrd, path, "Pinhole:resolution")[None] == [96.0, 72.0]
         assert _values(rrd, path, "Pinhole:camera_xyz")[None] == [3, 1, 6]  # Right, Up, Back
         labels = [c["class_description"]["info"]["label"] for c in _values(rrd, path, "AnnotationContext:context")[None]]
@@ -265,7 +265,7 @@ def test_camera_frustum_looks_where_its_image_does(cam_env, cam_run):
     pose and axes (camera_xyz) and projected with the logged K, lands within 3 px of the centroid of the cube's
     logged segmentation mask, in front of the camera, and the logged depth there is the cube's front face."""
     rrd = cam_run["rrd"]
-    cube_id = list(cam_env.cameras.segmentation_names).index("cube")
+    cube_id = list(cam_env.sensors.cameras.segmentation_names).index("cube")
     for w in range(2):
         path = f"/world/{w}/cameras/{CAMERA}"
         k = np.reshape(_values(rrd, path, "Pinhole:image_from_camera")[None], (3, 3)).T
@@ -325,9 +325,9 @@ def test_replay_shows_the_recorded_camera_streams(cam_env, cam_run, tmp_path):
     from newton_lab.datasets import open_writer
 
     args = cam_run["env_args"]
-    names = list(cam_env.cameras.segmentation_names)
+    names = list(cam_env.sensors.cameras.segmentation_names)
     args["newton_lab"]["cameras"] = {CAMERA: {"width": 96, "height": 72, "data": list(CAM_DATA),
-                                              "intrinsics": cam_env.cameras.intrinsics(CAMERA).tolist(),
+                                              "intrinsics": cam_env.sensors.cameras.intrinsics(CAMERA).tolist(),
                                               "segmentation_names": names}}
     episode = {"actions": np.stack([a[0] for a in cam_run["actions"]]).astype(np.float32),
                "states": np.stack([s[0] for s in cam_run["states"]]).astype(np.float32),
@@ -337,7 +337,7 @@ def test_replay_shows_the_recorded_camera_streams(cam_env, cam_run, tmp_path):
         writer.append_episode(episode, success=False)
     rrd = tmp_path / "replay.rrd"
     poses = replay_episode(tmp_path / "img.hdf5", 0, save=rrd)
-    bpw = cam_env.layout.bodies_per_world
+    bpw = cam_env.sim.layout.bodies_per_world
     np.testing.assert_allclose(poses[:, :bpw, :3], np.stack([q[:bpw, :3] for q in cam_run["body_q"]]), atol=1e-4)
     path = f"/world/0/cameras/{CAMERA}"
     labels = [c["class_description"]["info"]["label"] for c in _values(rrd, path, "AnnotationContext:context")[None]]

@@ -144,10 +144,10 @@ def test_rgb_color_masks_match_the_segmentation():
                    cameras={"front_head": {"resolution": (96, 72), "data": ("rgb", "segmentation")}})
     images = env.render()
     rgb, seg = images["front_head_rgb"][0].cpu().numpy(), images["front_head_segmentation"][0].cpu().numpy()
-    names = env.cameras.segmentation_names
+    names = env.sensors.cameras.segmentation_names
     ids = [names.index(n) for n in NAMES]
-    colors = np.full_like(env.cameras.id_colors()[0], np.nan)
-    colors[ids] = env.cameras.id_colors()[0][ids]
+    colors = np.full_like(env.sensors.cameras.id_colors()[0], np.nan)
+    colors[ids] = env.sensors.cameras.id_colors()[0][ids]
     found = color_segmentation(rgb, colors)
     visible = [i for i in ids if (seg == i).sum() >= 12]
     assert len(visible) >= 3

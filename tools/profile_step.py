@@ -109,7 +109,7 @@ def solver_model(task: str, num_envs: int, device, weld: bool) -> tuple:
     ``weld=False``, every joint simulated."""
     physics = None if weld else dataclasses.replace(lookup(task).make_cfg({}).physics, weld_idle_joints=False)
     env = make_env(task, num_envs=num_envs, device=device, seed=0, cameras=False, capture=False, physics=physics)
-    return env.cfg, (env.model if env.joint_space is None else env.joint_space.model)
+    return env.cfg, (env.model if env.sim.joint_space is None else env.sim.joint_space.model)
 
 
 def main() -> None:

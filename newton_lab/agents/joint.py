@@ -23,9 +23,8 @@ class JointTargetAgent(BaseAgent):
         self.max_step = None if max_step is None else float(max_step)
         self.tolerance = float(tolerance)
         self.hold_steps = int(hold_steps)
-        self._env = None
 
-    def _bind(self, env) -> None:
+    def setup(self, env) -> None:
         names = list(env.action_joint_names)
         missing = [j for j in self.targets if j not in names]
         if missing:
@@ -33,15 +32,14 @@ class JointTargetAgent(BaseAgent):
         self._cols = [names.index(j) for j in self.targets]
         self._goal = torch.tensor(list(self.targets.values()), device=env.torch_device)
         self._held = torch.zeros(env.num_envs, dtype=torch.long, device=env.torch_device)
-        self._env = env
 
     def reset(self, env_ids=None) -> None:
-        if self._env is not None:
+        super().reset(env_ids)
+        if self.bound_env is not None:
             self._held[slice(None) if env_ids is None else torch.as_tensor(env_ids, device=self._held.device)] = 0
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
+        self.bind(env)
         out = env.current_action()
         cmd = out[:, self._cols]
         if self.max_step is None:
@@ -54,9 +52,8 @@ class JointTargetAgent(BaseAgent):
         return out
 
     def done(self, env) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
-        q = env.joint_positions(list(self.targets))
+        self.bind(env)
+        q = env.joints.positions(list(self.targets))
         ok = ((q - self._goal).abs() <= self.tolerance).all(dim=1)
         self._held = torch.where(ok, self._held + 1, torch.zeros_like(self._held))
         return self._held >= self.hold_steps

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from ..robots.mecanum import twist_to_wheels_torch
-from .base import BaseAgent, EpisodeTracker
+from .base import BaseAgent
 
 
 def wrap_angle(a: torch.Tensor) -> torch.Tensor:
@@ -28,29 +28,19 @@ def wrap_angle(a: torch.Tensor) -> torch.Tensor:
 
 def base_pose(env) -> torch.Tensor:
     """(num_envs, 3) planar base pose (x, y, yaw)."""
-    return env.joint_positions(env.robot.base_planar_joints)
+    return env.joints.positions(env.robot.base_planar_joints)
 
 
 class BaseNavAgent(BaseAgent):
     """Shared machinery: per-row episode tracking, twist -> wheel columns. Subclasses implement ``twist``."""
 
-    def __init__(self):
-        self._tracker: EpisodeTracker | None = None
-        self._env = None
-
-    def _bind(self, env) -> None:
+    def setup(self, env) -> None:
         names, wheels = list(env.action_joint_names), env.robot.base_wheel_joints
         missing = [j for j in wheels if j not in names]
         if missing or not wheels:
             raise ValueError(f"env {env.task_id} has no wheel action columns {missing}; a nav agent needs a 'base' "
                              f"action term")
         self._wheel_cols = [names.index(j) for j in wheels]
-        self._tracker = EpisodeTracker(env.num_envs)
-        self._env = env
-        self.bind(env)
-
-    def bind(self, env) -> None:
-        """Allocate per-row state (called once per env)."""
 
     def start(self, env, rows: np.ndarray, pose: torch.Tensor) -> None:
         """Per-row state for rows starting fresh (new episode, or handed over by a sequence / task flow)."""
@@ -59,15 +49,9 @@ class BaseNavAgent(BaseAgent):
         """(vx, vy [m/s] base frame, wz [rad/s]) for every row."""
         raise NotImplementedError
 
-    def reset(self, env_ids=None) -> None:
-        if self._tracker is not None:
-            self._tracker.forget(env_ids)
-
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
         pose = base_pose(env)
-        rows = self._tracker.fresh_rows(env, env_ids)
+        rows = self.fresh_rows(env, env_ids)
         if rows.size:
             self.start(env, rows, pose)
         vx, vy, wz = self.twist(env, pose)
@@ -108,7 +92,8 @@ class GoalNavAgent(BaseNavAgent):
         self.max_yaw_accel = float(max_yaw_accel)
         """Yaw-rate ramp [rad/s^2]: the commanded yaw rate changes by at most this per second."""
 
-    def bind(self, env) -> None:
+    def setup(self, env) -> None:
+        super().setup(env)
         self._speed = torch.zeros(env.num_envs, device=env.torch_device)
         self._wz = torch.zeros(env.num_envs, device=env.torch_device)
 
@@ -175,8 +160,8 @@ class TrajectoryNavAgent(GoalNavAgent):
             raise ValueError(f"waypoint_spacing must be > 0 [m], got {waypoint_spacing}")
         self.waypoint_spacing = float(waypoint_spacing)
 
-    def bind(self, env) -> None:
-        super().bind(env)
+    def setup(self, env) -> None:
+        super().setup(env)
         self._start = torch.zeros(env.num_envs, 2, device=env.torch_device)
         self._index = torch.ones(env.num_envs, device=env.torch_device)
 

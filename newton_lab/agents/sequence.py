@@ -8,7 +8,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from .base import BaseAgent, EpisodeTracker, as_rows
+from .base import BaseAgent, as_rows
 
 
 @dataclass
@@ -28,25 +28,16 @@ class SequenceAgent(BaseAgent):
         if not steps:
             raise ValueError("SequenceAgent needs at least one step")
         self.steps = list(steps)
-        self._env = None
 
-    def _bind(self, env) -> None:
+    def setup(self, env) -> None:
         self._step = np.zeros(env.num_envs, dtype=np.int64)
-        self._tracker = EpisodeTracker(env.num_envs)
-        self._env = env
-
-    def reset(self, env_ids=None) -> None:
-        if self._env is not None:
-            self._tracker.forget(env_ids)
 
     def current_step(self) -> np.ndarray:
         """(num_envs,) index of each row's step (``len(steps)`` when finished)."""
         return self._step.copy()
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
-        fresh = self._tracker.fresh_rows(env, env_ids)
+        fresh = self.fresh_rows(env, env_ids)
         if fresh.size:
             self._step[fresh] = 0
             self.steps[0].agent.reset(fresh)
@@ -73,7 +64,7 @@ class SequenceAgent(BaseAgent):
         return out
 
     def done(self, env) -> torch.Tensor:
-        if self._env is not env:
+        if self.bound_env is not env:
             return torch.zeros(env.num_envs, dtype=torch.bool, device=env.torch_device)
         return torch.as_tensor(self._step >= len(self.steps), device=env.torch_device)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .base import BaseAgent, EpisodeTracker, as_rows
+from .base import BaseAgent, as_rows
 from ..task_api.registry import lookup
 from .experts import agent_for_declaration
 
@@ -30,7 +30,6 @@ class TaskFlowAgent(BaseAgent):
     def __init__(self, phase_agents: list[BaseAgent], phase_names: list[str] | None = None):
         self.phase_agents = list(phase_agents)
         self.phase_names = list(phase_names or [f"phase{i}" for i in range(len(phase_agents))])
-        self._env = None
 
     @classmethod
     def from_env(cls, env, agents: dict[str, BaseAgent] | None = None) -> TaskFlowAgent:
@@ -45,20 +44,12 @@ class TaskFlowAgent(BaseAgent):
         chosen = [agents.get(p.name) or expert_agent(p.task_id, **env.cfg.options) for p in phases]
         return cls(chosen, [p.name for p in phases])
 
-    def _bind(self, env) -> None:
-        self._tracker = EpisodeTracker(env.num_envs)
+    def setup(self, env) -> None:
         self._phase = np.full(env.num_envs, -1, dtype=np.int64)
-        self._env = env
-
-    def reset(self, env_ids=None) -> None:
-        if self._env is not None:
-            self._tracker.forget(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
         rows = as_rows(env_ids, env.num_envs)
-        fresh = self._tracker.fresh_rows(env, rows)
+        fresh = self.fresh_rows(env, rows)
         self._phase[fresh] = -1
         phase = env.info["phase"].cpu().numpy()
         entered = rows[phase[rows] != self._phase[rows]]

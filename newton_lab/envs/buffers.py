@@ -24,7 +24,7 @@ from .scene import SceneLayout
 
 @dataclass(frozen=True)
 class Entity:
-    """A named rigid object of the scene; ``slot`` indexes ``env.entity_poses``."""
+    """A named rigid object of the scene; ``slot`` indexes ``env.buffers.entity_poses``."""
 
     name: str
     slot: int
@@ -64,7 +64,7 @@ class StepBuffers:
     success: wp.array
     success_latched: wp.array
     reason: wp.array
-    """Termination reason index (``env.termination_reasons``)."""
+    """Termination reason index (``env.task.termination_reasons``)."""
     episode_length: wp.array
     signals: wp.array2d
     """(num_envs, signals) subtask signals of ``obs``'s state."""

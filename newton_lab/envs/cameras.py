@@ -3,7 +3,7 @@
 All views of all worlds that share a resolution are rendered by one ``SensorCamera.update`` (views camera-major:
 view ``k * N + w`` is camera ``k`` in world ``w``), after the view poses follow their mount bodies
 (``kernels.camera.mount_transforms``) and the shape BVH is refit. That render is captured once as a graph and
-launched only when images are read after a step or reset (``env.images[...]``, ``env.render()``): a step whose
+launched only when images are read after a step or reset (``env.sensors.images[...]``, ``env.render()``): a step whose
 images nobody reads renders nothing, and an env without cameras does no camera work at all (nothing is built).
 
 Images are torch views of the Warp buffers: RGB uint8 (N, H, W, 3) (a view of the renderer's packed RGBA),
@@ -314,7 +314,7 @@ class Cameras:
 
 
 class ImageViews(Mapping):
-    """``env.images``: image observations by name, rendered on first read after each step or reset."""
+    """``env.sensors.images``: image observations by name, rendered on first read after each step or reset."""
 
     def __init__(self, cameras: Cameras):
         self._cameras = cameras

@@ -11,6 +11,7 @@ import numpy as np
 import torch
 
 from ..task_api.registry import lookup
+from ..task_api.terms import resolve_cfg, unresolved_terms
 
 
 def check_actions(actions, *, num_envs: int, action_dim: int, device: torch.device,
@@ -78,11 +79,16 @@ def check_seed(seed) -> int:
     return int(seed)
 
 
+AGENT_HOOKS = ("act", "reset", "done", "holding")
+"""The calls a rollout makes on its agent (``newton_lab.agents.BaseAgent`` has them all, with ``done_reason``)."""
+
+
 def check_agent(agent) -> None:
-    """``agent`` has an ``act(env)`` method."""
-    if not callable(getattr(agent, "act", None)):
-        raise ValueError(f"agent must have an act(env) method (e.g. newton_lab.agents.expert_agent(env)), got "
-                         f"{type(agent).__name__}")
+    """``agent`` has the rollout's hooks (``AGENT_HOOKS`` and ``done_reason``): a ``BaseAgent``."""
+    missing = [h for h in AGENT_HOOKS if not callable(getattr(agent, h, None))]
+    if missing or not isinstance(getattr(agent, "done_reason", None), str):
+        raise ValueError(f"agent {type(agent).__name__} lacks {missing or ['done_reason']}; subclass "
+                         f"newton_lab.agents.BaseAgent (e.g. newton_lab.agents.expert_agent(env))")
 
 
 def check_counts(*, episodes, max_steps) -> None:
@@ -111,3 +117,15 @@ def option_defaults(task_id: str) -> dict[str, Any]:
         return {o.name: o.default for o in lookup(task_id).all_options}
     except (KeyError, ValueError):  # an env of a task the registry does not hold (built from a cfg)
         return {}
+
+
+def resolved_cfg(cfg):
+    """``cfg`` with its generic terms resolved, or a one-line ``ValueError``: a cfg that names no task
+    (``TaskSpec.cfg()``) is refused; one whose terms were replaced after ``make_cfg`` (StackCube's
+    ``reference_rewards()``) resolves the new terms here, each ``held`` counter a new one."""
+    if not getattr(cfg, "task_id", None):
+        raise ValueError("this TaskCfg names no task: TaskSpec.cfg() neither names it nor resolves its generic "
+                         "terms; build the env with make_env(task_id), or from TaskSpec.make_cfg(options)")
+    if not unresolved_terms(cfg):
+        return cfg
+    return resolve_cfg(cfg, first_hold_slot=cfg.hold_slots)

@@ -55,12 +55,12 @@ IMAGE_BOUNDS = {"rgb": (0, 255), "depth": (0.0, np.inf), "segmentation": (0, np.
 def action_bounds(env: NewtonEnv) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) float32 (action_dim,) of the actions ``env`` acts on: each column's clip, intersected with
     its joint range for absolute columns, divided by the column's scale."""
-    amap = env.binding.actions
+    amap = env.joints.binding.actions
     lo, hi = amap.low.astype(np.float64), amap.high.astype(np.float64)
     lower, upper = env.model.joint_limit_lower.numpy(), env.model.joint_limit_upper.numpy()
     for c, (name, kind) in enumerate(zip(amap.joint_names, amap.kinds)):
         if kind == "absolute":
-            dof = env.layout.joints.dof[name]
+            dof = env.sim.layout.joints.dof[name]
             lo[c], hi[c] = max(lo[c], lower[dof]), min(hi[c], upper[dof])
     scale = amap.scale.astype(np.float64)
     a, b = lo / scale, hi / scale
@@ -71,8 +71,8 @@ def observation_space(env: NewtonEnv) -> spaces.Dict:
     """One row's observation space: a ``Box`` per observation term (then per camera image term), in the env's
     order (flattened, the state terms are ``env.obs``'s columns)."""
     boxes = OrderedDict((name, spaces.Box(-np.inf, np.inf, (sl.stop - sl.start,), np.float32))
-                        for name, sl in env.obs_terms.items())
-    for name, term in getattr(env, "image_terms", {}).items():
+                        for name, sl in env.task.obs_terms.items())
+    for name, term in env.sensors.image_terms.items():
         low, high = IMAGE_BOUNDS[term.data]
         boxes[name] = spaces.Box(low, high, tuple(term.shape), torch.empty(0, dtype=term.dtype).numpy().dtype)
     return spaces.Dict(boxes)
@@ -92,15 +92,15 @@ class NewtonVectorEnv(VectorEnv):
         self.single_action_space = spaces.Box(*action_bounds(self.env), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.termination_reasons = tuple(self.env.termination_reasons)
+        self.termination_reasons = tuple(self.env.task.termination_reasons)
         """Name of each ``termination_reason`` code."""
 
     def _obs(self, flat: torch.Tensor, images: bool = True) -> dict[str, np.ndarray]:
         host = flat.detach().cpu().numpy().copy()
-        out = {name: host[:, sl] for name, sl in self.env.obs_terms.items()}
+        out = {name: host[:, sl] for name, sl in self.env.task.obs_terms.items()}
         if images:
-            for name in getattr(self.env, "image_terms", {}):
-                out[name] = self.env.images[name].detach().cpu().numpy().copy()
+            for name in self.env.sensors.image_terms:
+                out[name] = self.env.sensors.images[name].detach().cpu().numpy().copy()
         return out
 
     def _info(self, done: np.ndarray | None = None) -> dict[str, Any]:
@@ -140,7 +140,7 @@ class NewtonVectorEnv(VectorEnv):
         out = (self._obs(obs), reward.detach().cpu().numpy().copy(), terminated.detach().cpu().numpy().copy(),
                truncated.detach().cpu().numpy().copy())
         if done.any():
-            final = self._obs(env.final_obs, images=False)
+            final = self._obs(env.buffers.final_obs, images=False)
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(done):
                 final_obs[i] = {name: value[i] for name, value in final.items()}

@@ -1,7 +1,7 @@
 """Per-row episode buffers of ``collect`` (``EpisodeRecorder``) and the dataset's ``env_args`` record.
 
-Image terms (``env.image_terms``) are recorded only when the env has them: each recorded step reads
-``env.images`` (which renders, once, through the captured render) and copies every term into per-row device
+Image terms (``env.sensors.image_terms``) are recorded only when the env has them: each recorded step reads
+``env.sensors.images`` (which renders, once, through the captured render) and copies every term into per-row device
 buffers that grow along time in chunks of ``IMAGE_CHUNK_STEPS`` steps. A full-length buffer would be
 (N, max_steps, H, W, 3): at 298x224 RGB and max_steps 1000 that is 200 MB per row, 800 GB at 4096 rows; grown
 by chunks it holds N x (longest running episode, rounded up to a chunk) frames, e.g. 38 MB per row (192 steps) for
@@ -39,22 +39,22 @@ class EpisodeRecorder:
         q = wp.to_torch(env.state.joint_q).view(n, -1)
         qd = wp.to_torch(env.state.joint_qd).view(n, -1)
         self._views: dict[str, torch.Tensor] = {}
-        for name, sl in env.obs_terms.items():
+        for name, sl in env.task.obs_terms.items():
             self._views[f"obs/{name}"] = env.obs[:, sl]
         self._views["states/joint_q"] = q
         self._views["states/joint_qd"] = qd
-        self._views["datagen/tcp_pose"] = env.tcp_pose
-        for name, e in env.entities.items():
-            self._views[f"datagen/object_poses/{name}"] = env.entity_poses[:, e.slot]
-        for k, name in enumerate(env.signal_names):
+        self._views["datagen/tcp_pose"] = env.buffers.tcp_pose
+        for name, e in env.task.entities.items():
+            self._views[f"datagen/object_poses/{name}"] = env.buffers.entity_poses[:, e.slot]
+        for k, name in enumerate(env.task.signal_names):
             self._views[f"datagen/subtask_signals/{name}"] = env.info["signals"][:, k : k + 1]
         self._views["datagen/phase"] = env.info["phase"].view(n, 1)
-        self.image_terms = dict(getattr(env, "image_terms", {}) or {})
+        self.image_terms = dict(env.sensors.image_terms)
         """Image term name -> ``envs.cameras.ImageTerm`` recorded each step (empty: nothing is rendered)."""
         if self.image_terms:
             env.render()  # builds the cameras: their pose buffers are fixed views from here on
-            for cam in env.camera_specs:
-                self._views[f"datagen/camera_poses/{cam}"] = env.cameras.poses(cam)
+            for cam in env.sensors.camera_specs:
+                self._views[f"datagen/camera_poses/{cam}"] = env.sensors.cameras.poses(cam)
         frame: dict[str, tuple[int, int]] = {}
         col = 0
         for key, v in self._views.items():
@@ -62,11 +62,11 @@ class EpisodeRecorder:
             col += v.shape[1]
         frame["actions"] = (col, col + env.action_dim)
         col += env.action_dim
-        self.layout = ColumnLayout(frame, col, {k: (sl.start, sl.stop) for k, sl in env.obs_terms.items()})
+        self.layout = ColumnLayout(frame, col, {k: (sl.start, sl.stop) for k, sl in env.task.obs_terms.items()})
         """Where each array lies in a row of :meth:`fetch`'s ``stacked`` block."""
         self._frames = torch.zeros(n, max_steps, col, device=env.torch_device)
         self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
-        self._next_obs = torch.zeros(n, max_steps, env.final_obs.shape[1], device=env.torch_device)
+        self._next_obs = torch.zeros(n, max_steps, env.buffers.final_obs.shape[1], device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
         self._images = {name: torch.zeros((n, 0, *term.shape), dtype=term.dtype, device=env.torch_device)
                         for name, term in self.image_terms.items()}
@@ -104,10 +104,10 @@ class EpisodeRecorder:
 
     def record_outcome(self, t: torch.Tensor, reward: torch.Tensor) -> None:
         """Store every row's reward of the step taken at its episode step ``t`` (N,) and the observation of the
-        state it reached (``env.final_obs``: before an automatic reset)."""
+        state it reached (``env.buffers.final_obs``: before an automatic reset)."""
         t = t.clamp(max=self.max_steps - 1)
         self._rewards[self._rows, t] = reward.float()
-        self._next_obs[self._rows, t] = self.env.final_obs.float()
+        self._next_obs[self._rows, t] = self.env.buffers.final_obs.float()
 
     def fetch(self, rows, lengths) -> FetchedRows:
         """The finished episodes of ``rows`` (``lengths`` steps each), still on the env's device: one gather of every
@@ -170,18 +170,18 @@ class FetchedRows(NamedTuple):
 def camera_args(env) -> dict[str, Any]:
     """The ``env_args["newton_lab"]["cameras"]`` record: per rendered camera its resolution [px], data,
     3x3 intrinsics [px] and the segmentation id names (empty without cameras)."""
-    specs = getattr(env, "camera_specs", None) or {}
+    specs = env.sensors.camera_specs
     if not specs:
         return {}
-    names = list(env.cameras.segmentation_names)
+    names = list(env.sensors.cameras.segmentation_names)
     return {cam: {"width": c.width, "height": c.height, "data": list(c.data),
-                  "intrinsics": env.cameras.intrinsics(cam).tolist(), "segmentation_names": names}
+                  "intrinsics": env.sensors.cameras.intrinsics(cam).tolist(), "segmentation_names": names}
             for cam, c in specs.items()}
 
 
 def env_args(env) -> dict[str, Any]:
     """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
-    lay, n = env.layout, env.num_envs
+    lay, n = env.sim.layout, env.num_envs
     q, qd = wp.to_torch(env.state.joint_q).view(n, -1), wp.to_torch(env.state.joint_qd).view(n, -1)
     return {
         "env_name": env.task_id,
@@ -189,7 +189,7 @@ def env_args(env) -> dict[str, Any]:
         "env_kwargs": {
             "num_envs": env.num_envs,
             "seed": env.seed,
-            "randomize": env.randomize,
+            "randomize": env.task.randomize,
             "task_options": env.cfg.options,
         },
         "newton_lab": {
@@ -197,14 +197,14 @@ def env_args(env) -> dict[str, Any]:
             "sim_dt": env.cfg.sim_dt,
             "decimation": env.cfg.decimation,
             "action_joint_names": list(env.action_joint_names),
-            "obs_terms": {k: [s.start, s.stop] for k, s in env.obs_terms.items()},
-            "entities": list(env.entities),
-            "signals": list(env.signal_names),
-            "termination_reasons": list(env.termination_reasons),
+            "obs_terms": {k: [s.start, s.stop] for k, s in env.task.obs_terms.items()},
+            "entities": list(env.task.entities),
+            "signals": list(env.task.signal_names),
+            "termination_reasons": list(env.task.termination_reasons),
             "phases": [ph.name for ph in env.cfg.phases],  # a coherent task's, in order (datagen/phase indexes them)
             "state_layout": state_layout(
                 q.shape[1], qd.shape[1], lay.robot_coords, lay.robot_dofs,
-                {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.entities.items()
+                {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.task.entities.items()
                  if e.dynamic}),
             "cameras": camera_args(env),
         },

@@ -85,7 +85,7 @@ class _Episodes:
         self.step_in_ep = torch.zeros(n, dtype=torch.long, device=dev)
         self.reward_total = torch.zeros(n, device=dev)
         self.latched = np.zeros(n, dtype=bool)
-        self.reached = torch.zeros((n, len(env.signal_names)), dtype=torch.bool, device=dev)
+        self.reached = torch.zeros((n, len(env.task.signal_names)), dtype=torch.bool, device=dev)
         self.phase = torch.zeros(n, dtype=torch.long, device=dev)
         """The furthest phase each row's episode has reached (a coherent task's rows reset to phase 0)."""
         self.records: list[dict[str, Any]] = []
@@ -121,7 +121,7 @@ class _Episodes:
             "success": bool(self.latched[row]) and reason != DIVERGED,
             "reward_total": float(h["reward"][row]),
             "termination_reason": reason,
-            "signals_reached": [name for name, hit in zip(self.env.signal_names, h["reached"][row].tolist()) if hit],
+            "signals_reached": [name for name, hit in zip(self.env.task.signal_names, h["reached"][row].tolist()) if hit],
             "phase": self.env.cfg.phase_names[int(h["phase"][row])],
         }
         if self.quota is None or self.launched < self.quota:
@@ -158,8 +158,6 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     n = env.num_envs
     timers = timers or Timers()
     step, act = timers.step(env.step), timers.act(agent.act)
-    holding = getattr(agent, "holding", None)  # rows waiting for a plan (PlannerAgent): their episode starts later
-    done_reason = getattr(agent, "done_reason", "agent_done")  # e.g. a teleop operator's ``user_exit``
     env.reset()
     agent.reset()
     eps = _Episodes(env, episodes=episodes, until_successes=until_successes, max_attempts=max_attempts)
@@ -171,7 +169,7 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     try:
         while not eps.enough():
             actions = act(env)
-            held = holding() if holding is not None else None
+            held = agent.holding()  # rows waiting for a plan (PlannerAgent): their episode starts later
             if recorder is not None:
                 recorder.record(eps.step_in_ep, actions)
             _, reward, terminated, truncated, info = step(actions)
@@ -196,8 +194,8 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 keep = ended[eps.latched[ended]] if until_successes else ended
                 saver.fetch(keep, eps.host["length"][keep])
             for row in ended:
-                reason = (REASON_MAX_STEPS if cut[row] else done_reason if agent_done[row]
-                          else env.termination_reasons[reasons[row]])
+                reason = (REASON_MAX_STEPS if cut[row] else agent.done_reason if agent_done[row]
+                          else env.task.termination_reasons[reasons[row]])
                 rec = eps.record(row, reason)
                 if saver is not None:
                     rec.update(saver.save(row, rec))
@@ -261,7 +259,7 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "termination_reasons": reasons,
         "diverged": reasons.get(DIVERGED, 0),
         # per subtask signal: episodes in which it fired (where a failing policy gets stuck)
-        "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.signal_names},
+        "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.task.signal_names},
         # per phase (one, "task", for a single-phase task): episodes that reached / passed it, why others stopped
         "phases": phase_summary(env.cfg.phase_names, records),
         "vector_steps": vector_steps,
@@ -347,7 +345,7 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
-    cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.randomize, "max_steps": max_steps,
+    cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.task.randomize, "max_steps": max_steps,
            "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
     keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})

@@ -183,8 +183,8 @@ def load_scenario(ref: str | Path) -> Scenario:
 
 def capture_scenario(env, row: int = 0, *, terminal: bool = False, source: str | None = None) -> Scenario:
     """The scenario of ``row``'s current state (``terminal=True``: the state its last episode ended in)."""
-    lay = env.layout
-    coords = env.terminal_joint_q if terminal else wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
+    lay = env.sim.layout
+    coords = env.buffers.terminal_joint_q if terminal else wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
     q = coords[row].detach().cpu().numpy().astype(np.float64)
     coord, planar = lay.joints.coord, env.robot.base_planar_joints
     yaw = q[coord[planar[2]]]

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 import warp as wp
 
-from ..agents.base import BaseAgent, EpisodeTracker
+from ..agents.base import BaseAgent
 from ..task_api.mimic_cfg import MimicCfg
 from .poses import closest_symmetric_pose, interpolate_poses, rotation_angle, transform_segments
 from .source import SourceDemo
@@ -50,11 +50,9 @@ class MimicAgent(BaseAgent):
         self.cfg = cfg
         self.rng = np.random.default_rng(seed)
         self.ik_iterations = ik_iterations
-        self._env = None
 
     # ------------------------------------------------------------------ binding
-    def _bind(self, env) -> None:
-        self._env = env
+    def setup(self, env) -> None:
         n = env.num_envs
         self._kin = env.robot.kinematics(n, device=env.device, arm=self.cfg.arm)
         names, arm = list(env.action_joint_names), env.robot.arm(self.cfg.arm)
@@ -62,7 +60,6 @@ class MimicAgent(BaseAgent):
         grip = arm.gripper
         self._grip_col = names.index(grip) if grip in names else None
         self._rows = [_RowPlan() for _ in range(n)]
-        self._tracker = EpisodeTracker(n)
         self._q = np.zeros((n, self._kin.robot_coords))
         self._actions = env.current_action().clone()
         # per-row step state, indexed for every row at once (planned per row only at subtask starts)
@@ -75,10 +72,6 @@ class MimicAgent(BaseAgent):
         self._last_target, self._has_last = np.zeros((n, 7)), np.zeros(n, dtype=bool)
         self._last_grip = np.zeros(n)
         self._noise_of = np.array([sub.action_noise for sub in self.cfg.subtasks], dtype=np.float64)
-
-    def reset(self, env_ids=None) -> None:
-        if self._env is not None:
-            self._tracker.forget(env_ids)
 
     # ------------------------------------------------------------------ segments
     def _select(self, sub_idx: int, cur_obj: np.ndarray | None) -> _Pick | None:
@@ -188,16 +181,14 @@ class MimicAgent(BaseAgent):
             self._last_grip[r] = plan.gripper[-1]
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
         n = env.num_envs
-        fresh = set(self._tracker.fresh_rows(env).tolist())  # new attempt on these rows
+        fresh = set(self.fresh_rows(env).tolist())  # new attempt on these rows
         q_env = wp.to_torch(env.state.joint_q).view(n, -1)[:, : self._kin.robot_coords].cpu().numpy()
-        tcp_now = env.tcp_pose.cpu().numpy().astype(np.float64)
+        tcp_now = env.buffers.tcp_pose.cpu().numpy().astype(np.float64)
         due = sorted(fresh | set(np.nonzero(~self._done & (self._cursor >= self._length))[0].tolist()))
         if due:
-            ent = env.entity_poses.cpu().numpy().astype(np.float64)
-            self._plan_rows(due, fresh, q_env, {name: ent[:, e.slot] for name, e in env.entities.items()}, tcp_now)
+            ent = env.buffers.entity_poses.cpu().numpy().astype(np.float64)
+            self._plan_rows(due, fresh, q_env, {name: ent[:, e.slot] for name, e in env.task.entities.items()}, tcp_now)
         # every row at once: the next waypoint of a playing row; a finished row holds its last target
         playing = ~self._done
         targets = tcp_now.copy()
@@ -227,6 +218,6 @@ class MimicAgent(BaseAgent):
 
     def done(self, env) -> torch.Tensor:
         """Rows whose attempt played every segment and held the last target for ``settle_steps``."""
-        if self._env is not env:
+        if self.bound_env is not env:
             return torch.zeros(env.num_envs, dtype=torch.bool, device=env.torch_device)
         return torch.as_tensor(self._done & (self._settle >= self.cfg.settle_steps), device=env.torch_device)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..agents.base import BaseAgent, EpisodeTracker
+from ..agents.base import BaseAgent
 from ..agents.task_flow import TaskFlowAgent
 from ..task_api.registry import lookup
 from .diffusion import DiffusionPolicy
@@ -63,7 +63,7 @@ def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None)
             raise ValueError(f"checkpoint {where} was trained for {trained}, but phase {name!r} of {env.task_id} runs "
                              f"{component}; give that phase a checkpoint of {component}")
         try:
-            agent._bind(env)  # the observation, camera and action checks, now rather than at the first step
+            agent.bind(env)  # the observation, camera and action checks, now rather than at the first step
         except ValueError as exc:
             raise ValueError(f"phase {name!r} ({where}): {exc}") from None
     return TaskFlowAgent.from_env(env, agents=dict(agents))
@@ -75,7 +75,6 @@ class PolicyAgent(BaseAgent):
     def __init__(self, policy, *, seed: int = 0):
         self.policy = policy
         self.seed = seed
-        self._env = None
 
     @classmethod
     def from_checkpoint(cls, path, *, device=None, seed: int = 0) -> PolicyAgent:
@@ -84,19 +83,19 @@ class PolicyAgent(BaseAgent):
             raise FileNotFoundError(f"checkpoint {path} does not exist; train one first (examples/03_train.py)")
         return cls(DiffusionPolicy.load(path, device=device or "cpu"), seed=seed)
 
-    def _bind(self, env) -> None:
+    def setup(self, env) -> None:
         p = self.policy
         task = p.info.get("task_id")
         if not _compatible_task(env, task):
             raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; "
                              f"evaluate it on {task}")
-        missing = [k for k in p.obs_keys if k not in env.obs_terms]
+        missing = [k for k in p.obs_keys if k not in env.task.obs_terms]
         if missing:
             raise ValueError(f"checkpoint needs observation terms {missing} that {env.task_id} does not provide; "
-                             f"available: {sorted(env.obs_terms)}")
+                             f"available: {sorted(env.task.obs_terms)}")
         dims = p.info.get("obs_dims", {})
-        wrong = {k: (dims[k], env.obs_terms[k].stop - env.obs_terms[k].start) for k in p.obs_keys
-                 if k in dims and dims[k] != env.obs_terms[k].stop - env.obs_terms[k].start}
+        wrong = {k: (dims[k], env.task.obs_terms[k].stop - env.task.obs_terms[k].start) for k in p.obs_keys
+                 if k in dims and dims[k] != env.task.obs_terms[k].stop - env.task.obs_terms[k].start}
         if wrong:
             raise ValueError(f"checkpoint observation sizes (checkpoint, env) {wrong} do not match {env.task_id}")
         self._image_keys = self._check_images(env)
@@ -106,7 +105,7 @@ class PolicyAgent(BaseAgent):
         # a component policy inside a coherent task writes its own columns; the others hold
         cols = [list(env.action_joint_names).index(j) for j in names]
         self._act_cols = None if cols == list(range(env.action_dim)) else torch.as_tensor(cols, device=env.torch_device)
-        cols = np.concatenate([np.arange(env.obs_terms[k].start, env.obs_terms[k].stop) for k in p.obs_keys])
+        cols = np.concatenate([np.arange(env.task.obs_terms[k].start, env.task.obs_terms[k].stop) for k in p.obs_keys])
         self._cols = torch.as_tensor(cols, device=env.torch_device)
         n, h, a = env.num_envs, p.cfg.obs_horizon, p.cfg.action_horizon
         self._history = torch.zeros(n, h, len(cols), device=env.torch_device)
@@ -115,23 +114,21 @@ class PolicyAgent(BaseAgent):
                         for k in self._image_keys}
         self._queue = torch.zeros(n, a, len(names), device=env.torch_device)
         self._cursor = np.full(n, a, dtype=np.int64)
-        self._tracker = EpisodeTracker(n)
         self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
-        self._env = env
 
     def _check_images(self, env) -> list[str]:
         """The policy's image keys after checking the env renders them at the trained size (one line otherwise)."""
         keys = list(getattr(self.policy.cfg, "image_keys", None) or ())
         if not keys:
             return []
-        terms = getattr(env, "image_terms", {}) or {}
+        terms = env.sensors.image_terms
         missing = [k for k in keys if k not in terms]
         if missing:
             raise ValueError(f"checkpoint sees cameras {missing} that this {env.task_id} env does not render "
                              f"(its image terms: {sorted(terms) or 'none'}); make the env with its cameras on")
         shapes = self.policy.info.get("image_shapes", {})
-        wrong = {k: (tuple(shapes[k]), tuple(env.images[k].shape[1:])) for k in keys
-                 if tuple(shapes[k]) != tuple(env.images[k].shape[1:])}
+        wrong = {k: (tuple(shapes[k]), tuple(env.sensors.images[k].shape[1:])) for k in keys
+                 if tuple(shapes[k]) != tuple(env.sensors.images[k].shape[1:])}
         if wrong:
             fix = ", ".join(f"'{k.rsplit('_', 1)[0]}': ({s[0][1]}, {s[0][0]})" for k, s in wrong.items())
             raise ValueError(f"checkpoint image sizes (trained, env) {wrong} differ (H, W, C); make the env with "
@@ -140,19 +137,16 @@ class PolicyAgent(BaseAgent):
 
     def reset(self, env_ids=None) -> None:
         """Forget the history of ``env_ids`` (all rows when ``None``); they refill at the next ``act``."""
-        if self._env is not None:
-            self._tracker.forget(env_ids)
+        super().reset(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
+        fresh = self.fresh_rows(env)
         obs = env.obs[:, self._cols]
-        fresh = self._tracker.fresh_rows(env)
         self._history[:, :-1] = self._history[:, 1:].clone()
         self._history[:, -1] = obs
-        for k, hist in self._frames.items():  # reading env.images renders this step's frames
+        for k, hist in self._frames.items():  # reading env.sensors.images renders this step's frames
             hist[:, :-1] = hist[:, 1:].clone()
-            hist[:, -1] = env.images[k]
+            hist[:, -1] = env.sensors.images[k]
         if fresh.size:
             rows = torch.as_tensor(fresh, device=env.torch_device)
             self._history[rows] = obs[rows].unsqueeze(1).expand(-1, self._history.shape[1], -1)

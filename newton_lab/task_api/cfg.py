@@ -50,7 +50,7 @@ class SceneCfg:
         self.names = tuple(names)
 
     def slot(self, name: str) -> int:
-        """The slot of object ``name`` (index into ``env.entity_poses``)."""
+        """The slot of object ``name`` (index into ``env.buffers.entity_poses``)."""
         if name not in self.names:
             raise ValueError(f"scene has no object {name!r}; objects: {list(self.names)}")
         return self.names.index(name)

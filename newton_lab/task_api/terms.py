@@ -157,10 +157,23 @@ TERM_FIELDS = ("observations", "terminations", "rewards", "signals", "events")
 """``TaskCfg`` fields whose values are ``TermCfg``s."""
 
 
-def resolve_cfg(cfg):
+def unresolved_terms(cfg) -> list[str]:
+    """``field.name`` of every term of ``cfg`` still a generic term (a ``Term`` or ``TermFactory``, not yet a
+    ``@wp.func``): a cfg from ``TaskSpec.cfg()``, or a resolved one whose terms were replaced afterwards (StackCube's
+    ``reference_rewards()``)."""
+    generic = (Term, TermFactory)
+    out = [f"phase_success[{i}]" for i, f in enumerate(cfg.phase_success) if isinstance(f, generic)]
+    for field in TERM_FIELDS:
+        out += [f"{field}.{k}" for k, t in getattr(cfg, field).items() if isinstance(t.func, generic) or t.params]
+    return out
+
+
+def resolve_cfg(cfg, *, first_hold_slot: int = 0):
     """``cfg`` with every term a plain ``@wp.func`` (entity names -> slots) and ``hold_slots`` covering the
-    counters the terms asked for. A resolved cfg resolves to itself."""
+    counters the terms asked for. A resolved cfg resolves to itself. ``first_hold_slot``: the first counter handed
+    out (``cfg.hold_slots`` when some terms were resolved before and keep their counters)."""
     resolver = TermResolver([e.name for e in cfg.entities], task=cfg.task_id or "task")
+    resolver.hold_slots = first_hold_slot
     fields: dict[str, Any] = {"phase_success": [resolver(bind(f)) for f in cfg.phase_success]}
     for name in TERM_FIELDS:
         fields[name] = {k: dataclasses.replace(t, func=resolver(bind(t.func, t.params)), params={})

@@ -19,7 +19,7 @@ import warp as wp
 from ..robots.binding import RobotBinding
 
 CAMERA_XYZ = rr.ViewCoordinates.RUB
-"""Axes of the camera poses (``env.cameras.poses``): x right, y up, z backwards (the view looks along -z)."""
+"""Axes of the camera poses (``env.sensors.cameras.poses``): x right, y up, z backwards (the view looks along -z)."""
 IMAGE_DATA = ("rgb", "depth", "segmentation")
 IMAGE_PLANE_DISTANCE = 0.15
 """Depth [m] at which the 3D view draws a camera's image plane (its frustum length)."""
@@ -45,7 +45,7 @@ def camera_path(row: int, camera: str) -> str:
 
 def env_streams(env) -> list[CameraStream]:
     """The cameras ``env`` renders (none for a state-only env)."""
-    cams = env.cameras
+    cams = env.sensors.cameras
     names = tuple(cams.segmentation_names) if any("segmentation" in c.data for c in cams.specs.values()) else ()
     return [CameraStream(name, c.width, c.height, tuple(d for d in IMAGE_DATA if d in c.data),
                          np.asarray(cams.intrinsics(name), dtype=float), names if "segmentation" in c.data else ())

@@ -64,7 +64,7 @@ class RerunLogger:
         """The cameras logged (``camera_log.CameraStream``); empty without images or cameras."""
         self.env = env
         self.rows = min(max_worlds, env.num_envs)
-        self._bpw = env.bodies_per_world
+        self._bpw = env.sim.bodies_per_world
         taken = {"static", "tcp"}  # reserved names under world/<row>
         self._names = [entity_name(env.model.body_label[b] or f"b{b:02d}", taken) for b in range(self._bpw)]
         self.rec = rr.RecordingStream(app_id)
@@ -97,12 +97,12 @@ class RerunLogger:
 
     def _eye(self):
         q = self.env.state.body_q.numpy()[: self._bpw]
-        poses = self.env.entity_poses[0, :, :3].cpu().numpy()
+        poses = self.env.buffers.entity_poses[0, :, :3].cpu().numpy()
         robot = q[0, :3]
         return eye_for(robot, poses.mean(axis=0) if len(poses) else robot + np.array([1.0, 0.0, 0.0]))
 
     def _episode_count(self) -> np.ndarray:
-        return self.env.episode_count[: self.rows].cpu().numpy().copy()
+        return self.env.buffers.episode_count[: self.rows].cpu().numpy().copy()
 
     def _drawn(self, row: int) -> bool:
         return self.episodes_per_row is None or self._ended[row] < self.episodes_per_row
@@ -136,7 +136,7 @@ class RerunLogger:
             ok = bool(success[w])
             self._ended[w] += 1
             self._open[w] = False
-            why = self.env.termination_reasons[int(reason[w])]
+            why = self.env.task.termination_reasons[int(reason[w])]
             self.rec.log(f"events/{w}", rr.TextLog(
                 f"row {w} episode {self._ended[w]} {'succeeded' if ok else 'failed'} ({why}) after "
                 f"{int(length[w])} steps", level="INFO" if ok else "WARN"))
@@ -145,8 +145,8 @@ class RerunLogger:
         """The env's current images and camera poses of the logged rows: ({camera: {data: (rows, ...)}},
         {camera: (rows, 7)})."""
         env, n = self.env, self.rows
-        frames = {c.name: {d: env.images[f"{c.name}_{d}"][:n].cpu().numpy() for d in c.data} for c in self.cameras}
-        return frames, {c.name: env.cameras.poses(c.name)[:n].cpu().numpy() for c in self.cameras}
+        frames = {c.name: {d: env.sensors.images[f"{c.name}_{d}"][:n].cpu().numpy() for d in c.data} for c in self.cameras}
+        return frames, {c.name: env.sensors.cameras.poses(c.name)[:n].cpu().numpy() for c in self.cameras}
 
     def log_step(self, *, reward=None, success=None, body_q: np.ndarray | None = None, info=None,
                  camera_frames=None, camera_poses=None) -> None:
@@ -159,7 +159,7 @@ class RerunLogger:
         self.rec.set_time("sim_time", duration=self._step * env.cfg.control_dt)
         q = body_q if body_q is not None else env.state.body_q.numpy()[: self.rows * self._bpw]
         q = np.asarray(q)[: self.rows * self._bpw].reshape(self.rows, self._bpw, 7)
-        tcp = env.tcp_pose[: self.rows, :3].cpu().numpy()
+        tcp = env.buffers.tcp_pose[: self.rows, :3].cpu().numpy()
         done = info["done"][: self.rows].cpu().numpy() if info is not None else np.zeros(self.rows, dtype=bool)
         count = self._episode_count()
         reset = count != self._episodes  # this step's auto-resets (done) or the loop's resets since the last call
@@ -231,13 +231,13 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
     for t in range(len(robot)):
         q[: robot.shape[1]] = torch.as_tensor(robot[t], dtype=torch.float32)
         for name, rec in objects.items():
-            c = env.entities[name].coord
+            c = env.task.entities[name].coord
             q[c : c + 7] = torch.as_tensor(rec["root_pose"][t], dtype=torch.float32)
         newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
         body_q = env.state.body_q.numpy().copy()
         poses.append(body_q)
         if logger is not None:
-            env.observe()
+            env.sim.observe()
             frames = {c.name: {d: np.asarray(obs[f"{c.name}_{d}"][t])[None] for d in c.data} for c in streams}
             at = {c.name: (np.asarray(cam_poses[c.name][t]) if c.name in cam_poses
                            else mount_poses(env.model, body_q, c.name, env.robot))[None] for c in streams}

@@ -14,7 +14,7 @@ from ...kernels.planner import gather_plan_actions
 from ...robots.quaternions import quat_mul
 from ...task_api.motion_plan import MotionPlan, yaw_of
 from ...task_api.registry import lookup
-from ..base import BaseAgent, EpisodeTracker
+from ..base import BaseAgent
 
 
 REPLAN_ROWS = 16
@@ -51,7 +51,6 @@ class PlannerAgent(BaseAgent):
         """Most ``act`` calls a restarted row holds its reset targets before it is planned (``None``:
         ``REPLAN_WAIT``). ``collect`` and ``evaluate`` start its episode when its plan comes (``holding``), so the
         wait adds no still frames to a demo; it only leaves the row idle meanwhile."""
-        self._env = None
         self._held: np.ndarray | None = None  # rows whose last action held while they waited (``holding``)
         self.plan_failures = 0
         """Rows whose IK missed a target by more than the plan's tolerances (cumulative)."""
@@ -67,8 +66,8 @@ class PlannerAgent(BaseAgent):
         return cls(plan, **kwargs)
 
     # ------------------------------------------------------------------ binding to an env
-    def _bind(self, env) -> None:
-        self._env, self._robot = env, env.robot
+    def setup(self, env) -> None:
+        self._robot = env.robot
         n, dev = env.num_envs, env.device
         arm = self.plan.arm
         arm_joints = env.robot.arm(arm).joints
@@ -79,10 +78,10 @@ class PlannerAgent(BaseAgent):
         self._arm_cols = wp.array([names.index(j) for j in arm_joints], dtype=int, device=dev)
         gripper = env.robot.arm(arm).gripper
         self._gripper_col = names.index(gripper) if gripper in names else -1
-        self._arm_coords = env.joint_coords(arm_joints)
+        self._arm_coords = env.joints.coords(arm_joints)
         self._arm_q = wp.array(self._arm_coords, dtype=int, device=dev)
         self._joint_q = env.state.joint_q.reshape((n, -1))  # a view of the live state (fixed: the step is captured)
-        self._robot_coords = env.robot_coords
+        self._robot_coords = env.joints.robot_coords
         self._kin = env.robot.kinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
             k = max(self._num_waypoints(), 1)
@@ -96,7 +95,6 @@ class PlannerAgent(BaseAgent):
             self._cursor = wp.zeros(n, dtype=int)
             self._plan_length = np.zeros(n, dtype=np.int64)
             self._actions = wp.from_torch(env.current_action().contiguous())
-        self._tracker = EpisodeTracker(n)
         self._waiting_since = np.full(n, -1, dtype=np.int64)  # act count at which a row began waiting; -1: none
         self._acts = 0
         self._batch = (self.replan_batch if self.replan_batch is not None
@@ -109,12 +107,12 @@ class PlannerAgent(BaseAgent):
         return sum(s.linear if s.target is not None else 1 for s in self.plan.steps)
 
     def _poses(self, env, rows: np.ndarray) -> dict[str, np.ndarray]:
-        ent = env.entity_poses.detach().cpu().numpy()[rows].astype(np.float64)
-        poses = {name: ent[:, e.slot] for name, e in env.entities.items()}
-        poses["tcp"] = env.tcp_pose.detach().cpu().numpy()[rows].astype(np.float64)
+        ent = env.buffers.entity_poses.detach().cpu().numpy()[rows].astype(np.float64)
+        poses = {name: ent[:, e.slot] for name, e in env.task.entities.items()}
+        poses["tcp"] = env.buffers.tcp_pose.detach().cpu().numpy()[rows].astype(np.float64)
         poses["command"] = env.info["command"].detach().cpu().numpy()[rows].astype(np.float64)
         q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1).cpu().numpy()[rows]
-        bx, by, byaw = env.joint_coords(env.robot.base_planar_joints)
+        bx, by, byaw = env.joints.coords(env.robot.base_planar_joints)
         yaw = q[:, byaw]
         poses["base"] = np.stack(
             [q[:, bx], q[:, by], np.zeros_like(yaw),
@@ -237,13 +235,10 @@ class PlannerAgent(BaseAgent):
     # ------------------------------------------------------------------ the agent contract
     def reset(self, env_ids=None) -> None:
         """Forces a re-plan of ``env_ids`` (all rows when ``None``) at the next ``act``."""
-        if self._env is not None:
-            self._tracker.forget(env_ids)
+        super().reset(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
-        rows = self._tracker.fresh_rows(env, env_ids)
+        rows = self.fresh_rows(env, env_ids)
         if env_ids is not None or self._batch <= 1:
             rows = np.union1d(rows, np.flatnonzero(self._waiting_since >= 0))
         elif rows.size or (self._waiting_since >= 0).any():
@@ -285,7 +280,7 @@ class PlannerAgent(BaseAgent):
 
     def _rows_due(self, env, fresh: np.ndarray) -> np.ndarray:
         """Restarted rows join the waiting ones (holding their reset targets); all of them are due once there
-        are ``replan_batch`` or the oldest has waited ``replan_wait`` calls (the defaults: ``_bind``)."""
+        are ``replan_batch`` or the oldest has waited ``replan_wait`` calls (the defaults: ``setup``)."""
         if fresh.size:
             self._waiting_since[fresh] = self._acts
             idx = torch.as_tensor(fresh, device=env.torch_device)

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import torch
 
-from ..base import BaseAgent, EpisodeTracker
+from ..base import BaseAgent
 from .contracts import FrameMapper, check_task
 from .devices import TeleopDevice, device_class
 from .frames import TeleopFrame
@@ -32,7 +32,6 @@ class TeleopAgent(BaseAgent):
         """The newest frame taken (held while the device sends nothing new)."""
         self.latencies: list[float] = []
         """Frame produced -> action handed to the env step, per new frame [s]."""
-        self._env = None
         self._jogs: dict[str, TcpJog] = {}
 
     @classmethod
@@ -50,13 +49,11 @@ class TeleopAgent(BaseAgent):
         device.start()
         return agent
 
-    def _bind(self, env) -> None:
+    def setup(self, env) -> None:
         if env.task_id != self.task_id:
             raise ValueError(f"this TeleopAgent drives {self.task_id}, not {env.task_id}; build one per task")
-        self._env = env
         self.mapper = FrameMapper(self.contract, env.action_joint_names, no_frame_policy=self.no_frame_policy,
                                   twist_scale=self.twist_scale, robot=env.robot)
-        self._tracker = EpisodeTracker(env.num_envs)
         self._jogs = {arm: TcpJog(env, arm) for arm in self.device.jog_arms}  # IK captured before the operator moves
 
     def reset(self, env_ids=None) -> None:
@@ -64,13 +61,10 @@ class TeleopAgent(BaseAgent):
         self.device.reset()
         self.device.resume()
         self.frame = None
-        if self._env is not None:
-            self._tracker.forget(env_ids)
+        super().reset(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self._env is not env:
-            self._bind(env)
-        fresh = self._tracker.fresh_rows(env, env_ids)
+        fresh = self.fresh_rows(env, env_ids)
         if fresh.size:
             for jog in self._jogs.values():
                 jog.reset(env)

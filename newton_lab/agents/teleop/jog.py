@@ -21,8 +21,8 @@ class TcpJog:
 
     def __init__(self, env, arm: str = "left", *, max_joint_step: float = 0.05, ik_iterations: int = 24):
         self.arm, self.max_joint_step, self.ik_iterations = arm, float(max_joint_step), ik_iterations
-        self._coords = env.joint_coords(env.robot.arm(arm).joints)
-        self._robot_coords = env.robot_coords
+        self._coords = env.joints.coords(env.robot.arm(arm).joints)
+        self._robot_coords = env.joints.robot_coords
         self._kin = env.robot.kinematics(env.num_envs, device=env.device, arm=arm)
         self.start: np.ndarray | None = None
         """(N, 7) TCP pose at the episode start (world; xyzw)."""
@@ -38,7 +38,7 @@ class TcpJog:
 
     def reset(self, env) -> None:
         """Start a new episode: the jog origin is the TCP pose now."""
-        self.start = env.tcp_pose.detach().cpu().numpy().astype(np.float64)
+        self.start = env.buffers.tcp_pose.detach().cpu().numpy().astype(np.float64)
         q = self._robot_q(env)
         self._offset = np.zeros(4)
         self._command = q[:, self._coords].astype(np.float64)

@@ -70,7 +70,7 @@ class StatusLine:
             self.draw(bool(info["success"][0]))
 
     def draw(self, success: bool) -> None:
-        tcp = self.env.tcp_pose[0, :3].tolist()
+        tcp = self.env.buffers.tcp_pose[0, :3].tolist()
         frame, dev = self.agent.frame, self.agent.device
         gripper = "open" if frame is None or frame.gripper_open.get("left", True) else "closed"
         cmd = getattr(dev, "command", "")

@@ -1,7 +1,7 @@
 """How a PPO policy's actions become the env's action columns.
 
 A Gaussian policy explores around zero with unit scale, so its actions are clipped to [-1, 1] and mapped per column
-kind (``env.binding.actions.kinds``): an absolute joint target is an offset from the posture the task starts in
+kind (``env.joints.binding.actions.kinds``): an absolute joint target is an offset from the posture the task starts in
 (``joint_scale`` rad at 1), a relative one a step (``relative_scale`` rad at 1), a gripper's target spans the
 gripper from open (-1) to closed (+1), and a wheel speed spans +-``wheel_speed`` rad/s. Offsets from the start
 posture keep a random policy near the posture the task was designed around (as IsaacLab's joint-position actions
@@ -36,7 +36,7 @@ class ActionMap:
 
     def __init__(self, env, scales: ActionScales | None = None, rest: torch.Tensor | None = None) -> None:
         self.scales = scales or ActionScales()
-        kinds = env.binding.actions.kinds
+        kinds = env.joints.binding.actions.kinds
         names = list(env.action_joint_names)
         device = env.torch_device
         self.rest = (env.current_action()[0] if rest is None else rest).detach().clone().to(device)

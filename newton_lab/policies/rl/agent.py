@@ -49,7 +49,7 @@ class RLPolicyAgent(BaseAgent):
             raise ValueError(f"{path} is not a newton_lab PPO checkpoint; give a checkpoint.pt of newton-lab train-rl")
         return cls(ckpt, device=device or "cpu")
 
-    def _bind(self, env) -> None:
+    def setup(self, env) -> None:
         task = self.info["task_id"]
         if task != env.task_id:
             raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; evaluate it on {task}")
@@ -64,8 +64,7 @@ class RLPolicyAgent(BaseAgent):
         self.action_map = ActionMap(env, ActionScales(**self.map_state["scales"]), rest=rest)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
-        if self.action_map is None:
-            self._bind(env)
+        self.bind(env)
         with torch.no_grad():
             actions = self.actor(env.obs.to(self.device)).to(env.torch_device)
         return self.action_map(actions)

@@ -21,7 +21,7 @@ from .actions import ActionMap, ActionScales
 
 class RslRlVecEnv(VecEnv):
     """``env`` (a ``NewtonEnv``) stepped by PPO actions through ``ActionMap``; ``privileged``: a second env of the
-    same task and seed in state mode is not needed, the critic reads ``env.entity_poses`` directly."""
+    same task and seed in state mode is not needed, the critic reads ``env.buffers.entity_poses`` directly."""
 
     def __init__(self, env, scales: ActionScales | None = None) -> None:
         self.env = env
@@ -53,7 +53,7 @@ class RslRlVecEnv(VecEnv):
         policy = self.env.obs.clone()
         critic = policy
         if self.sensors:  # the critic also sees where the objects are
-            critic = torch.cat([policy, self.env.entity_poses.reshape(self.num_envs, -1)], dim=1)
+            critic = torch.cat([policy, self.env.buffers.entity_poses.reshape(self.num_envs, -1)], dim=1)
         return TensorDict({"policy": policy, "critic": critic}, batch_size=[self.num_envs], device=self.device)
 
     def get_observations(self) -> TensorDict:
