@@ -35,11 +35,13 @@ class TaskContext:
     """Pose of static entities (identical in every world)."""
     entity_half_extents: wp.array(dtype=wp.vec3)
     """Half sizes of each entity's box (or bounding box) [m]."""
-    # ---- the robot half (with ``robot_coords``): filled by ``robots.bound.RobotContext.fill``
+    # ---- the robot half (with ``robot_coords``): described through the robot's binding (``RobotBinding``) and
+    # filled by ``robots.bound.RobotContext.fill``; no robot's joint counts or ranges are written here
     base_coord: int
-    """World-local coordinate of ``base_x`` (``base_y``, ``base_yaw`` follow): the planar base pose."""
-    leg_coord: int
-    """World-local coordinate of ``leg_joint1`` (leg joints 2..5 follow)."""
+    """World-local coordinate of the planar base's x (its y and yaw follow: ``base_planar_joints``)."""
+    lift_coords: wp.array(dtype=int)
+    """World-local coordinates of the joints that lift the upper body (``RobotBinding.leg_joints``), in the
+    binding's order; length 0 for a robot without them."""
     wheel_coord: int
     """World-local coordinate of the first base wheel (the others follow), -1 for a robot without wheels."""
     wheel_count: int
@@ -48,12 +50,14 @@ class TaskContext:
     tcp_offset: wp.transform
     gripper_coord: int
     """World-local coordinate of the controlled arm's gripper master joint."""
+    gripper_open: float
+    """The gripper master joint's open value [rad] (``RobotBinding.gripper_open``)."""
     gripper_closed: float
-    """The gripper master joint's closed value [rad] (its open value is 0)."""
+    """The gripper master joint's closed value [rad] (``RobotBinding.gripper_closed``)."""
     arm_coords: wp.array(dtype=int)
-    """World-local coordinate indices of the controlled arm (7)."""
+    """World-local coordinates of the controlled arm's joints (``Arm.joints``, in order)."""
     arm_home: wp.array(dtype=float)
-    """Reference arm posture used by carry / retract predicates [rad] (7)."""
+    """Reference arm posture used by carry / retract predicates [rad] (one value per ``arm_coords``)."""
     command: wp.array2d(dtype=float)
     """Per-row task command (e.g. a Reach goal) (num_envs, command_dim)."""
     actions: wp.array2d(dtype=float)
@@ -118,7 +122,7 @@ def tcp_distance(ctx: TaskContext, w: int, k: int) -> float:
 
 @wp.func
 def gripper_q(ctx: TaskContext, w: int) -> float:
-    """Gripper master joint position [rad] (0 open .. 1.2 closed)."""
+    """Gripper master joint position [rad] (``ctx.gripper_open`` .. ``ctx.gripper_closed``)."""
     return ctx.joint_q[w * ctx.coords_per_world + ctx.gripper_coord]
 
 
@@ -126,7 +130,7 @@ def gripper_q(ctx: TaskContext, w: int) -> float:
 def arm_near_home(ctx: TaskContext, w: int, tol: float) -> bool:
     """Every arm joint within ``tol`` [rad] of ``ctx.arm_home``."""
     ok = bool(True)
-    for j in range(7):
+    for j in range(ctx.arm_coords.shape[0]):
         if wp.abs(ctx.joint_q[w * ctx.coords_per_world + ctx.arm_coords[j]] - ctx.arm_home[j]) > tol:
             ok = False
     return ok

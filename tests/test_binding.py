@@ -72,12 +72,49 @@ def test_a_second_robot_is_one_registration(layout):
     assert bound.context.gripper_closed == 1.5
 
 
+def test_the_task_context_follows_the_binding_without_g1_counts(layout):
+    """The robot half of the task context is what the binding describes: a robot without lift joints gets none,
+    a shorter arm its own joints, another gripper range its own (the kernels loop over these, not over the G1's)."""
+    g1 = robot_binding("g1")
+    arm = dataclasses.replace(g1.arms["left"], joints=g1.arms["left"].joints[:6])
+    other = dataclasses.replace(g1, name="g1_no_lift", leg_joints=(), arms={**g1.arms, "left": arm},
+                                gripper_open=0.1, gripper_closed=0.9)
+    ctx = BoundRobot.from_layout(other, layout, actions=[], arm="left").context
+    coord = layout.joints.coord
+    assert ctx.lift_coords == () and ctx.arm_coords == tuple(coord[j] for j in spec.LEFT_ARM_JOINTS[:6])
+    assert (ctx.gripper_open, ctx.gripper_closed) == (0.1, 0.9)
+    from newton_lab.kernels.context import TaskContext
+
+    with wp.ScopedDevice("cpu"):
+        task_ctx = TaskContext()
+        ctx.fill(task_ctx)
+    assert task_ctx.lift_coords.shape == (0,) and task_ctx.arm_coords.shape == (6,)
+
+
+def test_nothing_falls_back_to_the_g1_when_no_robot_is_given(tmp_path):
+    """Where a robot is needed and none is given, one line says so (no default robot is taken instead)."""
+    from newton_lab.agents.teleop.contracts import FrameMapper, leg_targets
+    from newton_lab.envs.cameras import Cameras
+    from newton_lab.mimic.source import load_sources
+
+    calls = {"leg_targets": lambda: leg_targets(0.1, None),
+             "FrameMapper": lambda: FrameMapper("mobile_full_body", [], robot=None),
+             "Cameras": lambda: Cameras({}, model=None, state=None, num_envs=1, bodies_per_world=1, entity_names=[],
+                                        robot=None),
+             "load_sources": lambda: load_sources(tmp_path / "none.hdf5", None, None, task_id="x", robot=None)}
+    for user, call in calls.items():
+        with pytest.raises(ValueError, match=rf"^{user} needs the robot it works for \(robot=env.robot") as err:
+            call()
+        assert "\n" not in str(err.value)
+
+
 # ---------------------------------------------------------------- robot half of the context
 def test_robot_context_from_joint_index(layout, pick_cfg):
     ctx = _bind(layout).context
     coord = layout.joints.coord
     assert ctx.robot_coords == layout.robot_coords == 34
-    assert ctx.base_coord == coord["base_x"] and ctx.leg_coord == coord["leg_joint1"]
+    assert ctx.base_coord == coord["base_x"] and ctx.lift_coords == tuple(coord[j] for j in spec.LEG_JOINTS)
+    assert (ctx.gripper_open, ctx.gripper_closed) == (spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED)
     assert ctx.gripper_coord == coord["left_gripper_joint"]
     assert ctx.arm_coords == tuple(coord[j] for j in spec.LEFT_ARM_JOINTS)
     assert ctx.tcp_body == layout.joints.body["left_arm_link7"]
@@ -91,9 +128,9 @@ def test_robot_context_from_joint_index(layout, pick_cfg):
 def test_env_context_is_the_binding(pick_env):
     ctx, bound = pick_env.task.context, pick_env.joints.binding.context
     assert ctx.robot_coords == bound.robot_coords == 34
-    assert (ctx.base_coord, ctx.leg_coord, ctx.gripper_coord, ctx.tcp_body) == (
-        bound.base_coord, bound.leg_coord, bound.gripper_coord, bound.tcp_body)
-    assert tuple(ctx.arm_coords.numpy()) == bound.arm_coords
+    assert (ctx.base_coord, ctx.gripper_coord, ctx.tcp_body, ctx.gripper_open, ctx.gripper_closed) == (
+        bound.base_coord, bound.gripper_coord, bound.tcp_body, bound.gripper_open, bound.gripper_closed)
+    assert tuple(ctx.arm_coords.numpy()) == bound.arm_coords and tuple(ctx.lift_coords.numpy()) == bound.lift_coords
 
 
 # ---------------------------------------------------------------- the action map

@@ -103,7 +103,8 @@ def test_stack_cube_segments_end_clear_of_the_stack(stack_env, tmp_path):
                             max_steps=900, progress=False)
     assert src["successes"] == 1
     cfg = lookup("GalbotG1-StackCube-Mimic-v0").mimic
-    (demo,) = load_sources(src.path, cfg, TcpKinematics(64, device="cpu"), task_id=stack_env.task_id)
+    (demo,) = load_sources(src.path, cfg, TcpKinematics(64, device="cpu"), task_id=stack_env.task_id,
+                           robot=stack_env.robot)
     fingers = 0.05  # fingertips reach this far below the TCP [m]
     for sub in cfg.subtasks[:-1]:
         lo, hi = sub.term_offset_range

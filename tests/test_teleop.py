@@ -16,7 +16,9 @@ from newton_lab.agents.teleop.contracts import CONTRACTS, leg_targets
 from newton_lab.agents.teleop.devices import KeyboardDevice
 from newton_lab.agents.teleop.devices.gp001 import Gp001Device, map_gp001
 from newton_lab.robots.g1 import spec
+from newton_lab.robots.registry import robot_binding
 
+G1 = robot_binding("g1")
 FULL_BODY = [j for g in CONTRACTS["mobile_full_body"] for j in spec.JOINT_GROUPS[g]]
 
 
@@ -51,7 +53,7 @@ def test_gp001_twist_scaling_and_hold_buttons():
     frame, h = map_gp001(_raw(_axes(a0=0.4, a1=-0.2, a2=1.0, a5=1.0)), height=0.0, speed=0.5)
     assert frame.base_twist == pytest.approx((0.2, -0.1, 0.5))
     assert h == pytest.approx(0.05)  # axes[5] * 0.05 per frame
-    mapper = FrameMapper("mobile_full_body", FULL_BODY)
+    mapper = FrameMapper("mobile_full_body", FULL_BODY, robot=G1)
     out = mapper(TeleopFrame(base_twist=(0.2, 0.0, 0.0)), torch.zeros(1, len(FULL_BODY)))
     wheels = out[0, [FULL_BODY.index(j) for j in spec.BASE_WHEEL_JOINTS]]
     assert wheels.tolist() == pytest.approx([-1.4142, -1.4142, 1.4142, 1.4142], abs=1e-3)  # the reference's mixing
@@ -61,10 +63,12 @@ def test_gp001_twist_scaling_and_hold_buttons():
 
 
 def test_leg_clamps_and_body_height_mapping():
-    assert leg_targets(0.1).tolist() == pytest.approx([0.1, 0.3, 0.2, 0.0, 0.0])
-    assert leg_targets(5.0).tolist() == pytest.approx([1.01, 2.65, 2.39, 0.0, 0.0])
-    assert leg_targets(-1.0).tolist() == pytest.approx([-0.02, -0.02, -0.02, 0.0, 0.0])
-    mapper = FrameMapper("mobile_full_body", FULL_BODY)
+    assert leg_targets(0.1, G1).tolist() == pytest.approx([0.1, 0.3, 0.2, 0.0, 0.0])
+    assert leg_targets(5.0, G1).tolist() == pytest.approx([1.01, 2.65, 2.39, 0.0, 0.0])
+    assert leg_targets(-1.0, G1).tolist() == pytest.approx([-0.02, -0.02, -0.02, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"leg_targets needs the robot it works for \(robot=env.robot"):
+        leg_targets(0.1, None)  # no default robot to fall back to
+    mapper = FrameMapper("mobile_full_body", FULL_BODY, robot=G1)
     out = mapper(TeleopFrame(body_height=0.5), torch.zeros(1, len(FULL_BODY)))
     legs = out[0, [FULL_BODY.index(j) for j in spec.LEG_JOINTS]]
     assert legs.tolist() == pytest.approx([0.5, 1.5, 1.0, 0.0, 0.0])
@@ -75,7 +79,7 @@ def test_missing_joints_follow_the_no_frame_policy(policy):
     current = torch.arange(len(FULL_BODY), dtype=torch.float32).reshape(1, -1) + 1.0
     left = np.linspace(0.1, 0.7, 7)
     frame, _ = map_gp001(_raw(_axes(a3=0.7), left=left), height=0.0)  # no right-arm joints in the frame
-    out = FrameMapper("mobile_full_body", FULL_BODY, no_frame_policy=policy)(frame, current)
+    out = FrameMapper("mobile_full_body", FULL_BODY, robot=G1, no_frame_policy=policy)(frame, current)
     cols = {g: [FULL_BODY.index(j) for j in spec.JOINT_GROUPS[g]] for g in CONTRACTS["mobile_full_body"]}
     assert out[0, cols["left_arm"]].tolist() == pytest.approx(left.tolist())  # leader arm copied 1:1
     right = out[0, cols["right_arm"]]
@@ -83,15 +87,15 @@ def test_missing_joints_follow_the_no_frame_policy(policy):
     assert out[0, cols["left_gripper"]].item() == spec.GRIPPER_OPEN
     assert out[0, cols["right_gripper"]].item() == pytest.approx(spec.GRIPPER_CLOSED)  # axes[4] = 0 < 0.35
     # no frame at all: grippers open by default, arms held or zeroed
-    out = FrameMapper("left_arm_manipulation", FULL_BODY, no_frame_policy=policy)(None, current)
+    out = FrameMapper("left_arm_manipulation", FULL_BODY, robot=G1, no_frame_policy=policy)(None, current)
     assert out[0, cols["left_gripper"]].item() == spec.GRIPPER_OPEN
 
 
 def test_bad_policy_contract_and_device_names_fail_in_one_line():
     with pytest.raises(ValueError, match="no_frame_policy 'keep' is unknown; use one of hold, zero"):
-        FrameMapper("left_arm_manipulation", FULL_BODY, no_frame_policy="keep")
+        FrameMapper("left_arm_manipulation", FULL_BODY, robot=G1, no_frame_policy="keep")
     with pytest.raises(ValueError, match="unknown teleop contract 'both_arms'"):
-        FrameMapper("both_arms", FULL_BODY)
+        FrameMapper("both_arms", FULL_BODY, robot=G1)
     from newton_lab.agents.teleop import TeleopAgent
 
     with pytest.raises(ValueError, match="unknown teleop device 'joystick'; valid devices: keyboard, replay"):

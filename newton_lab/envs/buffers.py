@@ -128,6 +128,16 @@ def reset_coordinates(cfg: TaskCfg, layout: SceneLayout) -> tuple[Scenario | Non
     return scenario, default_q, default_target_q
 
 
+def arm_home(cfg: TaskCfg, arm_joints: int) -> np.ndarray:
+    """``cfg.arm_home`` (zeros when empty) as float32, or a one-line ``ValueError`` when its length is not the
+    controlled arm's joint count."""
+    home = np.asarray(cfg.arm_home or (0.0,) * arm_joints, dtype=np.float32)
+    if home.shape != (arm_joints,):
+        raise ValueError(f"{cfg.task_id}: arm_home has {home.size} values, the {cfg.arm} arm has {arm_joints} joints; "
+                         f"give one value per joint [rad]")
+    return home
+
+
 def build_context(
     *,
     cfg: TaskCfg,
@@ -153,7 +163,7 @@ def build_context(
     ctx.entity_static_pose = wp.array(lay.entity_static_pose or [(0, 0, 0, 0, 0, 0, 1)], dtype=wp.transform)
     ctx.entity_half_extents = wp.array(lay.entity_half_extents or [(0, 0, 0)], dtype=wp.vec3)
     binding.context.fill(ctx)
-    ctx.arm_home = wp.array(np.asarray(cfg.arm_home, dtype=np.float32), dtype=float)
+    ctx.arm_home = wp.array(arm_home(cfg, len(binding.context.arm_coords)), dtype=float)
     ctx.command = wp.zeros((n, max(cfg.command_dim, 1)), dtype=float)
     ctx.actions = actions
     ctx.prev_actions = wp.zeros(actions.shape, dtype=float)

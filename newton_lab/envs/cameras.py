@@ -33,7 +33,6 @@ from newton.sensors import SensorCamera
 
 from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
 from ..robots.binding import RobotBinding
-from ..robots.registry import robot_binding
 from ..task_api.cfg import CameraCfg
 from .camera_specs import ImageTerm, image_terms, resolve_cameras
 from .pictures import picture
@@ -105,8 +104,8 @@ class Cameras:
     def __init__(self, specs: Mapping[str, CameraCfg], *, model: newton.Model, state: newton.State, num_envs: int,
                  bodies_per_world: int, entity_names: list[str], capture: bool = True, randomize: bool = False,
                  seed=lambda: 0, episode: wp.array | None = None, keep_hue: Collection[str] = (),
-                 robot: RobotBinding | None = None):
-        self.robot = robot_binding() if robot is None else robot
+                 robot: RobotBinding):
+        self.robot = RobotBinding.required(robot, "Cameras")
         """The robot the cameras ride on (mounts, intrinsics, clipping, segmentation groups)."""
         self.specs = dict(specs)
         self.terms = image_terms(self.specs)

@@ -11,7 +11,6 @@ import numpy as np
 from ..datasets.states import state_tree
 from ..datasets.storage import read_dataset_info, read_episodes
 from ..robots.binding import RobotBinding
-from ..robots.registry import robot_binding
 from ..task_api.mimic_cfg import MimicCfg
 
 
@@ -45,14 +44,15 @@ class SourceDemo:
 
 
 def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str,
-                 robot: RobotBinding | None = None) -> list[SourceDemo]:
+                 robot: RobotBinding) -> list[SourceDemo]:
     """Successful demos of ``path`` that carry every signal ``cfg`` segments on; ``kinematics`` (the robot's,
     ``RobotBinding.kinematics``) turns their commanded arm joints into TCP poses. ``robot``: the env's
-    (``env.robot``); the default robot when ``None``."""
+    (``env.robot``)."""
+    robot = RobotBinding.required(robot, "load_sources")
     info = read_dataset_info(path)
     args = info["env_args"].get("newton_lab", {})
     names = args.get("action_joint_names", [])
-    arm = (robot_binding() if robot is None else robot).arm(cfg.arm)
+    arm = robot.arm(cfg.arm)
     arm_joints = list(arm.joints)
     if not all(j in names for j in arm_joints):
         raise ValueError(f"{path}: actions do not hold the {cfg.arm} arm joints; Mimic needs arm joint-target actions")

@@ -119,6 +119,15 @@ class RobotBinding:
     """``(n, *, device, arm) ->`` batched TCP kinematics of one arm for ``n`` problems: ``solve(q_seed, pos, quat,
     iterations=)`` (IK with ``newton.ik``) and ``tcp_poses(q)`` (FK), robot coordinates first in each row."""
 
+    @staticmethod
+    def required(robot: RobotBinding | None, user: str) -> RobotBinding:
+        """``robot``, or a one-line ``ValueError`` saying ``user`` needs one: nothing falls back to a default
+        robot."""
+        if not isinstance(robot, RobotBinding):
+            raise ValueError(f"{user} needs the robot it works for (robot=env.robot, or "
+                             f"newton_lab.robots.registry.robot_binding(name)), got {robot!r}")
+        return robot
+
     def arm(self, name: str) -> Arm:
         """The arm called ``name``; a one-line ``ValueError`` names the valid ones."""
         if name not in self.arms:

@@ -51,8 +51,8 @@ class RobotContext:
     robot_coords: int
     base_coord: int
     """``base_x`` (``base_y``, ``base_yaw`` follow)."""
-    leg_coord: int
-    """``leg_joint1`` (leg joints 2..5 follow)."""
+    lift_coords: tuple[int, ...]
+    """The joints that lift the upper body (``RobotBinding.leg_joints``), in order; empty without them."""
     wheel_coord: int
     """The first base wheel (the others follow); -1 without wheels."""
     wheel_count: int
@@ -60,8 +60,9 @@ class RobotContext:
     tcp_offset_pos: tuple[float, float, float]
     tcp_offset_quat: tuple[float, float, float, float]
     gripper_coord: int
+    gripper_open: float
     gripper_closed: float
-    """The gripper master's closed value [rad]."""
+    """The gripper master's open and closed values [rad]."""
     arm_coords: tuple[int, ...]
 
     @classmethod
@@ -69,18 +70,19 @@ class RobotContext:
         chosen = robot.arm(arm)
         coord = layout.joints.coord
         legs, planar, wheels = robot.leg_joints, robot.base_planar_joints, robot.base_wheel_joints
-        leg, base = _first_coord(coord, legs, "leg"), _first_coord(coord, planar, "planar base")
+        base = _first_coord(coord, planar, "planar base")
         wheel = _first_coord(coord, wheels, "base wheel") if wheels else -1
         return cls(
             robot_coords=int(layout.robot_coords),
             base_coord=base,
-            leg_coord=leg,
+            lift_coords=tuple(coord[j] for j in legs),
             wheel_coord=wheel,
             wheel_count=len(wheels),
             tcp_body=layout.joints.body[chosen.end_effector],
             tcp_offset_pos=robot.tcp_offset_pos,
             tcp_offset_quat=robot.tcp_offset_quat,
             gripper_coord=coord[chosen.gripper],
+            gripper_open=float(robot.gripper_open),
             gripper_closed=float(robot.gripper_closed),
             arm_coords=tuple(coord[j] for j in chosen.joints),
         )
@@ -89,12 +91,13 @@ class RobotContext:
         """Write the robot half into a ``TaskContext`` (its arrays on the current Warp device)."""
         ctx.robot_coords = self.robot_coords
         ctx.base_coord = self.base_coord
-        ctx.leg_coord = self.leg_coord
+        ctx.lift_coords = wp.array(self.lift_coords, dtype=int) if self.lift_coords else wp.zeros(0, dtype=int)
         ctx.wheel_coord = self.wheel_coord
         ctx.wheel_count = self.wheel_count
         ctx.tcp_body = self.tcp_body
         ctx.tcp_offset = wp.transform(wp.vec3(*self.tcp_offset_pos), wp.quat(*self.tcp_offset_quat))
         ctx.gripper_coord = self.gripper_coord
+        ctx.gripper_open = self.gripper_open
         ctx.gripper_closed = self.gripper_closed
         ctx.arm_coords = wp.array(self.arm_coords, dtype=int)
 

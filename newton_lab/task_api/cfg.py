@@ -238,8 +238,9 @@ class TaskCfg:
     its model and reads its joint groups, arms, TCP, gripper range and camera mounts from it (``env.robot``)."""
     arm: str = "left"
     """The controlled arm (``left`` or ``right``): the TCP, gripper and arm coordinates terms read."""
-    arm_home: tuple[float, ...] = (0.0,) * 7
-    """Reference posture of the controlled arm for carry / retract predicates (``ctx.arm_home``) [rad] (7)."""
+    arm_home: tuple[float, ...] = ()
+    """Reference posture of the controlled arm for carry / retract predicates (``ctx.arm_home``) [rad], one value
+    per joint of the arm; empty: every joint at 0."""
     command_dim: int = 0
     """Columns of the per-row task command (``ctx.command``, e.g. a Reach goal written by a reset event)."""
     hold_slots: int = 1

@@ -69,16 +69,17 @@ def posture_closeness(d: float) -> float:
 
 @wp.func
 def gripper_openness(ctx: TaskContext, w: int) -> float:
-    """1 - gripper / closed value (the G1's 1.2 rad), clamped to [0, 1]: 1 open, ~0.44 closed on a 5 cm object,
-    0 fully closed."""
-    return 1.0 - wp.clamp(wp.abs(gripper_q(ctx, w)) / ctx.gripper_closed, 0.0, 1.0)
+    """1 - |gripper - open| / |closed - open| (the robot's range, ``ctx.gripper_open`` .. ``gripper_closed``),
+    clamped to [0, 1]: 1 open, ~0.44 closed on a 5 cm object (the G1), 0 fully closed."""
+    span = wp.abs(ctx.gripper_closed - ctx.gripper_open)
+    return 1.0 - wp.clamp(wp.abs(gripper_q(ctx, w) - ctx.gripper_open) / span, 0.0, 1.0)
 
 
 @wp.func
 def arm_home_error(ctx: TaskContext, w: int) -> float:
-    """Euclidean distance of the controlled arm's 7 joints from ``ctx.arm_home`` [rad]."""
+    """Euclidean distance of the controlled arm's joints from ``ctx.arm_home`` [rad]."""
     s = float(0.0)
-    for j in range(7):
+    for j in range(ctx.arm_coords.shape[0]):
         d = ctx.joint_q[w * ctx.coords_per_world + ctx.arm_coords[j]] - ctx.arm_home[j]
         s += d * d
     return wp.sqrt(s)
@@ -263,7 +264,7 @@ def carry_shaping(ctx: TaskContext, w: int) -> float:
 
 @term_factory()
 def posture_shaping(*, arm: tuple[float, ...], legs: tuple[float, ...] | None = None):
-    """``1 - tanh(|q - posture|)`` over the controlled arm (7) and, when given, the legs (5) [rad -> 0..1]."""
+    """``1 - tanh(|q - posture|)`` over the controlled arm and, when given, the lift joints [rad -> 0..1]."""
     arm_q, legs_q, check_legs = posture_vectors(arm, legs)
 
     @wp.func

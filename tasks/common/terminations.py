@@ -7,6 +7,8 @@ the reference platform's table-top values; a task passes its own where they diff
 
 from __future__ import annotations
 
+from typing import Any
+
 import warp as wp
 
 from newton_lab.kernels.context import (
@@ -138,19 +140,19 @@ def arm_at_home(*, tol: float):
 
 
 @wp.func
-def posture_error(ctx: TaskContext, w: int, legs: wp.types.vector(length=5, dtype=float),
-                  arm: wp.types.vector(length=7, dtype=float), check_legs: bool) -> wp.vec2:
-    """(Euclidean distance [rad], largest joint error [rad]) of the legs (when ``check_legs``) and the
-    controlled arm from ``legs`` / ``arm``."""
+def posture_error(ctx: TaskContext, w: int, legs: Any, arm: Any, check_legs: bool) -> wp.vec2:
+    """(Euclidean distance [rad], largest joint error [rad]) of the lift joints (``ctx.lift_coords``, when
+    ``check_legs``) and the controlled arm (``ctx.arm_coords``) from ``legs`` / ``arm`` (float vectors, one value
+    per joint; ``posture_vectors``)."""
     base = w * ctx.coords_per_world
     s = float(0.0)
     m = float(0.0)
     if check_legs:
-        for j in range(5):
-            d = ctx.joint_q[base + ctx.leg_coord + j] - legs[j]
+        for j in range(wp.min(len(legs), ctx.lift_coords.shape[0])):
+            d = ctx.joint_q[base + ctx.lift_coords[j]] - legs[j]
             s += d * d
             m = wp.max(m, wp.abs(d))
-    for j in range(7):
+    for j in range(wp.min(len(arm), ctx.arm_coords.shape[0])):
         d = ctx.joint_q[base + ctx.arm_coords[j]] - arm[j]
         s += d * d
         m = wp.max(m, wp.abs(d))
@@ -158,17 +160,20 @@ def posture_error(ctx: TaskContext, w: int, legs: wp.types.vector(length=5, dtyp
 
 
 def posture_vectors(arm: tuple[float, ...], legs: tuple[float, ...] | None):
-    """``(arm (7), legs (5), check_legs)`` of a posture, as ``posture_error`` takes them (legs 0 and unchecked
-    when ``None``) [rad]."""
-    arm_q = wp.types.vector(length=7, dtype=float)(*(float(v) for v in arm))
-    legs_q = wp.types.vector(length=5, dtype=float)(*(float(v) for v in (legs or (0.0,) * 5)))
+    """``(arm, legs, check_legs)`` of a posture (one value per arm / lift joint of the robot, in its binding's
+    order), as ``posture_error`` takes them (legs unchecked when ``None``) [rad]."""
+    if not arm:
+        raise ValueError("a posture needs one arm joint value per joint of the controlled arm; got none")
+    arm_q = wp.types.vector(length=len(arm), dtype=float)(*(float(v) for v in arm))
+    legs = tuple(legs) if legs else None
+    legs_q = wp.types.vector(length=len(legs or (0.0,)), dtype=float)(*(float(v) for v in (legs or (0.0,))))
     return arm_q, legs_q, legs is not None
 
 
 @term_factory()
 def at_posture(*, arm: tuple[float, ...], tol: float, legs: tuple[float, ...] | None = None):
-    """Every joint of the controlled arm (7) and, when ``legs`` is given, of the legs (5) within ``tol``
-    [rad] of that posture."""
+    """Every joint of the controlled arm and, when ``legs`` is given, every lift joint (``RobotBinding.leg_joints``)
+    within ``tol`` [rad] of that posture."""
     tol = float(tol)
     arm_q, legs_q, check_legs = posture_vectors(arm, legs)
 

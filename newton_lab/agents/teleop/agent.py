@@ -8,7 +8,7 @@ import numpy as np
 import torch
 
 from ..base import BaseAgent
-from .contracts import FrameMapper, check_task
+from .contracts import FrameMapper, check_mapping, check_task
 from .devices import TeleopDevice, device_class
 from .frames import TeleopFrame
 from .jog import TcpJog
@@ -27,7 +27,7 @@ class TeleopAgent(BaseAgent):
                  twist_scale: float = 1.0):
         self.device, self.task_id, self.contract = device, task_id, contract
         self.no_frame_policy, self.twist_scale = no_frame_policy, twist_scale
-        FrameMapper(contract, (), no_frame_policy=no_frame_policy)  # checks the policy now, not at the first step
+        check_mapping(contract, no_frame_policy)  # now, not at the first step
         self.frame: TeleopFrame | None = None
         """The newest frame taken (held while the device sends nothing new)."""
         self.latencies: list[float] = []

@@ -14,7 +14,6 @@ import numpy as np
 import torch
 
 from ...robots.binding import RobotBinding
-from ...robots.registry import robot_binding
 from ...robots.mecanum import twist_to_wheels_torch
 from ...task_api.registry import list_tasks, lookup
 from .frames import TeleopFrame
@@ -50,10 +49,10 @@ def check_task(task_id: str, device: str, contracts: Sequence[str]) -> str:
     return contract
 
 
-def leg_targets(step: float, robot: RobotBinding | None = None) -> np.ndarray:
+def leg_targets(step: float, robot: RobotBinding) -> np.ndarray:
     """Leg joint targets for body-height step ``step`` [rad] (``robot.leg_lift``; the G1's: legs 1..5 at
-    (s, 3s, 2s, 0, 0)) within the teleop clamps; ``robot``: the default robot when ``None``."""
-    robot = robot_binding() if robot is None else robot
+    (s, 3s, 2s, 0, 0)) within the teleop clamps of ``robot`` (the env's)."""
+    robot = RobotBinding.required(robot, "leg_targets")
     legs = np.asarray(robot.leg_lift(step), dtype=np.float64)
     for i, name in enumerate(robot.leg_joints):
         lo, hi = robot.teleop_leg_clamps.get(name, (-np.inf, np.inf))
@@ -61,19 +60,24 @@ def leg_targets(step: float, robot: RobotBinding | None = None) -> np.ndarray:
     return legs
 
 
+def check_mapping(contract: str, no_frame_policy: str) -> None:
+    """A known teleop ``contract`` and ``no_frame_policy``, or a one-line ``ValueError`` naming the valid ones."""
+    if contract not in CONTRACTS:
+        raise ValueError(f"unknown teleop contract {contract!r}; valid: {', '.join(CONTRACTS)}")
+    if no_frame_policy not in NO_FRAME_POLICIES:
+        raise ValueError(f"no_frame_policy {no_frame_policy!r} is unknown; use one of {', '.join(NO_FRAME_POLICIES)}")
+
+
 class FrameMapper:
     """``TeleopFrame`` -> a full (num_envs, action_dim) action for one contract. Every row gets the same
     command (one operator); ``rows`` limits it to some rows (the others keep ``current``). ``robot``: the env's
-    (``env.robot``: joint groups, gripper range, wheel gains, leg lift); the default robot when ``None``."""
+    (``env.robot``: joint groups, gripper range, wheel gains, leg lift)."""
 
-    def __init__(self, contract: str, action_joint_names: Sequence[str], *, no_frame_policy: str = "hold",
-                 twist_scale: float = 1.0, robot: RobotBinding | None = None):
-        if contract not in CONTRACTS:
-            raise ValueError(f"unknown teleop contract {contract!r}; valid: {', '.join(CONTRACTS)}")
-        if no_frame_policy not in NO_FRAME_POLICIES:
-            raise ValueError(f"no_frame_policy {no_frame_policy!r} is unknown; use one of {', '.join(NO_FRAME_POLICIES)}")
+    def __init__(self, contract: str, action_joint_names: Sequence[str], *, robot: RobotBinding,
+                 no_frame_policy: str = "hold", twist_scale: float = 1.0):
+        check_mapping(contract, no_frame_policy)
         self.contract, self.no_frame_policy, self.twist_scale = contract, no_frame_policy, float(twist_scale)
-        self.robot = robot_binding() if robot is None else robot
+        self.robot = RobotBinding.required(robot, "FrameMapper")
         names, groups = list(action_joint_names), self.robot.joint_groups
         self.columns = {g: [names.index(j) for j in groups[g] if j in names] for g in CONTRACTS[contract]}
         """Action columns of each driven group that the task has (a group the task lacks maps to [])."""

@@ -27,7 +27,7 @@ def position_tanh_fine(ctx: TaskContext, w: int) -> float:
 def arm_joint_vel(ctx: TaskContext, w: int) -> float:
     """Sum of squared arm joint velocities [rad^2/s^2]."""
     s = float(0.0)
-    for j in range(7):
+    for j in range(ctx.arm_coords.shape[0]):
         v = ctx.joint_qd[w * ctx.dofs_per_world + ctx.arm_coords[j]]
         s += v * v
     return s
