@@ -74,8 +74,8 @@ def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | No
 
 def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
     """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
-    reading ``env.sensors.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of one
-    view per world at the same poses and resolution (BVH refit + render, captured)."""
+    reading ``env.sensors.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of
+    one view per world at the same poses and resolution (BVH refit + render, captured)."""
     env.render()  # builds and captures the render graph
     cams = env.sensors.cameras
     render_graph = cams.render_graph

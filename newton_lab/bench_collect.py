@@ -231,7 +231,8 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     out["bytes_per_demo"] = size / max(out["successful_demos"], 1)
     out["inodes_per_demo"] = inodes / max(out["successful_demos"], 1)  # what a zarr dataset spends of an ext4 disk
     out["record_s"] = max(out["loop_s"] - out["hand_over_s"] - out["drain_s"], 0.0)  # render + frames per step
-    out["cameras"] = {name: [spec.width, spec.height, list(spec.data)] for name, spec in env.sensors.camera_specs.items()}
+    out["cameras"] = {name: [spec.width, spec.height, list(spec.data)]
+                      for name, spec in env.sensors.camera_specs.items()}
     out["physics_s_per_step"] = out["physics_s"] / max(out["vector_steps"] or 1, 1)
     out["agent_plus_writer_s_per_step"] = (out["agent_s"] + out["writer_s"]) / max(out["vector_steps"] or 1, 1)
     out["physics_bound"] = out["agent_plus_writer_s_per_step"] <= out["physics_s_per_step"]

@@ -88,8 +88,8 @@ def run_until_done(env, agent, max_steps: int):
         signals.append(info["signals"].clone())
         for row in np.nonzero((term | trunc).numpy())[0]:
             if result[row] is None:
-                result[row] = (bool(info["success"][row]), env.task.termination_reasons[int(info["termination_reason"][row])],
-                               int(info["episode_length"][row]))
+                reason = env.task.termination_reasons[int(info["termination_reason"][row])]
+                result[row] = (bool(info["success"][row]), reason, int(info["episode_length"][row]))
         if all(r is not None for r in result):
             break
     return result, torch.stack(poses), torch.stack(signals)

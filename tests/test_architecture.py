@@ -10,8 +10,8 @@ imports at module top (a deliberately deferred import says ``deferred`` in a com
 module over 400 lines, no function over 80 lines except Warp kernels / funcs. The env's narrow surface: no
 private attribute of an env object touched outside ``newton_lab/envs/``, at most 30 public names on the env class
 and, outside ``envs/``, only those and the names of its parts (``env.sim``, ``env.task``, ``env.sensors``,
-``env.joints``, ``env.buffers``), and no run-time patching of project code in the library. The robot behind one binding: a robot package is imported only by ``robots/`` and by that robot's
-task configs.
+``env.joints``, ``env.buffers``), and no run-time patching of project code in the library. The robot behind one
+binding: a robot package is imported only by ``robots/`` and by that robot's task configs.
 """
 
 from __future__ import annotations
@@ -271,7 +271,8 @@ def _source_files(folders) -> dict[str, ast.Module]:
 
 
 def _last_name(node: ast.AST) -> str | None:
-    """The name an expression ends in: ``env`` for ``env``, ``cameras`` for ``env.sensors.cameras``, ``f`` for ``f()``."""
+    """The name an expression ends in: ``env`` for ``env``, ``cameras`` for ``env.sensors.cameras``, ``f`` for
+    ``f()``."""
     if isinstance(node, ast.Name):
         return node.id
     if isinstance(node, ast.Attribute):
@@ -315,7 +316,8 @@ def test_no_private_access_to_env_objects_outside_envs():
 
 ENV_CLASS = ("newton_lab/envs/env.py", "NewtonEnv")
 ENV_PARTS_FILE = "newton_lab/envs/parts.py"
-ENV_PARTS = {"sim": "EnvSim", "task": "EnvTask", "sensors": "EnvSensors", "joints": "EnvJoints", "buffers": "EnvBuffers"}
+ENV_PARTS = {"sim": "EnvSim", "task": "EnvTask", "sensors": "EnvSensors", "joints": "EnvJoints",
+             "buffers": "EnvBuffers"}
 """The env's named parts: ``env.<part>`` is an object of ``newton_lab/envs/parts.py``'s class."""
 MAX_ENV_NAMES = 30
 """Public names the env class defines (attributes, methods, properties): the rest is behind its parts."""
@@ -330,10 +332,12 @@ NOT_ENV_CALLS = {n for n in dir(dict) + dir(str) if not n.startswith("_")}
 
 def _class_names(path: str, name: str) -> set[str]:
     """Public names class ``name`` of ``path`` defines: methods and properties, class fields, ``self.x = ...``."""
-    cls = next(n for n in ast.walk(ast.parse((ROOT / path).read_text())) if isinstance(n, ast.ClassDef) and n.name == name)
+    tree = ast.parse((ROOT / path).read_text())
+    cls = next(n for n in ast.walk(tree) if isinstance(n, ast.ClassDef) and n.name == name)
     names = {n.name for n in cls.body if isinstance(n, ast.FunctionDef)}
     for node in ast.walk(cls):
-        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        targets = (node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign)
+                   else [])
         for t in (e for t in targets for e in (t.elts if isinstance(t, ast.Tuple) else [t])):
             if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id == "self":
                 names.add(t.attr)
@@ -362,10 +366,11 @@ def _off_surface(files: dict[str, ast.Module]) -> list[str]:
             if not isinstance(node, ast.Attribute) or node.attr.startswith("__"):
                 continue
             base = node.value
-            if isinstance(base, ast.Name | ast.Attribute) and env_like.match(_last_name(base)) and node.attr not in surface:
+            named_env = isinstance(base, ast.Name | ast.Attribute) and env_like.match(_last_name(base))
+            if named_env and node.attr not in surface:
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on the env)")
-            elif (isinstance(base, ast.Attribute) and base.attr in parts and env_like.match(_last_name(base.value) or "")
-                  and node.attr not in parts[base.attr]):
+            elif (isinstance(base, ast.Attribute) and base.attr in parts
+                  and env_like.match(_last_name(base.value) or "") and node.attr not in parts[base.attr]):
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on env.{base.attr})")
     return bad
 

@@ -51,7 +51,8 @@ def test_the_env_reads_the_robot_its_task_names(pick_env, pick_cfg):
     assert g1.arm("left").joints == spec.LEFT_ARM_JOINTS and g1.arm("right").gripper == spec.RIGHT_GRIPPER_JOINT
     assert g1.wheel_gains == pytest.approx(wheel_gains())
     assert (g1.gripper_open, g1.gripper_closed) == (spec.GRIPPER_OPEN, spec.GRIPPER_CLOSED)
-    assert pick_env.joints.coords(g1.base_planar_joints) == [pick_env.joints.binding.context.base_coord + i for i in range(3)]
+    base = pick_env.joints.binding.context.base_coord
+    assert pick_env.joints.coords(g1.base_planar_joints) == [base + i for i in range(3)]
     with pytest.raises(ValueError, match="unknown robot 'h1'; registered robots: .*g1"):
         robot_binding("h1")
     with pytest.raises(ValueError, match="unknown arm 'middle'"):

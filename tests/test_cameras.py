@@ -283,7 +283,8 @@ def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp
 # ---------------------------------------------------------------- vision randomisation
 def _cube_colour(env, row):
     seg = env.sensors.images["front_head_segmentation"][row].numpy()
-    return env.sensors.images["front_head_rgb"][row].numpy()[seg == env.sensors.cameras.segmentation_names.index("cube")].mean(0)
+    cube = env.sensors.cameras.segmentation_names.index("cube")
+    return env.sensors.images["front_head_rgb"][row].numpy()[seg == cube].mean(0)
 
 
 def test_vision_randomisation_changes_per_reset_and_replays(cam_env):

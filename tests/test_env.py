@@ -55,7 +55,8 @@ def _step_outputs(env, out) -> dict[str, torch.Tensor]:
     obs, reward, terminated, truncated, info = out
     assert set(STEP_INFO_KEYS) == set(info), "a new info entry: compare it below too"
     got = {"obs": obs, "reward": reward, "terminated": terminated, "truncated": truncated,
-           "final_obs": env.buffers.final_obs, "joint_q": wp.to_torch(env.state.joint_q), "episode_count": env.buffers.episode_count,
+           "final_obs": env.buffers.final_obs, "joint_q": wp.to_torch(env.state.joint_q),
+           "episode_count": env.buffers.episode_count,
            "entity_poses": env.buffers.entity_poses, "tcp_pose": env.buffers.tcp_pose}
     got.update({f"info[{k}]": info[k] for k in STEP_INFO_KEYS})
     return {k: (v.clone() if isinstance(v, torch.Tensor) else torch.as_tensor(np.array(v))) for k, v in got.items()}
@@ -106,8 +107,8 @@ def test_captured_step_matches_eager_with_an_exchange_every_substep():
     physics = dataclasses.replace(lookup(task).make_cfg({}).physics, sync_every_substep=True)
     captured, eager = (make_env(task, num_envs=1, device="cpu", seed=3, randomize=True, cameras=False,
                                 physics=physics, capture=capture) for capture in (True, False))
-    assert captured.step_graph is not None and eager.step_graph is None
-    assert captured.physics_exchange == eager.physics_exchange == "substep"
+    assert captured.sim.step_graph is not None and eager.sim.step_graph is None
+    assert captured.sim.physics_exchange == eager.sim.physics_exchange == "substep"
     start = _q(captured)
     torch.testing.assert_close(start, _q(eager))
     for t in range(6):

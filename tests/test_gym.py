@@ -98,7 +98,8 @@ def test_auto_reset_rows_carry_final_obs_and_final_info(short_vec):
     assert truncated.all() and info["_final_obs"].all() and info["_final_info"].all()
     assert info["final_info"]["episode_length"].tolist() == [3, 3]
     assert (info["final_info"]["termination_reason"] == short_vec.termination_reasons.index("time_out")).all()
-    state_space = gymnasium.spaces.Dict({k: short_vec.single_observation_space[k] for k in short_vec.env.task.obs_terms})
+    state_terms = short_vec.env.task.obs_terms
+    state_space = gymnasium.spaces.Dict({k: short_vec.single_observation_space[k] for k in state_terms})
     for row in range(2):
         final = info["final_obs"][row]
         assert state_space.contains(final)  # the state terms (camera images show the current state only)

@@ -61,11 +61,13 @@ def shelf_run(shelf_env):
         obs_q = env.obs[:, jp]
         wheel_q = max(wheel_q, float(wheels.abs().max()))
         wheel_obs = max(wheel_obs, float(obs_q[:, wheel_cols].abs().max()))
-        base_gap = max(base_gap, float((obs_q[:, base_cols] - env.joints.positions(spec.BASE_PLANAR_JOINTS)).abs().max()))
+        base_q = env.joints.positions(spec.BASE_PLANAR_JOINTS)
+        base_gap = max(base_gap, float((obs_q[:, base_cols] - base_q).abs().max()))
         for r in np.nonzero((term | trunc).numpy())[0]:
             if done_at[r] is None:
                 done_at[r] = t
-                results[r] = (bool(info["success"][r]), env.task.termination_reasons[int(info["termination_reason"][r])])
+                reason = env.task.termination_reasons[int(info["termination_reason"][r])]
+                results[r] = (bool(info["success"][r]), reason)
         if all(d is not None for d in done_at):
             break
     return {"phase": torch.stack(phases), "bar": torch.stack(bars), "tcp": torch.stack(tcps), "done_at": done_at,

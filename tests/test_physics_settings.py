@@ -221,22 +221,22 @@ def test_welding_idle_joints_keeps_the_full_robot_layout_and_the_expert_episodes
     full, welded = envs[False], envs[True]
     free = {*welded.robot.joint_groups["left_arm"], "left_gripper_joint", "left_gripper_l_finger_joint",
             "left_gripper_r_finger_joint"}
-    assert set(welded.layout.welded) == set(full.layout.joints.coord) - free
-    assert full.joint_space is None and full.layout.welded == ()
-    assert welded.joint_space.model.joint_coord_count // 2 == 17 and welded.layout.coords_per_world == 41
+    assert set(welded.sim.layout.welded) == set(full.sim.layout.joints.coord) - free
+    assert full.sim.joint_space is None and full.sim.layout.welded == ()
+    assert welded.sim.joint_space.model.joint_coord_count // 2 == 17 and welded.sim.layout.coords_per_world == 41
     assert welded.obs.shape == full.obs.shape and welded.action_joint_names == full.action_joint_names
-    idle = list(welded.layout.welded)
-    posture = welded.joint_positions(idle).clone()
-    idle_dofs = [welded.layout.joints.dof[n] for n in idle]
+    idle = list(welded.sim.layout.welded)
+    posture = welded.joints.positions(idle).clone()
+    idle_dofs = [welded.sim.layout.joints.dof[n] for n in idle]
     agents = {on: expert_agent(env) for on, env in envs.items()}
     for _ in range(60):
         for on, env in envs.items():
             env.step(agents[on].act(env))
-    assert (full.tcp_pose[:, :3] - welded.tcp_pose[:, :3]).abs().max() < 0.005
-    torch.testing.assert_close(welded.joint_positions(idle), posture)
+    assert (full.buffers.tcp_pose[:, :3] - welded.buffers.tcp_pose[:, :3]).abs().max() < 0.005
+    torch.testing.assert_close(welded.joints.positions(idle), posture)
     assert not wp.to_torch(welded.state.joint_qd).view(2, -1)[:, idle_dofs].any()
-    moved = welded.joint_positions(list(welded.robot.joint_groups["left_arm"]))
-    assert not torch.allclose(moved, full.joint_positions(list(full.robot.joint_groups["left_arm"])) * 0)
+    moved = welded.joints.positions(list(welded.robot.joint_groups["left_arm"]))
+    assert not torch.allclose(moved, full.joints.positions(list(full.robot.joint_groups["left_arm"])) * 0)
     runs = {on: env.evaluate(agent=expert_agent(env), episodes=4, max_steps=1500, progress=False)
             for on, env in envs.items()}
     assert runs[True]["success_rate"] == runs[False]["success_rate"] == 1.0, runs

@@ -28,7 +28,8 @@ def _expert_rewards(env, agent, max_steps: int):
         hist.append(reward.clone())
         for row in np.nonzero((term | trunc).numpy())[0]:
             if ends[row] is None:
-                ends[row] = (t, bool(info["success"][row]), env.task.termination_reasons[int(info["termination_reason"][row])])
+                reason = env.task.termination_reasons[int(info["termination_reason"][row])]
+                ends[row] = (t, bool(info["success"][row]), reason)
         if all(e is not None for e in ends):
             break
     rewards = torch.stack(hist).numpy()

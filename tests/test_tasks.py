@@ -117,7 +117,7 @@ def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
     second = make_env("GalbotG1-StackCube-Cube3-v0", num_envs=1, device="cpu", seed=5, randomize=True,
                       task_options={"cube_yaw": "zero"})
     second.reset()
-    pose = {n: second.entity_poses[0, e.slot].numpy() for n, e in second.entities.items()}
+    pose = {n: second.buffers.entity_poses[0, e.slot].numpy() for n, e in second.task.entities.items()}
     assert np.allclose(pose["cube_2"][:3] - pose["cube_1"][:3], (0.0, 0.0, 0.05), atol=1e-4)
     assert np.linalg.norm(pose["cube_3"][:2] - pose["cube_1"][:2]) >= 0.09
     assert all(np.allclose(pose[c][3:], (0.0, 0.0, 0.0, 1.0), atol=1e-6) for c in ("cube_1", "cube_2", "cube_3"))

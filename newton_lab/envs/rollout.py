@@ -121,7 +121,8 @@ class _Episodes:
             "success": bool(self.latched[row]) and reason != DIVERGED,
             "reward_total": float(h["reward"][row]),
             "termination_reason": reason,
-            "signals_reached": [name for name, hit in zip(self.env.task.signal_names, h["reached"][row].tolist()) if hit],
+            "signals_reached": [name for name, hit in zip(self.env.task.signal_names, h["reached"][row].tolist())
+                                if hit],
             "phase": self.env.cfg.phase_names[int(h["phase"][row])],
         }
         if self.quota is None or self.launched < self.quota:

@@ -145,7 +145,8 @@ class RerunLogger:
         """The env's current images and camera poses of the logged rows: ({camera: {data: (rows, ...)}},
         {camera: (rows, 7)})."""
         env, n = self.env, self.rows
-        frames = {c.name: {d: env.sensors.images[f"{c.name}_{d}"][:n].cpu().numpy() for d in c.data} for c in self.cameras}
+        frames = {c.name: {d: env.sensors.images[f"{c.name}_{d}"][:n].cpu().numpy() for d in c.data}
+                  for c in self.cameras}
         return frames, {c.name: env.sensors.cameras.poses(c.name)[:n].cpu().numpy() for c in self.cameras}
 
     def log_step(self, *, reward=None, success=None, body_q: np.ndarray | None = None, info=None,
