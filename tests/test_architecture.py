@@ -362,11 +362,14 @@ def _off_surface(files: dict[str, ast.Module]) -> list[str]:
     for rel, tree in files.items():
         if rel.startswith(ENV_OWNER):
             continue
+        modules = {a.asname or a.name.split(".")[0] for n in ast.walk(tree)
+                   if isinstance(n, ast.Import | ast.ImportFrom) for a in n.names}  # ``from . import env``: a module
         for node in ast.walk(tree):
             if not isinstance(node, ast.Attribute) or node.attr.startswith("__"):
                 continue
             base = node.value
-            named_env = isinstance(base, ast.Name | ast.Attribute) and env_like.match(_last_name(base))
+            named_env = (isinstance(base, ast.Name | ast.Attribute) and env_like.match(_last_name(base))
+                         and not (isinstance(base, ast.Name) and base.id in modules))
             if named_env and node.attr not in surface:
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on the env)")
             elif (isinstance(base, ast.Attribute) and base.attr in parts

@@ -53,7 +53,7 @@ def render(args: RenderArgs) -> int:
     images = env.render()
     output_path(args.out)
     Image.fromarray(picture(images, args.camera)).save(args.out)
-    cam, names = env.cameras.specs[args.camera], env.cameras.segmentation_names
+    cam, names = env.sensors.cameras.specs[args.camera], env.sensors.cameras.segmentation_names
     seen = images[f"{args.camera}_segmentation"][0].unique().tolist()
     print(json.dumps({"task": args.task, "camera": args.camera, "resolution": [cam.width, cam.height],
                       "visible": [names[i] for i in seen], "out": args.out}))

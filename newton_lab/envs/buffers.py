@@ -51,7 +51,7 @@ class StepBuffers:
     ``reward``, ``info[...]``, ...) share their memory. Sizes that may be 0 are allocated with at least 1 column."""
 
     actions: wp.array2d
-    """(num_envs, action_dim) the actions of the step (``env.actions``)."""
+    """(num_envs, action_dim) the actions of the step (``env.buffers.actions``)."""
     obs: wp.array2d
     """(num_envs, obs_dim) observation after the step (and its resets)."""
     final_obs: wp.array2d

@@ -36,7 +36,7 @@ def export_yolo(task: str, output_dir: str, *, num_images: int = 50, split: Sequ
     try:
         env = make_env(task, **env_kwargs,
                        cameras={YOLO_CAMERA: {"resolution": tuple(resolution), "data": ("rgb", "segmentation")}})
-        seg_names = env.cameras.segmentation_names
+        seg_names = env.sensors.cameras.segmentation_names
         class_ids = {seg_names.index(n): k for k, n in enumerate(names) if n in seg_names}
         agent = expert_agent(env)
         with tqdm(total=num_images, desc="yolo-export", unit="image", disable=None) as bar:
@@ -47,8 +47,8 @@ def export_yolo(task: str, output_dir: str, *, num_images: int = 50, split: Sequ
                     rgb = images[f"{YOLO_CAMERA}_rgb"].cpu().numpy()
                     seg = images[f"{YOLO_CAMERA}_segmentation"].cpu().numpy()
                     if mask_source == "rgb-color":
-                        colors = np.full_like(env.cameras.id_colors(), np.nan)  # the objects' colours only
-                        colors[:, list(class_ids)] = env.cameras.id_colors()[:, list(class_ids)]
+                        colors = np.full_like(env.sensors.cameras.id_colors(), np.nan)  # the objects' colours only
+                        colors[:, list(class_ids)] = env.sensors.cameras.id_colors()[:, list(class_ids)]
                         seg = [color_segmentation(rgb[r], colors[r]) for r in range(env.num_envs)]
                     for row in range(min(env.num_envs, num_images - writer.count)):
                         writer.add(rgb[row], label_lines(seg[row], class_ids))
