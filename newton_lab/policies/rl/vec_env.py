@@ -43,7 +43,7 @@ class RslRlVecEnv(VecEnv):
         """Reseed and reset every row (``env.reseed``) and forget the running episodes' returns: a chunk of PPO
         iterations that starts here depends only on ``seed`` and the runner's state, so a resumed run continues as
         the uninterrupted one did."""
-        self.env.actions.zero_()  # as a new env's: its last-action observation term reads them after the reset
+        self.env.buffers.actions.zero_()  # as a new env's: its last-action observation term reads them after the reset
         self.env.reseed(seed)
         self.returns.zero_()
         self.succeeded.zero_()
