@@ -106,3 +106,22 @@ def test_a_full_disk_ends_the_pipeline_in_one_line(tmp_path):
     assert run.returncode == 1 and len(lines) == 1, lines
     assert lines[0].startswith("newton-lab pipeline: error: disk full after 0 episodes; ") and "demos.hdf5" in lines[0]
     assert not list((tmp_path / "out").glob("*.manifest.json"))
+
+
+SLEEPER = "import subprocess, sys, time; {spawn}time.sleep(600)"
+
+
+def test_the_watchdog_ends_what_a_killed_command_started_and_what_that_started():
+    """The watchdog alone, on a plain process: its child and grandchild (sleepers that ignore nothing) end when it is
+    killed, and so does the watchdog."""
+    grandchild = SLEEPER.format(spawn="")
+    child = SLEEPER.format(spawn=f"subprocess.Popen([sys.executable, '-c', {grandchild!r}]); ")
+    parent = SLEEPER.format(spawn=f"from newton_lab.cli import watchdog; watchdog.start(); "
+                                  f"subprocess.Popen([sys.executable, '-c', {child!r}]); ")
+    run = subprocess.Popen([sys.executable, "-c", parent])
+    wait_for(lambda: len(descendants(run.pid)) >= 3 or run.poll() is not None, "the watchdog, child and grandchild")
+    started = descendants(run.pid)
+    assert len(started) == 3, started
+    run.kill()
+    run.wait(timeout=60)
+    end_all(started)

@@ -14,6 +14,7 @@ from ..flows.settings import configure
 from ..flows.suite_rows import rows_of
 from ..records import command_wall_s, default_path, make_record, write_record
 from ..results import update
+from . import watchdog
 
 
 def write_run_record(kind: str, args, task: str | None, device: str | None, results: dict) -> None:
@@ -45,6 +46,7 @@ def bench_collect(args: BenchCollectArgs) -> int:
                             replan_wait=args.replan_wait, trace=args.trace, trace_after=args.trace_after, **common)
         print(summary(out), file=sys.stderr, flush=True)
     else:
+        watchdog.start()  # killed, it leaves no Dask worker running
         out = bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline, **common)
     write_run_record("bench-collect", args, args.task, args.device, out)
     print(json.dumps(out))
@@ -81,6 +83,7 @@ def suite(args: SuiteArgs) -> int:
         for row in rows:
             print(f"{row.name}: newton-lab {' '.join(row.command(Path(args.out), '<UTC time>'))}")
         return 0
+    watchdog.start()  # killed, it leaves neither its Prefect server nor the row's command running
     configure(Path(args.out) / ".prefect")  # before Prefect is imported
     from ..flows.suite import suite as run_suite  # deferred: Prefect is slow to import, and after configure
 
