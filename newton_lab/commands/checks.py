@@ -11,7 +11,8 @@ from typing import Any
 from ..task_api.catalog import check_task_id, check_task_options, declared_phases, declared_sources, did_you_mean
 from ..task_api.cfg import IMAGE_DATA
 from .bench import BenchArgs, BenchCollectArgs, BenchTrainArgs
-from .device_checks import DEVICE, check_cuda_device, check_gpus, check_num_envs, cuda_devices
+from .device_checks import (DEVICE, check_cuda_device, check_gpus, check_num_envs, check_recorded_steps,
+                            check_workers, cuda_devices)
 from .env import RenderArgs, camera_option
 from .file_checks import check_append, check_checkpoints, check_datasets, check_split_out, check_train, flag_of
 from .perception import (
@@ -77,6 +78,8 @@ def check_args(args: Any) -> None:
         raise ValueError(f"--retries must be an integer >= 0 (0: no retry), got {args.retries!r}")
     if "num_envs" in names and args.num_envs is not None:
         check_num_envs(args.num_envs, device=getattr(args, "device", None))
+        if "max_steps" in names and args.max_steps is not None and isinstance(args, CollectArgs):
+            check_recorded_steps(args.num_envs, args.max_steps)
     if "gpus" in names and args.gpus > 1:
         check_gpus(args.gpus, getattr(args, "device", None))
     if isinstance(args, PipelineArgs):
@@ -146,6 +149,11 @@ def check_pipeline(args: PipelineArgs) -> None:
     if args.mimic_episodes is not None and args.task in declared_phases():
         raise ValueError(f"{args.task} is a coherent task: its pipeline takes more coherent demos (--demos) instead "
                          "of Mimic; drop --mimic-episodes")
+    if args.workers > 1 and args.runner != "dask":
+        raise ValueError(f"--workers {args.workers} shards the stages over Dask workers, and the local runner runs "
+                         "them in this process; add --runner dask, or drop --workers")
+    if args.runner == "dask" and args.address is None:  # a local cluster: worker processes on this machine
+        check_workers(args.workers, args.device)
     if args.address is not None:
         if args.runner != "dask":
             raise ValueError(f"--address {args.address} names a Dask scheduler; add --runner dask, or drop "

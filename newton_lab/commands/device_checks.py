@@ -97,6 +97,37 @@ def cuda_memory(index: int) -> int | None:
     return int(answer) if answer.isdigit() else None
 
 
+STEP_BYTES = 1 << 10
+"""Memory one recorded step of one row takes while its episode runs [bytes]: collect's recorder holds
+``--max-steps`` steps per row (observations, actions and states: 186 float32 columns for PickCube, so 1 KiB leaves a
+margin). A ``--max-steps`` of 10**17 made it ask torch for an overflowing allocation after Warp loaded."""
+
+
+def check_recorded_steps(num_envs: int, max_steps: int, memory: int | None = None) -> None:
+    """Refuse a ``--max-steps`` whose recorder (``num_envs`` rows of ``max_steps`` steps, ``STEP_BYTES`` each) the
+    machine's memory cannot hold."""
+    memory = _memory_bytes() if memory is None else memory
+    if memory and num_envs * max_steps * STEP_BYTES > memory:
+        most = memory // (num_envs * STEP_BYTES)
+        raise ValueError(f"--max-steps {max_steps:,} with --num-envs {num_envs:,} records about "
+                         f"{num_envs * max_steps * STEP_BYTES / 2**30:,.0f} GiB per episode ({STEP_BYTES >> 10} KiB "
+                         f"per step and row) and this machine has {memory / 2**30:,.0f} GiB; use at most "
+                         f"--max-steps {most:,}")
+
+
+def check_workers(workers: int, device: str | None) -> None:
+    """A local Dask cluster's ``--workers``: one process per GPU (at most as many as the GPUs: more are not started),
+    or with no CUDA device one per CPU core; refuse more processes than cores."""
+    devices = cuda_devices() if device is None or str(device).startswith("cuda") else 0
+    if (isinstance(devices, int) and devices > 0) or workers == 1:
+        return
+    cores = os.cpu_count() or 1
+    if workers > cores:
+        raise ValueError(f"--workers {workers}: with no CUDA device a local Dask cluster runs a worker process per CPU "
+                         f"core, and this machine has {cores}; use --workers {cores} or fewer, or --address of a "
+                         "cluster")
+
+
 def check_gpus(gpus: int, device: str | None) -> None:
     """``--gpus`` N > 1 asks for N data-parallel processes: one CUDA device each, or (``--device cpu``) one CPU core
     each for gloo; refuse more than the machine has."""
