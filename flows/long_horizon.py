@@ -60,6 +60,7 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
     ``gpus`` > 1 trains each phase data-parallel."""
     runlog.quiet_console(REPORTED_ERRORS)
+    runlog.restore_caller_sigterm()
     log = get_run_logger()
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}

@@ -100,6 +100,7 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     (a visuomotor recipe); ``task_options`` (e.g. ``obs_mode="sensors"``) apply to every env.
     Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
     runlog.quiet_console(REPORTED_ERRORS)
+    runlog.restore_caller_sigterm()
     log = get_run_logger()
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = dict(task_options or {})
@@ -162,6 +163,7 @@ def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address:
     for t in (collect_task, mimic_task, train_task, evaluate_task):
         t.retries = retries
     runlog.quiet_console(REPORTED_ERRORS)
+    runlog.note_caller_sigterm()
     return flow_fn.with_options(**options)(workers=workers if runner == "dask" else 1, **kwargs)
 
 

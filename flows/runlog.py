@@ -18,6 +18,7 @@ import errno
 import logging
 import os
 import signal
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -162,6 +163,25 @@ def quiet_console(input_errors: tuple[type[BaseException], ...]) -> None:
         if isinstance(handler, PrefectConsoleHandler) and not any(isinstance(f, CallerReports)
                                                                   for f in handler.filters):
             handler.addFilter(CallerReports(input_errors))
+
+
+_caller_sigterm: Any = None
+"""The SIGTERM handler of whoever started the flow (``note_caller_sigterm``)."""
+
+
+def note_caller_sigterm() -> None:
+    """Remember the SIGTERM handler of the caller (before the flow starts; only the main thread has one)."""
+    global _caller_sigterm
+    main = threading.current_thread() is threading.main_thread()
+    _caller_sigterm = signal.getsignal(signal.SIGTERM) if main else None
+
+
+def restore_caller_sigterm() -> None:
+    """In a flow's body: put back the caller's own SIGTERM handler, when it set one (the command line's ends the
+    process at once, in one line). Prefect's flow engine swaps in a handler that raises in the main thread, which
+    then waits for the stage in flight, in a worker thread, to end: minutes for a training."""
+    if callable(_caller_sigterm) and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _caller_sigterm)
 
 
 # ----------------------------------------------------------------------------- fault seam (tests)
