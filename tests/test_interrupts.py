@@ -267,20 +267,21 @@ def test_a_killed_collect_leaves_no_writer_process(tmp_path):
     assert read_dataset_info(path)["num_demos"] >= 2
 
 
-def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path):
-    """Ctrl-C while the phase writers write: the writers are stopped, the stage removed, no --out folder appears, and
-    one line says so (exit status 130)."""
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_ctrl_c_during_split_drops_it_in_one_line(tmp_path, signum):
+    """Ctrl-C (or SIGTERM) while the phase writers write: the writers are stopped, the stage removed, no --out folder
+    appears, and one line says so (exit status 130 / 143)."""
     for demos in (1600, 6400):  # a split that ends before the signal lands is no interruption: a larger one then
         data = tmp_path / f"c{demos}.hdf5"
         make_splittable(data, demos=demos, steps=60)
         split, stage, writers = split_caught_writing(tmp_path, data.name)
-        split.send_signal(signal.SIGINT)
+        split.send_signal(signum)
         _, err = split.communicate(timeout=900)
         if split.returncode != 0:
             break
         shutil.rmtree(tmp_path / "parts")  # it finished first: try again with more to write
     lines = [line for line in err.splitlines() if line.strip()]
-    assert split.returncode == 130 and len(lines) == 1, err
+    assert split.returncode == 128 + signum and len(lines) == 1, err
     assert "newton-lab split: interrupted: the split into parts was dropped, nothing written there" in lines[0]
     assert not (tmp_path / "parts").exists() and not stage.exists()
     wait_for(lambda: not any(alive(w) for w in writers), "the phase writers ending", limit_s=120)

@@ -21,6 +21,7 @@ from ..records import set_invocation
 from . import bench, env, perception, rl, workflow
 from .flags import REQUIRED, HelpFormatter, add_arguments, from_namespace
 from .parsing import add_verbose, apply_verbose, make_output_dirs, parse_args, unrecognized
+from .sigterm import sigterm_as_ctrl_c
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,8 @@ def main(argv: list[str] | None = None) -> int:
         args = from_namespace(cmd.args, ns)
         check_args(args)  # before Warp, Newton or torch is imported and before any file is created
         make_output_dirs(args)
-        return cmd.run(args)
+        with sigterm_as_ctrl_c():  # SIGTERM ends a command as Ctrl-C does: what it finished kept, one line, 143
+            return cmd.run(args)
     except ERRORS as exc:
         print(f"newton-lab {ns.command}: error: {error_line(exc)}", file=sys.stderr)
         return 2
