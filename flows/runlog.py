@@ -1,5 +1,5 @@
 """What the pipeline tells Prefect: stage log lines (run logger), one artifact per stage, a quiet console,
-and a fault seam for tests.
+and a stage-start hook for tests.
 
 Artifacts (keys; the Artifacts tab of the pipeline run and Prefect's artifact pages):
 
@@ -14,11 +14,10 @@ Artifacts (keys; the Artifacts tab of the pipeline run and Prefect's artifact pa
 
 from __future__ import annotations
 
-import errno
 import logging
-import os
 import signal
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -184,26 +183,13 @@ def restore_caller_sigterm() -> None:
         signal.signal(signal.SIGTERM, _caller_sigterm)
 
 
-# ----------------------------------------------------------------------------- fault seam (tests)
-FAULT_ENV = "NEWTON_LAB_TEST_STAGE_FAULT"
-"""``<stage>:<kind>:<marker file>[,...]`` (honoured only under pytest): the first time ``stage`` starts
-(``marker file`` does not exist yet; it is created), ``kind`` ``oserror`` raises a transient ``OSError(EIO)``
-and ``kill`` SIGKILLs the process running the stage (a lost Dask worker; use it with the Dask runner)."""
+# ----------------------------------------------------------------------------- stage-start hooks (a seam for tests)
+STAGE_START_HOOKS: list[Callable[[str], None]] = []
+"""Called in order with the stage's name as each stage starts, in the process that runs it. Empty in a product run;
+the flow tests add a fault injector (a transient ``OSError``, a killed Dask worker) through it."""
 
 
-def fault_point(stage: str) -> None:
-    """Called as a stage starts; injects the fault ``FAULT_ENV`` names for it, once."""
-    spec = os.environ.get(FAULT_ENV)
-    if not spec or "PYTEST_CURRENT_TEST" not in os.environ:
-        return
-    for item in spec.split(","):
-        name, kind, marker = item.split(":", 2)
-        if name != stage:
-            continue
-        try:
-            os.close(os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
-        except FileExistsError:
-            continue  # injected once already: this is the retry
-        if kind == "kill":
-            os.kill(os.getpid(), signal.SIGKILL)
-        raise OSError(errno.EIO, f"injected transient I/O error in stage {stage}")
+def stage_starting(stage: str) -> None:
+    """Called as a stage starts: runs ``STAGE_START_HOOKS``."""
+    for hook in list(STAGE_START_HOOKS):
+        hook(stage)

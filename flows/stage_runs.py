@@ -49,7 +49,7 @@ def stage_task(fn, name: str):
     @functools.wraps(fn)
     def run(**kwargs):
         runlog.quiet_console(REPORTED_ERRORS)
-        runlog.fault_point(name)
+        runlog.stage_starting(name)
         log = get_run_logger()
         log.info("%s: %s", name, runlog.describe_inputs(kwargs))
         t0 = time.perf_counter()

@@ -507,3 +507,109 @@ def test_robot_packages_are_imported_only_by_robots_and_tasks():
                      "robots.registry.robot_binding):\n" + "\n".join(bad))
     stale = sorted(m for m in ROBOT_IMPORT_ALLOWED if m not in MODULES or not _imports_robot_package(m))
     assert not stale, f"ROBOT_IMPORT_ALLOWED entries that no longer import a robot package (remove them): {stale}"
+
+
+# ----------------------------------------------------------------------------- environment variables
+LIBRARY = ("newton_lab", "kernels", "tasks", "flows")
+ENV_DOC = ROOT / "docs" / "installation.md"
+
+
+def _documented_variables() -> set[str]:
+    """The variables of the table under "## Environment variables" in docs/installation.md (``PREFECT_*``: a prefix)."""
+    text = ENV_DOC.read_text().split("## Environment variables", 1)[1].split("\n## ", 1)[0]
+    return {name for row in text.splitlines() if row.startswith("| `")
+            for name in re.findall(r"`([A-Z][A-Z0-9_]*\*?)`", row.split("|")[1])}
+
+
+def _is_environ(node: ast.AST) -> bool:
+    return (isinstance(node, ast.Attribute) and node.attr == "environ" and isinstance(node.value, ast.Name)
+            and node.value.id == "os")
+
+
+def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
+    """Variable -> ``file:line`` of each read (``os.environ[K]``, ``.get(K)``, ``K in os.environ``, ``os.getenv(K)``)
+    in ``trees``; a key that is no string constant (or module-level name of one) reads as ``<unresolved>``, any other
+    use of ``os.environ`` than a read, a write or passing the whole environment on as ``<other use>``."""
+    reads: dict[str, list[str]] = defaultdict(list)
+    for rel, tree in trees.items():
+        consts = {t.id: n.value.value for n in tree.body if isinstance(n, ast.Assign)
+                  and isinstance(n.value, ast.Constant) and isinstance(n.value.value, str)
+                  for t in n.targets if isinstance(t, ast.Name)}
+        parents = {child: parent for parent in ast.walk(tree) for child in ast.iter_child_nodes(parent)}
+
+        def key(node: ast.AST) -> str:
+            if isinstance(node, ast.Constant) and isinstance(node.value, str):
+                return node.value
+            return consts.get(node.id, "<unresolved>") if isinstance(node, ast.Name) else "<unresolved>"
+
+        for node in ast.walk(tree):
+            where = f"{rel}:{getattr(node, 'lineno', 0)}"
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "getenv"
+                    and isinstance(node.func.value, ast.Name) and node.func.value.id == "os"):
+                reads[key(node.args[0]) if node.args else "<unresolved>"].append(where)
+            if not _is_environ(node):
+                continue
+            up = parents.get(node)
+            if isinstance(up, ast.Subscript) and isinstance(up.ctx, ast.Load):
+                reads[key(up.slice)].append(where)
+            elif isinstance(up, ast.Subscript):
+                continue  # a write: a default for a library this process starts
+            elif isinstance(up, ast.Attribute) and up.attr == "get" and isinstance(parents.get(up), ast.Call):
+                call = parents[up]
+                reads[key(call.args[0]) if call.args else "<unresolved>"].append(where)
+            elif isinstance(up, ast.Attribute) and up.attr in ("setdefault", "copy"):
+                continue  # a default set for a library, or the whole environment handed to a child
+            elif isinstance(up, ast.Compare) and up.comparators == [node]:
+                reads[key(up.left)].append(where)
+            elif isinstance(up, ast.Dict) or (isinstance(up, ast.Call) and isinstance(up.func, ast.Name)
+                                              and up.func.id == "dict"):
+                continue  # ``{**os.environ, ...}``: the whole environment handed to a child process
+            else:
+                reads["<other use>"].append(where)
+    return dict(reads)
+
+
+def _undocumented(reads: dict[str, list[str]], documented: set[str]) -> list[str]:
+    prefixes = tuple(d[:-1] for d in documented if d.endswith("*"))
+    return sorted(f"{name} at {', '.join(where)}" for name, where in reads.items()
+                  if name not in documented and not (prefixes and name.startswith(prefixes)))
+
+
+def test_the_library_reads_only_the_documented_environment_variables():
+    """Library code reads no environment variable the user guide does not list: tuning knobs are typed settings
+    passed down, and tests arm their faults through seams they own, not through the environment."""
+    documented = _documented_variables()
+    assert {"NEWTON_LAB_VERBOSE", "NEWTON_LAB_WARP_BACKWARD", "NEWTON_LAB_COMMAND", "NEWTON_LAB_COMMIT"} <= documented
+    bad = _undocumented(_environment_reads(_source_files(LIBRARY)), documented)
+    assert not bad, f"environment variables read by the library but not documented in {ENV_DOC.name}:\n" + \
+        "\n".join(bad)
+
+
+ENV_READS = """
+import os
+FLAG = "NEWTON_LAB_FLAG"
+os.environ.get(FLAG)
+os.environ["NEWTON_LAB_X"]
+"NEWTON_LAB_TEST_FAULT" in os.environ
+os.getenv("PREFECT_HOME")
+os.environ.get(name)
+os.environ.setdefault("SVT_LOG", "1")
+os.environ["PREFECT_HOME"] = "x"
+env = {**os.environ, "PYTHONPATH": "p"}
+for k in os.environ: pass
+"""
+
+
+def test_the_environment_rule_catches_what_it_names():
+    reads = _environment_reads({"newton_lab/x.py": ast.parse(ENV_READS)})
+    assert sorted(reads) == sorted(["NEWTON_LAB_FLAG", "NEWTON_LAB_X", "NEWTON_LAB_TEST_FAULT", "PREFECT_HOME",
+                                    "<unresolved>", "<other use>"])
+    assert [b.split(" at ")[0] for b in _undocumented(reads, {"PREFECT_*", "NEWTON_LAB_X"})] == [
+        "<other use>", "<unresolved>", "NEWTON_LAB_FLAG", "NEWTON_LAB_TEST_FAULT"]
+
+
+def test_the_datasets_package_keeps_its_top_level_small():
+    """``newton_lab/datasets/`` holds its public API at the top and the rest in rooms (hdf5/, zarr/, files/,
+    writers/, lerobot/, yolo/)."""
+    top = sorted(p.name for p in (ROOT / "newton_lab" / "datasets").glob("*.py"))
+    assert len(top) <= 8, f"newton_lab/datasets/ has {len(top)} modules at its top level (at most 8): {top}"

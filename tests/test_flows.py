@@ -18,7 +18,8 @@ from typing import Any
 import pytest
 
 from newton_lab.flows import settings
-from newton_lab.flows.runlog import ARTIFACT_KEYS, FAULT_ENV
+from newton_lab.flows.runlog import ARTIFACT_KEYS
+from stage_faults import SPEC_ENV as FAULT_ENV, armed
 from newton_lab.flows.stages import _finish, _guard
 
 pytestmark = pytest.mark.slow
@@ -144,13 +145,8 @@ def run(harness, tmp_path_factory):
     from newton_lab.flows import pipeline  # deferred: imports Prefect (after the harness configured it)
 
     tmp = tmp_path_factory.mktemp("pipeline")
-    patch = pytest.MonkeyPatch()
-    patch.setenv(FAULT_ENV, f"train:oserror:{tmp / 'train.fault'}")
-    try:
-        with temporary_settings({PREFECT_LOGGING_TO_API_ENABLED: True}):
-            state = pipeline(out=str(tmp / "out"), return_state=True, **TINY)
-    finally:
-        patch.undo()
+    with armed(f"train:oserror:{tmp / 'train.fault'}"), temporary_settings({PREFECT_LOGGING_TO_API_ENABLED: True}):
+        state = pipeline(out=str(tmp / "out"), return_state=True, **TINY)
     return {"out": tmp / "out", "fault": tmp / "train.fault", "summary": state.result(),
             "id": state.state_details.flow_run_id}
 

@@ -12,7 +12,8 @@ import json
 import socket
 
 import pytest
-from test_flows import (ARTIFACT_KEYS, FAULT_ENV, RETRY_STATES, TINY, TINY_CLI, artifacts,  # noqa: F401
+from stage_faults import armed
+from test_flows import (ARTIFACT_KEYS, RETRY_STATES, TINY, TINY_CLI, artifacts,  # noqa: F401
                         assert_input_error_reported_once, harness, run_cli, stale_manifest, task_runs)
 
 from newton_lab.datasets import read_dataset_info, read_episode
@@ -26,12 +27,8 @@ def dask_run(harness, tmp_path_factory):
     from newton_lab.flows.orchestration import run_pipeline  # deferred: imports Prefect (after the harness)
 
     tmp = tmp_path_factory.mktemp("dask")
-    patch = pytest.MonkeyPatch()
-    patch.setenv(FAULT_ENV, f"collect:oserror:{tmp / 'collect.fault'},mimic:kill:{tmp / 'mimic.fault'}")
-    try:
+    with armed(f"collect:oserror:{tmp / 'collect.fault'},mimic:kill:{tmp / 'mimic.fault'}", dask_workers=True):
         state = run_pipeline(runner="dask", workers=2, out=str(tmp / "out"), return_state=True, **TINY)
-    finally:
-        patch.undo()
     return {"out": tmp / "out", "tmp": tmp, "summary": state.result(), "id": state.state_details.flow_run_id}
 
 
