@@ -6,6 +6,7 @@ exits."""
 from __future__ import annotations
 
 import os
+import pstats
 import signal
 import subprocess
 import sys
@@ -19,6 +20,7 @@ from newton_lab.agents import PlannerAgent
 from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episode
 from newton_lab.datasets.writers.columns import ColumnLayout, DemoBlock
 from newton_lab.datasets.zarr.packs import read_index
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
 from newton_lab.datasets.writers.process import ProcessWriter, _Ring
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import WRITE_MIN_BATCH, _writer_kind
@@ -114,6 +116,22 @@ def test_a_block_is_packed_as_its_demos_trees_would_be(tmp_path):
     first = read_episode(joined, 0)  # row 39: 3 + 39 % 7 = 7 steps, a success
     np.testing.assert_array_equal(first["obs"]["cam"], frames[39, :7])
     assert first["dones"].tolist() == [0] * 6 + [1] and first["attrs"]["seed"] == 39
+
+
+def test_the_writer_process_writes_as_its_settings_say(tmp_path):
+    """``ProcessWriter``'s ``zarr_settings`` and ``profile_to`` reach the process: a block of 3 demos lands as one
+    pack with ``pack_min_batch=3`` and as 3 demo groups by default; the profile of its writes is saved at the end."""
+    profile = tmp_path / "writes.prof"
+    for settings, names in ((None, ["demo_0", "demo_1", "demo_2"]), (ZarrWriteSettings(pack_min_batch=3), ["pack_0"])):
+        path = tmp_path / f"{names[0]}.zarr"
+        open_writer(path, task_id="t", env_args={})
+        with ProcessWriter(path, task_id="t", layout=LAYOUT, zarr_settings=settings,
+                           profile_to=profile if settings else None) as writer:
+            done = writer.put_block(_block(3, 4, 0), {}, [(k, 4, True, {}) for k in range(3)])
+            assert [f.result(timeout=60) for f in done] == [[0, 1, 2]]
+        assert sorted(p.name for p in (path / "data").iterdir() if p.is_dir()) == names
+        np.testing.assert_array_equal(read_episode(path, 2)["obs"]["x"], _block(3, 4, 0)[2, :, 0:3])
+    assert pstats.Stats(str(profile)).total_calls > 0
 
 
 def test_a_block_larger_than_a_quarter_of_the_ring_goes_in_parts_of_whole_rows(tmp_path):

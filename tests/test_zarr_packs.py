@@ -168,3 +168,12 @@ def test_sigkill_before_a_pack_batch_commits(tmp_path):
     assert names(path) == ["pack_0", "pack_5"]
     for s, ep in zip(list(range(5)) + list(range(20, 26)), read_episodes(path, range(11))):
         assert_tree_equal(ep, episode(s))
+
+
+def test_zarr_write_settings_refuse_nonsense_in_one_line(tmp_path):
+    with pytest.raises(ValueError, match=r"^ZarrWriteSettings.pack_threads must be an int >= 1, got 0$"):
+        ZarrWriteSettings(pack_threads=0)
+    with pytest.raises(ValueError, match="pack_min_batch must be an int >= 1, got 2.5"):
+        ZarrWriteSettings(pack_min_batch=2.5)
+    with pytest.raises(TypeError, match="zarr_settings must be a ZarrWriteSettings, got dict"):
+        EpisodeWriter.open(tmp_path / "s.zarr", task_id=TASK, env_args=ENV_ARGS, zarr_settings={"pack_min_batch": 4})
