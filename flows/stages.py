@@ -61,9 +61,6 @@ def _fresh(path: Path) -> Path:
 def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
     """Expert demos (the task's expert) -> dataset artifact at ``args.dataset_path`` (its folder holds the
     manifest ``<name>.manifest.json``)."""
-    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
-    from ..envs import make_env  # deferred: Warp/Newton are slow to import
-
     path = Path(args.dataset_path)
     out = output_path(path).parent
     inputs = {"stage": "collect", "task_id": args.task, "episodes": args.episodes, "num_envs": args.num_envs,
@@ -71,18 +68,42 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
     if (done := _guard(out, name, inputs)) is not None:
         return done
     _fresh(path)
-    env = make_env(args.task, **args.env_kwargs())
-    ref = env.collect(agent=expert_agent(env), **args.collect_kwargs())
+    ref = _on_device(args.device, _collect, args)
     art = artifact(path, "dataset", episodes=ref["episodes"], successes=ref["successes"],
                    success_rate=ref["success_rate"], samples=dataset_samples(path))
     return _finish(out, name, inputs, art)
 
 
+def _collect(args: CollectArgs) -> dict[str, Any]:
+    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
+    from ..envs import make_env  # deferred: Warp/Newton are slow to import
+
+    env = make_env(args.task, **args.env_kwargs())
+    return env.collect(agent=expert_agent(env), **args.collect_kwargs())
+
+
+def _on_device(device: str | None, fn, *args):
+    """``fn(*args)``, in a spawned process of its own when ``device`` (Warp's default when ``None``) is a CUDA
+    device. The env's buffers and the Warp and torch memory pools of that process go back to the device when the
+    stage ends; in the flow's process they stayed reserved through the trainings and the evaluation that follow
+    (24-30 GB a pipeline after a 300-row SortToShelf collection with two cameras, and the trainings of four
+    pipelines side by side on one H200 ran out of memory)."""
+    import warp as wp  # deferred: Warp is slow to import
+
+    if not wp.get_device(device).is_cuda and not IN_OWN_PROCESS_ON_CPU:
+        return fn(*args)
+    ctx = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        return pool.submit(fn, *args).result()
+
+
+IN_OWN_PROCESS_ON_CPU = False
+"""Tests set this to run the CUDA path (a process of its own per env stage) on the CPU."""
+
+
 def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic") -> dict[str, Any]:
     """Mimic expansion of the source dataset artifact (``args.dataset_path`` is its path) -> dataset artifact
     at ``args.output_path`` (successes only)."""
-    from ..mimic import mimic  # deferred: Warp/Newton are slow to import
-
     path = Path(args.output_path)
     out = output_path(path).parent
     inputs = {"stage": "mimic", "source": source["sha256"], "episodes": args.episodes, "num_envs": args.num_envs,
@@ -90,11 +111,16 @@ def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic")
     if (done := _guard(out, name, inputs)) is not None:
         return done
     _fresh(path)
-    ref = mimic(args.dataset_path, **args.mimic_kwargs())
-    m = ref.metadata
+    m = _on_device(args.device, _mimic, args)
     art = artifact(path, "dataset", episodes=m["successes"], attempts=m["attempts"],
                    generation_success_rate=m["generation_success_rate"], samples=dataset_samples(path))
     return _finish(out, name, inputs, art)
+
+
+def _mimic(args: MimicArgs) -> dict[str, Any]:
+    from ..mimic import mimic  # deferred: Warp/Newton are slow to import
+
+    return dict(mimic(args.dataset_path, **args.mimic_kwargs()).metadata)
 
 
 def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy",
@@ -188,6 +214,11 @@ def evaluate_stage(*, checkpoint: dict[str, Any] | None = None, args: EvaluateAr
     task run by one checkpoint artifact per learned phase (``phase_checkpoints``: phase name -> artifact; the
     other phases run their component's expert); with ``args.rerun_save``, the first episode of each of the first
     ``args.rerun_worlds`` rows is recorded there (``recording`` in the result)."""
+    return _on_device(args.device, _evaluate, args, checkpoint, phase_checkpoints)
+
+
+def _evaluate(args: EvaluateArgs, checkpoint: dict[str, Any] | None,
+              phase_checkpoints: dict[str, dict[str, Any]] | None) -> dict[str, Any]:
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies import Policy  # deferred: torch is slow to import
