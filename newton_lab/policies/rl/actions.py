@@ -20,8 +20,11 @@ import torch
 class ActionScales:
     """What an action of 1 means, per column kind."""
 
-    joint_scale: float = 0.5
-    """absolute joint targets: offset from the start posture [rad] at action 1"""
+    joint_scale: float = 1.0
+    """absolute joint targets: offset from the start posture [rad] at action 1. Actions are clipped to [-1, 1], so
+    this is also the farthest a joint can go from the start posture: LiftCube's expert moves the shoulder (joint 1)
+    0.72 rad and the elbow (joint 4) 0.82 rad from it to reach the cube, and with 0.5 rad PPO (4096 envs, 375
+    iterations on an H200) stopped about 10 cm short of the cube and never grasped it (0 of 100)"""
     relative_scale: float = 0.05
     """relative joint targets: step [rad] at action 1"""
     wheel_speed: float = 5.0

@@ -58,7 +58,9 @@ class PPOConfig:
     gamma: float = 0.99
     lam: float = 0.95
     desired_kl: float = 0.01
-    init_noise_std: float = 1.0
+    init_noise_std: float = 0.5
+    """the Gaussian policy's initial standard deviation, in action units (0.5 rad of joint exploration at the
+    joint scale of 1 rad)"""
     end_on_success: bool = False
     """whether a training episode ends at the task's success. Off by default: every dense reward here keeps paying
     while the goal is held (a Reach TCP at its target, a lifted cube), so an episode that ends at success takes
