@@ -113,3 +113,67 @@ def test_the_readme_states_the_recipes_sizes():
     assert (f"cpu recipe — {cpu['demos']} expert demos, {cpu['mimic_episodes']} Mimic demos" in text
             and f"{cpu['eval_episodes']} held-out randomised evaluation episodes" in text), "README's cpu recipe"
     assert f"{gpu['demos']} expert demos grown to {gpu['mimic_episodes']} by Mimic" in text, "README's gpu recipe"
+
+
+FRONT_PAGES = ["README.md", "docs/index.md", "docs/pipelines.md", "docs/contributing.md"]
+"""The pages a newcomer reads first; each says what ``make demo`` or the suite costs only through the records."""
+DEMO_MARKERS = ("<!-- figure: demo_cpu -->", "<!-- figure: demo_gpu -->")
+
+
+def test_the_front_pages_give_the_demo_figures_of_the_records():
+    """The README, home, Pipelines and Contributing pages state the same demo figures, the records': a page that
+    names ``make demo`` shows both generated figures (the newest record of each recipe) or, where no hook runs
+    (the README, read on the forge), links the Benchmarks page generated from the same records. None types a
+    time for the demo or the suite (``test_no_page_types_a_time_for_the_demo_or_the_suite``); the suite's time
+    has no record, so no page states one."""
+    problems = []
+    for name in FRONT_PAGES:
+        text = (ROOT / name).read_text()
+        if "make demo" not in text:
+            continue
+        markers = [m for m in DEMO_MARKERS if m in text]
+        links_results = re.search(r"\]\((?:docs/|\.\./)?benchmarks\.md(?:#[\w-]+)?\)", text)
+        if name == "README.md":
+            if not links_results:
+                problems.append(f"{name} names make demo but does not link docs/benchmarks.md")
+        elif len(markers) != len(DEMO_MARKERS):
+            problems.append(f"{name} names make demo but lacks {set(DEMO_MARKERS) - set(markers)}")
+    assert not problems, "\n".join(problems)
+    assert "make demo" in (ROOT / "docs" / "pipelines.md").read_text()
+
+
+NUMBER_WORDS = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "ten": 10, "fifteen": 15,
+                "twenty": 20, "thirty": 30}
+UNIT_S = {"second": 1, "seconds": 1, "s": 1, "minute": 60, "minutes": 60, "min": 60, "hour": 3600, "hours": 3600}
+STATED_TIME = re.compile(r"\b(\d+(?:\.\d+)?|few|" + "|".join(NUMBER_WORDS) + r")\s+(" + "|".join(UNIT_S) + r")\b",
+                         re.I)
+PROSE_ONLY = re.compile(r"```.*?```|<!--.*?-->|`[^`\n]*`", re.S)
+
+
+def stated_times(text: str) -> list[tuple[str, float | None]]:
+    """Durations that ``text``'s prose states (code, inline code and comments left out), in seconds; ``None`` for
+    a vague one ("a few minutes")."""
+    out = []
+    for m in STATED_TIME.finditer(PROSE_ONLY.sub(" ", text)):
+        count, unit = m.group(1).lower(), m.group(2).lower()
+        value = None if count == "few" else float(NUMBER_WORDS[count] if count in NUMBER_WORDS else count)
+        out.append((m.group(0), None if value is None else value * UNIT_S[unit]))
+    return out
+
+
+def test_a_chapter_states_no_cost_but_its_own_budgets():
+    """A tutorial chapter's cost is what its commands are told to spend: every duration its prose states is one of
+    its own ``--time-budget-s`` values (chapter 1's ten minutes of training); anything else would be a typed
+    promise that no record backs."""
+    problems = []
+    for page in sorted((ROOT / "docs" / "tutorial").glob("*.md")):
+        text = page.read_text()
+        budgets = {float(b) for b in re.findall(r"--time-budget-s (\d+)", text)}
+        problems += [f"{page.name}: '{said}'" for said, seconds in stated_times(text) if seconds not in budgets]
+    assert not problems, "durations that are no budget of the page's commands:\n" + "\n".join(problems)
+
+
+def test_the_scan_reads_stated_times():
+    assert stated_times("`--time-budget-s 600` fits the run into ten minutes.") == [("ten minutes", 600.0)]
+    assert stated_times("Each command takes a few minutes.") == [("few minutes", None)]
+    assert stated_times("<!-- check-only: 5 minutes --> a 5 cm cube, `sleep 3 s`") == []

@@ -18,7 +18,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # tools/ is no package
 import docs_tables  # noqa: E402
 
 MARKER = re.compile(r"^<!-- generated: ([a-z_]+) -->$", re.M)
-FIGURE = re.compile(r"<!-- figure: ([a-z_]+) -->")
+FIGURE = re.compile(r"(?<!`)<!-- figure: ([a-z_]+) -->(?!`)")
+"""An inline figure marker; one in backticks is a page showing the marker itself (Contributing), left as it is."""
 GENERATORS = {"tasks": docs_tables.tasks_page, "robot": docs_tables.robot_page, "cli": docs_tables.cli_page,
               "recipes": docs_tables.recipes_page}
 
