@@ -177,3 +177,20 @@ def test_the_scan_reads_stated_times():
     assert stated_times("`--time-budget-s 600` fits the run into ten minutes.") == [("ten minutes", 600.0)]
     assert stated_times("Each command takes a few minutes.") == [("few minutes", None)]
     assert stated_times("<!-- check-only: 5 minutes --> a 5 cm cube, `sleep 3 s`") == []
+
+
+def test_chapter_3_states_the_compound_figures_of_the_records(tmp_path, monkeypatch):
+    """Chapter 3 ends its CPU path and its GPU recipe with the success of the newest pipeline record of each
+    recipe on PickToShelf (per phase too), never a typed one."""
+    text = (ROOT / "docs" / "tutorial" / "compound_task.md").read_text()
+    assert "<!-- figure: picktoshelf_cpu -->" in text and "<!-- figure: picktoshelf_gpu -->" in text
+    rec = json.loads((ROOT / "docs" / "results" / "picktoshelf-h200.json").read_text())
+    monkeypatch.setattr(docs_tables, "RESULTS", tmp_path)
+    assert "not recorded yet" in docs_tables.success_figure("GalbotG1-PickToShelf-v0", "gpu", "index.md")
+    for name, date, successes in (("old.json", "2026-11-01T00:00:00Z", 50), ("new.json", "2026-11-29T00:00:00Z", 95)):
+        rec.update(date=date)
+        rec["results"]["success"]["successes"] = successes
+        (tmp_path / name).write_text(json.dumps(rec))
+    text = docs_tables.success_figure("GalbotG1-PickToShelf-v0", "gpu", "tutorial/compound_task.md")
+    assert "**95 / 100**" in text and "pick 95/100" in text and "(../results/new.json)" in text
+    assert "not recorded yet" in docs_tables.success_figure("GalbotG1-PickToShelf-v0", "cpu", "index.md")

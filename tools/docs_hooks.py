@@ -2,7 +2,7 @@
 replaced by the markdown that ``tools/docs_tables.py`` builds from the code (``tasks``, ``robot``, ``cli``,
 ``recipes``), so the
 reference tables are never typed by hand. Each table is built once per build. An inline
-``<!-- figure: NAME -->`` (``demo_cpu``, ``demo_gpu``) is replaced by a figure read from the newest run record in
+``<!-- figure: NAME -->`` (``demo_cpu``, ``demo_gpu``, ``picktoshelf_cpu``, ...) is replaced by a figure read from the newest run record in
 ``docs/results/``, linked to it (``docs_tables.FIGURES``): time promises are the records', never typed.
 """
 

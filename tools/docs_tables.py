@@ -300,15 +300,20 @@ RESULTS = ROOT / "docs" / "results"
 DEMO_TASK = "GalbotG1-PickCube-v0"
 
 
-def demo_record(recipe: str) -> tuple[Path, dict] | None:
-    """The newest committed run record of the demo pipeline (PickCube) with ``recipe`` (``cpu`` or ``gpu``), by
-    its date; ``None`` when there is none."""
+def pipeline_record(task: str, recipe: str) -> tuple[Path, dict] | None:
+    """The newest committed run record of ``newton-lab pipeline`` on ``task`` with ``recipe`` (``cpu`` or
+    ``gpu``), by its date; ``None`` when there is none."""
     from newton_lab.results import load_records
 
     found = [(path, rec) for path, rec in load_records(RESULTS)
-             if rec.get("kind") == "pipeline" and rec.get("task") == DEMO_TASK
+             if rec.get("kind") == "pipeline" and rec.get("task") == task
              and (rec.get("results") or {}).get("recipe") == recipe and rec.get("wall_s")]
     return max(found, key=lambda item: item[1]["date"]) if found else None
+
+
+def demo_record(recipe: str) -> tuple[Path, dict] | None:
+    """The newest committed run record of the demo pipeline (PickCube) with ``recipe``; ``None`` when none."""
+    return pipeline_record(DEMO_TASK, recipe)
 
 
 def _minutes(seconds: float) -> str:
@@ -336,6 +341,27 @@ def demo_figure(recipe: str, page: str) -> str:
             f"([run record]({to_docs}results/{path.name}))")
 
 
-FIGURES = {"demo_cpu": lambda page: demo_figure("cpu", page), "demo_gpu": lambda page: demo_figure("gpu", page)}
+def success_figure(task: str, recipe: str, page: str) -> str:
+    """The held-out success of the newest pipeline record of ``task`` with ``recipe`` (per phase too), with its
+    wall time, device and date, linked to the record from ``page``; a sentence saying there is none otherwise."""
+    found = pipeline_record(task, recipe)
+    to_docs = "../" * page.count("/")
+    if found is None:
+        return (f"not recorded yet with the {recipe} recipe (the [Benchmarks]({to_docs}benchmarks.md) page lists "
+                "every run record)")
+    path, rec = found
+    res = rec["results"]
+    won = res["success"]
+    phases = res.get("phases") or {}
+    per_phase = ", ".join(f"{name} {p['passed']}/{p['reached']}" for name, p in phases.items())
+    return (f"**{won['successes']} / {won['episodes']}** held-out episodes"
+            + (f" ({per_phase} passed/reached)" if len(phases) > 1 else "")
+            + f" in {_minutes(rec['wall_s'])} (min:s) on {_device(rec)}, {rec['date'][:10]} "
+            f"([run record]({to_docs}results/{path.name}))")
+
+
+FIGURES = {"demo_cpu": lambda page: demo_figure("cpu", page), "demo_gpu": lambda page: demo_figure("gpu", page),
+           "picktoshelf_cpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "cpu", page),
+           "picktoshelf_gpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "gpu", page)}
 """Inline figures (``<!-- figure: NAME -->`` in a page, ``tools/docs_hooks.py``): each is read from a run record,
 never typed."""
