@@ -194,3 +194,17 @@ def test_chapter_3_states_the_compound_figures_of_the_records(tmp_path, monkeypa
     text = docs_tables.success_figure("GalbotG1-PickToShelf-v0", "gpu", "tutorial/compound_task.md")
     assert "**95 / 100**" in text and "pick 95/100" in text and "(../results/new.json)" in text
     assert "not recorded yet" in docs_tables.success_figure("GalbotG1-PickToShelf-v0", "cpu", "index.md")
+
+
+def test_the_collection_figure_is_the_newest_records_collect_stage():
+    """Pipelines' "the expert collects faster than Mimic expands" names the newest record's collect stage."""
+    assert "<!-- figure: picktoshelf_gpu_collect -->" in (ROOT / "docs" / "pipelines.md").read_text()
+    found = docs_tables.pipeline_record("GalbotG1-PickToShelf-v0", "gpu")
+    text = docs_tables.collect_figure("GalbotG1-PickToShelf-v0", "gpu", "pipelines.md")
+    if found is None:
+        assert "not recorded yet" in text
+    else:
+        path, rec = found
+        res = rec["results"]
+        assert f"{res['counts']['expert_demos']} demos in {res['timings_s']['collect']:.0f} s" in text
+        assert f"(results/{path.name})" in text

@@ -42,7 +42,7 @@ SMALLER: dict[str, list[tuple[str, str, int]]] = {
                                       (r"(?<![\w/])examples/", f"{ROOT}/examples/", 1)],
 }
 SKIPPED = {
-    "make demo": "the demo pipeline itself (about 11 minutes; tests/test_flows.py runs the pipeline small)",
+    "make demo": "the demo pipeline itself (its time: its run records; tests/test_flows.py runs the pipeline small)",
     "make test": "the test suite itself",
 }
 NEEDS_CUDA = "--device cuda"

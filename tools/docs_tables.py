@@ -360,8 +360,22 @@ def success_figure(task: str, recipe: str, page: str) -> str:
             f"([run record]({to_docs}results/{path.name}))")
 
 
+def collect_figure(task: str, recipe: str, page: str) -> str:
+    """How many expert demos the newest pipeline record of ``task`` with ``recipe`` collected and in how many
+    seconds (its collect stage), on which device, linked to the record from ``page``."""
+    found = pipeline_record(task, recipe)
+    to_docs = "../" * page.count("/")
+    if found is None:
+        return f"not recorded yet with the {recipe} recipe"
+    path, rec = found
+    demos, seconds = rec["results"]["counts"]["expert_demos"], rec["results"]["timings_s"]["collect"]
+    return (f"{demos} demos in {seconds:.0f} s on {_device(rec)}, {rec['date'][:10]} "
+            f"([run record]({to_docs}results/{path.name}))")
+
+
 FIGURES = {"demo_cpu": lambda page: demo_figure("cpu", page), "demo_gpu": lambda page: demo_figure("gpu", page),
            "picktoshelf_cpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "cpu", page),
-           "picktoshelf_gpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "gpu", page)}
+           "picktoshelf_gpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "gpu", page),
+           "picktoshelf_gpu_collect": lambda page: collect_figure("GalbotG1-PickToShelf-v0", "gpu", page)}
 """Inline figures (``<!-- figure: NAME -->`` in a page, ``tools/docs_hooks.py``): each is read from a run record,
 never typed."""
