@@ -1,11 +1,13 @@
 """Agents: ``act(env, env_ids=None) -> (num_envs, action_dim)`` actions; agents never step, build or
 reset envs. ``PlannerAgent`` executes a task's motion plan for every row at once; nav agents drive the
-base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row; ``TeleopAgent`` maps an operator's device."""
+base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row; ``TeleopAgent`` maps an operator's device;
+``PerturbedAgent`` evaluates any of them under action noise, latency and start-posture noise."""
 
 from .base import BaseAgent, ZeroAgent
 from .experts import agent_for_declaration
 from .joint import JointTargetAgent
 from .nav import BaseNavAgent, GoalNavAgent, ProportionalNavAgent, TrajectoryNavAgent
+from .perturbed import PerturbedAgent, evaluate_perturbed, perturbation_table
 from .planner.agent import PlannerAgent
 from .sequence import SequenceAgent, SequenceStep
 from .task_flow import TaskFlowAgent, expert_agent
@@ -16,6 +18,7 @@ __all__ = [
     "BaseNavAgent",
     "GoalNavAgent",
     "JointTargetAgent",
+    "PerturbedAgent",
     "PlannerAgent",
     "ProportionalNavAgent",
     "SequenceAgent",
@@ -25,5 +28,7 @@ __all__ = [
     "TrajectoryNavAgent",
     "ZeroAgent",
     "agent_for_declaration",
+    "evaluate_perturbed",
     "expert_agent",
+    "perturbation_table",
 ]

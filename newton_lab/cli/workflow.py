@@ -42,8 +42,7 @@ def collect(args: CollectArgs) -> int:
 def load_agent(path: str, device: str):
     """A checkpoint's agent: a diffusion policy (``train``) or a PPO actor (``train-rl``), by its format tag."""
     from ..policies.agent import PolicyAgent  # deferred: torch is slow to import
-    from ..policies.rl.agent import CHECKPOINT_FORMAT as RL_FORMAT  # deferred: as above
-    from ..policies.rl.agent import RLPolicyAgent  # deferred: as above
+    from ..policies.rl.agent import CHECKPOINT_FORMAT as RL_FORMAT, RLPolicyAgent  # deferred: as above
 
     if checkpoint_header(path)["format"] == RL_FORMAT:
         return RLPolicyAgent.from_checkpoint(path, device=device)
@@ -51,7 +50,7 @@ def load_agent(path: str, device: str):
 
 
 def evaluate(args: EvaluateArgs) -> int:
-    from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
+    from ..agents import evaluate_perturbed, expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies.agent import phase_policy_agent  # deferred: torch is slow to import
@@ -63,10 +62,11 @@ def evaluate(args: EvaluateArgs) -> int:
              else checkpoint_agent or expert_agent(env))
     hook, close = rerun_hook(args, env)
     try:
-        summary = env.evaluate(agent=agent, on_step=hook, **args.rollout_kwargs())
+        summary = evaluate_perturbed(env, agent, args.perturbation_cells(), seed=args.seed, on_step=hook,
+                                     **args.rollout_kwargs())
     finally:
         close()
-    print(json.dumps({k: summary[k] for k in EVAL_REPORT_KEYS}))
+    print(json.dumps({k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations") if k in summary}))
     return 0
 
 

@@ -107,6 +107,7 @@ def check_args(args: Any) -> None:
                                  f"{', '.join(SUFFIXES)}")
     if isinstance(args, EvaluateArgs):
         check_checkpoints(args)
+        args.perturbation_cells()
     if isinstance(args, SplitArgs):
         check_split_out(args)
     for name in EXISTING_FIELDS.get(type(args), ()):

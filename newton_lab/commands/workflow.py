@@ -37,6 +37,15 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     phase_checkpoint: list[str] | None = None
     """a coherent task's phase policies, PHASE=CHECKPOINT each (e.g. pick=pick.pt place=place.pt); the phases
     without one run their component's expert"""
+    perturb: str | None = None
+    """evaluate under perturbations: AXIS=LEVEL,... together (LEVEL mild, strong or a number; axes action_noise,
+    action_latency, posture_noise), or sweep: unperturbed, then each axis at each level alone (one row each)"""
+
+    def perturbation_cells(self):
+        """The evaluations ``--perturb`` asks for (``task_api.perturbations.Cell``; one-line errors)."""
+        from ..task_api.perturbations import parse_cells  # deferred: only --perturb needs it (plain Python)
+
+        return parse_cells(self.perturb) if self.perturb is not None else []
 
     def policy_device(self) -> str:
         """Torch device of the evaluated policies: the env's CUDA device (the policy runs beside it; with no

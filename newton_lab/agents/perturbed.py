@@ -1,0 +1,109 @@
+"""``PerturbedAgent``: any agent, evaluated under the perturbations of ``task_api.perturbations`` (action noise,
+action latency, start-posture noise), and ``perturbation_table``: one evaluation per cell of a ``--perturb`` request.
+
+The perturbations sit between the agent and the env, so they apply to every agent (an expert, a diffusion policy, a
+PPO actor) and every task without touching either: the agent sees the env as it is, the env gets the perturbed
+actions, and the start posture is moved before the agent first looks at a new episode.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections import deque
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..task_api.perturbations import Cell
+from .base import BaseAgent
+
+
+def joint_target_columns(env) -> list[int]:
+    """Action columns that are joint targets (absolute or relative; not grippers, not wheel speeds)."""
+    kinds = env.joints.binding.actions.kinds
+    return [c for c, (kind, name) in enumerate(zip(kinds, env.action_joint_names))
+            if kind in ("absolute", "relative") and "gripper" not in name]
+
+
+class PerturbedAgent(BaseAgent):
+    """``agent`` under ``values`` (axis name -> level in the axis's unit; see ``task_api.perturbations.AXES``),
+    its noise drawn from ``seed``."""
+
+    def __init__(self, agent: BaseAgent, values: dict[str, float], seed: int = 0) -> None:
+        self.agent, self.values, self.seed = agent, dict(values), seed
+        self.done_reason = agent.done_reason
+
+    def setup(self, env) -> None:
+        self.columns = torch.tensor(joint_target_columns(env), dtype=torch.long, device=env.torch_device)
+        self.joint_names = [env.action_joint_names[c] for c in self.columns.tolist()]
+        self.generator = torch.Generator(device=env.torch_device).manual_seed(self.seed)
+        self.latency = int(self.values.get("action_latency", 0))
+        self.history: deque[torch.Tensor] = deque(maxlen=self.latency + 1)
+
+    def _uniform(self, shape, level: float, device) -> torch.Tensor:
+        return (torch.rand(shape, generator=self.generator, device=device) * 2.0 - 1.0) * level
+
+    def act(self, env, env_ids=None) -> torch.Tensor:
+        fresh = self.fresh_rows(env, env_ids)
+        level = self.values.get("posture_noise", 0.0)
+        if level and len(fresh) and len(self.joint_names):
+            start = env.joints.positions(self.joint_names)[torch.as_tensor(fresh, device=env.torch_device)]
+            moved = start + self._uniform(start.shape, level, env.torch_device)
+            env.joints.set_positions(self.joint_names, moved, env_ids=fresh)
+        actions = self.agent.act(env, env_ids).clone()
+        std = self.values.get("action_noise", 0.0)
+        if std and len(self.columns):
+            noise = torch.randn((actions.shape[0], len(self.columns)), generator=self.generator,
+                                device=actions.device) * std
+            actions[:, self.columns] += noise
+        if not self.latency:
+            return actions
+        if not self.history:  # the first step: the queue starts full of the first actions
+            self.history.extend(actions.clone() for _ in range(self.latency))
+        elif len(fresh):  # a new episode starts from its own first action, not the last episode's
+            rows = torch.as_tensor(fresh, device=actions.device)
+            for past in self.history:
+                past[rows] = actions[rows]
+        self.history.append(actions)
+        return self.history[0].clone()
+
+    def reset(self, env_ids=None) -> None:
+        """Forget rows (theirs and the agent's): their next episode starts with fresh noise and latency queues."""
+        super().reset(env_ids)
+        self.agent.reset(env_ids)
+
+    def done(self, env) -> torch.Tensor:
+        return self.agent.done(env)
+
+    def holding(self) -> np.ndarray | None:
+        return self.agent.holding()
+
+
+def perturbation_table(env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None,
+                       **rollout: Any) -> list[dict[str, Any]]:
+    """One ``env.evaluate`` of ``agent`` per cell (``rollout``: its keywords, e.g. episodes, max_steps), each on the
+    same episodes (the env reseeded with ``seed`` first): a row per cell with its label, the perturbed values and
+    the success."""
+    rows = []
+    for cell in cells:
+        env.reseed(seed)
+        wrapped = PerturbedAgent(agent, cell.values, seed=seed) if cell.values else agent
+        s = env.evaluate(agent=wrapped, on_step=on_step, **rollout)
+        rows.append({"perturbation": cell.label, "values": cell.values, "episodes": s["episodes"],
+                     "successes": s["successes"], "success_rate": s["success_rate"],
+                     "termination_reasons": s["termination_reasons"], "summary": s})
+    return rows
+
+
+def evaluate_perturbed(env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None,
+                       **rollout: Any) -> dict[str, Any]:
+    """``env.evaluate`` of ``agent`` when ``cells`` is empty; else the perturbation table's last cell's summary with
+    the table under ``"perturbations"`` (its rows without their summaries), which also prints as text."""
+    if not cells:
+        return env.evaluate(agent=agent, on_step=on_step, **rollout)
+    rows = perturbation_table(env, agent, cells, seed=seed, on_step=on_step, **rollout)
+    for r in rows:
+        print(f"{r['perturbation']:<24} {r['successes']:>5} / {r['episodes']:<5} {r['success_rate']:.0%}",
+              file=sys.stderr)
+    return {**rows[-1]["summary"], "perturbations": [{k: v for k, v in r.items() if k != "summary"} for r in rows]}
