@@ -24,14 +24,15 @@ def gather_plan_actions(
 ):
     """Write row ``w``'s commanded arm joints and gripper at its cursor, then advance the cursor.
 
-    Segment ``k`` starts at frame ``seg_start[w, k]``, moves linearly from the previous waypoint (or
-    ``start_q`` for ``k = 0``) to ``waypoints[w, k, :7]`` over ``seg_interp[w, k]`` frames, then holds;
-    ``waypoints[w, k, 7]`` is the gripper command for the whole segment (written when
-    ``gripper_col >= 0``). Past the end the last waypoint is held. From frame ``seg_settle_at[w, k]`` (-1: never) a
+    The arm has ``A = arm_cols.shape[0]`` joints (its binding's). Segment ``k`` starts at frame
+    ``seg_start[w, k]``, moves linearly from the previous waypoint (or ``start_q`` for ``k = 0``) to
+    ``waypoints[w, k, :A]`` over ``seg_interp[w, k]`` frames, then holds; ``waypoints[w, k, A]`` is the gripper
+    command for the whole segment (written when ``gripper_col >= 0``). Past the end the last waypoint is held. From frame ``seg_settle_at[w, k]`` (-1: never) a
     segment settles: once the arm's joints (``joint_q[w, arm_coords]``) are all within ``settle_tol`` [rad] of the
     waypoint, the cursor skips to the next segment (or, after the last, to ``plan_end[w]``).
     """
     w = wp.tid()
+    arm = arm_cols.shape[0]
     t = cursor[w]
     n = num_segments[w]
     if n == 0:
@@ -43,7 +44,7 @@ def gather_plan_actions(
     settle_at = seg_settle_at[w, k]
     if settle_at >= 0 and t >= settle_at:
         err = float(0.0)
-        for j in range(7):
+        for j in range(arm):
             err = wp.max(err, wp.abs(joint_q[w, arm_coords[j]] - waypoints[w, k, j]))
         if err <= settle_tol:
             if k + 1 < n:
@@ -55,11 +56,11 @@ def gather_plan_actions(
     m = seg_interp[w, k]
     if m > 0:
         alpha = wp.min(1.0, float(t - seg_start[w, k] + 1) / float(m))
-    for j in range(7):
+    for j in range(arm):
         a = start_q[w, j]
         if k > 0:
             a = waypoints[w, k - 1, j]
         actions[w, arm_cols[j]] = a + alpha * (waypoints[w, k, j] - a)
     if gripper_col >= 0:
-        actions[w, gripper_col] = waypoints[w, k, 7]
+        actions[w, gripper_col] = waypoints[w, k, arm]
     cursor[w] = t + 1

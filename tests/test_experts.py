@@ -96,6 +96,23 @@ def test_a_step_that_repeats_the_last_pose_reuses_its_ik_solution():
     assert (way[:, descend, 7] != way[:, release, 7]).all()  # only the gripper differs
 
 
+def test_the_gather_kernel_takes_the_arm_length_from_its_columns():
+    """An arm of 3 joints (another robot's binding): the waypoints hold 3 joints then the gripper, and the gather
+    writes those 3 columns and the gripper's, nothing of a 7-joint arm."""
+    import numpy as np
+    import warp as wp
+
+    from newton_lab.kernels.planner import gather_plan_actions
+
+    arr = lambda a, t=float: wp.array(np.asarray(a), dtype=t, device="cpu")  # noqa: E731
+    way = np.array([[[0.5, 0.6, 0.7, 1.1]]], dtype=np.float32)  # one segment: 3 joints, gripper 1.1
+    act = wp.full((1, 6), -9.0, dtype=float, device="cpu")
+    wp.launch(gather_plan_actions, dim=1, device="cpu", inputs=[
+        arr(way), arr(np.zeros((1, 3))), arr([[0]], int), arr([[1]], int), arr([[-1]], int), arr([1], int),
+        arr([1], int), arr([0], int), arr(np.zeros((1, 5))), arr([0, 1, 2], int), 0.01, arr([1, 2, 3], int), 5, act])
+    np.testing.assert_allclose(act.numpy()[0], [-9.0, 0.5, 0.6, 0.7, -9.0, 1.1])
+
+
 def test_a_target_settles_until_the_arm_reaches_it_and_in_full_before_the_gripper_opens():
     """The gather kernel: in its settle frames a segment ends as soon as every arm joint is within the tolerance
     (the next segment's first frame is written, the cursor jumps there), and holds while it is not; a segment with

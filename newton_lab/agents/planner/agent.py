@@ -85,8 +85,8 @@ class PlannerAgent(BaseAgent):
         self._kin = env.robot.kinematics(n, device=dev, arm=arm)
         with wp.ScopedDevice(dev):
             k = max(self._num_waypoints(), 1)
-            self._waypoints = wp.zeros((n, k, 8), dtype=float)
-            self._start_q = wp.zeros((n, 7), dtype=float)
+            self._waypoints = wp.zeros((n, k, len(arm_joints) + 1), dtype=float)  # the arm's joints, the gripper
+            self._start_q = wp.zeros((n, len(arm_joints)), dtype=float)
             self._seg_start = wp.zeros((n, k), dtype=int)
             self._seg_interp = wp.zeros((n, k), dtype=int)
             self._seg_settle_at = wp.full((n, k), -1, dtype=int)
@@ -161,7 +161,8 @@ class PlannerAgent(BaseAgent):
         prev = q_env[rows][:, self._arm_coords].astype(np.float64)
         start = prev.copy()
         k = self._num_waypoints()
-        way = np.zeros((r, k, 8))
+        arm = len(self._arm_coords)
+        way = np.zeros((r, k, arm + 1))
         seg_start = np.zeros((r, k), dtype=np.int64)
         seg_interp = np.zeros((r, k), dtype=np.int64)
         settle_at = np.full((r, k), -1, dtype=np.int64)
@@ -203,8 +204,8 @@ class PlannerAgent(BaseAgent):
                 last = j == len(targets) - 1
                 n_interp = np.ceil(np.abs(q_k - prev).max(axis=1) / speed).astype(np.int64)
                 n_interp = np.maximum(n_interp, 1 if moves else 0)
-                way[:, i, :7] = q_k
-                way[:, i, 7] = gripper
+                way[:, i, :arm] = q_k
+                way[:, i, arm] = gripper
                 seg_start[:, i] = frame
                 seg_interp[:, i] = n_interp
                 if last and settle and early[n_step]:
