@@ -22,8 +22,9 @@ from typing import Any
 
 SCHEMA = 1
 """Version of the record layout (``schema`` in every record)."""
-KINDS = ("pipeline", "bench", "bench-collect", "bench-train", "bench-refusals", "train-rl")
-"""What a record can describe: a pipeline run, one of the benchmark commands, or a PPO run."""
+KINDS = ("pipeline", "bench", "bench-collect", "bench-train", "bench-refusals", "train-rl", "evaluate")
+"""What a record can describe: a pipeline run, one of the benchmark commands, a PPO run, or an evaluation (with
+``--perturb``: its perturbation table)."""
 PRODUCT_COMMANDS = ("newton-lab ", "make demo")
 """How a record's ``command`` starts when a user can run it as it is (the CLI, or the README's main job)."""
 RECORDS_DIR = Path("outputs/records")

@@ -175,6 +175,19 @@ def refusal_rows(records, page_dir: Path) -> list[list[str]]:
     return rows
 
 
+def robustness_rows(records, page_dir: Path) -> list[list[str]]:
+    """One row per evaluation of an ``evaluate --perturb`` record."""
+    rows = []
+    for path, rec in _of_kind(records, "evaluate"):
+        r = rec["results"]
+        agent = (Path(r["checkpoint"]).parent.name or Path(r["checkpoint"]).name) if r.get("checkpoint") else "expert"
+        for cell in r.get("perturbations") or []:
+            rows.append([f"{_short(rec['task'])}{_options(rec)}", rec["device"]["name"], agent,
+                         f"`{cell['perturbation']}`", f"**{cell['successes']} / {cell['episodes']}**",
+                         _link(path, page_dir)])
+    return rows
+
+
 def headline(records, page_dir: Path) -> str:
     """The markdown of the headline tables (empty tables are left out)."""
     parts = []
@@ -183,6 +196,8 @@ def headline(records, page_dir: Path) -> str:
                               "per phase (passed/reached)", "time to policy", "record"], policy_rows),
         ("Reinforcement learning (PPO)", ["task", "device", "envs", "iterations", "env-steps/s with the update",
                                           "learned (held-out)", "time to policy", "record"], rl_rows),
+        ("Off the training distribution (`evaluate --perturb`)", ["task", "device", "agent", "perturbation",
+                                                                  "success", "record"], robustness_rows),
         ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], env_step_rows),
         ("Expert collection", ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "record"],
          collection_rows),

@@ -10,10 +10,10 @@ import json
 from pathlib import Path
 
 from ..commands import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs, SplitArgs, TrainArgs, ViewArgs
-from ..commands.checkpoint_headers import checkpoint_header
 from ..flows.report import summary_lines
 from ..flows.settings import configure, demo_recipe
 from ..task_api.registry import lookup
+from .bench import write_run_record
 from .env import rerun_hook
 from .pipeline_ends import ends_in_one_line
 
@@ -39,34 +39,27 @@ def collect(args: CollectArgs) -> int:
     return 0
 
 
-def load_agent(path: str, device: str):
-    """A checkpoint's agent: a diffusion policy (``train``) or a PPO actor (``train-rl``), by its format tag."""
-    from ..policies.agent import PolicyAgent  # deferred: torch is slow to import
-    from ..policies.rl.agent import CHECKPOINT_FORMAT as RL_FORMAT, RLPolicyAgent  # deferred: as above
-
-    if checkpoint_header(path)["format"] == RL_FORMAT:
-        return RLPolicyAgent.from_checkpoint(path, device=device)
-    return PolicyAgent.from_checkpoint(path, device=device)
-
-
 def evaluate(args: EvaluateArgs) -> int:
     from ..agents import evaluate_perturbed, expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
-    from ..policies.agent import phase_policy_agent  # deferred: torch is slow to import
+    from ..policies.agent import checkpoint_agent, phase_policy_agent  # deferred: torch is slow to import
 
-    checkpoint_agent = load_agent(args.checkpoint, args.policy_device()) if args.checkpoint else None
+    from_checkpoint = checkpoint_agent(args.checkpoint, args.policy_device()) if args.checkpoint else None
     env = make_env(args.task, **args.env_kwargs())
     phases = args.phase_checkpoints()
     agent = (phase_policy_agent(env, phases, device=args.policy_device()) if phases
-             else checkpoint_agent or expert_agent(env))
+             else from_checkpoint or expert_agent(env))
     hook, close = rerun_hook(args, env)
     try:
         summary = evaluate_perturbed(env, agent, args.perturbation_cells(), seed=args.seed, on_step=hook,
                                      **args.rollout_kwargs())
     finally:
         close()
-    print(json.dumps({k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations") if k in summary}))
+    out = {k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations") if k in summary}
+    if args.perturb or args.run_record:
+        write_run_record("evaluate", args, args.task, args.device, {**out, "checkpoint": args.checkpoint})
+    print(json.dumps(out))
     return 0
 
 

@@ -41,6 +41,10 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     """evaluate under perturbations: AXIS=LEVEL,... together (LEVEL mild, strong or a number; axes action_noise,
     action_latency, posture_noise), or sweep: unperturbed, then each axis at each level alone (one row each)"""
 
+    run_record: str | None = None
+    """write the run record (JSON) here; with --perturb one is written anyway, by default to
+    outputs/records/evaluate-<task>-<UTC time>.json"""
+
     def perturbation_cells(self):
         """The evaluations ``--perturb`` asks for (``task_api.perturbations.Cell``; one-line errors)."""
         from ..task_api.perturbations import parse_cells  # deferred: only --perturb needs it (plain Python)

@@ -168,3 +168,13 @@ class PolicyAgent(BaseAgent):
         out = env.current_action()
         out[:, self._act_cols] = actions
         return out
+
+
+def checkpoint_agent(path: str | Path, device: str = "cpu") -> BaseAgent:
+    """A checkpoint's agent: a diffusion policy (``newton-lab train``) or a PPO actor (``newton-lab train-rl``), told
+    apart by the checkpoint's format tag."""
+    from .rl.agent import RLPolicyAgent, is_rl_checkpoint  # deferred: only a PPO checkpoint needs its agent
+
+    if is_rl_checkpoint(path):
+        return RLPolicyAgent.from_checkpoint(path, device=device)
+    return PolicyAgent.from_checkpoint(path, device=device)
