@@ -19,9 +19,9 @@ from prefect import flow, get_run_logger, unmapped
 from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
-from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 from .run_record import StageClock, pipeline_record, write_pipeline_record
 from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
+from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 
 split_task = stage_task(stages.split_stage, "split")
 
@@ -52,7 +52,8 @@ def has_phases(task_id: str) -> bool:
 @flow(name="long-horizon pipeline")
 def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], eval_episodes: int, num_envs: int,
                           device: str | None, out: str, seed: int = 0, workers: int = 1, eval_max_steps: int = 3000,
-                          cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"], task_options: dict[str, Any] | None = None,
+                          cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"],
+                          task_options: dict[str, Any] | None = None,
                           gpus: int = 1, record: bool = True, recipe: str | None = None) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
@@ -72,7 +73,9 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     log.info("collect: %s", "/".join(s_collect))
     (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out)], "split")
     clock.lap("split")
-    log.info("split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items()))
+    log.info(
+        "split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items())
+    )
     arts, s_train = results(train_task.map(dataset=[split[p] for p in phases], train_cfg=unmapped(dict(train_cfg)),
                                             out_dir=unmapped(out), name=[f"policy_{p}" for p in phases],
                                             gpus=unmapped(gpus)), "train")
@@ -81,9 +84,9 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     for art in arts:
         runlog.publish_loss_curve(art)
     log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
-    metrics, s_eval = run_evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers, eval_max_steps,
-                                recording=Path(out) / "evaluation.rrd" if record else None, cameras=cameras, task_options=options,
-                                phase_checkpoints=checkpoints)
+    metrics, s_eval = run_evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
+                                   eval_max_steps, recording=Path(out) / "evaluation.rrd" if record else None,
+                                   cameras=cameras, task_options=options, phase_checkpoints=checkpoints)
     clock.lap("evaluate")
     log.info("evaluate: %s; success rate %.1f%% over %d episodes; %s", "/".join(s_eval),
              100 * metrics["success_rate"], metrics["episodes"],
@@ -112,7 +115,9 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
         trained = (f"; policy {ckpt['metrics'].get('steps')} steps, final loss {ckpt['metrics'].get('final_loss'):.4f}"
                    if ckpt else "; expert")
         lines.append(f"  phase {phase:<9} {art['metrics']['episodes']} segments{trained}")
-    lines.append(f"  composed        {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised episodes")
+    lines.append(
+        f"  composed        {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised episodes"
+    )
     for phase, p in ev["phases"].items():
         stalled = ", ".join(f"{k} {v}" for k, v in p["stalled"].items()) or "none"
         lines.append(f"    {phase:<13} passed {p['passed']}/{p['reached']} (stopped: {stalled})")

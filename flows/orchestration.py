@@ -28,8 +28,17 @@ from .cluster import cluster_options, pins_gpus, quiet_shutdown
 from .long_horizon import has_phases, long_horizon_pipeline
 from .run_record import StageClock, pipeline_record, write_pipeline_record
 from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, check_api_reachable
-from .stage_runs import (REPORTED_ERRORS, collect_task, evaluate_task, mimic_task, run_collect, run_evaluate, run_mimic,
-                         run_train, train_task)
+from .stage_runs import (
+    REPORTED_ERRORS,
+    collect_task,
+    evaluate_task,
+    mimic_task,
+    run_collect,
+    run_evaluate,
+    run_mimic,
+    run_train,
+    train_task,
+)
 
 VALID_RUNNERS = ("local", "dask")
 

@@ -41,7 +41,7 @@ def train_rl(task_id: str, ppo: dict[str, Any], out: str = "outputs/ppo", eval_e
         "success": {"episodes": metrics["episodes"], "successes": metrics["successes"],
                     "rate": metrics["success_rate"], "eval_seed": seed + EVAL_SEED_OFFSET},
         "stage_states": {"train": s_train, "evaluate": s_eval}})
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%S%fZ")
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%S%fZ")
     path = write_record(record, Path(out) / "records" / f"train-rl-{stamp}.json")
     return {"task": task_id, "checkpoint": ckpt, "evaluation": metrics, "record": str(path),
             "stage_states": {"train": s_train, "evaluate": s_eval}}

@@ -64,5 +64,5 @@ def pipeline_record(summary: dict[str, Any], clock: StageClock, *, seed: int, de
 
 def write_pipeline_record(record: dict[str, Any], out_dir: Path) -> Path:
     """``<out_dir>/records/<UTC time>.json``."""
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%S%fZ")
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%S%fZ")
     return write_record(record, Path(out_dir) / "records" / f"pipeline-{stamp}.json")

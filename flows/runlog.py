@@ -117,9 +117,15 @@ def publish_summary(task_id: str, demos, gen, ckpt, metrics, out: Path) -> None:
     """``newton-lab-pipeline``: the run's metrics table and artifact paths as markdown."""
     g = gen["metrics"]
     rows = [
-        ("expert demos", f"{demos['metrics'].get('episodes')} ({demos['metrics'].get('success_rate', 1.0):.0%} success)"),
-        ("mimic demos", f"{g.get('episodes')} (generation rate "
-                        f"{g.get('generation_success_rate', g.get('successes', 0) / max(g.get('attempts', 1), 1)):.0%})"),
+        (
+            "expert demos",
+            f"{demos['metrics'].get('episodes')} ({demos['metrics'].get('success_rate', 1.0):.0%} success)",
+        ),
+        (
+            "mimic demos",
+            f"{g.get('episodes')} (generation rate "
+            f"{g.get('generation_success_rate', g.get('successes', 0) / max(g.get('attempts', 1), 1)):.0%})",
+        ),
         ("final training loss", f"{ckpt['metrics'].get('final_loss')}"),
         ("evaluation success rate", f"{metrics['success_rate']:.1%} of {metrics['episodes']} episodes"),
     ]

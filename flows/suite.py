@@ -23,6 +23,7 @@ from ..records import read_record
 from ..results import update
 from .suite_rows import Row, device_slug, rows_of
 
+
 def _newest_record(folder: Path) -> Path | None:
     found = sorted(folder.glob("*.json"), key=lambda p: p.stat().st_mtime)
     return found[-1] if found else None
@@ -60,7 +61,7 @@ def run_row(row: Row, out: str, stamp: str, records: str | None) -> dict[str, An
 def suite(recipe: str = "gpu", out: str = "outputs/suite", records: str | None = "docs/results",
           page: str | None = "docs/benchmarks.md", only: list[str] | None = None) -> dict[str, Any]:
     """Run the rows of ``recipe`` one after another; copy each record into ``records`` and regenerate ``page``."""
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     rows = rows_of(recipe, only)
     results = [run_row.submit(row, out, stamp, records).result() for row in rows]
     summary: dict[str, Any] = {"recipe": recipe, "rows": results}

@@ -3,9 +3,9 @@
 Per control step ``apply_actions`` writes every column to its joint's target (``control``); columns a row's
 current phase does not own hold (position targets keep their current value, velocity targets become 0).
 Per physics substep ``drive_base`` turns the four wheel-velocity columns into the planar base's velocity
-targets through the mecanum kinematics (``robots.mecanum``, with the robot's gains), and ``drive_setpoints`` derives what the
-solver tracks (the drive) from the targets: equal to them, except that a velocity-limited joint's setpoint
-moves toward its target at no more than its limit, with that velocity as the drive's velocity target.
+targets through the mecanum kinematics (``robots.mecanum``, with the robot's gains), and ``drive_setpoints``
+derives what the solver tracks (the drive) from the targets: equal to them, except that a velocity-limited joint's
+setpoint moves toward its target at no more than its limit, with that velocity as the drive's velocity target.
 Every column's processed action is ``clamp(scale * a, low, high)`` (:func:`processed_action`).
 """
 

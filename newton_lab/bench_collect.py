@@ -19,12 +19,13 @@ import warp as wp
 from torch.profiler import ProfilerActivity, profile, record_function, schedule
 
 from .datasets import list_demos, open_writer, read_episode
-from .datasets.zarr import store as zarr_store
 from .datasets.files.durability import sync_tree
 from .datasets.files.output_paths import output_path
+from .datasets.zarr import store as zarr_store
 from .envs import make_env
 from .envs.rollout import Timers, env_args
 from .flows.cluster import cluster_options, pins_gpus, quiet_shutdown, visible_gpus
+
 
 class _Clock:
     """Seconds spent inside wrapped calls; each call waits for the device so queued work is charged to it."""
@@ -132,8 +133,8 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
     writer (the background thread's ``append_prepared`` calls, or those the writer process reports, split as
     ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest
     (``loop_s``), of which ``hand_over_s`` passes ended episodes to the writer (gather, checks, the copy off the
-    device, queueing) and ``drain_s`` waits for the writer after the last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the loop; the rest of the
-    wall is the host's own work."""
+    device, queueing) and ``drain_s`` waits for the writer after the last step. ``physics_share`` (physics over wall)
+    near 1 means the device's step bounds the loop; the rest of the wall is the host's own work."""
     physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")
     handing, draining = _Clock("cpu"), _Clock("cpu")
     clocks = {"physics": physics, "agent": acting, "writer": writing, "hand-over": handing, "drain": draining}

@@ -139,7 +139,7 @@ def make_record(kind: str, *, task: str | None, device: str | None, results: dic
     """A record of ``kind`` (``KINDS``): what ran and where, then ``results`` (the command's own figures)."""
     if kind not in KINDS:
         raise ValueError(f"unknown record kind {kind!r}; valid kinds: {', '.join(KINDS)}")
-    now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
+    now = _dt.datetime.now(_dt.UTC).replace(microsecond=0)
     return {"schema": SCHEMA, "kind": kind, "task": task, "command": command or command_line(),
             "commit": commit(), "date": now.isoformat().replace("+00:00", "Z"), "device": device_info(device),
             "versions": versions(), "wall_s": None if wall_s is None else round(float(wall_s), 2),
@@ -158,7 +158,7 @@ def write_record(record: dict[str, Any], path: str | os.PathLike) -> Path:
 
 def default_path(kind: str, task: str | None) -> Path:
     """``outputs/records/<kind>-<task>-<UTC time>.json`` for a benchmark run without ``--record``."""
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     short = (task or "all").replace("GalbotG1-", "").replace("-v0", "")
     return RECORDS_DIR / f"{kind}-{short}-{stamp}.json"
 

@@ -9,10 +9,12 @@ import pytest
 
 MODULE_SECONDS = {
     "test_crash_campaign.py": 442, "test_policy_vision.py": 225, "test_examples.py": 198, "test_flows_dask.py": 194,
-    "test_teleop_tmux.py": 130, "test_image_recording.py": 94, "test_experts.py": 80, "test_readme.py": 85, "test_flows.py": 71, "test_policy.py": 68,
+    "test_teleop_tmux.py": 130, "test_image_recording.py": 94, "test_experts.py": 80, "test_readme.py": 85,
+    "test_flows.py": 71, "test_policy.py": 68,
     "test_cli_inputs.py": 57, "test_yolo_export.py": 54, "test_collect.py": 35, "test_train_resume.py": 30,
     "test_storage.py": 29, "test_writers.py": 23, "test_mobile.py": 23, "test_flows_long_horizon.py": 110,
-    "test_docs.py": 90, "test_data_parallel.py": 15, "test_rl.py": 100, "test_suite.py": 75, "test_stage_processes.py": 35,
+    "test_docs.py": 90, "test_data_parallel.py": 15, "test_rl.py": 100, "test_suite.py": 75,
+    "test_stage_processes.py": 35,
     "test_tutorial_chapters.py": 280, "test_tutorial_simple_task.py": 80, "test_interrupts.py": 150,
     "test_interrupt_pipeline.py": 300,
 }

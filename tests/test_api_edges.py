@@ -53,6 +53,7 @@ def test_an_agent_with_act_alone_is_refused_before_the_rollout_names_base_agent(
 
 def test_an_env_from_an_unresolved_cfg_names_make_cfg():
     import newton_lab.tasks  # noqa: F401
+
     from newton_lab.envs.env import NewtonEnv
     from newton_lab.task_api.registry import lookup
 
@@ -74,9 +75,10 @@ def test_a_read_only_zarr_dataset_is_called_read_only_not_damaged(tmp_path, monk
     import errno
     import os
 
+    from test_lerobot_export import ENV_ARGS, TASK, make_dataset, make_episode
+
     from newton_lab.datasets import open_writer, read_dataset_info
     from newton_lab.datasets.zarr import session as zarr_session
-    from test_lerobot_export import ENV_ARGS, TASK, make_dataset, make_episode
 
     path = make_dataset(tmp_path / "d.zarr")
     real_open = os.open
@@ -114,10 +116,11 @@ def test_stack_cube_reference_rewards_opted_in_after_make_cfg_resolve_in_the_env
     ``make_cfg`` result) builds an env: the env resolves the new terms, their counters after the resolved ones'."""
     import dataclasses
 
+    from newton_lab.tasks.stack_cube.mdp.rewards import reference_rewards
+
     from newton_lab.envs.env import NewtonEnv
     from newton_lab.task_api.registry import lookup
     from newton_lab.task_api.terms import unresolved_terms
-    from newton_lab.tasks.stack_cube.mdp.rewards import reference_rewards
 
     made = lookup("GalbotG1-StackCube-v0").make_cfg()
     cfg = dataclasses.replace(made, rewards=reference_rewards())

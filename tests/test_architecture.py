@@ -338,7 +338,7 @@ def _class_names(path: str, name: str) -> set[str]:
     for node in ast.walk(cls):
         targets = (node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign)
                    else [])
-        for t in (e for t in targets for e in (t.elts if isinstance(t, ast.Tuple) else [t])):
+        for t in (e for target in targets for e in (target.elts if isinstance(target, ast.Tuple) else [target])):
             if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id == "self":
                 names.add(t.attr)
             elif isinstance(t, ast.Name) and node in cls.body:
@@ -537,7 +537,7 @@ def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
                   for t in n.targets if isinstance(t, ast.Name)}
         parents = {child: parent for parent in ast.walk(tree) for child in ast.iter_child_nodes(parent)}
 
-        def key(node: ast.AST) -> str:
+        def key(node: ast.AST, consts: dict[str, str] = consts) -> str:
             if isinstance(node, ast.Constant) and isinstance(node.value, str):
                 return node.value
             return consts.get(node.id, "<unresolved>") if isinstance(node, ast.Name) else "<unresolved>"

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
+from newton_lab.kernels.actions import KIND_CODE
 from torch.testing import assert_close
 
 from newton_lab.envs import NewtonEnv, make_env
 from newton_lab.envs.scene import build_scene
-from newton_lab.kernels.actions import KIND_CODE
 from newton_lab.robots.binding import RobotBinding
 from newton_lab.robots.bound import ACTION_KINDS, BoundRobot
 from newton_lab.robots.g1 import spec
@@ -161,7 +161,8 @@ def test_action_map_columns_and_kinds(layout):
         (ActionTermCfg(name="tail", group="tail", type="absolute"), r"unknown group 'tail'; valid groups: base, "),
         (ActionTermCfg(name="arm_action", group="left_arm", type="velocity"),
          r"type 'velocity' does not drive group 'left_arm'; use absolute\|relative"),
-        (ActionTermCfg(name="base_action", group="base", type="absolute"), r"does not drive group 'base'; use velocity"),
+        (ActionTermCfg(name="base_action", group="base", type="absolute"),
+         r"does not drive group 'base'; use velocity"),
         (ActionTermCfg(name="leg_action", group="legs", type="binary"), r"does not drive group 'legs'"),
     ],
 )

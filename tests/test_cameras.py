@@ -17,8 +17,7 @@ import warp as wp
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
 from newton_lab.envs.cameras import resolve_cameras
-from newton_lab.robots.g1 import cameras as mounts
-from newton_lab.robots.g1 import spec
+from newton_lab.robots.g1 import cameras as mounts, spec
 from newton_lab.robots.g1.model import mjcf_path
 from newton_lab.task_api.registry import lookup
 

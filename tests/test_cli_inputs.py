@@ -52,6 +52,7 @@ def test_phases_and_mimic_sources_read_from_source_match_the_registry():
     """The coherent tasks' phases (name, component) and the Mimic variants' sources that the checks read from the
     task packages' source are the registry's."""
     import newton_lab.tasks  # noqa: F401
+
     from newton_lab.task_api.catalog import declared_mimic_arms, declared_phases, declared_sources
     from newton_lab.task_api.registry import list_tasks, lookup
 
@@ -83,9 +84,11 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     # A writer queue of one episode makes every batch one episode: with the default queue, a writer thread that
     # the OS schedules late takes episodes 1 and 2 as one batch, and the fault then rolls both back.
     # The fault is armed by this launcher through the writers' seam: the 140th write is inside the second episode's.
-    one_per_batch = ("import sys; from newton_lab.envs import rollout; rollout.collect.__kwdefaults__['max_queued'] = 1;"
-                     " from newton_lab.datasets.files.write_faults import inject_write_fault; inject_write_fault(140);"
-                     " from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))")
+    one_per_batch = (
+        "import sys; from newton_lab.envs import rollout; rollout.collect.__kwdefaults__['max_queued'] = 1;"
+        " from newton_lab.datasets.files.write_faults import inject_write_fault; inject_write_fault(140);"
+        " from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))"
+    )
     out = subprocess.run([sys.executable, "-c", one_per_batch, *argv], cwd=tmp_path, capture_output=True, text=True)
     errors = [line for line in out.stderr.splitlines() if "CUDA driver" not in line]
     assert out.returncode == 1 and len(errors) == 1, out.stderr

@@ -10,12 +10,12 @@ import time
 import numpy as np
 import pytest
 import zarr
+from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
 
 from newton_lab.datasets import EpisodeWriter, list_demos, read_episodes
+from newton_lab.datasets.writers.background_thread import BackgroundWriter
 from newton_lab.datasets.zarr import packs as zarr_packs
 from newton_lab.datasets.zarr.settings import ZarrWriteSettings
-from newton_lab.datasets.writers.background_thread import BackgroundWriter
-from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
 
 
 def _writer(path, **kw) -> BackgroundWriter:

@@ -45,9 +45,14 @@ def _dataset(path: Path) -> Path:
     with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
         for steps in (6, 5):
             actions = rng.standard_normal((steps, 8)).astype(np.float32)
-            w.append_episode({"actions": actions, "obs": {"tcp_pose": rng.standard_normal((steps, 7)).astype(np.float32),
-                                                          "actions": actions.copy()}},
-                             success=True, attrs={"termination_reason": "success"})
+            w.append_episode(
+                {
+                    "actions": actions,
+                    "obs": {"tcp_pose": rng.standard_normal((steps, 7)).astype(np.float32), "actions": actions.copy()},
+                },
+                success=True,
+                attrs={"termination_reason": "success"},
+            )
     return path
 
 

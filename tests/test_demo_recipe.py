@@ -4,10 +4,10 @@ configuration and reporting only; the recipe's figures come from the pipeline ru
 from __future__ import annotations
 
 import pytest
-
-from newton_lab.commands import PipelineArgs
 from newton_lab.flows.report import summary_lines
 from newton_lab.flows.settings import DEMO_RECIPES, demo_recipe
+
+from newton_lab.commands import PipelineArgs
 from newton_lab.policies import DiffusionPolicyConfig
 
 

@@ -102,7 +102,9 @@ def test_generated_references_hold_what_the_code_declares(site):
 
 
 def test_every_snippet_passes_its_check():
-    problems = [p for page in docs_snippets.pages() for s in docs_snippets.snippets(page) for p in docs_snippets.check(s)]
+    problems = [
+        p for page in docs_snippets.pages() for s in docs_snippets.snippets(page) for p in docs_snippets.check(s)
+    ]
     problems += [p for page in docs_snippets.pages() for p in docs_snippets.check_outputs(page)]
     assert not problems, "\n".join(problems)
 
@@ -113,7 +115,9 @@ def test_a_flag_that_disappears_fails_the_check():
     assert check("newton-lab collect --no-such-flag 3")  # unknown
     assert check("newton-lab collect --episode 3")  # argparse would take the prefix; the check does not
     assert check("newton-lab no-such-command")
-    listing = docs_snippets.Snippet("x.md", 1, "python", "SCENE = 'not the file'\n", "listing", "tasks/push_cube/scene.py")
+    listing = docs_snippets.Snippet(
+        "x.md", 1, "python", "SCENE = 'not the file'\n", "listing", "tasks/push_cube/scene.py"
+    )
     assert docs_snippets.check(listing)
 
 

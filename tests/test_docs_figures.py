@@ -33,8 +33,7 @@ def _prose_pages() -> list[Path]:
 def _sentences(text: str):
     text = GENERATED.sub("", text)
     for paragraph in re.split(r"\n\s*\n", text):
-        for sentence in re.split(r"(?<=[.!?])\s+", " ".join(paragraph.split())):
-            yield sentence
+        yield from re.split(r"(?<=[.!?])\s+", " ".join(paragraph.split()))
 
 
 def typed_promises(text: str) -> list[str]:

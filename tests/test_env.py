@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
+from newton_lab.tasks.common.config.g1 import postures
 
 from newton_lab.envs import make_env
 from newton_lab.robots.g1 import spec
 from newton_lab.task_api.registry import lookup
-from newton_lab.tasks.common.config.g1 import postures
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +89,7 @@ def test_captured_step_matches_eager(pick_env, eager_env):
         for key, value in captured.items():
             if value.dtype.is_floating_point:
                 torch.testing.assert_close(value, eager[key], atol=1e-5, rtol=0,
-                                           msg=lambda m, k=key: f"step {t} {k}: {m}")
+                                           msg=lambda m, k=key, t=t: f"step {t} {k}: {m}")
             else:
                 assert torch.equal(value, eager[key]), f"step {t} {key}: {value.tolist()} != {eager[key].tolist()}"
         seen["terminated"] += int(captured["terminated"].sum())

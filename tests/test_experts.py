@@ -4,9 +4,9 @@ every episode. Task terms are generic and shared, so a change to one shows here 
 
 from __future__ import annotations
 
+import newton_lab.tasks  # noqa: F401  (registers every task id)
 import pytest
 
-import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
 from newton_lab.task_api.registry import list_tasks, lookup
@@ -122,9 +122,9 @@ def test_a_target_settles_until_the_arm_reaches_it_and_in_full_before_the_grippe
 
     import numpy as np
     import warp as wp
+    from newton_lab.kernels.planner import gather_plan_actions
 
     from newton_lab.agents.planner.agent import PlannerAgent
-    from newton_lab.kernels.planner import gather_plan_actions
 
     def gather(q_now: float, settle_at: int, cursor: int) -> tuple[np.ndarray, int]:
         way = np.zeros((1, 2, 8), dtype=np.float32)

@@ -16,11 +16,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from newton_lab.flows import settings
 from newton_lab.flows.runlog import ARTIFACT_KEYS
-from stage_faults import SPEC_ENV as FAULT_ENV, armed
 from newton_lab.flows.stages import _finish, _guard
+from stage_faults import SPEC_ENV as FAULT_ENV, armed
 
 pytestmark = pytest.mark.slow
 
@@ -140,9 +139,8 @@ def assert_input_error_reported_once(proc: subprocess.CompletedProcess, out: Pat
 @pytest.fixture(scope="module")
 def run(harness, tmp_path_factory):
     """The tiny pipeline, logs shipped to the test server; its train stage fails once with an I/O error."""
-    from prefect.settings import PREFECT_LOGGING_TO_API_ENABLED, temporary_settings  # deferred: after configure
-
     from newton_lab.flows import pipeline  # deferred: imports Prefect (after the harness configured it)
+    from prefect.settings import PREFECT_LOGGING_TO_API_ENABLED, temporary_settings  # deferred: after configure
 
     tmp = tmp_path_factory.mktemp("pipeline")
     with armed(f"train:oserror:{tmp / 'train.fault'}"), temporary_settings({PREFECT_LOGGING_TO_API_ENABLED: True}):
@@ -257,9 +255,10 @@ def test_console_leaves_failures_to_the_caller():
     and every other record still print."""
     import logging
 
-    from newton_lab.datasets import DatasetWriteError
     from newton_lab.flows.orchestration import REPORTED_ERRORS  # deferred: Prefect is slow to import
     from newton_lab.flows.runlog import CallerReports
+
+    from newton_lab.datasets import DatasetWriteError
 
     def record(name, msg, exc=None):
         return logging.LogRecord(name, logging.ERROR, __file__, 1, msg, None,

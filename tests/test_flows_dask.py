@@ -12,12 +12,22 @@ import json
 import socket
 
 import pytest
+from newton_lab.flows.cluster import NANNY_CLOSE_S, SCHEDULER_HTTP, cluster_options, visible_gpus
 from stage_faults import armed
-from test_flows import (ARTIFACT_KEYS, RETRY_STATES, TINY, TINY_CLI, artifacts,  # noqa: F401
-                        assert_input_error_reported_once, harness, run_cli, stale_manifest, task_runs)
+from test_flows import (  # noqa: F401
+    ARTIFACT_KEYS,
+    RETRY_STATES,
+    TINY,
+    TINY_CLI,
+    artifacts,
+    assert_input_error_reported_once,
+    harness,
+    run_cli,
+    stale_manifest,
+    task_runs,
+)
 
 from newton_lab.datasets import read_dataset_info, read_episode
-from newton_lab.flows.cluster import NANNY_CLOSE_S, SCHEDULER_HTTP, cluster_options, visible_gpus
 
 pytestmark = pytest.mark.slow
 

@@ -16,10 +16,10 @@ import h5py
 import numpy as np
 import pytest
 import zarr
+from test_crash_campaign import read_all
 
 from newton_lab.agents import BaseAgent
 from newton_lab.datasets import read_dataset_info, read_episode
-from test_crash_campaign import read_all
 
 TASK = "GalbotG1-PickCube-v0"
 SMALL = (96, 72)

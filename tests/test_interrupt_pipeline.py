@@ -12,7 +12,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from test_interrupts import RUN, alive, descendants, wait_for
 
 ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-episodes", "400", "--train-steps", "3",

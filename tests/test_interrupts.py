@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from test_lerobot_export import make_dataset
 
 TASK = "GalbotG1-PickToShelf-v0"
@@ -60,6 +59,7 @@ def make_splittable(path: Path, demos: int, steps: int) -> None:
     """A dataset recorded on the coherent PickToShelf (action columns of all its components, ``datagen/phase`` a
     third of each episode per phase), made without an env."""
     import newton_lab.tasks  # noqa: F401
+
     from newton_lab.datasets import open_writer
     from newton_lab.robots.registry import robot_binding
     from newton_lab.task_api.registry import lookup

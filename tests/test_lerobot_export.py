@@ -16,10 +16,13 @@ import pyarrow.parquet as pq
 import pytest
 
 from newton_lab.datasets import open_writer, read_episode
-from newton_lab.datasets.zarr.settings import ZarrWriteSettings
+from newton_lab.datasets.lerobot import (
+    export_lerobot,
+    validate_lerobot_v3,
+    writer as lr,  # the export reads episodes through it
+)
 from newton_lab.datasets.ref import DatasetRef
-from newton_lab.datasets.lerobot import writer as lr  # the export reads episodes through it
-from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
 
 TASK = "GalbotG1-PickCube-v0"
 JOINTS = [f"joint_{i}" for i in range(7)] + ["gripper"]

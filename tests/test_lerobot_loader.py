@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_lerobot_export import IMAGE, STATE_ORDER, TASK, make_dataset
 
 from newton_lab.datasets import read_episode
 from newton_lab.datasets.lerobot import export_lerobot
 from newton_lab.datasets.lerobot.video import decode_frames
-from test_lerobot_export import IMAGE, STATE_ORDER, TASK, make_dataset
 
 REPO = Path(__file__).resolve().parents[1]
 LEROBOT_PYTHON = "NEWTON_LAB_LEROBOT_PYTHON"

@@ -6,8 +6,8 @@ import subprocess
 import sys
 
 import torch
-
 from conftest import run_until_done
+
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
 from newton_lab.task_api.registry import list_tasks

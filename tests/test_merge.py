@@ -5,8 +5,7 @@ from __future__ import annotations
 import pytest
 from test_storage import ENV_ARGS, FORMATS, TASK, assert_tree_equal, fingerprint, make_episode, write_demos
 
-from newton_lab.datasets import EpisodeWriter, list_demos, read_dataset_info, read_episode
-from newton_lab.datasets import merge as merge_module
+from newton_lab.datasets import EpisodeWriter, list_demos, merge as merge_module, read_dataset_info, read_episode
 from newton_lab.datasets.files.write_faults import inject_write_fault
 from newton_lab.datasets.merge import merge_datasets
 

@@ -9,8 +9,13 @@ import pytest
 
 from newton_lab.datasets import DatasetRef, read_dataset_info, read_episode
 from newton_lab.mimic import mimic, mimic_variant_of
-from newton_lab.mimic.poses import (closest_symmetric_pose, interpolate_poses, mat_to_pose, pose_to_mat,
-                                             transform_segment)
+from newton_lab.mimic.poses import (
+    closest_symmetric_pose,
+    interpolate_poses,
+    mat_to_pose,
+    pose_to_mat,
+    transform_segment,
+)
 
 
 def _yaw_quat(a):
@@ -95,8 +100,8 @@ def test_stack_cube_segments_end_clear_of_the_stack(stack_env, tmp_path):
     sweep the open fingers through cube_2."""
     from newton_lab.agents import PlannerAgent
     from newton_lab.mimic.source import load_sources
-    from newton_lab.task_api.registry import lookup
     from newton_lab.robots.g1.kinematics import TcpKinematics
+    from newton_lab.task_api.registry import lookup
 
     stack_env.reseed(stack_env.seed)  # a fresh env's first scene, whatever ran on the shared fixture before
     src = stack_env.collect(agent=PlannerAgent.from_task(stack_env.task_id), episodes=1, path=tmp_path / "s.hdf5",

@@ -376,9 +376,10 @@ def test_sort_to_shelf_options_and_layout():
 @pytest.mark.slow
 def test_sort_to_shelf_upper_row_with_leg_lift():
     """Coherent SortToShelf for the red cube (upper cell): the legs lift during nav and the cube ends in a1."""
+    from newton_lab.tasks.sort_to_shelf.objects import OBJECTS
+
     from newton_lab.agents import expert_agent
     from newton_lab.envs import make_env
-    from newton_lab.tasks.sort_to_shelf.objects import OBJECTS
 
     env = make_env("GalbotG1-SortToShelf-v0", num_envs=1, device="cpu", seed=2, randomize=True,
                    task_options={"sorting_object": "red_cube"})

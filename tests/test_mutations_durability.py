@@ -12,8 +12,8 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from newton_lab.datasets.files import durability
 from newton_lab.datasets import list_demos, open_writer, read_episode
+from newton_lab.datasets.files import durability
 from newton_lab.datasets.hdf5 import journal as _journal
 from newton_lab.datasets.zarr import nodes as zarr_nodes, session as zarr_session, store as zarr_store
 

@@ -4,11 +4,11 @@ real robot measures (proprioception and cameras)."""
 from __future__ import annotations
 
 import newton
+import newton_lab.tasks  # noqa: F401  (registers every task id)
 import pytest
 import torch
 import warp as wp
 
-import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.envs import make_env
 from newton_lab.task_api.registry import list_tasks, lookup
 

@@ -13,10 +13,10 @@ import pytest
 from test_lerobot_export import make_dataset
 
 from newton_lab.datasets import list_demos, open_writer
-from newton_lab.datasets.zarr import inodes as room
-from newton_lab.datasets.lerobot import export_lerobot
 from newton_lab.datasets.files.output_paths import OutputPathError, output_path
+from newton_lab.datasets.lerobot import export_lerobot
 from newton_lab.datasets.yolo import YoloWriter
+from newton_lab.datasets.zarr import inodes as room
 from newton_lab.policies.resume import write_atomic
 
 KINDS = {"dataset": "data/pick_cube.hdf5", "checkpoint": "outputs/policy/checkpoint.pt", "export": "exports/lerobot"}
@@ -72,7 +72,7 @@ def test_the_writers_follow_the_rule(tmp_path):
               "checkpoint": lambda p: write_atomic({"step": 1}, p / "run" / "resume.pt"),
               "export": lambda p: export_lerobot(dataset, p / "lerobot", video=False),
               "yolo": lambda p: YoloWriter(p / "yolo", ["cube"], ["train"])}
-    for name, write in writes.items():
+    for write in writes.values():
         with pytest.raises(OutputPathError, match=r"^cannot write .*afile.* is a file; choose another path$"):
             write(tmp_path / "afile")
     assert tree(tmp_path) == before

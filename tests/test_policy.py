@@ -12,8 +12,15 @@ import pytest
 import torch
 
 from newton_lab.datasets import open_writer
-from newton_lab.policies import (DiffusionPolicy, DiffusionPolicyConfig, MinMaxNormalizer, NoiseScheduler, Policy,
-                                 SequenceDataset, load_policy)
+from newton_lab.policies import (
+    DiffusionPolicy,
+    DiffusionPolicyConfig,
+    MinMaxNormalizer,
+    NoiseScheduler,
+    Policy,
+    SequenceDataset,
+    load_policy,
+)
 from newton_lab.policies.model import ConditionalUnet1D
 from newton_lab.policies.train import _fit_to_budget, warmup_cosine
 
@@ -422,7 +429,8 @@ def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
 def test_train_cli_flags(dataset, tmp_path, capsys):
     from newton_lab.cli import main
 
-    assert main(["train", "--dataset-path", str(dataset), str(dataset), "--output-dir", str(tmp_path), "--preset", "cpu",
+    assert main(["train", "--dataset-path", str(dataset), str(dataset), "--output-dir", str(tmp_path),
+                 "--preset", "cpu",
                  "--max-steps", "2", "--batch-size", "8", "--obs-keys", "robot_joint_pos",
                  "--time-budget-s", "60"]) == 0
     ckpt = Path(json.loads(capsys.readouterr().out.strip().splitlines()[-1])["checkpoint"])

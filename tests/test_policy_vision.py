@@ -109,7 +109,10 @@ def test_policy_agent_refuses_other_cameras(image_demos, tmp_path):
     from newton_lab.policies.agent import PolicyAgent
 
     path = Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path))
-    for cameras, match in ((False, "does not render"), ({"front_head": (128, 96)}, r"cameras=\{'front_head': \(96, 72\)\}")):
+    for cameras, match in (
+        (False, "does not render"),
+        ({"front_head": (128, 96)}, r"cameras=\{'front_head': \(96, 72\)\}"),
+    ):
         env = make_env("GalbotG1-PickCube-v0", num_envs=1, device="cpu", cameras=cameras)
         with pytest.raises(ValueError, match=match):
             PolicyAgent.from_checkpoint(path).act(env)

@@ -1,8 +1,8 @@
 """The README is a front page: at most ``MAX_LINES`` lines, every link into the repository resolves, and no benchmark
-history (figures live in docs/benchmarks.md). Its first sections run as written: every ```python and ```bash block above "## Tasks" (the header, the
-Tour, the command line, gymnasium) is executed from an empty folder, the way a newcomer copies it, in a subprocess of
-this venv's ``python`` (the bash lines with this venv's ``bin`` first on ``PATH``, so ``newton-lab`` and ``python``
-are this install's).
+history (figures live in docs/benchmarks.md). Its first sections run as written: every ```python and ```bash block
+above "## Tasks" (the header, the Tour, the command line, gymnasium) is executed from an empty folder, the way a
+newcomer copies it, in a subprocess of this venv's ``python`` (the bash lines with this venv's ``bin`` first on
+``PATH``, so ``newton-lab`` and ``python`` are this install's).
 
 Only sizes are changed, each by an explicit substitution in ``SMALLER`` that must match exactly as often as it says
 (when the README changes, this test fails and names the substitution instead of silently running full size). Paths

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 
+import newton_lab.tasks  # noqa: F401  (registers every task id)
 import pytest
 import torch
 
-import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.task_api.registry import TaskSpec, list_tasks, lookup, register
 
 

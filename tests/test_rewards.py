@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
+from newton_lab.tasks.common.rewards import DENSE_REWARD_MAX, Stage, phased_rewards, staged_rewards
 
 from newton_lab.agents import PlannerAgent, expert_agent
-from newton_lab.tasks.common.rewards import DENSE_REWARD_MAX, Stage, phased_rewards, staged_rewards
 
 NAV_TASKS = {"GalbotG1-BaseNav-v0", "GalbotG1-PickToShelf-Nav-v0", "GalbotG1-SortToShelf-Nav-v0", "GalbotG1-Reach-v0"}
 """Tasks keeping the reference's distance-shaped rewards (not normalised)."""
@@ -63,6 +63,7 @@ def _step_with_gripper(env, value: float):
 # ---------------------------------------------------------------- declarations
 def test_every_manipulation_task_declares_a_normalised_dense_reward():
     import newton_lab.tasks  # noqa: F401  (registers the tasks)
+
     from newton_lab.task_api.registry import list_tasks, lookup
 
     for task_id in list_tasks():

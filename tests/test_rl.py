@@ -129,9 +129,8 @@ def test_the_train_rl_flow_trains_evaluates_records_and_is_cached(tmp_path):
     from newton_lab.flows import settings
 
     settings.configure(tmp_path / "prefect_home")
-    from prefect.testing.utilities import prefect_test_harness  # deferred: Prefect reads settings.configure's home
-
     from newton_lab.flows.rl import train_rl  # deferred: imports Prefect (after settings.configure)
+    from prefect.testing.utilities import prefect_test_harness  # deferred: Prefect reads settings.configure's home
 
     ppo = {**TINY_PPO, "iterations": 1, "hidden_dims": [32, 32]}
     with prefect_test_harness(server_startup_timeout=120):

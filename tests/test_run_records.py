@@ -148,7 +148,7 @@ def test_the_committed_page_matches_the_committed_records():
     for line in rows:  # each row links a record that exists
         link = re.search(r"\]\((results/[^)]+\.json)\) \|$", line)
         assert link and (PAGE.parent / link.group(1)).is_file(), line
-    for path, rec in loaded:  # and each record shows on the page
+    for path, _ in loaded:  # and each record shows on the page
         assert f"({path.relative_to(PAGE.parent)})" in block, path
 
 

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import os
 
+from newton_lab.flows import stages
+
 from newton_lab.commands import CollectArgs
 from newton_lab.datasets import read_dataset_info
-from newton_lab.flows import stages
 
 
 def test_an_env_stage_runs_in_a_process_of_its_own_where_cuda_would(tmp_path, monkeypatch):

@@ -18,9 +18,20 @@ import numpy as np
 import pytest
 import zarr
 
-from newton_lab.datasets import (FORMAT_VERSION, EpisodeWriter, delete_demos, list_demos, open_writer,
-                                 read_dataset_info, read_episode, read_episodes, read_filter_keys, set_filter_keys,
-                                 split_train_val, state_tree)
+from newton_lab.datasets import (
+    FORMAT_VERSION,
+    EpisodeWriter,
+    delete_demos,
+    list_demos,
+    open_writer,
+    read_dataset_info,
+    read_episode,
+    read_episodes,
+    read_filter_keys,
+    set_filter_keys,
+    split_train_val,
+    state_tree,
+)
 from newton_lab.datasets.files.write_faults import inject_write_fault
 
 ROOT = Path(__file__).resolve().parents[1]

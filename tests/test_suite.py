@@ -7,11 +7,10 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
-
 from newton_lab.flows.suite_rows import ROWS, rows_of
+
 from newton_lab.records import is_product_command
 from newton_lab.results import BEGIN, END
 

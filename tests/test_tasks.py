@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 import warp as wp
-
 from conftest import run_until_done
+
 from newton_lab.agents import PlannerAgent
 
 

@@ -229,7 +229,9 @@ def test_teleop_task_has_the_operator_cameras_and_does_not_end_on_success():
     pick = lookup("GalbotG1-PickCube-v0").make_cfg()
     assert cfg.actions == pick.actions
     # the same success logic: the same generic terms with the same parameters, before they are compiled
-    assert lookup("GalbotG1-PickCube-Teleop-v0").cfg().phase_success == lookup("GalbotG1-PickCube-v0").cfg().phase_success
+    assert (
+        lookup("GalbotG1-PickCube-Teleop-v0").cfg().phase_success == lookup("GalbotG1-PickCube-v0").cfg().phase_success
+    )
 
 
 # ---------------------------------------------------------------- real physics (CPU)
@@ -278,7 +280,7 @@ def test_review_loop_keeps_drops_and_exits(expert_demo, tmp_path):
         os.close(w)
         out = io.StringIO()
         try:
-            summary = teleop_session(env, agent, path=path, realtime=False, fd=r, out=out, keep=1)
+            teleop_session(env, agent, path=path, realtime=False, fd=r, out=out, keep=1)
         finally:
             os.close(r)
             agent.close()

@@ -139,7 +139,9 @@ def test_keyboard_teleop_in_a_terminal_keep_drop_and_end_of_input(tmp_path):
             else:
                 tmux.keys(answer)
                 tmux.keys("Enter", literal=False)
-                tmux.wait_for(lambda s: "dropped demo" in s and _status(s.split("dropped demo")[-1]), "the next episode")
+                tmux.wait_for(
+                    lambda s: "dropped demo" in s and _status(s.split("dropped demo")[-1]), "the next episode"
+                )
                 tmux.keys("done")  # then end the input at the next prompt
                 tmux.keys("Enter", literal=False)
                 tmux.wait_for(lambda s: s.count("keep / drop / exit?") >= 2, "the second review prompt")

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 
-import pytest
-
 import newton_lab.tasks  # noqa: F401  (registers every task id)
+import pytest
+from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, lifted
+
 from newton_lab.task_api.cfg import TermCfg, TerminationTermCfg
 from newton_lab.task_api.registry import lookup
 from newton_lab.task_api.terms import TermResolver, bind, resolve_cfg, term_factory
-from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, lifted
 
 SCENE = ("table", "cube", "blue_block")
 

@@ -17,11 +17,11 @@ from pathlib import Path
 
 import pytest
 import torch
+from newton_lab.flows.stages import train_stage
 from test_policy import TINY, write_dataset
 
 from newton_lab.cli import main
 from newton_lab.commands import TrainArgs
-from newton_lab.flows.stages import train_stage
 from newton_lab.policies import DiffusionPolicy, train
 from newton_lab.policies.diffusion import PRESETS
 from newton_lab.policies.train import Checkpointer

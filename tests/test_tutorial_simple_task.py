@@ -95,7 +95,9 @@ def test_the_chapter_builds_my_push_in_a_scratch_copy(tmp_path):
     """A reader's run of the whole page, in a copy of the working tree: it writes the task, lists, steps, renders,
     evaluates the expert, collects, runs Mimic, trains and evaluates the policy; every shown output matches."""
     result = docs_snippets.run_in_copy(PAGE, tmp_path / "repo")
-    assert result["failed"] is None, f"{result['failed']}: {result['error']}\n{result['trace']}\n{result.get('log', '')[-4000:]}"
+    assert result["failed"] is None, (
+        f"{result['failed']}: {result['error']}\n{result['trace']}\n{result.get('log', '')[-4000:]}"
+    )
     assert sorted(result["wrote"]) == sorted(_written())
     assert result["outputs_compared"] == len(docs_snippets.outputs(PAGE))
     assert result["stray"] == [], f"the page's commands left files outside outputs/: {result['stray']}"

@@ -179,7 +179,10 @@ def _image(rrd, entity: str, archetype: str) -> dict[int, np.ndarray]:
     """Raw image stream of ``entity`` read back as arrays by step (shape from the logged format)."""
     fmt, buf = _values(rrd, entity, f"{archetype}:format"), _values(rrd, entity, f"{archetype}:buffer")
     dtype = {"Image": np.uint8, "DepthImage": np.float32, "SegmentationImage": np.uint16}[archetype]
-    shape = lambda f: (f["height"], f["width"], 3) if archetype == "Image" else (f["height"], f["width"])
+
+    def shape(f):
+        return (f["height"], f["width"], 3) if archetype == "Image" else (f["height"], f["width"])
+
     return {s: np.frombuffer(bytes(buf[s]), dtype=dtype).reshape(shape(fmt[s])) for s in buf}
 
 
@@ -243,7 +246,9 @@ def test_each_camera_is_a_pinhole_with_its_image_streams(cam_env, cam_run):
                                    cam_env.sensors.cameras.intrinsics(CAMERA), rtol=1e-6)
         assert _values(rrd, path, "Pinhole:resolution")[None] == [96.0, 72.0]
         assert _values(rrd, path, "Pinhole:camera_xyz")[None] == [3, 1, 6]  # Right, Up, Back
-        labels = [c["class_description"]["info"]["label"] for c in _values(rrd, path, "AnnotationContext:context")[None]]
+        labels = [
+            c["class_description"]["info"]["label"] for c in _values(rrd, path, "AnnotationContext:context")[None]
+        ]
         assert labels == names and "cube" in labels and "robot/left_gripper" in labels
         assert rows[path] == rows[f"{path}/rgb"] == rows[f"{path}/depth"] == rows[f"{path}/segmentation"] == STEPS
         rgb, depth = _image(rrd, f"{path}/rgb", "Image"), _image(rrd, f"{path}/depth", "DepthImage")

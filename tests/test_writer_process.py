@@ -19,9 +19,9 @@ import pytest
 from newton_lab.agents import PlannerAgent
 from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episode
 from newton_lab.datasets.writers.columns import ColumnLayout, DemoBlock
+from newton_lab.datasets.writers.process import ProcessWriter, _Ring
 from newton_lab.datasets.zarr.packs import read_index
 from newton_lab.datasets.zarr.settings import ZarrWriteSettings
-from newton_lab.datasets.writers.process import ProcessWriter, _Ring
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import WRITE_MIN_BATCH, _writer_kind
 
@@ -48,7 +48,9 @@ def test_the_writer_process_writes_the_demos_the_writer_thread_writes(tmp_path, 
     for by_thread, by_process in zip(read["thread"], read["process"], strict=True):
         assert by_thread.keys() == by_process.keys() and "next_obs/cube_pose" in by_thread
         for key, value in by_thread.items():
-            assert np.array_equal(value, by_process[key]) and np.asarray(value).dtype == np.asarray(by_process[key]).dtype, key
+            assert (
+                np.array_equal(value, by_process[key]) and np.asarray(value).dtype == np.asarray(by_process[key]).dtype
+            ), key
         assert by_process["dones"][-1] == 1 and by_process["attrs/success"]
     assert _writer_kind("auto", WRITE_MIN_BATCH) == "process" and _writer_kind("auto", 2) == "thread"
     with pytest.raises(ValueError, match="writer 'disk' is not one of auto, thread, process"):

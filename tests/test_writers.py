@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 import zarr
 
-from newton_lab.datasets.files import locking
 from newton_lab.datasets import delete_demos, list_demos, open_writer, read_dataset_info, read_episode
-from newton_lab.datasets.writers.background_thread import BackgroundWriter
+from newton_lab.datasets.files import locking
 from newton_lab.datasets.storage import DatasetLockedError, DatasetWriteError, inject_write_fault
+from newton_lab.datasets.writers.background_thread import BackgroundWriter
 
 ROOT = Path(__file__).resolve().parents[1]
 TASK = "pick_cube"
@@ -230,7 +230,8 @@ path, point = sys.argv[1], sys.argv[2]
 store = zarr_store if path.endswith(".zarr") else hdf5_store
 w = open_writer(path, task_id="pick_cube", env_args={})
 for b in range(2):
-    print("BATCH", *w.append_episodes([(episode(10 * b + k), True, {"seed": 10 * b + k}) for k in range(3)]), flush=True)
+    batch = [(episode(10 * b + k), True, {"seed": 10 * b + k}) for k in range(3)]
+    print("BATCH", *w.append_episodes(batch), flush=True)
 def die(*args, **kwargs):
     os.kill(os.getpid(), signal.SIGKILL)
 if point == "mid_write" and path.endswith(".zarr"):  # the 4th of 6 episodes: its first arrays written, then killed

@@ -14,11 +14,18 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import yaml
-from PIL import Image
 
 from newton_lab.commands.perception import YoloPredictArgs, YoloTrainArgs, check_yolo_predict, check_yolo_train
-from newton_lab.datasets.yolo import (OVERLAY_COLORS, YoloWriter, default_imgsz, mask_iou, montage, overlay,
-                                      read_export, training_specs)
+from newton_lab.datasets.yolo import (
+    OVERLAY_COLORS,
+    YoloWriter,
+    default_imgsz,
+    mask_iou,
+    montage,
+    overlay,
+    read_export,
+    training_specs,
+)
 from newton_lab.perception.train import results_csv, seg_metrics
 
 NAMES = ["red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"]

@@ -12,15 +12,23 @@ import sys
 import numpy as np
 import pytest
 import zarr
-
-from newton_lab.datasets import (DatasetWriteError, EpisodeWriter, delete_demos, list_demos, read_dataset_info,
-                                 read_episode, read_episodes, read_filter_keys, set_filter_keys)
-from newton_lab.datasets.zarr import packs as zarr_packs
-from newton_lab.datasets.zarr.settings import ZarrWriteSettings
-from newton_lab.datasets.files.write_faults import inject_write_fault
-from newton_lab.datasets.merge import merge_datasets
 from test_storage import ENV_ARGS, TASK, assert_tree_equal, make_episode
 
+from newton_lab.datasets import (
+    DatasetWriteError,
+    EpisodeWriter,
+    delete_demos,
+    list_demos,
+    read_dataset_info,
+    read_episode,
+    read_episodes,
+    read_filter_keys,
+    set_filter_keys,
+)
+from newton_lab.datasets.files.write_faults import inject_write_fault
+from newton_lab.datasets.merge import merge_datasets
+from newton_lab.datasets.zarr import packs as zarr_packs
+from newton_lab.datasets.zarr.settings import ZarrWriteSettings
 
 SMALL_PACKS = ZarrWriteSettings(pack_min_batch=4)
 """Batches of 4 demos or more pack."""

@@ -1,8 +1,9 @@
 """What the collection writer costs, without physics: real demos of a stored dataset (``--source``, e.g. a CPU
 ``bench-collect`` of PickCube) handed to the background writer the way ``collect`` hands them (``put_many`` of
-``--batch`` demos at a time, each written before the next comes, ``EpisodeWriter.prepare`` in the caller's thread), ``--demos`` in all, into a fresh
-zarr dataset under ``--dir``. Each demo is a distinct copy (its floats scaled by 1 + k * 1e-7, so that no two
-compress as one). Prints one JSON line: the writer thread's seconds (``writer_s``, what ``bench-collect`` reports,
+``--batch`` demos at a time, each written before the next comes, ``EpisodeWriter.prepare`` in the caller's thread),
+``--demos`` in all, into a fresh zarr dataset under ``--dir``. Each demo is a distinct copy (its floats scaled by 1 + k
+* 1e-7, so that no two compress as one). Prints one JSON line: the writer thread's seconds (``writer_s``, what
+``bench-collect`` reports,
 split into ``writer_files_s`` / ``writer_sync_s``), the caller's seconds handing the demos over (``feed_s``) and
 waiting for the writer at the end (``drain_s``), writer demos/s, CPU milliseconds per demo (this process's threads:
 what a busy host pays), bytes and files per demo. ``--profile`` also prints the 25 costliest calls of one batch
@@ -29,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from newton_lab.datasets import list_demos, open_writer, read_dataset_info, read_episodes
-from newton_lab.datasets.zarr import store as zarr_store
 from newton_lab.datasets.writers.background_thread import BackgroundWriter
+from newton_lab.datasets.zarr import store as zarr_store
 
 
 def _scaled(tree: dict, k: int) -> dict:
@@ -133,7 +134,8 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
            "drain_s": end - t1, "writer_s": writer_s[0], "writer_batches": writer.batches,
            "writer_files_s": zarr_store.BATCH_SECONDS["files"] - before["files"],
            "writer_sync_s": zarr_store.BATCH_SECONDS["sync"] - before["sync"],
-           "writer_demos_per_s": written / writer_s[0], "cpu_ms_per_demo": 1e3 * cpu / written, "bytes_per_demo": size / demos,
+           "writer_demos_per_s": written / writer_s[0], "cpu_ms_per_demo": 1e3 * cpu / written,
+           "bytes_per_demo": size / demos,
            "files_per_demo": files / demos, **extra}
     if profile:
         store = open_writer(path, task_id=task, env_args=env_args)

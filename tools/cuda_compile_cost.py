@@ -16,8 +16,9 @@ import sys
 import tempfile
 import time
 
-import newton_lab  # noqa: F401  its Warp settings, before Warp creates any module
 import warp as wp
+
+import newton_lab  # noqa: F401  its Warp settings, before Warp creates any module
 
 
 def run_job(job: str, task: str, source: str | None, out_dir: str) -> None:

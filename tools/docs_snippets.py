@@ -339,7 +339,9 @@ def shrink(line: str, sizes: bool = True) -> str:
         line = _cap(line, "--max-steps", TRAIN_STEPS) if "--max-steps" in words else f"{line} --max-steps {TRAIN_STEPS}"
         line = re.sub(r"--time-budget-s[ =]\d+\s*", "", line)
     if words[0] == "newton-lab" and ("--checkpoint" in words or "--phase-checkpoint" in words):
-        line = _cap(line, "--max-steps", POLICY_STEPS) if "--max-steps" in words else f"{line} --max-steps {POLICY_STEPS}"
+        line = (
+            _cap(line, "--max-steps", POLICY_STEPS) if "--max-steps" in words else f"{line} --max-steps {POLICY_STEPS}"
+        )
     return line
 
 
@@ -560,7 +562,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="check or run the user guide's code blocks")
     parser.add_argument("mode", choices=("check", "run"))
     parser.add_argument("pages", nargs="*", help="markdown pages (default: every page of docs/)")
-    parser.add_argument("--workdir", help="working folder of the runs, one subfolder a page (default: a new temporary one)")
+    parser.add_argument(
+        "--workdir", help="working folder of the runs, one subfolder a page (default: a new temporary one)"
+    )
     parser.add_argument("--json", help="write the results here")
     parser.add_argument("--here", action="store_true",
                         help="run from this repository's root at the page's sizes (only inside a scratch copy)")

@@ -78,6 +78,7 @@ def _options(spec) -> str:
 
 def _task_rows():
     import newton_lab.tasks  # noqa: F401  (registers every task id)
+
     from newton_lab.task_api.registry import list_tasks, lookup
 
     for task_id in list_tasks():
@@ -137,8 +138,17 @@ def _anchor(task_id: str) -> str:
 def tasks_page() -> str:
     """The task table and one section per task (markdown)."""
     tasks = list(_task_rows())
-    rows = [[f"[`{s.id}`](#{_anchor(s.id)})", s.description, f"{_action_width(c)}: " + ", ".join(a.group for a in c.actions),
-             _cameras(c), _success(c), _options(s)] for s, c in tasks]
+    rows = [
+        [
+            f"[`{s.id}`](#{_anchor(s.id)})",
+            s.description,
+            f"{_action_width(c)}: " + ", ".join(a.group for a in c.actions),
+            _cameras(c),
+            _success(c),
+            _options(s),
+        ]
+        for s, c in tasks
+    ]
     table = _table(["id", "what", "action columns", "cameras", "success", "options"], rows)
     sections = "\n\n".join(_task_section(s, c) for s, c in tasks)
     note = ("Observation terms marked \\* are privileged (an object's pose or a target's position): "
@@ -158,7 +168,11 @@ def _joint_rows() -> list[list[str]]:
     from newton_lab.robots.g1 import spec
 
     joints = _mjcf_joints()
-    groups = {**spec.JOINT_GROUPS, "planar base": spec.BASE_PLANAR_JOINTS, "fingers (coupled)": spec.GRIPPER_FINGER_JOINTS}
+    groups = {
+        **spec.JOINT_GROUPS,
+        "planar base": spec.BASE_PLANAR_JOINTS,
+        "fingers (coupled)": spec.GRIPPER_FINGER_JOINTS,
+    }
     rows = []
     for group, names in groups.items():
         for name in names:
@@ -267,7 +281,7 @@ def cli_page() -> str:
 # ------------------------------------------------------------------------------------------------ recipes
 def recipes_page() -> str:
     """The pipeline's recipes (``newton_lab.flows.settings``): counts, what the policy sees, training."""
-    from newton_lab.flows.settings import DEMO_RECIPES, LONG_HORIZON_RECIPES, LONG_HORIZON_OPTIONS
+    from newton_lab.flows.settings import DEMO_RECIPES, LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
 
     def training(train: dict) -> str:
         parts = [f"preset `{train['preset']}`" if "preset" in train else "quarter-width U-Net"]

@@ -15,6 +15,7 @@ import json
 import time
 
 import newton_lab.tasks  # noqa: F401  (registers every task id)
+
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
 from newton_lab.task_api.registry import list_tasks, lookup

@@ -8,8 +8,9 @@ Welding is done in the MJCF (``newton_lab.robots.weld``): a welded joint's eleme
 is folded into its body's pose (MuJoCo rides a joint-less body on its parent), together with the actuators and
 equality constraints that name it. The moving joints are the left arm and the left gripper (what PickCube,
 StackCube and the shelf tasks' manipulation phases drive). This is the bare solver alone; a task welds its idle
-joints inside the env with ``PhysicsCfg(weld_idle_joints=True)`` (``newton-lab bench`` then times it). It prints one JSON line per variant (degrees of freedom per world, world-steps/s
-of the captured ``decimation`` solver steps) and their ratio.
+joints inside the env with ``PhysicsCfg(weld_idle_joints=True)`` (``newton-lab bench`` then times it). It prints one
+JSON line per variant (degrees of freedom per world, world-steps/s of the captured ``decimation`` solver steps) and
+their ratio.
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ import argparse
 import json
 
 import newton
+import newton_lab.tasks  # noqa: F401  (registers every task id)
 import warp as wp
 
-import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.bench import _time_graph
 from newton_lab.envs.scene import CONTACT_GAP, _add_entity, _replicate, task_posture
 from newton_lab.robots.g1 import spec

@@ -25,6 +25,7 @@ import sys
 import time
 
 import newton_lab.tasks  # noqa: F401  (registers every task id)
+
 from newton_lab.agents import expert_agent
 from newton_lab.bench import bench
 from newton_lab.envs import make_env

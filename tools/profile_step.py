@@ -23,10 +23,10 @@ import re
 from collections import defaultdict
 
 import newton
+import newton_lab.tasks  # noqa: F401  (registers every task id)
 import warp as wp
 import warp._src.context as warp_context  # its module registry maps a kernel's key to the module defining it
 
-import newton_lab.tasks  # noqa: F401  (registers every task id)
 from newton_lab.envs import make_env
 from newton_lab.task_api.registry import lookup
 

@@ -80,8 +80,10 @@ def main() -> None:
     loop = time.perf_counter() - t0
     writer.close()
     s = writer.seconds
-    print(f"{args.bursts * args.per_burst} demos: loop {loop:.2f} s, all written after {time.perf_counter() - t0:.2f} s; "
-          f"writer_s {s['write']:.2f} (files {s['files']:.2f}, sync {s['sync']:.2f}), {writer.batches} batches")
+    print(
+        f"{args.bursts * args.per_burst} demos: loop {loop:.2f} s, all written after {time.perf_counter() - t0:.2f} s; "
+        f"writer_s {s['write']:.2f} (files {s['files']:.2f}, sync {s['sync']:.2f}), {writer.batches} batches"
+    )
 
 
 if __name__ == "__main__":

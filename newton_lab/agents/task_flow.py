@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .base import BaseAgent, as_rows
 from ..task_api.registry import lookup
+from .base import BaseAgent, as_rows
 from .experts import agent_for_declaration
 
 
@@ -40,7 +40,9 @@ class TaskFlowAgent(BaseAgent):
         agents = dict(agents or {})
         unknown = sorted(set(agents) - {p.name for p in phases})
         if unknown:
-            raise ValueError(f"agents for unknown phase(s) {unknown}; phases of {env.task_id}: {[p.name for p in phases]}")
+            raise ValueError(
+                f"agents for unknown phase(s) {unknown}; phases of {env.task_id}: {[p.name for p in phases]}"
+            )
         chosen = [agents.get(p.name) or expert_agent(p.task_id, **env.cfg.options) for p in phases]
         return cls(chosen, [p.name for p in phases])
 

@@ -8,8 +8,15 @@ import json
 import sys
 from pathlib import Path
 
-from ..commands import (BenchArgs, BenchCollectArgs, BenchRefusalsArgs, BenchTrainArgs, ResultsArgs, SuiteArgs,
-                        camera_option)
+from ..commands import (
+    BenchArgs,
+    BenchCollectArgs,
+    BenchRefusalsArgs,
+    BenchTrainArgs,
+    ResultsArgs,
+    SuiteArgs,
+    camera_option,
+)
 from ..flows.settings import configure
 from ..flows.suite_rows import rows_of
 from ..records import command_wall_s, default_path, make_record, write_record

@@ -18,8 +18,18 @@ from .env import CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksA
 from .perception import YoloExportArgs, YoloPredictArgs, YoloTrainArgs
 from .rl import TrainRLArgs
 from .teleop import TeleopArgs
-from .workflow import (RECIPE_FIELDS, TRAIN_OVERRIDES, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs,
-                       PipelineArgs, SplitArgs, TrainArgs, ViewArgs)
+from .workflow import (
+    RECIPE_FIELDS,
+    TRAIN_OVERRIDES,
+    CollectArgs,
+    EvaluateArgs,
+    ExportArgs,
+    MimicArgs,
+    PipelineArgs,
+    SplitArgs,
+    TrainArgs,
+    ViewArgs,
+)
 
 __all__ = ["BenchArgs", "BenchCollectArgs", "BenchRefusalsArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs",
            "CameraArgs", "EnvArgs", "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option",

@@ -11,8 +11,15 @@ from typing import Any
 from ..task_api.catalog import check_task_id, check_task_options, declared_phases, declared_sources, did_you_mean
 from ..task_api.cfg import IMAGE_DATA
 from .bench import BenchArgs, BenchCollectArgs, BenchTrainArgs
-from .device_checks import (DEVICE, check_cuda_device, check_gpus, check_num_envs, check_recorded_steps,
-                            check_workers, cuda_devices)
+from .device_checks import (
+    DEVICE,
+    check_cuda_device,
+    check_gpus,
+    check_num_envs,
+    check_recorded_steps,
+    check_workers,
+    cuda_devices,
+)
 from .env import RenderArgs, camera_option
 from .file_checks import check_append, check_checkpoints, check_datasets, check_split_out, check_train, flag_of
 from .perception import (

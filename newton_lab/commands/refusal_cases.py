@@ -48,7 +48,8 @@ CASES: list[tuple[str, str]] = [
     ("train --dataset-path src.hdf5 --max-steps 0", "--max-steps must be an integer >= 1"),
     ("train --dataset-path src.txt", "unknown dataset suffix"),
     # typos: the closest task id / flag is named, answered before Warp (the task ids are read from source)
-    ("collect --task GalbotG1-PickCub-v0", "unknown task id 'GalbotG1-PickCub-v0' (did you mean GalbotG1-PickCube-v0?)"),
+    ("collect --task GalbotG1-PickCub-v0",
+     "unknown task id 'GalbotG1-PickCub-v0' (did you mean GalbotG1-PickCube-v0?)"),
     ("evaluate --task GalbotG1-Reach-v1 --episodes 2", "(did you mean GalbotG1-Reach-v0?)"),
     ("pipeline --task GalbotG1-StackCub-v0", "(did you mean GalbotG1-StackCube-v0?)"),
     ("bench --task galbotg1-pickcube-v0", "(did you mean GalbotG1-PickCube-v0?)"),
@@ -151,7 +152,8 @@ CASES: list[tuple[str, str]] = [
     ("pipeline --out afile", "cannot write afile/.prefect: its parent afile is a file; choose another path"),
     ("bench-collect --workers 1 --baseline", "--baseline compares --workers W (W >= 2) with one worker alone"),
     ("train --dataset-path src.hdf5 pts.hdf5", "pts.hdf5 (GalbotG1-PickToShelf-v0) does not match src.hdf5"),
-    ("train --dataset-path src.hdf5 --output-dir afile", "cannot write afile/checkpoint.pt: its parent afile is a file"),
+    ("train --dataset-path src.hdf5 --output-dir afile",
+     "cannot write afile/checkpoint.pt: its parent afile is a file"),
     # split: a new folder, at least one phase
     ("split --dataset-path pts.hdf5 --out afile", "--out afile is a file; split into a new folder"),
     ("split --dataset-path pts.hdf5 --out earlier", "--out earlier is a folder that holds files already"),
@@ -234,8 +236,8 @@ def checkpoint_files() -> dict[str, bytes]:
 
 def make_inputs(root: Path, checkpoints: dict[str, bytes] | None = None) -> None:
     """Write into ``root`` what the cases name: datasets (src.hdf5: PickCube, demos 0, 1, 2; pts.hdf5: recorded on
-    the coherent PickToShelf; cam.hdf5: state only, no camera; reach.pt.hdf5: Reach, which has no Mimic variant; sort.hdf5: SortToShelf's
-    pick of the red cube),
+    the coherent PickToShelf; cam.hdf5: state only, no camera; reach.pt.hdf5: Reach, which has no Mimic variant;
+    sort.hdf5: SortToShelf's pick of the red cube),
     damaged ones (junk.hdf5, file.zarr, folder.hdf5), a file and a non-empty folder in the way (afile, earlier/)
     and the checkpoints (``checkpoints``: those of :func:`checkpoint_files`, made when not given)."""
     root = Path(root)

@@ -9,8 +9,18 @@ from .filter_keys import read_filter_keys, set_filter_keys
 from .ref import DatasetProvenance, DatasetRef
 from .split import split_by_phase, split_train_val
 from .states import state_tree
-from .storage import (FORMAT_VERSION, SUFFIXES, EpisodeWriter, delete_demos, list_demos, open_writer, read_dataset_info,
-                      read_episode, read_episodes, set_dataset_attrs)
+from .storage import (
+    FORMAT_VERSION,
+    SUFFIXES,
+    EpisodeWriter,
+    delete_demos,
+    list_demos,
+    open_writer,
+    read_dataset_info,
+    read_episode,
+    read_episodes,
+    set_dataset_attrs,
+)
 
 __all__ = ["DatasetRef", "DatasetProvenance", "DatasetLockedError", "DatasetWriteError", "set_dataset_attrs",
            "EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "read_episodes", "list_demos",

@@ -76,7 +76,7 @@ class DatasetRef:
             source_path=None if source_path is None else str(source_path),
             config=_jsonable(config or {}),
             metadata=_jsonable(metadata or {}),
-            created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            created=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         )
         stored = [p.as_dict() for p in DatasetRef.open(self.path).provenance] + [entry.as_dict()]
         set_dataset_attrs(self.path, {"provenance": json.dumps(stored)})

@@ -48,9 +48,23 @@ from typing import Any
 
 import numpy as np
 
-from .access import (BACKENDS, SUFFIXES, _as_id, _backend, _episodes, _existing, _medium_errors, _missing_id,
-                     _root_meta, delete_demos, list_demos, read_dataset_info, read_episode, read_episodes,
-                     set_dataset_attrs)
+from .access import (
+    BACKENDS,
+    SUFFIXES,
+    _as_id,
+    _backend,
+    _episodes,
+    _existing,
+    _medium_errors,
+    _missing_id,
+    _root_meta,
+    delete_demos,
+    list_demos,
+    read_dataset_info,
+    read_episode,
+    read_episodes,
+    set_dataset_attrs,
+)
 from .files.errors import DatasetLockedError, DatasetWriteError
 from .files.layout import FORMAT_VERSION, NEXT_ID, RESERVED_DEMO_ATTRS, StoredDemo, dumps_env_args, py_scalar
 from .files.output_paths import output_path

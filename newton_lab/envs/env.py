@@ -22,10 +22,9 @@ import torch
 import warp as wp
 
 from ..robots.binding import RobotBinding
-from ..robots.registry import robot_binding
 from ..robots.bound import BoundRobot
-from ..task_api.cfg import TaskCfg
-from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS
+from ..robots.registry import robot_binding
+from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS, TaskCfg
 from . import rollout
 from .actuation import Actuation
 from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coordinates

@@ -3,8 +3,9 @@ Warp graph (a CUDA graph on a GPU, Warp's CPU graph on the CPU).
 
 actions -> control targets (``Actuation.apply``) -> ``decimation`` x (base twist and drive setpoints, then
 ``solver.step``, in the solver's joint space when joints are welded: ``envs.joint_space``) -> fused task kernel
-(phase, success, terminations, reward) -> subtask signals and observation of the state reached (``final_obs``) and the finished rows' coordinates -> masked reset of finished rows (+ seeded
-randomisation, setpoints synced, forward kinematics, solver warm start cleared) -> observation, signals, poses.
+(phase, success, terminations, reward) -> subtask signals and observation of the state reached (``final_obs``) and the
+finished rows' coordinates -> masked reset of finished rows (+ seeded randomisation, setpoints synced, forward
+kinematics, solver warm start cleared) -> observation, signals, poses.
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ import warp as wp
 from ..kernels import fuse
 from ..kernels.context import TaskContext, record_poses
 from ..task_api.cfg import TaskCfg
+from . import mujoco_substeps
 from .actuation import Actuation
 from .buffers import StepBuffers
-from . import mujoco_substeps
 from .joint_space import SolverJointSpace
 from .terms import TaskKernels
 

@@ -15,12 +15,11 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple
 
-import numpy as np
 import torch
 import warp as wp
 
-from ..datasets.writers.columns import ColumnLayout, DemoBlock
 from ..datasets.states import state_layout
+from ..datasets.writers.columns import ColumnLayout, DemoBlock
 
 IMAGE_CHUNK_STEPS = 64
 """Steps by which the per-row image buffers grow (their time capacity is a multiple of it, capped at

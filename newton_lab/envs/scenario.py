@@ -167,7 +167,9 @@ def load_scenario(ref: str | Path) -> Scenario:
         try:
             text = resources.files(module).joinpath(name).read_text()
         except (ModuleNotFoundError, FileNotFoundError):
-            raise ScenarioError(f"scenario resource {text_ref!r} not found; pass a YAML path or package:file.yaml") from None
+            raise ScenarioError(
+                f"scenario resource {text_ref!r} not found; pass a YAML path or package:file.yaml"
+            ) from None
     else:
         path = Path(text_ref).expanduser()
         if not path.is_file():

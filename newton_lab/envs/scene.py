@@ -16,7 +16,6 @@ from ..robots.registry import robot_binding
 from ..task_api.cfg import EntityCfg, TaskCfg
 from ..task_api.physics import ANY_OBJECT, GROUND, ContactFilterCfg
 
-
 CONTACT_GAP = 0.005
 """Contact detection gap [m]. Newton's default (0.1 m) makes MuJoCo track every pair within 10 cm, which
 fills the contact buffers with far-apart pairs (cubes 7 cm apart, the ground under the table)."""
@@ -152,7 +151,9 @@ def _one_world(cfg: TaskCfg, robot: RobotBinding, weld: dict[str, float] | None 
         if weld and name in weld and name not in joints.coord:
             continue  # welded: folded into its body's pose
         if name not in joints.coord:
-            raise ValueError(f"task {cfg.task_id!r} posture names unknown joint {name!r}; valid: {sorted(joints.coord)}")
+            raise ValueError(
+                f"task {cfg.task_id!r} posture names unknown joint {name!r}; valid: {sorted(joints.coord)}"
+            )
         world.joint_q[joints.coord[name]] = value
         if name not in robot.base_planar_joints:
             world.joint_target_q[joints.coord[name]] = value

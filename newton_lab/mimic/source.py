@@ -82,10 +82,14 @@ def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str,
         actions = np.asarray(ep["actions"], dtype=np.float64)
         q_cmd = q.copy()
         q_cmd[:, kinematics.arm_coords] = actions[:, arm_cols]
-        tcp = np.concatenate([kinematics.tcp_poses(q_cmd[i : i + kinematics.n]) for i in range(0, len(q), kinematics.n)])
+        tcp = np.concatenate(
+            [kinematics.tcp_poses(q_cmd[i : i + kinematics.n]) for i in range(0, len(q), kinematics.n)]
+        )
         grip = actions[:, grip_col] if grip_col is not None else np.zeros(len(actions))
         objects = {k: np.asarray(v, dtype=np.float64) for k, v in ep["datagen"]["object_poses"].items()}
         sources.append(SourceDemo(demo, tcp, grip, objects, edges, len(actions)))
     if not sources:
-        raise ValueError(f"{path}: no successful source demo with the subtask signals {cfg.signals}; collect some first")
+        raise ValueError(
+            f"{path}: no successful source demo with the subtask signals {cfg.signals}; collect some first"
+        )
     return sources

@@ -134,7 +134,9 @@ def launch(datasets: list[str], cfg: dict[str, Any], gpus: int, *, resume: bool 
         command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={gpus}",
                    "-m", "newton_lab.policies.data_parallel_rank", str(request)]
         parent = os.getpid()  # torchrun (and so its workers) ends with this process, even when it is SIGKILLed
-        code = subprocess.run(command, check=False, preexec_fn=lambda: die_with_parent(parent, signal.SIGTERM)).returncode
+        code = subprocess.run(
+            command, check=False, preexec_fn=lambda: die_with_parent(parent, signal.SIGTERM)
+        ).returncode
         if code != 0 or not answer.exists():
             raise RuntimeError(f"data-parallel training over {gpus} processes failed (torchrun exit status {code}); "
                                "the workers' errors are printed above")

@@ -72,8 +72,11 @@ def save_file(payload: dict[str, Any], file: Any, path: Path) -> None:
         if code in STORAGE_ERRNOS or short:
             full = code == errno.ENOSPC or (code is None and shutil.disk_usage(path.parent).free < FULL_BELOW_BYTES)
             what = "disk full" if full else f"the disk refused a write ({os.strerror(code) if code else 'short write'})"
-            raise DatasetWriteError(f"{what} while writing {path}; free space and run again (a training run that "
-                                    "wrote a resume point goes on from it with --resume)", code or errno.ENOSPC) from None
+            raise DatasetWriteError(
+                f"{what} while writing {path}; free space and run again (a training run that "
+                "wrote a resume point goes on from it with --resume)",
+                code or errno.ENOSPC,
+            ) from None
         raise
 
 

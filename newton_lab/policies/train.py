@@ -26,16 +26,35 @@ import torch
 from tqdm import tqdm
 
 from ..datasets import read_dataset_info
-from ..datasets.writers.interrupts import Interrupted, stop_requests
 from ..datasets.files.output_paths import output_path
+from ..datasets.writers.interrupts import Interrupted, stop_requests
 from . import data_parallel
 from .data import SequenceDataset
 from .diffusion import DiffusionPolicy, DiffusionPolicyConfig
-from .resume import (RESUME_FORMAT, RESUME_VERSION, capture_rng, check_resumable, data_fingerprint, load_resume,
-                     policy_state, refuse_fresh_run, remove_stale_temps, restore_policy, restore_rng, resume_path,
-                     resumed_config, write_atomic)
-from .train_step import (CudaGraphTrainStep, EagerTrainStep, load_optimizer_state, make_train_step, set_lr,
-                         steps_per_epoch)
+from .resume import (
+    RESUME_FORMAT,
+    RESUME_VERSION,
+    capture_rng,
+    check_resumable,
+    data_fingerprint,
+    load_resume,
+    policy_state,
+    refuse_fresh_run,
+    remove_stale_temps,
+    restore_policy,
+    restore_rng,
+    resume_path,
+    resumed_config,
+    write_atomic,
+)
+from .train_step import (
+    CudaGraphTrainStep,
+    EagerTrainStep,
+    load_optimizer_state,
+    make_train_step,
+    set_lr,
+    steps_per_epoch,
+)
 
 LOG_EVERY_S = 30.0
 """Seconds between the plain progress lines of a run whose stderr is not a terminal."""

@@ -3,8 +3,9 @@
 A step is: gather a batch of sequence windows, noise it, predict the noise, back-propagate, AdamW, EMA.
 On a GPU the state-based U-Net runs about a thousand small kernels per step and the eager step is bound by
 their launches (34 steps/s at batch 1024 on an H100), so on CUDA the whole step is captured once with
-``torch.cuda.graph`` and replayed (60 steps/s, ``newton-lab bench-train``): the windows live on the GPU, the batch's indices, the learning rate and the EMA weight are device
-tensors written before each replay, and the diffusion noise comes from the graph-safe CUDA generator.
+``torch.cuda.graph`` and replayed (60 steps/s, ``newton-lab bench-train``): the windows live on the GPU, the batch's
+indices, the learning rate and the EMA weight are device tensors written before each replay, and the diffusion noise
+comes from the graph-safe CUDA generator.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ class ResumableOrder:
     def load_state_dict(self, state: dict[str, Any], then: Callable[[], None] | None = None) -> None:
         if state.get("kind") != type(self).__name__:
             raise ValueError(f"the interrupted run used the {state.get('kind')} step, this one the "
-                             f"{type(self).__name__}; resume on the same kind of device with the same cuda_graph setting")
+                             f"{type(self).__name__}; resume on the same kind of device with the same cuda_graph "
+                             "setting")
         self._pending = (state, then)
 
     def _begin_epoch(self) -> int:

@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+
 @dataclass(frozen=True)
 class JointIndex:
     """World-local coordinate / DOF indices of a builder's named joints, and its bodies' indices by name."""

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from .physics import PhysicsCfg
 
@@ -266,8 +267,8 @@ class TaskCfg:
     """Divergence guard: a body spinning faster than this ends the row (reason ``diverged``) [rad/s]. Non-finite
     body poses, velocities, joint coordinates or joint velocities always do."""
     cameras: dict[str, CameraCfg] = field(default_factory=dict)
-    """Cameras by robot mount name (``RobotBinding`` camera mounts, e.g. the G1's ``front_head``); empty: a state-only task.
-    ``make_env(..., cameras=...)`` turns them off or changes their resolution."""
+    """Cameras by robot mount name (``RobotBinding`` camera mounts, e.g. the G1's ``front_head``); empty: a state-only
+    task. ``make_env(..., cameras=...)`` turns them off or changes their resolution."""
     options: dict[str, Any] = field(default_factory=dict)
     """The task options this cfg was built with (recorded in dataset env_args)."""
 

@@ -6,9 +6,9 @@ the agent. Tasks declare experts without importing the agents layer.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Union
 
 from .motion_plan import MotionPlan, plan_from_yaml
 
@@ -49,10 +49,10 @@ class JointTargetExpert:
 class SequenceExpert:
     """Named experts run one after the other per row (``newton_lab.agents.SequenceAgent``)."""
 
-    steps: tuple[tuple[str, "Expert"], ...] = field(default_factory=tuple)
+    steps: tuple[tuple[str, Expert], ...] = field(default_factory=tuple)
 
 
-Expert = Union[MotionPlan, NavExpert, JointTargetExpert, SequenceExpert]
+Expert = MotionPlan | NavExpert | JointTargetExpert | SequenceExpert
 """Any expert declaration."""
 
 

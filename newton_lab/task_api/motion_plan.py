@@ -8,8 +8,9 @@ maps entity names and ``"tcp"`` / ``"base"`` to (R, 7) arrays and ``"command"`` 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import yaml

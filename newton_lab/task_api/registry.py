@@ -12,8 +12,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .catalog import OBS_MODE as _OBS_MODE_DECL
-from .catalog import did_you_mean
+from .catalog import OBS_MODE as _OBS_MODE_DECL, did_you_mean
 from .cfg import TaskCfg
 from .experts import Expert
 from .mimic_cfg import MimicCfg
@@ -163,13 +162,22 @@ def mimic_variant(source: TaskSpec, *, id: str, mimic: MimicCfg) -> TaskSpec:
     """A Mimic generation variant of ``source``: the same scene, terms, randomisation and options, under its
     own id, with the subtask decomposition ``mimic``."""
 
-    return TaskSpec(id=id, cfg=source.cfg, description=f"Mimic generation variant of {source.id}.", options=source.options,
-                    expert=source.expert, mimic=mimic, source_task=source.id)
+    return TaskSpec(
+        id=id,
+        cfg=source.cfg,
+        description=f"Mimic generation variant of {source.id}.",
+        options=source.options,
+        expert=source.expert,
+        mimic=mimic,
+        source_task=source.id,
+    )
 
 
 def mimic_variant_of(task_id: str) -> TaskSpec:
     """The registered Mimic variant whose source task is ``task_id``."""
     variants = {s.source_task: s for s in _REGISTRY.values() if s.mimic is not None}
     if task_id not in variants:
-        raise ValueError(f"task {task_id!r} has no Mimic variant; tasks with one: {', '.join(sorted(variants)) or 'none'}")
+        raise ValueError(
+            f"task {task_id!r} has no Mimic variant; tasks with one: {', '.join(sorted(variants)) or 'none'}"
+        )
     return variants[task_id]

@@ -94,7 +94,9 @@ def _freeze(params: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
     try:
         hash(items)
     except TypeError as exc:
-        raise ValueError(f"term parameters must be names, numbers, tuples or terms; got {dict(params)} ({exc})") from None
+        raise ValueError(
+            f"term parameters must be names, numbers, tuples or terms; got {dict(params)} ({exc})"
+        ) from None
     return items
 
 

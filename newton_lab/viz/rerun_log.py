@@ -41,8 +41,9 @@ class RerunLogger:
     (absolute) or None; ``shape_paths`` maps each logged model shape index to its entity path.
     ``episodes_per_row``: a row is no longer drawn once that many of its episodes have ended (None: all).
     ``images``: log the env's cameras (pinhole + images of the drawn rows) every ``image_every``-th logged step
-    (a step whose images nobody read yet renders them: CPU time); ``jpeg_quality`` (1-100) stores RGB as JPEG instead of raw pixels;
-    ``cameras`` replaces the env's cameras (a replay passes the recorded ones and the frames to ``log_step``)."""
+    (a step whose images nobody read yet renders them: CPU time); ``jpeg_quality`` (1-100) stores RGB as JPEG instead of
+    raw pixels; ``cameras`` replaces the env's cameras (a replay passes the recorded ones and the frames to
+    ``log_step``)."""
 
     def __init__(self, env, *, save: str | Path | None = None, spawn: bool = False, connect: str | None = None,
                  max_worlds: int = 4, app_id: str = "newton_lab", row_spacing: float = 2.5,

@@ -8,8 +8,8 @@ goal region). Everything else reads it through ``command_point``.
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, entity_coord_pos, entity_pos, write_vec3
+
 from newton_lab.task_api.cfg import ObsTermCfg
 from newton_lab.task_api.terms import term_factory
 

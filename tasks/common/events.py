@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, set_entity_pose
+
 from newton_lab.task_api.terms import term_factory
 
 

@@ -8,8 +8,8 @@ becomes a compile-time constant of the generated ``@wp.func``. Base pose = plana
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, base_pose2d
+
 from newton_lab.task_api.cfg import ObsTermCfg, RewardTermCfg
 from newton_lab.task_api.terms import term_factory
 

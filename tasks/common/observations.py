@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import (
-    TaskContext, entity_pose, entity_pos, gripper_q, tcp_pose, write_transform, write_vec3,
+    TaskContext,
+    entity_pos,
+    entity_pose,
+    gripper_q,
+    tcp_pose,
+    write_transform,
+    write_vec3,
 )
+
 from newton_lab.task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS, ObsTermCfg
 from newton_lab.task_api.terms import term_factory
 
@@ -114,7 +120,9 @@ def positions_of(*entities: str) -> ObsTermCfg:
 
 def orientations_of(*entities: str) -> ObsTermCfg:
     """Observation term: the quaternions (4 each, xyzw) of the scene objects ``entities``."""
-    return ObsTermCfg(func=entity_orientations_obs, params={"entities": entities}, size=4 * len(entities), privileged=True)
+    return ObsTermCfg(
+        func=entity_orientations_obs, params={"entities": entities}, size=4 * len(entities), privileged=True
+    )
 
 
 LAST_ACTION = ObsTermCfg(func=last_action, size=ACTION_DIM)

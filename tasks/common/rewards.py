@@ -15,12 +15,12 @@ stateless versions of the task's predicates.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gripper_q, tcp_distance, wrap_angle
+
 from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.task_api.terms import bind, term_factory
 

@@ -10,10 +10,18 @@ from __future__ import annotations
 from typing import Any
 
 import warp as wp
-
 from newton_lab.kernels.context import (
-    TaskContext, arm_near_home, base_pose2d, entity_pos, entity_up_dot, gripper_q, held_for, tcp_distance, wrap_angle,
+    TaskContext,
+    arm_near_home,
+    base_pose2d,
+    entity_pos,
+    entity_up_dot,
+    gripper_q,
+    held_for,
+    tcp_distance,
+    wrap_angle,
 )
+
 from newton_lab.task_api.terms import term_factory
 
 GRASP_DIST = 0.06

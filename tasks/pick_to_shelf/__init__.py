@@ -2,8 +2,8 @@
 
 from pathlib import Path
 
-from newton_lab.task_api.registry import TaskOption, TaskSpec, register
 from newton_lab.task_api.experts import yaml_plan
+from newton_lab.task_api.registry import TaskOption, TaskSpec, register
 
 from .config.g1.env_cfg import coherent_cfg, nav_cfg, nav_expert, pick_cfg, place_cfg
 

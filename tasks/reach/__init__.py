@@ -2,8 +2,8 @@
 
 from pathlib import Path
 
-from newton_lab.task_api.registry import TaskSpec, register
 from newton_lab.task_api.experts import yaml_plan
+from newton_lab.task_api.registry import TaskSpec, register
 
 from .config.g1.env_cfg import reach_cfg
 

@@ -16,7 +16,6 @@ from ...task_api.motion_plan import MotionPlan, yaw_of
 from ...task_api.registry import lookup
 from ..base import BaseAgent
 
-
 REPLAN_ROWS = 16
 """Env rows per restarted row of a default re-plan batch (``PlannerAgent.replan_batch``)."""
 REPLAN_MIN_ROWS = 128
@@ -132,7 +131,9 @@ class PlannerAgent(BaseAgent):
         turn = np.stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
         return quat_mul(turn, top)
 
-    def _solve(self, q_seed: np.ndarray, rows: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _solve(
+        self, q_seed: np.ndarray, rows: np.ndarray, pos: np.ndarray, quat: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """IK for the given rows only (the other rows of ``q_seed`` are returned unchanged): ``ik_iterations`` LM
         steps for all, ``refine_iterations`` more for those still off. Returns all (N, 34) coordinates and the
         rows' TCP position error [m] from forward kinematics of the solutions. On a GPU a solve is a chain of

@@ -82,7 +82,9 @@ class FrameMapper:
         self.columns = {g: [names.index(j) for j in groups[g] if j in names] for g in CONTRACTS[contract]}
         """Action columns of each driven group that the task has (a group the task lacks maps to [])."""
 
-    def __call__(self, frame: TeleopFrame | None, current: torch.Tensor, arm_targets: dict | None = None) -> torch.Tensor:
+    def __call__(
+        self, frame: TeleopFrame | None, current: torch.Tensor, arm_targets: dict | None = None
+    ) -> torch.Tensor:
         """The action for ``frame`` given the ``current`` (N, A) targets. ``arm_targets`` (arm -> (7,) [rad])
         overrides ``frame.arm_joints`` (the agent's IK of a Cartesian jog)."""
         out = current.clone() if self.no_frame_policy == "hold" else torch.zeros_like(current)

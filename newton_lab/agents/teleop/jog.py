@@ -43,7 +43,9 @@ class TcpJog:
         self._offset = np.zeros(4)
         self._command = q[:, self._coords].astype(np.float64)
         pos, quat = self.target_pose(self._offset)  # the start pose itself: warms (captures) the IK solve
-        self._solution = self._kin.solve(q, pos, quat, iterations=self.ik_iterations)[:, self._coords].astype(np.float64)
+        self._solution = self._kin.solve(q, pos, quat, iterations=self.ik_iterations)[:, self._coords].astype(
+            np.float64
+        )
         self.error = 0.0
 
     def target_pose(self, offset) -> tuple[np.ndarray, np.ndarray]:

@@ -81,8 +81,18 @@ class StatusLine:
         self.out.flush()
 
 
-def teleop_session(env, agent: TeleopAgent, *, path, max_steps: int = 6000, keep: int | None = None,
-                   realtime: bool = True, on_step=None, fd: int | None = None, out: TextIO | None = None) -> dict[str, Any]:
+def teleop_session(
+    env,
+    agent: TeleopAgent,
+    *,
+    path,
+    max_steps: int = 6000,
+    keep: int | None = None,
+    realtime: bool = True,
+    on_step=None,
+    fd: int | None = None,
+    out: TextIO | None = None,
+) -> dict[str, Any]:
     """Drive episodes into the dataset at ``path`` until the operator answers exit (or ``keep`` demos are kept).
     ``fd`` is where answers are read (default stdin), ``out`` where the key map, status and prompt go."""
     fd = sys.stdin.fileno() if fd is None else fd

@@ -1,4 +1,5 @@
-"""Export newton_lab datasets to the LeRobot v3.0 layout (pyarrow, and PyAV for the camera streams) and check such layouts.
+"""Export newton_lab datasets to the LeRobot v3.0 layout (pyarrow, and PyAV for the camera streams) and check such
+layouts.
 
 ``export_lerobot(dataset, root)`` turns the committed demos of an HDF5 / zarr dataset into::
 

@@ -306,8 +306,10 @@ def _check_videos(root: Path, info: dict[str, Any], eps: _Episodes, video_keys: 
                       f"video {rel} is {got['width']}x{got['height']}, feature {k!r} says {w}x{h}")
                 _need(abs(got["fps"] - fps) < 1e-3, f"video {rel} runs at {got['fps']} fps, info.json fps is {fps}")
             lo, hi = float(column["from_timestamp"][e]), float(column["to_timestamp"][e])
-            _need(abs((hi - lo) * fps - eps.col["length"][e]) < 1e-3 * fps,
-                  f"episode {e} video span [{lo}, {hi}) s of {k!r} is not its length {eps.col['length'][e]} / {fps} fps")
+            _need(
+                abs((hi - lo) * fps - eps.col["length"][e]) < 1e-3 * fps,
+                f"episode {e} video span [{lo}, {hi}) s of {k!r} is not its length {eps.col['length'][e]} / {fps} fps",
+            )
             _need(0 <= lo and hi * fps <= probed[rel]["frames"] + 1e-3,
                   f"episode {e} video span [{lo}, {hi}) s lies outside {rel} ({probed[rel]['frames']} frames): "
                   "the file is truncated; export the dataset again")

@@ -20,9 +20,27 @@ import numpy as np
 from ..files.durability import fsync_path
 from ..files.output_paths import output_path
 from ..storage import read_dataset_info, read_episode, read_episodes
-from .tables import (CHUNKS_SIZE, CODEBASE_VERSION, DATA_FILES_SIZE_IN_MB, DATA_PATH, EPISODES_PATH, IMAGE_NAMES,
-                     IMAGE_PREFIX, INDEX_FEATURES, ROBOT_TYPE, SOURCE_PATH, VIDEO_FILES_SIZE_IN_MB, VIDEO_PATH,
-                     DataFiles, aggregate, episode_table, image_stats, vector_stats, write_episodes, write_tasks)
+from .tables import (
+    CHUNKS_SIZE,
+    CODEBASE_VERSION,
+    DATA_FILES_SIZE_IN_MB,
+    DATA_PATH,
+    EPISODES_PATH,
+    IMAGE_NAMES,
+    IMAGE_PREFIX,
+    INDEX_FEATURES,
+    ROBOT_TYPE,
+    SOURCE_PATH,
+    VIDEO_FILES_SIZE_IN_MB,
+    VIDEO_PATH,
+    DataFiles,
+    aggregate,
+    episode_table,
+    image_stats,
+    vector_stats,
+    write_episodes,
+    write_tasks,
+)
 from .video import VideoFiles, even_shape, video_info
 
 

@@ -134,9 +134,12 @@ class BackgroundWriter(LatchedErrors):
         count = sum(n for _, _, n in items)
         with self._cv:
             self._raise(always=True)
-            room = (lambda: self._error is not None or not self._queue or not self._thread.is_alive()
-                    or (self._episodes + count <= self.max_queued
-                        and self._bytes + size <= self.max_queued_bytes))
+
+            def room() -> bool:
+                return (self._error is not None or not self._queue or not self._thread.is_alive()
+                        or (self._episodes + count <= self.max_queued
+                            and self._bytes + size <= self.max_queued_bytes))
+
             if not room():
                 self._blocked += 1
                 self._cv.notify_all()  # the queue goes now, below min_batch or not: the caller waits for room

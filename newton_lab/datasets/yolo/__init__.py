@@ -2,8 +2,15 @@
 training reads of it (``export``), and pictures of predictions (``pictures``)."""
 
 from .export import SPLITS, YoloWriter, assign_splits, default_imgsz, read_export, training_specs
-from .labels import (HUE_TOLERANCE_DEG, MIN_AREA_PX, MIN_SATURATION, SIMPLIFY_PX, color_segmentation, label_lines,
-                     mask_polygon)
+from .labels import (
+    HUE_TOLERANCE_DEG,
+    MIN_AREA_PX,
+    MIN_SATURATION,
+    SIMPLIFY_PX,
+    color_segmentation,
+    label_lines,
+    mask_polygon,
+)
 from .pictures import OVERLAY_COLORS, mask_iou, montage, overlay
 
 __all__ = ["SPLITS", "YoloWriter", "assign_splits", "default_imgsz", "read_export", "training_specs",

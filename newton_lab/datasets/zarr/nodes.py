@@ -62,7 +62,7 @@ def chunk_grid(shape: tuple[int, ...], chunks: tuple[int, ...]) -> list[int]:
     return [math.ceil(s / c) for s, c in zip(shape, chunks)]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _template(dtype: str, ndim: int) -> tuple[str, Zstd] | None:
     """(zarr.json text with ``%SHAPE%`` / ``%CHUNKS%`` holes, the chunk compressor) as zarr-python writes an
     array of this dtype and rank; None unless its codec chain is bytes -> zstd with flat ``c.<i>.<j>`` keys."""

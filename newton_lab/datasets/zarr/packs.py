@@ -36,8 +36,17 @@ import numpy as np
 from ..files.durability import fsync_path
 from ..files.layout import StoredDemo, demo_name, nest
 from .derived import derive, rebuild, rebuild_needs_last, source_of, stored_value
-from .nodes import (DECODER, chunk_grid, chunk_shape, node_meta, plain_dtype, write_array, write_demo, write_file,
-                    write_group)
+from .nodes import (
+    DECODER,
+    chunk_grid,
+    chunk_shape,
+    node_meta,
+    plain_dtype,
+    write_array,
+    write_demo,
+    write_file,
+    write_group,
+)
 
 PACK_RE = re.compile(r"^pack_(\d+)$")
 CACHE_BYTES = 64 << 20

@@ -27,8 +27,7 @@ from zarr.storage import LocalStore
 from ..files.durability import fsync_path, sync_tree
 from ..files.errors import damaged
 from ..files.layout import NEXT_ID, PARTIAL_PREFIX, StoredDemo, demo_id_of, demo_name, from_stored
-from . import batch_writes
-from . import packs as zarr_packs
+from . import batch_writes, packs as zarr_packs
 from .masks import read_masks, set_masks, write_masks
 from .nodes import read_tree, write_group
 from .packs import PackJob, PackReader, batch_jobs, pack_first_of, pack_name

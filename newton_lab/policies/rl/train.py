@@ -5,10 +5,10 @@ The run is cut into chunks of ``cfg.chunk_iterations`` PPO iterations; after eac
 env steps, wall seconds, env-steps/s with the update included, success rate and mean return of the episodes that
 ended in the chunk, the mean reward of a step). Every chunk starts from rows reset with the seed ``cfg.seed +
 chunk index``, so that a run resumed after a chunk gives the curve and the actor of the uninterrupted run (the
-episodes running at a chunk's end are cut there and not counted). A killed run continues from its last chunk with ``resume=True``; ``cfg.time_budget_s`` ends the
-run after the chunk that crosses it. rsl_rl writes its tensorboard log into the same folder. The result is
-``checkpoint.pt``: the deterministic actor, its observation normaliser and the action map, which ``RLPolicyAgent``
-(and ``newton-lab evaluate --checkpoint``) runs.
+episodes running at a chunk's end are cut there and not counted). A killed run continues from its last chunk with
+``resume=True``; ``cfg.time_budget_s`` ends the run after the chunk that crosses it. rsl_rl writes its tensorboard log
+into the same folder. The result is ``checkpoint.pt``: the deterministic actor, its observation normaliser and the
+action map, which ``RLPolicyAgent`` (and ``newton-lab evaluate --checkpoint``) runs.
 """
 
 from __future__ import annotations

@@ -4,7 +4,6 @@ point (``tasks.common.commands``)."""
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, base_pose2d
 from newton_lab.tasks.common.commands import set_command_point
 

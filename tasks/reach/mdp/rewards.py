@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext
 
 from .terminations import SUCCESS_RADIUS, goal_distance

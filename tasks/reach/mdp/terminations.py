@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, tcp_pos
 from newton_lab.tasks.common.commands import command_point
 

@@ -13,15 +13,29 @@ and place rewards.
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.tasks.common.rewards import (
-    Stage, carry_shaping, drive_stage, gripper_openness, phased_rewards, pick_to_carry_stages, point_shaping,
-    posture_shaping, staged_rewards,
+    Stage,
+    carry_shaping,
+    drive_stage,
+    gripper_openness,
+    phased_rewards,
+    pick_to_carry_stages,
+    point_shaping,
+    posture_shaping,
+    staged_rewards,
 )
+
+from newton_lab.task_api.cfg import RewardTermCfg
 
 from ..objects import SHELF_NAV_YAW, SortingObject
 from .terminations import (
-    PLACE_START_BASE_TOL, PLACE_START_YAW_TOL, at_carry, at_place_start, grasped_object, in_cell, placed,
+    PLACE_START_BASE_TOL,
+    PLACE_START_YAW_TOL,
+    at_carry,
+    at_place_start,
+    grasped_object,
+    in_cell,
+    placed,
     released_in_cell,
 )
 

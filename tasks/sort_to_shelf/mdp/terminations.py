@@ -4,7 +4,16 @@
 from __future__ import annotations
 
 from newton_lab.tasks.common.terminations import (
-    all_of, arm_at_home, at_point, at_posture, base_at, grasped, gripper_open, held, lifted, upright,
+    all_of,
+    arm_at_home,
+    at_point,
+    at_posture,
+    base_at,
+    grasped,
+    gripper_open,
+    held,
+    lifted,
+    upright,
 )
 
 from ..objects import SHELF_NAV_YAW, SortingObject

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, set_entity_pose
+
 from newton_lab.task_api.terms import term_factory
 
 # The reference samples x in (-0.35, -0.25), y in (0.14, 0.23) with a 0.09 m minimum separation: only

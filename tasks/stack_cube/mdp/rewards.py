@@ -11,14 +11,21 @@ success (the full stack released). cube_3's stages count only while cube_2 stays
 from __future__ import annotations
 
 import warp as wp
-
 from newton_lab.kernels.context import TaskContext, entity_pos
-from newton_lab.task_api.cfg import RewardTermCfg
-from newton_lab.task_api.terms import term_factory
 from newton_lab.tasks.common.rewards import (
-    Stage, action_rate, gated, gripper_openness, indicator, place_shaping, reach_stage, staged_rewards,
+    Stage,
+    action_rate,
+    gated,
+    gripper_openness,
+    indicator,
+    place_shaping,
+    reach_stage,
+    staged_rewards,
 )
 from newton_lab.tasks.common.terminations import all_of, negated
+
+from newton_lab.task_api.cfg import RewardTermCfg
+from newton_lab.task_api.terms import term_factory
 
 from .terminations import STACK_DZ, grasped_cube, stack_success, stacked
 

@@ -41,9 +41,13 @@ class VendorTransport:
         try:
             import remote_control_lite  # noqa: PLC0415  deferred: the optional vendor driver (x86_64 binary)
         except ImportError:
-            raise ValueError("gp001: the vendor driver remote_control_lite is not installed; install Galbot's "
-                             "remote SDK, or pass a transport (TeleopAgent.from_device('gp001', transport=...))") from None
-        self._driver = remote_control_lite.GalbotDriver(port=self.port) if self.port else remote_control_lite.GalbotDriver()
+            raise ValueError(
+                "gp001: the vendor driver remote_control_lite is not installed; install Galbot's "
+                "remote SDK, or pass a transport (TeleopAgent.from_device('gp001', transport=...))"
+            ) from None
+        self._driver = (
+            remote_control_lite.GalbotDriver(port=self.port) if self.port else remote_control_lite.GalbotDriver()
+        )
         self._driver.start()
 
     def read(self) -> dict | None:

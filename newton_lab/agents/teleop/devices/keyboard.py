@@ -53,7 +53,11 @@ class KeyboardDevice(TeleopDevice):
         super().__init__()
         self.fd = sys.stdin.fileno() if fd is None else fd
         self.step, self.yaw_step = float(step), float(yaw_step)
-        self.twist_step, self.yaw_rate_step, self.height_step = float(twist_step), float(yaw_rate_step), float(height_step)
+        self.twist_step, self.yaw_rate_step, self.height_step = (
+            float(twist_step),
+            float(yaw_rate_step),
+            float(height_step),
+        )
         self.arm, self.jog_arms = arm, (arm,)
         self.command = ""
         """The command line being typed (shown in the status line)."""

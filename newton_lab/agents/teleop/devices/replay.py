@@ -11,11 +11,10 @@ import time
 import numpy as np
 
 from ....datasets.storage import list_demos, read_dataset_info, read_episode
-from ....robots.registry import DEFAULT_ROBOT, robot_binding
 from ....robots.quaternions import quat_mul
+from ....robots.registry import DEFAULT_ROBOT, robot_binding
 from ..frames import TeleopFrame
 from .base import TeleopDevice
-
 
 REPLAY_MODES = ("actions", "tcp")
 

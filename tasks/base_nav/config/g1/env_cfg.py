@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import TaskCfg, TermCfg
-from newton_lab.task_api.experts import NavExpert
 from newton_lab.tasks.common import navigation as nav
 from newton_lab.tasks.common.config.g1.setup import base_actions
+
+from newton_lab.task_api.cfg import TaskCfg, TermCfg
+from newton_lab.task_api.experts import NavExpert
 
 GOAL_XY = (2.0, 0.0)
 """Goal position, env frame [m]."""

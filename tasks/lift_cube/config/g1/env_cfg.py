@@ -5,15 +5,16 @@ Every term is a generic one (``tasks.common``) with this task's constants.
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.physics import PhysicsCfg
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.config.g1 import postures
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import Stage, lift_shaping, reach_stage, staged_rewards
-from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, lifted
 from newton_lab.tasks.lift_cube.scene import CUBE_INIT, SCENE
+
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.physics import PhysicsCfg
 
 LIFTED_Z = CUBE_INIT[2] + 0.10
 """Success: the cube centre 10 cm above its resting height [m] ..."""
@@ -33,7 +34,8 @@ def lift_cube_cfg() -> TaskCfg:
         actions=left_arm_actions(),
         observations=obs.manipulation_observations(cube_pose=obs.pose_of("cube")),
         phase_success=[held(term=lifted_and_grasped, steps=HOLD_STEPS)],
-        terminations={"cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": DROPPED_Z})},
+        terminations={"cube_dropped": TerminationTermCfg(func=dropped,
+                                                         params={"entity": "cube", "below_z": DROPPED_Z})},
         rewards=staged_rewards(reach_stage("cube"), Stage("grasping", grasped_cube),
                                Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", min_z=LIFTED_Z))),
         signals={"grasped_cube": TermCfg(func=grasped_cube)},

@@ -10,15 +10,16 @@ from __future__ import annotations
 
 import dataclasses
 
-from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.physics import PhysicsCfg
-from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import observations as obs
+from newton_lab.tasks.common.config.g1 import cameras, postures
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import Stage, gripper_openness, place_shaping, reach_stage, staged_rewards
-from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.terminations import all_of, dropped, grasped, gripper_open, resting_on
 from newton_lab.tasks.pick_cube.scene import CUBE_INIT, SCENE
+
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.physics import PhysicsCfg
 
 ON_BLOCK = dict(entity="cube", target="blue_block", height=0.035, xy_tol=0.08, z_tol=0.03)
 """The cube rests on the block: centre within 8 cm in xy, 0.035 +- 0.03 m above the block's centre (block half

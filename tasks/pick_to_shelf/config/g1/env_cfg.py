@@ -17,24 +17,42 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.compose import coherent_task, phase, task_sequence
-from newton_lab.task_api.physics import PhysicsCfg
-from newton_lab.task_api.experts import NavExpert
+from newton_lab.tasks.common import navigation as nav, observations as obs
 from newton_lab.tasks.common.config.g1 import cameras, postures
-from newton_lab.tasks.common import navigation as nav
-from newton_lab.tasks.common import observations as obs
+from newton_lab.tasks.common.config.g1.setup import (
+    base_actions,
+    carried_gripper_closed,
+    left_arm_actions,
+    shelf_posture,
+)
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import (
-    Stage, drive_stage, gripper_openness, phased_rewards, pick_to_carry_stages, place_shaping, staged_rewards,
-)
-from newton_lab.tasks.common.config.g1.setup import (
-    base_actions, carried_gripper_closed, left_arm_actions, shelf_posture,
+    Stage,
+    drive_stage,
+    gripper_openness,
+    phased_rewards,
+    pick_to_carry_stages,
+    place_shaping,
+    staged_rewards,
 )
 from newton_lab.tasks.common.terminations import (
-    all_of, arm_at_home, dropped, grasped, gripper_open, held, lifted, resting_on, tipped, upright,
+    all_of,
+    arm_at_home,
+    dropped,
+    grasped,
+    gripper_open,
+    held,
+    lifted,
+    resting_on,
+    tipped,
+    upright,
 )
 from newton_lab.tasks.pick_to_shelf.scene import BAR_POS, ROBOT_ROOT, SCENE
+
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.compose import coherent_task, phase, task_sequence
+from newton_lab.task_api.experts import NavExpert
+from newton_lab.task_api.physics import PhysicsCfg
 
 NAV_GOAL_XY = (-1.7, -1.15)
 """Base goal in front of the shelf: deck front edge + 0.65 m [m]."""

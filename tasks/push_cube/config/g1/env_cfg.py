@@ -7,18 +7,23 @@ cube's centre within 8 cm of it in xy. Dense reward (ManiSkill PushCube-v1 style
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.physics import PhysicsCfg
-from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common import observations as obs
 from newton_lab.tasks.common.commands import (
-    COMMAND_POINT, POINT_COMMAND_DIM, command_shaping, entity_at_command, point_from_entity,
+    COMMAND_POINT,
+    POINT_COMMAND_DIM,
+    command_shaping,
+    entity_at_command,
+    point_from_entity,
 )
+from newton_lab.tasks.common.config.g1 import cameras, postures
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import Stage, reach_stage, staged_rewards, tcp_near
-from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.terminations import dropped
 from newton_lab.tasks.push_cube.scene import CUBE_INIT, SCENE
+
+from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.physics import PhysicsCfg
 
 GOAL_OFFSET = (0.16, 0.0, 0.0)
 """Goal region centre from the cube's start [m] (forward, away from the robot)."""

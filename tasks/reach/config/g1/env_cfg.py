@@ -3,14 +3,15 @@ reward term added, ``position_tanh_fine``, see its docstring)."""
 
 from __future__ import annotations
 
-from newton_lab.task_api.cfg import RewardTermCfg, TaskCfg, TermCfg
-from newton_lab.tasks.common.config.g1 import postures
 from newton_lab.tasks.common import observations as common_obs
-from newton_lab.tasks.common.rewards import action_rate
-from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
-from newton_lab.tasks.common.table_top import table
 from newton_lab.tasks.common.commands import COMMAND_POINT, POINT_COMMAND_DIM
+from newton_lab.tasks.common.config.g1 import postures
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
+from newton_lab.tasks.common.rewards import action_rate
+from newton_lab.tasks.common.table_top import table
 from newton_lab.tasks.reach.mdp import commands, rewards, terminations
+
+from newton_lab.task_api.cfg import RewardTermCfg, TaskCfg, TermCfg
 
 
 def reach_cfg() -> TaskCfg:

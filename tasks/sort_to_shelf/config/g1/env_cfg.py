@@ -9,20 +9,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from newton_lab.tasks.common import navigation as nav, observations as obs
+from newton_lab.tasks.common.config.g1 import cameras, postures
+from newton_lab.tasks.common.config.g1.setup import (
+    base_actions,
+    carried_gripper_closed,
+    left_arm_actions,
+    shelf_posture,
+)
+from newton_lab.tasks.common.terminations import dropped, tipped
+from newton_lab.tasks.sort_to_shelf import scene
+from newton_lab.tasks.sort_to_shelf.mdp import events, rewards, terminations
+from newton_lab.tasks.sort_to_shelf.objects import OBJECTS, SortingObject, sorting_object as lookup_object
+
 from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.task_api.physics import PhysicsCfg
-from newton_lab.tasks.common.config.g1 import cameras, postures
-from newton_lab.tasks.common import navigation as nav
-from newton_lab.tasks.common import observations as obs
-from newton_lab.tasks.common.terminations import dropped, tipped
-from newton_lab.tasks.common.config.g1.setup import (
-    base_actions, carried_gripper_closed, left_arm_actions, shelf_posture,
-)
-from newton_lab.tasks.sort_to_shelf import scene
-from newton_lab.tasks.sort_to_shelf.mdp import events, rewards, terminations
-from newton_lab.tasks.sort_to_shelf.objects import OBJECTS, SortingObject
-from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
 
 SCENARIOS = Path(__file__).parent / "scenarios"
 NAV_SUCCESS_RADIUS = 0.02

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from newton_lab.robots.g1 import spec
 from newton_lab.tasks.common.config.g1 import postures
+from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW, sorting_object as lookup_object
+
+from newton_lab.robots.g1 import spec
 from newton_lab.task_api.experts import JointTargetExpert, NavExpert, SequenceExpert
 from newton_lab.task_api.motion_plan import AssetTarget, MotionPlan, MotionStep, WorldTarget
-from newton_lab.tasks.sort_to_shelf.objects import SHELF_NAV_YAW
-from newton_lab.tasks.sort_to_shelf.objects import sorting_object as lookup_object
 
 from .env_cfg import NAV_SUCCESS_RADIUS
 

@@ -3,18 +3,22 @@ phases of GalbotG1-StackCube-Phased-v0."""
 
 from __future__ import annotations
 
+from newton_lab.tasks.common import observations as obs
+from newton_lab.tasks.common.config.g1 import postures
+from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
+from newton_lab.tasks.common.rewards import phased_rewards
+from newton_lab.tasks.stack_cube.mdp import events, rewards
+from newton_lab.tasks.stack_cube.mdp.terminations import (
+    cube_dropping,
+    grasped_cube,
+    stack_success,
+    stacked_and_released,
+)
+from newton_lab.tasks.stack_cube.scene import CUBES, SCENE
+
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import coherent_task, phase, task_sequence
 from newton_lab.task_api.physics import PhysicsCfg
-from newton_lab.tasks.common import observations as obs
-from newton_lab.tasks.common.config.g1 import postures
-from newton_lab.tasks.common.rewards import phased_rewards
-from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
-from newton_lab.tasks.stack_cube.mdp import events, rewards
-from newton_lab.tasks.stack_cube.mdp.terminations import (
-    cube_dropping, grasped_cube, stack_success, stacked_and_released,
-)
-from newton_lab.tasks.stack_cube.scene import CUBES, SCENE
 
 PHYSICS = PhysicsCfg(
     cone="pyramidal",
