@@ -27,9 +27,10 @@ def gather_plan_actions(
     The arm has ``A = arm_cols.shape[0]`` joints (its binding's). Segment ``k`` starts at frame
     ``seg_start[w, k]``, moves linearly from the previous waypoint (or ``start_q`` for ``k = 0``) to
     ``waypoints[w, k, :A]`` over ``seg_interp[w, k]`` frames, then holds; ``waypoints[w, k, A]`` is the gripper
-    command for the whole segment (written when ``gripper_col >= 0``). Past the end the last waypoint is held. From frame ``seg_settle_at[w, k]`` (-1: never) a
-    segment settles: once the arm's joints (``joint_q[w, arm_coords]``) are all within ``settle_tol`` [rad] of the
-    waypoint, the cursor skips to the next segment (or, after the last, to ``plan_end[w]``).
+    command for the whole segment (written when ``gripper_col >= 0``). Past the end the last waypoint is held. From
+    frame ``seg_settle_at[w, k]`` (-1: never) a segment settles: once the arm's joints (``joint_q[w, arm_coords]``) are
+    all within ``settle_tol`` [rad] of the waypoint, the cursor skips to the next segment (or, after the last, to
+    ``plan_end[w]``).
     """
     w = wp.tid()
     arm = arm_cols.shape[0]

@@ -101,7 +101,6 @@ def test_the_gather_kernel_takes_the_arm_length_from_its_columns():
     writes those 3 columns and the gripper's, nothing of a 7-joint arm."""
     import numpy as np
     import warp as wp
-
     from newton_lab.kernels.planner import gather_plan_actions
 
     arr = lambda a, t=float: wp.array(np.asarray(a), dtype=t, device="cpu")  # noqa: E731
