@@ -3,7 +3,6 @@ file is written (the working folder is left as it was)."""
 
 from __future__ import annotations
 
-import resource
 import subprocess
 import sys
 from pathlib import Path
@@ -12,10 +11,6 @@ import pytest
 
 from newton_lab.commands.refusal_cases import CASES, checkpoint_files, make_inputs
 
-CPU_SECONDS = 2.0
-"""Each refusal's CPU time, interpreter start included (0.2-0.6 s here; importing Warp first took 5-12 s on 2 cores).
-CPU time and not wall time: the latter grows with whatever else runs on the cores (up to 1.5 s measured at a load
-of 7 on 2 cores)."""
 CHECK = ("import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); "
          "sys.exit(rc if 'warp' not in sys.modules and 'torch' not in sys.modules else 99)")
 
@@ -24,13 +19,10 @@ CHECK = ("import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); 
 def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, argv, message, checkpoints):
     make_inputs(tmp_path, checkpoints)  # the datasets, checkpoints and files in the way that the cases name
     before = tree(tmp_path)
-    start = cpu_of_children()
     out = subprocess.run([sys.executable, "-c", CHECK, *argv.split()], cwd=tmp_path, capture_output=True, text=True)
-    seconds = cpu_of_children() - start
     assert out.returncode == 2, (out.returncode, out.stderr)  # 99: Warp was imported first
     assert out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
-    assert tree(tmp_path) == before
-    assert seconds < CPU_SECONDS, f"{seconds:.2f} s of CPU"
+    assert tree(tmp_path) == before  # how long the refusals take: `newton-lab bench-refusals` (no timed assert)
 
 
 @pytest.fixture(scope="module")
@@ -61,12 +53,6 @@ def test_phases_and_mimic_sources_read_from_source_match_the_registry():
     assert declared_sources() == {t: lookup(t).source_task for t in list_tasks() if lookup(t).source_task}
     assert declared_mimic_arms() == {lookup(t).source_task: lookup(t).mimic.arm for t in list_tasks()
                                      if lookup(t).source_task}
-
-
-def cpu_of_children() -> float:
-    """User + system CPU seconds of this process's finished children (and theirs)."""
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return usage.ru_utime + usage.ru_stime
 
 
 def tree(root: Path) -> dict[str, tuple[int, int]]:

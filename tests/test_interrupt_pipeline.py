@@ -5,6 +5,7 @@ SIGKILL leaves the server or any other process of the pipeline running; a full d
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -55,6 +56,14 @@ def end_all(pids: list[int]) -> float:
     return time.monotonic() - start
 
 
+PROGRESS = re.compile(r"^(\S+: step \d+, \d+ episodes ended, \d+ successes, \d+ s"
+                      r"|diffusion policy \S+: (step \d+/\d+, loss .*|\d+ demos, [\d,]+ windows read in .*))$")
+"""A stage's progress line (collection and Mimic, training; written every few seconds where stderr is not a
+terminal)."""
+ENDED = re.compile(r"newton-lab pipeline: interrupted: finished stages kept in out: (.+); the same command resumes "
+                   r"from them")
+
+
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_ctrl_c_during_pipeline_keeps_the_finished_stages_in_one_line(tmp_path, signum):
     """SIGINT (SIGTERM) while Mimic runs: exit 130 (143) at once, not after the stage in flight, one line naming the
@@ -69,11 +78,14 @@ def test_ctrl_c_during_pipeline_keeps_the_finished_stages_in_one_line(tmp_path, 
     run.wait(timeout=120)  # the Mimic stage would run for many minutes
     end_all(started)
     lines = [line for line in (tmp_path / "stderr.txt").read_text().splitlines() if line.strip()]
-    assert run.returncode == 128 + signum and len(lines) == 1, lines
-    assert lines[0] == "newton-lab pipeline: interrupted: finished stages kept in out: demos; the same command " \
-                       "resumes from them", lines
-    assert manifest.exists() and (tmp_path / "out" / "demos.hdf5").exists()
-    assert not (tmp_path / "out" / "mimic.manifest.json").exists()
+    said = [line for line in lines if not PROGRESS.match(line)]  # the stages' progress lines may come first
+    assert run.returncode == 128 + signum and len(said) == 1, lines
+    kept = ENDED.fullmatch(said[0])
+    assert kept and kept.group(1).split(", ")[0] == "demos", said  # on a loaded machine Mimic may end before
+    out = tmp_path / "out"
+    assert manifest.exists() and (out / "demos.hdf5").exists()
+    for stage in ("mimic", "policy"):  # a finished stage keeps its manifest; the one in flight writes none
+        assert (out / f"{stage}.manifest.json").exists() == (stage in kept.group(1).split(", ")), said
 
 
 @pytest.mark.parametrize("runner", ["local", "dask"])
