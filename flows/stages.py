@@ -92,6 +92,11 @@ def _on_device(device: str | None, fn, *args):
 
     if not wp.get_device(device).is_cuda and not IN_OWN_PROCESS_ON_CPU:
         return fn(*args)
+    return _in_own_process(fn, *args)
+
+
+def _in_own_process(fn, *args):
+    """``fn(*args)`` in a spawned process (a CUDA context of its own); its exception is raised here."""
     ctx = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
         return pool.submit(fn, *args).result()
@@ -164,9 +169,7 @@ def _train_in_own_process(path: str, cfg: dict[str, Any], resume: bool) -> str:
     process, and a CUDA-graph capture in one thread forbids the CUDA calls of another (torch's capture is
     process-global); processes also keep one training's failure from taking the flow down. Spawned, so the child
     has a CUDA context of its own."""
-    ctx = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
-        return pool.submit(_train, path, cfg, resume).result()
+    return _in_own_process(_train, path, cfg, resume)
 
 
 def rl_train_stage(*, task_id: str, ppo: dict[str, Any], out_dir: str, name: str = "ppo") -> dict[str, Any]:

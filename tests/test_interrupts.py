@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 from test_lerobot_export import make_dataset
 
+from newton_lab.cli.watchdog import children, descendants  # the /proc walk the watchdog itself uses
+
 TASK = "GalbotG1-PickToShelf-v0"
 RUN = "import sys; from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))"
 
@@ -34,17 +36,6 @@ def wait_for(condition, what: str, limit_s: float = 900.0) -> None:
         if time.monotonic() > end:
             raise AssertionError(f"never saw {what}")
         time.sleep(0.05)
-
-
-def children(pid: int) -> list[int]:
-    """The pids of ``pid``'s children (Linux /proc)."""
-    out = []
-    for task in Path(f"/proc/{pid}/task").glob("*/children"):
-        try:
-            out += [int(c) for c in task.read_text().split()]
-        except OSError:
-            pass
-    return out
 
 
 def alive(pid: int) -> bool:
@@ -216,10 +207,6 @@ def test_a_refused_write_ends_train_and_split_in_one_line_leaving_nothing_half_w
     assert out.returncode == 1 and len(errors) == 1 and words in errors[0], out.stderr
     left = {str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.name not in before and p.is_file()}
     assert not left, left
-
-
-def descendants(pid: int) -> list[int]:
-    return [d for c in children(pid) for d in (c, *descendants(c))]
 
 
 def test_a_killed_data_parallel_train_leaves_no_process(tmp_path):

@@ -149,6 +149,9 @@ MUTATIONS: tuple[Mutation, ...] = (
     one_patch("rng-not-restored", "an interrupted training run resumes bitwise where the uninterrupted one is",
               "newton_lab/policies/train.py", 'then=lambda: restore_rng(state["rng"])', "then=lambda: None",
               "tests/test_train_resume.py"),
+    one_patch("ppo-chunk-not-restarted", "a resumed PPO run repeats the uninterrupted one (curve and actor)",
+              "newton_lab/policies/rl/train.py", "vec.restart(cfg.seed + len(curve))", "None",
+              "tests/test_rl.py::test_the_same_seed_trains_the_same_actor_and_a_resumed_run_repeats_the_uninterrupted_one"),
     one_patch("normaliser-stats-not-saved", "a checkpoint carries the normaliser stats its policy was trained with",
               "newton_lab/policies/diffusion.py",
               '"normalizers": {"obs": self.obs_normalizer.state_dict(), "action": '

@@ -46,9 +46,10 @@ class PerturbedAgent(BaseAgent):
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         fresh = self.fresh_rows(env, env_ids)
+        rows = torch.as_tensor(fresh, device=env.torch_device)
         level = self.values.get("posture_noise", 0.0)
         if level and len(fresh) and len(self.joint_names):
-            start = env.joints.positions(self.joint_names)[torch.as_tensor(fresh, device=env.torch_device)]
+            start = env.joints.positions(self.joint_names)[rows]
             moved = start + self._uniform(start.shape, level, env.torch_device)
             env.joints.set_positions(self.joint_names, moved, env_ids=fresh)
         actions = self.agent.act(env, env_ids).clone()
@@ -62,7 +63,6 @@ class PerturbedAgent(BaseAgent):
         if not self.history:  # the first step: the queue starts full of the first actions
             self.history.extend(actions.clone() for _ in range(self.latency))
         elif len(fresh):  # a new episode starts from its own first action, not the last episode's
-            rows = torch.as_tensor(fresh, device=actions.device)
             for past in self.history:
                 past[rows] = actions[rows]
         self.history.append(actions)
