@@ -6,8 +6,13 @@ tasks/*/config/g1/scenarios) included, so setuptools ships their files without w
 
 from setuptools import find_namespace_packages, setup
 
-ROOTS = {"newton_lab": "newton_lab", "newton_lab.kernels": "kernels", "newton_lab.tasks": "tasks",
-         "newton_lab.flows": "flows", "newton_lab.assets": "assets"}
+ROOTS = {
+    "newton_lab": "newton_lab",
+    "newton_lab.kernels": "kernels",
+    "newton_lab.tasks": "tasks",
+    "newton_lab.flows": "flows",
+    "newton_lab.assets": "assets",
+}
 
 
 def _packages() -> dict[str, str]:

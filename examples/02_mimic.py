@@ -26,8 +26,11 @@ class MimicExampleArgs(MimicArgs):
     """checked against the dataset's task (optional)"""
 
 
-DEFAULTS = {"dataset_path": "data/pick_cube_demos.hdf5", "output_path": "data/pick_cube_demos_mimic.hdf5",
-            "num_envs": 9}
+DEFAULTS = {
+    "dataset_path": "data/pick_cube_demos.hdf5",
+    "output_path": "data/pick_cube_demos_mimic.hdf5",
+    "num_envs": 9,
+}
 
 
 def main() -> None:

@@ -21,8 +21,9 @@ DEFAULTS = {"checkpoint": REQUIRED, "episodes": 36, "num_envs": 9, "seed": 1000,
 
 
 def main() -> None:
-    args = parse_args(EvaluateArgs, description=__doc__, defaults=DEFAULTS,
-                      exclude=("rerun", "rerun_save", "rerun_worlds"))
+    args = parse_args(
+        EvaluateArgs, description=__doc__, defaults=DEFAULTS, exclude=("rerun", "rerun_save", "rerun_worlds")
+    )
     agent = PolicyAgent.from_checkpoint(args.checkpoint)
     env = make_env(args.task, **args.env_kwargs())
     summary = env.evaluate(agent=agent, **args.rollout_kwargs())

@@ -53,8 +53,11 @@ def main() -> None:
     args = parse_args(SinusoidArgs, description=__doc__, defaults=DEFAULTS)
     env = make_env(args.task, **args.env_kwargs())
     summary = env.evaluate(agent=SinusoidAgent(args.frequency), **args.rollout_kwargs())
-    print(json.dumps({k: summary[k] for k in ("task", "episodes", "success_rate", "average_length",
-                                              "termination_reasons")}))
+    print(
+        json.dumps(
+            {k: summary[k] for k in ("task", "episodes", "success_rate", "average_length", "termination_reasons")}
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -32,9 +32,12 @@ PRESETS = {
 
 
 def main() -> None:
-    args = parse_args(CollectArgs, description=__doc__,
-                      defaults={"task": PRESETS[COMPONENT_PRESET], "dataset_path": f"data/{COMPONENT_PRESET}.hdf5"},
-                      exclude=("task", "rerun", "rerun_save", "rerun_worlds"))
+    args = parse_args(
+        CollectArgs,
+        description=__doc__,
+        defaults={"task": PRESETS[COMPONENT_PRESET], "dataset_path": f"data/{COMPONENT_PRESET}.hdf5"},
+        exclude=("task", "rerun", "rerun_save", "rerun_worlds"),
+    )
     env = make_env(args.task, **args.env_kwargs())
     ref = env.collect(agent=expert_agent(env), **args.collect_kwargs())
     keys = ("task", "episodes", "successes", "success_rate", "path", "termination_reasons")

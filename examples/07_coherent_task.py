@@ -41,8 +41,14 @@ class CompoundArgs(CollectArgs):
     """evaluate: report the success rate; collect: also write the episodes to --dataset-path"""
 
 
-DEFAULTS = {"task": "GalbotG1-PickToShelf-v0", "dataset_path": "data/coherent_task_demos.hdf5", "episodes": 36,
-            "num_envs": 9, "max_steps": 1500, "randomize": True}
+DEFAULTS = {
+    "task": "GalbotG1-PickToShelf-v0",
+    "dataset_path": "data/coherent_task_demos.hdf5",
+    "episodes": 36,
+    "num_envs": 9,
+    "max_steps": 1500,
+    "randomize": True,
+}
 
 
 def coherent_agent(env, preset: str) -> TaskFlowAgent:
@@ -52,13 +58,15 @@ def coherent_agent(env, preset: str) -> TaskFlowAgent:
         return TaskFlowAgent.from_env(env, agents={p.name: expert_agent(p.task_id) for p in env.cfg.phases})
     if preset == "pick_to_shelf_policy":
         return phase_policy_agent(env, {"pick": "outputs/pick/checkpoint.pt", "place": "outputs/place/checkpoint.pt"})
-    raise ValueError(f"unknown COMPOUND_AGENT_PRESET {preset!r}; use task_default, pick_to_shelf_experts or "
-                     f"pick_to_shelf_policy")
+    raise ValueError(
+        f"unknown COMPOUND_AGENT_PRESET {preset!r}; use task_default, pick_to_shelf_experts or pick_to_shelf_policy"
+    )
 
 
 def main() -> None:
-    args = parse_args(CompoundArgs, description=__doc__, defaults=DEFAULTS,
-                      exclude=("rerun", "rerun_save", "rerun_worlds"))
+    args = parse_args(
+        CompoundArgs, description=__doc__, defaults=DEFAULTS, exclude=("rerun", "rerun_save", "rerun_worlds")
+    )
     env = make_env(args.task, **args.env_kwargs())
     agent = coherent_agent(env, COMPOUND_AGENT_PRESET)
     if args.mode == "collect":
@@ -66,8 +74,18 @@ def main() -> None:
         out = {k: ref[k] for k in ("task", "episodes", "successes", "success_rate", "path", "termination_reasons")}
     else:
         res = env.evaluate(agent=agent, **args.rollout_kwargs())
-        out = {k: res[k] for k in ("task", "episodes", "successes", "success_rate", "average_length",
-                                   "termination_reasons", "phases")}
+        out = {
+            k: res[k]
+            for k in (
+                "task",
+                "episodes",
+                "successes",
+                "success_rate",
+                "average_length",
+                "termination_reasons",
+                "phases",
+            )
+        }
     print(json.dumps(out))
 
 

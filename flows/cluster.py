@@ -60,17 +60,37 @@ def cluster_options(workers: int, device: str | None, gpus: list[str] | None = N
         from distributed import Scheduler, SpecCluster  # deferred: Dask is slow to import
 
         nanny = _patient_nanny()
-        spec = {f"gpu-{gpu}": {"cls": nanny, "options": {"nthreads": 1, "env": {"CUDA_VISIBLE_DEVICES": gpu},
-                                                       "silence_logs": WORKER_LOG_LEVEL, "dashboard": False}}
-                for gpu in gpus[:workers]}
-        return {"cluster_class": SpecCluster, "cluster_kwargs": {
-            "workers": spec,
-            "scheduler": {"cls": Scheduler, "options": {"dashboard": False, "dashboard_address": SCHEDULER_HTTP}},
-            "silence_logs": WORKER_LOG_LEVEL}}
-    return {"cluster_kwargs": {"n_workers": workers, "processes": True, "threads_per_worker": 1,
-                               "worker_class": _patient_nanny(), "dashboard_address": None,
-                               "silence_logs": WORKER_LOG_LEVEL,
-                               "scheduler_kwargs": {"dashboard_address": SCHEDULER_HTTP}}}
+        spec = {
+            f"gpu-{gpu}": {
+                "cls": nanny,
+                "options": {
+                    "nthreads": 1,
+                    "env": {"CUDA_VISIBLE_DEVICES": gpu},
+                    "silence_logs": WORKER_LOG_LEVEL,
+                    "dashboard": False,
+                },
+            }
+            for gpu in gpus[:workers]
+        }
+        return {
+            "cluster_class": SpecCluster,
+            "cluster_kwargs": {
+                "workers": spec,
+                "scheduler": {"cls": Scheduler, "options": {"dashboard": False, "dashboard_address": SCHEDULER_HTTP}},
+                "silence_logs": WORKER_LOG_LEVEL,
+            },
+        }
+    return {
+        "cluster_kwargs": {
+            "n_workers": workers,
+            "processes": True,
+            "threads_per_worker": 1,
+            "worker_class": _patient_nanny(),
+            "dashboard_address": None,
+            "silence_logs": WORKER_LOG_LEVEL,
+            "scheduler_kwargs": {"dashboard_address": SCHEDULER_HTTP},
+        }
+    }
 
 
 @functools.cache

@@ -50,11 +50,23 @@ def has_phases(task_id: str) -> bool:
 
 
 @flow(name="long-horizon pipeline")
-def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], eval_episodes: int, num_envs: int,
-                          device: str | None, out: str, seed: int = 0, workers: int = 1, eval_max_steps: int = 3000,
-                          cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"],
-                          task_options: dict[str, Any] | None = None,
-                          gpus: int = 1, record: bool = True, recipe: str | None = None) -> dict[str, Any]:
+def long_horizon_pipeline(
+    task_id: str,
+    demos: int,
+    train_cfg: dict[str, Any],
+    eval_episodes: int,
+    num_envs: int,
+    device: str | None,
+    out: str,
+    seed: int = 0,
+    workers: int = 1,
+    eval_max_steps: int = 3000,
+    cameras: str = LONG_HORIZON_RECIPES["cpu"]["cameras"],
+    task_options: dict[str, Any] | None = None,
+    gpus: int = 1,
+    record: bool = True,
+    recipe: str | None = None,
+) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
     run record (``<out>/records/``; ``summary["record"]``).
@@ -67,8 +79,18 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
     phases = learned_phases(task_id, options)
     clock = StageClock()
-    demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
-                                   task_options=options, max_steps=COLLECT_MAX_STEPS)
+    demo_art, s_collect = run_collect(
+        task_id,
+        demos,
+        num_envs,
+        seed,
+        device,
+        out,
+        workers,
+        cameras=cameras,
+        task_options=options,
+        max_steps=COLLECT_MAX_STEPS,
+    )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
     (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out)], "split")
@@ -76,27 +98,61 @@ def long_horizon_pipeline(task_id: str, demos: int, train_cfg: dict[str, Any], e
     log.info(
         "split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items())
     )
-    arts, s_train = results(train_task.map(dataset=[split[p] for p in phases], train_cfg=unmapped(dict(train_cfg)),
-                                            out_dir=unmapped(out), name=[f"policy_{p}" for p in phases],
-                                            gpus=unmapped(gpus)), "train")
+    arts, s_train = results(
+        train_task.map(
+            dataset=[split[p] for p in phases],
+            train_cfg=unmapped(dict(train_cfg)),
+            out_dir=unmapped(out),
+            name=[f"policy_{p}" for p in phases],
+            gpus=unmapped(gpus),
+        ),
+        "train",
+    )
     checkpoints = dict(zip(phases, arts))
     clock.lap("train")
     for art in arts:
         runlog.publish_loss_curve(art)
     log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
-    metrics, s_eval = run_evaluate(None, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
-                                   eval_max_steps, recording=Path(out) / "evaluation.rrd" if record else None,
-                                   cameras=cameras, task_options=options, phase_checkpoints=checkpoints)
+    metrics, s_eval = run_evaluate(
+        None,
+        task_id,
+        eval_episodes,
+        num_envs,
+        seed + 10_000,
+        device,
+        workers,
+        eval_max_steps,
+        recording=Path(out) / "evaluation.rrd" if record else None,
+        cameras=cameras,
+        task_options=options,
+        phase_checkpoints=checkpoints,
+    )
     clock.lap("evaluate")
-    log.info("evaluate: %s; success rate %.1f%% over %d episodes; %s", "/".join(s_eval),
-             100 * metrics["success_rate"], metrics["episodes"],
-             ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in metrics["phases"].items()))
-    summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
-               "learned_phases": phases,
-               "artifacts": {"demos": demo_art, "phases": split, "checkpoints": checkpoints},
-               "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval}}
-    rec = pipeline_record(summary, clock, seed=seed, device=train_cfg.get("device", device), train_cfg=dict(train_cfg),
-                          cameras=cameras, task_options=options, recipe=recipe)
+    log.info(
+        "evaluate: %s; success rate %.1f%% over %d episodes; %s",
+        "/".join(s_eval),
+        100 * metrics["success_rate"],
+        metrics["episodes"],
+        ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in metrics["phases"].items()),
+    )
+    summary = {
+        "task": task_id,
+        "success_rate": metrics["success_rate"],
+        "evaluation": metrics,
+        "learned_phases": phases,
+        "artifacts": {"demos": demo_art, "phases": split, "checkpoints": checkpoints},
+        "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval},
+    }
+    rec = pipeline_record(
+        summary,
+        clock,
+        seed=seed,
+        device=train_cfg.get("device", device),
+        train_cfg=dict(train_cfg),
+        cameras=cameras,
+        task_options=options,
+        recipe=recipe,
+    )
     summary["record"] = str(write_pipeline_record(rec, out_dir))
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
     return summary
@@ -108,12 +164,17 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
     arts, ev = summary["artifacts"], summary["evaluation"]
     demos = arts["demos"]["metrics"]
     head = f"{summary['task']} long-horizon pipeline" + (f" ({recipe} recipe)" if recipe else "")
-    lines = [f"{head}:", f"  expert demos    {demos.get('episodes')} collected, "
-                         f"{demos.get('success_rate', 0):.0%} success"]
+    lines = [
+        f"{head}:",
+        f"  expert demos    {demos.get('episodes')} collected, {demos.get('success_rate', 0):.0%} success",
+    ]
     for phase, art in arts["phases"].items():
         ckpt = arts["checkpoints"].get(phase)
-        trained = (f"; policy {ckpt['metrics'].get('steps')} steps, final loss {ckpt['metrics'].get('final_loss'):.4f}"
-                   if ckpt else "; expert")
+        trained = (
+            f"; policy {ckpt['metrics'].get('steps')} steps, final loss {ckpt['metrics'].get('final_loss'):.4f}"
+            if ckpt
+            else "; expert"
+        )
         lines.append(f"  phase {phase:<9} {art['metrics']['episodes']} segments{trained}")
     lines.append(
         f"  composed        {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised episodes"

@@ -66,42 +66,77 @@ def _check(task_id: str, runner: str, workers: int) -> None:
 
 
 @flow(name="collect")
-def collect(task_id: str, episodes: int = 4, num_envs: int = 2, seed: int = 0, device: str | None = None,
-            out: str = "outputs/pipeline", shards: int = 1) -> tuple[dict[str, Any], list[str]]:
+def collect(
+    task_id: str,
+    episodes: int = 4,
+    num_envs: int = 2,
+    seed: int = 0,
+    device: str | None = None,
+    out: str = "outputs/pipeline",
+    shards: int = 1,
+) -> tuple[dict[str, Any], list[str]]:
     """Expert demos of ``task_id`` (randomised) -> (dataset artifact, task states); ``shards`` > 1: disjoint
     seeds, merged."""
     return run_collect(task_id, episodes, num_envs, seed, device, out, shards)
 
 
 @flow(name="mimic")
-def mimic(source: dict[str, Any], episodes: int = 40, num_envs: int = 4, seed: int = 1, device: str | None = None,
-          out: str = "outputs/pipeline", shards: int = 1) -> tuple[dict[str, Any], list[str]]:
+def mimic(
+    source: dict[str, Any],
+    episodes: int = 40,
+    num_envs: int = 4,
+    seed: int = 1,
+    device: str | None = None,
+    out: str = "outputs/pipeline",
+    shards: int = 1,
+) -> tuple[dict[str, Any], list[str]]:
     """Mimic expansion of a dataset artifact -> (dataset artifact, task states)."""
     return run_mimic(source, episodes, num_envs, seed, device, out, shards)
 
 
 @flow(name="train")
-def train(dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None,
-          out: str = "outputs/pipeline") -> tuple[dict[str, Any], list[str]]:
+def train(
+    dataset: dict[str, Any], train_cfg: dict[str, Any] | None = None, out: str = "outputs/pipeline"
+) -> tuple[dict[str, Any], list[str]]:
     """Diffusion policy on a dataset artifact -> (checkpoint artifact, task states)."""
     return run_train(dataset, train_cfg, out)
 
 
 @flow(name="evaluate")
-def evaluate(checkpoint: dict[str, Any], task_id: str, episodes: int = 10, num_envs: int = 5, seed: int = 10_000,
-             device: str | None = None, shards: int = 1, max_steps: int = 600) -> tuple[dict[str, Any], list[str]]:
+def evaluate(
+    checkpoint: dict[str, Any],
+    task_id: str,
+    episodes: int = 10,
+    num_envs: int = 5,
+    seed: int = 10_000,
+    device: str | None = None,
+    shards: int = 1,
+    max_steps: int = 600,
+) -> tuple[dict[str, Any], list[str]]:
     """Success rate of a checkpoint artifact (randomised; ``shards`` > 1: disjoint seeds, summed) -> (metrics,
     task states)."""
     return run_evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps)
 
 
 @flow(name="pipeline")
-def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: int = _R["mimic_episodes"],
-             train_cfg: dict[str, Any] | None = None, eval_episodes: int = _R["eval_episodes"],
-             num_envs: int = _R["num_envs"], device: str | None = _P.device, out: str = _P.out, seed: int = _P.seed,
-             workers: int = _P.workers, eval_max_steps: int = 600, gpus: int = 1,
-             record: bool = _P.record, cameras: str = PIPELINE_CAMERAS, task_options: dict[str, Any] | None = None,
-             recipe: str | None = None) -> dict[str, Any]:
+def pipeline(
+    task_id: str = _P.task,
+    demos: int = _R["demos"],
+    mimic_episodes: int = _R["mimic_episodes"],
+    train_cfg: dict[str, Any] | None = None,
+    eval_episodes: int = _R["eval_episodes"],
+    num_envs: int = _R["num_envs"],
+    device: str | None = _P.device,
+    out: str = _P.out,
+    seed: int = _P.seed,
+    workers: int = _P.workers,
+    eval_max_steps: int = 600,
+    gpus: int = 1,
+    record: bool = _P.record,
+    cameras: str = PIPELINE_CAMERAS,
+    task_options: dict[str, Any] | None = None,
+    recipe: str | None = None,
+) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
     runner for all); publishes one artifact per stage and a markdown summary (``runlog``), writes
     ``<out>/metrics.json`` and a run record (``<out>/records/``; ``summary["record"]``). ``workers`` > 1 shards
@@ -114,8 +149,9 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = dict(task_options or {})
     clock = StageClock()
-    demo_art, s_collect = run_collect(task_id, demos, num_envs, seed, device, out, workers, cameras=cameras,
-                                      task_options=options)
+    demo_art, s_collect = run_collect(
+        task_id, demos, num_envs, seed, device, out, workers, cameras=cameras, task_options=options
+    )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
     gen_art, s_mimic = run_mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers, cameras=cameras)
@@ -124,36 +160,70 @@ def pipeline(task_id: str = _P.task, demos: int = _R["demos"], mimic_episodes: i
     ckpt_art, s_train = run_train(gen_art, train_cfg, out, gpus)
     clock.lap("train")
     log.info("train: %s", "/".join(s_train))
-    metrics, s_eval = run_evaluate(ckpt_art, task_id, eval_episodes, num_envs, seed + 10_000, device, workers,
-                                   eval_max_steps, recording=Path(out) / "evaluation.rrd" if record else None,
-                                   cameras=cameras, task_options=options)
+    metrics, s_eval = run_evaluate(
+        ckpt_art,
+        task_id,
+        eval_episodes,
+        num_envs,
+        seed + 10_000,
+        device,
+        workers,
+        eval_max_steps,
+        recording=Path(out) / "evaluation.rrd" if record else None,
+        cameras=cameras,
+        task_options=options,
+    )
     clock.lap("evaluate")
-    log.info("evaluate: %s; success rate %.1f%% over %d episodes", "/".join(s_eval), 100 * metrics["success_rate"],
-             metrics["episodes"])
-    summary = {"task": task_id, "success_rate": metrics["success_rate"], "evaluation": metrics,
-               "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art},
-               "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval}}
-    rec = pipeline_record(summary, clock, seed=seed, device=(train_cfg or {}).get("device", device),
-                          train_cfg=dict(train_cfg or {}), cameras=cameras, task_options=options, recipe=recipe)
+    log.info(
+        "evaluate: %s; success rate %.1f%% over %d episodes",
+        "/".join(s_eval),
+        100 * metrics["success_rate"],
+        metrics["episodes"],
+    )
+    summary = {
+        "task": task_id,
+        "success_rate": metrics["success_rate"],
+        "evaluation": metrics,
+        "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art},
+        "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval},
+    }
+    rec = pipeline_record(
+        summary,
+        clock,
+        seed=seed,
+        device=(train_cfg or {}).get("device", device),
+        train_cfg=dict(train_cfg or {}),
+        cameras=cameras,
+        task_options=options,
+        recipe=recipe,
+    )
     summary["record"] = str(write_pipeline_record(rec, out_dir))
     (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
     runlog.publish_summary(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir)
     return summary
 
 
-def run_pipeline(*, runner: str = _P.runner, workers: int = _P.workers, address: str | None = _P.address,
-                 retries: int = _P.retries, **kwargs) -> dict[str, Any]:
+def run_pipeline(
+    *,
+    runner: str = _P.runner,
+    workers: int = _P.workers,
+    address: str | None = _P.address,
+    retries: int = _P.retries,
+    **kwargs,
+) -> dict[str, Any]:
     """Run ``pipeline`` with the chosen task runner: ``local`` (threads in this process) or ``dask``
     (a local cluster of ``workers`` processes, or the scheduler at ``address``). ``PipelineArgs.pipeline_kwargs()``
     gives every keyword from the command line's arguments."""
     _check(kwargs.get("task_id", _P.task), runner, workers)
-    _check_counts(**{k: kwargs.get(k) for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs",
-                                                 "eval_max_steps", "gpus")})
+    _check_counts(
+        **{k: kwargs.get(k) for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs", "eval_max_steps", "gpus")}
+    )
     flow_fn = pipeline
     if has_phases(kwargs.get("task_id", _P.task)):
         if kwargs.pop("mimic_episodes", None) is not None:
-            raise ValueError("a coherent task's pipeline takes more coherent demos (--demos) instead of Mimic; "
-                             "drop --mimic-episodes")
+            raise ValueError(
+                "a coherent task's pipeline takes more coherent demos (--demos) instead of Mimic; drop --mimic-episodes"
+            )
         flow_fn = long_horizon_pipeline
     check_api_reachable()
     options: dict[str, Any] = {}

@@ -29,8 +29,10 @@ def prefect_ui_command(prefect_home: str | os.PathLike | None = None) -> str:
     home = Path(prefect_home or os.environ.get("PREFECT_HOME", "outputs/.prefect")).resolve()
     prefect = Path(sys.executable).with_name("prefect")
     exe = str(prefect) if prefect.exists() else "prefect"
-    return (f"PREFECT_HOME={shlex.quote(str(home))} PREFECT_SERVER_UI_ENABLED=true {shlex.quote(exe)} server start "
-            f"(then open {PREFECT_UI_URL})")
+    return (
+        f"PREFECT_HOME={shlex.quote(str(home))} PREFECT_SERVER_UI_ENABLED=true {shlex.quote(exe)} server start "
+        f"(then open {PREFECT_UI_URL})"
+    )
 
 
 def summary_lines(summary: dict[str, Any], out_dir: str | os.PathLike, recipe: str | None = None) -> list[str]:
@@ -45,18 +47,23 @@ def summary_lines(summary: dict[str, Any], out_dir: str | os.PathLike, recipe: s
     train_s, loss, steps = ckpt.get("wall_time_s"), ckpt.get("final_loss"), ckpt.get("steps")
     head = f"{summary['task']} pipeline" + (f" ({recipe} recipe)" if recipe else "")
     mimic = f"{gen.get('episodes')} demos generated" + (
-        f" from {attempts} attempts ({_pct(mimic_rate)} success)" if attempts else "")
-    training = ((f"{steps} steps, " if steps else "")
-                + (f"{train_s:.0f} s, " if isinstance(train_s, (int, float)) else "")
-                + (f"final loss {loss:.4f}" if isinstance(loss, (int, float)) else "final loss n/a"))
+        f" from {attempts} attempts ({_pct(mimic_rate)} success)" if attempts else ""
+    )
+    training = (
+        (f"{steps} steps, " if steps else "")
+        + (f"{train_s:.0f} s, " if isinstance(train_s, (int, float)) else "")
+        + (f"final loss {loss:.4f}" if isinstance(loss, (int, float)) else "final loss n/a")
+    )
     succeeded = ev.get("successes", round(ev["success_rate"] * ev["episodes"]))
     lines = [
         f"{head}:",
         f"  expert demos    {demos.get('episodes')} collected, {_pct(demos.get('success_rate'))} success",
         f"  Mimic           {mimic}",
         f"  training        {training}",
-        (f"  policy          {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised "
-         f"evaluation episodes ({succeeded} succeeded)"),
+        (
+            f"  policy          {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised "
+            f"evaluation episodes ({succeeded} succeeded)"
+        ),
         "where to look:",
         f"  metrics         {Path(out_dir).resolve() / 'metrics.json'}",
         f"  checkpoint      {arts['checkpoint']['path']}",

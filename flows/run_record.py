@@ -33,9 +33,17 @@ class StageClock:
         return round(time.perf_counter() - self.t0, 2)
 
 
-def pipeline_record(summary: dict[str, Any], clock: StageClock, *, seed: int, device: str | None,
-                    train_cfg: dict[str, Any], cameras: str, task_options: dict[str, Any],
-                    recipe: str | None) -> dict[str, Any]:
+def pipeline_record(
+    summary: dict[str, Any],
+    clock: StageClock,
+    *,
+    seed: int,
+    device: str | None,
+    train_cfg: dict[str, Any],
+    cameras: str,
+    task_options: dict[str, Any],
+    recipe: str | None,
+) -> dict[str, Any]:
     """The record of a finished pipeline run (single-task or long-horizon) from its summary."""
     arts, ev = summary["artifacts"], summary["evaluation"]
     demos = arts["demos"]["metrics"]
@@ -46,20 +54,29 @@ def pipeline_record(summary: dict[str, Any], clock: StageClock, *, seed: int, de
     checkpoints = arts.get("checkpoints") or {"policy": arts["checkpoint"]}
     counts["train_steps"] = {name: c["metrics"].get("steps") for name, c in checkpoints.items()}
     results = {
-        "recipe": recipe, "seed": seed, "cameras": cameras, "task_options": task_options,
+        "recipe": recipe,
+        "seed": seed,
+        "cameras": cameras,
+        "task_options": task_options,
         "train": {k: v for k, v in train_cfg.items() if k not in ("output_dir",)},
         "learned_phases": summary.get("learned_phases"),
         "counts": counts,
         "timings_s": {**clock.seconds, "flow": clock.total()},
-        "success": {"episodes": ev["episodes"], "successes": ev["successes"], "rate": ev["success_rate"],
-                    "eval_seed": seed + EVAL_SEED_OFFSET, "average_length": ev.get("average_length"),
-                    "termination_reasons": ev.get("termination_reasons")},
+        "success": {
+            "episodes": ev["episodes"],
+            "successes": ev["successes"],
+            "rate": ev["success_rate"],
+            "eval_seed": seed + EVAL_SEED_OFFSET,
+            "average_length": ev.get("average_length"),
+            "termination_reasons": ev.get("termination_reasons"),
+        },
         "phases": ev.get("phases"),
         "stage_states": summary["stage_states"],
     }
     wall = command_wall_s()
-    return make_record("pipeline", task=summary["task"], device=device, results=results,
-                       wall_s=clock.total() if wall is None else wall)
+    return make_record(
+        "pipeline", task=summary["task"], device=device, results=results, wall_s=clock.total() if wall is None else wall
+    )
 
 
 def write_pipeline_record(record: dict[str, Any], out_dir: Path) -> Path:

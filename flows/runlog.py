@@ -23,8 +23,13 @@ from typing import Any
 
 from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
-ARTIFACT_KEYS = {"collect": "collect-dataset", "mimic": "mimic-dataset", "train": "train-loss-curve",
-                 "evaluate": "evaluation", "pipeline": "newton-lab-pipeline"}
+ARTIFACT_KEYS = {
+    "collect": "collect-dataset",
+    "mimic": "mimic-dataset",
+    "train": "train-loss-curve",
+    "evaluate": "evaluation",
+    "pipeline": "newton-lab-pipeline",
+}
 """Artifact key of each stage (and of the pipeline summary)."""
 PHASES_ARTIFACT_KEY = "evaluation-phases"
 """A coherent task's evaluation per phase: one row per phase (reached, passed, where the others stopped)."""
@@ -44,11 +49,15 @@ def describe_inputs(kwargs: dict[str, Any]) -> str:
         return f"source {kwargs['source']['path']} -> {kwargs.get('out_dir')}"
     if "ppo" in kwargs:  # train-rl
         ppo = kwargs["ppo"]
-        return (f"task {kwargs['task_id']}, {ppo.get('iterations')} PPO iterations on {ppo.get('num_envs')} rows, "
-                f"device {ppo.get('device')} -> {kwargs.get('out_dir')}")
+        return (
+            f"task {kwargs['task_id']}, {ppo.get('iterations')} PPO iterations on {ppo.get('num_envs')} rows, "
+            f"device {ppo.get('device')} -> {kwargs.get('out_dir')}"
+        )
     cfg = kwargs.get("train_cfg") or {}
-    return (f"dataset {kwargs['dataset']['path']}, {cfg.get('max_steps')} steps, batch {cfg.get('batch_size')}, "
-            f"device {cfg.get('device')} -> {kwargs.get('out_dir')}")
+    return (
+        f"dataset {kwargs['dataset']['path']}, {cfg.get('max_steps')} steps, batch {cfg.get('batch_size')}, "
+        f"device {cfg.get('device')} -> {kwargs.get('out_dir')}"
+    )
 
 
 def describe_result(result: dict[str, Any], seconds: float) -> list[str]:
@@ -72,15 +81,24 @@ def _fmt(v: Any) -> str:
 def publish_dataset(stage: str, art: dict[str, Any], shards: int) -> None:
     """``collect-dataset`` / ``mimic-dataset``: the stage's dataset summary as a table."""
     m = art["metrics"]
-    rows = [("path", art["path"]), ("episodes", m.get("episodes")), ("successes", m.get("successes")),
-            ("samples", m.get("samples")), ("shards", shards), ("sha256", art["sha256"][:12])]
+    rows = [
+        ("path", art["path"]),
+        ("episodes", m.get("episodes")),
+        ("successes", m.get("successes")),
+        ("samples", m.get("samples")),
+        ("shards", shards),
+        ("sha256", art["sha256"][:12]),
+    ]
     if stage == "mimic":
         rate = m.get("generation_success_rate", m.get("successes", 0) / max(m.get("attempts") or 1, 1))
         rows += [("attempts", m.get("attempts")), ("generation rate", f"{rate:.1%}")]
     else:
         rows.append(("success rate", f"{m.get('success_rate', 1.0):.1%}"))
-    create_table_artifact(table=[{"field": k, "value": _fmt(v)} for k, v in rows if v is not None],
-                          key=ARTIFACT_KEYS[stage], description=f"{stage} stage: dataset {Path(art['path']).name}")
+    create_table_artifact(
+        table=[{"field": k, "value": _fmt(v)} for k, v in rows if v is not None],
+        key=ARTIFACT_KEYS[stage],
+        description=f"{stage} stage: dataset {Path(art['path']).name}",
+    )
 
 
 def publish_loss_curve(ckpt: dict[str, Any]) -> None:
@@ -88,29 +106,45 @@ def publish_loss_curve(ckpt: dict[str, Any]) -> None:
     curve = ckpt["metrics"].get("loss_curve") or []
     step = max(1, -(-len(curve) // LOSS_ROWS))
     rows = curve[::step] + ([curve[-1]] if curve and (len(curve) - 1) % step else [])
-    create_table_artifact(table=[{k: r[k] for k in ("epoch", "steps", "loss", "lr")} for r in rows],
-                          key=ARTIFACT_KEYS["train"],
-                          description=f"train stage: final loss {_fmt(ckpt['metrics'].get('final_loss'))}, "
-                                      f"checkpoint {ckpt['path']}")
+    create_table_artifact(
+        table=[{k: r[k] for k in ("epoch", "steps", "loss", "lr")} for r in rows],
+        key=ARTIFACT_KEYS["train"],
+        description=f"train stage: final loss {_fmt(ckpt['metrics'].get('final_loss'))}, checkpoint {ckpt['path']}",
+    )
 
 
 def publish_evaluation(metrics: dict[str, Any]) -> None:
     """``evaluation``: success rate, mean length, termination reasons and subtask signals."""
-    rows = [("success rate", f"{metrics['success_rate']:.1%}"), ("episodes", metrics["episodes"]),
-            ("successes", metrics["successes"]), ("average length", f"{metrics['average_length']:.1f} steps")]
+    rows = [
+        ("success rate", f"{metrics['success_rate']:.1%}"),
+        ("episodes", metrics["episodes"]),
+        ("successes", metrics["successes"]),
+        ("average length", f"{metrics['average_length']:.1f} steps"),
+    ]
     rows += [(f"termination: {k}", v) for k, v in sorted(metrics["termination_reasons"].items())]
     rows += [(f"subtask: {k}", v) for k, v in sorted(metrics.get("subtask_signals", {}).items())]
     phases = metrics.get("phases", {})
     if len(phases) > 1:  # a coherent task: where its rows stop
         rows += [(f"phase {k}: passed / reached", f"{v['passed']} / {v['reached']}") for k, v in phases.items()]
-    create_table_artifact(table=[{"metric": k, "value": str(v)} for k, v in rows], key=ARTIFACT_KEYS["evaluate"],
-                          description=f"evaluate stage: {metrics['successes']}/{metrics['episodes']} successes")
+    create_table_artifact(
+        table=[{"metric": k, "value": str(v)} for k, v in rows],
+        key=ARTIFACT_KEYS["evaluate"],
+        description=f"evaluate stage: {metrics['successes']}/{metrics['episodes']} successes",
+    )
     if len(phases) > 1:
         create_table_artifact(
-            table=[{"phase": k, "reached": v["reached"], "passed": v["passed"],
-                    "stopped": ", ".join(f"{r} {n}" for r, n in v["stalled"].items()) or "none"}
-                   for k, v in phases.items()],
-            key=PHASES_ARTIFACT_KEY, description="evaluate stage: where the composed task's rows stopped, per phase")
+            table=[
+                {
+                    "phase": k,
+                    "reached": v["reached"],
+                    "passed": v["passed"],
+                    "stopped": ", ".join(f"{r} {n}" for r, n in v["stalled"].items()) or "none",
+                }
+                for k, v in phases.items()
+            ],
+            key=PHASES_ARTIFACT_KEY,
+            description="evaluate stage: where the composed task's rows stopped, per phase",
+        )
 
 
 def publish_summary(task_id: str, demos, gen, ckpt, metrics, out: Path) -> None:
@@ -130,14 +164,21 @@ def publish_summary(task_id: str, demos, gen, ckpt, metrics, out: Path) -> None:
         ("evaluation success rate", f"{metrics['success_rate']:.1%} of {metrics['episodes']} episodes"),
     ]
     table = "\n".join(f"| {k} | {v} |" for k, v in rows)
-    paths = "\n".join(f"- {k}: `{a['path']}` (sha256 {a['sha256'][:12]})" for k, a in
-                      (("demos", demos), ("mimic", gen), ("checkpoint", ckpt)))
+    paths = "\n".join(
+        f"- {k}: `{a['path']}` (sha256 {a['sha256'][:12]})"
+        for k, a in (("demos", demos), ("mimic", gen), ("checkpoint", ckpt))
+    )
     create_markdown_artifact(
         markdown=f"# newton_lab pipeline: {task_id}\n\n| metric | value |\n|---|---|\n{table}\n\n{paths}\n"
-                 f"- metrics: `{out / 'metrics.json'}`\n"
-                 + (f"- evaluation recording: `{metrics['recording']}` (open it with `rerun`)\n"
-                    if metrics.get("recording") else ""),
-        key=ARTIFACT_KEYS["pipeline"], description=f"newton_lab pipeline metrics for {task_id}")
+        f"- metrics: `{out / 'metrics.json'}`\n"
+        + (
+            f"- evaluation recording: `{metrics['recording']}` (open it with `rerun`)\n"
+            if metrics.get("recording")
+            else ""
+        ),
+        key=ARTIFACT_KEYS["pipeline"],
+        description=f"newton_lab pipeline metrics for {task_id}",
+    )
 
 
 # ----------------------------------------------------------------------------- console
@@ -155,8 +196,7 @@ class CallerReports(logging.Filter):
         if not record.name.startswith(("prefect.flow_runs", "prefect.task_runs")):
             return True
         if record.exc_info and record.exc_info[1] is not None:
-            return record.name.startswith("prefect.task_runs") and not isinstance(record.exc_info[1],
-                                                                                   self.input_errors)
+            return record.name.startswith("prefect.task_runs") and not isinstance(record.exc_info[1], self.input_errors)
         return not record.getMessage().startswith("Finished in state Failed")
 
 
@@ -165,8 +205,9 @@ def quiet_console(input_errors: tuple[type[BaseException], ...]) -> None:
     from prefect.logging.handlers import PrefectConsoleHandler  # deferred: only where Prefect set up logging
 
     for handler in logging.getLogger().handlers:
-        if isinstance(handler, PrefectConsoleHandler) and not any(isinstance(f, CallerReports)
-                                                                  for f in handler.filters):
+        if isinstance(handler, PrefectConsoleHandler) and not any(
+            isinstance(f, CallerReports) for f in handler.filters
+        ):
             handler.addFilter(CallerReports(input_errors))
 
 

@@ -13,9 +13,18 @@ from pathlib import Path
 from typing import Any
 
 DEMO_TRAIN_CFG: dict[str, Any] = {
-    "down_dims": [32, 64, 128], "diffusion_step_embed_dim": 64, "activation": "silu", "prediction_type": "sample",
-    "num_inference_steps": 5, "batch_size": 64, "lr": 6e-4, "warmup_steps": 300, "epochs": 1000, "max_steps": 6000,
-    "seed": 0}
+    "down_dims": [32, 64, 128],
+    "diffusion_step_embed_dim": 64,
+    "activation": "silu",
+    "prediction_type": "sample",
+    "num_inference_steps": 5,
+    "batch_size": 64,
+    "lr": 6e-4,
+    "warmup_steps": 300,
+    "epochs": 1000,
+    "max_steps": 6000,
+    "seed": 0,
+}
 """The demo's diffusion policy: the ``cpu`` preset's quarter-width U-Net with SiLU (a step takes 0.82x the Mish
 one on 2 CPU cores), predicting the clean action chunk (x0) instead of the noise, 5 DDIM steps at inference.
 Measured on the demo's 100 Mimic demos, the same 40 held-out episodes (evaluation seed 10000) each, training seed
@@ -27,16 +36,29 @@ machine costs about what it saves)."""
 
 DEMO_RECIPES: dict[str, dict[str, Any]] = {
     # on 2 CPU cores from a fresh clone with cold caches: the policy observes state (nothing is rendered)
-    "cpu": {"demos": 4, "mimic_episodes": 100, "eval_episodes": 40, "num_envs": 4, "cameras": "none",
-            "task_options": {}, "train": DEMO_TRAIN_CFG},
+    "cpu": {
+        "demos": 4,
+        "mimic_episodes": 100,
+        "eval_episodes": 40,
+        "num_envs": 4,
+        "cameras": "none",
+        "task_options": {},
+        "train": DEMO_TRAIN_CFG,
+    },
     # full size on a CUDA device, from pixels: the policy sees the front head camera (96x72 RGB) and
     # proprioception only (obs_mode=sensors: no cube or block pose anywhere in its input); 16 expert demos grown
     # to 1024 by Mimic (rendered from the same camera), the visuomotor preset under bf16 for a fixed wall-clock
     # budget, 100 held-out randomised evaluation episodes. num_envs bounds each stage's rows (collection uses
     # one row per demo, evaluation one per episode).
-    "gpu": {"demos": 16, "mimic_episodes": 1024, "eval_episodes": 100, "num_envs": 512,
-            "cameras": "front_head=96x72:rgb", "task_options": {"obs_mode": "sensors"},
-            "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 330}},
+    "gpu": {
+        "demos": 16,
+        "mimic_episodes": 1024,
+        "eval_episodes": 100,
+        "num_envs": 512,
+        "cameras": "front_head=96x72:rgb",
+        "task_options": {"obs_mode": "sensors"},
+        "train": {"preset": "vision", "bf16": True, "lr": 3e-4, "time_budget_s": 330},
+    },
 }
 """Counts, cameras, task options and training of ``newton-lab pipeline`` / ``make demo`` for every flag left
 unset (``cameras``: the ``--cameras`` of collection, Mimic and evaluation)."""
@@ -44,16 +66,32 @@ LONG_HORIZON_RECIPES: dict[str, dict[str, Any]] = {
     # The smallest end-to-end run on 2 CPU cores: a few coherent demos, short trainings of the quarter-width
     # visuomotor policy on the front camera, a few evaluation episodes (it shows the flow works; no success is
     # expected at this size).
-    "cpu": {"demos": 4, "eval_episodes": 4, "num_envs": 2, "eval_max_steps": 3000, "cameras": "front_head=96x72:rgb",
-            "train": {"preset": "vision_cpu", "max_steps": 1000}},
+    "cpu": {
+        "demos": 4,
+        "eval_episodes": 4,
+        "num_envs": 2,
+        "eval_max_steps": 3000,
+        "cameras": "front_head=96x72:rgb",
+        "train": {"preset": "vision_cpu", "max_steps": 1000},
+    },
     # Full size on a GPU: the visuomotor preset under bf16 with the front head and the left wrist camera (at 96x72
     # the bar is a few pixels wide in the head view; the wrist view holds it large through the grasp and the
     # place), 600 coherent demos and one 6-minute training per learned phase, the phases side by side on the GPU
     # (each in a process of its own).
-    "gpu": {"demos": 600, "eval_episodes": 100, "num_envs": 300, "eval_max_steps": 3000,
-            "cameras": "front_head=96x72:rgb,left_wrist=96x72:rgb",
-            "train": {"preset": "vision", "image_keys": ("front_head_rgb", "left_wrist_rgb"), "bf16": True,
-                      "lr": 3e-4, "time_budget_s": 360}},
+    "gpu": {
+        "demos": 600,
+        "eval_episodes": 100,
+        "num_envs": 300,
+        "eval_max_steps": 3000,
+        "cameras": "front_head=96x72:rgb,left_wrist=96x72:rgb",
+        "train": {
+            "preset": "vision",
+            "image_keys": ("front_head_rgb", "left_wrist_rgb"),
+            "bf16": True,
+            "lr": 3e-4,
+            "time_budget_s": 360,
+        },
+    },
 }
 """Counts, cameras and training of ``newton-lab pipeline`` on a coherent task (``newton_lab.flows.long_horizon``):
 every policy input is what the robot measures: its cameras (``cameras``: the ``--cameras`` of collection and
@@ -89,8 +127,14 @@ def demo_recipe(name: str = "auto", device: str | None = None, *, long_horizon: 
     env_device = device if device is not None else ("cpu" if name == "cpu" else None)
     train_device = device if device is not None else ("cpu" if name == "cpu" else "cuda")
     recipes = LONG_HORIZON_RECIPES if long_horizon else DEMO_RECIPES
-    return {**recipes[name], "name": name, "device": env_device, "train_device": train_device,
-            "long_horizon": long_horizon}
+    return {
+        **recipes[name],
+        "name": name,
+        "device": env_device,
+        "train_device": train_device,
+        "long_horizon": long_horizon,
+    }
+
 
 DEFAULTS = {
     "PREFECT_SERVER_ANALYTICS_ENABLED": "false",
@@ -128,4 +172,5 @@ def check_api_reachable(timeout_s: float = 5.0) -> None:
     except (urllib.error.URLError, OSError, ValueError) as exc:
         raise ConnectionError(
             f"Prefect API at PREFECT_API_URL={url} is unreachable ({exc}); start the server or unset "
-            f"PREFECT_API_URL to use the embedded one") from None
+            f"PREFECT_API_URL to use the embedded one"
+        ) from None

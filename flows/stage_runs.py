@@ -58,8 +58,15 @@ def stage_task(fn, name: str):
             log.info("%s: %s", name, line)
         return result
 
-    return task(run, name=name, cache_policy=INPUTS, persist_result=True, retries=1, retry_delay_seconds=1,
-                retry_condition_fn=retry_transient)
+    return task(
+        run,
+        name=name,
+        cache_policy=INPUTS,
+        persist_result=True,
+        retries=1,
+        retry_delay_seconds=1,
+        retry_condition_fn=retry_transient,
+    )
 
 
 collect_task = stage_task(stages.collect_stage, "collect")
@@ -77,13 +84,17 @@ def merge_task(shards: list[dict[str, Any]], out_dir: str, name: str) -> dict[st
     if path.exists():
         path.unlink()  # a partial merge of an interrupted run; merges are recomputed from their shards
     ref = merge_datasets([s["path"] for s in shards], path)
-    total = {"attempts": sum(s["metrics"].get("attempts", 0) for s in shards),  # Mimic shards keep successes only
-             "successes": sum(s["metrics"].get("successes", s["metrics"]["episodes"]) for s in shards)}
-    rates = ({"generation_success_rate": total["successes"] / max(total["attempts"], 1)} if total["attempts"]
-             else {"success_rate": total["successes"] / max(ref["episodes"], 1)})
+    total = {
+        "attempts": sum(s["metrics"].get("attempts", 0) for s in shards),  # Mimic shards keep successes only
+        "successes": sum(s["metrics"].get("successes", s["metrics"]["episodes"]) for s in shards),
+    }
+    rates = (
+        {"generation_success_rate": total["successes"] / max(total["attempts"], 1)}
+        if total["attempts"]
+        else {"success_rate": total["successes"] / max(ref["episodes"], 1)}
+    )
     get_run_logger().info("merge: %d shards -> %s (%d episodes)", len(shards), path, ref["episodes"])
-    return artifact(path, "dataset", episodes=ref["episodes"], samples=stages.dataset_samples(path), **total,
-                    **rates)
+    return artifact(path, "dataset", episodes=ref["episodes"], samples=stages.dataset_samples(path), **total, **rates)
 
 
 def _split(total: int, parts: int) -> list[int]:
@@ -96,8 +107,11 @@ def shard_args_of(args, shards: int, out: str | None = None, stage: str = "", pa
     with ``path_field``, one output folder each (``<out>/shards/<stage>_<i>/``, same file name)."""
     parts = []
     for i, n in enumerate(_split(args.episodes, max(shards, 1))):
-        moved = ({path_field: str(Path(out) / "shards" / f"{stage}_{i}" / Path(getattr(args, path_field)).name)}
-                 if path_field else {})
+        moved = (
+            {path_field: str(Path(out) / "shards" / f"{stage}_{i}" / Path(getattr(args, path_field)).name)}
+            if path_field
+            else {}
+        )
         parts.append(replace(args, episodes=n, seed=args.seed + SEED_STRIDE * i, **moved))
     return parts
 
@@ -115,8 +129,13 @@ def results(futures, stage: str) -> tuple[list[Any], list[str]]:
         lost = _lost_workers(f)
         states.append(f.state.name + (f" (re-run after {lost} lost worker{'s' * (lost > 1)})" if lost else ""))
         if lost:
-            get_run_logger().warning("%s run %d of %d: its Dask worker died %d time(s); Dask re-ran it on another "
-                                     "worker", stage, i + 1, len(futures), lost)
+            get_run_logger().warning(
+                "%s run %d of %d: its Dask worker died %d time(s); Dask re-ran it on another worker",
+                stage,
+                i + 1,
+                len(futures),
+                lost,
+            )
     return results, states
 
 
@@ -135,71 +154,139 @@ def _suspicious(key, dask_scheduler=None) -> int:
     return 0 if ts is None else ts.suspicious
 
 
-def run_dataset_stage(stage_task, args, *, shards: int, out: str, stage: str, name: str, path_field: str,
-                       **fixed) -> tuple[dict[str, Any], list[str]]:
+def run_dataset_stage(
+    stage_task, args, *, shards: int, out: str, stage: str, name: str, path_field: str, **fixed
+) -> tuple[dict[str, Any], list[str]]:
     """Submit a dataset stage (one run, or ``shards`` runs merged into ``<out>/<name>.hdf5``); returns
     (artifact, state names: shards, then the merge). The artifact goes downstream unchanged (it is the next
     stage's cache key) and is published as the stage's artifact."""
     if shards <= 1:
         (art,), states = results([stage_task.submit(args=args, **fixed)], stage)
     else:
-        parts, states = results(stage_task.map(args=shard_args_of(args, shards, out, stage, path_field),
-                                                **{k: unmapped(v) for k, v in fixed.items()}), stage)
+        parts, states = results(
+            stage_task.map(
+                args=shard_args_of(args, shards, out, stage, path_field), **{k: unmapped(v) for k, v in fixed.items()}
+            ),
+            stage,
+        )
         (art,), merged = results([merge_task.submit(shards=parts, out_dir=out, name=name)], "merge")
         states = states + merged
     runlog.publish_dataset(stage, art, shards)
     return art, states
 
 
-def run_collect(task_id, episodes, num_envs, seed, device, out, shards, *, cameras=PIPELINE_CAMERAS, task_options=None,
-             max_steps=None):
+def run_collect(
+    task_id,
+    episodes,
+    num_envs,
+    seed,
+    device,
+    out,
+    shards,
+    *,
+    cameras=PIPELINE_CAMERAS,
+    task_options=None,
+    max_steps=None,
+):
     """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos)."""
-    args = CollectArgs(task=task_id, episodes=episodes, num_envs=min(num_envs, episodes), seed=seed, device=device,
-                       randomize=True,
-                       dataset_path=str(Path(out) / "demos.hdf5"), cameras=cameras,
-                       task_options=dict(task_options or {}), **({"max_steps": max_steps} if max_steps else {}))
-    return run_dataset_stage(collect_task, args, shards=shards, out=out, stage="collect", name="demos",
-                              path_field="dataset_path")
+    args = CollectArgs(
+        task=task_id,
+        episodes=episodes,
+        num_envs=min(num_envs, episodes),
+        seed=seed,
+        device=device,
+        randomize=True,
+        dataset_path=str(Path(out) / "demos.hdf5"),
+        cameras=cameras,
+        task_options=dict(task_options or {}),
+        **({"max_steps": max_steps} if max_steps else {}),
+    )
+    return run_dataset_stage(
+        collect_task, args, shards=shards, out=out, stage="collect", name="demos", path_field="dataset_path"
+    )
 
 
 def run_mimic(source, episodes, num_envs, seed, device, out, shards, *, cameras=PIPELINE_CAMERAS):
     """Grow ``source`` to ``episodes`` Mimic demos on at most ``num_envs`` rows, rendering ``cameras`` (the
     source's task options, ``obs_mode`` included, are kept)."""
-    args = MimicArgs(dataset_path=source["path"], output_path=str(Path(out) / "mimic.hdf5"), episodes=episodes,
-                     num_envs=min(num_envs, episodes), seed=seed, device=device, cameras=cameras)
-    return run_dataset_stage(mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic",
-                              path_field="output_path", source=source)
+    args = MimicArgs(
+        dataset_path=source["path"],
+        output_path=str(Path(out) / "mimic.hdf5"),
+        episodes=episodes,
+        num_envs=min(num_envs, episodes),
+        seed=seed,
+        device=device,
+        cameras=cameras,
+    )
+    return run_dataset_stage(
+        mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic", path_field="output_path", source=source
+    )
 
 
 def run_train(dataset, train_cfg, out, gpus=1):
-    (ckpt,), states = results([train_task.submit(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out,
-                                                  gpus=gpus)], "train")
+    (ckpt,), states = results(
+        [train_task.submit(dataset=dataset, train_cfg=dict(train_cfg or {}), out_dir=out, gpus=gpus)], "train"
+    )
     runlog.publish_loss_curve(ckpt)
     return ckpt, states
 
 
-def run_evaluate(checkpoint, task_id, episodes, num_envs, seed, device, shards, max_steps, recording=None, *,
-              cameras=PIPELINE_CAMERAS, task_options=None, phase_checkpoints=None):
+def run_evaluate(
+    checkpoint,
+    task_id,
+    episodes,
+    num_envs,
+    seed,
+    device,
+    shards,
+    max_steps,
+    recording=None,
+    *,
+    cameras=PIPELINE_CAMERAS,
+    task_options=None,
+    phase_checkpoints=None,
+):
     """Evaluate a checkpoint artifact, or a coherent task's ``phase_checkpoints`` (phase -> artifact; checkpoint
     None), in ``shards`` runs with disjoint seeds; the summed metrics (per phase too) and the task states."""
-    args = EvaluateArgs(task=task_id, checkpoint=None if checkpoint is None else checkpoint["path"], episodes=episodes,
-                        num_envs=min(num_envs, episodes), seed=seed, device=device, randomize=True, max_steps=max_steps,
-                        cameras=cameras, task_options=dict(task_options or {}))
+    args = EvaluateArgs(
+        task=task_id,
+        checkpoint=None if checkpoint is None else checkpoint["path"],
+        episodes=episodes,
+        num_envs=min(num_envs, episodes),
+        seed=seed,
+        device=device,
+        randomize=True,
+        max_steps=max_steps,
+        cameras=cameras,
+        task_options=dict(task_options or {}),
+    )
     shard_args = shard_args_of(args, shards)
     if recording is not None:  # two episodes of the first shard, for the viewer
         shard_args[0] = replace(shard_args[0], rerun_save=str(recording), rerun_worlds=EVAL_RECORDED_EPISODES)
-    parts, states = results(evaluate_task.map(checkpoint=unmapped(checkpoint), args=shard_args,
-                                               phase_checkpoints=unmapped(phase_checkpoints)), "evaluate")
+    parts, states = results(
+        evaluate_task.map(
+            checkpoint=unmapped(checkpoint), args=shard_args, phase_checkpoints=unmapped(phase_checkpoints)
+        ),
+        "evaluate",
+    )
     n = sum(p["episodes"] for p in parts)
     ok = sum(p["successes"] for p in parts)
-    metrics = {"episodes": n, "successes": ok, "success_rate": ok / max(n, 1),
-               "termination_reasons": summed(p["termination_reasons"] for p in parts),
-               "subtask_signals": summed(p.get("subtask_signals", {}) for p in parts),
-               "phases": {name: {"reached": sum(p["phases"][name]["reached"] for p in parts),
-                                 "passed": sum(p["phases"][name]["passed"] for p in parts),
-                                 "stalled": summed(p["phases"][name]["stalled"] for p in parts)}
-                          for name in parts[0]["phases"]},
-               "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1)}
+    metrics = {
+        "episodes": n,
+        "successes": ok,
+        "success_rate": ok / max(n, 1),
+        "termination_reasons": summed(p["termination_reasons"] for p in parts),
+        "subtask_signals": summed(p.get("subtask_signals", {}) for p in parts),
+        "phases": {
+            name: {
+                "reached": sum(p["phases"][name]["reached"] for p in parts),
+                "passed": sum(p["phases"][name]["passed"] for p in parts),
+                "stalled": summed(p["phases"][name]["stalled"] for p in parts),
+            }
+            for name in parts[0]["phases"]
+        },
+        "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1),
+    }
     recorded = [p["recording"] for p in parts if p.get("recording")]
     if recorded:
         metrics["recording"] = recorded[0]

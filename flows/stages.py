@@ -63,14 +63,25 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
     manifest ``<name>.manifest.json``)."""
     path = Path(args.dataset_path)
     out = output_path(path).parent
-    inputs = {"stage": "collect", "task_id": args.task, "episodes": args.episodes, "num_envs": args.num_envs,
-              "seed": args.seed}
+    inputs = {
+        "stage": "collect",
+        "task_id": args.task,
+        "episodes": args.episodes,
+        "num_envs": args.num_envs,
+        "seed": args.seed,
+    }
     if (done := _guard(out, name, inputs)) is not None:
         return done
     _fresh(path)
     ref = _on_device(args.device, _collect, args)
-    art = artifact(path, "dataset", episodes=ref["episodes"], successes=ref["successes"],
-                   success_rate=ref["success_rate"], samples=dataset_samples(path))
+    art = artifact(
+        path,
+        "dataset",
+        episodes=ref["episodes"],
+        successes=ref["successes"],
+        success_rate=ref["success_rate"],
+        samples=dataset_samples(path),
+    )
     return _finish(out, name, inputs, art)
 
 
@@ -111,14 +122,25 @@ def mimic_stage(*, source: dict[str, Any], args: MimicArgs, name: str = "mimic")
     at ``args.output_path`` (successes only)."""
     path = Path(args.output_path)
     out = output_path(path).parent
-    inputs = {"stage": "mimic", "source": source["sha256"], "episodes": args.episodes, "num_envs": args.num_envs,
-              "seed": args.seed}
+    inputs = {
+        "stage": "mimic",
+        "source": source["sha256"],
+        "episodes": args.episodes,
+        "num_envs": args.num_envs,
+        "seed": args.seed,
+    }
     if (done := _guard(out, name, inputs)) is not None:
         return done
     _fresh(path)
     m = _on_device(args.device, _mimic, args)
-    art = artifact(path, "dataset", episodes=m["successes"], attempts=m["attempts"],
-                   generation_success_rate=m["generation_success_rate"], samples=dataset_samples(path))
+    art = artifact(
+        path,
+        "dataset",
+        episodes=m["successes"],
+        attempts=m["attempts"],
+        generation_success_rate=m["generation_success_rate"],
+        samples=dataset_samples(path),
+    )
     return _finish(out, name, inputs, art)
 
 
@@ -128,21 +150,26 @@ def _mimic(args: MimicArgs) -> dict[str, Any]:
     return dict(mimic(args.dataset_path, **args.mimic_kwargs()).metadata)
 
 
-def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy",
-                gpus: int = 1) -> dict[str, Any]:
+def train_stage(
+    *, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: str, name: str = "policy", gpus: int = 1
+) -> dict[str, Any]:
     """Diffusion policy on a dataset artifact -> checkpoint artifact (``gpus`` > 1: data-parallel). An interrupted
     run (its folder holds a ``resume.pt``) is continued; any other leftover of it is removed first."""
     from ..policies import Policy  # deferred: torch is slow to import
     from ..policies.resume import RESUME_NAME  # deferred: torch is slow to import
 
     out = Path(out_dir)
-    inputs = {"stage": "train", "dataset": dataset["sha256"], "train_cfg": train_cfg,
-              **({"gpus": gpus} if gpus > 1 else {})}  # batch_size is per GPU: more GPUs, another run
+    inputs = {
+        "stage": "train",
+        "dataset": dataset["sha256"],
+        "train_cfg": train_cfg,
+        **({"gpus": gpus} if gpus > 1 else {}),
+    }  # batch_size is per GPU: more GPUs, another run
     if (done := _guard(out, name, inputs)) is not None:
         return done
     run_dir = out / name
     resume = (run_dir / RESUME_NAME).is_file()
-    for leftover in (list(run_dir.iterdir()) if resume else [run_dir]):
+    for leftover in list(run_dir.iterdir()) if resume else [run_dir]:
         if leftover.name != RESUME_NAME:
             _fresh(leftover)
     cfg = {**train_cfg, "output_dir": str(run_dir)}
@@ -153,9 +180,19 @@ def train_stage(*, dataset: dict[str, Any], train_cfg: dict[str, Any], out_dir: 
     log_path = Path(ckpt).parent / "train_log.json"
     log = json.loads(log_path.read_text()) if log_path.exists() else {}
     curve = [{k: e[k] for k in ("epoch", "steps", "loss", "lr")} for e in log.get("epoch_log", [])]
-    return _finish(out, name, inputs, artifact(ckpt, "checkpoint", final_loss=log.get("final_loss"),
-                                               steps=log.get("steps"), wall_time_s=log.get("wall_time_s"),
-                                               loss_curve=curve))
+    return _finish(
+        out,
+        name,
+        inputs,
+        artifact(
+            ckpt,
+            "checkpoint",
+            final_loss=log.get("final_loss"),
+            steps=log.get("steps"),
+            wall_time_s=log.get("wall_time_s"),
+            loss_curve=curve,
+        ),
+    )
 
 
 def _train(path: str, cfg: dict[str, Any], resume: bool) -> str:
@@ -188,10 +225,21 @@ def rl_train_stage(*, task_id: str, ppo: dict[str, Any], out_dir: str, name: str
     ckpt = train_ppo(task_id, PPOConfig(**ppo), run_dir, resume=resume)
     curve = json.loads((run_dir / "curve.json").read_text())
     final = curve[-1] if curve else {}
-    return _finish(out, name, inputs, artifact(ckpt, "rl checkpoint", iterations=final.get("iteration"),
-                                               env_steps=final.get("env_steps"), wall_time_s=final.get("wall_s"),
-                                               success_rate=final.get("success_rate"),
-                                               env_steps_per_s=final.get("env_steps_per_s"), curve=curve))
+    return _finish(
+        out,
+        name,
+        inputs,
+        artifact(
+            ckpt,
+            "rl checkpoint",
+            iterations=final.get("iteration"),
+            env_steps=final.get("env_steps"),
+            wall_time_s=final.get("wall_s"),
+            success_rate=final.get("success_rate"),
+            env_steps_per_s=final.get("env_steps_per_s"),
+            curve=curve,
+        ),
+    )
 
 
 def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -> dict[str, dict[str, Any]]:
@@ -205,14 +253,20 @@ def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -
         return done["phases"]
     folder = _fresh(out / name)
     refs = split_by_phase(source["path"], folder)
-    phases = {p: artifact(ref.path, "dataset", episodes=ref.metadata["episodes"], samples=dataset_samples(ref.path))
-              for p, ref in refs.items()}
+    phases = {
+        p: artifact(ref.path, "dataset", episodes=ref.metadata["episodes"], samples=dataset_samples(ref.path))
+        for p, ref in refs.items()
+    }
     _finish(out, name, inputs, artifact(folder, "phase datasets", phases=phases))
     return phases
 
 
-def evaluate_stage(*, checkpoint: dict[str, Any] | None = None, args: EvaluateArgs,
-                   phase_checkpoints: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+def evaluate_stage(
+    *,
+    checkpoint: dict[str, Any] | None = None,
+    args: EvaluateArgs,
+    phase_checkpoints: dict[str, dict[str, Any]] | None = None,
+) -> dict[str, Any]:
     """Success rate of the checkpoint artifact (``args.checkpoint`` is its path) on ``args.task``, or of a coherent
     task run by one checkpoint artifact per learned phase (``phase_checkpoints``: phase name -> artifact; the
     other phases run their component's expert); with ``args.rerun_save``, the first episode of each of the first
@@ -220,8 +274,9 @@ def evaluate_stage(*, checkpoint: dict[str, Any] | None = None, args: EvaluateAr
     return _on_device(args.device, _evaluate, args, checkpoint, phase_checkpoints)
 
 
-def _evaluate(args: EvaluateArgs, checkpoint: dict[str, Any] | None,
-              phase_checkpoints: dict[str, dict[str, Any]] | None) -> dict[str, Any]:
+def _evaluate(
+    args: EvaluateArgs, checkpoint: dict[str, Any] | None, phase_checkpoints: dict[str, dict[str, Any]] | None
+) -> dict[str, Any]:
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies import Policy  # deferred: torch is slow to import
@@ -241,8 +296,13 @@ def _evaluate(args: EvaluateArgs, checkpoint: dict[str, Any] | None,
     if args.rerun_save:  # the first episode of each of the first ``rerun_worlds`` rows, to a fresh .rrd
         from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
 
-        logger = RerunLogger(env, save=_fresh(Path(args.rerun_save)), max_worlds=args.rerun_worlds,
-                             episodes_per_row=1, app_id="newton_lab_evaluation")
+        logger = RerunLogger(
+            env,
+            save=_fresh(Path(args.rerun_save)),
+            max_worlds=args.rerun_worlds,
+            episodes_per_row=1,
+            app_id="newton_lab_evaluation",
+        )
     try:
         s = env.evaluate(agent=agent, **args.rollout_kwargs(), on_step=None if logger is None else logger.on_step)
     finally:

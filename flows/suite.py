@@ -40,8 +40,11 @@ def run_row(row: Row, out: str, stamp: str, records: str | None) -> dict[str, An
     if done.returncode != 0:
         log.warning("%s: exit status %d; the suite goes on", row.name, done.returncode)
         return result
-    source = (_newest_record(Path(out) / row.name / "records") if row.is_pipeline
-              else Path(out) / "records" / f"{row.name}.json")
+    source = (
+        _newest_record(Path(out) / row.name / "records")
+        if row.is_pipeline
+        else Path(out) / "records" / f"{row.name}.json"
+    )
     if source is None or not source.is_file():
         result["exit"] = -1
         log.warning("%s: wrote no run record", row.name)
@@ -58,8 +61,13 @@ def run_row(row: Row, out: str, stamp: str, records: str | None) -> dict[str, An
 
 
 @flow(name="suite")
-def suite(recipe: str = "gpu", out: str = "outputs/suite", records: str | None = "docs/results",
-          page: str | None = "docs/benchmarks.md", only: list[str] | None = None) -> dict[str, Any]:
+def suite(
+    recipe: str = "gpu",
+    out: str = "outputs/suite",
+    records: str | None = "docs/results",
+    page: str | None = "docs/benchmarks.md",
+    only: list[str] | None = None,
+) -> dict[str, Any]:
     """Run the rows of ``recipe`` one after another; copy each record into ``records`` and regenerate ``page``."""
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     rows = rows_of(recipe, only)

@@ -23,8 +23,12 @@ TARGET_RELATIVE = 2
 """Column adds its processed action to the current position target (coordinate index), which stays within
 [target_low, target_high] (the joint's range): ``relative`` kind."""
 
-KIND_CODE = {"absolute": TARGET_POSITION, "binary": TARGET_POSITION, "relative": TARGET_RELATIVE,
-             "velocity": TARGET_VELOCITY}
+KIND_CODE = {
+    "absolute": TARGET_POSITION,
+    "binary": TARGET_POSITION,
+    "relative": TARGET_RELATIVE,
+    "velocity": TARGET_VELOCITY,
+}
 """Kernel code of each action kind (``robots.bound.ACTION_KINDS``)."""
 
 

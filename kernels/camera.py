@@ -83,8 +83,11 @@ def shape_colors(
         rc = draw(params[1], w, episode[w], 1 + sid % 31)
         if keep_hue[sid] != 0:
             lo = 1.0 - HUE_JITTER
-            c = wp.vec3(c[0] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)), c[1] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)),
-                        c[2] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)))
+            c = wp.vec3(
+                c[0] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)),
+                c[1] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)),
+                c[2] * (lo + 2.0 * HUE_JITTER * wp.randf(rc)),
+            )
         else:
             c = wp.vec3(0.05 + 0.9 * wp.randf(rc), 0.05 + 0.9 * wp.randf(rc), 0.05 + 0.9 * wp.randf(rc))
     out[s] = wp.vec3(wp.min(c[0] * gain, 1.0), wp.min(c[1] * gain, 1.0), wp.min(c[2] * gain, 1.0))
@@ -92,9 +95,7 @@ def shape_colors(
 
 @wp.kernel
 def segmentation_ids(
-    shape_index: wp.array(dtype=wp.uint32),
-    shape_to_id: wp.array(dtype=wp.int32),
-    out: wp.array(dtype=wp.int32),
+    shape_index: wp.array(dtype=wp.uint32), shape_to_id: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.int32)
 ):
     """Per pixel: the segmentation id of the shape hit (``shape_to_id[shape]``), 0 where nothing is hit."""
     i = wp.tid()

@@ -209,9 +209,7 @@ def keep_terminal_coords(
 
 @wp.kernel
 def world_to_articulation_mask(
-    world_mask: wp.array(dtype=bool),
-    articulation_world: wp.array(dtype=int),
-    articulation_mask: wp.array(dtype=bool),
+    world_mask: wp.array(dtype=bool), articulation_world: wp.array(dtype=int), articulation_mask: wp.array(dtype=bool)
 ):
     """Select the articulations of the masked worlds (for a masked forward-kinematics pass)."""
     a = wp.tid()

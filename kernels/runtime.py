@@ -74,8 +74,9 @@ def _init_without_driver_line(wp) -> None:
             os.dup2(saved, 2)
             os.close(saved)
         tmp.seek(0)
-        kept = [line for line in tmp.read().decode(errors="replace").splitlines(keepends=True)
-                if DRIVER_LINE not in line]
+        kept = [
+            line for line in tmp.read().decode(errors="replace").splitlines(keepends=True) if DRIVER_LINE not in line
+        ]
     if kept:
         sys.stderr.write("".join(kept))
         sys.stderr.flush()

@@ -33,9 +33,17 @@ def _time_graph(launch, steps: int, device) -> float:
     return (time.perf_counter() - t0) / steps
 
 
-def bench(task_id: str, *, num_envs: int = 4, steps: int = 200, device: str | None = None,
-          camera: str | None = None, resolution: tuple[int, int] = (128, 128),
-          camera_data: tuple[str, ...] = ("rgb",), physics: PhysicsCfg | None = None) -> dict[str, Any]:
+def bench(
+    task_id: str,
+    *,
+    num_envs: int = 4,
+    steps: int = 200,
+    device: str | None = None,
+    camera: str | None = None,
+    resolution: tuple[int, int] = (128, 128),
+    camera_data: tuple[str, ...] = ("rgb",),
+    physics: PhysicsCfg | None = None,
+) -> dict[str, Any]:
     """Env-steps/s, bare world-steps/s and their per-step time ratio (env step / decimation solver steps).
     ``physics`` replaces the task's physics settings (``make_env``; ``tools/physics_table.py`` compares them).
     With ``camera``: also env-steps/s with that camera rendered every step (``resolution`` (w, h) [px],
@@ -114,29 +122,51 @@ def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
     if env.device.is_cuda:
         free, total = torch.cuda.mem_get_info(env.device.ordinal)
         mem = (total - free) / 2**20 / env.num_envs
-    return {"camera": camera, "resolution": [spec.width, spec.height], "camera_data": list(spec.data),
-            "env_steps_per_s_with_camera": env.num_envs / t_cam,
-            "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
-            "ratio_camera_env_to_ceiling": t_ceiling / t_cam,
-            "gpu_mem_used_mib_per_env": mem}
+    return {
+        "camera": camera,
+        "resolution": [spec.width, spec.height],
+        "camera_data": list(spec.data),
+        "env_steps_per_s_with_camera": env.num_envs / t_cam,
+        "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
+        "ratio_camera_env_to_ceiling": t_ceiling / t_cam,
+        "gpu_mem_used_mib_per_env": mem,
+    }
 
 
-def bench_train(dataset: str, *, batch_size: int = 1024, steps: int = 200, device: str = "cpu",
-                preset: str = "default", bf16: bool = False) -> dict[str, Any]:
+def bench_train(
+    dataset: str,
+    *,
+    batch_size: int = 1024,
+    steps: int = 200,
+    device: str = "cpu",
+    preset: str = "default",
+    bf16: bool = False,
+) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
     autocast (keys ``..._bf16``). Also where a step's time goes (``step_breakdown``), the achieved TFLOP/s at the
     fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
-    data = SequenceDataset(dataset, pred_horizon=cfg.pred_horizon, obs_horizon=cfg.obs_horizon, obs_keys=cfg.obs_keys,
-                           image_keys=cfg.image_keys)
+    data = SequenceDataset(
+        dataset,
+        pred_horizon=cfg.pred_horizon,
+        obs_horizon=cfg.obs_horizon,
+        obs_keys=cfg.obs_keys,
+        image_keys=cfg.image_keys,
+    )
     on_cuda = torch.device(device).type == "cuda"
     kinds = [EagerTrainStep] + ([CudaGraphTrainStep] if on_cuda else [])
-    out: dict[str, Any] = {"dataset": dataset, "device": device, "batch_size": batch_size, "preset": preset,
-                           "device_name": torch.cuda.get_device_name(device) if on_cuda else "cpu",
-                           "windows": len(data), "image_keys": list(data.image_keys),
-                           "image_shapes": {k: list(v) for k, v in data.image_shapes.items()}}
+    out: dict[str, Any] = {
+        "dataset": dataset,
+        "device": device,
+        "batch_size": batch_size,
+        "preset": preset,
+        "device_name": torch.cuda.get_device_name(device) if on_cuda else "cpu",
+        "windows": len(data),
+        "image_keys": list(data.image_keys),
+        "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
+    }
     for kind, precision in [(k, p) for p in ([False, True] if bf16 else [False]) for k in kinds]:
         torch.manual_seed(0)
         run_cfg = dataclasses.replace(cfg, bf16=precision)
@@ -215,8 +245,10 @@ def step_breakdown(data: SequenceDataset, cfg: DiffusionPolicyConfig, steps: int
     with FlopCounterMode(display=False) as counter:
         policy.compute_loss(batch()).backward()
     opt.zero_grad(set_to_none=True)
-    return {"breakdown_ms": {k: 1e3 * v / steps for k, v in spent.items()},
-            "flops_per_sample": counter.get_total_flops() / cfg.batch_size}
+    return {
+        "breakdown_ms": {k: 1e3 * v / steps for k, v in spent.items()},
+        "flops_per_sample": counter.get_total_flops() / cfg.batch_size,
+    }
 
 
 from .bench_collect import bench_collect, bench_collect_on_workers  # noqa: E402,F401 - re-exported (the CLI)

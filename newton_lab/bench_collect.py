@@ -40,6 +40,7 @@ class _Clock:
             wp.synchronize_device(self.device)
             self.seconds += time.perf_counter() - t0
             return out
+
         return timed
 
 
@@ -62,6 +63,7 @@ class _DeviceClock:
             self.device.stream.record_event(end)
             self._events.append((start, end))
             return out
+
         return timed
 
     @property
@@ -90,28 +92,37 @@ class _Trace:
         self.path, self.after = path, after
         self.cuda = device.is_cuda
         acts = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if self.cuda else [])
-        self.prof = profile(activities=acts, with_stack=True, on_trace_ready=self._save,
-                            schedule=schedule(wait=after, warmup=2, active=TRACE_STEPS, repeat=1))
+        self.prof = profile(
+            activities=acts,
+            with_stack=True,
+            on_trace_ready=self._save,
+            schedule=schedule(wait=after, warmup=2, active=TRACE_STEPS, repeat=1),
+        )
 
     def wrap(self, label: str, fn):
         def labelled(*args, **kwargs):
             with record_function(label):
                 return fn(*args, **kwargs)
+
         return labelled
 
     def stepping(self, fn):
         """``fn`` (the env step) that moves the trace's window on by one step after each call."""
+
         def stepped(*args, **kwargs):
             out = fn(*args, **kwargs)
             self.prof.step()
             return out
+
         return stepped
 
     def _save(self, prof) -> None:
         prof.export_chrome_trace(str(self.path))
         tables = [f"# {self.path.name}: {TRACE_STEPS} vector steps after {self.after}"]
-        keys = (("self_cuda_time_total", "self_device_time_total") if self.cuda else ()) + ("cpu_time_total",
-                                                                                            "self_cpu_time_total")
+        keys = (("self_cuda_time_total", "self_device_time_total") if self.cuda else ()) + (
+            "cpu_time_total",
+            "self_cpu_time_total",
+        )
         averages = prof.key_averages()
         for key in keys:
             try:
@@ -127,8 +138,16 @@ processes or threads), and the one ``syncfs`` that makes them durable (disk-boun
 rest of ``writer_s`` is the lock, the renames and the commit."""
 
 
-def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace: Path | None = None,
-                   trace_after: int = TRACE_AFTER_STEPS, writer: str = "auto") -> dict[str, Any]:
+def _collect_timed(
+    env,
+    agent,
+    episodes: int,
+    path: Path,
+    max_steps: int,
+    trace: Path | None = None,
+    trace_after: int = TRACE_AFTER_STEPS,
+    writer: str = "auto",
+) -> dict[str, Any]:
     """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``) and
     writer (the background thread's ``append_prepared`` calls, or those the writer process reports, split as
     ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest
@@ -147,41 +166,83 @@ def _collect_timed(env, agent, episodes: int, path: Path, max_steps: int, trace:
             return lambda fn: tracer.stepping(tracer.wrap(name, clocks[name].wrap(fn)))
         return lambda fn: tracer.wrap(name, clocks[name].wrap(fn))
 
-    timers = Timers(step=timer("physics"), act=timer("agent"), write=timer("writer"), hand_over=timer("hand-over"),
-                    drain=timer("drain"))
+    timers = Timers(
+        step=timer("physics"),
+        act=timer("agent"),
+        write=timer("writer"),
+        hand_over=timer("hand-over"),
+        drain=timer("drain"),
+    )
     store_before = dict(zarr_store.BATCH_SECONDS)
     if tracer is not None:
         tracer.prof.start()
     t0 = time.perf_counter()
     try:
-        ref = env.collect(agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=False,
-                          only_successes=True, max_attempts=2 * episodes, timers=timers, writer=writer)
+        ref = env.collect(
+            agent=agent,
+            episodes=episodes,
+            path=path,
+            max_steps=max_steps,
+            progress=False,
+            only_successes=True,
+            max_attempts=2 * episodes,
+            timers=timers,
+            writer=writer,
+        )
     finally:
         wall = time.perf_counter() - t0
         if tracer is not None:
             tracer.prof.stop()
     ok = ref.metadata["successes"]
     spent = ref.metadata.get("writer_seconds")  # a writer process's own clock (its process's zarr split)
-    split = ({name: (spent[part] if spent else zarr_store.BATCH_SECONDS[part] - store_before[part])
-              for name, part in ZARR_WRITER_PARTS.items()} if path.suffix == ".zarr" else {})
+    split = (
+        {
+            name: (spent[part] if spent else zarr_store.BATCH_SECONDS[part] - store_before[part])
+            for name, part in ZARR_WRITER_PARTS.items()
+        }
+        if path.suffix == ".zarr"
+        else {}
+    )
     writer_s = spent["write"] if spent else writing.seconds
-    return {"successful_demos": ok, "attempts": ref.metadata["attempts"], "wall_s": wall,
-            "demos_per_s": ok / wall, "demos_per_hour": 3600 * ok / wall,
-            "physics_s": physics.seconds, "agent_s": acting.seconds, "writer_s": writer_s, **split,
-            "writer": ref.metadata.get("writer"),
-            "physics_share": physics.seconds / wall, "loop_s": wall - physics.seconds - acting.seconds,
-            "hand_over_s": handing.seconds,
-            "drain_s": draining.seconds, "vector_steps": ref.metadata.get("vector_steps"),
-            "writer_batches": ref.metadata.get("writer_batches")}
+    return {
+        "successful_demos": ok,
+        "attempts": ref.metadata["attempts"],
+        "wall_s": wall,
+        "demos_per_s": ok / wall,
+        "demos_per_hour": 3600 * ok / wall,
+        "physics_s": physics.seconds,
+        "agent_s": acting.seconds,
+        "writer_s": writer_s,
+        **split,
+        "writer": ref.metadata.get("writer"),
+        "physics_share": physics.seconds / wall,
+        "loop_s": wall - physics.seconds - acting.seconds,
+        "hand_over_s": handing.seconds,
+        "drain_s": draining.seconds,
+        "vector_steps": ref.metadata.get("vector_steps"),
+        "writer_batches": ref.metadata.get("writer_batches"),
+    }
 
 
-def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device: str | None = None,
-                  dataset_path: str | Path = "outputs/bench_collect.zarr", prefill: int = 10_000,
-                  max_steps: int = 1000, seed: int = 0, start_gate: Callable[[], None] | None = None,
-                  replan_batch: int | None = None, replan_wait: int | None = None,
-                  trace: str | Path | None = None, trace_after: int = TRACE_AFTER_STEPS,
-                  writer: str = "auto", cameras: bool | dict = False,
-                  task_options: dict[str, Any] | None = None) -> dict[str, Any]:
+def bench_collect(
+    task_id: str,
+    *,
+    num_envs: int = 4,
+    episodes: int = 16,
+    device: str | None = None,
+    dataset_path: str | Path = "outputs/bench_collect.zarr",
+    prefill: int = 10_000,
+    max_steps: int = 1000,
+    seed: int = 0,
+    start_gate: Callable[[], None] | None = None,
+    replan_batch: int | None = None,
+    replan_wait: int | None = None,
+    trace: str | Path | None = None,
+    trace_after: int = TRACE_AFTER_STEPS,
+    writer: str = "auto",
+    cameras: bool | dict = False,
+    task_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """Expert collection throughput (successful demos/s and per hour) with its seconds split into physics, agent
     and writer, bytes per stored demo, the first-use (compile) time measured apart, and the same run appending
     to a dataset that already holds ``prefill`` episodes (copies of the first demo, written in batches).
@@ -201,12 +262,14 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
         raise FileExistsError(f"{path} exists; bench-collect writes a fresh dataset (choose a new --dataset-path)")
     output_path(path)
     t0 = time.perf_counter()
-    env = make_env(task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras,
-                   task_options=task_options)
+    env = make_env(
+        task_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras, task_options=task_options
+    )
     agent = expert_agent(env)
     if (replan_batch, replan_wait) != (None, None) and not hasattr(agent, "replan_batch"):
-        raise ValueError(f"--replan-batch / --replan-wait: the expert of {task_id} ({type(agent).__name__}) does not "
-                         f"plan; drop them")
+        raise ValueError(
+            f"--replan-batch / --replan-wait: the expert of {task_id} ({type(agent).__name__}) does not plan; drop them"
+        )
     if replan_batch is not None:
         agent.replan_batch = replan_batch
     if replan_wait is not None:
@@ -214,10 +277,16 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     warm = path.with_name(f"{path.stem}_warmup{path.suffix}")  # first use: kernels, IK solver, writer
     _collect_timed(env, agent, 1, warm, max_steps, writer=writer)  # compiles the step, the IK solves, the writer path
     first_use = time.perf_counter() - t0
-    out: dict[str, Any] = {"task": task_id, "device": str(env.device), "num_envs": num_envs, "episodes": episodes,
-                           "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda
-                           else "cpu", "first_use_s": first_use, "format": path.suffix,
-                           "gpu": os.environ.get("CUDA_VISIBLE_DEVICES")}  # the host's GPU id behind a pinned cuda:0
+    out: dict[str, Any] = {
+        "task": task_id,
+        "device": str(env.device),
+        "num_envs": num_envs,
+        "episodes": episodes,
+        "device_name": torch.cuda.get_device_name(env.device.ordinal) if env.device.is_cuda else "cpu",
+        "first_use_s": first_use,
+        "format": path.suffix,
+        "gpu": os.environ.get("CUDA_VISIBLE_DEVICES"),
+    }  # the host's GPU id behind a pinned cuda:0
     if start_gate is not None:
         out["ready_at"] = time.time()
         start_gate()
@@ -225,15 +294,26 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     sync_tree(path.parent)  # earlier writes (a deleted dataset's millions of files) are not charged to this run
     out["presync_s"] = time.perf_counter() - t1
     out["started_at"] = time.time()
-    out.update(_collect_timed(env, agent, episodes, path, max_steps, trace=Path(trace) if trace else None,
-                              trace_after=trace_after, writer=writer))
+    out.update(
+        _collect_timed(
+            env,
+            agent,
+            episodes,
+            path,
+            max_steps,
+            trace=Path(trace) if trace else None,
+            trace_after=trace_after,
+            writer=writer,
+        )
+    )
     out["ended_at"] = time.time()
     size, inodes = _footprint(path)
     out["bytes_per_demo"] = size / max(out["successful_demos"], 1)
     out["inodes_per_demo"] = inodes / max(out["successful_demos"], 1)  # what a zarr dataset spends of an ext4 disk
     out["record_s"] = max(out["loop_s"] - out["hand_over_s"] - out["drain_s"], 0.0)  # render + frames per step
-    out["cameras"] = {name: [spec.width, spec.height, list(spec.data)]
-                      for name, spec in env.sensors.camera_specs.items()}
+    out["cameras"] = {
+        name: [spec.width, spec.height, list(spec.data)] for name, spec in env.sensors.camera_specs.items()
+    }
     out["physics_s_per_step"] = out["physics_s"] / max(out["vector_steps"] or 1, 1)
     out["agent_plus_writer_s_per_step"] = (out["agent_s"] + out["writer_s"]) / max(out["vector_steps"] or 1, 1)
     out["physics_bound"] = out["agent_plus_writer_s_per_step"] <= out["physics_s_per_step"]
@@ -252,11 +332,20 @@ def bench_collect(task_id: str, *, num_envs: int = 4, episodes: int = 16, device
     return out
 
 
-def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, episodes: int = 16,
-                             device: str | None = None, dataset_path: str | Path = "outputs/bench_collect.zarr",
-                             max_steps: int = 1000, baseline: bool = False, writer: str = "auto",
-                             cameras: bool | dict = False, task_options: dict[str, Any] | None = None
-                             ) -> dict[str, Any]:
+def bench_collect_on_workers(
+    task_id: str,
+    *,
+    workers: int,
+    num_envs: int = 4,
+    episodes: int = 16,
+    device: str | None = None,
+    dataset_path: str | Path = "outputs/bench_collect.zarr",
+    max_steps: int = 1000,
+    baseline: bool = False,
+    writer: str = "auto",
+    cameras: bool | dict = False,
+    task_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """``bench_collect`` on ``workers`` Dask worker processes at once, the way ``--runner dask`` shards collection:
     one worker per GPU on a CUDA host when ``device`` is None or ``"cuda"`` (each sees only its GPU), else
     processes on ``device``. Worker ``i`` collects its share of ``episodes`` with seed ``i`` into its own shard
@@ -273,8 +362,10 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
         raise ValueError(f"--workers {workers} with --episodes {episodes}: give 1 <= workers <= episodes")
     gpus = visible_gpus() if pins_gpus(device) else []
     if gpus and len(gpus) < workers:
-        raise ValueError(f"--workers {workers} needs {workers} GPUs, this host shows {len(gpus)}; "
-                         f"use --workers {len(gpus)} or a --device to share")
+        raise ValueError(
+            f"--workers {workers} needs {workers} GPUs, this host shows {len(gpus)}; "
+            f"use --workers {len(gpus)} or a --device to share"
+        )
     path = Path(dataset_path)
     shards = [path.with_name(f"{path.stem}_w{i}{path.suffix}") for i in range(workers)]
     alone = [path.with_name(f"{path.stem}_alone{n}{path.suffix}") for n in ("", "2")] if baseline else []
@@ -284,41 +375,99 @@ def bench_collect_on_workers(task_id: str, *, workers: int, num_envs: int = 4, e
             raise FileExistsError(f"{p} exists; bench-collect writes fresh shards (choose a new --dataset-path)")
     opts = cluster_options(workers, device, gpus=gpus)
     quiet_shutdown()
-    run = functools.partial(bench_collect, task_id, num_envs=num_envs, device="cuda" if gpus else device, prefill=0,
-                            max_steps=max_steps, writer=writer, cameras=cameras, task_options=task_options)
+    run = functools.partial(
+        bench_collect,
+        task_id,
+        num_envs=num_envs,
+        device="cuda" if gpus else device,
+        prefill=0,
+        max_steps=max_steps,
+        writer=writer,
+        cameras=cameras,
+        task_options=task_options,
+    )
     with opts.get("cluster_class", LocalCluster)(**opts["cluster_kwargs"]) as cluster, Client(cluster) as client:
         client.wait_for_workers(workers)
         # one task per worker, by name (a restarted worker keeps it): two gated runs on one worker would wait forever
         names = sorted((w["name"] for w in client.scheduler_info()["workers"].values()), key=str)
 
         def alone_run(shard: Path) -> dict[str, Any]:  # worker 0 alone (its GPU, its process), one worker's share
-            return client.submit(run, episodes=episodes // workers, dataset_path=str(shard), seed=0, pure=False,
-                                 workers=[names[0]], allow_other_workers=False).result()
+            return client.submit(
+                run,
+                episodes=episodes // workers,
+                dataset_path=str(shard),
+                seed=0,
+                pure=False,
+                workers=[names[0]],
+                allow_other_workers=False,
+            ).result()
 
         lone = [alone_run(alone[0])] if baseline else []
         gate = f"bench-collect-{uuid.uuid4().hex}"
-        futures = [client.submit(run, episodes=episodes // workers + (i < episodes % workers), dataset_path=str(shard),
-                                 seed=i, start_gate=_StartGate(gate, i), pure=False, workers=[names[i]],
-                                 allow_other_workers=False)
-                   for i, shard in enumerate(shards)]
+        futures = [
+            client.submit(
+                run,
+                episodes=episodes // workers + (i < episodes % workers),
+                dataset_path=str(shard),
+                seed=i,
+                start_gate=_StartGate(gate, i),
+                pure=False,
+                workers=[names[i]],
+                allow_other_workers=False,
+            )
+            for i, shard in enumerate(shards)
+        ]
         _open_gate(client, gate, futures)
         parts = client.gather(futures)
         lone += [alone_run(alone[1])] if baseline else []
     ok = sum(p["successful_demos"] for p in parts)
     span = max(p["ended_at"] for p in parts) - min(p["started_at"] for p in parts)
-    keep = ("device", "device_name", "successful_demos", "wall_s", "demos_per_hour", "first_use_s", "physics_s",
-            "agent_s", "loop_s", "writer_s", *ZARR_WRITER_PARTS, "presync_s", "writer_batches", "bytes_per_demo",
-            "inodes_per_demo", "gpu", "ready_at", "started_at")
-    return {"task": task_id, "workers": workers, "num_envs": num_envs, "episodes": episodes,
-            "device_names": [p["device_name"] for p in parts], "format": path.suffix, "successful_demos": ok,
-            "wall_s": span, "demos_per_s": ok / span, "demos_per_hour": 3600 * ok / span,
-            "first_use_s": max(p["first_use_s"] for p in parts),
-            "start_skew_s": max(p["started_at"] for p in parts) - min(p["started_at"] for p in parts),
-            "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)],
-            **({} if not lone else {
+    keep = (
+        "device",
+        "device_name",
+        "successful_demos",
+        "wall_s",
+        "demos_per_hour",
+        "first_use_s",
+        "physics_s",
+        "agent_s",
+        "loop_s",
+        "writer_s",
+        *ZARR_WRITER_PARTS,
+        "presync_s",
+        "writer_batches",
+        "bytes_per_demo",
+        "inodes_per_demo",
+        "gpu",
+        "ready_at",
+        "started_at",
+    )
+    return {
+        "task": task_id,
+        "workers": workers,
+        "num_envs": num_envs,
+        "episodes": episodes,
+        "device_names": [p["device_name"] for p in parts],
+        "format": path.suffix,
+        "successful_demos": ok,
+        "wall_s": span,
+        "demos_per_s": ok / span,
+        "demos_per_hour": 3600 * ok / span,
+        "first_use_s": max(p["first_use_s"] for p in parts),
+        "start_skew_s": max(p["started_at"] for p in parts) - min(p["started_at"] for p in parts),
+        "per_worker": [{k: p[k] for k in keep if k in p} | {"dataset_path": str(s)} for p, s in zip(parts, shards)],
+        **(
+            {}
+            if not lone
+            else {
                 "scaling": ok / span / (sum(r["demos_per_s"] for r in lone) / len(lone)),
-                "baseline": [{k: r[k] for k in (*keep, "demos_per_s") if k in r} | {"dataset_path": str(a)}
-                             for r, a in zip(lone, alone)]})}
+                "baseline": [
+                    {k: r[k] for k in (*keep, "demos_per_s") if k in r} | {"dataset_path": str(a)}
+                    for r, a in zip(lone, alone)
+                ],
+            }
+        ),
+    }
 
 
 GATE_TIMEOUT_S = 3600.0
@@ -366,20 +515,25 @@ def summary(out: dict[str, Any]) -> str:
     step's share of the wall time."""
     steps = max(out.get("vector_steps") or 1, 1)
     stage = {name: out[f"{name}_s"] for name in ("physics", "agent", "writer")}
-    lines = [f"{out['task']} on {out['device_name']}, {out['num_envs']} envs, {out['format']}: "
-             f"{out['successful_demos']} demos in {out['wall_s']:.1f} s = {out['demos_per_s']:.0f} demos/s = "
-             f"{out['demos_per_hour'] / 1e6:.2f} M demos per GPU-hour",
-             f"stages over {steps} vector steps: " + ", ".join(
-                 f"{name} {s:.2f} s ({1e3 * s / steps:.2f} ms/step)" for name, s in stage.items())
-             + (f"; writer files {out['writer_files_s']:.2f} s, sync {out['writer_sync_s']:.2f} s"
-                if "writer_files_s" in out else ""),
-             f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
-             f"drain after the last step {out['drain_s']:.2f} s, render and frames {out.get('record_s', 0):.2f} s; "
-             f"{out['bytes_per_demo'] / 1e3:.1f} KB and "
-             f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches "
-             f"({out.get('writer') or 'BackgroundWriter'})",
-             f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
-             f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
-             f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: "
-             f"{max({**stage, 'render and frames': out.get('record_s', 0.0)}.items(), key=lambda kv: kv[1])[0]}"]
+    lines = [
+        f"{out['task']} on {out['device_name']}, {out['num_envs']} envs, {out['format']}: "
+        f"{out['successful_demos']} demos in {out['wall_s']:.1f} s = {out['demos_per_s']:.0f} demos/s = "
+        f"{out['demos_per_hour'] / 1e6:.2f} M demos per GPU-hour",
+        f"stages over {steps} vector steps: "
+        + ", ".join(f"{name} {s:.2f} s ({1e3 * s / steps:.2f} ms/step)" for name, s in stage.items())
+        + (
+            f"; writer files {out['writer_files_s']:.2f} s, sync {out['writer_sync_s']:.2f} s"
+            if "writer_files_s" in out
+            else ""
+        ),
+        f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
+        f"drain after the last step {out['drain_s']:.2f} s, render and frames {out.get('record_s', 0):.2f} s; "
+        f"{out['bytes_per_demo'] / 1e3:.1f} KB and "
+        f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches "
+        f"({out.get('writer') or 'BackgroundWriter'})",
+        f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
+        f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
+        f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: "
+        f"{max({**stage, 'render and frames': out.get('record_s', 0.0)}.items(), key=lambda kv: kv[1])[0]}",
+    ]
     return "\n".join(lines)

@@ -66,10 +66,17 @@ def commit() -> dict[str, Any]:
         return {"sha": sha, "dirty": dirty == "dirty"}
     root = Path(__file__).resolve().parents[1]
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=5,
-                             check=True).stdout.strip()
-        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                                capture_output=True, text=True, timeout=5, check=True).stdout
+        sha = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=5, check=True
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        ).stdout
     except (OSError, subprocess.SubprocessError):
         return {"sha": "unknown", "dirty": False}
     return {"sha": sha, "dirty": bool(status.strip())}
@@ -97,8 +104,14 @@ def device_info(device: str | None) -> dict[str, Any]:
     """``{"kind": "cuda" | "cpu", "name", "count", "cpu", "cores", "load_average_1_5_15"}`` of the device a command
     ran on; a CUDA device's name comes from torch or Warp, whichever is loaded (``NVIDIA H200``)."""
     cores = os.cpu_count() or 1
-    info: dict[str, Any] = {"kind": "cpu", "name": f"CPU ({cores} cores)", "count": 0, "cpu": _cpu_name(),
-                            "cores": cores, "load_average_1_5_15": _load()}
+    info: dict[str, Any] = {
+        "kind": "cpu",
+        "name": f"CPU ({cores} cores)",
+        "count": 0,
+        "cpu": _cpu_name(),
+        "cores": cores,
+        "load_average_1_5_15": _load(),
+    }
     if device is None or str(device).startswith("cuda"):
         name, count = _cuda_name(device)
         if name:
@@ -134,16 +147,31 @@ def versions() -> dict[str, str]:
     return out
 
 
-def make_record(kind: str, *, task: str | None, device: str | None, results: dict[str, Any],
-                wall_s: float | None = None, command: str | None = None) -> dict[str, Any]:
+def make_record(
+    kind: str,
+    *,
+    task: str | None,
+    device: str | None,
+    results: dict[str, Any],
+    wall_s: float | None = None,
+    command: str | None = None,
+) -> dict[str, Any]:
     """A record of ``kind`` (``KINDS``): what ran and where, then ``results`` (the command's own figures)."""
     if kind not in KINDS:
         raise ValueError(f"unknown record kind {kind!r}; valid kinds: {', '.join(KINDS)}")
     now = _dt.datetime.now(_dt.UTC).replace(microsecond=0)
-    return {"schema": SCHEMA, "kind": kind, "task": task, "command": command or command_line(),
-            "commit": commit(), "date": now.isoformat().replace("+00:00", "Z"), "device": device_info(device),
-            "versions": versions(), "wall_s": None if wall_s is None else round(float(wall_s), 2),
-            "results": results}
+    return {
+        "schema": SCHEMA,
+        "kind": kind,
+        "task": task,
+        "command": command or command_line(),
+        "commit": commit(),
+        "date": now.isoformat().replace("+00:00", "Z"),
+        "device": device_info(device),
+        "versions": versions(),
+        "wall_s": None if wall_s is None else round(float(wall_s), 2),
+        "results": results,
+    }
 
 
 def write_record(record: dict[str, Any], path: str | os.PathLike) -> Path:

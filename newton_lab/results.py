@@ -29,8 +29,9 @@ def load_records(folder: str | os.PathLike) -> list[tuple[Path, dict[str, Any]]]
     for path in sorted(Path(folder).glob("*.json")):
         rec = read_record(path)
         if not is_product_command(rec["command"]):
-            raise ValueError(f"run record {path} was made by {rec['command']!r}, not a product command; "
-                             "re-run it through newton-lab")
+            raise ValueError(
+                f"run record {path} was made by {rec['command']!r}, not a product command; re-run it through newton-lab"
+            )
         out.append((path, rec))
     return out
 
@@ -91,14 +92,27 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
         res = rec["results"]
         s, counts = res["success"], res["counts"]
         learned = f"**{s['successes']} / {s['episodes']}** (seed {s['eval_seed']})"
-        data = f"{counts.get('expert_demos')} expert" + (f" + {counts['mimic_demos']} Mimic"
-                                                         if counts.get("mimic_demos") else "")
+        data = f"{counts.get('expert_demos')} expert" + (
+            f" + {counts['mimic_demos']} Mimic" if counts.get("mimic_demos") else ""
+        )
         phases = res.get("phases") or {}
-        per_phase = (", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in phases.items())
-                     if len(phases) > 1 else "–")
-        rows.append([f"{_short(rec['task'])}{_options(rec)}", rec["device"]["name"], res.get("recipe") or "–",
-                     _sees(res), data, _rate(counts.get("expert_success_rate")), learned, per_phase,
-                     _mmss(rec.get("wall_s")), _link(path, page_dir)])
+        per_phase = (
+            ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in phases.items()) if len(phases) > 1 else "–"
+        )
+        rows.append(
+            [
+                f"{_short(rec['task'])}{_options(rec)}",
+                rec["device"]["name"],
+                res.get("recipe") or "–",
+                _sees(res),
+                data,
+                _rate(counts.get("expert_success_rate")),
+                learned,
+                per_phase,
+                _mmss(rec.get("wall_s")),
+                _link(path, page_dir),
+            ]
+        )
     return rows
 
 
@@ -108,9 +122,18 @@ def rl_rows(records, page_dir: Path) -> list[list[str]]:
         r = rec["results"]
         ev = r.get("evaluation")
         learned = f"**{ev['successes']} / {ev['episodes']}** (seed {ev['eval_seed']})" if ev else "–"
-        rows.append([f"{_short(rec['task'])}{_options(rec)}", rec["device"]["name"], str(r.get("num_envs", "–")),
-                     str(r.get("iterations")), _k(r.get("env_steps_per_s")), learned, _mmss(rec.get("wall_s")),
-                     _link(path, page_dir)])
+        rows.append(
+            [
+                f"{_short(rec['task'])}{_options(rec)}",
+                rec["device"]["name"],
+                str(r.get("num_envs", "–")),
+                str(r.get("iterations")),
+                _k(r.get("env_steps_per_s")),
+                learned,
+                _mmss(rec.get("wall_s")),
+                _link(path, page_dir),
+            ]
+        )
     return rows
 
 
@@ -121,14 +144,31 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
         cam = r.get("camera")
         width, height = r.get("resolution") or ("?", "?")
         camera = f"{cam} {width}x{height} {'+'.join(r.get('camera_data') or ['rgb'])}" if cam else "none"
-        rows.append([_short(rec["task"]), rec["device"]["name"], str(r["num_envs"]), "none",
-                     _k(r["env_steps_per_s"]), f"step time {r['ratio_env_step_to_bare']:.2f}x the bare solver's",
-                     _link(path, page_dir)])
+        rows.append(
+            [
+                _short(rec["task"]),
+                rec["device"]["name"],
+                str(r["num_envs"]),
+                "none",
+                _k(r["env_steps_per_s"]),
+                f"step time {r['ratio_env_step_to_bare']:.2f}x the bare solver's",
+                _link(path, page_dir),
+            ]
+        )
         if cam:
-            rows.append([_short(rec["task"]), rec["device"]["name"], str(r["num_envs"]), camera,
-                         _k(r.get("env_steps_per_s_with_camera")),
-                         f"rate {r['ratio_camera_env_to_ceiling']:.2f}x the physics + render ceiling"
-                         if "ratio_camera_env_to_ceiling" in r else "–", _link(path, page_dir)])
+            rows.append(
+                [
+                    _short(rec["task"]),
+                    rec["device"]["name"],
+                    str(r["num_envs"]),
+                    camera,
+                    _k(r.get("env_steps_per_s_with_camera")),
+                    f"rate {r['ratio_camera_env_to_ceiling']:.2f}x the physics + render ceiling"
+                    if "ratio_camera_env_to_ceiling" in r
+                    else "–",
+                    _link(path, page_dir),
+                ]
+            )
     return rows
 
 
@@ -137,9 +177,17 @@ def collection_rows(records, page_dir: Path) -> list[list[str]]:
     for path, rec in _of_kind(records, "bench-collect"):
         r = rec["results"]
         cams = ", ".join(f"{name} {w}x{h}" for name, (w, h, _) in (r.get("cameras") or {}).items()) or "none"
-        rows.append([_short(rec["task"]), rec["device"]["name"], str(r.get("num_envs", "–")), cams,
-                     str(r.get("successful_demos", r.get("episodes", "–"))), _k(r.get("demos_per_hour")),
-                     _link(path, page_dir)])
+        rows.append(
+            [
+                _short(rec["task"]),
+                rec["device"]["name"],
+                str(r.get("num_envs", "–")),
+                cams,
+                str(r.get("successful_demos", r.get("episodes", "–"))),
+                _k(r.get("demos_per_hour")),
+                _link(path, page_dir),
+            ]
+        )
     return rows
 
 
@@ -149,9 +197,17 @@ def training_rows(records, page_dir: Path) -> list[list[str]]:
         r = rec["results"]
         best = max((v for k, v in r.items() if k.endswith("_samples_per_s")), default=None)
         tflops = r.get("achieved_tflops")
-        rows.append([r.get("preset", "–"), rec["device"]["name"], str(r.get("batch_size")),
-                     ", ".join(r.get("image_keys") or []) or "state", _k(best),
-                     "–" if tflops is None else f"{tflops:.1f}", _link(path, page_dir)])
+        rows.append(
+            [
+                r.get("preset", "–"),
+                rec["device"]["name"],
+                str(r.get("batch_size")),
+                ", ".join(r.get("image_keys") or []) or "state",
+                _k(best),
+                "–" if tflops is None else f"{tflops:.1f}",
+                _link(path, page_dir),
+            ]
+        )
     return rows
 
 
@@ -167,11 +223,19 @@ def refusal_rows(records, page_dir: Path) -> list[list[str]]:
         r = rec["results"]
         wall, cpu = r["wall_s"], r["cpu_s"]
         slowest = r["slowest"][0] if r.get("slowest") else None
-        rows.append([rec["device"]["name"], str(r["cases"]), f"{r['refused']} / {r['cases']}",
-                     f"{r['under_2_s']} / {r['cases']}",
-                     f"{wall['median']:.2f} / {wall['p95']:.2f} / {wall['max']:.2f}",
-                     f"{cpu['median']:.2f} / {cpu['max']:.2f}", _load(rec),
-                     f"`{slowest['argv']}` {slowest['wall_s']:.2f} s" if slowest else "–", _link(path, page_dir)])
+        rows.append(
+            [
+                rec["device"]["name"],
+                str(r["cases"]),
+                f"{r['refused']} / {r['cases']}",
+                f"{r['under_2_s']} / {r['cases']}",
+                f"{wall['median']:.2f} / {wall['p95']:.2f} / {wall['max']:.2f}",
+                f"{cpu['median']:.2f} / {cpu['max']:.2f}",
+                _load(rec),
+                f"`{slowest['argv']}` {slowest['wall_s']:.2f} s" if slowest else "–",
+                _link(path, page_dir),
+            ]
+        )
     return rows
 
 
@@ -182,9 +246,16 @@ def robustness_rows(records, page_dir: Path) -> list[list[str]]:
         r = rec["results"]
         agent = (Path(r["checkpoint"]).parent.name or Path(r["checkpoint"]).name) if r.get("checkpoint") else "expert"
         for cell in r.get("perturbations") or []:
-            rows.append([f"{_short(rec['task'])}{_options(rec)}", rec["device"]["name"], agent,
-                         f"`{cell['perturbation']}`", f"**{cell['successes']} / {cell['episodes']}**",
-                         _link(path, page_dir)])
+            rows.append(
+                [
+                    f"{_short(rec['task'])}{_options(rec)}",
+                    rec["device"]["name"],
+                    agent,
+                    f"`{cell['perturbation']}`",
+                    f"**{cell['successes']} / {cell['episodes']}**",
+                    _link(path, page_dir),
+                ]
+            )
     return rows
 
 
@@ -192,21 +263,67 @@ def headline(records, page_dir: Path) -> str:
     """The markdown of the headline tables (empty tables are left out)."""
     parts = []
     sections = [
-        ("Learned policies", ["task", "device", "recipe", "policy sees", "demos", "expert", "learned (held-out)",
-                              "per phase (passed/reached)", "time to policy", "record"], policy_rows),
-        ("Reinforcement learning (PPO)", ["task", "device", "envs", "iterations", "env-steps/s with the update",
-                                          "learned (held-out)", "time to policy", "record"], rl_rows),
-        ("Off the training distribution (`evaluate --perturb`)", ["task", "device", "agent", "perturbation",
-                                                                  "success", "record"], robustness_rows),
+        (
+            "Learned policies",
+            [
+                "task",
+                "device",
+                "recipe",
+                "policy sees",
+                "demos",
+                "expert",
+                "learned (held-out)",
+                "per phase (passed/reached)",
+                "time to policy",
+                "record",
+            ],
+            policy_rows,
+        ),
+        (
+            "Reinforcement learning (PPO)",
+            [
+                "task",
+                "device",
+                "envs",
+                "iterations",
+                "env-steps/s with the update",
+                "learned (held-out)",
+                "time to policy",
+                "record",
+            ],
+            rl_rows,
+        ),
+        (
+            "Off the training distribution (`evaluate --perturb`)",
+            ["task", "device", "agent", "perturbation", "success", "record"],
+            robustness_rows,
+        ),
         ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], env_step_rows),
-        ("Expert collection", ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "record"],
-         collection_rows),
-        ("Training throughput", ["preset", "device", "batch", "images", "samples/s", "TFLOP/s", "record"],
-         training_rows),
-        ("Refusals of bad input", ["device", "cases", "refused in one line, exit 2, nothing written", "under 2 s",
-                                   "seconds to the refusal: median / p95 / max",
-                                   "CPU seconds: median / max", "load (1 min)", "slowest case", "record"],
-         refusal_rows),
+        (
+            "Expert collection",
+            ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "record"],
+            collection_rows,
+        ),
+        (
+            "Training throughput",
+            ["preset", "device", "batch", "images", "samples/s", "TFLOP/s", "record"],
+            training_rows,
+        ),
+        (
+            "Refusals of bad input",
+            [
+                "device",
+                "cases",
+                "refused in one line, exit 2, nothing written",
+                "under 2 s",
+                "seconds to the refusal: median / p95 / max",
+                "CPU seconds: median / max",
+                "load (1 min)",
+                "slowest case",
+                "record",
+            ],
+            refusal_rows,
+        ),
     ]
     for title, header, rows_of in sections:
         rows = rows_of(records, page_dir)
@@ -224,8 +341,9 @@ def render_page(text: str, records, page_dir: Path) -> str:
     return f"{head}{BEGIN}\n\n{headline(records, page_dir)}\n\n{END}{tail}"
 
 
-def update(page: str | os.PathLike = DEFAULT_PAGE, records_dir: str | os.PathLike = DEFAULT_RECORDS,
-           check: bool = False) -> bool:
+def update(
+    page: str | os.PathLike = DEFAULT_PAGE, records_dir: str | os.PathLike = DEFAULT_RECORDS, check: bool = False
+) -> bool:
     """Rewrite ``page``'s generated block from ``records_dir`` (``check``: only compare); True when the page was
     already up to date."""
     page = Path(page)

@@ -27,8 +27,10 @@ def test_reset_with_something_that_is_no_row_index_is_one_line(env, ids):
 def test_collect_without_an_agent_or_a_path_is_one_line_and_writes_nothing(env, tmp_path):
     from newton_lab.agents import expert_agent
 
-    with pytest.raises(ValueError, match="agent NoneType lacks .'act', 'reset', 'done', 'holding'.; subclass "
-                                         "newton_lab.agents.BaseAgent"):
+    with pytest.raises(
+        ValueError,
+        match="agent NoneType lacks .'act', 'reset', 'done', 'holding'.; subclass newton_lab.agents.BaseAgent",
+    ):
         env.collect(agent=None, episodes=1, path=tmp_path / "x.hdf5", progress=False)
     with pytest.raises(ValueError, match="path must name the dataset to write"):
         env.collect(agent=expert_agent(env), episodes=1, path=None, progress=False)
@@ -45,8 +47,11 @@ def test_an_agent_with_act_alone_is_refused_before_the_rollout_names_base_agent(
         def act(self, env, env_ids=None):
             return env.current_action()
 
-    with pytest.raises(ValueError, match=r"agent ActOnly lacks \['reset', 'done', 'holding'\]; subclass "
-                                         r"newton_lab.agents.BaseAgent") as err:
+    with pytest.raises(
+        ValueError,
+        match=r"agent ActOnly lacks \['reset', 'done', 'holding'\]; subclass "
+        r"newton_lab.agents.BaseAgent",
+    ) as err:
         env.evaluate(agent=ActOnly(), episodes=1, progress=False)
     assert "\n" not in str(err.value)
 

@@ -24,11 +24,27 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = {"newton_lab": "newton_lab", "newton_lab.kernels": "kernels", "newton_lab.tasks": "tasks",
-           "newton_lab.flows": "flows", "newton_lab.assets": "assets"}
-LAYERS = [("robots", "assets"), ("kernels",), ("task_api",), ("tasks",), ("datasets",), ("envs",), ("agents",),
-          ("mimic",), ("policies",), ("perception",), ("viz",),
-          ("commands", "bench", "bench_collect", "cli", "flows", "records", "results")]
+FOLDERS = {
+    "newton_lab": "newton_lab",
+    "newton_lab.kernels": "kernels",
+    "newton_lab.tasks": "tasks",
+    "newton_lab.flows": "flows",
+    "newton_lab.assets": "assets",
+}
+LAYERS = [
+    ("robots", "assets"),
+    ("kernels",),
+    ("task_api",),
+    ("tasks",),
+    ("datasets",),
+    ("envs",),
+    ("agents",),
+    ("mimic",),
+    ("policies",),
+    ("perception",),
+    ("viz",),
+    ("commands", "bench", "bench_collect", "cli", "flows", "records", "results"),
+]
 RANK = {unit: i for i, units in enumerate(LAYERS) for unit in units}
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
@@ -110,7 +126,8 @@ def test_contributing_states_the_layer_order():
     stated = [set(re.findall(r"`([a-z_]+)`", layer)) for layer in found.group(1).split("→")]
     assert stated == [set(units) for units in LAYERS], (
         f"{CONTRIBUTING.name} states the layers {stated}; tests/test_architecture.py's LAYERS are "
-        f"{[set(u) for u in LAYERS]}: change the page to match")
+        f"{[set(u) for u in LAYERS]}: change the page to match"
+    )
 
 
 def test_no_upward_import():
@@ -133,7 +150,7 @@ def _cycle(graph: dict[str, list[str]]) -> list[str] | None:
         stack.append(node)
         for nxt in graph.get(node, ()):
             if state.get(nxt) == 1:
-                return stack[stack.index(nxt):] + [nxt]
+                return stack[stack.index(nxt) :] + [nxt]
             if nxt not in state:
                 found = visit(nxt)
                 if found:
@@ -200,8 +217,9 @@ def test_imports_at_module_top():
             for node in ast.walk(fn):
                 if isinstance(node, (ast.Import, ast.ImportFrom)) and "deferred" not in lines[node.lineno - 1]:
                     bad.append(f"{module}:{node.lineno} {ast.unparse(node)}")
-    assert not bad, ("imports inside functions (move them up, or say '# deferred: <why>'):\n"
-                     + "\n".join(sorted(set(bad))))
+    assert not bad, "imports inside functions (move them up, or say '# deferred: <why>'):\n" + "\n".join(
+        sorted(set(bad))
+    )
 
 
 def test_module_size():
@@ -216,11 +234,19 @@ MAX_CLI_MODULE_LINES = 150
 def test_the_command_line_parses_and_calls():
     """No ``newton_lab/cli/`` module over ``MAX_CLI_MODULE_LINES`` lines, and every argument dataclass (a class
     named ``...Args``) is defined in ``newton_lab.commands``."""
-    long = {m: n for m, p in MODULES.items() if m.startswith("newton_lab.cli")
-            and (n := len(p.read_text().splitlines())) > MAX_CLI_MODULE_LINES}
+    long = {
+        m: n
+        for m, p in MODULES.items()
+        if m.startswith("newton_lab.cli") and (n := len(p.read_text().splitlines())) > MAX_CLI_MODULE_LINES
+    }
     assert not long, f"command-line modules over {MAX_CLI_MODULE_LINES} lines (move the work into the library): {long}"
-    stray = [f"{m}.{node.name}" for m, tree in TREES.items() if not m.startswith("newton_lab.commands")
-             for node in ast.walk(tree) if isinstance(node, ast.ClassDef) and node.name.endswith("Args")]
+    stray = [
+        f"{m}.{node.name}"
+        for m, tree in TREES.items()
+        if not m.startswith("newton_lab.commands")
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ClassDef) and node.name.endswith("Args")
+    ]
     assert not stray, f"argument dataclasses outside newton_lab/commands/: {stray}"
 
 
@@ -245,8 +271,13 @@ def test_function_size():
 
 @pytest.mark.parametrize("rule", ["tasks import no agents, datasets, envs or mimic"])
 def test_tasks_declare_data_only(rule):
-    bad = [f"{m} -> {t}" for m, ts in GRAPH.items() if _unit(m) == "tasks"
-           for t in ts if _unit(t) in ("agents", "datasets", "envs", "mimic", "policies")]
+    bad = [
+        f"{m} -> {t}"
+        for m, ts in GRAPH.items()
+        if _unit(m) == "tasks"
+        for t in ts
+        if _unit(t) in ("agents", "datasets", "envs", "mimic", "policies")
+    ]
     assert not bad, rule + ":\n" + "\n".join(bad)
 
 
@@ -297,9 +328,14 @@ def _private_env_access(files: dict[str, ast.Module]) -> list[str]:
         for node in ast.walk(tree):
             if isinstance(node, ast.Attribute) and _private(node.attr):
                 owner = _last_name(node.value)
-            elif (isinstance(node, ast.Call) and _last_name(node.func) in ("getattr", "setattr", "hasattr")
-                  and len(node.args) > 1 and isinstance(node.args[1], ast.Constant)
-                  and isinstance(node.args[1].value, str) and _private(node.args[1].value)):
+            elif (
+                isinstance(node, ast.Call)
+                and _last_name(node.func) in ("getattr", "setattr", "hasattr")
+                and len(node.args) > 1
+                and isinstance(node.args[1], ast.Constant)
+                and isinstance(node.args[1].value, str)
+                and _private(node.args[1].value)
+            ):
                 owner = _last_name(node.args[0])
             else:
                 continue
@@ -310,21 +346,38 @@ def _private_env_access(files: dict[str, ast.Module]) -> list[str]:
 
 def test_no_private_access_to_env_objects_outside_envs():
     bad = _private_env_access(_source_files(ENV_SURFACE_FOLDERS))
-    assert not bad, ("private attributes of env objects used outside newton_lab/envs/ (use the env's public surface, "
-                     "newton_lab/envs/env.py's docstring lists it):\n" + "\n".join(bad))
+    assert not bad, (
+        "private attributes of env objects used outside newton_lab/envs/ (use the env's public surface, "
+        "newton_lab/envs/env.py's docstring lists it):\n" + "\n".join(bad)
+    )
 
 
 ENV_CLASS = ("newton_lab/envs/env.py", "NewtonEnv")
 ENV_PARTS_FILE = "newton_lab/envs/parts.py"
-ENV_PARTS = {"sim": "EnvSim", "task": "EnvTask", "sensors": "EnvSensors", "joints": "EnvJoints",
-             "buffers": "EnvBuffers"}
+ENV_PARTS = {
+    "sim": "EnvSim",
+    "task": "EnvTask",
+    "sensors": "EnvSensors",
+    "joints": "EnvJoints",
+    "buffers": "EnvBuffers",
+}
 """The env's named parts: ``env.<part>`` is an object of ``newton_lab/envs/parts.py``'s class."""
 MAX_ENV_NAMES = 30
 """Public names the env class defines (attributes, methods, properties): the rest is behind its parts."""
 ENV_NAMES = r"^(.*_)?env$"
 """A ``NewtonEnv`` (not its parts, nor a list of envs) is reached by a name ending in ``env``."""
-GYMNASIUM_NAMES = {"unwrapped", "action_space", "observation_space", "single_action_space", "single_observation_space",
-                   "close", "metadata", "spec", "np_random", "render_mode"}
+GYMNASIUM_NAMES = {
+    "unwrapped",
+    "action_space",
+    "observation_space",
+    "single_action_space",
+    "single_observation_space",
+    "close",
+    "metadata",
+    "spec",
+    "np_random",
+    "render_mode",
+}
 """What a gymnasium wrapper named ``env`` in the tests adds (``newton_lab/envs/gym.py``'s classes are read too)."""
 NOT_ENV_CALLS = {n for n in dir(dict) + dir(str) if not n.startswith("_")}
 """Methods of the dicts and strings also named ``env`` (a process environment, ``q_env`` rows): never env names."""
@@ -336,8 +389,9 @@ def _class_names(path: str, name: str) -> set[str]:
     cls = next(n for n in ast.walk(tree) if isinstance(n, ast.ClassDef) and n.name == name)
     names = {n.name for n in cls.body if isinstance(n, ast.FunctionDef)}
     for node in ast.walk(cls):
-        targets = (node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign)
-                   else [])
+        targets = (
+            node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        )
         for t in (e for target in targets for e in (target.elts if isinstance(target, ast.Tuple) else [target])):
             if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id == "self":
                 names.add(t.attr)
@@ -362,32 +416,47 @@ def _off_surface(files: dict[str, ast.Module]) -> list[str]:
     for rel, tree in files.items():
         if rel.startswith(ENV_OWNER):
             continue
-        modules = {a.asname or a.name.split(".")[0] for n in ast.walk(tree)
-                   if isinstance(n, ast.Import | ast.ImportFrom) for a in n.names}  # ``from . import env``: a module
+        modules = {
+            a.asname or a.name.split(".")[0]
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Import | ast.ImportFrom)
+            for a in n.names
+        }  # ``from . import env``: a module
         for node in ast.walk(tree):
             if not isinstance(node, ast.Attribute) or node.attr.startswith("__"):
                 continue
             base = node.value
-            named_env = (isinstance(base, ast.Name | ast.Attribute) and env_like.match(_last_name(base))
-                         and not (isinstance(base, ast.Name) and base.id in modules))
+            named_env = (
+                isinstance(base, ast.Name | ast.Attribute)
+                and env_like.match(_last_name(base))
+                and not (isinstance(base, ast.Name) and base.id in modules)
+            )
             if named_env and node.attr not in surface:
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on the env)")
-            elif (isinstance(base, ast.Attribute) and base.attr in parts
-                  and env_like.match(_last_name(base.value) or "") and node.attr not in parts[base.attr]):
+            elif (
+                isinstance(base, ast.Attribute)
+                and base.attr in parts
+                and env_like.match(_last_name(base.value) or "")
+                and node.attr not in parts[base.attr]
+            ):
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)} (not on env.{base.attr})")
     return bad
 
 
 def test_code_outside_envs_reaches_the_env_through_its_surface_and_parts():
     bad = _off_surface(_source_files(ENV_SURFACE_FOLDERS))
-    assert not bad, ("names that are not on the env's surface (newton_lab/envs/env.py) or its parts "
-                     "(newton_lab/envs/parts.py):\n" + "\n".join(bad))
+    assert not bad, (
+        "names that are not on the env's surface (newton_lab/envs/env.py) or its parts "
+        "(newton_lab/envs/parts.py):\n" + "\n".join(bad)
+    )
 
 
 def test_the_surface_rule_flags_an_old_name_and_a_name_a_part_lacks():
     src = ast.parse("env.step(a)\nenv.joint_coords(n)\npick_env.sim.model\nenv.sim.obs_terms\nenv.task.obs_terms\n")
     assert sorted(b.split(" ", 1)[1] for b in _off_surface({"tests/x.py": src})) == [
-        "env.joint_coords (not on the env)", "env.sim.obs_terms (not on env.sim)"]
+        "env.joint_coords (not on the env)",
+        "env.sim.obs_terms (not on env.sim)",
+    ]
 
 
 MONKEYPATCH_ALLOWED: set[tuple[str, str]] = set()
@@ -426,13 +495,20 @@ def _run_time_patching(files: dict[str, ast.Module]) -> list[str]:
                 base = t.value
                 if isinstance(base, ast.Name) and base.id in imported:
                     bad.append(f"{rel}:{node.lineno} {ast.unparse(t)} (a project name)")
-                elif not rel.startswith(ENV_OWNER) and env_like.match(_last_name(base) or "") \
-                        and not (isinstance(base, ast.Name) and base.id == "self"):
+                elif (
+                    not rel.startswith(ENV_OWNER)
+                    and env_like.match(_last_name(base) or "")
+                    and not (isinstance(base, ast.Name) and base.id == "self")
+                ):
                     bad.append(f"{rel}:{node.lineno} {ast.unparse(t)} (an env object)")
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-                    and node.func.id in ("setattr", "delattr") and node.args
-                    and not (isinstance(node.args[0], ast.Name) and node.args[0].id == "self")
-                    and (rel, node.func.id) not in MONKEYPATCH_ALLOWED):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Name)
+                and node.func.id in ("setattr", "delattr")
+                and node.args
+                and not (isinstance(node.args[0], ast.Name) and node.args[0].id == "self")
+                and (rel, node.func.id) not in MONKEYPATCH_ALLOWED
+            ):
                 bad.append(f"{rel}:{node.lineno} {ast.unparse(node)}")
     return bad
 
@@ -468,12 +544,19 @@ env.__class__
 
 def test_the_surface_rules_catch_what_they_name():
     patches = _run_time_patching({"newton_lab/x.py": ast.parse(PATCHING)})
-    assert sorted(p.split(" ", 1)[1] for p in patches) == sorted([
-        "EpisodeWriter.append_prepared (a project name)", "zarr_store.sync_tree (a project name)",
-        "env.step (an env object)", "env.step (an env object)", "setattr(module, 'fn', wrap)"])
+    assert sorted(p.split(" ", 1)[1] for p in patches) == sorted(
+        [
+            "EpisodeWriter.append_prepared (a project name)",
+            "zarr_store.sync_tree (a project name)",
+            "env.step (an env object)",
+            "env.step (an env object)",
+            "setattr(module, 'fn', wrap)",
+        ]
+    )
     private = _private_env_access({"tests/x.py": ast.parse(PRIVATE)})
-    assert sorted(p.split(" ", 1)[1] for p in private) == sorted([
-        "env._graph", "pick_env._ctx", "self._env._obs", "env.sensors.cameras._groups", "getattr(cams, '_graph')"])
+    assert sorted(p.split(" ", 1)[1] for p in private) == sorted(
+        ["env._graph", "pick_env._ctx", "self._env._obs", "env.sensors.cameras._groups", "getattr(cams, '_graph')"]
+    )
     assert not _private_env_access({ENV_OWNER + "env.py": ast.parse(PRIVATE)})
 
 
@@ -484,7 +567,6 @@ robot's own task configs) import them; everything else reads the robot through `
 (``newton_lab.robots.binding.RobotBinding``, looked up by ``newton_lab.robots.registry.robot_binding``)."""
 ROBOT_IMPORT_ALLOWED = {
     # temporary: modules with their own owners that still read G1 facts directly
-
 }
 """Module -> what it still reads from a robot package directly (each entry to be moved onto the binding)."""
 
@@ -501,10 +583,15 @@ def test_tasks_import_a_robot_package_only_in_its_config():
 
 
 def test_robot_packages_are_imported_only_by_robots_and_tasks():
-    bad = sorted(m for m in MODULES if _unit(m) not in ("robots", "tasks") and _imports_robot_package(m)
-                 and m not in ROBOT_IMPORT_ALLOWED)
-    assert not bad, ("modules importing a robot package directly (read the robot through env.robot / "
-                     "robots.registry.robot_binding):\n" + "\n".join(bad))
+    bad = sorted(
+        m
+        for m in MODULES
+        if _unit(m) not in ("robots", "tasks") and _imports_robot_package(m) and m not in ROBOT_IMPORT_ALLOWED
+    )
+    assert not bad, (
+        "modules importing a robot package directly (read the robot through env.robot / "
+        "robots.registry.robot_binding):\n" + "\n".join(bad)
+    )
     stale = sorted(m for m in ROBOT_IMPORT_ALLOWED if m not in MODULES or not _imports_robot_package(m))
     assert not stale, f"ROBOT_IMPORT_ALLOWED entries that no longer import a robot package (remove them): {stale}"
 
@@ -517,13 +604,21 @@ ENV_DOC = ROOT / "docs" / "installation.md"
 def _documented_variables() -> set[str]:
     """The variables of the table under "## Environment variables" in docs/installation.md (``PREFECT_*``: a prefix)."""
     text = ENV_DOC.read_text().split("## Environment variables", 1)[1].split("\n## ", 1)[0]
-    return {name for row in text.splitlines() if row.startswith("| `")
-            for name in re.findall(r"`([A-Z][A-Z0-9_]*\*?)`", row.split("|")[1])}
+    return {
+        name
+        for row in text.splitlines()
+        if row.startswith("| `")
+        for name in re.findall(r"`([A-Z][A-Z0-9_]*\*?)`", row.split("|")[1])
+    }
 
 
 def _is_environ(node: ast.AST) -> bool:
-    return (isinstance(node, ast.Attribute) and node.attr == "environ" and isinstance(node.value, ast.Name)
-            and node.value.id == "os")
+    return (
+        isinstance(node, ast.Attribute)
+        and node.attr == "environ"
+        and isinstance(node.value, ast.Name)
+        and node.value.id == "os"
+    )
 
 
 def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
@@ -532,9 +627,13 @@ def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
     use of ``os.environ`` than a read, a write or passing the whole environment on as ``<other use>``."""
     reads: dict[str, list[str]] = defaultdict(list)
     for rel, tree in trees.items():
-        consts = {t.id: n.value.value for n in tree.body if isinstance(n, ast.Assign)
-                  and isinstance(n.value, ast.Constant) and isinstance(n.value.value, str)
-                  for t in n.targets if isinstance(t, ast.Name)}
+        consts = {
+            t.id: n.value.value
+            for n in tree.body
+            if isinstance(n, ast.Assign) and isinstance(n.value, ast.Constant) and isinstance(n.value.value, str)
+            for t in n.targets
+            if isinstance(t, ast.Name)
+        }
         parents = {child: parent for parent in ast.walk(tree) for child in ast.iter_child_nodes(parent)}
 
         def key(node: ast.AST, consts: dict[str, str] = consts) -> str:
@@ -544,8 +643,13 @@ def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
 
         for node in ast.walk(tree):
             where = f"{rel}:{getattr(node, 'lineno', 0)}"
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "getenv"
-                    and isinstance(node.func.value, ast.Name) and node.func.value.id == "os"):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Attribute)
+                and node.func.attr == "getenv"
+                and isinstance(node.func.value, ast.Name)
+                and node.func.value.id == "os"
+            ):
                 reads[key(node.args[0]) if node.args else "<unresolved>"].append(where)
             if not _is_environ(node):
                 continue
@@ -561,8 +665,9 @@ def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
                 continue  # a default set for a library, or the whole environment handed to a child
             elif isinstance(up, ast.Compare) and up.comparators == [node]:
                 reads[key(up.left)].append(where)
-            elif isinstance(up, ast.Dict) or (isinstance(up, ast.Call) and isinstance(up.func, ast.Name)
-                                              and up.func.id == "dict"):
+            elif isinstance(up, ast.Dict) or (
+                isinstance(up, ast.Call) and isinstance(up.func, ast.Name) and up.func.id == "dict"
+            ):
                 continue  # ``{**os.environ, ...}``: the whole environment handed to a child process
             else:
                 reads["<other use>"].append(where)
@@ -571,8 +676,11 @@ def _environment_reads(trees: dict[str, ast.Module]) -> dict[str, list[str]]:
 
 def _undocumented(reads: dict[str, list[str]], documented: set[str]) -> list[str]:
     prefixes = tuple(d[:-1] for d in documented if d.endswith("*"))
-    return sorted(f"{name} at {', '.join(where)}" for name, where in reads.items()
-                  if name not in documented and not (prefixes and name.startswith(prefixes)))
+    return sorted(
+        f"{name} at {', '.join(where)}"
+        for name, where in reads.items()
+        if name not in documented and not (prefixes and name.startswith(prefixes))
+    )
 
 
 def test_the_library_reads_only_the_documented_environment_variables():
@@ -581,8 +689,9 @@ def test_the_library_reads_only_the_documented_environment_variables():
     documented = _documented_variables()
     assert {"NEWTON_LAB_VERBOSE", "NEWTON_LAB_WARP_BACKWARD", "NEWTON_LAB_COMMAND", "NEWTON_LAB_COMMIT"} <= documented
     bad = _undocumented(_environment_reads(_source_files(LIBRARY)), documented)
-    assert not bad, f"environment variables read by the library but not documented in {ENV_DOC.name}:\n" + \
-        "\n".join(bad)
+    assert not bad, f"environment variables read by the library but not documented in {ENV_DOC.name}:\n" + "\n".join(
+        bad
+    )
 
 
 ENV_READS = """
@@ -602,10 +711,15 @@ for k in os.environ: pass
 
 def test_the_environment_rule_catches_what_it_names():
     reads = _environment_reads({"newton_lab/x.py": ast.parse(ENV_READS)})
-    assert sorted(reads) == sorted(["NEWTON_LAB_FLAG", "NEWTON_LAB_X", "NEWTON_LAB_TEST_FAULT", "PREFECT_HOME",
-                                    "<unresolved>", "<other use>"])
+    assert sorted(reads) == sorted(
+        ["NEWTON_LAB_FLAG", "NEWTON_LAB_X", "NEWTON_LAB_TEST_FAULT", "PREFECT_HOME", "<unresolved>", "<other use>"]
+    )
     assert [b.split(" at ")[0] for b in _undocumented(reads, {"PREFECT_*", "NEWTON_LAB_X"})] == [
-        "<other use>", "<unresolved>", "NEWTON_LAB_FLAG", "NEWTON_LAB_TEST_FAULT"]
+        "<other use>",
+        "<unresolved>",
+        "NEWTON_LAB_FLAG",
+        "NEWTON_LAB_TEST_FAULT",
+    ]
 
 
 def test_the_datasets_package_keeps_its_top_level_small():

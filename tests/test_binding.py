@@ -66,8 +66,9 @@ def test_a_second_robot_is_one_registration(layout):
     assert register_robot(other) is robot_binding("g1_wide_gripper")
     with pytest.raises(ValueError, match="already registered"):
         register_robot(dataclasses.replace(other))
-    bound = BoundRobot.from_layout(other, layout, actions=[ActionTermCfg(name="gripper", group="left_gripper",
-                                                                         type="binary")])
+    bound = BoundRobot.from_layout(
+        other, layout, actions=[ActionTermCfg(name="gripper", group="left_gripper", type="binary")]
+    )
     assert isinstance(other, RobotBinding) and bound.robot is other
     assert (bound.actions.low[0], bound.actions.high[0]) == (0.0, 1.5)  # the binary column clips to its range
     assert bound.context.gripper_closed == 1.5
@@ -78,8 +79,9 @@ def test_the_task_context_follows_the_binding_without_g1_counts(layout):
     a shorter arm its own joints, another gripper range its own (the kernels loop over these, not over the G1's)."""
     g1 = robot_binding("g1")
     arm = dataclasses.replace(g1.arms["left"], joints=g1.arms["left"].joints[:6])
-    other = dataclasses.replace(g1, name="g1_no_lift", leg_joints=(), arms={**g1.arms, "left": arm},
-                                gripper_open=0.1, gripper_closed=0.9)
+    other = dataclasses.replace(
+        g1, name="g1_no_lift", leg_joints=(), arms={**g1.arms, "left": arm}, gripper_open=0.1, gripper_closed=0.9
+    )
     ctx = BoundRobot.from_layout(other, layout, actions=[], arm="left").context
     coord = layout.joints.coord
     assert ctx.lift_coords == () and ctx.arm_coords == tuple(coord[j] for j in spec.LEFT_ARM_JOINTS[:6])
@@ -98,11 +100,14 @@ def test_nothing_falls_back_to_the_g1_when_no_robot_is_given(tmp_path):
     from newton_lab.envs.cameras import Cameras
     from newton_lab.mimic.source import load_sources
 
-    calls = {"leg_targets": lambda: leg_targets(0.1, None),
-             "FrameMapper": lambda: FrameMapper("mobile_full_body", [], robot=None),
-             "Cameras": lambda: Cameras({}, model=None, state=None, num_envs=1, bodies_per_world=1, entity_names=[],
-                                        robot=None),
-             "load_sources": lambda: load_sources(tmp_path / "none.hdf5", None, None, task_id="x", robot=None)}
+    calls = {
+        "leg_targets": lambda: leg_targets(0.1, None),
+        "FrameMapper": lambda: FrameMapper("mobile_full_body", [], robot=None),
+        "Cameras": lambda: Cameras(
+            {}, model=None, state=None, num_envs=1, bodies_per_world=1, entity_names=[], robot=None
+        ),
+        "load_sources": lambda: load_sources(tmp_path / "none.hdf5", None, None, task_id="x", robot=None),
+    }
     for user, call in calls.items():
         with pytest.raises(ValueError, match=rf"^{user} needs the robot it works for \(robot=env.robot") as err:
             call()
@@ -130,15 +135,23 @@ def test_env_context_is_the_binding(pick_env):
     ctx, bound = pick_env.task.context, pick_env.joints.binding.context
     assert ctx.robot_coords == bound.robot_coords == 34
     assert (ctx.base_coord, ctx.gripper_coord, ctx.tcp_body, ctx.gripper_open, ctx.gripper_closed) == (
-        bound.base_coord, bound.gripper_coord, bound.tcp_body, bound.gripper_open, bound.gripper_closed)
+        bound.base_coord,
+        bound.gripper_coord,
+        bound.tcp_body,
+        bound.gripper_open,
+        bound.gripper_closed,
+    )
     assert tuple(ctx.arm_coords.numpy()) == bound.arm_coords and tuple(ctx.lift_coords.numpy()) == bound.lift_coords
 
 
 # ---------------------------------------------------------------- the action map
 def test_action_map_columns_and_kinds(layout):
-    m = _bind(layout, ActionTermCfg(name="base_action", group="base", type="velocity", clip=(-4.5, 4.5)),
-              ActionTermCfg(name="arm_action", group="left_arm", type="relative"),
-              ActionTermCfg(name="gripper_action", group="left_gripper", type="binary")).actions
+    m = _bind(
+        layout,
+        ActionTermCfg(name="base_action", group="base", type="velocity", clip=(-4.5, 4.5)),
+        ActionTermCfg(name="arm_action", group="left_arm", type="relative"),
+        ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
+    ).actions
     joints = layout.joints
     assert m.joint_names == spec.BASE_WHEEL_JOINTS + spec.LEFT_ARM_JOINTS + (spec.LEFT_GRIPPER_JOINT,)
     assert m.kinds == ("velocity",) * 4 + ("relative",) * 7 + ("binary",)
@@ -156,13 +169,19 @@ def test_action_map_columns_and_kinds(layout):
 @pytest.mark.parametrize(
     "term, match",
     [
-        (ActionTermCfg(name="arm_action", group="left_arm", type="absolut"),
-         r"action term 'arm_action': unknown type 'absolut'; valid kinds: absolute, relative, velocity, binary"),
+        (
+            ActionTermCfg(name="arm_action", group="left_arm", type="absolut"),
+            r"action term 'arm_action': unknown type 'absolut'; valid kinds: absolute, relative, velocity, binary",
+        ),
         (ActionTermCfg(name="tail", group="tail", type="absolute"), r"unknown group 'tail'; valid groups: base, "),
-        (ActionTermCfg(name="arm_action", group="left_arm", type="velocity"),
-         r"type 'velocity' does not drive group 'left_arm'; use absolute\|relative"),
-        (ActionTermCfg(name="base_action", group="base", type="absolute"),
-         r"does not drive group 'base'; use velocity"),
+        (
+            ActionTermCfg(name="arm_action", group="left_arm", type="velocity"),
+            r"type 'velocity' does not drive group 'left_arm'; use absolute\|relative",
+        ),
+        (
+            ActionTermCfg(name="base_action", group="base", type="absolute"),
+            r"does not drive group 'base'; use velocity",
+        ),
         (ActionTermCfg(name="leg_action", group="legs", type="binary"), r"does not drive group 'legs'"),
     ],
 )
@@ -179,9 +198,13 @@ def test_action_map_refuses_a_joint_twice(layout):
 
 
 def test_relative_action_adds_to_the_current_target(pick_cfg):
-    cfg = dataclasses.replace(pick_cfg, actions=[ActionTermCfg(name="arm_action", group="left_arm", type="relative"),
-                                                 ActionTermCfg(name="gripper_action", group="left_gripper",
-                                                               type="binary")])
+    cfg = dataclasses.replace(
+        pick_cfg,
+        actions=[
+            ActionTermCfg(name="arm_action", group="left_arm", type="relative"),
+            ActionTermCfg(name="gripper_action", group="left_gripper", type="binary"),
+        ],
+    )
     env = NewtonEnv(cfg, num_envs=2, device="cpu", capture=False)
     coords = [env.sim.layout.joints.coord[j] for j in spec.LEFT_ARM_JOINTS]
     targets = lambda: wp.to_torch(env.control.joint_target_q).view(2, -1)[:, coords].clone()  # noqa: E731
@@ -246,8 +269,10 @@ def test_gripper_velocity_limit_on_real_physics():
     env.joints.actuation.max_step.zero_()
     env.joints.actuation.dof_limited.zero_()
     free, free_peak = _close_gripper(env, 16)
-    print(f"gripper closing: before peak {free_peak:.2f} rad/s (first step {free[0] / 0.05:.2f} rad/s), "
-          f"after peak {peak:.2f} rad/s (first step {limited[0] / 0.05:.2f} rad/s)")
+    print(
+        f"gripper closing: before peak {free_peak:.2f} rad/s (first step {free[0] / 0.05:.2f} rad/s), "
+        f"after peak {peak:.2f} rad/s (first step {limited[0] / 0.05:.2f} rad/s)"
+    )
     assert free_peak > 5.0 and free[0] / env.cfg.control_dt > 5.0  # ~6.9 rad/s over the first step
     assert peak <= 1.1 * spec.GRIPPER_VELOCITY_LIMIT
     rates = np.diff([0.0] + limited) / env.cfg.control_dt
@@ -305,6 +330,10 @@ def test_mecanum_formula_reference_vectors_and_inverse():
     assert (lin, yaw) == pytest.approx((7.0711, 10.0161), abs=1e-4)
     twist = torch.tensor([[0.2, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.0, 1.0], [0.1, -0.3, 0.7]])
     wheels = twist_to_wheels_torch(twist, (lin, yaw))
-    assert_close(wheels[:3], torch.tensor([[-1.4142, -1.4142, 1.4142, 1.4142], [1.4142, -1.4142, -1.4142, 1.4142],
-                                           [10.0161] * 4]), atol=1e-4, rtol=0)
+    assert_close(
+        wheels[:3],
+        torch.tensor([[-1.4142, -1.4142, 1.4142, 1.4142], [1.4142, -1.4142, -1.4142, 1.4142], [10.0161] * 4]),
+        atol=1e-4,
+        rtol=0,
+    )
     assert_close(wheels_to_twist_torch(wheels, (lin, yaw)), twist, atol=1e-6, rtol=0)

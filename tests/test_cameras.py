@@ -29,8 +29,9 @@ PICK = "GalbotG1-PickCube-v0"
 @pytest.fixture(scope="module")
 def cam_env():
     view = {"resolution": (W, H), "data": ALL}  # both cameras in one render call (one resolution)
-    return make_env(PICK, num_envs=2, device="cpu", seed=5, randomize=True,
-                    cameras={"front_head": view, "left_wrist": view})
+    return make_env(
+        PICK, num_envs=2, device="cpu", seed=5, randomize=True, cameras={"front_head": view, "left_wrist": view}
+    )
 
 
 def _rotate(q, v):
@@ -100,7 +101,7 @@ def test_image_terms_are_zero_copy_views(cam_env):
     assert (rgb.shape, rgb.dtype) == ((2, H, W, 3), torch.uint8)
     assert (depth.shape, depth.dtype) == ((2, H, W), torch.float32)
     assert (seg.shape, seg.dtype) == ((2, H, W), torch.int32)
-    group, = env.sensors.cameras.view_groups  # 2 cameras x 2 worlds: 4 views, camera-major
+    (group,) = env.sensors.cameras.view_groups  # 2 cameras x 2 worlds: 4 views, camera-major
     assert group.poses.shape == (4,)
     assert rgb.data_ptr() == wp.to_torch(group.color).data_ptr()
     assert env.sensors.images["left_wrist_rgb"].data_ptr() == rgb.data_ptr() + 2 * H * W * 4
@@ -167,7 +168,7 @@ def test_front_head_view_at_reset_sees_the_scene_upright(cam_env):
         ids = {names[i] for i in np.unique(seg[row])}
         assert {"cube", "blue_block", "table", "robot/left_gripper"} <= ids, ids
         table = seg[row] == names.index("table")
-        assert table[H // 2:].sum() > 0.6 * table.sum()  # the table lies below the horizon
+        assert table[H // 2 :].sum() > 0.6 * table.sum()  # the table lies below the horizon
         ground = seg[row] == names.index("ground")
         assert ground[: H // 2].sum() > 0.9 * ground.sum()  # the far floor above it
         # the cube (robot's left, y > 0.1) is in the image's left half, left of the block (y = -0.08)
@@ -216,20 +217,23 @@ def test_state_only_envs_do_no_camera_work(stack_env):
 
 
 # ---------------------------------------------------------------- bad input (no env build)
-@pytest.mark.parametrize("task, cameras, message", [
-    (PICK, {"head_cam": (96, 72)}, "unknown camera 'head_cam'"),
-    (PICK, {"front_head": (0, 72)}, "resolution must be"),
-    (PICK, {"front_head": (-96, 72)}, "resolution must be"),
-    (PICK, {"front_head": (100_000, 72)}, "resolution must be"),
-    (PICK, {"front_head": (96,)}, "resolution must be"),
-    (PICK, {"front_head": "96x72"}, "resolution must be"),
-    (PICK, {"front_head": (96.0, 72)}, "resolution must be"),
-    (PICK, {"front_head": {"data": ("rgb", "infrared")}}, "data must be"),
-    (PICK, {"front_head": {"fov": 1.0}}, "unknown keys"),
-    (PICK, "front_head", "use none, default or <camera>="),
-    (PICK, 3, "cameras must be"),
-    ("GalbotG1-StackCube-v0", {"head_cam": (96, 72)}, "unknown camera 'head_cam'"),
-])
+@pytest.mark.parametrize(
+    "task, cameras, message",
+    [
+        (PICK, {"head_cam": (96, 72)}, "unknown camera 'head_cam'"),
+        (PICK, {"front_head": (0, 72)}, "resolution must be"),
+        (PICK, {"front_head": (-96, 72)}, "resolution must be"),
+        (PICK, {"front_head": (100_000, 72)}, "resolution must be"),
+        (PICK, {"front_head": (96,)}, "resolution must be"),
+        (PICK, {"front_head": "96x72"}, "resolution must be"),
+        (PICK, {"front_head": (96.0, 72)}, "resolution must be"),
+        (PICK, {"front_head": {"data": ("rgb", "infrared")}}, "data must be"),
+        (PICK, {"front_head": {"fov": 1.0}}, "unknown keys"),
+        (PICK, "front_head", "use none, default or <camera>="),
+        (PICK, 3, "cameras must be"),
+        ("GalbotG1-StackCube-v0", {"head_cam": (96, 72)}, "unknown camera 'head_cam'"),
+    ],
+)
 def test_bad_camera_requests_raise_one_line(task, cameras, message):
     cfg = lookup(task).make_cfg(None)
     with pytest.raises(ValueError, match=message) as err:
@@ -251,7 +255,9 @@ def test_camera_sets_per_task_and_overrides():
     # a state-only task renders the cameras it is asked for (StackCube from pixels)
     stack = cams("GalbotG1-StackCube-v0", "front_head=96x72:rgb,left_wrist=96x72:rgb")
     assert {k: (c.width, c.height, c.data) for k, c in stack.items()} == {
-        "front_head": (96, 72, ("rgb",)), "left_wrist": (96, 72, ("rgb",))}
+        "front_head": (96, 72, ("rgb",)),
+        "left_wrist": (96, 72, ("rgb",)),
+    }
     assert cams(PICK, False) == {}
     small = cams(PICK, {"front_head": (96, 72)})["front_head"]
     assert (small.width, small.height, small.data) == (96, 72, ("rgb",))
@@ -261,14 +267,16 @@ def test_camera_sets_per_task_and_overrides():
     assert (text.width, text.height, text.data) == (96, 72, ("rgb", "depth"))
 
 
-
-@pytest.mark.parametrize("argv, message", [
-    (["--camera", "nose_cam"], "--camera 'nose_cam' is unknown"),
-    (["--resolution", "0", "72"], "--resolution takes width and height"),
-    (["--resolution", "96"], "--resolution takes width and height"),
-    (["--resolution", "96", "72000"], "--resolution takes width and height"),
-    (["--out", "frame.jpg"], "the picture is a PNG"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--camera", "nose_cam"], "--camera 'nose_cam' is unknown"),
+        (["--resolution", "0", "72"], "--resolution takes width and height"),
+        (["--resolution", "96"], "--resolution takes width and height"),
+        (["--resolution", "96", "72000"], "--resolution takes width and height"),
+        (["--out", "frame.jpg"], "the picture is a PNG"),
+    ],
+)
 def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp_path):
     from newton_lab.cli import main
 
@@ -338,8 +346,14 @@ def test_camera_jitter_is_bounded(cam_env):
 def test_objects_named_by_their_colour_keep_its_hue():
     """SortToShelf's objects are named by colour (``EntityCfg.keep_hue``): vision randomisation scales each of
     their channels by at most +-20 % (times the row's brightness), while the table gets a new colour per reset."""
-    env = make_env("GalbotG1-SortToShelf-Pick-v0", num_envs=2, device="cpu", seed=3, randomize=True,
-                   cameras={"front_head": {"resolution": (32, 24), "data": ("rgb",)}})
+    env = make_env(
+        "GalbotG1-SortToShelf-Pick-v0",
+        num_envs=2,
+        device="cpu",
+        seed=3,
+        randomize=True,
+        cameras={"front_head": {"resolution": (32, 24), "data": ("rgb",)}},
+    )
     names = env.sensors.cameras.segmentation_names
     objects = [names.index(n) for n in ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")]
     env.sensors.cameras.randomize = False
@@ -364,9 +378,17 @@ def test_stack_cube_from_pixels_sees_its_cubes_by_colour():
     """StackCube is state-only in the reference; asked for cameras with ``head="table"`` its front head sees all
     three cubes at reset (the level head sees none of them), and the cubes keep their hue under vision
     randomisation: which cube goes where is named by colour."""
+
     def seen(head):
-        env = make_env("GalbotG1-StackCube-v0", task_options={"head": head}, num_envs=2, device="cpu", seed=3,
-                       randomize=True, cameras={"front_head": {"resolution": (96, 72), "data": ("segmentation",)}})
+        env = make_env(
+            "GalbotG1-StackCube-v0",
+            task_options={"head": head},
+            num_envs=2,
+            device="cpu",
+            seed=3,
+            randomize=True,
+            cameras={"front_head": {"resolution": (96, 72), "data": ("segmentation",)}},
+        )
         names = env.sensors.cameras.segmentation_names
         seg = env.sensors.images["front_head_segmentation"].numpy()
         return env, names, [{names[i] for i in np.unique(seg[row])} for row in range(env.num_envs)]

@@ -22,8 +22,23 @@ def test_tasks_lists_every_id(capsys):
 
 def test_collect_prints_one_json_line(tmp_path, capsys):
     path = tmp_path / "data" / "reach.zarr"  # data/ does not exist yet: the command creates it
-    rc = main(["collect", "--task", "GalbotG1-Reach-v0", "--episodes", "2", "--num-envs", "2", "--randomize",
-               "--device", "cpu", "--no-progress", "--dataset-path", str(path)])
+    rc = main(
+        [
+            "collect",
+            "--task",
+            "GalbotG1-Reach-v0",
+            "--episodes",
+            "2",
+            "--num-envs",
+            "2",
+            "--randomize",
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--dataset-path",
+            str(path),
+        ]
+    )
     assert rc == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
     summary = json.loads(line)
@@ -85,8 +100,30 @@ def test_version_and_defaults_in_help(capsys):
 
 @pytest.mark.slow
 def test_bench_prints_side_by_side_figures(capsys):
-    assert main(["bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "1", "--steps", "10", "--device", "cpu",
-                 "--camera", "front_head", "--resolution", "32", "24", "--camera-data", "rgb", "depth"]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--task",
+                "GalbotG1-PickCube-v0",
+                "--num-envs",
+                "1",
+                "--steps",
+                "10",
+                "--device",
+                "cpu",
+                "--camera",
+                "front_head",
+                "--resolution",
+                "32",
+                "24",
+                "--camera-data",
+                "rgb",
+                "depth",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["env_steps_per_s"] > 0 and out["bare_world_steps_per_s"] > 0 and out["ratio_env_step_to_bare"] > 0
     assert out["resolution"] == [32, 24] and out["camera_data"] == ["rgb", "depth"]
@@ -97,8 +134,26 @@ def test_bench_prints_side_by_side_figures(capsys):
 @pytest.mark.slow
 def test_bench_collect_splits_the_time(capsys, tmp_path):
     path = tmp_path / "b.hdf5"
-    assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "20", "--device", "cpu",
-                 "--dataset-path", str(path), "--run-record", str(tmp_path / "record.json")]) == 0
+    assert (
+        main(
+            [
+                "bench-collect",
+                "--num-envs",
+                "2",
+                "--episodes",
+                "2",
+                "--prefill",
+                "20",
+                "--device",
+                "cpu",
+                "--dataset-path",
+                str(path),
+                "--run-record",
+                str(tmp_path / "record.json"),
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["successful_demos"] == 2 and out["demos_per_hour"] == pytest.approx(3600 * out["demos_per_s"])
     assert min(out["physics_s"], out["agent_s"], out["writer_s"], out["first_use_s"]) > 0
@@ -113,9 +168,30 @@ def test_bench_collect_splits_the_time(capsys, tmp_path):
 
 @pytest.mark.slow
 def test_bench_collect_with_cameras_times_their_render_apart(capsys, tmp_path):
-    assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "0", "--device", "cpu",
-                 "--cameras", "front_head=32x24:rgb", "--obs-mode", "sensors", "--dataset-path",
-                 str(tmp_path / "c.zarr"), "--run-record", str(tmp_path / "record.json")]) == 0
+    assert (
+        main(
+            [
+                "bench-collect",
+                "--num-envs",
+                "2",
+                "--episodes",
+                "2",
+                "--prefill",
+                "0",
+                "--device",
+                "cpu",
+                "--cameras",
+                "front_head=32x24:rgb",
+                "--obs-mode",
+                "sensors",
+                "--dataset-path",
+                str(tmp_path / "c.zarr"),
+                "--run-record",
+                str(tmp_path / "record.json"),
+            ]
+        )
+        == 0
+    )
     captured = capsys.readouterr()
     out = json.loads(captured.out.strip().splitlines()[-1])
     assert out["cameras"] == {"front_head": [32, 24, ["rgb"]]} and out["successful_demos"] == 2
@@ -131,9 +207,30 @@ def test_bench_collect_traces_a_window_of_steps_with_each_stage_labelled(capsys,
     import gzip
 
     trace = tmp_path / "collect.json.gz"
-    assert main(["bench-collect", "--num-envs", "2", "--episodes", "2", "--prefill", "0", "--device", "cpu",
-                 "--dataset-path", str(tmp_path / "b.zarr"), "--trace", str(trace), "--trace-after", "60",
-                 "--run-record", str(tmp_path / "record.json")]) == 0
+    assert (
+        main(
+            [
+                "bench-collect",
+                "--num-envs",
+                "2",
+                "--episodes",
+                "2",
+                "--prefill",
+                "0",
+                "--device",
+                "cpu",
+                "--dataset-path",
+                str(tmp_path / "b.zarr"),
+                "--trace",
+                str(trace),
+                "--trace-after",
+                "60",
+                "--run-record",
+                str(tmp_path / "record.json"),
+            ]
+        )
+        == 0
+    )
     events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
     names = {e.get("name") for e in events}
     assert {"physics", "agent"} <= names  # the stage ranges
@@ -145,29 +242,91 @@ def test_bench_collect_traces_a_window_of_steps_with_each_stage_labelled(capsys,
 
 REQ = "<required>"
 LEGACY_FLAGS = {  # every flag (and default) of the hand-written parser the dataclass-generated one replaced
-    "collect": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
-                "--device": None, "--seed": 0, "--randomize": False, "--no-progress": False,
-                "--rerun": False, "--rerun-save": None, "--rerun-worlds": 4, "--sorting-object": None,
-                "--init-scenario": None, "--dataset-path": "data/pick_cube_demos.hdf5", "--save-end-scenario": None},
-    "evaluate": {"--task": "GalbotG1-PickCube-v0", "--episodes": 1, "--num-envs": 1, "--max-steps": 1000,
-                 "--device": None, "--seed": 0, "--randomize": False, "--no-progress": False,
-                 "--rerun": False, "--rerun-save": None, "--rerun-worlds": 4, "--sorting-object": None,
-                 "--init-scenario": None, "--checkpoint": None},
-    "mimic": {"--dataset-path": REQ, "--output-path": None, "--episodes": 36, "--num-envs": 8, "--max-attempts": None,
-              "--seed": 1, "--device": None, "--no-progress": False},
-    "train": {"--dataset-path": REQ, "--output-dir": "outputs/policy", "--preset": "default", "--epochs": None,
-              "--max-steps": None, "--batch-size": None, "--lr": None, "--obs-keys": None, "--prediction-type": None,
-              "--init-checkpoint": None, "--time-budget-s": None, "--device": "cpu", "--seed": 0},
+    "collect": {
+        "--task": "GalbotG1-PickCube-v0",
+        "--episodes": 1,
+        "--num-envs": 1,
+        "--max-steps": 1000,
+        "--device": None,
+        "--seed": 0,
+        "--randomize": False,
+        "--no-progress": False,
+        "--rerun": False,
+        "--rerun-save": None,
+        "--rerun-worlds": 4,
+        "--sorting-object": None,
+        "--init-scenario": None,
+        "--dataset-path": "data/pick_cube_demos.hdf5",
+        "--save-end-scenario": None,
+    },
+    "evaluate": {
+        "--task": "GalbotG1-PickCube-v0",
+        "--episodes": 1,
+        "--num-envs": 1,
+        "--max-steps": 1000,
+        "--device": None,
+        "--seed": 0,
+        "--randomize": False,
+        "--no-progress": False,
+        "--rerun": False,
+        "--rerun-save": None,
+        "--rerun-worlds": 4,
+        "--sorting-object": None,
+        "--init-scenario": None,
+        "--checkpoint": None,
+    },
+    "mimic": {
+        "--dataset-path": REQ,
+        "--output-path": None,
+        "--episodes": 36,
+        "--num-envs": 8,
+        "--max-attempts": None,
+        "--seed": 1,
+        "--device": None,
+        "--no-progress": False,
+    },
+    "train": {
+        "--dataset-path": REQ,
+        "--output-dir": "outputs/policy",
+        "--preset": "default",
+        "--epochs": None,
+        "--max-steps": None,
+        "--batch-size": None,
+        "--lr": None,
+        "--obs-keys": None,
+        "--prediction-type": None,
+        "--init-checkpoint": None,
+        "--time-budget-s": None,
+        "--device": "cpu",
+        "--seed": 0,
+    },
     "split": {"--dataset-path": REQ, "--out": None, "--val-ratio": 0.1, "--filter-key": None, "--seed": 0},
     "export": {"--dataset-path": REQ, "--root": REQ, "--include-failed": False},
-    "pipeline": {"--task": "GalbotG1-PickCube-v0", "--recipe": "auto", "--demos": None, "--mimic-episodes": None,
-                 "--train-steps": None, "--eval-episodes": None, "--num-envs": None, "--device": None, "--seed": 0,
-                 "--out": "outputs/pipeline",
-                 "--runner": "local", "--workers": 1, "--address": None, "--retries": 1},
+    "pipeline": {
+        "--task": "GalbotG1-PickCube-v0",
+        "--recipe": "auto",
+        "--demos": None,
+        "--mimic-episodes": None,
+        "--train-steps": None,
+        "--eval-episodes": None,
+        "--num-envs": None,
+        "--device": None,
+        "--seed": 0,
+        "--out": "outputs/pipeline",
+        "--runner": "local",
+        "--workers": 1,
+        "--address": None,
+        "--retries": 1,
+    },
     "view": {"dataset": REQ, "--episode": 0, "--save": None, "--spawn": False},
     "bench": {"--task": "GalbotG1-PickCube-v0", "--num-envs": 4, "--steps": 200, "--device": None},
-    "bench-train": {"--dataset-path": REQ, "--batch-size": 1024, "--steps": 200, "--preset": "default",
-                    "--device": "cpu"},
+    "bench-train": {
+        "--dataset-path": REQ,
+        "--batch-size": 1024,
+        "--steps": 200,
+        "--preset": "default",
+        "--device": "cpu",
+    },
 }
 
 
@@ -188,18 +347,29 @@ def test_parse_args_builds_the_dataclass(tmp_path, monkeypatch, capsys):
 
     from newton_lab.policies.diffusion import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
 
-    torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "config": {},  # the header the CLI reads
-                "info": {"task_id": "GalbotG1-Reach-v0"}}, tmp_path / "c.pt")
-    a = parse_args(CollectArgs, ["--task", "GalbotG1-SortToShelf-Pick-v0", "--num-envs", "2", "--sorting-object",
-                                 "red_cube", "--randomize"])
+    torch.save(
+        {
+            "format": CHECKPOINT_FORMAT,
+            "version": CHECKPOINT_VERSION,
+            "config": {},  # the header the CLI reads
+            "info": {"task_id": "GalbotG1-Reach-v0"},
+        },
+        tmp_path / "c.pt",
+    )
+    a = parse_args(
+        CollectArgs,
+        ["--task", "GalbotG1-SortToShelf-Pick-v0", "--num-envs", "2", "--sorting-object", "red_cube", "--randomize"],
+    )
     assert isinstance(a, CollectArgs) and a.num_envs == 2 and a.randomize and a.episodes == 1
     assert (tmp_path / "data").is_dir()  # the example's output folder is made, as the CLI makes it
     assert a.env_kwargs()["task_options"] == {"sorting_object": "red_cube"}
     from test_policy import write_dataset  # inputs must open: two real (tiny) datasets
 
     write_dataset(tmp_path / "a.hdf5"), write_dataset(tmp_path / "b.hdf5")
-    t = parse_args(TrainArgs, ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys",
-                               "cube_pose, robot_joint_pos"])
+    t = parse_args(
+        TrainArgs,
+        ["--dataset-path", "a.hdf5", "b.hdf5", "--learning-rate", "0.001", "--obs-keys", "cube_pose, robot_joint_pos"],
+    )
     cfg = t.train_cfg({"default": {"epochs": 7}})
     assert t.datasets() == ["a.hdf5", "b.hdf5"] and cfg["lr"] == 0.001 and cfg["epochs"] == 7
     assert cfg["obs_keys"] == ("cube_pose", "robot_joint_pos") and "batch_size" not in cfg

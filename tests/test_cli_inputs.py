@@ -11,8 +11,10 @@ import pytest
 
 from newton_lab.commands.refusal_cases import CASES, checkpoint_files, make_inputs
 
-CHECK = ("import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); "
-         "sys.exit(rc if 'warp' not in sys.modules and 'torch' not in sys.modules else 99)")
+CHECK = (
+    "import sys; from newton_lab.cli import main; rc = main(sys.argv[1:]); "
+    "sys.exit(rc if 'warp' not in sys.modules and 'torch' not in sys.modules else 99)"
+)
 
 
 @pytest.mark.parametrize("argv,message", CASES, ids=[b[0] for b in CASES])
@@ -36,8 +38,10 @@ def test_the_checkpoint_header_reader_agrees_with_the_checkpoint_format():
     from newton_lab.commands import checkpoint_headers as headers
     from newton_lab.policies import diffusion
 
-    assert (headers.CHECKPOINT_FORMAT, headers.CHECKPOINT_VERSION) == (diffusion.CHECKPOINT_FORMAT,
-                                                                       diffusion.CHECKPOINT_VERSION)
+    assert (headers.CHECKPOINT_FORMAT, headers.CHECKPOINT_VERSION) == (
+        diffusion.CHECKPOINT_FORMAT,
+        diffusion.CHECKPOINT_VERSION,
+    )
 
 
 def test_phases_and_mimic_sources_read_from_source_match_the_registry():
@@ -51,8 +55,9 @@ def test_phases_and_mimic_sources_read_from_source_match_the_registry():
     phases = {t: tuple((p.name, p.task_id) for p in lookup(t).make_cfg({}).phases) for t in list_tasks()}
     assert declared_phases() == {t: p for t, p in phases.items() if p}
     assert declared_sources() == {t: lookup(t).source_task for t in list_tasks() if lookup(t).source_task}
-    assert declared_mimic_arms() == {lookup(t).source_task: lookup(t).mimic.arm for t in list_tasks()
-                                     if lookup(t).source_task}
+    assert declared_mimic_arms() == {
+        lookup(t).source_task: lookup(t).mimic.arm for t in list_tasks() if lookup(t).source_task
+    }
 
 
 def tree(root: Path) -> dict[str, tuple[int, int]]:
@@ -65,8 +70,20 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     the dataset holds, and that episode stays readable."""
     from newton_lab.datasets import read_dataset_info, read_episode
 
-    argv = ["collect", "--episodes", "4", "--num-envs", "1", "--max-steps", "5", "--dataset-path", "d.hdf5",
-            "--no-progress", "--cameras", "none"]
+    argv = [
+        "collect",
+        "--episodes",
+        "4",
+        "--num-envs",
+        "1",
+        "--max-steps",
+        "5",
+        "--dataset-path",
+        "d.hdf5",
+        "--no-progress",
+        "--cameras",
+        "none",
+    ]
     # A writer queue of one episode makes every batch one episode: with the default queue, a writer thread that
     # the OS schedules late takes episodes 1 and 2 as one batch, and the fault then rolls both back.
     # The fault is armed by this launcher through the writers' seam: the 140th write is inside the second episode's.
@@ -83,12 +100,15 @@ def test_disk_full_during_collect_ends_in_one_line_exit_1(tmp_path):
     assert read_episode(tmp_path / "d.hdf5", 0)["actions"].shape[0] == 5
 
 
-@pytest.mark.parametrize("device, devices, words", [
-    ("cuda:2", 2, "--device cuda:2: this machine has 2 CUDA devices (cuda:0 to cuda:1); use one of them or cpu"),
-    ("cuda:1", 1, "--device cuda:1: this machine has 1 CUDA device (cuda:0); use one of them or cpu"),
-    ("cuda", 0, "--device cuda: no CUDA device here (the driver shows no device); use --device cpu"),
-    ("cuda:0", "no NVIDIA driver: libcuda.so.1 not found", "(no NVIDIA driver: libcuda.so.1 not found)"),
-])
+@pytest.mark.parametrize(
+    "device, devices, words",
+    [
+        ("cuda:2", 2, "--device cuda:2: this machine has 2 CUDA devices (cuda:0 to cuda:1); use one of them or cpu"),
+        ("cuda:1", 1, "--device cuda:1: this machine has 1 CUDA device (cuda:0); use one of them or cpu"),
+        ("cuda", 0, "--device cuda: no CUDA device here (the driver shows no device); use --device cpu"),
+        ("cuda:0", "no NVIDIA driver: libcuda.so.1 not found", "(no NVIDIA driver: libcuda.so.1 not found)"),
+    ],
+)
 def test_a_cuda_device_the_machine_lacks_is_refused(device, devices, words):
     """The GPU side of the device check (CI has no GPU): what the driver's count gives."""
     from newton_lab.commands.device_checks import check_cuda_device
@@ -107,8 +127,10 @@ def test_the_device_count_comes_from_the_driver_in_a_child_process():
 
     answer = cuda_devices()
     assert isinstance(answer, int) or "libcuda.so.1" in answer or "CUDA error" in answer, answer
-    code = ("from newton_lab.commands.device_checks import cuda_devices; cuda_devices(); "
-            "print('libcuda.so' in open('/proc/self/maps').read())")
+    code = (
+        "from newton_lab.commands.device_checks import cuda_devices; cuda_devices(); "
+        "print('libcuda.so' in open('/proc/self/maps').read())"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -20,8 +20,9 @@ from newton_lab.datasets.zarr.nodes import inodes_of
 @pytest.mark.parametrize("suffix", [".hdf5", ".zarr"])
 def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
     path = tmp_path / f"demos{suffix}"
-    summary = pick_env.collect(agent=PlannerAgent.from_task(pick_env.task_id), episodes=3, path=path,
-                               max_steps=400, progress=False)
+    summary = pick_env.collect(
+        agent=PlannerAgent.from_task(pick_env.task_id), episodes=3, path=path, max_steps=400, progress=False
+    )
     assert summary["episodes"] == 3 and summary["successes"] == 3 and summary["success_rate"] == 1.0
     assert summary["termination_reasons"] == {"success": 3} and len(summary["saved_demo_ids"]) == 3
     assert summary["subtask_signals"] == {"grasped_cube": 3}  # every expert episode grasped the cube
@@ -55,17 +56,35 @@ def test_collect_writes_the_robomimic_layout(pick_env, tmp_path, suffix):
     # the recorded observation of the cube is the recorded state of the cube
     np.testing.assert_allclose(ep["obs"]["cube_pose"], cube, atol=1e-6)
     # appending to the same dataset continues the ids
-    more = pick_env.collect(agent=PlannerAgent.from_task(pick_env.task_id), episodes=1, path=path, max_steps=400,
-                            progress=False)
+    more = pick_env.collect(
+        agent=PlannerAgent.from_task(pick_env.task_id), episodes=1, path=path, max_steps=400, progress=False
+    )
     assert more["saved_demo_ids"] == [3] and read_dataset_info(path)["num_demos"] == 4
 
 
 @pytest.mark.slow
 def test_sigkill_mid_collection_keeps_finished_episodes(tmp_path):
     path = tmp_path / "killed.hdf5"
-    cmd = [sys.executable, "-m", "newton_lab.cli", "collect", "--task", "GalbotG1-PickCube-v0", "--episodes", "200",
-           "--num-envs", "1", "--randomize", "--device", "cpu", "--no-progress", "--cameras", "none",
-           "--dataset-path", str(path)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "newton_lab.cli",
+        "collect",
+        "--task",
+        "GalbotG1-PickCube-v0",
+        "--episodes",
+        "200",
+        "--num-envs",
+        "1",
+        "--randomize",
+        "--device",
+        "cpu",
+        "--no-progress",
+        "--cameras",
+        "none",
+        "--dataset-path",
+        str(path),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     seen = 0
     try:
@@ -118,8 +137,11 @@ def test_collect_refuses_a_zarr_run_the_inodes_cannot_hold(pick_env, tmp_path, m
     import newton_lab.datasets.zarr.inodes as room
 
     real = os.statvfs(tmp_path)
-    free = type("Stat", (), {"f_files": 10_000, "f_favail": 500, "f_ffree": 500, "f_bavail": real.f_bavail,
-                             "f_frsize": real.f_frsize})
+    free = type(
+        "Stat",
+        (),
+        {"f_files": 10_000, "f_favail": 500, "f_ffree": 500, "f_bavail": real.f_bavail, "f_frsize": real.f_frsize},
+    )
     monkeypatch.setattr(room.os, "statvfs", lambda p: free)
     path = tmp_path / "big.zarr"
     with pytest.raises(ValueError) as exc:
@@ -142,8 +164,9 @@ def test_interrupted_collect_still_writes_the_finished_episodes(pick_env, tmp_pa
             raise error("stop")
 
     with pytest.raises(error):
-        pick_env.collect(agent=ZeroAgent(), episodes=20, path=path, max_steps=2, progress=False,
-                         on_step=stop_after_five)
+        pick_env.collect(
+            agent=ZeroAgent(), episodes=20, path=path, max_steps=2, progress=False, on_step=stop_after_five
+        )
     info = read_dataset_info(path)  # two steps of two rows ended twice before the interrupt
     assert info["demo_ids"] == [0, 1, 2, 3] and info["total"] == 8
     for demo in info["demo_ids"]:

@@ -50,8 +50,9 @@ def test_a_put_that_waits_for_room_has_the_queue_written_below_min_batch(tmp_pat
     try:
         first = bg.put_many([(make_episode(s, steps=5), True, None) for s in range(2)])
         done: list = []
-        third = threading.Thread(target=lambda: done.append(bg.put(make_episode(2, steps=5), success=True)),
-                                 daemon=True)
+        third = threading.Thread(
+            target=lambda: done.append(bg.put(make_episode(2, steps=5), success=True)), daemon=True
+        )
         third.start()  # no room for its bytes: the two queued go now, although fewer than min_batch
         third.join(30)
         assert not third.is_alive() and [f.result(timeout=30) for f in first] == [0, 1]
@@ -93,27 +94,53 @@ def test_a_packed_batch_on_chunk_threads_reads_back_as_written(tmp_path, threads
 def test_the_bench_collect_summary_names_the_stages_and_the_bound():
     from newton_lab.bench_collect import summary
 
-    out = {"task": "T", "device_name": "NVIDIA H100 80GB HBM3", "num_envs": 4096, "format": ".zarr",
-           "successful_demos": 16384, "wall_s": 10.0, "demos_per_s": 1638.4, "demos_per_hour": 5_898_240.0,
-           "physics_s": 5.0, "agent_s": 2.0, "writer_s": 2.5, "writer_files_s": 1.5, "writer_sync_s": 0.5,
-           "loop_s": 3.0, "hand_over_s": 1.0, "drain_s": 0.2, "vector_steps": 1000, "bytes_per_demo": 118_000.0,
-           "inodes_per_demo": 0.45, "writer_batches": 64, "physics_bound": True, "physics_share": 0.5}
+    out = {
+        "task": "T",
+        "device_name": "NVIDIA H100 80GB HBM3",
+        "num_envs": 4096,
+        "format": ".zarr",
+        "successful_demos": 16384,
+        "wall_s": 10.0,
+        "demos_per_s": 1638.4,
+        "demos_per_hour": 5_898_240.0,
+        "physics_s": 5.0,
+        "agent_s": 2.0,
+        "writer_s": 2.5,
+        "writer_files_s": 1.5,
+        "writer_sync_s": 0.5,
+        "loop_s": 3.0,
+        "hand_over_s": 1.0,
+        "drain_s": 0.2,
+        "vector_steps": 1000,
+        "bytes_per_demo": 118_000.0,
+        "inodes_per_demo": 0.45,
+        "writer_batches": 64,
+        "physics_bound": True,
+        "physics_share": 0.5,
+    }
     text = summary(out)
     assert "1638 demos/s = 5.90 M demos per GPU-hour" in text and "physics 5.00 s (5.00 ms/step)" in text
-    assert "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step; the step is 50 % of the " \
-           "wall)" in text
+    assert (
+        "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step; the step is 50 % of the "
+        "wall)" in text
+    )
     assert "largest stage: physics" in text and "hand-over 1.00 s" in text
 
 
 def _with_repeats(seed: int, steps: int) -> dict:
     """An episode whose ``next_obs`` is its ``obs`` one step on and whose ``datagen/pose`` repeats ``obs/pose``."""
     rng = np.random.default_rng(seed)
-    obs = {"pose": rng.standard_normal((steps + 1, 7)).astype(np.float32),
-           "q": rng.standard_normal((steps + 1, 5)).astype(np.float32)}
-    return {"actions": rng.standard_normal((steps, 3)).astype(np.float32),
-            "obs": {k: v[:-1].copy() for k, v in obs.items()}, "next_obs": {k: v[1:].copy() for k, v in obs.items()},
-            "datagen": {"pose": obs["pose"][:-1].copy(), "zero": np.zeros((steps, 2), np.float32)},
-            "other": np.zeros((steps, 2), np.float32)}
+    obs = {
+        "pose": rng.standard_normal((steps + 1, 7)).astype(np.float32),
+        "q": rng.standard_normal((steps + 1, 5)).astype(np.float32),
+    }
+    return {
+        "actions": rng.standard_normal((steps, 3)).astype(np.float32),
+        "obs": {k: v[:-1].copy() for k, v in obs.items()},
+        "next_obs": {k: v[1:].copy() for k, v in obs.items()},
+        "datagen": {"pose": obs["pose"][:-1].copy(), "zero": np.zeros((steps, 2), np.float32)},
+        "other": np.zeros((steps, 2), np.float32),
+    }
 
 
 def test_arrays_that_repeat_others_are_stored_once_and_read_back_byte_identical(tmp_path):
@@ -125,7 +152,9 @@ def test_arrays_that_repeat_others_are_stored_once_and_read_back_byte_identical(
         w.append_episodes([(ep, True, None) for ep in episodes])
     arrays = zarr_packs.read_index(path / "data" / "pack_0")["arrays"]
     assert {k: v for k, v in arrays.items() if isinstance(v, str)} == {
-        "datagen/pose": "same:obs/pose", "next_obs/pose": "next:obs/pose"}
+        "datagen/pose": "same:obs/pose",
+        "next_obs/pose": "next:obs/pose",
+    }
     for s, got in enumerate(read_episodes(path, range(5))):
         _assert_bytes_equal(got, episodes[s], f"demo {s}")
     picked = next(read_episodes(path, [2], keys=["next_obs/pose", "datagen/pose"]))  # without their source asked

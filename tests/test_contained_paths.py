@@ -15,9 +15,15 @@ from newton_lab.datasets.files.inside_root import OutsidePathError, contained
 from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3
 
 TASK = "GalbotG1-PickCube-v0"
-ENV_ARGS = {"env_kwargs": {"num_envs": 1, "seed": 0},
-            "newton_lab": {"sim_dt": 0.01, "decimation": 5, "action_joint_names": [f"j{i}" for i in range(8)],
-                           "obs_terms": {"tcp_pose": [0, 7], "actions": [7, 15]}}}
+ENV_ARGS = {
+    "env_kwargs": {"num_envs": 1, "seed": 0},
+    "newton_lab": {
+        "sim_dt": 0.01,
+        "decimation": 5,
+        "action_joint_names": [f"j{i}" for i in range(8)],
+        "obs_terms": {"tcp_pose": [0, 7], "actions": [7, 15]},
+    },
+}
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -56,10 +62,13 @@ def _dataset(path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("key, template", [
-    ("data_path", "data/../../outside/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"),
-    ("data_path", "/tmp/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"),
-])
+@pytest.mark.parametrize(
+    "key, template",
+    [
+        ("data_path", "data/../../outside/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"),
+        ("data_path", "/tmp/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"),
+    ],
+)
 def test_lerobot_info_templates_stay_inside_the_root(tmp_path, key, template):
     root = tmp_path / "export"
     export_lerobot(_dataset(tmp_path / "src.hdf5"), root)

@@ -65,8 +65,11 @@ def _quiet_warp():
 
 
 def table() -> str:
-    lines = [f"crash campaign: NEWTON_LAB_CRASH_KILLS={KILLS}, NEWTON_LAB_CRASH_SEED={SEED}",
-             "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines = [
+        f"crash campaign: NEWTON_LAB_CRASH_KILLS={KILLS}, NEWTON_LAB_CRASH_SEED={SEED}",
+        "| " + " | ".join(COLUMNS) + " |",
+        "|" + "---|" * len(COLUMNS),
+    ]
     lines += ["| " + " | ".join(str(row.get(c, "")) for c in COLUMNS) + " |" for row in REPORT.values()]
     return "\n".join(lines) + "\n"
 
@@ -158,14 +161,16 @@ def _kill_tree(proc: subprocess.Popen) -> None:
     assert not any(_alive(pid) for pid in tree), f"processes {tree} outlived SIGKILL"
 
 
-def run_cli(args: list[str], log: Path, *, kill_at: float | None = None,
-            first_output: Callable[[], bool] | None = None) -> Run:
+def run_cli(
+    args: list[str], log: Path, *, kill_at: float | None = None, first_output: Callable[[], bool] | None = None
+) -> Run:
     """Run ``newton-lab <args>`` (output to ``log``); SIGKILL its process tree ``kill_at`` seconds after the start
     unless it ended before. A kill after the command printed its JSON summary is no kill (the run completed)."""
     run = Run(args, log)
     with open(log, "wb") as out:
-        proc = subprocess.Popen([*CLI, *args], cwd=log.parent, env=_env(), stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            [*CLI, *args], cwd=log.parent, env=_env(), stdout=out, stderr=subprocess.STDOUT, start_new_session=True
+        )
     t0, t0_wall = time.monotonic(), time.time()
     try:
         while True:
@@ -180,8 +185,9 @@ def run_cli(args: list[str], log: Path, *, kill_at: float | None = None,
                 break
             if now > RUN_TIMEOUT_S or STOP.is_set():
                 _kill_tree(proc)
-                raise AssertionError(f"newton-lab {' '.join(args)} ran over {RUN_TIMEOUT_S} s or was stopped:\n"
-                                     f"{run.tail()}")
+                raise AssertionError(
+                    f"newton-lab {' '.join(args)} ran over {RUN_TIMEOUT_S} s or was stopped:\n{run.tail()}"
+                )
             time.sleep(0.02)
     finally:
         if proc.poll() is None:  # an error in this loop: leave nothing running
@@ -268,8 +274,9 @@ def read_all(path: Path) -> tuple[list[int], list[str]]:
 # --- collect and mimic: append runs on one dataset ------------------------------------------------------------
 
 
-def append_campaign(command: str, args: list[str], path: Path, folder: Path,
-                    added: Callable[[Run], int]) -> dict[str, Any]:
+def append_campaign(
+    command: str, args: list[str], path: Path, folder: Path, added: Callable[[Run], int]
+) -> dict[str, Any]:
     """Measure one uninterrupted run, kill runs at seeded moments (every run appends to ``path``), then one
     uninterrupted run. After each run every demo must read back and no committed demo may be gone; a run that
     completes appends exactly what it reports."""
@@ -301,11 +308,24 @@ def append_campaign(command: str, args: list[str], path: Path, folder: Path,
         ids = now
         if final:
             break
-    row(command, kills=kills, runs=runs + 1, episodes_lost=len(gone), corrupt_files=len(corrupt),
-        resumes_completed=f"{appends_after_kill} appending runs", wall_time_s=round(time.monotonic() - t_start, 1),
-        notes=f"demos committed by the killed runs (of {added(measure)}): {committed_by_killed}")
-    return {"path": path, "kills": kills, "gone": gone, "corrupt": corrupt, "demos": len(ids),
-            "appends_after_kill": appends_after_kill}
+    row(
+        command,
+        kills=kills,
+        runs=runs + 1,
+        episodes_lost=len(gone),
+        corrupt_files=len(corrupt),
+        resumes_completed=f"{appends_after_kill} appending runs",
+        wall_time_s=round(time.monotonic() - t_start, 1),
+        notes=f"demos committed by the killed runs (of {added(measure)}): {committed_by_killed}",
+    )
+    return {
+        "path": path,
+        "kills": kills,
+        "gone": gone,
+        "corrupt": corrupt,
+        "demos": len(ids),
+        "appends_after_kill": appends_after_kill,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -313,8 +333,25 @@ def collected(tmp_path_factory) -> dict[str, Any]:
     """The collect campaign on an HDF5 dataset (full-length expert episodes: the Mimic source and training data)."""
     folder = tmp_path_factory.mktemp("crash_collect")
     path = folder / "demos.hdf5"
-    args = ["collect", "--task", TASK, "--num-envs", "2", "--episodes", "4", "--max-steps", "300", "--seed", "0",
-            "--randomize", "--no-progress", "--cameras", "none", "--dataset-path", str(path)]
+    args = [
+        "collect",
+        "--task",
+        TASK,
+        "--num-envs",
+        "2",
+        "--episodes",
+        "4",
+        "--max-steps",
+        "300",
+        "--seed",
+        "0",
+        "--randomize",
+        "--no-progress",
+        "--cameras",
+        "none",
+        "--dataset-path",
+        str(path),
+    ]
     return append_campaign("collect", args, path, folder, added=lambda run: run.last_json()["episodes"])
 
 
@@ -331,8 +368,20 @@ def test_collect_survives_sigkill(collected):
 
 def test_mimic_survives_sigkill(collected, tmp_path):
     path = tmp_path / "mimic.zarr"  # the zarr writer (collect covers HDF5)
-    args = ["mimic", "--dataset-path", str(collected["path"]), "--output-path", str(path), "--episodes", "4",
-            "--num-envs", "2", "--seed", "1", "--no-progress"]
+    args = [
+        "mimic",
+        "--dataset-path",
+        str(collected["path"]),
+        "--output-path",
+        str(path),
+        "--episodes",
+        "4",
+        "--num-envs",
+        "2",
+        "--seed",
+        "1",
+        "--no-progress",
+    ]
     assert_nothing_lost(append_campaign("mimic", args, path, tmp_path, added=lambda run: run.last_json()["successes"]))
 
 
@@ -342,8 +391,23 @@ TRAIN_STEPS = 40
 
 
 def train_args(source: Path, out: Path) -> list[str]:
-    return ["train", "--dataset-path", str(source), "--output-dir", str(out), "--preset", "cpu", "--max-steps",
-            str(TRAIN_STEPS), "--batch-size", "32", "--checkpoint-every-steps", "4", "--seed", "0"]
+    return [
+        "train",
+        "--dataset-path",
+        str(source),
+        "--output-dir",
+        str(out),
+        "--preset",
+        "cpu",
+        "--max-steps",
+        str(TRAIN_STEPS),
+        "--batch-size",
+        "32",
+        "--checkpoint-every-steps",
+        "4",
+        "--seed",
+        "0",
+    ]
 
 
 def check_trained(out: Path, checkpoint: Path, resumed_from: list[int]) -> bool:
@@ -366,8 +430,9 @@ def test_train_resumes_after_sigkill(collected, tmp_path):
     source = collected["path"]
     t_start = time.monotonic()
     measured = tmp_path / "measured"
-    measure = finished(run_cli(train_args(source, measured), tmp_path / "measure.log",
-                               first_output=(measured / "resume.pt").exists))
+    measure = finished(
+        run_cli(train_args(source, measured), tmp_path / "measure.log", first_output=(measured / "resume.pt").exists)
+    )
     check_trained(measured, measured / "checkpoint.pt", [])
     window = running_window(measure)
     rng = kill_moments("train")
@@ -382,8 +447,11 @@ def test_train_resumes_after_sigkill(collected, tmp_path):
         assert runs < MAX_RUNS, f"train: only {kills} of {KILLS} runs could be killed in {runs} runs"
         runs += 1
         resumed_runs += resume
-        run = run_cli(train_args(source, out) + ["--resume"] * resume, tmp_path / f"run{runs}.log",
-                      kill_at=None if final else rng.uniform(*window))
+        run = run_cli(
+            train_args(source, out) + ["--resume"] * resume,
+            tmp_path / f"run{runs}.log",
+            kill_at=None if final else rng.uniform(*window),
+        )
         kills += run.killed
         if not resume:  # a resumed run skips the steps done before: it says nothing about a fresh run's length
             window = narrowed(window, run)
@@ -410,9 +478,16 @@ def test_train_resumes_after_sigkill(collected, tmp_path):
         else:
             assert not resume, f"{out}: a resumed run killed at {run.wall_s:.1f} s lost its resume.pt"
     assert kills >= KILLS and resumes_completed >= 1, "no run continued from a resume.pt to its end"
-    row("train", kills=kills, runs=runs + 1, episodes_lost=0, corrupt_files=0,
+    row(
+        "train",
+        kills=kills,
+        runs=runs + 1,
+        episodes_lost=0,
+        corrupt_files=0,
         resumes_completed=f"{resumes_completed} of {resumed_runs} resumed runs",
-        wall_time_s=round(time.monotonic() - t_start, 1), notes=", ".join(leftovers))
+        wall_time_s=round(time.monotonic() - t_start, 1),
+        notes=", ".join(leftovers),
+    )
 
 
 # --- pipeline: re-run after kills --------------------------------------------------------------------------------
@@ -423,8 +498,25 @@ MANIFESTS = {"demos": "collect", "mimic": "mimic", "policy": "train"}
 
 
 def pipeline_args(out: Path) -> list[str]:
-    return ["pipeline", "--task", TASK, "--demos", "2", "--mimic-episodes", "2", "--train-steps", "20",
-            "--eval-episodes", "2", "--num-envs", "2", "--device", "cpu", "--out", str(out)]
+    return [
+        "pipeline",
+        "--task",
+        TASK,
+        "--demos",
+        "2",
+        "--mimic-episodes",
+        "2",
+        "--train-steps",
+        "20",
+        "--eval-episodes",
+        "2",
+        "--num-envs",
+        "2",
+        "--device",
+        "cpu",
+        "--out",
+        str(out),
+    ]
 
 
 def stages_finished(run: Run) -> dict[str, str]:
@@ -463,8 +555,9 @@ def pipeline_campaign(folder: Path) -> dict[str, Any]:
     (in the log of every later run that reaches them, and in the completed run's ``stage_states``)."""
     t_start = time.monotonic()
     measured = folder / "measured"
-    measure = finished(run_cli(pipeline_args(measured), folder / "measure.log",
-                               first_output=(measured / "demos.hdf5").exists))
+    measure = finished(
+        run_cli(pipeline_args(measured), folder / "measure.log", first_output=(measured / "demos.hdf5").exists)
+    )
     states = json.loads((measured / "metrics.json").read_text())["stage_states"]
     assert states == {s: ["Completed"] for s in STAGES}, states
     assert (measured / ".prefect").is_dir(), "the embedded Prefect server's state must live under --out"
@@ -483,8 +576,9 @@ def pipeline_campaign(folder: Path) -> dict[str, Any]:
         runs += 1
         run = run_cli(pipeline_args(out), folder / f"run{runs}.log", kill_at=None if final else rng.uniform(*window))
         logged = stages_finished(run)
-        recomputed += [f"run {runs}: {s} {logged[s]}" for s in sorted(done_before & logged.keys())
-                       if logged[s] != "Cached"]
+        recomputed += [
+            f"run {runs}: {s} {logged[s]}" for s in sorted(done_before & logged.keys()) if logged[s] != "Cached"
+        ]
         n, problems = check_artifacts(out)
         lost, corrupt = lost + n, corrupt + problems
         if run.killed:
@@ -504,9 +598,16 @@ def pipeline_campaign(folder: Path) -> dict[str, Any]:
             reruns.append({"states": states, "cached": sorted(done_before)})
         cycle += 1
         out, done_before, cycle_kills = folder / f"run{cycle}", set(), 0
-    row("pipeline", kills=kills, runs=runs + 1, episodes_lost=lost, corrupt_files=len(corrupt),
+    row(
+        "pipeline",
+        kills=kills,
+        runs=runs + 1,
+        episodes_lost=lost,
+        corrupt_files=len(corrupt),
         resumes_completed=f"{len(reruns)} re-runs ({sum(len(r['cached']) for r in reruns)} stages Cached)",
-        wall_time_s=round(time.monotonic() - t_start, 1), notes="; ".join(recomputed))
+        wall_time_s=round(time.monotonic() - t_start, 1),
+        notes="; ".join(recomputed),
+    )
     return {"kills": kills, "lost": lost, "corrupt": corrupt, "recomputed": recomputed, "reruns": reruns}
 
 
@@ -523,8 +624,9 @@ def pipeline_lane(tmp_path_factory):
 @pytest.fixture(scope="module", autouse=True)
 def _pipeline_in_background(request):
     """Start the pipeline campaign with the module's first test when it is selected (not with --serial)."""
-    if not SERIAL and any(item.name == "test_pipeline_rerun_after_sigkill_uses_the_cache"
-                          for item in request.session.items):
+    if not SERIAL and any(
+        item.name == "test_pipeline_rerun_after_sigkill_uses_the_cache" for item in request.session.items
+    ):
         request.getfixturevalue("pipeline_lane")
     yield
 

@@ -58,7 +58,8 @@ def test_flags_override_the_recipe():
     recipe = demo_recipe("cpu")
     kwargs = PipelineArgs().pipeline_kwargs(recipe)
     assert {k: kwargs[k] for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs", "device")} == {
-        k: recipe[k] for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs", "device")}
+        k: recipe[k] for k in ("demos", "mimic_episodes", "eval_episodes", "num_envs", "device")
+    }
     assert kwargs["train_cfg"] == {**recipe["train"], "device": "cpu"}
     given = PipelineArgs(demos=2, mimic_episodes=3, eval_episodes=5, train_steps=7).pipeline_kwargs(recipe)
     assert (given["demos"], given["mimic_episodes"], given["eval_episodes"]) == (2, 3, 5)
@@ -71,20 +72,36 @@ def test_summary_names_every_figure_and_where_to_look(tmp_path, monkeypatch):
     ckpt = tmp_path / "policy" / "checkpoint.pt"
     summary = {
         "task": "GalbotG1-PickCube-v0",
-        "artifacts": {"demos": {"path": "d.hdf5", "metrics": {"episodes": 4, "success_rate": 1.0}},
-                      "mimic": {"path": "m.hdf5", "metrics": {"episodes": 100, "attempts": 104,
-                                                               "generation_success_rate": 100 / 104}},
-                      "checkpoint": {"path": str(ckpt), "metrics": {"final_loss": 0.00361, "steps": 2000,
-                                                                     "wall_time_s": 212.4}}},
-        "evaluation": {"episodes": 20, "successes": 19, "success_rate": 0.95,
-                       "recording": str(tmp_path / "evaluation.rrd")},
+        "artifacts": {
+            "demos": {"path": "d.hdf5", "metrics": {"episodes": 4, "success_rate": 1.0}},
+            "mimic": {
+                "path": "m.hdf5",
+                "metrics": {"episodes": 100, "attempts": 104, "generation_success_rate": 100 / 104},
+            },
+            "checkpoint": {"path": str(ckpt), "metrics": {"final_loss": 0.00361, "steps": 2000, "wall_time_s": 212.4}},
+        },
+        "evaluation": {
+            "episodes": 20,
+            "successes": 19,
+            "success_rate": 0.95,
+            "recording": str(tmp_path / "evaluation.rrd"),
+        },
     }
     text = "\n".join(summary_lines(summary, tmp_path, "cpu"))
-    for part in ("(cpu recipe)", "4 collected, 100% success", "100 demos generated from 104 attempts (96% success)",
-                 "2000 steps, 212 s, final loss 0.0036", "95.0% success over 20 held-out randomised evaluation",
-                 "(19 succeeded)", str(tmp_path / "metrics.json"), str(ckpt), "evaluation.rrd (open it with: rerun",
-                 f"PREFECT_HOME={tmp_path / '.prefect'} PREFECT_SERVER_UI_ENABLED=true", "server start",
-                 "http://127.0.0.1:4200"):
+    for part in (
+        "(cpu recipe)",
+        "4 collected, 100% success",
+        "100 demos generated from 104 attempts (96% success)",
+        "2000 steps, 212 s, final loss 0.0036",
+        "95.0% success over 20 held-out randomised evaluation",
+        "(19 succeeded)",
+        str(tmp_path / "metrics.json"),
+        str(ckpt),
+        "evaluation.rrd (open it with: rerun",
+        f"PREFECT_HOME={tmp_path / '.prefect'} PREFECT_SERVER_UI_ENABLED=true",
+        "server start",
+        "http://127.0.0.1:4200",
+    ):
         assert part in text, (part, text)
     monkeypatch.setenv("PREFECT_API_URL", "http://prefect.lab:4200/api")
     del summary["evaluation"]["recording"]

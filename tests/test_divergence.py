@@ -26,7 +26,7 @@ def test_reason_codes_match_their_names(pick_env):
     assert names[: len(BUILTIN_TERMINATION_REASONS)] == list(BUILTIN_TERMINATION_REASONS)
     assert names[fuse.REASON_SUCCESS] == "success" and names[fuse.REASON_TIME_OUT] == "time_out"
     assert names[fuse.REASON_DIVERGED] == DIVERGED and fuse.FIRST_FAILURE_REASON == len(BUILTIN_TERMINATION_REASONS)
-    assert names[fuse.FIRST_FAILURE_REASON:] == list(pick_env.cfg.terminations)
+    assert names[fuse.FIRST_FAILURE_REASON :] == list(pick_env.cfg.terminations)
     assert pick_env.cfg.divergence_bounds == (50.0, 100.0, 1000.0)
     term = next(iter(pick_env.cfg.terminations.values()))
     cfg = dataclasses.replace(pick_env.cfg, terminations={DIVERGED: term})
@@ -208,9 +208,9 @@ def test_finite_state_beyond_the_bounds_is_diverged(pick_env, case):
         q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
         qd = wp.to_torch(env.state.joint_qd).view(env.num_envs, -1)
         coord, dof = env.task.entities["cube"].coord, _cube_dof(env)
-        q[1, coord:coord + 3] = torch.tensor(pos, dtype=q.dtype)
+        q[1, coord : coord + 3] = torch.tensor(pos, dtype=q.dtype)
         if twist is not None:
-            qd[1, dof:dof + 6] = torch.tensor(twist, dtype=qd.dtype)
+            qd[1, dof : dof + 6] = torch.tensor(twist, dtype=qd.dtype)
         count = env.buffers.episode_count.clone()
         _, _, terminated, _, info = env.step(env.current_action())
         reasons = [env.task.termination_reasons[int(r)] for r in info["termination_reason"]]

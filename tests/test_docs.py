@@ -52,8 +52,14 @@ def _parse(path: Path) -> _Links:
 def site(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("site")
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
-    proc = subprocess.run([str(BIN / "mkdocs"), "build", "--strict", "-d", str(out)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [str(BIN / "mkdocs"), "build", "--strict", "-d", str(out)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, log[-5000:]
     assert "WARNING" not in log, log[-5000:]
@@ -135,8 +141,11 @@ def test_pictures_are_small_and_used():
         assert f"images/{picture.name}" in text, f"{picture} is on no page"
 
 
-RUNNABLE = [str(p.relative_to(ROOT)) for p in docs_snippets.pages()
-            if any(s.check_only is None for s in docs_snippets.snippets(p)) and not docs_snippets.in_copy(p)]
+RUNNABLE = [
+    str(p.relative_to(ROOT))
+    for p in docs_snippets.pages()
+    if any(s.check_only is None for s in docs_snippets.snippets(p)) and not docs_snippets.in_copy(p)
+]
 """Pages run here, in one process from empty folders; a page that runs in a scratch copy of the repository (the
 tutorial's first chapter) has a test file of its own (tests/test_tutorial_simple_task.py)."""
 
@@ -147,9 +156,23 @@ def runs(tmp_path_factory) -> dict[str, dict]:
     work = tmp_path_factory.mktemp("docs_run")
     out = work / "results.json"
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
-    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "docs_snippets.py"), "run", *RUNNABLE, "--workdir",
-                           str(work), "--json", str(out)], cwd=work, env=env, capture_output=True, text=True,
-                          timeout=900)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "tools" / "docs_snippets.py"),
+            "run",
+            *RUNNABLE,
+            "--workdir",
+            str(work),
+            "--json",
+            str(out),
+        ],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert out.is_file(), (proc.stdout + proc.stderr)[-5000:]
     return {r["page"]: r for r in json.loads(out.read_text())}
 

@@ -19,10 +19,12 @@ import docs_hooks  # noqa: E402
 import docs_tables  # noqa: E402
 
 SUBJECT = re.compile(r"`make demo`|make demo\b|`make test`|make test\b|\b(?:the|test|whole) suite\b", re.I)
-DURATION = re.compile(r"\b\d+(?:[.,]\d+)?\s*(?:minutes?|mins?|hours?|seconds?|s|h)\b|\b\d+:\d\d\b|"
-                      r"\b(?:a|an|one|two|three|four|five|ten|fifteen|twenty|few)\s+(?:minutes?|hours?)\b|"
-                      r"\b(?:two|three|four|five|ten|fifteen|twenty|few)\s+seconds\b",
-                      re.I)
+DURATION = re.compile(
+    r"\b\d+(?:[.,]\d+)?\s*(?:minutes?|mins?|hours?|seconds?|s|h)\b|\b\d+:\d\d\b|"
+    r"\b(?:a|an|one|two|three|four|five|ten|fifteen|twenty|few)\s+(?:minutes?|hours?)\b|"
+    r"\b(?:two|three|four|five|ten|fifteen|twenty|few)\s+seconds\b",
+    re.I,
+)
 GENERATED = re.compile(r"<!-- results: generated.*?<!-- results: end -->", re.S)
 
 
@@ -109,8 +111,10 @@ def test_the_readme_states_the_recipes_sizes():
 
     text = " ".join((ROOT / "README.md").read_text().split())
     cpu, gpu = DEMO_RECIPES["cpu"], DEMO_RECIPES["gpu"]
-    assert (f"cpu recipe — {cpu['demos']} expert demos, {cpu['mimic_episodes']} Mimic demos" in text
-            and f"{cpu['eval_episodes']} held-out randomised evaluation episodes" in text), "README's cpu recipe"
+    assert (
+        f"cpu recipe — {cpu['demos']} expert demos, {cpu['mimic_episodes']} Mimic demos" in text
+        and f"{cpu['eval_episodes']} held-out randomised evaluation episodes" in text
+    ), "README's cpu recipe"
     assert f"{gpu['demos']} expert demos grown to {gpu['mimic_episodes']} by Mimic" in text, "README's gpu recipe"
 
 
@@ -141,11 +145,20 @@ def test_the_front_pages_give_the_demo_figures_of_the_records():
     assert "make demo" in (ROOT / "docs" / "pipelines.md").read_text()
 
 
-NUMBER_WORDS = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "ten": 10, "fifteen": 15,
-                "twenty": 20, "thirty": 30}
+NUMBER_WORDS = {
+    "one": 1,
+    "two": 2,
+    "three": 3,
+    "four": 4,
+    "five": 5,
+    "six": 6,
+    "ten": 10,
+    "fifteen": 15,
+    "twenty": 20,
+    "thirty": 30,
+}
 UNIT_S = {"second": 1, "seconds": 1, "s": 1, "minute": 60, "minutes": 60, "min": 60, "hour": 3600, "hours": 3600}
-STATED_TIME = re.compile(r"\b(\d+(?:\.\d+)?|few|" + "|".join(NUMBER_WORDS) + r")\s+(" + "|".join(UNIT_S) + r")\b",
-                         re.I)
+STATED_TIME = re.compile(r"\b(\d+(?:\.\d+)?|few|" + "|".join(NUMBER_WORDS) + r")\s+(" + "|".join(UNIT_S) + r")\b", re.I)
 PROSE_ONLY = re.compile(r"```.*?```|<!--.*?-->|`[^`\n]*`", re.S)
 
 

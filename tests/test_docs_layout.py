@@ -51,9 +51,12 @@ def test_tutorial_code_blocks_are_narrow(page):
     wide = []
     for m in docs_snippets.FENCE.finditer(text):
         code = docs_snippets.INCLUDE.sub(lambda f: (ROOT / f.group(1)).read_text(), m.group(3))
-        line = text[:m.start()].count("\n") + 1
-        wide += [f"{page.name}:{line}: {len(row)} characters: {row[:60]}..." for row in code.splitlines()
-                 if len(row) > MAX_COLUMNS]
+        line = text[: m.start()].count("\n") + 1
+        wide += [
+            f"{page.name}:{line}: {len(row)} characters: {row[:60]}..."
+            for row in code.splitlines()
+            if len(row) > MAX_COLUMNS
+        ]
     assert not wide, "\n".join(wide)
 
 
@@ -65,8 +68,15 @@ def test_at_1280_px_no_tutorial_block_scrolls_and_nothing_external_loads(tmp_pat
         missing_tool("Chromium is not installed (apt-get install chromium); it measures the built pages' layout")
     bin_dir = Path(sys.executable).parent
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "PATH": f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"}
-    proc = subprocess.run([str(bin_dir / "mkdocs"), "build", "--strict", "-d", str(tmp_path)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=600, check=False)
+    proc = subprocess.run(
+        [str(bin_dir / "mkdocs"), "build", "--strict", "-d", str(tmp_path)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
     pages = ["tutorial", *(f"tutorial/{p.stem}" for p in TUTORIAL if p.stem != "index"), "index", "contributing"]
     for page in pages:

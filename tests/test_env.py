@@ -45,8 +45,17 @@ def test_step_is_one_captured_graph(pick_env):
     assert pick_env.sim.step_graph is not None
 
 
-STEP_INFO_KEYS = ("success", "success_latched", "done", "termination_reason", "episode_length", "phase", "signals",
-                  "step_signals", "command")
+STEP_INFO_KEYS = (
+    "success",
+    "success_latched",
+    "done",
+    "termination_reason",
+    "episode_length",
+    "phase",
+    "signals",
+    "step_signals",
+    "command",
+)
 
 
 def _step_outputs(env, out) -> dict[str, torch.Tensor]:
@@ -54,10 +63,17 @@ def _step_outputs(env, out) -> dict[str, torch.Tensor]:
     and the state reached (the next step overwrites the views)."""
     obs, reward, terminated, truncated, info = out
     assert set(STEP_INFO_KEYS) == set(info), "a new info entry: compare it below too"
-    got = {"obs": obs, "reward": reward, "terminated": terminated, "truncated": truncated,
-           "final_obs": env.buffers.final_obs, "joint_q": wp.to_torch(env.state.joint_q),
-           "episode_count": env.buffers.episode_count,
-           "entity_poses": env.buffers.entity_poses, "tcp_pose": env.buffers.tcp_pose}
+    got = {
+        "obs": obs,
+        "reward": reward,
+        "terminated": terminated,
+        "truncated": truncated,
+        "final_obs": env.buffers.final_obs,
+        "joint_q": wp.to_torch(env.state.joint_q),
+        "episode_count": env.buffers.episode_count,
+        "entity_poses": env.buffers.entity_poses,
+        "tcp_pose": env.buffers.tcp_pose,
+    }
     got.update({f"info[{k}]": info[k] for k in STEP_INFO_KEYS})
     return {k: (v.clone() if isinstance(v, torch.Tensor) else torch.as_tensor(np.array(v))) for k, v in got.items()}
 
@@ -88,8 +104,9 @@ def test_captured_step_matches_eager(pick_env, eager_env):
         eager = _step_outputs(eager_env, eager_env.step(a.clone()))
         for key, value in captured.items():
             if value.dtype.is_floating_point:
-                torch.testing.assert_close(value, eager[key], atol=1e-5, rtol=0,
-                                           msg=lambda m, k=key, t=t: f"step {t} {k}: {m}")
+                torch.testing.assert_close(
+                    value, eager[key], atol=1e-5, rtol=0, msg=lambda m, k=key, t=t: f"step {t} {k}: {m}"
+                )
             else:
                 assert torch.equal(value, eager[key]), f"step {t} {key}: {value.tolist()} != {eager[key].tolist()}"
         seen["terminated"] += int(captured["terminated"].sum())
@@ -105,8 +122,12 @@ def test_captured_step_matches_eager_with_an_exchange_every_substep():
     stepping does, so the arm reaches the same coordinates on both."""
     task = "GalbotG1-PickCube-v0"
     physics = dataclasses.replace(lookup(task).make_cfg({}).physics, sync_every_substep=True)
-    captured, eager = (make_env(task, num_envs=1, device="cpu", seed=3, randomize=True, cameras=False,
-                                physics=physics, capture=capture) for capture in (True, False))
+    captured, eager = (
+        make_env(
+            task, num_envs=1, device="cpu", seed=3, randomize=True, cameras=False, physics=physics, capture=capture
+        )
+        for capture in (True, False)
+    )
     assert captured.sim.step_graph is not None and eager.sim.step_graph is None
     assert captured.sim.physics_exchange == eager.sim.physics_exchange == "substep"
     start = _q(captured)
@@ -125,8 +146,14 @@ def test_step_returns_views_of_warp_buffers(pick_env):
     assert obs.data_ptr() == wp.to_torch(pick_env.buffers.arrays.obs).data_ptr()
     assert reward.data_ptr() == wp.to_torch(pick_env.buffers.arrays.reward).data_ptr()
     assert obs.shape == (2, pick_env.task.obs_dim) and terminated.dtype == torch.bool
-    assert set(pick_env.task.obs_terms) == {"actions", "robot_joint_pos", "tcp_pose", "gripper_pos", "cube_pose",
-                                       "blue_block_pos"}
+    assert set(pick_env.task.obs_terms) == {
+        "actions",
+        "robot_joint_pos",
+        "tcp_pose",
+        "gripper_pos",
+        "cube_pose",
+        "blue_block_pos",
+    }
 
 
 def test_reset_touches_only_selected_rows(pick_env):
@@ -193,10 +220,12 @@ def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
     import subprocess
     import sys
 
-    code = ("import sys, threading\nfrom newton_lab.envs import prefetch\n"
-            "assert 'mujoco_warp' not in sys.modules, 'imported earlier: the test would prove nothing'\n"
-            "threading.Thread.start = lambda self: None\nprefetch.prefetch_kernels('cpu')\n"
-            "assert hasattr(sys.modules['mujoco_warp'], 'OverflowType')\n")
+    code = (
+        "import sys, threading\nfrom newton_lab.envs import prefetch\n"
+        "assert 'mujoco_warp' not in sys.modules, 'imported earlier: the test would prove nothing'\n"
+        "threading.Thread.start = lambda self: None\nprefetch.prefetch_kernels('cpu')\n"
+        "assert hasattr(sys.modules['mujoco_warp'], 'OverflowType')\n"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
 

@@ -21,8 +21,14 @@ SMALL = ["--device", "cpu", "--no-progress"]
 
 def run_example(name: str, *args: str | Path, stdin: str = "") -> list[str]:
     """Run ``examples/<name>`` (must exit 0) with ``stdin`` as its input; its stdout lines."""
-    proc = subprocess.run([sys.executable, str(EXAMPLES / name), *map(str, args)], check=True, capture_output=True,
-                          text=True, timeout=300, input=stdin)
+    proc = subprocess.run(
+        [sys.executable, str(EXAMPLES / name), *map(str, args)],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        input=stdin,
+    )
     return proc.stdout.strip().splitlines()
 
 
@@ -42,24 +48,65 @@ def work(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def collected(work):
     path = work / "demos.hdf5"
-    out = last_json(run_example("01_collect.py", "--task", "GalbotG1-PickCube-v0", "--episodes", "2", "--num-envs", "2",
-                                "--randomize", "--cameras", "none", "--dataset-path", path, *SMALL))
+    out = last_json(
+        run_example(
+            "01_collect.py",
+            "--task",
+            "GalbotG1-PickCube-v0",
+            "--episodes",
+            "2",
+            "--num-envs",
+            "2",
+            "--randomize",
+            "--cameras",
+            "none",
+            "--dataset-path",
+            path,
+            *SMALL,
+        )
+    )
     return path, out
 
 
 @pytest.fixture(scope="module")
 def generated(work, collected):
     path = work / "mimic.hdf5"
-    lines = run_example("02_mimic.py", "--task", "GalbotG1-PickCube-v0", "--dataset-path", collected[0],
-                        "--output-path", path, "--episodes", "2", "--num-envs", "2", *SMALL)
+    lines = run_example(
+        "02_mimic.py",
+        "--task",
+        "GalbotG1-PickCube-v0",
+        "--dataset-path",
+        collected[0],
+        "--output-path",
+        path,
+        "--episodes",
+        "2",
+        "--num-envs",
+        "2",
+        *SMALL,
+    )
     return path, lines
 
 
 @pytest.fixture(scope="module")
 def trained(work, generated):
-    lines = run_example("03_train.py", "--task", "GalbotG1-PickCube-v0", "--dataset-path", generated[0],
-                        "--output-dir", work / "policy", "--preset", "cpu", "--max-steps", "3", "--batch-size", "8",
-                        "--device", "cpu")
+    lines = run_example(
+        "03_train.py",
+        "--task",
+        "GalbotG1-PickCube-v0",
+        "--dataset-path",
+        generated[0],
+        "--output-dir",
+        work / "policy",
+        "--preset",
+        "cpu",
+        "--max-steps",
+        "3",
+        "--batch-size",
+        "8",
+        "--device",
+        "cpu",
+    )
     return lines
 
 
@@ -84,8 +131,18 @@ def test_03_train_writes_a_checkpoint(work, trained):
 
 
 def test_04_eval_prints_the_success_rate(work, trained):
-    lines = run_example("04_eval.py", "--checkpoint", work / "policy" / "checkpoint.pt", "--episodes", "2",
-                        "--num-envs", "2", "--max-steps", "30", *SMALL)
+    lines = run_example(
+        "04_eval.py",
+        "--checkpoint",
+        work / "policy" / "checkpoint.pt",
+        "--episodes",
+        "2",
+        "--num-envs",
+        "2",
+        "--max-steps",
+        "30",
+        *SMALL,
+    )
     rate = re.fullmatch(r"success rate: (\d\.\d{3}) \((\d)/2\)", lines[-2])
     out = last_json(lines)
     assert rate and out["episodes"] == 2 and float(rate[1]) == out["success_rate"] and int(rate[2]) == out["successes"]
@@ -93,36 +150,83 @@ def test_04_eval_prints_the_success_rate(work, trained):
 
 
 def test_05_custom_agent_runs_its_episodes():
-    out = last_json(run_example("05_custom_agent.py", "--episodes", "2", "--num-envs", "2", "--max-steps", "30",
-                                *SMALL))
+    out = last_json(
+        run_example("05_custom_agent.py", "--episodes", "2", "--num-envs", "2", "--max-steps", "30", *SMALL)
+    )
     assert out["task"] == "GalbotG1-Reach-v0" and out["episodes"] == 2
     assert sum(out["termination_reasons"].values()) == 2 and 0 < out["average_length"] <= 30
 
 
 def test_06_component_task_saves_its_end_scenario(tmp_path):
     path, scenario = tmp_path / "pick.hdf5", tmp_path / "pick_end.yaml"
-    out = last_json(run_example("06_collect_component_task.py", "--episodes", "1", "--num-envs", "1",
-                                "--dataset-path", path, "--save-end-scenario", scenario, "--cameras", "none",
-                                *SMALL))
+    out = last_json(
+        run_example(
+            "06_collect_component_task.py",
+            "--episodes",
+            "1",
+            "--num-envs",
+            "1",
+            "--dataset-path",
+            path,
+            "--save-end-scenario",
+            scenario,
+            "--cameras",
+            "none",
+            *SMALL,
+        )
+    )
     assert out["task"] == "GalbotG1-PickToShelf-Pick-v0" and out["episodes"] == 1 and num_demos(path) == 1
     assert out["saved_end_scenario_path"] == str(scenario) and scenario.read_text().strip()
 
 
 def test_07_coherent_task_collects_an_episode(tmp_path):
     path = tmp_path / "coherent.hdf5"
-    out = last_json(run_example("07_coherent_task.py", "--mode", "collect", "--episodes", "1", "--num-envs", "1",
-                                "--max-steps", "40", "--dataset-path", path, "--cameras", "none", *SMALL))
+    out = last_json(
+        run_example(
+            "07_coherent_task.py",
+            "--mode",
+            "collect",
+            "--episodes",
+            "1",
+            "--num-envs",
+            "1",
+            "--max-steps",
+            "40",
+            "--dataset-path",
+            path,
+            "--cameras",
+            "none",
+            *SMALL,
+        )
+    )
     assert out["task"] == "GalbotG1-PickToShelf-v0" and out["episodes"] == 1 and num_demos(path) == 1
 
 
 def test_08_teleop_keeps_a_replayed_episode(collected, tmp_path):
     path = tmp_path / "teleop.hdf5"
-    out = last_json(run_example("08_teleop.py", "--device", "replay", "--replay-dataset", collected[0], "--seed", "0",
-                                "--randomize", "--no-realtime", "--cameras", "none", "--sim-device", "cpu",
-                                "--dataset-path", path, stdin="keep\nexit\n"))
+    out = last_json(
+        run_example(
+            "08_teleop.py",
+            "--device",
+            "replay",
+            "--replay-dataset",
+            collected[0],
+            "--seed",
+            "0",
+            "--randomize",
+            "--no-realtime",
+            "--cameras",
+            "none",
+            "--sim-device",
+            "cpu",
+            "--dataset-path",
+            path,
+            stdin="keep\nexit\n",
+        )
+    )
     assert out["kept_demo_ids"] == [0] and out["dropped_demo_ids"] == [1] and num_demos(path) == 1
 
 
 def test_every_example_is_smoke_tested():
-    tested = {name[len("test_"):].split("_")[0] for name in globals() if re.match(r"test_\d\d_", name)}
+    tested = {name[len("test_") :].split("_")[0] for name in globals() if re.match(r"test_\d\d_", name)}
     assert {p.name[:2] for p in EXAMPLES.glob("0*.py")} == tested

@@ -24,8 +24,11 @@ def _cases() -> list[tuple[str, dict]]:
     return cases
 
 
-@pytest.mark.parametrize(("task_id", "options"), _cases(), ids=lambda v: v if isinstance(v, str) else
-                         "-".join(map(str, v.values())) or "default")
+@pytest.mark.parametrize(
+    ("task_id", "options"),
+    _cases(),
+    ids=lambda v: v if isinstance(v, str) else "-".join(map(str, v.values())) or "default",
+)
 def test_expert_succeeds_in_every_randomised_episode(task_id, options):
     env = make_env(task_id, num_envs=2, device="cpu", seed=100, randomize=True, task_options=options, cameras=False)
     assert env.sim.step_graph is not None, f"{task_id}: its step is not one captured graph"
@@ -69,9 +72,12 @@ def test_restarted_rows_wait_for_a_batched_plan_holding_their_reset_targets():
     assert (agent._waiting_since >= 0).sum() == 1
     agent.act(env)
     assert (agent._waiting_since < 0).all()  # held for 3 calls: planned alone at the 4th
-    runs = [make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
-        agent=PlannerAgent.from_task(task, replan_batch=batch), episodes=8, max_steps=1500, progress=False)
-        for batch in (None, 4)]
+    runs = [
+        make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
+            agent=PlannerAgent.from_task(task, replan_batch=batch), episodes=8, max_steps=1500, progress=False
+        )
+        for batch in (None, 4)
+    ]
     assert runs[0]["success_rate"] == runs[1]["success_rate"] == 1.0, runs
     # an episode starts over when its plan begins (rollout: PlannerAgent.holding): the wait is not counted
     assert abs(runs[1]["average_length"] - runs[0]["average_length"]) <= 1.0, runs
@@ -106,9 +112,27 @@ def test_the_gather_kernel_takes_the_arm_length_from_its_columns():
     arr = lambda a, t=float: wp.array(np.asarray(a), dtype=t, device="cpu")  # noqa: E731
     way = np.array([[[0.5, 0.6, 0.7, 1.1]]], dtype=np.float32)  # one segment: 3 joints, gripper 1.1
     act = wp.full((1, 6), -9.0, dtype=float, device="cpu")
-    wp.launch(gather_plan_actions, dim=1, device="cpu", inputs=[
-        arr(way), arr(np.zeros((1, 3))), arr([[0]], int), arr([[1]], int), arr([[-1]], int), arr([1], int),
-        arr([1], int), arr([0], int), arr(np.zeros((1, 5))), arr([0, 1, 2], int), 0.01, arr([1, 2, 3], int), 5, act])
+    wp.launch(
+        gather_plan_actions,
+        dim=1,
+        device="cpu",
+        inputs=[
+            arr(way),
+            arr(np.zeros((1, 3))),
+            arr([[0]], int),
+            arr([[1]], int),
+            arr([[-1]], int),
+            arr([1], int),
+            arr([1], int),
+            arr([0], int),
+            arr(np.zeros((1, 5))),
+            arr([0, 1, 2], int),
+            0.01,
+            arr([1, 2, 3], int),
+            5,
+            act,
+        ],
+    )
     np.testing.assert_allclose(act.numpy()[0], [-9.0, 0.5, 0.6, 0.7, -9.0, 1.1])
 
 
@@ -130,10 +154,27 @@ def test_a_target_settles_until_the_arm_reaches_it_and_in_full_before_the_grippe
         way[0, 0, :7], way[0, 1, :7] = 0.5, 1.5  # segment 0 moves to 0.5 in 2 frames, segment 1 to 1.5 in 4
         arr = lambda a, t=float: wp.array(np.asarray(a), dtype=t, device="cpu")  # noqa: E731
         cur, act = arr([cursor], int), wp.zeros((1, 8), dtype=float, device="cpu")
-        wp.launch(gather_plan_actions, dim=1, device="cpu", inputs=[
-            arr(way), arr(np.zeros((1, 7))), arr([[0, 14]], int), arr([[2, 4]], int), arr([[settle_at, -1]], int),
-            arr([2], int), arr([18], int), cur, arr(np.full((1, 9), q_now)), arr(np.arange(7), int), 0.01,
-            arr(np.arange(7), int), 7, act])
+        wp.launch(
+            gather_plan_actions,
+            dim=1,
+            device="cpu",
+            inputs=[
+                arr(way),
+                arr(np.zeros((1, 7))),
+                arr([[0, 14]], int),
+                arr([[2, 4]], int),
+                arr([[settle_at, -1]], int),
+                arr([2], int),
+                arr([18], int),
+                cur,
+                arr(np.full((1, 9), q_now)),
+                arr(np.arange(7), int),
+                0.01,
+                arr(np.arange(7), int),
+                7,
+                act,
+            ],
+        )
         return act.numpy()[0, :7], int(cur.numpy()[0])
 
     reached, far = gather(0.495, 2, 2), gather(0.4, 2, 2)
@@ -146,7 +187,11 @@ def test_a_target_settles_until_the_arm_reaches_it_and_in_full_before_the_grippe
     task = "GalbotG1-PickCube-v0"
     expert = PlannerAgent.from_task(task).plan
     fixed = dataclasses.replace(expert, settle_tolerance=0.0)
-    runs = [make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
-        agent=PlannerAgent(plan), episodes=8, max_steps=1500, progress=False) for plan in (expert, fixed)]
+    runs = [
+        make_env(task, num_envs=4, device="cpu", seed=100, randomize=True, cameras=False).evaluate(
+            agent=PlannerAgent(plan), episodes=8, max_steps=1500, progress=False
+        )
+        for plan in (expert, fixed)
+    ]
     assert runs[0]["success_rate"] == runs[1]["success_rate"] == 1.0, runs
     assert runs[0]["average_length"] < runs[1]["average_length"] - 10, runs

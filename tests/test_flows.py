@@ -23,12 +23,40 @@ from stage_faults import SPEC_ENV as FAULT_ENV, armed
 
 pytestmark = pytest.mark.slow
 
-TINY_TRAIN = {"down_dims": [16, 32, 64], "batch_size": 32, "max_steps": 3, "epochs": 1, "warmup_steps": 1,
-              "progress": False}
-TINY = dict(task_id="GalbotG1-PickCube-v0", demos=2, mimic_episodes=2, train_cfg=TINY_TRAIN, eval_episodes=2,
-            num_envs=2, device="cpu", eval_max_steps=10)
-TINY_CLI = ["--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-episodes", "2", "--train-steps", "3",
-            "--eval-episodes", "2", "--num-envs", "2", "--device", "cpu"]
+TINY_TRAIN = {
+    "down_dims": [16, 32, 64],
+    "batch_size": 32,
+    "max_steps": 3,
+    "epochs": 1,
+    "warmup_steps": 1,
+    "progress": False,
+}
+TINY = dict(
+    task_id="GalbotG1-PickCube-v0",
+    demos=2,
+    mimic_episodes=2,
+    train_cfg=TINY_TRAIN,
+    eval_episodes=2,
+    num_envs=2,
+    device="cpu",
+    eval_max_steps=10,
+)
+TINY_CLI = [
+    "--task",
+    "GalbotG1-PickCube-v0",
+    "--demos",
+    "2",
+    "--mimic-episodes",
+    "2",
+    "--train-steps",
+    "3",
+    "--eval-episodes",
+    "2",
+    "--num-envs",
+    "2",
+    "--device",
+    "cpu",
+]
 STAGES = ("collect", "mimic", "train", "evaluate")
 RETRY_STATES = {"AwaitingRetry", "Retrying"}
 
@@ -59,7 +87,8 @@ def task_runs(flow_run_id) -> dict[str, list[tuple[Any, list[str]]]]:
         found: dict[str, list[tuple[Any, list[str]]]] = {}
         for r in runs:
             found.setdefault(r.name.rsplit("-", 1)[0], []).append(
-                (r, [s.name for s in client.read_task_run_states(r.id)]))
+                (r, [s.name for s in client.read_task_run_states(r.id)])
+            )
     return found
 
 
@@ -69,8 +98,9 @@ def artifacts(flow_run_id) -> dict[str, Any]:
     from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterFlowRunId
 
     with get_client(sync_client=True) as client:
-        arts = client.read_artifacts(artifact_filter=ArtifactFilter(flow_run_id=ArtifactFilterFlowRunId(
-            any_=[flow_run_id])))
+        arts = client.read_artifacts(
+            artifact_filter=ArtifactFilter(flow_run_id=ArtifactFilterFlowRunId(any_=[flow_run_id]))
+        )
     return {a.key: json.loads(a.data) if a.type == "table" and isinstance(a.data, str) else a.data for a in arts}
 
 
@@ -106,14 +136,18 @@ def run_cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PREFECT_API_URL": PREFECT_API_URL.value()}
     for key in (FAULT_ENV, "PREFECT_LOGGING_TO_API_ENABLED"):  # a user server ships logs
         env.pop(key, None)
-    return subprocess.run([sys.executable, "-m", "newton_lab.cli", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "newton_lab.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
+    )
 
 
 def error_lines(stderr: str) -> list[str]:
     """stderr without Warp's CUDA-driver notice and start-up banner (printed on hosts without a GPU)."""
-    return [line for line in stderr.splitlines()
-            if line.strip() and not line.startswith(("Warp ", "   ")) and "Kernel cache" not in line]
+    return [
+        line
+        for line in stderr.splitlines()
+        if line.strip() and not line.startswith(("Warp ", "   ")) and "Kernel cache" not in line
+    ]
 
 
 def stale_manifest(folder: Path, name: str = "demos") -> None:
@@ -145,8 +179,12 @@ def run(harness, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("pipeline")
     with armed(f"train:oserror:{tmp / 'train.fault'}"), temporary_settings({PREFECT_LOGGING_TO_API_ENABLED: True}):
         state = pipeline(out=str(tmp / "out"), return_state=True, **TINY)
-    return {"out": tmp / "out", "fault": tmp / "train.fault", "summary": state.result(),
-            "id": state.state_details.flow_run_id}
+    return {
+        "out": tmp / "out",
+        "fault": tmp / "train.fault",
+        "summary": state.result(),
+        "id": state.state_details.flow_run_id,
+    }
 
 
 def test_pipeline_runs_then_is_cached(run):
@@ -176,10 +214,10 @@ def test_transient_error_is_retried(run):
     runs = task_runs(run["id"])
     assert run["fault"].exists(), "the fault seam did not fire"
     assert set(runs) == set(STAGES) and all(len(v) == 1 for v in runs.values()), runs
-    (train, history), = runs["train"]
+    ((train, history),) = runs["train"]
     assert train.state_name == "Completed" and train.run_count == 2 and RETRY_STATES <= set(history), history
     for stage in ("collect", "mimic", "evaluate"):
-        (other, history), = runs[stage]
+        ((other, history),) = runs[stage]
         assert other.run_count == 1 and not RETRY_STATES & set(history), (stage, history)
 
 
@@ -261,8 +299,7 @@ def test_console_leaves_failures_to_the_caller():
     from newton_lab.datasets import DatasetWriteError
 
     def record(name, msg, exc=None):
-        return logging.LogRecord(name, logging.ERROR, __file__, 1, msg, None,
-                                 (type(exc), exc, None) if exc else None)
+        return logging.LogRecord(name, logging.ERROR, __file__, 1, msg, None, (type(exc), exc, None) if exc else None)
 
     keep = CallerReports(REPORTED_ERRORS).filter
     assert not keep(record("prefect.flow_runs", "Encountered exception", RuntimeError("x")))

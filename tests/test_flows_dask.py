@@ -114,8 +114,25 @@ def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
             taken.bind(("127.0.0.1", 8787))
         except OSError:
             pass  # something else holds it already
-        assert main(["bench-collect", "--workers", "2", "--num-envs", "1", "--episodes", "2", "--device", "cpu",
-                     "--dataset-path", str(path), "--baseline"]) == 0
+        assert (
+            main(
+                [
+                    "bench-collect",
+                    "--workers",
+                    "2",
+                    "--num-envs",
+                    "1",
+                    "--episodes",
+                    "2",
+                    "--device",
+                    "cpu",
+                    "--dataset-path",
+                    str(path),
+                    "--baseline",
+                ]
+            )
+            == 0
+        )
     assert not [w for w in recwarn if "8787" in str(w.message)]
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["workers"] == 2 and out["successful_demos"] == 2 and out["device_names"] == ["cpu", "cpu"]
@@ -141,6 +158,20 @@ def test_bench_collect_on_two_workers(tmp_path, capsys, recwarn):
     assert "exists" in capsys.readouterr().err  # never overwrites a shard
     assert main(["bench-collect", "--baseline", "--device", "cpu", "--dataset-path", str(tmp_path / "y.zarr")]) == 2
     assert "--baseline compares --workers W" in capsys.readouterr().err
-    assert main(["bench-collect", "--workers", "3", "--episodes", "2", "--device", "cpu",
-                 "--dataset-path", str(tmp_path / "x.zarr")]) == 2
+    assert (
+        main(
+            [
+                "bench-collect",
+                "--workers",
+                "3",
+                "--episodes",
+                "2",
+                "--device",
+                "cpu",
+                "--dataset-path",
+                str(tmp_path / "x.zarr"),
+            ]
+        )
+        == 2
+    )
     assert "--workers 3 with --episodes 2" in capsys.readouterr().err

@@ -19,16 +19,37 @@ import torch
 pytestmark = pytest.mark.slow
 
 TASK = "GalbotG1-PickToShelf-v0"
-COMMAND = ["pipeline", "--task", TASK, "--recipe", "cpu", "--demos", "2", "--num-envs", "2", "--eval-episodes", "2",
-           "--train-steps", "5", "--eval-max-steps", "300", "--no-record"]
+COMMAND = [
+    "pipeline",
+    "--task",
+    TASK,
+    "--recipe",
+    "cpu",
+    "--demos",
+    "2",
+    "--num-envs",
+    "2",
+    "--eval-episodes",
+    "2",
+    "--train-steps",
+    "5",
+    "--eval-max-steps",
+    "300",
+    "--no-record",
+]
 """The smallest size: 5 training steps make a policy that may wander until the step limit, so the limit is 300
 steps (an expert coherent episode is ~470)."""
 
 
 def run_pipeline(out: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PREFECT_HOME": str(out.parent / "prefect_home")}
-    return subprocess.run([sys.executable, "-m", "newton_lab.cli", *COMMAND, "--out", str(out)], env=env,
-                          capture_output=True, text=True, timeout=900)
+    return subprocess.run(
+        [sys.executable, "-m", "newton_lab.cli", *COMMAND, "--out", str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
 
 
 @pytest.fixture(scope="module")

@@ -45,16 +45,41 @@ def cam_env():
     """PickCube with front_head RGB + depth + segmentation at 96x72, 2 rows."""
     from newton_lab.envs import make_env
 
-    return make_env(TASK, num_envs=2, device="cpu", seed=0, randomize=True,
-                    cameras={"front_head": {"resolution": SMALL, "data": ALL_DATA}})
+    return make_env(
+        TASK,
+        num_envs=2,
+        device="cpu",
+        seed=0,
+        randomize=True,
+        cameras={"front_head": {"resolution": SMALL, "data": ALL_DATA}},
+    )
 
 
 @pytest.mark.parametrize("suffix", [".zarr", ".hdf5"])
 def test_cli_collect_writes_full_size_rgb_frames_one_per_chunk(tmp_path, suffix):
     path = tmp_path / f"d{suffix}"
-    proc = subprocess.run(cli("collect", "--task", TASK, "--episodes", "2", "--num-envs", "2", "--max-steps", "6",
-                              "--device", "cpu", "--no-progress", "--dataset-path", str(path)),
-                          capture_output=True, text=True, timeout=600, check=False)
+    proc = subprocess.run(
+        cli(
+            "collect",
+            "--task",
+            TASK,
+            "--episodes",
+            "2",
+            "--num-envs",
+            "2",
+            "--max-steps",
+            "6",
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--dataset-path",
+            str(path),
+        ),
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     info = read_dataset_info(path)
     assert info["num_demos"] == 2
@@ -145,7 +170,8 @@ def test_cameras_option_takes_a_data_list():
     assert camera_option("front_head=96x72") == {"front_head": (96, 72)}
     assert camera_option("front_head=96x72:rgb,left_wrist=64x48:rgb+depth") == {
         "front_head": {"resolution": (96, 72), "data": ("rgb",)},
-        "left_wrist": {"resolution": (64, 48), "data": ("rgb", "depth")}}
+        "left_wrist": {"resolution": (64, 48), "data": ("rgb", "depth")},
+    }
     for bad in ("front_head=96x72:", "front_head=96x72:rgb+", "front_head=96:rgb"):
         with pytest.raises(ValueError, match="front_head=96x72:rgb"):
             camera_option(bad)
@@ -154,9 +180,28 @@ def test_cameras_option_takes_a_data_list():
 @pytest.mark.slow
 def test_sigkill_mid_image_collection_keeps_finished_episodes(tmp_path):
     path = tmp_path / "killed.zarr"
-    proc = subprocess.Popen(cli("collect", "--task", TASK, "--episodes", "200", "--num-envs", "1", "--max-steps",
-                                "12", "--device", "cpu", "--no-progress", "--cameras", "front_head=96x72",
-                                "--dataset-path", str(path)), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        cli(
+            "collect",
+            "--task",
+            TASK,
+            "--episodes",
+            "200",
+            "--num-envs",
+            "1",
+            "--max-steps",
+            "12",
+            "--device",
+            "cpu",
+            "--no-progress",
+            "--cameras",
+            "front_head=96x72",
+            "--dataset-path",
+            str(path),
+        ),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     seen = 0
     try:
         deadline = time.time() + 600
@@ -186,11 +231,13 @@ def test_mimic_of_an_image_source_writes_images(tmp_path):
     from newton_lab.mimic import mimic
 
     env = make_env(TASK, num_envs=1, device="cpu", seed=0, randomize=True, cameras={"front_head": SMALL})
-    src = env.collect(agent=PlannerAgent.from_task(TASK), episodes=1, path=tmp_path / "src.zarr", max_steps=400,
-                      progress=False)
+    src = env.collect(
+        agent=PlannerAgent.from_task(TASK), episodes=1, path=tmp_path / "src.zarr", max_steps=400, progress=False
+    )
     assert src["successes"] == 1
-    ref = mimic(src, episodes=1, num_envs=2, output_path=tmp_path / "gen.hdf5", device="cpu", progress=False,
-                max_attempts=6)
+    ref = mimic(
+        src, episodes=1, num_envs=2, output_path=tmp_path / "gen.hdf5", device="cpu", progress=False, max_attempts=6
+    )
     assert ref.metadata["successes"] == 1
     info = read_dataset_info(ref.path)
     assert info["env_args"]["newton_lab"]["cameras"]["front_head"]["width"] == SMALL[0]
@@ -209,6 +256,9 @@ def test_image_buffers_too_large_for_the_device_end_in_one_line():
     rec = EpisodeRecorder.__new__(EpisodeRecorder)  # only the image buffers: no env needed
     rec.max_steps = 1000
     rec._images = {"front_head_rgb": torch.zeros((10**9, 0, 224, 298, 3), dtype=torch.uint8)}
-    with pytest.raises(MemoryError, match=r"front_head_rgb of 1000000000 rows for 64 steps needs 11936187\.7 GiB "
-                                          r"on cpu, .*--cameras none"):
+    with pytest.raises(
+        MemoryError,
+        match=r"front_head_rgb of 1000000000 rows for 64 steps needs 11936187\.7 GiB "
+        r"on cpu, .*--cameras none",
+    ):
         rec._grow_images(0)

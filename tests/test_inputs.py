@@ -103,8 +103,7 @@ def test_collect_into_missing_parent(pick_env, tmp_path):
     assert target.is_file() and ref["episodes"] == 1
     (tmp_path / "afile").write_text("keep")
     with pytest.raises(ValueError) as e:
-        pick_env.collect(agent=ZeroAgent(), episodes=1, path=tmp_path / "afile" / "x.hdf5", max_steps=2,
-                         progress=False)
+        pick_env.collect(agent=ZeroAgent(), episodes=1, path=tmp_path / "afile" / "x.hdf5", max_steps=2, progress=False)
     assert "is a file" in _one_line(e.value) and (tmp_path / "afile").read_text() == "keep"
 
 

@@ -15,8 +15,25 @@ from pathlib import Path
 import pytest
 from test_interrupts import RUN, alive, descendants, wait_for
 
-ARGV = ("pipeline", "--task", "GalbotG1-PickCube-v0", "--demos", "2", "--mimic-episodes", "400", "--train-steps", "3",
-        "--eval-episodes", "2", "--num-envs", "2", "--device", "cpu", "--out", "out")
+ARGV = (
+    "pipeline",
+    "--task",
+    "GalbotG1-PickCube-v0",
+    "--demos",
+    "2",
+    "--mimic-episodes",
+    "400",
+    "--train-steps",
+    "3",
+    "--eval-episodes",
+    "2",
+    "--num-envs",
+    "2",
+    "--device",
+    "cpu",
+    "--out",
+    "out",
+)
 """A pipeline whose Mimic stage runs long after collect has finished."""
 
 
@@ -25,11 +42,18 @@ def start_pipeline(cwd: Path, *extra: str, write_fault: int | None = None) -> su
     ``cwd/stderr.txt`` (a file: a child left alive would hold a pipe open). ``write_fault``: the dataset write of
     that process that the writers' test seam refuses with ENOSPC (armed by the launcher)."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("PREFECT_")}
-    arm = "" if write_fault is None else ("from newton_lab.datasets.files.write_faults import inject_write_fault; "
-                                          f"inject_write_fault({write_fault}); ")
+    arm = (
+        ""
+        if write_fault is None
+        else (
+            "from newton_lab.datasets.files.write_faults import inject_write_fault; "
+            f"inject_write_fault({write_fault}); "
+        )
+    )
     with open(cwd / "stderr.txt", "w") as err:
-        return subprocess.Popen([sys.executable, "-c", arm + RUN, *ARGV, *extra], cwd=cwd, stdout=subprocess.DEVNULL,
-                                stderr=err, env=env)
+        return subprocess.Popen(
+            [sys.executable, "-c", arm + RUN, *ARGV, *extra], cwd=cwd, stdout=subprocess.DEVNULL, stderr=err, env=env
+        )
 
 
 def server_of(pid: int) -> list[int]:
@@ -56,12 +80,16 @@ def end_all(pids: list[int]) -> float:
     return time.monotonic() - start
 
 
-PROGRESS = re.compile(r"^(\S+: step \d+, \d+ episodes ended, \d+ successes, \d+ s"
-                      r"|diffusion policy \S+: (step \d+/\d+, loss .*|\d+ demos, [\d,]+ windows read in .*))$")
+PROGRESS = re.compile(
+    r"^(\S+: step \d+, \d+ episodes ended, \d+ successes, \d+ s"
+    r"|diffusion policy \S+: (step \d+/\d+, loss .*|\d+ demos, [\d,]+ windows read in .*))$"
+)
 """A stage's progress line (collection and Mimic, training; written every few seconds where stderr is not a
 terminal)."""
-ENDED = re.compile(r"newton-lab pipeline: interrupted: finished stages kept in out: (.+); the same command resumes "
-                   r"from them")
+ENDED = re.compile(
+    r"newton-lab pipeline: interrupted: finished stages kept in out: (.+); the same command resumes "
+    r"from them"
+)
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
@@ -129,8 +157,10 @@ def test_the_watchdog_ends_what_a_killed_command_started_and_what_that_started()
     killed, and so does the watchdog."""
     grandchild = SLEEPER.format(spawn="")
     child = SLEEPER.format(spawn=f"subprocess.Popen([sys.executable, '-c', {grandchild!r}]); ")
-    parent = SLEEPER.format(spawn=f"from newton_lab.cli import watchdog; watchdog.start(); "
-                                  f"subprocess.Popen([sys.executable, '-c', {child!r}]); ")
+    parent = SLEEPER.format(
+        spawn=f"from newton_lab.cli import watchdog; watchdog.start(); "
+        f"subprocess.Popen([sys.executable, '-c', {child!r}]); "
+    )
     run = subprocess.Popen([sys.executable, "-c", parent])
     wait_for(lambda: len(descendants(run.pid)) >= 3 or run.poll() is not None, "the watchdog, child and grandchild")
     started = descendants(run.pid)

@@ -24,8 +24,9 @@ RUN = "import sys; from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))
 
 
 def newton_lab(*argv: str, cwd: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-c", RUN, *argv], cwd=cwd, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", RUN, *argv], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
 
 
 def wait_for(condition, what: str, limit_s: float = 900.0) -> None:
@@ -62,15 +63,26 @@ def make_splittable(path: Path, demos: int, steps: int) -> None:
         comp = comp.cfg(**comp.accepted({}))
         groups = robot_binding(comp.robot).joint_groups
         names += [j for t in comp.actions for j in groups[t.group] if j not in names]
-    args = {"newton_lab": {"action_joint_names": names, "phases": [p.name for p in cfg.phases],
-                           "obs_terms": {"q": [0, 40]}}}
+    args = {
+        "newton_lab": {"action_joint_names": names, "phases": [p.name for p in cfg.phases], "obs_terms": {"q": [0, 40]}}
+    }
     rng = np.random.default_rng(0)
     with open_writer(path, task_id=TASK, env_args=args, fsync=False) as w:
-        w.append_episodes([({"actions": rng.standard_normal((steps, len(names))).astype(np.float32),
-                             "obs": {"q": rng.standard_normal((steps, 40)).astype(np.float32)},
-                             "dones": np.zeros(steps, dtype=np.int64),
-                             "datagen": {"phase": np.repeat(np.arange(3, dtype=np.int32), -(-steps // 3))[:steps]}},
-                            True, None) for _ in range(demos)])
+        w.append_episodes(
+            [
+                (
+                    {
+                        "actions": rng.standard_normal((steps, len(names))).astype(np.float32),
+                        "obs": {"q": rng.standard_normal((steps, 40)).astype(np.float32)},
+                        "dones": np.zeros(steps, dtype=np.int64),
+                        "datagen": {"phase": np.repeat(np.arange(3, dtype=np.int32), -(-steps // 3))[:steps]},
+                    },
+                    True,
+                    None,
+                )
+                for _ in range(demos)
+            ]
+        )
 
 
 def split_caught_writing(tmp_path: Path, data: str):
@@ -117,9 +129,23 @@ def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path
         except (OSError, ValueError):  # not there yet, or being written
             return 0
 
-    run = newton_lab("collect", "--task", "GalbotG1-Reach-v0", "--episodes", "100000", "--num-envs", "2",
-                     "--max-steps", "5", "--cameras", "none", "--no-progress", "--dataset-path", str(path),
-                     cwd=tmp_path)
+    run = newton_lab(
+        "collect",
+        "--task",
+        "GalbotG1-Reach-v0",
+        "--episodes",
+        "100000",
+        "--num-envs",
+        "2",
+        "--max-steps",
+        "5",
+        "--cameras",
+        "none",
+        "--no-progress",
+        "--dataset-path",
+        str(path),
+        cwd=tmp_path,
+    )
     wait_for(lambda: demos() >= 2 or run.poll() is not None, "two episodes written")
     run.send_signal(signum)
     out, err = run.communicate(timeout=900)
@@ -133,8 +159,21 @@ def test_ctrl_c_during_collect_keeps_every_finished_episode_in_one_line(tmp_path
 def test_ctrl_c_during_train_saves_the_resume_point(tmp_path):
     """The run stops after the step in flight, writes resume.pt and says so; --resume continues from it."""
     make_dataset(tmp_path / "d.hdf5")
-    argv = ("train", "--dataset-path", "d.hdf5", "--preset", "cpu", "--output-dir", "pol",
-            "--checkpoint-every-steps", "100000", "--checkpoint-every-s", "100000", "--max-steps", "300")
+    argv = (
+        "train",
+        "--dataset-path",
+        "d.hdf5",
+        "--preset",
+        "cpu",
+        "--output-dir",
+        "pol",
+        "--checkpoint-every-steps",
+        "100000",
+        "--checkpoint-every-s",
+        "100000",
+        "--max-steps",
+        "300",
+    )
     run = newton_lab(*argv, cwd=tmp_path)
     read = []
 
@@ -201,8 +240,9 @@ def test_a_refused_write_ends_train_and_split_in_one_line_leaving_nothing_half_w
         argv = ["split", "--dataset-path", "c.hdf5", "--out", "parts"]
         limit, words = 300_000, "while splitting into parts: the split was dropped, nothing written there"
     before = {p.name for p in tmp_path.iterdir()}
-    out = subprocess.run([sys.executable, "-c", RUN, *argv], cwd=tmp_path, capture_output=True, text=True,
-                         preexec_fn=limited(limit))
+    out = subprocess.run(
+        [sys.executable, "-c", RUN, *argv], cwd=tmp_path, capture_output=True, text=True, preexec_fn=limited(limit)
+    )
     errors = [line for line in out.stderr.splitlines() if "windows read" not in line]
     assert out.returncode == 1 and len(errors) == 1 and words in errors[0], out.stderr
     left = {str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.name not in before and p.is_file()}
@@ -213,8 +253,22 @@ def test_a_killed_data_parallel_train_leaves_no_process(tmp_path):
     """``train --gpus 2 --device cpu`` runs torchrun and two gloo ranks; SIGKILL of the command ends them all (torchrun
     gets SIGTERM from the kernel when its parent dies, and ends its ranks)."""
     make_dataset(tmp_path / "d.hdf5")
-    run = newton_lab("train", "--dataset-path", "d.hdf5", "--preset", "cpu", "--max-steps", "100000", "--gpus", "2",
-                     "--device", "cpu", "--output-dir", "pol", cwd=tmp_path)
+    run = newton_lab(
+        "train",
+        "--dataset-path",
+        "d.hdf5",
+        "--preset",
+        "cpu",
+        "--max-steps",
+        "100000",
+        "--gpus",
+        "2",
+        "--device",
+        "cpu",
+        "--output-dir",
+        "pol",
+        cwd=tmp_path,
+    )
     wait_for(lambda: len(descendants(run.pid)) >= 3 or run.poll() is not None, "torchrun and its two ranks")
     assert run.poll() is None, run.communicate()
     started = descendants(run.pid)
@@ -234,9 +288,25 @@ def test_a_killed_collect_leaves_no_writer_process(tmp_path):
     from newton_lab.datasets import read_dataset_info
 
     path = tmp_path / "r.zarr"
-    run = newton_lab("collect", "--task", "GalbotG1-Reach-v0", "--episodes", "100000", "--num-envs", "2",
-                     "--max-steps", "5", "--cameras", "none", "--no-progress", "--writer", "process",
-                     "--dataset-path", str(path), cwd=tmp_path)
+    run = newton_lab(
+        "collect",
+        "--task",
+        "GalbotG1-Reach-v0",
+        "--episodes",
+        "100000",
+        "--num-envs",
+        "2",
+        "--max-steps",
+        "5",
+        "--cameras",
+        "none",
+        "--no-progress",
+        "--writer",
+        "process",
+        "--dataset-path",
+        str(path),
+        cwd=tmp_path,
+    )
 
     def demos() -> int:
         try:
@@ -279,9 +349,31 @@ def test_ctrl_c_during_mimic_keeps_every_generated_demo_in_one_line(tmp_path):
     from newton_lab.datasets import read_dataset_info
 
     source = tmp_path / "src.hdf5"
-    out = subprocess.run([sys.executable, "-c", RUN, "collect", "--task", "GalbotG1-PickCube-v0", "--num-envs", "2",
-                          "--episodes", "2", "--max-steps", "300", "--randomize", "--no-progress", "--cameras", "none",
-                          "--dataset-path", str(source)], cwd=tmp_path, capture_output=True, text=True)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            RUN,
+            "collect",
+            "--task",
+            "GalbotG1-PickCube-v0",
+            "--num-envs",
+            "2",
+            "--episodes",
+            "2",
+            "--max-steps",
+            "300",
+            "--randomize",
+            "--no-progress",
+            "--cameras",
+            "none",
+            "--dataset-path",
+            str(source),
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
     assert out.returncode == 0, out.stderr
     path = tmp_path / "mimic.hdf5"
 
@@ -291,8 +383,19 @@ def test_ctrl_c_during_mimic_keeps_every_generated_demo_in_one_line(tmp_path):
         except (OSError, ValueError):
             return 0
 
-    run = newton_lab("mimic", "--dataset-path", str(source), "--output-path", str(path), "--episodes", "10000",
-                     "--num-envs", "2", "--no-progress", cwd=tmp_path)
+    run = newton_lab(
+        "mimic",
+        "--dataset-path",
+        str(source),
+        "--output-path",
+        str(path),
+        "--episodes",
+        "10000",
+        "--num-envs",
+        "2",
+        "--no-progress",
+        cwd=tmp_path,
+    )
     wait_for(lambda: demos() >= 1 or run.poll() is not None, "a generated demo written", limit_s=900)
     run.send_signal(signal.SIGINT)
     _, err = run.communicate(timeout=900)

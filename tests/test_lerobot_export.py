@@ -39,9 +39,10 @@ def _obs_terms() -> dict[str, list[int]]:
     return out
 
 
-ENV_ARGS = {"env_kwargs": {"num_envs": 2, "seed": 0},
-            "newton_lab": {"sim_dt": 0.01, "decimation": 5, "action_joint_names": JOINTS,
-                           "obs_terms": _obs_terms()}}
+ENV_ARGS = {
+    "env_kwargs": {"num_envs": 2, "seed": 0},
+    "newton_lab": {"sim_dt": 0.01, "decimation": 5, "action_joint_names": JOINTS, "obs_terms": _obs_terms()},
+}
 STATE_ORDER = [t for t in OBS if t != "actions"]  # env order (env_args JSON is stored with sorted keys)
 
 
@@ -56,8 +57,9 @@ class Ref:  # stands in for a DatasetRef
     path: Path
 
 
-def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, noisy: bool = False,
-                 motion: int = 1) -> dict:
+def make_episode(
+    seed: int, steps: int, image: tuple[int, int] | None = None, noisy: bool = False, motion: int = 1
+) -> dict:
     rng = np.random.default_rng(seed)
     actions = rng.standard_normal((steps, 8)).astype(np.float32)
     obs = {name: rng.standard_normal((steps, w)).astype(np.float32) for name, w in OBS.items() if name != "actions"}
@@ -68,26 +70,33 @@ def make_episode(seed: int, steps: int, image: tuple[int, int] | None = None, no
     elif image is not None:  # a smooth moving gradient (video codecs are lossy on noise), per-episode offset
         t, y, x = np.meshgrid(np.arange(steps), np.arange(image[0]), np.arange(image[1]), indexing="ij")
         base = rng.integers(0, 100, 3)
-        obs[IMAGE] = np.stack([np.clip(base[c] + 3 * x + 2 * y + motion * t + 40 * c, 0, 255) for c in range(3)],
-                              axis=-1).astype(np.uint8)
+        obs[IMAGE] = np.stack(
+            [np.clip(base[c] + 3 * x + 2 * y + motion * t + 40 * c, 0, 255) for c in range(3)], axis=-1
+        ).astype(np.uint8)
     return {
         "actions": actions,
         "obs": obs,
         "states": rng.standard_normal((steps, 81)).astype(np.float32),  # flat joint_q + joint_qd
         "rewards": rng.random(steps).astype(np.float32),
         "dones": np.zeros(steps, dtype=np.int64),
-        "datagen": {"tcp_pose": rng.standard_normal((steps, 7)).astype(np.float32),
-                    "phase": np.arange(steps, dtype=np.int32)},
+        "datagen": {
+            "tcp_pose": rng.standard_normal((steps, 7)).astype(np.float32),
+            "phase": np.arange(steps, dtype=np.int32),
+        },
     }
 
 
-def make_dataset(path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int] | None = None,
-                 noisy: bool = False, motion: int = 1) -> Path:
+def make_dataset(
+    path: Path, lengths=LENGTHS, failed=(1,), image: tuple[int, int] | None = None, noisy: bool = False, motion: int = 1
+) -> Path:
     with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False) as w:
         for i, steps in enumerate(lengths):
             ok = i not in failed
-            w.append_episode(make_episode(i, steps, image, noisy, motion), success=ok,
-                             attrs={"termination_reason": "success" if ok else "timeout"})
+            w.append_episode(
+                make_episode(i, steps, image, noisy, motion),
+                success=ok,
+                attrs={"termination_reason": "success" if ok else "timeout"},
+            )
     return path
 
 
@@ -98,9 +107,16 @@ def dataset(request, tmp_path, monkeypatch) -> Path:
     path = tmp_path / "src.zarr"
     packed = ZarrWriteSettings(pack_min_batch=2)  # the demos as one batch, packed
     with open_writer(path, task_id=TASK, env_args=ENV_ARGS, fsync=False, zarr_settings=packed) as w:
-        w.append_episodes([(make_episode(i, steps, None, False), i != 1,
-                            {"termination_reason": "success" if i != 1 else "timeout"})
-                           for i, steps in enumerate(LENGTHS)])
+        w.append_episodes(
+            [
+                (
+                    make_episode(i, steps, None, False),
+                    i != 1,
+                    {"termination_reason": "success" if i != 1 else "timeout"},
+                )
+                for i, steps in enumerate(LENGTHS)
+            ]
+        )
     assert (path / "data" / "pack_0").is_dir()
     return path
 
@@ -134,9 +150,9 @@ def decode_png(data: bytes) -> np.ndarray:
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     pos, idat, width = 8, b"", None
     while pos < len(data):
-        n, tag = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + n]
-        assert struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])[0] == zlib.crc32(tag + body) & 0xFFFFFFFF
+        n, tag = struct.unpack(">I4s", data[pos : pos + 8])
+        body = data[pos + 8 : pos + 8 + n]
+        assert struct.unpack(">I", data[pos + 8 + n : pos + 12 + n])[0] == zlib.crc32(tag + body) & 0xFFFFFFFF
         if tag == b"IHDR":
             width, height, depth, ctype, _, _, interlace = struct.unpack(">IIBBBBB", body)
             assert (depth, ctype, interlace) == (8, 2, 0)
@@ -147,7 +163,7 @@ def decode_png(data: bytes) -> np.ndarray:
     out = np.zeros((height, stride), np.int64)
     prev = [0] * stride
     for y in range(height):
-        ftype, line = raw[y * (stride + 1)], raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)]
+        ftype, line = raw[y * (stride + 1)], raw[y * (stride + 1) + 1 : (y + 1) * (stride + 1)]
         cur = [0] * stride
         for i in range(stride):
             a = cur[i - bpp] if i >= bpp else 0
@@ -183,8 +199,13 @@ def test_export_validates_and_round_trips(dataset, tmp_path):
         source = dataset
     summary = export_lerobot(source, root)
     assert {k: summary[k] for k in ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps")} == {
-        "root": str(root), "repo_id": "newton_lab/galbotg1-pickcube-v0", "episodes": 2,
-        "frames": LENGTHS[0] + LENGTHS[2], "skipped_failed": 1, "fps": 20}
+        "root": str(root),
+        "repo_id": "newton_lab/galbotg1-pickcube-v0",
+        "episodes": 2,
+        "frames": LENGTHS[0] + LENGTHS[2],
+        "skipped_failed": 1,
+        "fps": 20,
+    }
     assert summary["demo_ids"] == [0, 2] and summary["state_keys"] == STATE_ORDER and summary["image_keys"] == []
 
     report = validate_lerobot_v3(root)
@@ -206,8 +227,13 @@ def test_export_validates_and_round_trips(dataset, tmp_path):
     assert feats["observation.state"]["names"][:2] == ["robot_joint_pos.0", "robot_joint_pos.1"]
     assert feats["observation.state"]["names"][-1] == "blue_block_pos.2"
     assert feats["action"] == {"dtype": "float32", "shape": [8], "names": JOINTS}
-    for key, dtype in (("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"),
-                       ("index", "int64"), ("task_index", "int64")):
+    for key, dtype in (
+        ("timestamp", "float32"),
+        ("frame_index", "int64"),
+        ("episode_index", "int64"),
+        ("index", "int64"),
+        ("task_index", "int64"),
+    ):
         assert feats[key]["dtype"] == dtype and feats[key]["shape"] == [1]
 
     data, eps = read_data(root), read_episodes(root)
@@ -228,8 +254,7 @@ def test_export_validates_and_round_trips(dataset, tmp_path):
         assert np.array_equal(state[lo:hi], want_state)
         assert column(data, "frame_index")[lo:hi].tolist() == list(range(hi - lo))
         assert set(column(data, "episode_index")[lo:hi].tolist()) == {e}
-        np.testing.assert_array_equal(column(data, "timestamp")[lo:hi],
-                                      (np.arange(hi - lo) / 20).astype(np.float32))
+        np.testing.assert_array_equal(column(data, "timestamp")[lo:hi], (np.arange(hi - lo) / 20).astype(np.float32))
     assert set(column(data, "task_index").tolist()) == {0}
 
     tasks = pq.read_table(root / "meta/tasks.parquet")
@@ -263,8 +288,14 @@ def test_failed_episode_included_on_request(tmp_path):
 def test_options_state_keys_repo_task_fps(tmp_path):
     src = make_dataset(tmp_path / "src.zarr")
     root = tmp_path / "custom"
-    summary = export_lerobot(Ref(src), root, repo_id="me/pick", fps=10, state_keys=["tcp_pose", "gripper_pos"],
-                             task_description="pick up the cube")
+    summary = export_lerobot(
+        Ref(src),
+        root,
+        repo_id="me/pick",
+        fps=10,
+        state_keys=["tcp_pose", "gripper_pos"],
+        task_description="pick up the cube",
+    )
     assert summary["repo_id"] == "me/pick" and summary["fps"] == 10
     assert summary["state_keys"] == ["tcp_pose", "gripper_pos"]
     validate_lerobot_v3(root)
@@ -274,20 +305,25 @@ def test_options_state_keys_repo_task_fps(tmp_path):
     assert info["features"]["observation.state"]["names"] == [f"tcp_pose.{i}" for i in range(7)] + ["gripper_pos.0"]
     data = read_data(root)
     src0 = read_episode(src, 0)
-    np.testing.assert_array_equal(column(data, "observation.state")[:LENGTHS[0]],
-                                  np.concatenate([src0["obs"]["tcp_pose"], src0["obs"]["gripper_pos"]], axis=1))
+    np.testing.assert_array_equal(
+        column(data, "observation.state")[: LENGTHS[0]],
+        np.concatenate([src0["obs"]["tcp_pose"], src0["obs"]["gripper_pos"]], axis=1),
+    )
     assert column(data, "timestamp")[1] == np.float32(0.1)
     assert pq.read_table(root / "meta/tasks.parquet").column("task").to_pylist() == ["pick up the cube"]
     assert read_episodes(root).column("tasks").to_pylist() == [["pick up the cube"]] * 2
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    ({"state_keys": ["nope"]}, ["nope", "available", "tcp_pose"]),
-    ({"state_keys": "tcp_pose"}, ["list"]),
-    ({"state_keys": []}, ["empty"]),
-    ({"fps": 12.5}, ["whole", "fps"]),
-    ({"repo_id": ""}, ["repo_id"]),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"state_keys": ["nope"]}, ["nope", "available", "tcp_pose"]),
+        ({"state_keys": "tcp_pose"}, ["list"]),
+        ({"state_keys": []}, ["empty"]),
+        ({"fps": 12.5}, ["whole", "fps"]),
+        ({"repo_id": ""}, ["repo_id"]),
+    ],
+)
 def test_bad_arguments_write_nothing(tmp_path, kwargs, words):
     src = make_dataset(tmp_path / "src.hdf5")
     root = tmp_path / "out"
@@ -408,6 +444,7 @@ def test_image_obs_become_video_features(tmp_path):
         validate_lerobot_v3(root)
     assert "\n" not in str(err.value)
 
+
 def test_data_files_roll_over(tmp_path):
     src = make_dataset(tmp_path / "src.hdf5", lengths=(40, 40, 40, 40), failed=(), image=(48, 64), noisy=True)
     root = tmp_path / "rolled"
@@ -437,6 +474,7 @@ def _set_column(name, values_fn):
         i = table.schema.get_field_index(name)
         old = column(table, name)
         return table.set_column(i, table.schema.field(i), pa.array(values_fn(old), table.schema.field(i).type))
+
     return fn
 
 
@@ -446,6 +484,7 @@ def _edit_json(rel, fn):
         obj = json.loads(p.read_text())
         fn(obj)
         p.write_text(json.dumps(obj))
+
     return edit
 
 
@@ -454,8 +493,11 @@ def _edit_episodes(name, values_fn):
         p = root / "meta/episodes/chunk-000/file-000.parquet"
         t = pq.read_table(p)
         i = t.schema.get_field_index(name)
-        pq.write_table(t.set_column(i, t.schema.field(i), pa.array(values_fn(t.column(name).to_pylist()),
-                                                                   t.schema.field(i).type)), p)
+        pq.write_table(
+            t.set_column(i, t.schema.field(i), pa.array(values_fn(t.column(name).to_pylist()), t.schema.field(i).type)),
+            p,
+        )
+
     return edit
 
 
@@ -463,16 +505,24 @@ CORRUPTIONS = {
     "fps type": (_edit_json("meta/info.json", lambda o: o.update(fps="20")), "fps"),
     "codebase": (_edit_json("meta/info.json", lambda o: o.update(codebase_version="v2.1")), "codebase_version"),
     "total frames": (_edit_json("meta/info.json", lambda o: o.update(total_frames=5)), "total_frames"),
-    "state shape": (_edit_json("meta/info.json", lambda o: o["features"]["observation.state"].update(
-        shape=[3], names=["a", "b", "c"])), "observation.state"),
+    "state shape": (
+        _edit_json(
+            "meta/info.json", lambda o: o["features"]["observation.state"].update(shape=[3], names=["a", "b", "c"])
+        ),
+        "observation.state",
+    ),
     "index gap": (lambda r: _rewrite_data(r, _set_column("index", lambda v: v + (v >= 5))), "index"),
-    "frame restart": (lambda r: _rewrite_data(r, _set_column("frame_index", lambda v: np.arange(len(v)))),
-                      "frame_index"),
+    "frame restart": (
+        lambda r: _rewrite_data(r, _set_column("frame_index", lambda v: np.arange(len(v)))),
+        "frame_index",
+    ),
     "timestamps": (lambda r: _rewrite_data(r, _set_column("timestamp", lambda v: v * 2)), "timestamp"),
     "offsets": (_edit_episodes("dataset_from_index", lambda v: [v[0], v[1] + 1]), "episode 1"),
     "missing stats": (lambda r: (r / "meta/stats.json").unlink(), "stats.json"),
-    "extra column": (lambda r: _rewrite_data(r, lambda t: t.append_column("junk", pa.array([0] * t.num_rows))),
-                     "unexpected"),
+    "extra column": (
+        lambda r: _rewrite_data(r, lambda t: t.append_column("junk", pa.array([0] * t.num_rows))),
+        "unexpected",
+    ),
 }
 
 

@@ -44,8 +44,12 @@ def lerobot_python() -> str:
     """``NEWTON_LAB_LEROBOT_PYTHON``, else the overlay's Python (built by tools/lerobot_env.sh if missing or stale)."""
     if os.environ.get(LEROBOT_PYTHON):
         return os.environ[LEROBOT_PYTHON]
-    proc = subprocess.run(["bash", str(REPO / "tools/lerobot_env.sh"), sys.executable, str(REPO / ".venv-lerobot")],
-                          capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(
+        ["bash", str(REPO / "tools/lerobot_env.sh"), sys.executable, str(REPO / ".venv-lerobot")],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     if proc.returncode != 0:
         pytest.fail(f"tools/lerobot_env.sh failed (exit {proc.returncode}):\n{proc.stderr[-4000:]}", pytrace=False)
     return proc.stdout.strip().splitlines()[-1]
@@ -59,12 +63,13 @@ def loaded(tmp_path_factory):
     exports = {kind: (tmp / kind, export_lerobot(src, tmp / kind, video=kind == "video")) for kind in ("video", "png")}
     env = dict(os.environ, HF_HUB_OFFLINE="1", HF_DATASETS_OFFLINE="1", HF_HOME=str(tmp / "hf"))
     args = [a for kind, (root, s) in exports.items() for a in (str(root), s["repo_id"], str(tmp / f"{kind}.npz"))]
-    proc = subprocess.run([lerobot_python(), "-c", LOADER, *args], capture_output=True, text=True, env=env,
-                          timeout=600)
+    proc = subprocess.run([lerobot_python(), "-c", LOADER, *args], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr[-4000:]
     metas = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
-    return {kind: (src, root, summary, meta, dict(np.load(tmp / f"{kind}.npz")))
-            for (kind, (root, summary)), meta in zip(exports.items(), metas)}
+    return {
+        kind: (src, root, summary, meta, dict(np.load(tmp / f"{kind}.npz")))
+        for (kind, (root, summary)), meta in zip(exports.items(), metas)
+    }
 
 
 def check_low_dim(src: Path, summary: dict, meta: dict, arrays: dict) -> None:
@@ -114,7 +119,7 @@ def test_lerobot_reads_the_video_export_within_the_codec_error(loaded):
     lo = 0
     for demo in summary["demo_ids"]:
         source = read_episode(src, demo)["obs"][IMAGE]
-        error = np.abs(got[lo:lo + len(source)].astype(np.int16) - source)
+        error = np.abs(got[lo : lo + len(source)].astype(np.int16) - source)
         stats = {"mean": error.mean(), "p99": np.percentile(error, 99), "max": error.max()}
         print(f"demo {demo}: error / 255", {k: round(float(v), 2) for k, v in stats.items()})
         assert all(stats[k] <= VIDEO_ERROR[k] for k in VIDEO_ERROR), (stats, VIDEO_ERROR)

@@ -38,11 +38,12 @@ def test_append_copies_refuses_bad_input_in_one_line(tmp_path, suffix):
     write_demos(tmp_path / f"task{suffix}", [0], task="stack_cube")
     with EpisodeWriter.open(dst, task_id=TASK, env_args=ENV_ARGS) as w:
         for source, ids, attrs, error, words in (
-                (tmp_path / f"conv{other}", [0], None, ValueError, "copies need one format"),
-                (src, [0, 7], None, KeyError, "demo 7 not in"),
-                (tmp_path / f"task{suffix}", [0], None, ValueError, "holds task 'stack_cube'"),
-                (dst, [0], None, ValueError, "into itself"),
-                (src, [0], {0: {"num_samples": 3}}, ValueError, "set by the writer")):
+            (tmp_path / f"conv{other}", [0], None, ValueError, "copies need one format"),
+            (src, [0, 7], None, KeyError, "demo 7 not in"),
+            (tmp_path / f"task{suffix}", [0], None, ValueError, "holds task 'stack_cube'"),
+            (dst, [0], None, ValueError, "into itself"),
+            (src, [0], {0: {"num_samples": 3}}, ValueError, "set by the writer"),
+        ):
             with pytest.raises(error, match=words):
                 w.append_copies(source, ids, attrs=attrs)
     assert list_demos(dst) == []

@@ -65,8 +65,13 @@ def test_mimic_without_signals_says_what_is_needed(tmp_path):
     from newton_lab.datasets import open_writer
 
     path = tmp_path / "old.hdf5"
-    with open_writer(path, task_id="GalbotG1-PickCube-v0", env_args={"newton_lab": {
-            "action_joint_names": [f"left_arm_joint{i}" for i in range(1, 8)] + ["left_gripper_joint"]}}) as w:
+    with open_writer(
+        path,
+        task_id="GalbotG1-PickCube-v0",
+        env_args={
+            "newton_lab": {"action_joint_names": [f"left_arm_joint{i}" for i in range(1, 8)] + ["left_gripper_joint"]}
+        },
+    ) as w:
         w.append_episode({"actions": np.zeros((5, 8), np.float32)}, success=True)
     with pytest.raises(ValueError) as e:
         mimic(path, episodes=1, num_envs=1, device="cpu", progress=False)
@@ -77,10 +82,16 @@ def test_mimic_without_signals_says_what_is_needed(tmp_path):
 def test_mimic_from_two_sources_generates_successes(pick_env, tmp_path):
     from newton_lab.agents import PlannerAgent
 
-    src = pick_env.collect(agent=PlannerAgent.from_task(pick_env.task_id), episodes=2, path=tmp_path / "src.hdf5",
-                           max_steps=400, progress=False)
-    ref = mimic(src, episodes=3, num_envs=2, output_path=tmp_path / "gen.hdf5", device="cpu", progress=False,
-                max_attempts=8)
+    src = pick_env.collect(
+        agent=PlannerAgent.from_task(pick_env.task_id),
+        episodes=2,
+        path=tmp_path / "src.hdf5",
+        max_steps=400,
+        progress=False,
+    )
+    ref = mimic(
+        src, episodes=3, num_envs=2, output_path=tmp_path / "gen.hdf5", device="cpu", progress=False, max_attempts=8
+    )
     m = ref.metadata
     assert m["successes"] == 3 and m["attempts"] >= 3 and 0 < m["generation_success_rate"] <= 1
     info = read_dataset_info(ref.path)
@@ -104,20 +115,29 @@ def test_stack_cube_segments_end_clear_of_the_stack(stack_env, tmp_path):
     from newton_lab.task_api.registry import lookup
 
     stack_env.reseed(stack_env.seed)  # a fresh env's first scene, whatever ran on the shared fixture before
-    src = stack_env.collect(agent=PlannerAgent.from_task(stack_env.task_id), episodes=1, path=tmp_path / "s.hdf5",
-                            max_steps=900, progress=False)
+    src = stack_env.collect(
+        agent=PlannerAgent.from_task(stack_env.task_id),
+        episodes=1,
+        path=tmp_path / "s.hdf5",
+        max_steps=900,
+        progress=False,
+    )
     assert src["successes"] == 1
     cfg = lookup("GalbotG1-StackCube-Mimic-v0").mimic
-    (demo,) = load_sources(src.path, cfg, TcpKinematics(64, device="cpu"), task_id=stack_env.task_id,
-                           robot=stack_env.robot)
+    (demo,) = load_sources(
+        src.path, cfg, TcpKinematics(64, device="cpu"), task_id=stack_env.task_id, robot=stack_env.robot
+    )
     fingers = 0.05  # fingertips reach this far below the TCP [m]
     for sub in cfg.subtasks[:-1]:
         lo, hi = sub.term_offset_range
         edge = demo.signal_edges[sub.term_signal]
         for end in range(edge + lo, edge + hi + 1):
             tips = demo.target_tcp[end, 2] - fingers
-            tops = max(demo.objects[name][end, 2] + 0.025 for name in ("cube_1", "cube_2", "cube_3")
-                       if name != sub.object_ref or sub.term_signal == "cube_2_on_cube_1")
+            tops = max(
+                demo.objects[name][end, 2] + 0.025
+                for name in ("cube_1", "cube_2", "cube_3")
+                if name != sub.object_ref or sub.term_signal == "cube_2_on_cube_1"
+            )
             held = demo.gripper[end] > 0.1  # a carried cube hangs below the fingertips
             clearance = tips - tops - (0.05 if held else 0.0)
             assert clearance > 0.0, (sub.term_signal, end - edge, round(clearance, 3))

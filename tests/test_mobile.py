@@ -70,8 +70,16 @@ def shelf_run(shelf_env):
                 results[r] = (bool(info["success"][r]), reason)
         if all(d is not None for d in done_at):
             break
-    return {"phase": torch.stack(phases), "bar": torch.stack(bars), "tcp": torch.stack(tcps), "done_at": done_at,
-            "results": results, "wheel_q": wheel_q, "wheel_obs": wheel_obs, "base_gap": base_gap}
+    return {
+        "phase": torch.stack(phases),
+        "bar": torch.stack(bars),
+        "tcp": torch.stack(tcps),
+        "done_at": done_at,
+        "results": results,
+        "wheel_q": wheel_q,
+        "wheel_obs": wheel_obs,
+        "base_gap": base_gap,
+    }
 
 
 # ---------------------------------------------------------------- base kinematics
@@ -195,7 +203,7 @@ def test_nav_failure_ends_episode(shelf_env):
     env.info["phase"][2] = 1
     c = env.sim.layout.entity_coord[env.task.entities["bar"].slot]
     q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)
-    q[2, c: c + 3] = torch.tensor([-1.0, -1.0, 0.1])  # the bar stands on the floor, away from the table
+    q[2, c : c + 3] = torch.tensor([-1.0, -1.0, 0.1])  # the bar stands on the floor, away from the table
     newton_fk(env)
     _, _, term, _, info = env.step(env.current_action())
     assert bool(term[2]) and not bool(term[0])
@@ -216,7 +224,7 @@ def test_coherent_rows_in_different_phases(shelf_run):
     assert all(r[0] for r in shelf_run["results"]), shelf_run["results"]
     # within each row's episode the phase only ever advances, one at a time
     for r, end in enumerate(shelf_run["done_at"]):
-        d = phase[1:end + 1, r] - phase[:end, r]
+        d = phase[1 : end + 1, r] - phase[:end, r]
         assert int(d.max()) <= 1 and int(d.min()) >= 0
         assert int(phase[end, r]) == 2
 
@@ -276,12 +284,16 @@ def test_coherent_records_phase_and_splits(shelf_env, tmp_path):
         split_by_phase(ref.path, tmp_path / "none", phases=["grab"])
     assert not (tmp_path / "none").exists()
     # inside a daemonic process (a Dask worker's), which may not start the per-phase writers: it writes them itself
-    worker = multiprocessing.get_context("spawn").Process(target=split_by_phase, args=(ref.path, tmp_path / "daemon"),
-                                                          daemon=True)
+    worker = multiprocessing.get_context("spawn").Process(
+        target=split_by_phase, args=(ref.path, tmp_path / "daemon"), daemon=True
+    )
     worker.start()
     worker.join(300)
     assert worker.exitcode == 0 and sorted(p.name for p in (tmp_path / "daemon").iterdir()) == [
-        "nav.hdf5", "pick.hdf5", "place.hdf5"]
+        "nav.hdf5",
+        "pick.hdf5",
+        "place.hdf5",
+    ]
 
 
 # ---------------------------------------------------------------- scenarios
@@ -301,7 +313,7 @@ def test_scenario_round_trip(tmp_path):
     robot = env.sim.layout.robot_coords
     assert np.abs(back[:robot] - q[:robot]).max() < 1e-3
     c = env.sim.layout.entity_coord[env.task.entities["bar"].slot]
-    assert np.abs(back[c:c + 3] - q[c:c + 3]).max() < 1e-3
+    assert np.abs(back[c : c + 3] - q[c : c + 3]).max() < 1e-3
     # the option path: an env started from the saved scenario resets to it
     env2 = make_env("GalbotG1-PickToShelf-Nav-v0", num_envs=1, device="cpu", task_options={"init_scenario": str(path)})
     q2 = wp.to_torch(env2.state.joint_q).view(1, -1)[0].numpy()
@@ -381,8 +393,14 @@ def test_sort_to_shelf_upper_row_with_leg_lift():
     from newton_lab.agents import expert_agent
     from newton_lab.envs import make_env
 
-    env = make_env("GalbotG1-SortToShelf-v0", num_envs=1, device="cpu", seed=2, randomize=True,
-                   task_options={"sorting_object": "red_cube"})
+    env = make_env(
+        "GalbotG1-SortToShelf-v0",
+        num_envs=1,
+        device="cpu",
+        seed=2,
+        randomize=True,
+        task_options={"sorting_object": "red_cube"},
+    )
     agent = expert_agent(env)
     env.reset()
     lift_in_place = []
@@ -397,4 +415,4 @@ def test_sort_to_shelf_upper_row_with_leg_lift():
     assert min(lift_in_place) > 0.15, "legs lifted for the upper row while placing"
     final = env.buffers.terminal_joint_q[0].numpy()
     c = env.sim.layout.entity_coord[env.task.entities["red_cube"].slot]
-    assert np.linalg.norm(final[c:c + 2] - np.asarray(OBJECTS["red_cube"].target[:2])) < 0.10
+    assert np.linalg.norm(final[c : c + 2] - np.asarray(OBJECTS["red_cube"].target[:2])) < 0.10

@@ -45,7 +45,8 @@ def test_a_patch_that_no_longer_applies_is_an_error_naming_its_mutation(tmp_path
         "expected once): update it in tools/mutations.py",
         "mutation stale-example: covering test tests/test_gone.py does not exist",
         "mutation twice-example: its patch of mod.py no longer applies (the text to replace occurs 2 times, "
-        "expected once): update it in tools/mutations.py"]
+        "expected once): update it in tools/mutations.py",
+    ]
     assert tool.main(["--check"]) == 0 and "mutations apply" in capsys.readouterr().err
     assert tool.main(["--only", "no-such-mutation"]) == 2
 
@@ -58,12 +59,20 @@ def test_the_scratch_copy_imports_its_own_code(tmp_path):
     copy = tmp_path / "repo"
     tool.scratch_copy(copy)
     env = tool.environment(copy)
-    pre = subprocess.run([sys.executable, "-c", tool.PREFLIGHT, str(copy)], cwd=copy, env=env, capture_output=True,
-                         text=True, timeout=300, check=False)
+    pre = subprocess.run(
+        [sys.executable, "-c", tool.PREFLIGHT, str(copy)],
+        cwd=copy,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert pre.returncode == 0, pre.stderr[-2000:]
     contained = copy / "newton_lab" / "datasets" / "files" / "inside_root.py"
     contained.write_text(contained.read_text() + "\nMUTANT = True\n")
     probe = "from newton_lab.datasets.files import inside_root; print(inside_root.MUTANT, inside_root.__file__)"
-    proc = subprocess.run([sys.executable, "-c", probe], cwd=copy, env=env, capture_output=True, text=True,
-                          timeout=300, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-c", probe], cwd=copy, env=env, capture_output=True, text=True, timeout=300, check=False
+    )
     assert proc.returncode == 0 and proc.stdout.split()[0] == "True", proc.stderr[-2000:]

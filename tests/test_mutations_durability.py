@@ -22,9 +22,13 @@ STEPS = 30
 
 def episode(seed: int) -> dict:
     rng = np.random.default_rng(seed)
-    return {"actions": rng.standard_normal((STEPS, 7)).astype(np.float32),
-            "obs": {"eef_pos": rng.standard_normal((STEPS, 3)),
-                    "rgb": rng.integers(0, 255, (STEPS, 8, 8, 3), dtype=np.uint8)}}
+    return {
+        "actions": rng.standard_normal((STEPS, 7)).astype(np.float32),
+        "obs": {
+            "eef_pos": rng.standard_normal((STEPS, 3)),
+            "rgb": rng.integers(0, 255, (STEPS, 8, 8, 3), dtype=np.uint8),
+        },
+    }
 
 
 def _fd_path(fd: int) -> str:
@@ -120,8 +124,9 @@ def disk(monkeypatch) -> Disk:
     monkeypatch.setattr(_journal, "_write_all", write_all)
     # zarr: demo files through zarr_nodes.write_file, metadata (and the commit) through the store's _set
     real_write_file = zarr_nodes.write_file
-    monkeypatch.setattr(zarr_nodes, "write_file", lambda path, data: (d.write(os.path.abspath(path)),
-                                                                      real_write_file(path, data))[1])
+    monkeypatch.setattr(
+        zarr_nodes, "write_file", lambda path, data: (d.write(os.path.abspath(path)), real_write_file(path, data))[1]
+    )
     real_set = zarr_session.FaultStore._set
 
     async def store_set(self, key, value, exclusive=False):

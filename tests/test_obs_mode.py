@@ -12,8 +12,16 @@ import warp as wp
 from newton_lab.envs import make_env
 from newton_lab.task_api.registry import list_tasks, lookup
 
-POSE_TERMS = {"cube_pose", "blue_block_pos", "bar_pose", "object_pose", "cube_positions", "cube_orientations",
-              "goal_pos", "pose_command"}
+POSE_TERMS = {
+    "cube_pose",
+    "blue_block_pos",
+    "bar_pose",
+    "object_pose",
+    "cube_positions",
+    "cube_orientations",
+    "goal_pos",
+    "pose_command",
+}
 """Every observation term of today's tasks that reads a scene object's pose or a target's position."""
 
 
@@ -31,13 +39,12 @@ def test_sensors_observation_does_not_see_the_cube():
     """Teleporting the cube changes the state-mode observation but not the sensors-mode one (cameras off)."""
     seen = {}
     for mode in ("state", "sensors"):
-        env = make_env("GalbotG1-PickCube-v0", num_envs=1, device="cpu", task_options={"obs_mode": mode},
-                       cameras=False)
+        env = make_env("GalbotG1-PickCube-v0", num_envs=1, device="cpu", task_options={"obs_mode": mode}, cameras=False)
         obs, _ = env.reset()
         before = obs.clone()
         c = env.task.entities["cube"].coord
         q = wp.to_torch(env.state.joint_q).view(1, -1)
-        q[0, c:c + 3] += torch.tensor([0.05, -0.04, 0.0])
+        q[0, c : c + 3] += torch.tensor([0.05, -0.04, 0.0])
         newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
         env.sim.observe()
         seen[mode] = bool((env.obs - before).abs().max() > 1e-6)

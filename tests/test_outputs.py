@@ -68,10 +68,12 @@ def test_the_writers_follow_the_rule(tmp_path):
 
     (tmp_path / "afile").write_bytes(b"keep me")
     before = tree(tmp_path)
-    writes = {"dataset": lambda p: open_writer(p / "demos.zarr", task_id="t", env_args={}),
-              "checkpoint": lambda p: write_atomic({"step": 1}, p / "run" / "resume.pt"),
-              "export": lambda p: export_lerobot(dataset, p / "lerobot", video=False),
-              "yolo": lambda p: YoloWriter(p / "yolo", ["cube"], ["train"])}
+    writes = {
+        "dataset": lambda p: open_writer(p / "demos.zarr", task_id="t", env_args={}),
+        "checkpoint": lambda p: write_atomic({"step": 1}, p / "run" / "resume.pt"),
+        "export": lambda p: export_lerobot(dataset, p / "lerobot", video=False),
+        "yolo": lambda p: YoloWriter(p / "yolo", ["cube"], ["train"]),
+    }
     for write in writes.values():
         with pytest.raises(OutputPathError, match=r"^cannot write .*afile.* is a file; choose another path$"):
             write(tmp_path / "afile")

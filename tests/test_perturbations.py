@@ -99,10 +99,33 @@ def test_the_table_has_a_row_per_cell_on_the_same_episodes(reach_env):
 
 
 def test_evaluate_prints_the_perturbation_table(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "newton_lab.cli", "evaluate", "--task", "GalbotG1-Reach-v0",
-                           "--episodes", "2", "--num-envs", "2", "--device", "cpu", "--randomize", "--max-steps",
-                           "150", "--perturb", "action_noise=mild,action_latency=1", "--run-record", "r.json"],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "newton_lab.cli",
+            "evaluate",
+            "--task",
+            "GalbotG1-Reach-v0",
+            "--episodes",
+            "2",
+            "--num-envs",
+            "2",
+            "--device",
+            "cpu",
+            "--randomize",
+            "--max-steps",
+            "150",
+            "--perturb",
+            "action_noise=mild,action_latency=1",
+            "--run-record",
+            "r.json",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
     (row,) = out["perturbations"]

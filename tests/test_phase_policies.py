@@ -25,9 +25,13 @@ class ConstantPolicy:
         names = [j for t in lookup(component).make_cfg().actions for j in env.robot.joint_groups[t.group]]
         self.cfg = SimpleNamespace(obs_horizon=2, action_horizon=4, image_keys=list(images or []))
         self.obs_keys = list(obs_keys)
-        self.info = {"task_id": component, "action_joint_names": names,
-                     "obs_dims": {k: env.task.obs_terms[k].stop - env.task.obs_terms[k].start for k in obs_keys if k in
-                                  env.task.obs_terms}}
+        self.info = {
+            "task_id": component,
+            "action_joint_names": names,
+            "obs_dims": {
+                k: env.task.obs_terms[k].stop - env.task.obs_terms[k].start for k in obs_keys if k in env.task.obs_terms
+            },
+        }
 
     def predict_action(self, history, generator=None):
         n = history.shape[0]
@@ -78,8 +82,7 @@ def test_wrong_phase_and_missing_terms_are_one_line_errors(coherent_env):
 def test_evaluation_summary_says_where_rows_stop(coherent_env):
     env = coherent_env
     stuck = PolicyAgent(ConstantPolicy(env, "GalbotG1-PickToShelf-Pick-v0"))  # never lifts the bar
-    summary = env.evaluate(agent=compose_phase_policies(env, {"pick": stuck}), episodes=2, max_steps=30,
-                           progress=False)
+    summary = env.evaluate(agent=compose_phase_policies(env, {"pick": stuck}), episodes=2, max_steps=30, progress=False)
     phases = summary["phases"]
     assert list(phases) == ["pick", "nav", "place"]
     assert phases["pick"]["reached"] == 2 and phases["pick"]["passed"] == 0

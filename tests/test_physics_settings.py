@@ -27,15 +27,26 @@ def filtered(task_id: str, iterations: int | None = None) -> PhysicsCfg:
     own = lookup(task_id).make_cfg({}).physics
     return dataclasses.replace(own, contact_filter=gripper_only(), iterations=iterations or own.iterations)
 
+
 LINK = "left_arm_link3"
 """A left-arm link (upper arm capsule): PickCube's filter lets only the left gripper touch anything."""
 
 
 def test_default_physics_is_the_solver_every_task_ran_with():
     options = PhysicsCfg().solver_options()
-    assert options == dict(use_mujoco_cpu=False, solver="newton", integrator="implicitfast", cone="elliptic",
-                           iterations=20, ls_iterations=10, tolerance=None, ls_tolerance=None, impratio=10.0,
-                           nconmax=None, njmax=None)
+    assert options == dict(
+        use_mujoco_cpu=False,
+        solver="newton",
+        integrator="implicitfast",
+        cone="elliptic",
+        iterations=20,
+        ls_iterations=10,
+        tolerance=None,
+        ls_tolerance=None,
+        impratio=10.0,
+        nconmax=None,
+        njmax=None,
+    )
     with pytest.raises(ValueError, match="cone"):
         PhysicsCfg(cone="round")
 
@@ -61,10 +72,17 @@ def test_a_filter_naming_what_the_scene_lacks_is_refused():
 
 
 def test_a_coherent_task_runs_what_every_phase_needs():
-    a = PhysicsCfg(iterations=5, ls_iterations=5, constraints_per_world=128,
-                   contact_filter=ContactFilterCfg(robot={"left_gripper": ("cube",)}))
-    b = PhysicsCfg(iterations=8, ls_iterations=4, contact_filter=ContactFilterCfg(robot={"left_gripper": (GROUND,),
-                                                                                         "left_arm": ("table",)}))
+    a = PhysicsCfg(
+        iterations=5,
+        ls_iterations=5,
+        constraints_per_world=128,
+        contact_filter=ContactFilterCfg(robot={"left_gripper": ("cube",)}),
+    )
+    b = PhysicsCfg(
+        iterations=8,
+        ls_iterations=4,
+        contact_filter=ContactFilterCfg(robot={"left_gripper": (GROUND,), "left_arm": ("table",)}),
+    )
     m = merged([a, b])
     assert (m.iterations, m.ls_iterations, m.constraints_per_world, m.contacts_per_world) == (8, 5, 128, None)
     assert m.contact_filter.robot == {"left_gripper": ("cube", GROUND), "left_arm": ("table",)}
@@ -87,8 +105,14 @@ GRIPPER = {"left_palm", "left_gripper_l_finger_link_geom_0", "left_gripper_r_fin
 
 
 def test_the_filter_reaches_mujoco_warps_broad_phase():
-    before = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
-                      physics=PhysicsCfg(constraints_per_world=128, weld_idle_joints=False))
+    before = make_env(
+        PICK,
+        num_envs=1,
+        device="cpu",
+        capture=False,
+        cameras=False,
+        physics=PhysicsCfg(constraints_per_world=128, weld_idle_joints=False),
+    )
     task = make_env(PICK, num_envs=2, device="cpu", capture=False, cameras=False, physics=filtered(PICK, 5))
     assert task.solver.mj_model.opt.iterations == task.cfg.physics.iterations == 5
     assert before.solver.mj_model.opt.iterations == 20
@@ -128,19 +152,25 @@ def _contacts_of(env, body_a: int, body_b: int) -> int:
 def test_a_declared_non_colliding_pair_makes_no_contact(physics):
     """The cube placed inside a left-arm link: with ``gripper_only()`` nothing touches it (it falls freely); with
     PickCube's own physics (no filter) the link makes contacts and pushes it out."""
-    env = make_env(PICK, num_envs=1, device="cpu", capture=False, cameras=False,
-                   physics=filtered(PICK) if physics == "filtered" else None)
+    env = make_env(
+        PICK,
+        num_envs=1,
+        device="cpu",
+        capture=False,
+        cameras=False,
+        physics=filtered(PICK) if physics == "filtered" else None,
+    )
     labels = env.model.body_label
     link = next(i for i, name in enumerate(labels) if name.endswith("/" + LINK))
     cube = env.task.entities["cube"]
     q = env.state.joint_q.numpy()
     link_pos = env.state.body_q.numpy()[link][:3]
-    q[cube.coord:cube.coord + 7] = [*link_pos, 0.0, 0.0, 0.0, 1.0]
+    q[cube.coord : cube.coord + 7] = [*link_pos, 0.0, 0.0, 0.0, 1.0]
     env.state.joint_q.assign(q)
     env.state.joint_qd.zero_()
     newton.eval_fk(env.model, env.state.joint_q, env.state.joint_qd, env.state)
     env.sim.simulate()  # one control step of physics (5 substeps)
-    moved = env.state.joint_q.numpy()[cube.coord:cube.coord + 3] - link_pos
+    moved = env.state.joint_q.numpy()[cube.coord : cube.coord + 3] - link_pos
     contacts = _contacts_of(env, link, cube.body)
     if physics == "filtered":
         assert contacts == 0
@@ -158,8 +188,15 @@ def test_the_filter_keeps_the_contacts_grasp_and_place_need(task_id):
     the shelf, placed)."""
     n = 2 if task_id == PICK else 1
     fewest = {PICK: 5, "GalbotG1-StackCube-v0": 8, "GalbotG1-PickToShelf-v0": 5, "GalbotG1-SortToShelf-v0": 8}
-    env = make_env(task_id, num_envs=n, device="cpu", seed=100, randomize=True, cameras=False,
-                   physics=filtered(task_id, fewest[task_id]))
+    env = make_env(
+        task_id,
+        num_envs=n,
+        device="cpu",
+        seed=100,
+        randomize=True,
+        cameras=False,
+        physics=filtered(task_id, fewest[task_id]),
+    )
     assert env.cfg.physics.contact_filter == gripper_only()
     summary = env.evaluate(agent=expert_agent(env), episodes=n, max_steps=1500, progress=False)
     assert summary["success_rate"] == 1.0, summary
@@ -187,8 +224,12 @@ def test_welding_joints_at_the_posture_keeps_every_body_where_the_posture_puts_i
     mjcf = probe.welded_mjcf(task_posture(cfg, robot_binding(cfg.robot)), probe.MOVING)
     root = ET.fromstring(mjcf)
     assert sorted(j.get("name") for j in root.find("worldbody").iter("joint")) == sorted(probe.MOVING)
-    named = {v for e in [*root.iter("position"), *root.iter("velocity"), *root.find("equality")]
-             for k, v in e.attrib.items() if k in ("joint", "joint1", "joint2")}
+    named = {
+        v
+        for e in [*root.iter("position"), *root.iter("velocity"), *root.find("equality")]
+        for k, v in e.attrib.items()
+        if k in ("joint", "joint1", "joint2")
+    }
     assert named <= set(probe.MOVING)
     poses = {}
     for name, text in (("full", None), ("welded", mjcf)):
@@ -216,11 +257,17 @@ def test_welding_idle_joints_keeps_the_full_robot_layout_and_the_expert_episodes
     import torch
     import warp as wp
 
-    envs = {on: make_env(PICK, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False,
-                         physics=_weld(PICK, on)) for on in (False, True)}
+    envs = {
+        on: make_env(PICK, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False, physics=_weld(PICK, on))
+        for on in (False, True)
+    }
     full, welded = envs[False], envs[True]
-    free = {*welded.robot.joint_groups["left_arm"], "left_gripper_joint", "left_gripper_l_finger_joint",
-            "left_gripper_r_finger_joint"}
+    free = {
+        *welded.robot.joint_groups["left_arm"],
+        "left_gripper_joint",
+        "left_gripper_l_finger_joint",
+        "left_gripper_r_finger_joint",
+    }
     assert set(welded.sim.layout.welded) == set(full.sim.layout.joints.coord) - free
     assert full.sim.joint_space is None and full.sim.layout.welded == ()
     assert welded.sim.joint_space.model.joint_coord_count // 2 == 17 and welded.sim.layout.coords_per_world == 41
@@ -237,8 +284,10 @@ def test_welding_idle_joints_keeps_the_full_robot_layout_and_the_expert_episodes
     assert not wp.to_torch(welded.state.joint_qd).view(2, -1)[:, idle_dofs].any()
     moved = welded.joints.positions(list(welded.robot.joint_groups["left_arm"]))
     assert not torch.allclose(moved, full.joints.positions(list(full.robot.joint_groups["left_arm"])) * 0)
-    runs = {on: env.evaluate(agent=expert_agent(env), episodes=4, max_steps=1500, progress=False)
-            for on, env in envs.items()}
+    runs = {
+        on: env.evaluate(agent=expert_agent(env), episodes=4, max_steps=1500, progress=False)
+        for on, env in envs.items()
+    }
     assert runs[True]["success_rate"] == runs[False]["success_rate"] == 1.0, runs
     assert abs(runs[True]["average_length"] - runs[False]["average_length"]) <= 2.0, runs
 
@@ -254,8 +303,9 @@ def test_a_joint_coupled_to_a_free_one_stays_free_and_welding_refuses_unknown_jo
     left = {j.get("name") for j in ET.fromstring(text).iter("joint") if j.get("name")}
     assert {"left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint"} <= left
     assert "right_gripper_l_finger_joint" in welded and "head_joint1" in welded
-    assert set(welded) | {"left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint"} \
-        == set(spec.ALL_JOINT_NAMES)
+    assert set(welded) | {"left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint"} == set(
+        spec.ALL_JOINT_NAMES
+    )
     builder = newton.ModelBuilder()
     with pytest.raises(ValueError, match="no such joints"):
         robot_binding(lookup(PICK).make_cfg({}).robot).build(builder, {"nose_joint": 0.0})
@@ -290,8 +340,12 @@ def test_exchanging_the_state_once_a_control_step_steps_the_same_physics(task_id
     def physics(sync: bool) -> PhysicsCfg:
         return dataclasses.replace(lookup(task_id).make_cfg({}).physics, sync_every_substep=sync)
 
-    envs = {sync: make_env(task_id, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False,
-                           physics=physics(sync)) for sync in (True, False)}
+    envs = {
+        sync: make_env(
+            task_id, num_envs=2, device="cpu", seed=100, randomize=True, cameras=False, physics=physics(sync)
+        )
+        for sync in (True, False)
+    }
     assert (envs[False].sim.physics_exchange, envs[True].sim.physics_exchange) == ("control_step", "substep")
     agents = {sync: expert_agent(env) for sync, env in envs.items()}
     start = wp.to_torch(envs[False].state.joint_q).clone()

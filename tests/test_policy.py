@@ -49,19 +49,30 @@ def _one_thread():
 def demo_arrays(steps: int = T) -> dict:
     """Smooth sin-curve joint targets; the state follows them one step late and carries a phase clock."""
     t = np.arange(steps)[:, None]
-    actions = np.concatenate([np.sin(2 * np.pi * f * t / steps + p) for f, p in [(1.0, 0.0), (0.5, 1.0), (1.5, 2.0)]],
-                             axis=1).astype(np.float32)
+    actions = np.concatenate(
+        [np.sin(2 * np.pi * f * t / steps + p) for f, p in [(1.0, 0.0), (0.5, 1.0), (1.5, 2.0)]], axis=1
+    ).astype(np.float32)
     lagged = np.concatenate([actions[:1], actions[:-1]])
-    return {"actions": actions,
-            "obs": {"actions": lagged,  # last-action term: excluded by default
-                    "robot_joint_pos": np.concatenate([lagged, t / steps], axis=1).astype(np.float32),
-                    "cube_pose": np.tile(np.float32([0.1, 0.2, 0.3]), (steps, 1)),  # constant dims
-                    "rgb": np.zeros((steps, 4, 4, 3), np.uint8)}}  # image: excluded
+    return {
+        "actions": actions,
+        "obs": {
+            "actions": lagged,  # last-action term: excluded by default
+            "robot_joint_pos": np.concatenate([lagged, t / steps], axis=1).astype(np.float32),
+            "cube_pose": np.tile(np.float32([0.1, 0.2, 0.3]), (steps, 1)),  # constant dims
+            "rgb": np.zeros((steps, 4, 4, 3), np.uint8),
+        },
+    }  # image: excluded
 
 
 def write_dataset(path: Path, *, failed_demo: bool = True) -> Path:
-    env_args = {"newton_lab": {"action_joint_names": JOINTS, "sim_dt": 0.01, "decimation": 5,
-                               "obs_terms": {"actions": [0, 3], "robot_joint_pos": [3, 7], "cube_pose": [7, 10]}}}
+    env_args = {
+        "newton_lab": {
+            "action_joint_names": JOINTS,
+            "sim_dt": 0.01,
+            "decimation": 5,
+            "obs_terms": {"actions": [0, 3], "robot_joint_pos": [3, 7], "cube_pose": [7, 10]},
+        }
+    }
     with open_writer(path, task_id=TASK, env_args=env_args, fsync=False) as writer:
         writer.append_episode(demo_arrays(), success=True)
         if failed_demo:
@@ -79,8 +90,16 @@ def dataset(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def trained(dataset, tmp_path_factory) -> Path:
     """One tiny policy overfit on the single successful demo (shared by the tests that need weights)."""
-    cfg = DiffusionPolicyConfig(**TINY, lr=1e-2, betas=(0.9, 0.999), warmup_steps=10, epochs=300, batch_size=80,
-                                seed=0, output_dir=str(tmp_path_factory.mktemp("policy_run")))
+    cfg = DiffusionPolicyConfig(
+        **TINY,
+        lr=1e-2,
+        betas=(0.9, 0.999),
+        warmup_steps=10,
+        epochs=300,
+        batch_size=80,
+        seed=0,
+        output_dir=str(tmp_path_factory.mktemp("policy_run")),
+    )
     return Policy.from_backend("diffusion").train(dataset, cfg)
 
 
@@ -205,7 +224,7 @@ def test_windows_pad_episode_edges(tmp_path, suffix):
     np.testing.assert_array_equal(mid["obs"].numpy(), obs[9:11])
     np.testing.assert_array_equal(mid["actions"].numpy(), acts[9:25])
     last = ds[T - 1]
-    np.testing.assert_array_equal(last["obs"].numpy(), obs[T - 2:T])
+    np.testing.assert_array_equal(last["obs"].numpy(), obs[T - 2 : T])
     np.testing.assert_array_equal(last["actions"].numpy(), acts[[T - 2] + [T - 1] * 15])  # pad_after repeats last
     batch = ds.__getitems__([0, 10, T - 1])
     np.testing.assert_array_equal(batch["actions"][2].numpy(), last["actions"].numpy())
@@ -245,12 +264,12 @@ def test_unet_output_shape_and_horizon_check():
         DiffusionPolicyConfig(pred_horizon=18)
 
 
-
 def test_activation_is_part_of_the_architecture(dataset, tmp_path):
     """activation="silu" swaps every Mish of the U-Net; the checkpoint keeps it (an older checkpoint without the
     field loads as Mish); an unknown name is a one-line error naming the valid ones."""
-    cfg = DiffusionPolicyConfig(**TINY, activation="silu", max_steps=2, warmup_steps=1, batch_size=8,
-                                output_dir=str(tmp_path))
+    cfg = DiffusionPolicyConfig(
+        **TINY, activation="silu", max_steps=2, warmup_steps=1, batch_size=8, output_dir=str(tmp_path)
+    )
     policy = DiffusionPolicy.load(Policy.from_backend("diffusion").train(dataset, cfg))
     acts = {type(m).__name__ for m in policy.model.modules() if isinstance(m, (torch.nn.Mish, torch.nn.SiLU))}
     assert policy.cfg.activation == "silu" and acts == {"SiLU"}
@@ -259,12 +278,16 @@ def test_activation_is_part_of_the_architecture(dataset, tmp_path):
     with pytest.raises(ValueError, match="activation must be one of mish, silu, got 'relu'"):
         DiffusionPolicyConfig(activation="relu")
 
+
 def test_compiled_training_net_shares_the_model():
     """compile=True routes compute_loss through torch.compile of the same U-Net: parameters, state dict and EMA
     are the model's own (torch.compile is lazy: nothing is compiled here)."""
     cfg = DiffusionPolicyConfig(down_dims=(16, 32, 64), diffusion_step_embed_dim=32, compile=True)
-    policy = DiffusionPolicy(cfg, obs_normalizer=MinMaxNormalizer(torch.zeros(7), torch.ones(7)),
-                             action_normalizer=MinMaxNormalizer(torch.zeros(3), torch.ones(3)))
+    policy = DiffusionPolicy(
+        cfg,
+        obs_normalizer=MinMaxNormalizer(torch.zeros(7), torch.ones(7)),
+        action_normalizer=MinMaxNormalizer(torch.zeros(3), torch.ones(3)),
+    )
     keys = list(policy.state_dict())
     assert policy.train_net is policy.model
     policy.compile_for_training()
@@ -300,8 +323,10 @@ def test_tiny_policy_overfits_one_demo(trained, dataset):
     assert pred.shape == (16, 8, 3)
     target = first["actions"][1:9]  # steps obs_horizon-1 .. obs_horizon-1+action_horizon-1 = demo steps 0..7
     sample_err = (norm.normalize(pred) - norm.normalize(target)).abs().mean(dim=(1, 2))
-    print(f"denoise err {denoise_err:.3f}; DDIM sample err median {float(sample_err.median()):.3f} "
-          f"min {float(sample_err.min()):.3f} (normalised)")
+    print(
+        f"denoise err {denoise_err:.3f}; DDIM sample err median {float(sample_err.median()):.3f} "
+        f"min {float(sample_err.min()):.3f} (normalised)"
+    )
     assert denoise_err < 0.1
     assert float(sample_err.median()) < 0.4  # an untrained policy is ~0.8 off
 
@@ -314,8 +339,18 @@ def test_sample_prediction_policy_follows_the_demo(dataset, tmp_path):
     """The demo recipe's prediction type: the U-Net predicts the clean action chunk; after 300 steps its
     5-step DDIM samples follow the demo closer than the epsilon policy's (< 0.4 above); the checkpoint keeps
     the prediction type."""
-    cfg = DiffusionPolicyConfig(**TINY, lr=1e-2, betas=(0.9, 0.999), warmup_steps=10, epochs=300, batch_size=80,
-                                seed=0, prediction_type="sample", num_inference_steps=5, output_dir=str(tmp_path))
+    cfg = DiffusionPolicyConfig(
+        **TINY,
+        lr=1e-2,
+        betas=(0.9, 0.999),
+        warmup_steps=10,
+        epochs=300,
+        batch_size=80,
+        seed=0,
+        prediction_type="sample",
+        num_inference_steps=5,
+        output_dir=str(tmp_path),
+    )
     policy = DiffusionPolicy.load(Policy.from_backend("diffusion").train(dataset, cfg))
     assert policy.cfg.prediction_type == "sample" and policy.cfg.num_inference_steps == 5
     first = SequenceDataset(dataset)[0]
@@ -387,8 +422,7 @@ def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):
 def test_training_to_a_log_prints_progress_lines(dataset, tmp_path, monkeypatch, capsys):
     """stderr not a terminal (a log file, Prefect): no tqdm bar, but a read line and plain step lines."""
     monkeypatch.setattr(sys.modules["newton_lab.policies.train"], "LOG_EVERY_S", 0.0)
-    cfg = {**TINY, "max_steps": 3, "warmup_steps": 1, "batch_size": 8, "output_dir": str(tmp_path),
-           "progress": True}
+    cfg = {**TINY, "max_steps": 3, "warmup_steps": 1, "batch_size": 8, "output_dir": str(tmp_path), "progress": True}
     Policy.from_backend("diffusion").train(dataset, cfg)
     err = capsys.readouterr().err.splitlines()
     assert any(" demos, " in line and " windows read in " in line for line in err), err
@@ -400,17 +434,29 @@ def test_training_to_a_log_prints_progress_lines(dataset, tmp_path, monkeypatch,
 def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
     start = DiffusionPolicy.load(trained)
     # another architecture and obs keys asked for: the checkpoint's win; lr 0 keeps the weights unchanged
-    cfg = {"down_dims": (8, 16, 32), "obs_keys": ("cube_pose",), "lr": 0.0, "max_steps": 3, "warmup_steps": 1,
-           "batch_size": 8, "progress": False, "output_dir": str(tmp_path), "init_checkpoint": str(trained)}
+    cfg = {
+        "down_dims": (8, 16, 32),
+        "obs_keys": ("cube_pose",),
+        "lr": 0.0,
+        "max_steps": 3,
+        "warmup_steps": 1,
+        "batch_size": 8,
+        "progress": False,
+        "output_dir": str(tmp_path),
+        "init_checkpoint": str(trained),
+    }
     path = Policy.from_backend("diffusion").train(dataset, cfg)
     cont = DiffusionPolicy.load(path)
     assert cont.cfg.down_dims == start.cfg.down_dims and cont.obs_keys == start.obs_keys
     assert cont.info["training"]["init_checkpoint"] == str(trained)
     obs = torch.randn(2, 2, 7)
-    torch.testing.assert_close(cont.predict_action(obs, generator=torch.Generator().manual_seed(3)),
-                               start.predict_action(obs, generator=torch.Generator().manual_seed(3)))
-    with open_writer(tmp_path / "wide.hdf5", task_id=TASK, env_args={"newton_lab": {"action_joint_names": JOINTS}},
-                     fsync=False) as w:
+    torch.testing.assert_close(
+        cont.predict_action(obs, generator=torch.Generator().manual_seed(3)),
+        start.predict_action(obs, generator=torch.Generator().manual_seed(3)),
+    )
+    with open_writer(
+        tmp_path / "wide.hdf5", task_id=TASK, env_args={"newton_lab": {"action_joint_names": JOINTS}}, fsync=False
+    ) as w:
         arrays = demo_arrays()
         arrays["obs"]["robot_joint_pos"] = np.concatenate([arrays["obs"]["robot_joint_pos"]] * 2, axis=1)
         w.append_episode(arrays, success=True)
@@ -418,21 +464,45 @@ def test_training_continues_from_a_checkpoint(trained, dataset, tmp_path):
         Policy.from_backend("diffusion").train(tmp_path / "wide.hdf5", {**cfg, "output_dir": str(tmp_path / "w")})
     assert "\n" not in str(err.value)
     # another task's dataset: said as such (not as an observation key the dataset lacks)
-    with open_writer(tmp_path / "other.hdf5", task_id="GalbotG1-Reach-v0",
-                     env_args={"newton_lab": {"action_joint_names": JOINTS}}, fsync=False) as w:
+    with open_writer(
+        tmp_path / "other.hdf5",
+        task_id="GalbotG1-Reach-v0",
+        env_args={"newton_lab": {"action_joint_names": JOINTS}},
+        fsync=False,
+    ) as w:
         w.append_episode(demo_arrays(), success=True)
-    with pytest.raises(ValueError, match=f"cannot continue from .*: it was trained for {TASK}, the dataset is "
-                                         "GalbotG1-Reach-v0"):
+    with pytest.raises(
+        ValueError, match=f"cannot continue from .*: it was trained for {TASK}, the dataset is GalbotG1-Reach-v0"
+    ):
         Policy.from_backend("diffusion").train(tmp_path / "other.hdf5", {**cfg, "output_dir": str(tmp_path / "o")})
 
 
 def test_train_cli_flags(dataset, tmp_path, capsys):
     from newton_lab.cli import main
 
-    assert main(["train", "--dataset-path", str(dataset), str(dataset), "--output-dir", str(tmp_path),
-                 "--preset", "cpu",
-                 "--max-steps", "2", "--batch-size", "8", "--obs-keys", "robot_joint_pos",
-                 "--time-budget-s", "60"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--dataset-path",
+                str(dataset),
+                str(dataset),
+                "--output-dir",
+                str(tmp_path),
+                "--preset",
+                "cpu",
+                "--max-steps",
+                "2",
+                "--batch-size",
+                "8",
+                "--obs-keys",
+                "robot_joint_pos",
+                "--time-budget-s",
+                "60",
+            ]
+        )
+        == 0
+    )
     ckpt = Path(json.loads(capsys.readouterr().out.strip().splitlines()[-1])["checkpoint"])
     policy = DiffusionPolicy.load(ckpt)
     assert policy.obs_keys == ["robot_joint_pos"] and policy.cfg.down_dims == (32, 64, 128)
@@ -459,8 +529,24 @@ def test_graph_safe_ema_update_matches_the_eager_one():
 def test_train_bench_prints_the_eager_rate_on_cpu(dataset, capsys, tmp_path):
     from newton_lab.cli import main
 
-    assert main(["bench-train", "--dataset-path", str(dataset), "--batch-size", "8", "--steps", "3",
-                 "--preset", "cpu", "--run-record", str(tmp_path / "record.json")]) == 0
+    assert (
+        main(
+            [
+                "bench-train",
+                "--dataset-path",
+                str(dataset),
+                "--batch-size",
+                "8",
+                "--steps",
+                "3",
+                "--preset",
+                "cpu",
+                "--run-record",
+                str(tmp_path / "record.json"),
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["EagerTrainStep_steps_per_s"] > 0 and np.isfinite(out["EagerTrainStep_final_loss"])
     assert "CudaGraphTrainStep_steps_per_s" not in out  # no capture without CUDA

@@ -17,8 +17,11 @@ class RecordingPolicy:
     def __init__(self, env, obs_keys):
         self.cfg = SimpleNamespace(obs_horizon=2, action_horizon=3)
         self.obs_keys = obs_keys
-        self.info = {"task_id": env.task_id, "action_joint_names": list(env.action_joint_names),
-                     "obs_dims": {k: env.task.obs_terms[k].stop - env.task.obs_terms[k].start for k in obs_keys}}
+        self.info = {
+            "task_id": env.task_id,
+            "action_joint_names": list(env.action_joint_names),
+            "obs_dims": {k: env.task.obs_terms[k].stop - env.task.obs_terms[k].start for k in obs_keys},
+        }
         self.calls = []
         self.env = env
 

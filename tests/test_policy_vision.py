@@ -33,7 +33,7 @@ def test_crops_stay_inside_and_centre_at_inference():
         r = crop_frames(x, (8, 10), random=True)
         assert r.shape == (2, 8, 10, 3)
         for n in range(2):  # every crop is a window of its own frame
-            hits = [(i, j) for i in range(3) for j in range(3) if torch.equal(r[n], x[n, i:i + 8, j:j + 10])]
+            hits = [(i, j) for i in range(3) for j in range(3) if torch.equal(r[n], x[n, i : i + 8, j : j + 10])]
             assert hits
 
 
@@ -63,8 +63,16 @@ def image_demos(tmp_path_factory):
 
 def _cfg(tmp_path, **kw) -> DiffusionPolicyConfig:
     preset = {**PRESETS["vision_cpu"], "max_steps": 2, "batch_size": 4}
-    return DiffusionPolicyConfig(**{**preset, "output_dir": str(tmp_path / "policy"), "progress": False,
-                                    "checkpoint_every_steps": None, "checkpoint_every_s": None, **kw})
+    return DiffusionPolicyConfig(
+        **{
+            **preset,
+            "output_dir": str(tmp_path / "policy"),
+            "progress": False,
+            "checkpoint_every_steps": None,
+            "checkpoint_every_s": None,
+            **kw,
+        }
+    )
 
 
 def test_image_windows_and_checkpoint_round_trip(image_demos, tmp_path):
@@ -81,7 +89,8 @@ def test_image_windows_and_checkpoint_round_trip(image_demos, tmp_path):
     path = Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path))
     policy = DiffusionPolicy.load(path)
     assert policy.info["image_keys"] == ["front_head_rgb"] and policy.info["image_shapes"] == {
-        "front_head_rgb": [72, 96, 3]}
+        "front_head_rgb": [72, 96, 3]
+    }
     assert policy.obs_keys == list(PROPRIO) and policy.cfg.crop == 0.9
     again = DiffusionPolicy.load(path)
     obs, images = batch["obs"][:1], {"front_head_rgb": batch["images"]["front_head_rgb"][:1]}
@@ -99,8 +108,9 @@ def test_bf16_training_keeps_float32_weights(image_demos, tmp_path):
     ckpt = torch.load(path, weights_only=True)
     assert ckpt["config"]["bf16"] is True
     assert {v.dtype for v in ckpt["weights"].values() if v.is_floating_point()} == {torch.float32}
-    assert torch.isfinite(torch.tensor(__import__("json").loads((path.parent / "train_log.json").read_text())[
-        "final_loss"]))
+    assert torch.isfinite(
+        torch.tensor(__import__("json").loads((path.parent / "train_log.json").read_text())["final_loss"])
+    )
 
 
 def test_policy_agent_refuses_other_cameras(image_demos, tmp_path):
@@ -135,8 +145,16 @@ def test_image_policy_overfits_two_demos_and_replays_one(image_demos, tmp_path):
     with h5py.File(image_demos) as f:
         demo_cubes = np.stack([f[f"data/demo_{i}/datagen/object_poses/cube"][0, :3] for i in range(2)])
     for seed in (3, 0):
-        cfg = _cfg(tmp_path / f"seed{seed}", max_steps=600, batch_size=16, lr=2e-3, warmup_steps=30, crop=1.0,
-                   seed=seed, obs_keys=(*PROPRIO, "actions"))
+        cfg = _cfg(
+            tmp_path / f"seed{seed}",
+            max_steps=600,
+            batch_size=16,
+            lr=2e-3,
+            warmup_steps=30,
+            crop=1.0,
+            seed=seed,
+            obs_keys=(*PROPRIO, "actions"),
+        )
         threads = torch.get_num_threads()
         torch.set_num_threads(1)  # one core: under two pytest workers, two threads only contend with the other
         try:
@@ -150,8 +168,9 @@ def test_image_policy_overfits_two_demos_and_replays_one(image_demos, tmp_path):
             if not first_cubes:
                 first_cubes.append(env.buffers.entity_poses[:, cube, :3].cpu().numpy().copy())
 
-        result = env.evaluate(agent=PolicyAgent.from_checkpoint(path), episodes=2, max_steps=300, progress=False,
-                              on_step=on_step)
+        result = env.evaluate(
+            agent=PolicyAgent.from_checkpoint(path), episodes=2, max_steps=300, progress=False, on_step=on_step
+        )
         np.testing.assert_allclose(first_cubes[0], demo_cubes, atol=2e-3)  # the rows replay the demos' scenes
         assert result["subtask_signals"]["grasped_cube"] >= 1
         if result["successes"] >= 1:

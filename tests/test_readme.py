@@ -38,8 +38,10 @@ SMALLER: dict[str, list[tuple[str, str, int]]] = {
     "newton-lab collect": [(r"--episodes 10\b", "--episodes 1", 1)],  # PushCube: one episode is enough
     # (newton-lab evaluate on Reach runs as written: 20 episodes of ~18 steps cost no more than 2)
     # the example scripts live in the clone, not in the newcomer's empty folder
-    "python examples/01_collect.py": [(r"--episodes 4\b", "--episodes 1", 1),
-                                      (r"(?<![\w/])examples/", f"{ROOT}/examples/", 1)],
+    "python examples/01_collect.py": [
+        (r"--episodes 4\b", "--episodes 1", 1),
+        (r"(?<![\w/])examples/", f"{ROOT}/examples/", 1),
+    ],
 }
 SKIPPED = {
     "make demo": "the demo pipeline itself (its time: its run records; tests/test_flows.py runs the pipeline small)",
@@ -69,8 +71,10 @@ BLOCKS = {_block_id(lang, code): (lang, code) for lang, code in _blocks()}
 def _smaller(key: str, code: str) -> str:
     for pattern, repl, expected in SMALLER.get(key, ()):
         code, n = re.subn(pattern, repl, code)
-        assert n == expected, (f"README changed: {pattern!r} matched {n} times in {key!r}, expected {expected}; "
-                               "update SMALLER in tests/test_readme.py")
+        assert n == expected, (
+            f"README changed: {pattern!r} matched {n} times in {key!r}, expected {expected}; "
+            "update SMALLER in tests/test_readme.py"
+        )
     return code
 
 

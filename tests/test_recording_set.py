@@ -18,12 +18,18 @@ def test_appending_demos_recorded_otherwise_is_refused(tmp_path):
     env.collect(agent=expert_agent(env), episodes=1, path=path, max_steps=3, progress=False)
     size = path.stat().st_size
     sensors = make_env(TASK, num_envs=1, device="cpu", cameras=False, task_options={"obs_mode": "sensors"})
-    with pytest.raises(ValueError, match=r"r.hdf5 was recorded with --obs-mode state, not sensors; append with "
-                                         r"--obs-mode state, or collect into another path"):
+    with pytest.raises(
+        ValueError,
+        match=r"r.hdf5 was recorded with --obs-mode state, not sensors; append with "
+        r"--obs-mode state, or collect into another path",
+    ):
         sensors.collect(agent=expert_agent(sensors), episodes=1, path=path, max_steps=3, progress=False)
     cams = make_env(TASK, num_envs=1, device="cpu", cameras={"front_head": (16, 12)})
-    with pytest.raises(ValueError, match=r"r.hdf5 was recorded with cameras none, not front_head=16x12:rgb; append "
-                                         r"with --cameras none"):
+    with pytest.raises(
+        ValueError,
+        match=r"r.hdf5 was recorded with cameras none, not front_head=16x12:rgb; append "
+        r"with --cameras none",
+    ):
         cams.collect(agent=expert_agent(cams), episodes=1, path=path, max_steps=3, progress=False)
     assert path.stat().st_size == size and read_dataset_info(path)["num_demos"] == 1
     state = make_env(TASK, num_envs=1, device="cpu", cameras=False, task_options={"obs_mode": "state"})  # the default

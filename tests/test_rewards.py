@@ -99,7 +99,7 @@ def test_pick_cube_reward_rises_along_the_expert_episode(pick_env):
         _assert_rises_to_max(success, reason, r)
         # the stages are met in order: near the cube (0.2), grasped (0.4), on the block (0.6), released (1.0)
         first = [int(np.argmax(r >= level - 1e-5)) for level in (0.2, 0.4, 0.6)]
-        assert first == sorted(first) and r[first[-1]:].min() >= 0.6 - 1e-5, first
+        assert first == sorted(first) and r[first[-1] :].min() >= 0.6 - 1e-5, first
 
 
 def test_pick_cube_reward_by_state(pick_env):
@@ -134,9 +134,9 @@ def test_stack_cube_reward_by_state(stack_env):
 
 @pytest.mark.slow
 def test_stack_cube_reward_rises_along_the_expert_episode(stack_env):
-    (success, reason, r), = _expert_rewards(stack_env, PlannerAgent.from_task(stack_env.task_id), 900)
+    ((success, reason, r),) = _expert_rewards(stack_env, PlannerAgent.from_task(stack_env.task_id), 900)
     _assert_rises_to_max(success, reason, r)
-    assert r[np.argmax(r >= 4 / 9 - 1e-5):].min() >= 4 / 9 - 1e-5  # cube_2 stays stacked while cube_3 is moved
+    assert r[np.argmax(r >= 4 / 9 - 1e-5) :].min() >= 4 / 9 - 1e-5  # cube_2 stays stacked while cube_3 is moved
 
 
 # ---------------------------------------------------------------- LiftCube, coherent PickToShelf / SortToShelf
@@ -145,13 +145,14 @@ def test_lift_cube_reward_rises_along_the_expert_episode():
     from newton_lab.envs import make_env
 
     env = make_env("GalbotG1-LiftCube-v0", num_envs=1, device="cpu", seed=2, randomize=True)
-    (success, reason, r), = _expert_rewards(env, expert_agent(env), 400)
+    ((success, reason, r),) = _expert_rewards(env, expert_agent(env), 400)
     _assert_rises_to_max(success, reason, r)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("task_id, options", [("GalbotG1-PickToShelf-v0", None),
-                                              ("GalbotG1-SortToShelf-v0", {"sorting_object": "red_cube"})])
+@pytest.mark.parametrize(
+    "task_id, options", [("GalbotG1-PickToShelf-v0", None), ("GalbotG1-SortToShelf-v0", {"sorting_object": "red_cube"})]
+)
 def test_coherent_reward_rises_through_the_phases(task_id, options):
     from newton_lab.envs import make_env
 

@@ -17,14 +17,28 @@ import torch
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.load` is deprecated")
 
 TASK = "GalbotG1-Reach-v0"
-TINY = ["--task", TASK, "--num-envs", "4", "--device", "cpu", "--steps-per-env", "8", "--chunk-iterations", "1",
-        "--hidden-dims", "32", "32"]
+TINY = [
+    "--task",
+    TASK,
+    "--num-envs",
+    "4",
+    "--device",
+    "cpu",
+    "--steps-per-env",
+    "8",
+    "--chunk-iterations",
+    "1",
+    "--hidden-dims",
+    "32",
+    "32",
+]
 TINY_PPO = {"num_envs": 4, "device": "cpu", "chunk_iterations": 1, "num_steps_per_env": 8, "hidden_dims": (32, 32)}
 
 
 def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "newton_lab.cli", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "newton_lab.cli", *args], cwd=cwd, capture_output=True, text=True, timeout=600
+    )
 
 
 def actor_output(path: Path) -> torch.Tensor:
@@ -42,8 +56,19 @@ def train(out: Path, iterations: int, resume: bool = False) -> Path:
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("ppo")
-    done = cli("train-rl", *TINY, "--iterations", "2", "--output-dir", str(tmp / "a"), "--run-record",
-               str(tmp / "a.json"), "--eval-episodes", "2", cwd=tmp)
+    done = cli(
+        "train-rl",
+        *TINY,
+        "--iterations",
+        "2",
+        "--output-dir",
+        str(tmp / "a"),
+        "--run-record",
+        str(tmp / "a.json"),
+        "--eval-episodes",
+        "2",
+        cwd=tmp,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     return tmp, json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -105,13 +130,29 @@ def test_a_short_run_raises_the_reward_of_a_step(tmp_path):
 
 def test_evaluate_runs_the_ppo_actor_and_refuses_another_task(run):
     tmp, out = run
-    done = cli("evaluate", "--task", TASK, "--checkpoint", out["checkpoint"], "--episodes", "2", "--num-envs", "2",
-               "--device", "cpu", "--max-steps", "20", "--randomize", cwd=tmp)
+    done = cli(
+        "evaluate",
+        "--task",
+        TASK,
+        "--checkpoint",
+        out["checkpoint"],
+        "--episodes",
+        "2",
+        "--num-envs",
+        "2",
+        "--device",
+        "cpu",
+        "--max-steps",
+        "20",
+        "--randomize",
+        cwd=tmp,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     assert summary["episodes"] == 2 and 0.0 <= summary["success_rate"] <= 1.0
-    wrong = cli("evaluate", "--task", "GalbotG1-PickCube-v0", "--checkpoint", out["checkpoint"], "--device", "cpu",
-                cwd=tmp)
+    wrong = cli(
+        "evaluate", "--task", "GalbotG1-PickCube-v0", "--checkpoint", out["checkpoint"], "--device", "cpu", cwd=tmp
+    )
     assert wrong.returncode == 2 and f"was trained for {TASK}" in wrong.stderr and "Traceback" not in wrong.stderr
 
 

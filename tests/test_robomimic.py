@@ -22,8 +22,9 @@ DATASET_KEYS = ("actions", "rewards", "dones", "states")
 def collected(pick_env, tmp_path_factory):
     """Two expert episodes (successes) and two 4-step zero-action ones (failures), split by the CLI."""
     path = tmp_path_factory.mktemp("robomimic") / "demos.hdf5"
-    pick_env.collect(agent=PlannerAgent.from_task(pick_env.task_id), episodes=2, path=path, max_steps=400,
-                     progress=False)
+    pick_env.collect(
+        agent=PlannerAgent.from_task(pick_env.task_id), episodes=2, path=path, max_steps=400, progress=False
+    )
     pick_env.collect(agent=ZeroAgent(), episodes=2, path=path, max_steps=4, progress=False)
     return path
 
@@ -86,9 +87,16 @@ def test_robomimic_sequence_dataset_loads_it(collected):
     obs_utils.initialize_obs_utils_with_obs_specs({"obs": {"low_dim": obs_keys, "rgb": []}})
     train = [int(n[5:]) for n in read_filter_keys(collected)["train"]]
     for cache in ("low_dim", None):  # robomimic's default cache mode, and reads straight from the file
-        ds = SequenceDataset(hdf5_path=str(collected), obs_keys=obs_keys, dataset_keys=DATASET_KEYS,
-                             seq_length=4, frame_stack=1, hdf5_cache_mode=cache, filter_by_attribute="train",
-                             goal_mode="last")  # load_next_obs=True (its default): the goal is the last next_obs
+        ds = SequenceDataset(
+            hdf5_path=str(collected),
+            obs_keys=obs_keys,
+            dataset_keys=DATASET_KEYS,
+            seq_length=4,
+            frame_stack=1,
+            hdf5_cache_mode=cache,
+            filter_by_attribute="train",
+            goal_mode="last",
+        )  # load_next_obs=True (its default): the goal is the last next_obs
         eps = {d: read_episode(collected, d) for d in train}
         assert ds.n_demos == len(train) and len(ds) == sum(e["attrs"]["num_samples"] for e in eps.values())
         first = eps[train[0]]

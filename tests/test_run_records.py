@@ -26,16 +26,27 @@ def _quiet_warp():
 
 
 def _record(kind: str, results_: dict, task: str = "GalbotG1-PickCube-v0", command: str | None = None) -> dict:
-    return records.make_record(kind, task=task, device="cpu", results=results_, wall_s=123.4,
-                               command=command or f"newton-lab {kind} --task {task}")
+    return records.make_record(
+        kind,
+        task=task,
+        device="cpu",
+        results=results_,
+        wall_s=123.4,
+        command=command or f"newton-lab {kind} --task {task}",
+    )
 
 
 def _pipeline_results(successes=97, episodes=100, cameras="front_head=96x72:rgb", sensors=True) -> dict:
-    return {"recipe": "gpu", "seed": 0, "cameras": cameras, "task_options": {"obs_mode": "sensors"} if sensors else {},
-            "counts": {"expert_demos": 16, "expert_success_rate": 1.0, "mimic_demos": 1024, "train_steps": {}},
-            "timings_s": {"collect": 1.0}, "phases": {},
-            "success": {"episodes": episodes, "successes": successes, "rate": successes / episodes,
-                        "eval_seed": 10000}}
+    return {
+        "recipe": "gpu",
+        "seed": 0,
+        "cameras": cameras,
+        "task_options": {"obs_mode": "sensors"} if sensors else {},
+        "counts": {"expert_demos": 16, "expert_success_rate": 1.0, "mimic_demos": 1024, "train_steps": {}},
+        "timings_s": {"collect": 1.0},
+        "phases": {},
+        "success": {"episodes": episodes, "successes": successes, "rate": successes / episodes, "eval_seed": 10000},
+    }
 
 
 def test_a_record_names_command_commit_date_and_device(tmp_path):
@@ -79,13 +90,26 @@ def test_unreadable_and_foreign_records_are_refused_in_one_line(tmp_path):
 def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
     recs = tmp_path / "results"
     records.write_record(_record("pipeline", _pipeline_results()), recs / "demo-gpu.json")
-    records.write_record(_record("bench", {"num_envs": 4096, "env_steps_per_s": 1_051_029.0,
-                                           "ratio_env_step_to_bare": 1.032, "camera": "front_head",
-                                           "resolution": [96, 72], "camera_data": ["rgb"],
-                                           "env_steps_per_s_with_camera": 258_800.0,
-                                           "ratio_camera_env_to_ceiling": 0.98}), recs / "bench-gpu.json")
-    records.write_record(_record("bench-collect", {"num_envs": 4096, "successful_demos": 16384,
-                                                   "demos_per_hour": 7.19e6}), recs / "collect-gpu.json")
+    records.write_record(
+        _record(
+            "bench",
+            {
+                "num_envs": 4096,
+                "env_steps_per_s": 1_051_029.0,
+                "ratio_env_step_to_bare": 1.032,
+                "camera": "front_head",
+                "resolution": [96, 72],
+                "camera_data": ["rgb"],
+                "env_steps_per_s_with_camera": 258_800.0,
+                "ratio_camera_env_to_ceiling": 0.98,
+            },
+        ),
+        recs / "bench-gpu.json",
+    )
+    records.write_record(
+        _record("bench-collect", {"num_envs": 4096, "successful_demos": 16384, "demos_per_hour": 7.19e6}),
+        recs / "collect-gpu.json",
+    )
     page = tmp_path / "benchmarks.md"
     page.write_text(f"# Benchmarks\n\nintro\n\n{results.BEGIN}\nold\n{results.END}\n\n## Methods\n")
     assert results.update(page, recs, check=True) is False  # stale: compare only, nothing written
@@ -94,23 +118,33 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
     text = page.read_text()
     assert text.startswith("# Benchmarks\n\nintro\n\n") and text.endswith("\n## Methods\n")
     row = next(line for line in text.splitlines() if line.startswith("| PickCube | CPU"))
-    for part in ("gpu", "front_head 96x72 RGB + proprioception", "16 expert + 1024 Mimic", "100 %",
-                 "**97 / 100** (seed 10000) | – | 2:03", "[demo-gpu](results/demo-gpu.json)"):
+    for part in (
+        "gpu",
+        "front_head 96x72 RGB + proprioception",
+        "16 expert + 1024 Mimic",
+        "100 %",
+        "**97 / 100** (seed 10000) | – | 2:03",
+        "[demo-gpu](results/demo-gpu.json)",
+    ):
         assert part in row, (part, row)
     assert "| 1.05 M | step time 1.03x the bare solver's | [bench-gpu](results/bench-gpu.json) |" in text
     assert "front_head 96x72 rgb | 258.8 k | rate 0.98x the physics + render ceiling" in text
     assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
 
 
-def test_bench_refusals_times_each_case_in_a_fresh_process_and_its_table_shows_the_spread(tmp_path, monkeypatch,
-                                                                                         capsys):
+def test_bench_refusals_times_each_case_in_a_fresh_process_and_its_table_shows_the_spread(
+    tmp_path, monkeypatch, capsys
+):
     """Two cases in fresh ``newton-lab`` processes: one refused as the table says, one the table gets wrong (it is
     answered, exit 0, with no line on stderr): exit status 1, that case named on stderr, both in the record, whose
     row shows 1 of 2 refused and the seconds' spread."""
     from newton_lab.cli import bench_refusals, main
 
-    monkeypatch.setattr(bench_refusals, "CASES", [("view nope.hdf5", "dataset nope.hdf5 does not exist"),
-                                                  ("--version", "words it never prints")])
+    monkeypatch.setattr(
+        bench_refusals,
+        "CASES",
+        [("view nope.hdf5", "dataset nope.hdf5 does not exist"), ("--version", "words it never prints")],
+    )
     rec_path = tmp_path / "results" / "bench-refusals-cpu.json"
     assert main(["bench-refusals", "--run-record", str(rec_path)]) == 1
     err = capsys.readouterr().err
@@ -122,8 +156,9 @@ def test_bench_refusals_times_each_case_in_a_fresh_process_and_its_table_shows_t
     first, second = r["per_case"]
     assert first["refused"] and first["exit"] == 2 and first["one_line"] and first["words"]
     assert not second["refused"] and second["exit"] == 0 and not second["one_line"]
-    assert 0 < r["wall_s"]["median"] <= r["wall_s"]["p95"] <= r["wall_s"]["max"] == max(first["wall_s"],
-                                                                                      second["wall_s"])
+    assert (
+        0 < r["wall_s"]["median"] <= r["wall_s"]["p95"] <= r["wall_s"]["max"] == max(first["wall_s"], second["wall_s"])
+    )
     assert {s["argv"] for s in r["slowest"]} == {"view nope.hdf5", "--version"} and r["command"] == "newton-lab"
     page = tmp_path / "benchmarks.md"
     page.write_text(f"{results.BEGIN}\n{results.END}\n")
@@ -142,8 +177,14 @@ def test_the_committed_page_matches_the_committed_records():
     assert results.update(PAGE, RECORDS, check=True), "docs/benchmarks.md is stale: run `newton-lab results`"
     text = PAGE.read_text()
     block = text.split(results.BEGIN, 1)[1].split(results.END, 1)[0]
-    rows = [line for line in block.splitlines() if line.startswith("| ") and not line.startswith("| task")
-            and not line.startswith("| preset") and not line.startswith("| device")]
+    rows = [
+        line
+        for line in block.splitlines()
+        if line.startswith("| ")
+        and not line.startswith("| task")
+        and not line.startswith("| preset")
+        and not line.startswith("| device")
+    ]
     assert rows
     for line in rows:  # each row links a record that exists
         link = re.search(r"\]\((results/[^)]+\.json)\) \|$", line)
@@ -159,14 +200,24 @@ def test_recipe_choice_without_a_gpu_is_the_cpu_one_and_the_gpu_one_sees_pixels(
     cpu = json.loads(subprocess.run(run, capture_output=True, text=True, check=True, cwd=ROOT).stdout)["plan"]
     assert cpu["recipe"] == "cpu" and cpu["device"] == "cpu" and cpu["cameras"] == "none"
     assert cpu["stages"] == ["collect", "mimic", "train", "evaluate"] and cpu["train_cfg"]["device"] == "cpu"
-    gpu = json.loads(subprocess.run(run + ["--recipe", "gpu"], capture_output=True, text=True, check=True,
-                                    cwd=ROOT).stdout)["plan"]
-    assert gpu["recipe"] == "gpu" and gpu["cameras"].startswith("front_head=") and gpu["task_options"] == {
-        "obs_mode": "sensors"}
+    gpu = json.loads(
+        subprocess.run(run + ["--recipe", "gpu"], capture_output=True, text=True, check=True, cwd=ROOT).stdout
+    )["plan"]
+    assert (
+        gpu["recipe"] == "gpu"
+        and gpu["cameras"].startswith("front_head=")
+        and gpu["task_options"] == {"obs_mode": "sensors"}
+    )
     train = gpu["train_cfg"]
     assert train["device"] == "cuda" and train["bf16"] and train["image_keys"] == ["front_head_rgb"]
     assert "object_pose" not in train["obs_keys"] and "cube_pose" not in train["obs_keys"]
-    coherent = json.loads(subprocess.run(
-        [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--recipe", "gpu"], capture_output=True, text=True,
-        check=True, cwd=ROOT).stdout)["plan"]
+    coherent = json.loads(
+        subprocess.run(
+            [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--recipe", "gpu"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=ROOT,
+        ).stdout
+    )["plan"]
     assert coherent["long_horizon"] and coherent["stages"][1] == "split" and coherent["demos"] >= 600

@@ -17,8 +17,16 @@ def test_an_env_stage_runs_in_a_process_of_its_own_where_cuda_would(tmp_path, mo
     assert stages._on_device("cpu", os.getpid) == os.getpid()  # the CPU path stays in the flow's process
     monkeypatch.setattr(stages, "IN_OWN_PROCESS_ON_CPU", True)
     assert stages._on_device("cpu", os.getpid) != os.getpid()
-    args = CollectArgs(task="GalbotG1-Reach-v0", episodes=2, num_envs=2, device="cpu", seed=3, randomize=True,
-                       no_progress=True, dataset_path=str(tmp_path / "demos.hdf5"))
+    args = CollectArgs(
+        task="GalbotG1-Reach-v0",
+        episodes=2,
+        num_envs=2,
+        device="cpu",
+        seed=3,
+        randomize=True,
+        no_progress=True,
+        dataset_path=str(tmp_path / "demos.hdf5"),
+    )
     art = stages.collect_stage(args=args)
     info = read_dataset_info(tmp_path / "demos.hdf5")
     assert art["metrics"]["episodes"] == 2 and len(info["demo_ids"]) == 2

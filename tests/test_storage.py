@@ -45,14 +45,20 @@ def make_episode(seed: int, steps: int = 200) -> dict:
     rng = np.random.default_rng(seed)
     return {
         "actions": rng.standard_normal((steps, 7)).astype(np.float32),
-        "obs": {"eef_pos": rng.standard_normal((steps, 3)),
-                "rgb": rng.integers(0, 255, (steps, 8, 8, 3), dtype=np.uint8)},
-        "states": {"robot": {"qpos": rng.standard_normal((steps, 9)).astype(np.float32)},
-                   "objects": {"cube": {"pose": rng.standard_normal((steps, 7))}}},
+        "obs": {
+            "eef_pos": rng.standard_normal((steps, 3)),
+            "rgb": rng.integers(0, 255, (steps, 8, 8, 3), dtype=np.uint8),
+        },
+        "states": {
+            "robot": {"qpos": rng.standard_normal((steps, 9)).astype(np.float32)},
+            "objects": {"cube": {"pose": rng.standard_normal((steps, 7))}},
+        },
         "initial_state": {"robot": {"qpos": rng.standard_normal((1, 9)).astype(np.float32)}},
-        "datagen": {"subtask_term_signals": {"grasp": rng.random(steps) > 0.5},
-                    "tcp_pose": rng.standard_normal((steps, 4, 4)).astype(np.float32),
-                    "scale": np.float64(seed)},
+        "datagen": {
+            "subtask_term_signals": {"grasp": rng.random(steps) > 0.5},
+            "tcp_pose": rng.standard_normal((steps, 4, 4)).astype(np.float32),
+            "scale": np.float64(seed),
+        },
     }
 
 
@@ -89,10 +95,14 @@ def stored_root_attrs(path: Path) -> dict:
 
 def write_demos(path: Path, seeds, task: str = TASK) -> list[int]:
     with EpisodeWriter.open(path, task_id=task, env_args=ENV_ARGS) as w:
-        return [w.append_episode(make_episode(s), success=s % 2 == 0,
-                                 attrs={"seed": s, "termination_reason": "success" if s % 2 == 0 else "timeout",
-                                        "episode_length": 200})
-                for s in seeds]
+        return [
+            w.append_episode(
+                make_episode(s),
+                success=s % 2 == 0,
+                attrs={"seed": s, "termination_reason": "success" if s % 2 == 0 else "timeout", "episode_length": 200},
+            )
+            for s in seeds
+        ]
 
 
 @pytest.mark.parametrize("suffix", [".hdf5", ".h5", ".zarr"])
@@ -111,8 +121,13 @@ def test_round_trip(tmp_path, suffix):
         ep = read_episode(path, seed)
         attrs = ep.pop("attrs")
         assert_tree_equal(ep, make_episode(seed))
-        assert attrs == {"num_samples": 200, "success": seed % 2 == 0, "seed": seed, "episode_length": 200,
-                         "termination_reason": "success" if seed % 2 == 0 else "timeout"}
+        assert attrs == {
+            "num_samples": 200,
+            "success": seed % 2 == 0,
+            "seed": seed,
+            "episode_length": 200,
+            "termination_reason": "success" if seed % 2 == 0 else "timeout",
+        }
     assert_tree_equal({k: v for k, v in read_episode(path, "demo_2").items() if k != "attrs"}, make_episode(2))
 
     raw = stored_root_attrs(path)
@@ -201,13 +216,19 @@ def _corrupt(tmp_path: Path, kind: str) -> Path:
     return path
 
 
-@pytest.mark.parametrize("kind", ["garbage_hdf5", "truncated_hdf5", "hdf5_without_data",
-                                  "garbage_zarr", "empty_zarr_dir", "file_named_zarr"])
+@pytest.mark.parametrize(
+    "kind", ["garbage_hdf5", "truncated_hdf5", "hdf5_without_data", "garbage_zarr", "empty_zarr_dir", "file_named_zarr"]
+)
 def test_refuses_corrupt_dataset_and_leaves_it_untouched(tmp_path, kind):
     path = _corrupt(tmp_path, kind)
     before = fingerprint(path) if path.is_file() or any(path.iterdir()) else "empty"
-    calls = (lambda p: open_writer(p, task_id=TASK, env_args={}), read_dataset_info, list_demos,
-             lambda p: read_episode(p, 0), lambda p: delete_demos(p, [0]))
+    calls = (
+        lambda p: open_writer(p, task_id=TASK, env_args={}),
+        read_dataset_info,
+        list_demos,
+        lambda p: read_episode(p, 0),
+        lambda p: delete_demos(p, [0]),
+    )
     for call in calls:
         with pytest.raises(ValueError) as exc:
             call(path)
@@ -254,8 +275,14 @@ def test_read_episodes_reads_many_and_only_the_keys_asked(tmp_path, suffix):
     keys = ["actions", "obs/rgb", "states/robot/qpos", "obs/absent"]
     for seed, ep in zip((1, 2), read_episodes(path, [1, 2], keys=keys)):
         full = make_episode(seed)
-        assert_tree_equal(ep, {"actions": full["actions"], "obs": {"rgb": full["obs"]["rgb"]},
-                               "states": {"robot": {"qpos": full["states"]["robot"]["qpos"]}}})
+        assert_tree_equal(
+            ep,
+            {
+                "actions": full["actions"],
+                "obs": {"rgb": full["obs"]["rgb"]},
+                "states": {"robot": {"qpos": full["states"]["robot"]["qpos"]}},
+            },
+        )
     with pytest.raises(KeyError, match=r"0\.\.3"):
         list(read_episodes(path, [0, 9]))
 
@@ -335,7 +362,10 @@ def test_filter_keys_round_trip_and_follow_deletes(tmp_path, suffix):
     write_small(path, 4)
     assert read_filter_keys(path) == {} and stored_masks(path) == {}
     assert set_filter_keys(path, {"train": [0, "demo_2", 3], "valid": [1], "none": []}) == {
-        "train": ["demo_0", "demo_2", "demo_3"], "valid": ["demo_1"], "none": []}
+        "train": ["demo_0", "demo_2", "demo_3"],
+        "valid": ["demo_1"],
+        "none": [],
+    }
     assert set_filter_keys(path, {"valid": ["demo_1", 2]})["valid"] == ["demo_1", "demo_2"]  # replaced, others kept
     want = {"train": ["demo_0", "demo_2", "demo_3"], "valid": ["demo_1", "demo_2"], "none": []}
     assert read_filter_keys(path) == stored_masks(path) == want
@@ -373,8 +403,9 @@ def test_out_of_inodes_is_told_apart_from_a_full_disk(tmp_path, monkeypatch):
     path = tmp_path / "ds.zarr"
     write_small(path, 2)
     real = os.statvfs(tmp_path)
-    stats = dict(zip(("f_bsize", "f_frsize", "f_blocks", "f_bfree", "f_bavail", "f_files", "f_ffree", "f_favail"),
-                     real[:8]))
+    stats = dict(
+        zip(("f_bsize", "f_frsize", "f_blocks", "f_bfree", "f_bavail", "f_files", "f_ffree", "f_favail"), real[:8])
+    )
     monkeypatch.setattr(room.os, "statvfs", lambda p: type("Stat", (), {**stats, "f_favail": 0, "f_ffree": 0}))
     inject_write_fault(1)
     try:
@@ -417,15 +448,21 @@ def test_rewards_and_dones_are_time_aligned(tmp_path, suffix):
         for key in ("rewards", "dones"):
             with pytest.raises(ValueError, match=f"'{key}'.*3 rows"):
                 w.append_episode({"actions": np.zeros((3, 2)), key: np.zeros(4)}, success=True)
-        w.append_episode({"actions": np.zeros((3, 2)), "rewards": np.ones(3, np.float32),
-                          "dones": np.array([0, 0, 1])}, success=True)
+        w.append_episode(
+            {"actions": np.zeros((3, 2)), "rewards": np.ones(3, np.float32), "dones": np.array([0, 0, 1])}, success=True
+        )
     ep = read_episode(path, 0)
     assert ep["rewards"].tolist() == [1, 1, 1] and ep["dones"].tolist() == [0, 0, 1]
 
 
 def test_state_tree_names_flat_states_and_passes_nested_ones():
-    layout = {"joint_q": [0, 3], "joint_qd": [3, 5], "articulation/robot/joint_position": [0, 2],
-              "articulation/robot/joint_velocity": [3, 4], "rigid_object/cube/root_pose": [1, 3]}
+    layout = {
+        "joint_q": [0, 3],
+        "joint_qd": [3, 5],
+        "articulation/robot/joint_position": [0, 2],
+        "articulation/robot/joint_velocity": [3, 4],
+        "rigid_object/cube/root_pose": [1, 3],
+    }
     flat = np.arange(10, dtype=np.float32).reshape(2, 5)
     tree = state_tree(flat, {"newton_lab": {"state_layout": layout}})
     np.testing.assert_array_equal(tree["articulation"]["robot"]["joint_position"], flat[:, :2])
@@ -447,10 +484,16 @@ def test_hdf5_tree_writer_and_reader_match_h5py_high_level(tmp_path):
     from newton_lab.datasets.hdf5 import store as hdf5_store
 
     rng = np.random.default_rng(0)
-    tree = {"f32": rng.random((17, 7), dtype=np.float32), "f64": rng.random(5), "i64": np.arange(9),
-            "bool": np.array([True, False, True]), "u8": np.arange(12, dtype=np.uint8).reshape(3, 4),
-            "fortran": np.asfortranarray(rng.random((4, 3))), "strided": np.arange(6, dtype=np.int32)[::2],
-            "nested": {"x": np.ones((2, 2), np.float32), "empty": np.zeros((0, 3)), "scalar": np.array(2.5)}}
+    tree = {
+        "f32": rng.random((17, 7), dtype=np.float32),
+        "f64": rng.random(5),
+        "i64": np.arange(9),
+        "bool": np.array([True, False, True]),
+        "u8": np.arange(12, dtype=np.uint8).reshape(3, 4),
+        "fortran": np.asfortranarray(rng.random((4, 3))),
+        "strided": np.arange(6, dtype=np.int32)[::2],
+        "nested": {"x": np.ones((2, 2), np.float32), "empty": np.zeros((0, 3)), "scalar": np.array(2.5)},
+    }
 
     def high_level(g, t):
         for k, v in t.items():
@@ -468,8 +511,12 @@ def test_hdf5_tree_writer_and_reader_match_h5py_high_level(tmp_path):
         return {k: high_level_read(v) if isinstance(v, h5py.Group) else np.asarray(v[()]) for k, v in g.items()}
 
     with h5py.File(tmp_path / "ours.h5", "a") as f:  # the reader too: h5py's own reading, key order included
-        f["demo"].create_dataset("rgb", data=np.arange(2 * 4 * 4 * 3, dtype=np.uint8).reshape(2, 4, 4, 3),
-                                 chunks=(1, 4, 4, 3), compression="gzip")
+        f["demo"].create_dataset(
+            "rgb",
+            data=np.arange(2 * 4 * 4 * 3, dtype=np.uint8).reshape(2, 4, 4, 3),
+            chunks=(1, 4, 4, 3),
+            compression="gzip",
+        )
         f["demo"]["nested"].create_dataset("names", data=np.array([b"a", b"bc"]))
         ours, theirs = hdf5_store._read_tree(f["demo"]), high_level_read(f["demo"])
 
@@ -504,8 +551,13 @@ def _run_and_kill(path: Path, first_seed: int, min_reported: int, delay: float, 
     """Start an endless appender, SIGKILL it once it reported >= min_reported appends."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with open(log, "w") as err:
-        proc = subprocess.Popen([sys.executable, "-c", CHILD, str(path), str(first_seed)],
-                                stdout=subprocess.PIPE, stderr=err, text=True, env=env)
+        proc = subprocess.Popen(
+            [sys.executable, "-c", CHILD, str(path), str(first_seed)],
+            stdout=subprocess.PIPE,
+            stderr=err,
+            text=True,
+            env=env,
+        )
     lines: queue.Queue = queue.Queue()
 
     def pump() -> None:
@@ -587,8 +639,13 @@ def test_hdf5_kill_inside_append_rolls_back(tmp_path, point):
     path = tmp_path / "ds.hdf5"
     write_demos(path, [0, 1])
     before = fingerprint(path)
-    proc = subprocess.run([sys.executable, "-c", KILL_POINT_CHILD, str(path), point],
-                          env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", KILL_POINT_CHILD, str(path), point],
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     assert (tmp_path / "ds.hdf5-journal").exists() and fingerprint(path) != before  # really torn
     assert list_demos(path) == [0, 1]  # readers roll the torn append back first
@@ -607,8 +664,13 @@ def test_hdf5_writer_open_across_a_killed_append_rolls_it_back_itself(tmp_path, 
     write_demos(path, [0, 1])
     before = fingerprint(path)
     with EpisodeWriter.open(path, task_id=TASK, env_args=ENV_ARGS) as w:
-        proc = subprocess.run([sys.executable, "-c", KILL_POINT_CHILD, str(path), point],
-                              env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=120)
+        proc = subprocess.run(
+            [sys.executable, "-c", KILL_POINT_CHILD, str(path), point],
+            env=dict(os.environ, PYTHONPATH=str(ROOT)),
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert proc.returncode == -signal.SIGKILL, proc.stderr
         assert (tmp_path / "ds.hdf5-journal").exists() and fingerprint(path) != before  # really torn
         assert w.append_episode(make_episode(2), success=True) == 2
@@ -629,8 +691,11 @@ def test_failed_append_leaves_dataset_unchanged(tmp_path, suffix, monkeypatch):
 
     def failing(*args, **kwargs):  # the demo's first array lands, then the disk is full
         tree = args[-1] if name == "_write_tree" else args[2]
-        args = (*args[:-1], {"actions": tree["actions"]}) if name == "_write_tree" else \
-            (*args[:2], {"actions": tree["actions"]})
+        args = (
+            (*args[:-1], {"actions": tree["actions"]})
+            if name == "_write_tree"
+            else (*args[:2], {"actions": tree["actions"]})
+        )
         real(*args, **kwargs)
         raise OSError("disk full")
 
@@ -652,15 +717,20 @@ def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
     from newton_lab.datasets.zarr import nodes as zarr_nodes
 
     rng = np.random.default_rng(3)
-    tree = {"long": rng.standard_normal((5000, 64)).astype(np.float32),  # 1.28 MB: two time chunks, the last padded
-            "big_endian": rng.standard_normal((7, 3)).astype(">f8"), "ints": rng.integers(-9, 9, (11,), np.int16),
-            "flags": rng.random(13) > 0.5, "frames": rng.integers(0, 255, (3, 6, 5, 3), np.uint8),
-            "nested": {"scalar": np.float64(2.5), "empty": np.zeros((0, 4), np.float32)}}
+    tree = {
+        "long": rng.standard_normal((5000, 64)).astype(np.float32),  # 1.28 MB: two time chunks, the last padded
+        "big_endian": rng.standard_normal((7, 3)).astype(">f8"),
+        "ints": rng.integers(-9, 9, (11,), np.int16),
+        "flags": rng.random(13) > 0.5,
+        "frames": rng.integers(0, 255, (3, 6, 5, 3), np.uint8),
+        "nested": {"scalar": np.float64(2.5), "empty": np.zeros((0, 4), np.float32)},
+    }
     (tmp_path / "ours").mkdir()
     zarr.open_group(store=LocalStore(tmp_path / "ours"), mode="w", zarr_format=3)
     left = []
-    zarr_nodes.write_demo(tmp_path / "ours" / "demo", {"num_samples": 5, "success": True}, tree,
-                          fallback=lambda rel, v: left.append(rel))
+    zarr_nodes.write_demo(
+        tmp_path / "ours" / "demo", {"num_samples": 5, "success": True}, tree, fallback=lambda rel, v: left.append(rel)
+    )
     assert sorted(left) == ["nested/empty", "nested/scalar"]  # 0-d and empty arrays are zarr-python's
     ours = zarr.open_group(str(tmp_path / "ours"), mode="r", zarr_format=3)["demo"]
     assert ours.attrs.asdict() == {"num_samples": 5, "success": True}
@@ -673,8 +743,9 @@ def test_zarr_demo_nodes_match_what_zarr_python_writes(tmp_path):
         np.testing.assert_array_equal(ours[key][...], value, err_msg=key)
         assert ours[key].dtype == theirs[key].dtype
         for chunk in sorted(c for c in os.listdir(tmp_path / "theirs" / key) if c != "zarr.json"):  # same bytes
-            assert (tmp_path / "ours" / "demo" / key / chunk).read_bytes() == \
-                (tmp_path / "theirs" / key / chunk).read_bytes(), (key, chunk)
+            assert (tmp_path / "ours" / "demo" / key / chunk).read_bytes() == (
+                tmp_path / "theirs" / key / chunk
+            ).read_bytes(), (key, chunk)
     assert sorted(os.listdir(tmp_path / "ours" / "demo" / "long")) == ["c.0.0", "c.1.0", "zarr.json"]
 
 
@@ -691,12 +762,15 @@ def test_zarr_plain_reader_matches_zarr_python(tmp_path):
     flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}
     sparse = np.zeros((9, 4), np.float32)
     sparse[6:] = rng.standard_normal((3, 4))  # rows 0..5 stay zero: zarr writes no file for chunks 0 and 1
-    values = {"sparse": (sparse, {"chunks": (3, 4), "fill_value": 0.0, **flat}),
-              "flags": (rng.random(7) > 0.5, {"chunks": (7,), **flat}),
-              "ints": (rng.integers(-5, 5, (4, 3, 2), np.int64), {"chunks": (3, 3, 2), "fill_value": 7, **flat}),
-              "blosc": (rng.standard_normal((5, 2)), {"chunks": (5, 2), "compressors": BloscCodec(), **flat}),
-              "nan_fill": (rng.standard_normal(3).astype(np.float32), {"chunks": (3,), "fill_value": np.nan, **flat}),
-              "scalar": (np.float64(1.5), {}), "empty": (np.zeros((0, 2), np.float32), {"chunks": (1, 2), **flat})}
+    values = {
+        "sparse": (sparse, {"chunks": (3, 4), "fill_value": 0.0, **flat}),
+        "flags": (rng.random(7) > 0.5, {"chunks": (7,), **flat}),
+        "ints": (rng.integers(-5, 5, (4, 3, 2), np.int64), {"chunks": (3, 3, 2), "fill_value": 7, **flat}),
+        "blosc": (rng.standard_normal((5, 2)), {"chunks": (5, 2), "compressors": BloscCodec(), **flat}),
+        "nan_fill": (rng.standard_normal(3).astype(np.float32), {"chunks": (3,), "fill_value": np.nan, **flat}),
+        "scalar": (np.float64(1.5), {}),
+        "empty": (np.zeros((0, 2), np.float32), {"chunks": (1, 2), **flat}),
+    }
     sub = g.create_group("nested")
     for name, (value, kwargs) in values.items():
         (sub if name == "ints" else g).create_array(name, data=value, **kwargs)

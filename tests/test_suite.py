@@ -28,8 +28,12 @@ def test_every_row_is_a_product_command_and_the_gpu_rows_cover_the_headline_task
         for row in rows:
             assert is_product_command("newton-lab " + " ".join(row.command(tmp_path, "t"))), row
     tasks = {row.args[row.args.index("--task") + 1] for row in ROWS["gpu"] if row.is_pipeline}
-    assert tasks == {"GalbotG1-PickCube-v0", "GalbotG1-PickToShelf-v0", "GalbotG1-SortToShelf-v0",
-                     "GalbotG1-StackCube-Phased-v0"}
+    assert tasks == {
+        "GalbotG1-PickCube-v0",
+        "GalbotG1-PickToShelf-v0",
+        "GalbotG1-SortToShelf-v0",
+        "GalbotG1-StackCube-Phased-v0",
+    }
     assert sum("--sorting-object" in r.args for r in ROWS["gpu"]) == 4
     with pytest.raises(ValueError, match=r"unknown suite row\(s\) \['nope'\]; rows of the cpu recipe: pickcube-demo"):
         rows_of("cpu", ["nope"])
@@ -38,9 +42,27 @@ def test_every_row_is_a_product_command_and_the_gpu_rows_cover_the_headline_task
 def test_a_row_runs_through_the_flow_and_lands_on_the_page(tmp_path):
     page = tmp_path / "benchmarks.md"
     page.write_text(f"# Benchmarks\n\n{BEGIN}\n{END}\n")
-    out = subprocess.run([sys.executable, "-m", "newton_lab.cli", "suite", "--recipe", "cpu", "--only",
-                          "bench-pickcube-4", "--out", str(tmp_path / "suite"), "--records", str(tmp_path / "results"),
-                          "--page", str(page)], capture_output=True, text=True, timeout=900)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "newton_lab.cli",
+            "suite",
+            "--recipe",
+            "cpu",
+            "--only",
+            "bench-pickcube-4",
+            "--out",
+            str(tmp_path / "suite"),
+            "--records",
+            str(tmp_path / "results"),
+            "--page",
+            str(page),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     assert json.loads(out.stdout.strip().splitlines()[-1])["failed"] == []
     record = json.loads((tmp_path / "results" / "bench-pickcube-4-cpu.json").read_text())

@@ -114,8 +114,14 @@ def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
     assert set(phase[:entered]) == {0} and set(phase[entered:]) == {1}
     assert [s[on_1] for s in signals].index(1.0) == entered  # the row moves on in the step cube_2 is let go
 
-    second = make_env("GalbotG1-StackCube-Cube3-v0", num_envs=1, device="cpu", seed=5, randomize=True,
-                      task_options={"cube_yaw": "zero"})
+    second = make_env(
+        "GalbotG1-StackCube-Cube3-v0",
+        num_envs=1,
+        device="cpu",
+        seed=5,
+        randomize=True,
+        task_options={"cube_yaw": "zero"},
+    )
     second.reset()
     pose = {n: second.buffers.entity_poses[0, e.slot].numpy() for n, e in second.task.entities.items()}
     assert np.allclose(pose["cube_2"][:3] - pose["cube_1"][:3], (0.0, 0.0, 0.05), atol=1e-4)

@@ -31,8 +31,12 @@ def _raw(axes=(0.0,) * 10, left=None, right=None, buttons=()):
         joints["left_arm"] = {"position": list(left)}
     if right is not None:
         joints["right_arm"] = {"position": list(right)}
-    return {"timestamp": 0.0, "action_list": {"axes": list(axes), "buttons": []}, "joint_states": joints,
-            "button_state": state}
+    return {
+        "timestamp": 0.0,
+        "action_list": {"axes": list(axes), "buttons": []},
+        "joint_states": joints,
+        "button_state": state,
+    }
 
 
 def _axes(**kv):
@@ -211,8 +215,9 @@ def test_review_prompt_answers_and_end_of_input():
 
     choice, text = answer("maybe\nk\n")
     assert choice == "keep"  # the unknown answer is refused and asked again, then "k" keeps
-    assert text == ("\nkeep / drop / exit? 'maybe' is not an answer; type keep (k), drop (d) or exit (e)\n"
-                    "\nkeep / drop / exit? ")
+    assert text == (
+        "\nkeep / drop / exit? 'maybe' is not an answer; type keep (k), drop (d) or exit (e)\n\nkeep / drop / exit? "
+    )
     assert answer("drop\n")[0] == "drop"
     assert answer("q\n")[0] == "exit"
     assert answer("")[0] == "exit"
@@ -224,7 +229,9 @@ def test_teleop_task_has_the_operator_cameras_and_does_not_end_on_success():
 
     cfg = lookup("GalbotG1-PickCube-Teleop-v0").make_cfg()
     assert {k: (c.width, c.height, c.data) for k, c in cfg.cameras.items()} == {
-        "left_wrist": (640, 480, ("rgb",)), "front_head": (640, 480, ("rgb",))}
+        "left_wrist": (640, 480, ("rgb",)),
+        "front_head": (640, 480, ("rgb",)),
+    }
     assert cfg.terminate_on_success is False
     pick = lookup("GalbotG1-PickCube-v0").make_cfg()
     assert cfg.actions == pick.actions

@@ -30,8 +30,23 @@ class Tmux:
 
     def __init__(self, name: str, command: list[str], cwd: Path):
         self.base = ["tmux", "-L", f"newton_lab_{name}"]
-        subprocess.run(self.base + ["new-session", "-d", "-s", name, "-x", "200", "-y", "50", "-c", str(cwd),
-                                    " ".join(command) + "; sleep 600"], check=True)
+        subprocess.run(
+            self.base
+            + [
+                "new-session",
+                "-d",
+                "-s",
+                name,
+                "-x",
+                "200",
+                "-y",
+                "50",
+                "-c",
+                str(cwd),
+                " ".join(command) + "; sleep 600",
+            ],
+            check=True,
+        )
         self.target = name
 
     def keys(self, *keys: str, literal: bool = True) -> None:
@@ -39,8 +54,12 @@ class Tmux:
             subprocess.run(self.base + ["send-keys", "-t", self.target] + (["-l"] if literal else []) + [k], check=True)
 
     def screen(self) -> str:
-        return subprocess.run(self.base + ["capture-pane", "-p", "-J", "-S", "-200", "-t", self.target],
-                              capture_output=True, text=True, check=True).stdout
+        return subprocess.run(
+            self.base + ["capture-pane", "-p", "-J", "-S", "-200", "-t", self.target],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
 
     def wait_for(self, pred, what: str, timeout: float = 600.0):
         t0 = time.time()
@@ -65,6 +84,7 @@ def _at(tmux: Tmux, target, what: str, tol: float = 0.012):
     def pred(screen):
         st = _status(screen)
         return st if st and max(abs(a - b) for a, b in zip(st[1], target)) < tol else None
+
     return tmux.wait_for(pred, what)
 
 
@@ -76,8 +96,9 @@ def _steps(tmux: Tmux, n: int) -> None:
 def _session(tmp_path: Path, name: str, dataset: Path) -> Tmux:
     # paced at the control rate (20 Hz), as an operator meets it: unpaced, a slow machine could run the episode
     # into its step limit (6000 steps) between two of the script's keys
-    return Tmux(name, [CLI, "teleop", "--device", "keyboard", "--cameras", "none", "--dataset-path", str(dataset)],
-                tmp_path)
+    return Tmux(
+        name, [CLI, "teleop", "--device", "keyboard", "--cameras", "none", "--dataset-path", str(dataset)], tmp_path
+    )
 
 
 def test_keyboard_teleop_in_a_terminal_keep_drop_and_end_of_input(tmp_path):

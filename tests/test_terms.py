@@ -68,12 +68,19 @@ def test_misuse_is_one_line():
 
 
 def test_a_task_cfg_resolves_to_plain_functions_once():
-    cfg = dataclasses.replace(lookup("GalbotG1-PickCube-v0").cfg(), task_id="t", terminations={
-        "cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": 0.05})},
-        signals={"grasped_cube": TermCfg(func=grasped(entity="cube"))})
+    cfg = dataclasses.replace(
+        lookup("GalbotG1-PickCube-v0").cfg(),
+        task_id="t",
+        terminations={"cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": 0.05})},
+        signals={"grasped_cube": TermCfg(func=grasped(entity="cube"))},
+    )
     resolved = resolve_cfg(cfg)
-    funcs = [resolved.terminations["cube_dropped"].func, resolved.signals["grasped_cube"].func,
-             *resolved.phase_success, *(t.func for t in resolved.rewards.values())]
+    funcs = [
+        resolved.terminations["cube_dropped"].func,
+        resolved.signals["grasped_cube"].func,
+        *resolved.phase_success,
+        *(t.func for t in resolved.rewards.values()),
+    ]
     assert all(type(f).__name__ == "Function" for f in funcs)  # Warp functions, parameters baked in
     assert not any(t.params for t in resolved.terminations.values())
     again = resolve_cfg(resolved)

@@ -82,8 +82,9 @@ def assert_same_run(path: Path, reference: Path) -> None:
     assert [e["loss"] for e in logs[0]] == [e["loss"] for e in logs[1]]
 
 
-def test_interrupted_three_times_ends_bitwise_where_the_uninterrupted_run_ends(dataset, reference, tmp_path,
-                                                                              monkeypatch):
+def test_interrupted_three_times_ends_bitwise_where_the_uninterrupted_run_ends(
+    dataset, reference, tmp_path, monkeypatch
+):
     # killed mid-epoch 1 (step 4), mid-epoch 2 (step 8) and at the end of epoch 2 (step 10); the checkpoint
     # interval may change between sessions
     kill_after_saving_at(monkeypatch, (4, 8, 10))
@@ -101,10 +102,30 @@ def test_interrupted_three_times_ends_bitwise_where_the_uninterrupted_run_ends(d
 
 def test_sigkill_after_a_checkpoint_then_cli_resume(dataset, tmp_path, capsys):
     out = tmp_path / "cli"
-    flags = ["train", "--dataset-path", str(dataset), "--output-dir", str(out), "--preset", "cpu", "--max-steps", "20",
-             "--batch-size", "8", "--checkpoint-every-steps", "5", "--time-budget-s", "600"]
-    proc = subprocess.Popen([sys.executable, "-m", "newton_lab.cli", *flags], cwd=ROOT, env=ONE_THREAD,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    flags = [
+        "train",
+        "--dataset-path",
+        str(dataset),
+        "--output-dir",
+        str(out),
+        "--preset",
+        "cpu",
+        "--max-steps",
+        "20",
+        "--batch-size",
+        "8",
+        "--checkpoint-every-steps",
+        "5",
+        "--time-budget-s",
+        "600",
+    ]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "newton_lab.cli", *flags],
+        cwd=ROOT,
+        env=ONE_THREAD,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 600  # a safety stop only: a loaded 2-core CI machine once took over 60 s
     while not (out / "resume.pt").exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.005)
@@ -118,21 +139,31 @@ def test_sigkill_after_a_checkpoint_then_cli_resume(dataset, tmp_path, capsys):
     assert main([*flags, "--resume"]) == 0
     path = Path(json.loads(capsys.readouterr().out.strip().splitlines()[-1])["checkpoint"])
     assert path == out / "checkpoint.pt" and not (out / "resume.pt").exists()
-    ref_args = TrainArgs(dataset_path=[str(dataset)], output_dir=str(tmp_path / "ref"), preset="cpu", max_steps=20,
-                         batch_size=8, checkpoint_every_steps=5, time_budget_s=600)
+    ref_args = TrainArgs(
+        dataset_path=[str(dataset)],
+        output_dir=str(tmp_path / "ref"),
+        preset="cpu",
+        max_steps=20,
+        batch_size=8,
+        checkpoint_every_steps=5,
+        time_budget_s=600,
+    )
     assert_same_run(path, train(ref_args.datasets(), {**ref_args.train_cfg(PRESETS), "progress": False}))
     assert DiffusionPolicy.load(path).info["training"]["resumed_at_steps"] == [step]
 
 
 def test_kill_before_the_first_checkpoint_leaves_nothing(dataset, tmp_path):
     out = tmp_path / "early"
-    script = (f"from newton_lab.policies import train; train({str(dataset)!r}, "
-              f"{{**{dict(CFG, progress=True)!r}, 'max_steps': 10**6, 'checkpoint_every_steps': 10**6, "
-              f"'checkpoint_every_s': None, 'output_dir': {str(out)!r}}})")
+    script = (
+        f"from newton_lab.policies import train; train({str(dataset)!r}, "
+        f"{{**{dict(CFG, progress=True)!r}, 'max_steps': 10**6, 'checkpoint_every_steps': 10**6, "
+        f"'checkpoint_every_s': None, 'output_dir': {str(out)!r}}})"
+    )
     tty, term = pty.openpty()  # the progress bar shows on a terminal only (one 120 columns wide)
     termios.tcsetwinsize(term, (24, 120))
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=ONE_THREAD, stdout=subprocess.DEVNULL,
-                            stderr=term)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], cwd=ROOT, env=ONE_THREAD, stdout=subprocess.DEVNULL, stderr=term
+    )
     os.close(term)
     seen, deadline = b"", time.monotonic() + 60
     while proc.poll() is None and time.monotonic() < deadline:  # until the progress bar shows 5 steps done

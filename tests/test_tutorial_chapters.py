@@ -34,8 +34,9 @@ def test_every_shown_output_is_marked_and_follows_a_command(page):
 @pytest.mark.parametrize("page", CHAPTERS, ids=lambda p: p.stem)
 def test_the_chapter_runs_as_written_and_prints_what_it_shows(page, tmp_path):
     result = docs_snippets.run_in_copy(page, tmp_path / "repo")
-    assert result["failed"] is None, \
+    assert result["failed"] is None, (
         f"{result['failed']}: {result['error']}\n{result['trace']}\n{result.get('log', '')[-3000:]}"
+    )
     assert result["outputs_compared"] == len(docs_snippets.outputs(page)) > 0
     assert result["stray"] == [], f"the page's commands left files outside outputs/: {result['stray']}"
 

@@ -34,13 +34,18 @@ def _ids(source: str) -> list[str]:
 
 def test_the_page_writes_a_whole_task_package_from_nothing():
     written = _written()
-    assert set(written) == {f"{TASK_DIR}/__init__.py", f"{TASK_DIR}/scene.py", f"{TASK_DIR}/config/g1/env_cfg.py",
-                            f"{TASK_DIR}/config/g1/motion_plan.yaml"}
+    assert set(written) == {
+        f"{TASK_DIR}/__init__.py",
+        f"{TASK_DIR}/scene.py",
+        f"{TASK_DIR}/config/g1/env_cfg.py",
+        f"{TASK_DIR}/config/g1/motion_plan.yaml",
+    }
     assert not (ROOT / TASK_DIR).exists(), f"{TASK_DIR} is in the working tree: the chapter writes it in a copy"
     assert docs_snippets.in_copy(PAGE)
     skipped = [s.code.split()[:2] for s in docs_snippets.snippets(PAGE) if s.check_only]
-    assert skipped == [["rerun", "outputs/my_push/episode.rrd"], ["newton-lab", "pipeline"]], \
+    assert skipped == [["rerun", "outputs/my_push/episode.rrd"], ["newton-lab", "pipeline"]], (
         "only the viewer and the full pipeline are not run"
+    )
     text = PAGE.read_text()
     assert "push_cube/" not in "".join(written.values()), "the written files must not import PushCube's modules"
     assert "--8<--" not in text, "the chapter writes its files; it includes none of the repository's"

@@ -23,8 +23,11 @@ GEOMETRY = ("Boxes3D", "Ellipsoids3D", "Capsules3D", "Cylinders3D", "Mesh3D", "P
 def _geometry(rrd) -> dict[str, str]:
     """Static geometry entities of a recording: path -> archetype name."""
     cols = RrdReader(str(rrd)).store().schema().component_columns()
-    return {c.entity_path: c.archetype.rsplit(".", 1)[-1] for c in cols
-            if c.is_static and c.archetype.rsplit(".", 1)[-1] in GEOMETRY}
+    return {
+        c.entity_path: c.archetype.rsplit(".", 1)[-1]
+        for c in cols
+        if c.is_static and c.archetype.rsplit(".", 1)[-1] in GEOMETRY
+    }
 
 
 def _rows(rrd) -> dict[str, int]:
@@ -64,8 +67,15 @@ def test_every_model_shape_is_one_entity(pick_env, tmp_path):
     assert logger.path == rrd.resolve() and len(logger.shape_paths) == shapes
     assert len(geo) == shapes and set(geo) == {"/" + p for p in logger.shape_paths.values()}
     # the G1's collision-only shapes (arms, torso, chassis) are drawn too
-    for part in ("leg_link5/collision/torso", "base_footprint/collision/chassis", "left_arm_link3/collision/",
-                 "right_arm_link7/collision/right_palm", "head_link2/visual/", "static/visual/table", "cube/visual/"):
+    for part in (
+        "leg_link5/collision/torso",
+        "base_footprint/collision/chassis",
+        "left_arm_link3/collision/",
+        "right_arm_link7/collision/right_palm",
+        "head_link2/visual/",
+        "static/visual/table",
+        "cube/visual/",
+    ):
         assert sum(p.startswith(f"/world/0/{part}") for p in geo) == 1, part
     assert geo["/world/0/leg_link5/collision/torso"] == "Boxes3D"
     assert geo["/world/0/left_arm_link3/collision/left_arm_link3_geom_0"] == "Capsules3D"
@@ -110,18 +120,32 @@ def test_each_geometry_type_has_a_drawing(tmp_path):
     geo = _geometry(tmp_path / "shapes.rrd")
     assert len(geo) == len(logged.paths) == model.shape_count == 11
     assert {p.rsplit("/", 2)[-2] + "/" + p.rsplit("/", 1)[-1]: a for p, a in geo.items()} == {
-        "visual/box": "Boxes3D", "collision/ball": "Ellipsoids3D", "visual/capsule": "Capsules3D",
-        "visual/cylinder": "Cylinders3D", "visual/cone": "Mesh3D", "visual/ellipsoid": "Ellipsoids3D",
-        "visual/mesh": "Mesh3D", "visual/hull": "Mesh3D", "site/tcp": "Ellipsoids3D", "visual/hf": "Mesh3D",
-        "visual/ground_plane": "Mesh3D"}
+        "visual/box": "Boxes3D",
+        "collision/ball": "Ellipsoids3D",
+        "visual/capsule": "Capsules3D",
+        "visual/cylinder": "Cylinders3D",
+        "visual/cone": "Mesh3D",
+        "visual/ellipsoid": "Ellipsoids3D",
+        "visual/mesh": "Mesh3D",
+        "visual/hull": "Mesh3D",
+        "site/tcp": "Ellipsoids3D",
+        "visual/hf": "Mesh3D",
+        "visual/ground_plane": "Mesh3D",
+    }
     assert logged.hidden == ["world/0/link/collision/ball"]
 
 
 def test_view_replays_recorded_states_and_logs_episode_events(pick_env, tmp_path):
     live = tmp_path / "collect.rrd"
     logger = RerunLogger(pick_env, save=live, max_worlds=2, images=False)  # (cameras: test_replay_shows_...)
-    ref = pick_env.collect(agent=PlannerAgent.from_task(pick_env.task_id), episodes=1, path=tmp_path / "d.hdf5",
-                           max_steps=400, progress=False, on_step=logger.on_step)
+    ref = pick_env.collect(
+        agent=PlannerAgent.from_task(pick_env.task_id),
+        episodes=1,
+        path=tmp_path / "d.hdf5",
+        max_steps=400,
+        progress=False,
+        on_step=logger.on_step,
+    )
     logger.close()
     ep = read_episode(ref.path, 0)
     ended = [t for t in _texts(live) if " episode 1 succeeded (" in t or " episode 1 failed (" in t]
@@ -188,17 +212,27 @@ def _image(rrd, entity: str, archetype: str) -> dict[int, np.ndarray]:
 
 def _rotation(q) -> np.ndarray:
     x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 @pytest.fixture(scope="module")
 def cam_env():
     from newton_lab.envs import make_env
 
-    return make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=1, randomize=True,
-                    cameras={CAMERA: {"resolution": (96, 72), "data": CAM_DATA}})
+    return make_env(
+        "GalbotG1-PickCube-v0",
+        num_envs=2,
+        device="cpu",
+        seed=1,
+        randomize=True,
+        cameras={CAMERA: {"resolution": (96, 72), "data": CAM_DATA}},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -221,8 +255,15 @@ def cam_run(cam_env, tmp_path_factory):
         kept["poses"].append(env.sensors.cameras.poses(CAMERA).cpu().numpy().copy())
         kept["body_q"].append(env.state.body_q.numpy().copy())
         n = env.num_envs
-        kept["states"].append(np.concatenate([wp.to_torch(env.state.joint_q).view(n, -1).cpu().numpy(),
-                                              wp.to_torch(env.state.joint_qd).view(n, -1).cpu().numpy()], axis=1))
+        kept["states"].append(
+            np.concatenate(
+                [
+                    wp.to_torch(env.state.joint_q).view(n, -1).cpu().numpy(),
+                    wp.to_torch(env.state.joint_qd).view(n, -1).cpu().numpy(),
+                ],
+                axis=1,
+            )
+        )
         kept["actions"].append(action.cpu().numpy().copy())
     logger.close()
     return {"rrd": rrd, "logger": logger, "env_args": env_args(env), **kept}
@@ -242,8 +283,11 @@ def test_each_camera_is_a_pinhole_with_its_image_streams(cam_env, cam_run):
     rows = _rows(rrd)
     for w in range(2):
         path = f"/world/{w}/cameras/{CAMERA}"
-        np.testing.assert_allclose(np.reshape(_values(rrd, path, "Pinhole:image_from_camera")[None], (3, 3)).T,
-                                   cam_env.sensors.cameras.intrinsics(CAMERA), rtol=1e-6)
+        np.testing.assert_allclose(
+            np.reshape(_values(rrd, path, "Pinhole:image_from_camera")[None], (3, 3)).T,
+            cam_env.sensors.cameras.intrinsics(CAMERA),
+            rtol=1e-6,
+        )
         assert _values(rrd, path, "Pinhole:resolution")[None] == [96.0, 72.0]
         assert _values(rrd, path, "Pinhole:camera_xyz")[None] == [3, 1, 6]  # Right, Up, Back
         labels = [
@@ -261,8 +305,9 @@ def test_each_camera_is_a_pinhole_with_its_image_streams(cam_env, cam_run):
             np.testing.assert_array_equal(seg[t], ref["segmentation"][w])
             d = ref["depth"][w]
             np.testing.assert_array_equal(depth[t], np.where(np.isfinite(d), d, 0.0))  # nothing hit: 0 (no depth)
-            np.testing.assert_allclose(_values(rrd, path, "Transform3D:translation")[t], cam_run["poses"][t][w, :3],
-                                       atol=1e-6)
+            np.testing.assert_allclose(
+                _values(rrd, path, "Transform3D:translation")[t], cam_run["poses"][t][w, :3], atol=1e-6
+            )
 
 
 def test_camera_frustum_looks_where_its_image_does(cam_env, cam_run):
@@ -331,13 +376,21 @@ def test_replay_shows_the_recorded_camera_streams(cam_env, cam_run, tmp_path):
 
     args = cam_run["env_args"]
     names = list(cam_env.sensors.cameras.segmentation_names)
-    args["newton_lab"]["cameras"] = {CAMERA: {"width": 96, "height": 72, "data": list(CAM_DATA),
-                                              "intrinsics": cam_env.sensors.cameras.intrinsics(CAMERA).tolist(),
-                                              "segmentation_names": names}}
-    episode = {"actions": np.stack([a[0] for a in cam_run["actions"]]).astype(np.float32),
-               "states": np.stack([s[0] for s in cam_run["states"]]).astype(np.float32),
-               "obs": {f"{CAMERA}_{d}": np.stack([im[d][0] for im in cam_run["images"]]) for d in CAM_DATA},
-               "datagen": {"camera_poses": {CAMERA: np.stack([p[0] for p in cam_run["poses"]])}}}
+    args["newton_lab"]["cameras"] = {
+        CAMERA: {
+            "width": 96,
+            "height": 72,
+            "data": list(CAM_DATA),
+            "intrinsics": cam_env.sensors.cameras.intrinsics(CAMERA).tolist(),
+            "segmentation_names": names,
+        }
+    }
+    episode = {
+        "actions": np.stack([a[0] for a in cam_run["actions"]]).astype(np.float32),
+        "states": np.stack([s[0] for s in cam_run["states"]]).astype(np.float32),
+        "obs": {f"{CAMERA}_{d}": np.stack([im[d][0] for im in cam_run["images"]]) for d in CAM_DATA},
+        "datagen": {"camera_poses": {CAMERA: np.stack([p[0] for p in cam_run["poses"]])}},
+    }
     with open_writer(tmp_path / "img.hdf5", task_id=cam_env.task_id, env_args=args) as writer:
         writer.append_episode(episode, success=False)
     rrd = tmp_path / "replay.rrd"
@@ -352,5 +405,6 @@ def test_replay_shows_the_recorded_camera_streams(cam_env, cam_run, tmp_path):
     for t in range(STEPS):
         np.testing.assert_array_equal(rgb[t], episode["obs"][f"{CAMERA}_rgb"][t])
         np.testing.assert_array_equal(seg[t], episode["obs"][f"{CAMERA}_segmentation"][t])
-        np.testing.assert_allclose(_values(rrd, path, "Transform3D:quaternion")[t], cam_run["poses"][t][0, 3:],
-                                   atol=1e-6)
+        np.testing.assert_allclose(
+            _values(rrd, path, "Transform3D:quaternion")[t], cam_run["poses"][t][0, 3:], atol=1e-6
+        )

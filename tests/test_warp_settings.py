@@ -35,5 +35,4 @@ def test_no_adjoint_kernels_by_default(order):
 
 
 def test_backward_kept_on_request():
-    assert _probe("newton_lab_first", NEWTON_LAB_WARP_BACKWARD="1") == {"config": True, "newton": True,
-                                                                         "project": True}
+    assert _probe("newton_lab_first", NEWTON_LAB_WARP_BACKWARD="1") == {"config": True, "newton": True, "project": True}

@@ -25,8 +25,18 @@ from newton_lab.datasets.zarr.settings import ZarrWriteSettings
 from newton_lab.envs import make_env
 from newton_lab.envs.rollout import WRITE_MIN_BATCH, _writer_kind
 
-LAYOUT = ColumnLayout({"obs/x": (0, 3), "states/joint_q": (3, 5), "states/joint_qd": (5, 7), "datagen/phase": (7, 8),
-                       "datagen/subtask_signals/grasp": (8, 9), "actions": (9, 11)}, 11, {"x": (0, 3)})
+LAYOUT = ColumnLayout(
+    {
+        "obs/x": (0, 3),
+        "states/joint_q": (3, 5),
+        "states/joint_qd": (5, 7),
+        "datagen/phase": (7, 8),
+        "datagen/subtask_signals/grasp": (8, 9),
+        "actions": (9, 11),
+    },
+    11,
+    {"x": (0, 3)},
+)
 
 
 def _leaves(tree, prefix=""):
@@ -40,8 +50,14 @@ def test_the_writer_process_writes_the_demos_the_writer_thread_writes(tmp_path, 
     for writer in ("thread", "process"):
         env = make_env("GalbotG1-PickCube-v0", num_envs=2, device="cpu", seed=5, randomize=True, cameras=False)
         path = tmp_path / f"{writer}{suffix}"
-        ref = env.collect(agent=PlannerAgent.from_task(env.task_id), episodes=3, path=path, max_steps=400,
-                          progress=False, writer=writer)
+        ref = env.collect(
+            agent=PlannerAgent.from_task(env.task_id),
+            episodes=3,
+            path=path,
+            max_steps=400,
+            progress=False,
+            writer=writer,
+        )
         assert ref["saved_demo_ids"] == [0, 1, 2] and ref["successes"] == 3
         assert ref.metadata["writer"] == {"thread": "BackgroundWriter", "process": "ProcessWriter"}[writer]
         read[writer] = [dict(_leaves(read_episode(path, i))) for i in list_demos(path)]
@@ -100,8 +116,9 @@ def test_a_write_error_in_the_process_reaches_the_collector_in_one_line(tmp_path
 def test_a_block_is_packed_as_its_demos_trees_would_be(tmp_path):
     """zarr packs a batch of joined demos (``EpisodeWriter.append_block``) byte for byte as it packs their trees."""
     frames = np.random.default_rng(4).integers(0, 255, (40, 9, 2, 2, 3), dtype=np.uint8)
-    block = DemoBlock.from_rows(LAYOUT, _block(40, 9, 3), {"cam": frames},
-                                [(k, 3 + k % 7, k % 3 == 0, {"seed": k}) for k in range(39, -1, -1)])
+    block = DemoBlock.from_rows(
+        LAYOUT, _block(40, 9, 3), {"cam": frames}, [(k, 3 + k % 7, k % 3 == 0, {"seed": k}) for k in range(39, -1, -1)]
+    )
     joined, trees = tmp_path / "joined.zarr", tmp_path / "trees.zarr"
     for path in (joined, trees):
         open_writer(path, task_id="t", env_args={})
@@ -127,8 +144,9 @@ def test_the_writer_process_writes_as_its_settings_say(tmp_path):
     for settings, names in ((None, ["demo_0", "demo_1", "demo_2"]), (ZarrWriteSettings(pack_min_batch=3), ["pack_0"])):
         path = tmp_path / f"{names[0]}.zarr"
         open_writer(path, task_id="t", env_args={})
-        with ProcessWriter(path, task_id="t", layout=LAYOUT, zarr_settings=settings,
-                           profile_to=profile if settings else None) as writer:
+        with ProcessWriter(
+            path, task_id="t", layout=LAYOUT, zarr_settings=settings, profile_to=profile if settings else None
+        ) as writer:
             done = writer.put_block(_block(3, 4, 0), {}, [(k, 4, True, {}) for k in range(3)])
             assert [f.result(timeout=60) for f in done] == [[0, 1, 2]]
         assert sorted(p.name for p in (path / "data").iterdir() if p.is_dir()) == names
@@ -147,8 +165,8 @@ def test_a_block_larger_than_a_quarter_of_the_ring_goes_in_parts_of_whole_rows(t
         assert [f.result(timeout=60) for f in parts] == [[0, 1, 2], [3, 4, 5], [6, 7]]
     for demo, k in enumerate(range(7, -1, -1)):
         ep = read_episode(path, demo)
-        np.testing.assert_array_equal(ep["obs"]["x"], block[k, :6 - k % 2, 0:3])
-        np.testing.assert_array_equal(ep["obs"]["cam"], frames[k, :6 - k % 2])
+        np.testing.assert_array_equal(ep["obs"]["x"], block[k, : 6 - k % 2, 0:3])
+        np.testing.assert_array_equal(ep["obs"]["cam"], frames[k, : 6 - k % 2])
 
 
 def test_a_killed_collector_leaves_a_writer_process_that_writes_what_it_got_and_exits(tmp_path):

@@ -29,10 +29,14 @@ STEPS = 40
 
 def episode(seed: int, steps: int = STEPS) -> dict:
     rng = np.random.default_rng(seed)
-    return {"actions": rng.standard_normal((steps, 7)).astype(np.float32),
-            "obs": {"eef_pos": rng.standard_normal((steps, 3)),
-                    "rgb": rng.integers(0, 255, (steps, 8, 8, 3), dtype=np.uint8)},
-            "states": {"robot": {"qpos": rng.standard_normal((steps, 9)).astype(np.float32)}}}
+    return {
+        "actions": rng.standard_normal((steps, 7)).astype(np.float32),
+        "obs": {
+            "eef_pos": rng.standard_normal((steps, 3)),
+            "rgb": rng.integers(0, 255, (steps, 8, 8, 3), dtype=np.uint8),
+        },
+        "states": {"robot": {"qpos": rng.standard_normal((steps, 9)).astype(np.float32)}},
+    }
 
 
 def assert_episode(path: Path, demo_id: int, seed: int) -> None:
@@ -84,8 +88,16 @@ def test_two_processes_append_to_one_dataset(tmp_path, suffix):
     appender waits half-way, its writer open, until the other has appended (the lock is held per write, not per
     open writer), so the interleaving does not depend on how the OS schedules the two processes."""
     path, go = tmp_path / f"ds{suffix}", tmp_path / "go"
-    procs = [subprocess.Popen([sys.executable, "-c", APPENDER, str(path), str(first), str(go)], env=child_env(),
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for first in (0, 100)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", APPENDER, str(path), str(first), str(go)],
+            env=child_env(),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for first in (0, 100)
+    ]
     for proc in procs:
         assert proc.stdout.readline().strip() == "READY", proc.stderr.read()
     go.touch()
@@ -157,8 +169,9 @@ def test_disk_full_ends_in_one_line_and_keeps_the_episodes(tmp_path, suffix, fai
                 w.append_episode(episode(seed), success=True, attrs={"seed": seed})
         inject_write_fault(None)
     assert isinstance(exc.value, OSError) and exc.value.errno == errno.ENOSPC
-    assert re.fullmatch(rf"disk full after (\d+) episodes?; {re.escape(str(path))} holds \1 finished episodes?",
-                        str(exc.value)), str(exc.value)
+    assert re.fullmatch(
+        rf"disk full after (\d+) episodes?; {re.escape(str(path))} holds \1 finished episodes?", str(exc.value)
+    ), str(exc.value)
     held = int(str(exc.value).split()[3])
     assert held >= 3 and capfd.readouterr().err == ""  # no traceback flood
     assert list_demos(path) == list(range(held)) and read_dataset_info(path)["total"] == held * STEPS
@@ -170,8 +183,9 @@ def test_disk_full_ends_in_one_line_and_keeps_the_episodes(tmp_path, suffix, fai
             assert sorted(f["data"]) == [f"demo_{i}" for i in range(held)]
     else:  # the failed demo was taken out again
         assert sorted(os.listdir(path / "data")) == sorted([f"demo_{i}" for i in range(held)] + ["zarr.json"])
-        assert sorted(zarr.open_group(str(path), mode="r", zarr_format=3)["data"].group_keys()) == \
-            sorted(f"demo_{i}" for i in range(held))
+        assert sorted(zarr.open_group(str(path), mode="r", zarr_format=3)["data"].group_keys()) == sorted(
+            f"demo_{i}" for i in range(held)
+        )
     with open_writer(path, task_id=TASK, env_args={}) as w:  # space again: appending goes on
         assert w.append_episode(episode(99), success=True, attrs={"seed": 99}) == held
     assert_episode(path, held, 99)
@@ -210,8 +224,14 @@ def test_a_full_disk_ends_a_writing_process_in_one_line(tmp_path, suffix):
     process exits 1 with one line saying what the dataset holds."""
     path = tmp_path / f"ds{suffix}"
     # 400 writes: a zarr episode takes ~105 (its rgb frames are one chunk each)
-    proc = subprocess.run([sys.executable, "-c", FULL_CHILD, str(path), "400"], check=False, capture_output=True,
-                          text=True, env=child_env(), timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", FULL_CHILD, str(path), "400"],
+        check=False,
+        capture_output=True,
+        text=True,
+        env=child_env(),
+        timeout=120,
+    )
     assert proc.returncode == 1 and "Segmentation" not in proc.stderr
     last = proc.stderr.strip().splitlines()[-1]
     held = len(list_demos(path))
@@ -265,8 +285,14 @@ print("NOT KILLED", flush=True)
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_sigkill_mid_batch_keeps_earlier_batches_and_none_of_the_killed_one(tmp_path, suffix, point):
     path = tmp_path / f"ds{suffix}"
-    proc = subprocess.run([sys.executable, "-c", BATCH_CHILD, str(path), point], check=False, env=child_env(),
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", BATCH_CHILD, str(path), point],
+        check=False,
+        env=child_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == -9, proc.stderr
     assert proc.stdout.split("\n")[:2] == ["BATCH 0 1 2", "BATCH 3 4 5"], proc.stdout
     seeds = [0, 1, 2, 10, 11, 12]
@@ -391,8 +417,11 @@ def test_background_writer_blocks_when_the_queue_is_full(tmp_path, monkeypatch):
         assert time.monotonic() < deadline, "the writer thread never took the first episode"
         time.sleep(0.001)
     queued = bg.put_many([(episode(s), True, {"seed": s}) for s in (1, 2)])  # fills the queue
-    blocked = threading.Thread(target=lambda: queued.append(bg.put(episode(3), success=True, attrs={"seed": 3})),
-                               name="blocked put", daemon=True)
+    blocked = threading.Thread(
+        target=lambda: queued.append(bg.put(episode(3), success=True, attrs={"seed": 3})),
+        name="blocked put",
+        daemon=True,
+    )
     blocked.start()
     while not waiting.is_set() and blocked.is_alive():  # one or the other happens: no sleep decides it
         assert time.monotonic() < deadline, "the put neither waited nor returned"
@@ -422,8 +451,9 @@ def test_background_disk_full_raises_in_the_caller_with_the_one_line(tmp_path, s
         bg.flush()
     bg.close()  # the error was raised once: close does not raise it again
     inject_write_fault(None)
-    assert re.fullmatch(rf"disk full after (\d+) episodes?; {re.escape(str(path))} holds \1 finished episodes?",
-                        str(exc.value)), str(exc.value)
+    assert re.fullmatch(
+        rf"disk full after (\d+) episodes?; {re.escape(str(path))} holds \1 finished episodes?", str(exc.value)
+    ), str(exc.value)
     held = int(str(exc.value).split()[3])
     assert held >= 3 and list_demos(path) == list(range(held)) and capfd.readouterr().err == ""
     written = [f for f in futures if f.exception() is None]

@@ -19,15 +19,34 @@ NAMES = ["red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"]
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "newton_lab.cli", "yolo-export", *args], capture_output=True,
-                          text=True, timeout=900, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "newton_lab.cli", "yolo-export", *args],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
+    )
 
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("yolo") / "ds"
-    proc = cli("--num-images", "50", "--num-envs", "2", "--resolution", "96", "72", "--randomize", "--device", "cpu",
-               "--preview", "2", "--output-dir", str(out))
+    proc = cli(
+        "--num-images",
+        "50",
+        "--num-envs",
+        "2",
+        "--resolution",
+        "96",
+        "72",
+        "--randomize",
+        "--device",
+        "cpu",
+        "--preview",
+        "2",
+        "--output-dir",
+        str(out),
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     return out
 
@@ -100,13 +119,13 @@ def test_polygons_trace_masks_of_known_shape():
     h, w = 72, 96
     y, x = np.mgrid[0:h, 0:w]
     rect = (x >= 10) & (x < 40) & (y >= 20) & (y < 35)
-    disc = ((x - 60) ** 2 + (y - 40) ** 2 <= 15 ** 2) & ((x - 60) ** 2 + (y - 40) ** 2 > 4 ** 2)
+    disc = ((x - 60) ** 2 + (y - 40) ** 2 <= 15**2) & ((x - 60) ** 2 + (y - 40) ** 2 > 4**2)
     edge = (x < 8) & (y < 30)
     for mask in (rect, disc, edge):
         poly = mask_polygon(mask)
         assert poly is not None and len(poly) >= 4
         assert poly.min() >= 0 and (poly <= [w, h]).all()
-        hole = np.pi * 4 ** 2 if mask is disc else 0.0
+        hole = np.pi * 4**2 if mask is disc else 0.0
         assert abs(polygon_area(poly) - hole - mask.sum()) < 0.06 * mask.sum()
         cx, cy = poly.mean(axis=0)
         assert mask[int(cy), int(cx)] or mask is disc  # the disc's centroid is its hole
@@ -114,13 +133,16 @@ def test_polygons_trace_masks_of_known_shape():
     assert assign_splits(10, [0.7, 0.2, 0.1], seed=0).count("train") == 7
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--split", "0.5", "0.2", "0.1"], "--split takes three fractions >= 0 summing to 1"),
-    (["--task", "GalbotG1-PickCube-v0"], "use a SortToShelf task"),
-    (["--resolution", "0", "72"], "--resolution takes width and height"),
-    (["--num-images", "0"], "--num-images must be"),
-    (["--mask-source", "depth"], "--mask-source 'depth' is unknown; use one of segmentation, rgb-color"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--split", "0.5", "0.2", "0.1"], "--split takes three fractions >= 0 summing to 1"),
+        (["--task", "GalbotG1-PickCube-v0"], "use a SortToShelf task"),
+        (["--resolution", "0", "72"], "--resolution takes width and height"),
+        (["--num-images", "0"], "--num-images must be"),
+        (["--mask-source", "depth"], "--mask-source 'depth' is unknown; use one of segmentation, rgb-color"),
+    ],
+)
 def test_bad_input_is_one_line(tmp_path, args, words):
     proc = cli(*args, "--output-dir", str(tmp_path / "ds"))
     assert proc.returncode == 2 and words in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
@@ -140,8 +162,13 @@ def test_rgb_color_masks_match_the_segmentation():
     segmentation's for every visible sorting object (a real render, 96x72)."""
     from newton_lab.envs import make_env
 
-    env = make_env("GalbotG1-SortToShelf-Pick-v0", num_envs=1, device="cpu", seed=1,
-                   cameras={"front_head": {"resolution": (96, 72), "data": ("rgb", "segmentation")}})
+    env = make_env(
+        "GalbotG1-SortToShelf-Pick-v0",
+        num_envs=1,
+        device="cpu",
+        seed=1,
+        cameras={"front_head": {"resolution": (96, 72), "data": ("rgb", "segmentation")}},
+    )
     images = env.render()
     rgb, seg = images["front_head_rgb"][0].cpu().numpy(), images["front_head_segmentation"][0].cpu().numpy()
     names = env.sensors.cameras.segmentation_names

@@ -48,8 +48,12 @@ def test_training_specs_train_on_the_export_and_score_on_every_heldout_image(tmp
     assert ds["names"] == dict(enumerate(NAMES))
     train, evaluate = training_specs(ds, held, tmp_path / "run")
     root, hroot = (tmp_path / "ds").resolve(), (tmp_path / "held").resolve()
-    assert train == {"path": str((tmp_path / "run").resolve()), "train": [str(root / "images/train")],
-                     "val": [str(root / "images/val")], "names": dict(enumerate(NAMES))}
+    assert train == {
+        "path": str((tmp_path / "run").resolve()),
+        "train": [str(root / "images/train")],
+        "val": [str(root / "images/val")],
+        "names": dict(enumerate(NAMES)),
+    }
     assert evaluate["val"] == [str(hroot / "images/val"), str(hroot / "images/test")]  # empty train split left out
     assert evaluate["train"] == train["train"] and evaluate["names"] == train["names"]
     for spec in (train, evaluate):  # Ultralytics finds each image's labels by replacing /images/ with /labels/
@@ -102,11 +106,18 @@ def test_results_csv_without_polars(tmp_path):
 
 
 def test_seg_metrics_reads_mask_and_box_map():
-    m = SimpleNamespace(seg=SimpleNamespace(map50=0.95, map=0.71, ap50=np.array([0.9, 1.0])),
-                        box=SimpleNamespace(map50=0.97, map=0.8), ap_class_index=np.array([1, 3]))
+    m = SimpleNamespace(
+        seg=SimpleNamespace(map50=0.95, map=0.71, ap50=np.array([0.9, 1.0])),
+        box=SimpleNamespace(map50=0.97, map=0.8),
+        ap_class_index=np.array([1, 3]),
+    )
     assert seg_metrics(m, dict(enumerate(NAMES))) == {
-        "mask_map50": 0.95, "mask_map50_95": 0.71, "box_map50": 0.97, "box_map50_95": 0.8,
-        "mask_ap50_per_class": {"blue_cuboid": 0.9, "green_cylinder": 1.0}}
+        "mask_map50": 0.95,
+        "mask_map50_95": 0.71,
+        "box_map50": 0.97,
+        "box_map50_95": 0.8,
+        "mask_ap50_per_class": {"blue_cuboid": 0.9, "green_cylinder": 1.0},
+    }
 
 
 def test_missing_ultralytics_is_refused_after_the_arguments(tmp_path, monkeypatch):
@@ -129,8 +140,7 @@ sys.exit(code)
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", CHECK, *args], capture_output=True, text=True, timeout=60,
-                          check=False)
+    return subprocess.run([sys.executable, "-c", CHECK, *args], capture_output=True, text=True, timeout=60, check=False)
 
 
 @pytest.fixture(scope="module")
@@ -145,23 +155,26 @@ def exports(tmp_path_factory) -> Path:
     return root
 
 
-@pytest.mark.parametrize("args, words", [
-    (["yolo-train", "--dataset", "{r}/nope"], "--dataset {r}/nope: no data.yaml there"),
-    (["yolo-train", "--dataset", "{r}/only_val"], "no training images (images/train is empty)"),
-    (["yolo-train", "--dataset", "{r}/ds", "--heldout", "{r}/other_names"], "are not the dataset's"),
-    (["yolo-train", "--dataset", "{r}/ds", "--model", "yolo11n.yaml"], "use a segmentation config (*-seg.yaml"),
-    (["yolo-train", "--dataset", "{r}/ds", "--model", "{r}/missing.pt"], "no such checkpoint file"),
-    (["yolo-train", "--dataset", "{r}/ds", "--imgsz", "300"], "--imgsz must be a multiple of 32"),
-    (["yolo-train", "--dataset", "{r}/ds", "--time-budget-s", "0"], "--time-budget-s must be > 0"),
-    (["yolo-train", "--dataset", "{r}/ds", "--epochs", "0"], "--epochs must be an integer >= 1"),
-    (["yolo-train", "--dataset", "{r}/ds", "--output-dir", "{r}/full"], "exists and is not empty"),
-    (["yolo-predict", "--weights", "{r}/nope.pt"], "--weights {r}/nope.pt: no such file"),
-    (["yolo-predict", "--weights", "{r}/best.pt", "--conf", "1.5"], "--conf must be in [0, 1)"),
-    (["yolo-predict", "--weights", "{r}/best.pt", "--task", "GalbotG1-PickCube-v0"], "use a SortToShelf task"),
-    (["yolo-predict", "--weights", "{r}/best.pt", "--resolution", "0", "72"], "--resolution takes width and"),
-    (["yolo-predict", "--weights", "{r}/best.pt", "--capture-every", "0"], "--capture-every must be >= 1"),
-    (["yolo-predict", "--weights", "{r}/best.pt", "--output-dir", "{r}/full"], "exists and is not empty"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["yolo-train", "--dataset", "{r}/nope"], "--dataset {r}/nope: no data.yaml there"),
+        (["yolo-train", "--dataset", "{r}/only_val"], "no training images (images/train is empty)"),
+        (["yolo-train", "--dataset", "{r}/ds", "--heldout", "{r}/other_names"], "are not the dataset's"),
+        (["yolo-train", "--dataset", "{r}/ds", "--model", "yolo11n.yaml"], "use a segmentation config (*-seg.yaml"),
+        (["yolo-train", "--dataset", "{r}/ds", "--model", "{r}/missing.pt"], "no such checkpoint file"),
+        (["yolo-train", "--dataset", "{r}/ds", "--imgsz", "300"], "--imgsz must be a multiple of 32"),
+        (["yolo-train", "--dataset", "{r}/ds", "--time-budget-s", "0"], "--time-budget-s must be > 0"),
+        (["yolo-train", "--dataset", "{r}/ds", "--epochs", "0"], "--epochs must be an integer >= 1"),
+        (["yolo-train", "--dataset", "{r}/ds", "--output-dir", "{r}/full"], "exists and is not empty"),
+        (["yolo-predict", "--weights", "{r}/nope.pt"], "--weights {r}/nope.pt: no such file"),
+        (["yolo-predict", "--weights", "{r}/best.pt", "--conf", "1.5"], "--conf must be in [0, 1)"),
+        (["yolo-predict", "--weights", "{r}/best.pt", "--task", "GalbotG1-PickCube-v0"], "use a SortToShelf task"),
+        (["yolo-predict", "--weights", "{r}/best.pt", "--resolution", "0", "72"], "--resolution takes width and"),
+        (["yolo-predict", "--weights", "{r}/best.pt", "--capture-every", "0"], "--capture-every must be >= 1"),
+        (["yolo-predict", "--weights", "{r}/best.pt", "--output-dir", "{r}/full"], "exists and is not empty"),
+    ],
+)
 def test_bad_input_is_one_line_before_warp(exports, tmp_path, args, words):
     args = [a.format(r=exports) for a in args]
     if "--output-dir" not in args:

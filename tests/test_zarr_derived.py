@@ -34,8 +34,8 @@ def test_next_obs_is_a_reference_and_rebuilds_every_demo_byte_for_byte():
     assert entry == f"{NEXT}:obs/x"
     starts = np.cumsum([0] + COUNTS[:-1])
     for start, n in zip(starts, COUNTS):
-        last = nxt[start + n - 1:start + n]
-        assert rebuild(entry, obs[start:start + n], last).tobytes() == nxt[start:start + n].tobytes()
+        last = nxt[start + n - 1 : start + n]
+        assert rebuild(entry, obs[start : start + n], last).tobytes() == nxt[start : start + n].tobytes()
 
 
 @pytest.mark.parametrize("row", range(sum(COUNTS)))

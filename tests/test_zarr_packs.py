@@ -167,8 +167,14 @@ def test_sigkill_before_a_pack_batch_commits(tmp_path):
     from test_writers import child_env
 
     path = tmp_path / "s.zarr"
-    proc = subprocess.run([sys.executable, "-c", KILL_CHILD, str(path)], check=False, capture_output=True, text=True,
-                          env=child_env(), timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", KILL_CHILD, str(path)],
+        check=False,
+        capture_output=True,
+        text=True,
+        env=child_env(),
+        timeout=120,
+    )
     assert proc.returncode == -9 and proc.stdout.splitlines() == ["BATCH 0 1 2 3 4"], proc.stderr
     assert "pack_5" in names(path)  # really torn: the killed batch's pack is in place
     assert list_demos(path) == [0, 1, 2, 3, 4] and read_dataset_info(path)["total"] == sum(range(20, 25))

@@ -22,12 +22,17 @@ from newton_lab.datasets import open_writer
 def episode(rng: np.random.Generator, steps: int) -> dict:
     """~60 floats per step: actions (8), obs (3 terms, 31), states (18), rewards, dones."""
     f = np.float32
-    return {"actions": rng.standard_normal((steps, 8)).astype(f),
-            "obs": {"joint_pos": rng.standard_normal((steps, 17)).astype(f),
-                    "tcp_pose": rng.standard_normal((steps, 7)).astype(f),
-                    "cube_pose": rng.standard_normal((steps, 7)).astype(f)},
-            "states": rng.standard_normal((steps, 18)).astype(f),
-            "rewards": rng.standard_normal(steps).astype(f), "dones": np.zeros(steps, np.int64)}
+    return {
+        "actions": rng.standard_normal((steps, 8)).astype(f),
+        "obs": {
+            "joint_pos": rng.standard_normal((steps, 17)).astype(f),
+            "tcp_pose": rng.standard_normal((steps, 7)).astype(f),
+            "cube_pose": rng.standard_normal((steps, 7)).astype(f),
+        },
+        "states": rng.standard_normal((steps, 18)).astype(f),
+        "rewards": rng.standard_normal(steps).astype(f),
+        "dones": np.zeros(steps, np.int64),
+    }
 
 
 def run(path: Path, episodes: int, batch: int, steps: int, fsync: bool) -> dict:
@@ -44,15 +49,24 @@ def run(path: Path, episodes: int, batch: int, steps: int, fsync: bool) -> dict:
                 ids = w.append_episodes(items)
             else:  # a newton_lab from before batches (for a before/after figure): one append per episode
                 ids = [w.append_episode(ep, success=ok, attrs=attrs) for ep, ok, attrs in items]
-            per_episode[start:start + n] = 1e3 * (time.perf_counter() - t0) / n
+            per_episode[start : start + n] = 1e3 * (time.perf_counter() - t0) / n
             assert ids == list(range(start, start + n))
         total_s = time.perf_counter() - t_all
     first, last = per_episode[:100].mean(), per_episode[-100:].mean()
-    return {"format": path.suffix[1:], "episodes": episodes, "batch": batch, "steps": steps, "fsync": fsync,
-            "first_100_ms_per_episode": round(float(first), 3), "last_100_ms_per_episode": round(float(last), 3),
-            "last_over_first": round(float(last / first), 3), "total_s": round(total_s, 1),
-            "bytes_per_episode": int(sum(f.stat().st_size for f in ([path] if path.is_file() else path.rglob("*"))
-                                         if f.is_file()) / episodes)}
+    return {
+        "format": path.suffix[1:],
+        "episodes": episodes,
+        "batch": batch,
+        "steps": steps,
+        "fsync": fsync,
+        "first_100_ms_per_episode": round(float(first), 3),
+        "last_100_ms_per_episode": round(float(last), 3),
+        "last_over_first": round(float(last / first), 3),
+        "total_s": round(total_s, 1),
+        "bytes_per_episode": int(
+            sum(f.stat().st_size for f in ([path] if path.is_file() else path.rglob("*")) if f.is_file()) / episodes
+        ),
+    }
 
 
 def main() -> None:
@@ -69,8 +83,9 @@ def main() -> None:
     root = Path(tempfile.mkdtemp(dir=args.dir, prefix="append_cost_"))
     try:
         for fmt in args.formats.split(","):
-            print(json.dumps(run(root / f"d.{fmt}", args.episodes, args.batch, args.steps, not args.no_fsync)),
-                  flush=True)
+            print(
+                json.dumps(run(root / f"d.{fmt}", args.episodes, args.batch, args.steps, not args.no_fsync)), flush=True
+            )
     finally:
         shutil.rmtree(root, ignore_errors=True)
 

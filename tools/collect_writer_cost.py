@@ -35,9 +35,14 @@ from newton_lab.datasets.zarr import store as zarr_store
 
 
 def _scaled(tree: dict, k: int) -> dict:
-    return {key: _scaled(v, k) if isinstance(v, dict)
-            else (v * np.float32(1 + k * 1e-7)).astype(v.dtype) if v.dtype.kind == "f" else v.copy()
-            for key, v in tree.items()}
+    return {
+        key: _scaled(v, k)
+        if isinstance(v, dict)
+        else (v * np.float32(1 + k * 1e-7)).astype(v.dtype)
+        if v.dtype.kind == "f"
+        else v.copy()
+        for key, v in tree.items()
+    }
 
 
 def _footprint(path: Path) -> tuple[int, int]:
@@ -68,16 +73,22 @@ def _timed_python(n: int) -> float:
     return time.perf_counter() - t0
 
 
-def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
-            loop: tuple[float, float, int] | None = None) -> dict:
+def measure(
+    source: str, root: Path, demos: int, batch: int, profile: bool, loop: tuple[float, float, int] | None = None
+) -> dict:
     stored = list(read_episodes(source, list_demos(source), attrs=True))
     info = read_dataset_info(source)
     task, env_args = info["task_id"], info["env_args"]
     items = []
     for k in range(demos):
         ep = stored[k % len(stored)]
-        items.append((_scaled({key: v for key, v in ep.items() if key != "attrs"}, k // len(stored)), True,
-                      {"seed": 0, "env_index": k % 4096}))
+        items.append(
+            (
+                _scaled({key: v for key, v in ep.items() if key != "attrs"}, k // len(stored)),
+                True,
+                {"seed": 0, "env_index": k % 4096},
+            )
+        )
     raw = sum(v.nbytes for v in _leaves(items[0][0]))
     shutil.rmtree(root, ignore_errors=True)
     root.mkdir(parents=True)
@@ -91,6 +102,7 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
                 return fn(*a, **kw)
             finally:
                 writer_s[0] += time.perf_counter() - t0
+
         return wrapper
 
     store = open_writer(path, task_id=task, env_args=env_args)
@@ -98,8 +110,11 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
     before = dict(zarr_store.BATCH_SECONDS)
     inner = store.append_prepared
     store.append_prepared = timed(inner)
-    gather = {"min_batch": 256, "max_wait_s": 1.0} if loop and "min_batch" in inspect.signature(
-        BackgroundWriter).parameters else {}  # as collect's writer gathers (where this version has it)
+    gather = (
+        {"min_batch": 256, "max_wait_s": 1.0}
+        if loop and "min_batch" in inspect.signature(BackgroundWriter).parameters
+        else {}
+    )  # as collect's writer gathers (where this version has it)
     writer = BackgroundWriter(store, max_queued=max(256, 4096), **gather)
     extra: dict = {}
     cpu0 = _cpu_s()
@@ -112,16 +127,20 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
             _python(work)
             time.sleep(wait_ms / 1e3)
             t1 = time.perf_counter()
-            writer.put_many(items[a:a + per_step])
+            writer.put_many(items[a : a + per_step])
             feed += time.perf_counter() - t1
             steps += 1
         loop_s = time.perf_counter() - t0
-        extra = {"steps": steps, "loop_s": loop_s, "ideal_loop_s": steps * (python_ms + wait_ms) / 1e3,
-                 "loop_slowdown": loop_s / (steps * (python_ms + wait_ms) / 1e3)}
+        extra = {
+            "steps": steps,
+            "loop_s": loop_s,
+            "ideal_loop_s": steps * (python_ms + wait_ms) / 1e3,
+            "loop_slowdown": loop_s / (steps * (python_ms + wait_ms) / 1e3),
+        }
     else:
         for a in range(batch, demos, batch):
             t1 = time.perf_counter()
-            writer.put_many(items[a:a + batch])
+            writer.put_many(items[a : a + batch])
             feed += time.perf_counter() - t1
             writer.flush()  # one batch of ``batch`` demos at a time, as on a GPU (102-131 batches per 16,384 demos)
     t1 = time.perf_counter()
@@ -130,13 +149,23 @@ def measure(source: str, root: Path, demos: int, batch: int, profile: bool,
     cpu = _cpu_s() - cpu0
     written = demos - batch
     size, files = _footprint(path / "data")
-    out = {"demos": written, "batch": batch, "raw_bytes_per_demo": raw, "wall_s": end - t0, "feed_s": feed,
-           "drain_s": end - t1, "writer_s": writer_s[0], "writer_batches": writer.batches,
-           "writer_files_s": zarr_store.BATCH_SECONDS["files"] - before["files"],
-           "writer_sync_s": zarr_store.BATCH_SECONDS["sync"] - before["sync"],
-           "writer_demos_per_s": written / writer_s[0], "cpu_ms_per_demo": 1e3 * cpu / written,
-           "bytes_per_demo": size / demos,
-           "files_per_demo": files / demos, **extra}
+    out = {
+        "demos": written,
+        "batch": batch,
+        "raw_bytes_per_demo": raw,
+        "wall_s": end - t0,
+        "feed_s": feed,
+        "drain_s": end - t1,
+        "writer_s": writer_s[0],
+        "writer_batches": writer.batches,
+        "writer_files_s": zarr_store.BATCH_SECONDS["files"] - before["files"],
+        "writer_sync_s": zarr_store.BATCH_SECONDS["sync"] - before["sync"],
+        "writer_demos_per_s": written / writer_s[0],
+        "cpu_ms_per_demo": 1e3 * cpu / written,
+        "bytes_per_demo": size / demos,
+        "files_per_demo": files / demos,
+        **extra,
+    }
     if profile:
         store = open_writer(path, task_id=task, env_args=env_args)
         prepared = [store.prepare(ep, success=ok, attrs=attrs) for ep, ok, attrs in items[:batch]]
@@ -160,9 +189,14 @@ def main() -> None:
     p.add_argument("--demos", type=int, default=2048)
     p.add_argument("--batch", type=int, default=140)
     p.add_argument("--profile", action="store_true")
-    p.add_argument("--loop", nargs=3, type=float, metavar=("PYTHON_MS", "WAIT_MS", "PER_STEP"),
-                   help="feed as a collect loop does: each step PYTHON_MS of Python (holding the GIL), WAIT_MS of "
-                        "waiting (releasing it, as a GPU sync), then PER_STEP demos queued; prints the loop's slowdown")
+    p.add_argument(
+        "--loop",
+        nargs=3,
+        type=float,
+        metavar=("PYTHON_MS", "WAIT_MS", "PER_STEP"),
+        help="feed as a collect loop does: each step PYTHON_MS of Python (holding the GIL), WAIT_MS of "
+        "waiting (releasing it, as a GPU sync), then PER_STEP demos queued; prints the loop's slowdown",
+    )
     a = p.parse_args()
     loop = None if a.loop is None else (a.loop[0], a.loop[1], int(a.loop[2]))
     print(json.dumps(measure(a.source, a.dir, a.demos, a.batch, a.profile, loop)))

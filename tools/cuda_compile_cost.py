@@ -26,13 +26,28 @@ def run_job(job: str, task: str, source: str | None, out_dir: str) -> None:
     if job == "mimic":
         from newton_lab.mimic.generate import mimic
 
-        mimic(source, episodes=1, num_envs=2, output_path=f"{out_dir}/mimic.hdf5", seed=7, device="cpu",
-              progress=False)
+        mimic(source, episodes=1, num_envs=2, output_path=f"{out_dir}/mimic.hdf5", seed=7, device="cpu", progress=False)
     else:
         from newton_lab.cli import main
 
-        main(["collect", "--task", task, "--num-envs", "2", "--episodes", "1", "--device", "cpu", "--no-progress",
-              "--dataset-path", f"{out_dir}/collect.zarr", "--cameras", "none"])
+        main(
+            [
+                "collect",
+                "--task",
+                task,
+                "--num-envs",
+                "2",
+                "--episodes",
+                "1",
+                "--device",
+                "cpu",
+                "--no-progress",
+                "--dataset-path",
+                f"{out_dir}/collect.zarr",
+                "--cameras",
+                "none",
+            ]
+        )
 
 
 def loaded_modules() -> list:

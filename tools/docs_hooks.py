@@ -20,8 +20,12 @@ import docs_tables  # noqa: E402
 MARKER = re.compile(r"^<!-- generated: ([a-z_]+) -->$", re.M)
 FIGURE = re.compile(r"(?<!`)<!-- figure: ([a-z_]+) -->(?!`)")
 """An inline figure marker; one in backticks is a page showing the marker itself (Contributing), left as it is."""
-GENERATORS = {"tasks": docs_tables.tasks_page, "robot": docs_tables.robot_page, "cli": docs_tables.cli_page,
-              "recipes": docs_tables.recipes_page}
+GENERATORS = {
+    "tasks": docs_tables.tasks_page,
+    "robot": docs_tables.robot_page,
+    "cli": docs_tables.cli_page,
+    "recipes": docs_tables.recipes_page,
+}
 
 
 @functools.cache

@@ -43,8 +43,9 @@ REPORT = re.compile(r'<pre id="layout-report">(.*?)</pre>', re.S)
 
 def chromium() -> str | None:
     """The Chromium executable on this machine, if any."""
-    return next((found for name in ("chromium", "chromium-browser", "google-chrome") if (found := shutil.which(name))),
-                None)
+    return next(
+        (found for name in ("chromium", "chromium-browser", "google-chrome") if (found := shutil.which(name))), None
+    )
 
 
 def measure(site: Path, page: str, width: int = 1280, browser: str | None = None) -> dict:
@@ -53,16 +54,35 @@ def measure(site: Path, page: str, width: int = 1280, browser: str | None = None
     probe = html.with_name("_layout_probe.html")
     probe.write_text(html.read_text().replace("</body>", PROBE + "</body>"))
     try:
-        proc = subprocess.run([browser or chromium() or "chromium", "--headless=new", "--no-sandbox", "--disable-gpu",
-                               "--hide-scrollbars", f"--window-size={width},900", "--virtual-time-budget=5000",
-                               "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120, check=False)
+        proc = subprocess.run(
+            [
+                browser or chromium() or "chromium",
+                "--headless=new",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--hide-scrollbars",
+                f"--window-size={width},900",
+                "--virtual-time-budget=5000",
+                "--dump-dom",
+                probe.as_uri(),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
     finally:
         probe.unlink()
     found = REPORT.search(proc.stdout)
     if not found:
         raise RuntimeError(f"no layout report from Chromium for {page}: {proc.stderr[-2000:]}")
-    return {"page": page, "width": width, **json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&")
-                                                        .replace("&lt;", "<").replace("&gt;", ">"))}
+    return {
+        "page": page,
+        "width": width,
+        **json.loads(
+            found.group(1).replace("&quot;", '"').replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">")
+        ),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:

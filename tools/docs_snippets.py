@@ -148,9 +148,18 @@ def snippets(path: Path) -> list[Snippet]:
         if reason is None and lang == "bash" and "--device cuda" in code:
             reason = "needs a CUDA device"
         fails = FAILS.search(before)
-        out.append(Snippet(str(path.relative_to(ROOT)), text[:m.start()].count("\n") + 1, lang, code, reason,
-                           title.group(1) if title and writes is None else None, writes,
-                           fails.group(1) if fails else None))
+        out.append(
+            Snippet(
+                str(path.relative_to(ROOT)),
+                text[: m.start()].count("\n") + 1,
+                lang,
+                code,
+                reason,
+                title.group(1) if title and writes is None else None,
+                writes,
+                fails.group(1) if fails else None,
+            )
+        )
     return out
 
 
@@ -163,15 +172,17 @@ def outputs(path: Path) -> list[Output]:
         marker = OUTPUT.search(_line_before(text, m.start()))
         if m.group(1) != "text" or not marker:
             continue
-        line = text[:m.start()].count("\n") + 1
+        line = text[: m.start()].count("\n") + 1
         tolerance = (marker.group(1) or "exact").strip()
         if tolerance.startswith("structure"):
             tolerance = "structure"
         else:
             found = re.fullmatch(r"(?:numbers within\s+)?([0-9.]+)\s*(%?)|exact", tolerance)
             if not found:
-                raise ValueError(f"{path}:{line}: output tolerance {tolerance!r}: say exact, structure, "
-                                 "numbers within N %, or numbers within N")
+                raise ValueError(
+                    f"{path}:{line}: output tolerance {tolerance!r}: say exact, structure, "
+                    "numbers within N %, or numbers within N"
+                )
             tolerance = "exact" if tolerance == "exact" else f"{found.group(1)}{' %' if found.group(2) else ''}"
         before = [n for n in runnable if n < line]
         out.append(Output(str(path.relative_to(ROOT)), line, m.group(3), tolerance, before[-1] if before else None))
@@ -219,8 +230,11 @@ def compare_output(shown: str, printed: str, tolerance: str = "exact") -> str | 
             return None
         pos = match.start() + 1
         match = pattern.search(printed, pos)
-    return (f"numbers outside the tolerance ({tolerance}): "
-            + ", ".join(f"shown {s}, printed {g}" for s, g in off) + f"\nprinted:\n{printed[-3000:]}")
+    return (
+        f"numbers outside the tolerance ({tolerance}): "
+        + ", ".join(f"shown {s}, printed {g}" for s, g in off)
+        + f"\nprinted:\n{printed[-3000:]}"
+    )
 
 
 def commands(code: str) -> list[str]:
@@ -258,8 +272,11 @@ def check_cli(line: str) -> list[str]:
     if command not in sub:
         return [f"unknown command {command!r} in: {line}"]
     flags = {s for a in sub[command]._actions for s in a.option_strings}
-    problems = [f"no flag {w.split('=')[0]} in `newton-lab {command}`: {line}"
-                for w in words if w.startswith("--") and w.split("=")[0] not in flags]
+    problems = [
+        f"no flag {w.split('=')[0]} in `newton-lab {command}`: {line}"
+        for w in words
+        if w.startswith("--") and w.split("=")[0] not in flags
+    ]
     if not problems:
         try:
             with _no_exit():
@@ -414,12 +431,21 @@ def _run_process(words: list[str]) -> None:
     passed on to this process's (possibly captured) streams."""
     script = Path(sys.executable).parent / "newton-lab"
     if words[0] == "newton-lab":
-        argv = [str(script), *words[1:]] if script.is_file() else \
-            [sys.executable, "-c", "import sys; from newton_lab.cli import main; sys.exit(main())", *words[1:]]
+        argv = (
+            [str(script), *words[1:]]
+            if script.is_file()
+            else [sys.executable, "-c", "import sys; from newton_lab.cli import main; sys.exit(main())", *words[1:]]
+        )
     else:
         argv = [sys.executable, *words[1:]]
-    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, check=False,
-                          env={**os.environ, "PYTHONUNBUFFERED": "1"})  # both streams in the order printed
+    proc = subprocess.run(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        check=False,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # both streams in the order printed
     sys.stdout.write(proc.stdout)
     if proc.returncode != 0:
         raise RuntimeError(f"exit status {proc.returncode}")
@@ -484,8 +510,14 @@ def _run(path: Path, workdir: Path, sizes: bool) -> dict:
                         if snippet.fails:
                             raise RuntimeError(f"the page says this is refused ({snippet.fails}), but it ran")
             except BaseException as exc:  # noqa: BLE001  (SystemExit of a script included)
-                return {"page": page, "ran": ran, "failed": snippet.where, "error": f"{type(exc).__name__}: {exc}",
-                        "trace": traceback.format_exc()[-3000:], "wrote": wrote}
+                return {
+                    "page": page,
+                    "ran": ran,
+                    "failed": snippet.where,
+                    "error": f"{type(exc).__name__}: {exc}",
+                    "trace": traceback.format_exc()[-3000:],
+                    "wrote": wrote,
+                }
             printed[snippet.line] = tee.kept.getvalue()
             ran += 1
     finally:
@@ -498,17 +530,29 @@ def _run(path: Path, workdir: Path, sizes: bool) -> dict:
         problem = compare_output(out.text, printed[out.after], out.tolerance)
         if problem:
             differ.append(f"{out.where} (output of line {out.after}): {problem}")
-    result = {"page": page, "ran": ran, "failed": None, "seconds": time.perf_counter() - start, "wrote": wrote,
-              "outputs_compared": compared}
+    result = {
+        "page": page,
+        "ran": ran,
+        "failed": None,
+        "seconds": time.perf_counter() - start,
+        "wrote": wrote,
+        "outputs_compared": compared,
+    }
     if differ:
-        result.update(failed=differ[0].split(" ", 1)[0], error="shown output differs from the printed one",
-                      trace="\n\n".join(differ)[-6000:])
+        result.update(
+            failed=differ[0].split(" ", 1)[0],
+            error="shown output differs from the printed one",
+            trace="\n\n".join(differ)[-6000:],
+        )
     return result
 
 
 def _tree(root: Path) -> set[str]:
-    return {str(p.relative_to(root)) for p in root.rglob("*")
-            if p.is_file() and "__pycache__" not in p.parts and p.parts[len(root.parts)] != "outputs"}
+    return {
+        str(p.relative_to(root))
+        for p in root.rglob("*")
+        if p.is_file() and "__pycache__" not in p.parts and p.parts[len(root.parts)] != "outputs"
+    }
 
 
 def run_in_copy(path: Path, copy: Path) -> dict:
@@ -524,16 +568,33 @@ def run_in_copy(path: Path, copy: Path) -> dict:
     writes = [s.writes for s in snippets(path) if s.writes]
     there = [w for w in writes if (copy / w).exists()]
     if there:
-        return {"page": page, "ran": 0, "failed": page, "error": f"{', '.join(there)} exist in the working tree; the "
-                "page writes them from nothing (remove them there)", "trace": ""}
+        return {
+            "page": page,
+            "ran": 0,
+            "failed": page,
+            "error": f"{', '.join(there)} exist in the working tree; the "
+            "page writes them from nothing (remove them there)",
+            "trace": "",
+        }
     before = _tree(copy)
     out = copy / "outputs" / "docs_run.json"
     env = {**mutations.environment(copy), "PYTHONPATH": str(copy)}
-    proc = subprocess.run([sys.executable, str(copy / "tools" / "docs_snippets.py"), "run", page, "--here", "--json",
-                           str(out)], cwd=copy, env=env, capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [sys.executable, str(copy / "tools" / "docs_snippets.py"), "run", page, "--here", "--json", str(out)],
+        cwd=copy,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if not out.is_file():
-        return {"page": page, "ran": 0, "failed": page, "error": f"exit status {proc.returncode}",
-                "trace": (proc.stdout + proc.stderr)[-5000:]}
+        return {
+            "page": page,
+            "ran": 0,
+            "failed": page,
+            "error": f"exit status {proc.returncode}",
+            "trace": (proc.stdout + proc.stderr)[-5000:],
+        }
     result = json.loads(out.read_text())[0]
     result["stray"] = sorted(_tree(copy) - before - set(writes) - set(result.get("wrote", ())))
     result["log"] = (proc.stdout + proc.stderr)[-20000:]
@@ -549,8 +610,9 @@ def _here(path: Path) -> dict:
         # packages are found when newton_lab.tasks is first imported, after the page wrote its own
         where = [Path(p).resolve() for p in importlib.util.find_spec(name).submodule_search_locations]
         if not all(ROOT in p.parents for p in where):
-            sys.exit(f"{name} resolves to {where}, outside {ROOT}: --here runs only in a scratch copy "
-                     "(PYTHONPATH=<copy>)")
+            sys.exit(
+                f"{name} resolves to {where}, outside {ROOT}: --here runs only in a scratch copy (PYTHONPATH=<copy>)"
+            )
     return _run(path, ROOT, sizes=False)
 
 
@@ -566,8 +628,11 @@ def main(argv: list[str] | None = None) -> int:
         "--workdir", help="working folder of the runs, one subfolder a page (default: a new temporary one)"
     )
     parser.add_argument("--json", help="write the results here")
-    parser.add_argument("--here", action="store_true",
-                        help="run from this repository's root at the page's sizes (only inside a scratch copy)")
+    parser.add_argument(
+        "--here",
+        action="store_true",
+        help="run from this repository's root at the page's sizes (only inside a scratch copy)",
+    )
     args = parser.parse_args(argv)
     paths = _resolve(args.pages)
     if args.mode == "check":

@@ -98,13 +98,18 @@ def _physics(cfg) -> str:
     text = f"{p.iterations} solver / {p.ls_iterations} line-search iterations, {p.cone} cone"
     if p.tolerance is not None:
         text += f", tolerance {p.tolerance:g}"
-    caps = [f"{v} {what} per world" for v, what in ((p.contacts_per_world, "contacts"),
-                                                    (p.constraints_per_world, "constraint rows")) if v]
+    caps = [
+        f"{v} {what} per world"
+        for v, what in ((p.contacts_per_world, "contacts"), (p.constraints_per_world, "constraint rows"))
+        if v
+    ]
     text += "; " + (", ".join(caps) if caps else "Newton's default capacities")
     if p.contact_filter is None:
         return text + "; every robot collision geom touches every object and the ground"
-    touches = "; ".join(f"`{g}` touches {', '.join('every object' if t == '*' else f'`{t}`' for t in targets)}"
-                        for g, targets in p.contact_filter.robot.items())
+    touches = "; ".join(
+        f"`{g}` touches {', '.join('every object' if t == '*' else f'`{t}`' for t in targets)}"
+        for g, targets in p.contact_filter.robot.items()
+    )
     return f"{text}; contacts: {touches}; other robot links touch nothing"
 
 
@@ -119,8 +124,11 @@ def _task_section(spec, cfg) -> str:
         ["reset events", _code(cfg.events)],
         ["subtask signals", _code(cfg.signals)],
         ["reward terms", _code(cfg.rewards)],
-        ["episode length", f"{cfg.episode_length_s:g} s ({round(cfg.episode_length_s / (cfg.sim_dt * cfg.decimation))}"
-                           f" control steps of {cfg.sim_dt * cfg.decimation:g} s)"],
+        [
+            "episode length",
+            f"{cfg.episode_length_s:g} s ({round(cfg.episode_length_s / (cfg.sim_dt * cfg.decimation))}"
+            f" control steps of {cfg.sim_dt * cfg.decimation:g} s)",
+        ],
         ["physics", _physics(cfg)],
         ["expert", _expert(spec)],
         ["options", _options(spec) + "; every task also takes `obs_mode` (`state` or `sensors`)"],
@@ -151,8 +159,10 @@ def tasks_page() -> str:
     ]
     table = _table(["id", "what", "action columns", "cameras", "success", "options"], rows)
     sections = "\n\n".join(_task_section(s, c) for s, c in tasks)
-    note = ("Observation terms marked \\* are privileged (an object's pose or a target's position): "
-            "`obs_mode=\"sensors\"` drops them.")
+    note = (
+        "Observation terms marked \\* are privileged (an object's pose or a target's position): "
+        '`obs_mode="sensors"` drops them.'
+    )
     return f"{table}\n\n{note}\n\n{sections}\n"
 
 
@@ -179,8 +189,15 @@ def _joint_rows() -> list[list[str]]:
             j = joints.get(name, {})
             unit = "m" if j.get("type") == "slide" else "rad"
             limit = f"{j['range'].replace(' ', ' … ')} {unit}" if "range" in j else "unlimited"
-            rows.append([f"`{group}`", f"`{name}`", j.get("type", "hinge"), limit,
-                         f"{spec.JOINT_VELOCITY_LIMITS[name]:g}" if name in spec.JOINT_VELOCITY_LIMITS else "–"])
+            rows.append(
+                [
+                    f"`{group}`",
+                    f"`{name}`",
+                    j.get("type", "hinge"),
+                    limit,
+                    f"{spec.JOINT_VELOCITY_LIMITS[name]:g}" if name in spec.JOINT_VELOCITY_LIMITS else "–",
+                ]
+            )
     return rows
 
 
@@ -190,9 +207,14 @@ def _documented_constants(path: Path) -> list[tuple[str, str]]:
     body = ast.parse(source).body
     out = []
     for node, nxt in zip(body, body[1:]):
-        if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
-                and isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
-                and isinstance(nxt.value.value, str)):
+        if (
+            isinstance(node, ast.Assign)
+            and len(node.targets) == 1
+            and isinstance(node.targets[0], ast.Name)
+            and isinstance(nxt, ast.Expr)
+            and isinstance(nxt.value, ast.Constant)
+            and isinstance(nxt.value.value, str)
+        ):
             out.append((node.targets[0].id, nxt.value.value))
     return out
 
@@ -203,8 +225,15 @@ def _mount_rows() -> list[list[str]]:
     rows = []
     for mount, site in spec.CAMERA_MOUNTS.items():
         body, pos, quat = cameras.site_pose(mount)
-        rows.append([f"`{mount}`", f"`{site}`", f"`{body}`", ", ".join(f"{x:.4f}" for x in pos),
-                     ", ".join(f"{x:.4f}" for x in quat)])
+        rows.append(
+            [
+                f"`{mount}`",
+                f"`{site}`",
+                f"`{body}`",
+                ", ".join(f"{x:.4f}" for x in pos),
+                ", ".join(f"{x:.4f}" for x in quat),
+            ]
+        )
     return rows
 
 
@@ -232,29 +261,49 @@ def robot_page() -> str:
     joints = _table(["group", "joint", "type", "range", "speed limit"], _joint_rows())
     from newton_lab.tasks.common.config.g1 import postures as module
 
-    postures = _table(["name", "value", "what"], [[f"`{n}`", f"`{getattr(module, n)}`", d.replace("\n", " ")]
-                                                  for n, d in _documented_constants(POSTURES)])
-    mounts = _table(["camera", "MJCF site", "body", "position in the body [m]", "rotation xyzw (pinhole frame)"],
-                    _mount_rows())
+    postures = _table(
+        ["name", "value", "what"],
+        [[f"`{n}`", f"`{getattr(module, n)}`", d.replace("\n", " ")] for n, d in _documented_constants(POSTURES)],
+    )
+    mounts = _table(
+        ["camera", "MJCF site", "body", "position in the body [m]", "rotation xyzw (pinhole frame)"], _mount_rows()
+    )
     layouts = _table(["task", "action columns"], _layout_rows())
-    facts = _table(["property", "value"], [
-        ["model", f"`assets/{spec.MJCF_FILE}` (robot name `{spec.ROBOT_NAME}`)"],
-        ["gripper", f"one master joint per hand: {spec.GRIPPER_OPEN:g} open … {spec.GRIPPER_CLOSED:g} closed [rad], "
-                    f"at most {spec.GRIPPER_VELOCITY_LIMIT:g} rad/s; each finger slides "
-                    f"{spec.FINGER_TRAVEL_PER_RAD:g} m per rad"],
-        ["wheels", f"radius {spec.WHEEL_RADIUS:g} m, offsets ±{spec.WHEEL_OFFSET_X:g} m (x) and "
-                   f"±{spec.WHEEL_OFFSET_Y:g} m (y); speeds clipped to ±{spec.WHEEL_VELOCITY_CLIP:g} rad/s "
-                   f"({spec.NAV_MAX_SPEED:g} m/s)"],
-        ["TCP", f"in `{spec.END_EFFECTOR_LINK['left']}` / `{spec.END_EFFECTOR_LINK['right']}` at "
-                f"{tuple(round(x, 4) for x in spec.TCP_OFFSET_POS)} m, rotation {spec.TCP_OFFSET_QUAT} (xyzw)"],
-        ["cameras", f"pinhole: fx = fy = {cameras.focal_px(1):.4f} × width px, principal point at the centre, "
-                    f"clipping {spec.CAMERA_CLIPPING[0]:g}–{spec.CAMERA_CLIPPING[1]:g} m"],
-        ["action order", "all 26 action joints: " + _code(spec.G1_ACTION_JOINT_NAMES)],
-    ])
-    return (f"## Facts\n\n{facts}\n\n## Joints\n\n{joints}\n\n## Postures\n\nDefined in "
-            f"`tasks/common/config/g1/postures.py` (they belong to the tasks, not to the robot).\n\n{postures}\n\n"
-            f"## Camera mounts\n\n{mounts}\n\n## Action layouts\n\nColumns of each task's action, in order.\n\n"
-            f"{layouts}\n")
+    facts = _table(
+        ["property", "value"],
+        [
+            ["model", f"`assets/{spec.MJCF_FILE}` (robot name `{spec.ROBOT_NAME}`)"],
+            [
+                "gripper",
+                f"one master joint per hand: {spec.GRIPPER_OPEN:g} open … {spec.GRIPPER_CLOSED:g} closed [rad], "
+                f"at most {spec.GRIPPER_VELOCITY_LIMIT:g} rad/s; each finger slides "
+                f"{spec.FINGER_TRAVEL_PER_RAD:g} m per rad",
+            ],
+            [
+                "wheels",
+                f"radius {spec.WHEEL_RADIUS:g} m, offsets ±{spec.WHEEL_OFFSET_X:g} m (x) and "
+                f"±{spec.WHEEL_OFFSET_Y:g} m (y); speeds clipped to ±{spec.WHEEL_VELOCITY_CLIP:g} rad/s "
+                f"({spec.NAV_MAX_SPEED:g} m/s)",
+            ],
+            [
+                "TCP",
+                f"in `{spec.END_EFFECTOR_LINK['left']}` / `{spec.END_EFFECTOR_LINK['right']}` at "
+                f"{tuple(round(x, 4) for x in spec.TCP_OFFSET_POS)} m, rotation {spec.TCP_OFFSET_QUAT} (xyzw)",
+            ],
+            [
+                "cameras",
+                f"pinhole: fx = fy = {cameras.focal_px(1):.4f} × width px, principal point at the centre, "
+                f"clipping {spec.CAMERA_CLIPPING[0]:g}–{spec.CAMERA_CLIPPING[1]:g} m",
+            ],
+            ["action order", "all 26 action joints: " + _code(spec.G1_ACTION_JOINT_NAMES)],
+        ],
+    )
+    return (
+        f"## Facts\n\n{facts}\n\n## Joints\n\n{joints}\n\n## Postures\n\nDefined in "
+        f"`tasks/common/config/g1/postures.py` (they belong to the tasks, not to the robot).\n\n{postures}\n\n"
+        f"## Camera mounts\n\n{mounts}\n\n## Action layouts\n\nColumns of each task's action, in order.\n\n"
+        f"{layouts}\n"
+    )
 
 
 # ------------------------------------------------------------------------------------------------ cli
@@ -300,13 +349,48 @@ def recipes_page() -> str:
         views = ", ".join(f"`{c}`" for c in cams.split(","))
         return views + (" + proprioception" if options.get("obs_mode") == "sensors" else " + state")
 
-    rows = [[f"`{name}`", "single task", str(r["demos"]), str(r["mimic_episodes"]), sees(r, r.get("task_options", {})),
-             training(r["train"]), str(r["eval_episodes"]), str(r["num_envs"])] for name, r in DEMO_RECIPES.items()]
-    rows += [[f"`{name}`", "coherent task", str(r["demos"]), "–", sees(r, LONG_HORIZON_OPTIONS),
-              training(r["train"]) + " per learned phase", str(r["eval_episodes"]), str(r["num_envs"])]
-             for name, r in LONG_HORIZON_RECIPES.items()]
-    return _table(["recipe", "task", "expert demos", "Mimic demos", "policy sees", "training", "evaluation episodes",
-                   "most env rows"], rows) + "\n"
+    rows = [
+        [
+            f"`{name}`",
+            "single task",
+            str(r["demos"]),
+            str(r["mimic_episodes"]),
+            sees(r, r.get("task_options", {})),
+            training(r["train"]),
+            str(r["eval_episodes"]),
+            str(r["num_envs"]),
+        ]
+        for name, r in DEMO_RECIPES.items()
+    ]
+    rows += [
+        [
+            f"`{name}`",
+            "coherent task",
+            str(r["demos"]),
+            "–",
+            sees(r, LONG_HORIZON_OPTIONS),
+            training(r["train"]) + " per learned phase",
+            str(r["eval_episodes"]),
+            str(r["num_envs"]),
+        ]
+        for name, r in LONG_HORIZON_RECIPES.items()
+    ]
+    return (
+        _table(
+            [
+                "recipe",
+                "task",
+                "expert demos",
+                "Mimic demos",
+                "policy sees",
+                "training",
+                "evaluation episodes",
+                "most env rows",
+            ],
+            rows,
+        )
+        + "\n"
+    )
 
 
 # ------------------------------------------------------------------------------------------------ figures
@@ -319,9 +403,14 @@ def pipeline_record(task: str, recipe: str) -> tuple[Path, dict] | None:
     ``gpu``), by its date; ``None`` when there is none."""
     from newton_lab.results import load_records
 
-    found = [(path, rec) for path, rec in load_records(RESULTS)
-             if rec.get("kind") == "pipeline" and rec.get("task") == task
-             and (rec.get("results") or {}).get("recipe") == recipe and rec.get("wall_s")]
+    found = [
+        (path, rec)
+        for path, rec in load_records(RESULTS)
+        if rec.get("kind") == "pipeline"
+        and rec.get("task") == task
+        and (rec.get("results") or {}).get("recipe") == recipe
+        and rec.get("wall_s")
+    ]
     return max(found, key=lambda item: item[1]["date"]) if found else None
 
 
@@ -348,11 +437,15 @@ def demo_figure(recipe: str, page: str) -> str:
     found = demo_record(recipe)
     to_docs = "../" * page.count("/")
     if found is None:
-        return (f"not recorded yet with the {recipe} recipe (the [Benchmarks]({to_docs}benchmarks.md) page lists "
-                "every run record)")
+        return (
+            f"not recorded yet with the {recipe} recipe (the [Benchmarks]({to_docs}benchmarks.md) page lists "
+            "every run record)"
+        )
     path, rec = found
-    return (f"{_minutes(rec['wall_s'])} (min:s) on {_device(rec)}, {rec['date'][:10]} "
-            f"([run record]({to_docs}results/{path.name}))")
+    return (
+        f"{_minutes(rec['wall_s'])} (min:s) on {_device(rec)}, {rec['date'][:10]} "
+        f"([run record]({to_docs}results/{path.name}))"
+    )
 
 
 def success_figure(task: str, recipe: str, page: str) -> str:
@@ -361,17 +454,21 @@ def success_figure(task: str, recipe: str, page: str) -> str:
     found = pipeline_record(task, recipe)
     to_docs = "../" * page.count("/")
     if found is None:
-        return (f"not recorded yet with the {recipe} recipe (the [Benchmarks]({to_docs}benchmarks.md) page lists "
-                "every run record)")
+        return (
+            f"not recorded yet with the {recipe} recipe (the [Benchmarks]({to_docs}benchmarks.md) page lists "
+            "every run record)"
+        )
     path, rec = found
     res = rec["results"]
     won = res["success"]
     phases = res.get("phases") or {}
     per_phase = ", ".join(f"{name} {p['passed']}/{p['reached']}" for name, p in phases.items())
-    return (f"**{won['successes']} / {won['episodes']}** held-out episodes"
-            + (f" ({per_phase} passed/reached)" if len(phases) > 1 else "")
-            + f" in {_minutes(rec['wall_s'])} (min:s) on {_device(rec)}, {rec['date'][:10]} "
-            f"([run record]({to_docs}results/{path.name}))")
+    return (
+        f"**{won['successes']} / {won['episodes']}** held-out episodes"
+        + (f" ({per_phase} passed/reached)" if len(phases) > 1 else "")
+        + f" in {_minutes(rec['wall_s'])} (min:s) on {_device(rec)}, {rec['date'][:10]} "
+        f"([run record]({to_docs}results/{path.name}))"
+    )
 
 
 def collect_figure(task: str, recipe: str, page: str) -> str:
@@ -383,13 +480,18 @@ def collect_figure(task: str, recipe: str, page: str) -> str:
         return f"not recorded yet with the {recipe} recipe"
     path, rec = found
     demos, seconds = rec["results"]["counts"]["expert_demos"], rec["results"]["timings_s"]["collect"]
-    return (f"{demos} demos in {seconds:.0f} s on {_device(rec)}, {rec['date'][:10]} "
-            f"([run record]({to_docs}results/{path.name}))")
+    return (
+        f"{demos} demos in {seconds:.0f} s on {_device(rec)}, {rec['date'][:10]} "
+        f"([run record]({to_docs}results/{path.name}))"
+    )
 
 
-FIGURES = {"demo_cpu": lambda page: demo_figure("cpu", page), "demo_gpu": lambda page: demo_figure("gpu", page),
-           "picktoshelf_cpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "cpu", page),
-           "picktoshelf_gpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "gpu", page),
-           "picktoshelf_gpu_collect": lambda page: collect_figure("GalbotG1-PickToShelf-v0", "gpu", page)}
+FIGURES = {
+    "demo_cpu": lambda page: demo_figure("cpu", page),
+    "demo_gpu": lambda page: demo_figure("gpu", page),
+    "picktoshelf_cpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "cpu", page),
+    "picktoshelf_gpu": lambda page: success_figure("GalbotG1-PickToShelf-v0", "gpu", page),
+    "picktoshelf_gpu_collect": lambda page: collect_figure("GalbotG1-PickToShelf-v0", "gpu", page),
+}
 """Inline figures (``<!-- figure: NAME -->`` in a page, ``tools/docs_hooks.py``): each is read from a run record,
 never typed."""

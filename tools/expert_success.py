@@ -35,14 +35,31 @@ def main() -> None:
             continue
         for options in spec.choice_sets():
             t0 = time.perf_counter()
-            env = make_env(task_id, num_envs=args.num_envs, device="cpu", seed=args.seed, randomize=True,
-                           task_options=options, cameras=False)
-            summary = env.evaluate(agent=expert_agent(env), episodes=args.episodes, max_steps=args.max_steps,
-                                   progress=False)
-            print(json.dumps({"task": task_id, **options, "episodes": args.episodes,
-                              "success_rate": summary["success_rate"],
-                              "termination_reasons": summary.get("termination_reasons"),
-                              "seconds": round(time.perf_counter() - t0, 1)}), flush=True)
+            env = make_env(
+                task_id,
+                num_envs=args.num_envs,
+                device="cpu",
+                seed=args.seed,
+                randomize=True,
+                task_options=options,
+                cameras=False,
+            )
+            summary = env.evaluate(
+                agent=expert_agent(env), episodes=args.episodes, max_steps=args.max_steps, progress=False
+            )
+            print(
+                json.dumps(
+                    {
+                        "task": task_id,
+                        **options,
+                        "episodes": args.episodes,
+                        "success_rate": summary["success_rate"],
+                        "termination_reasons": summary.get("termination_reasons"),
+                        "seconds": round(time.perf_counter() - t0, 1),
+                    }
+                ),
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

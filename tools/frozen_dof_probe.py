@@ -91,8 +91,13 @@ def main() -> None:
     rows = {}
     for name, mjcf in variants.items():
         model = build(cfg, args.num_envs, device, mjcf)
-        rows[name] = {"task": args.task, "variant": name, "device": str(device), "num_envs": args.num_envs,
-                      **measure(cfg, model, args.steps)}
+        rows[name] = {
+            "task": args.task,
+            "variant": name,
+            "device": str(device),
+            "num_envs": args.num_envs,
+            **measure(cfg, model, args.steps),
+        }
         print(json.dumps(rows[name]), flush=True)
     ratio = rows["welded"]["env_steps_per_s"] / rows["full"]["env_steps_per_s"]
     print(json.dumps({"welded_vs_full": round(ratio, 3)}))

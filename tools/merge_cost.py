@@ -34,8 +34,9 @@ def main() -> None:
     ap.add_argument("--dir", type=Path, default=None, help="where to write (default: a temporary folder, removed)")
     args = ap.parse_args()
     if args.source is not None:
-        demos = [{k: v for k, v in read_episode(args.source, i).items() if k != "attrs"}
-                 for i in list_demos(args.source)[:8]]
+        demos = [
+            {k: v for k, v in read_episode(args.source, i).items() if k != "attrs"} for i in list_demos(args.source)[:8]
+        ]
     else:
         rng = np.random.default_rng(0)
         demos = [episode(rng, 170) for _ in range(8)]
@@ -50,8 +51,18 @@ def main() -> None:
                 t0 = time.perf_counter()
                 merge_datasets(shards, out)
                 ms = 1e3 * (time.perf_counter() - t0) / (2 * args.demos)
-                print(json.dumps({"shards": src, "output": out_fmt, "demos": 2 * args.demos,
-                                  "ms_per_demo": round(ms, 2), "same_format": src == out_fmt}), flush=True)
+                print(
+                    json.dumps(
+                        {
+                            "shards": src,
+                            "output": out_fmt,
+                            "demos": 2 * args.demos,
+                            "ms_per_demo": round(ms, 2),
+                            "same_format": src == out_fmt,
+                        }
+                    ),
+                    flush=True,
+                )
     finally:
         shutil.rmtree(root, ignore_errors=True)
 

@@ -33,15 +33,19 @@ from newton_lab.task_api.physics import PhysicsCfg, gripper_only
 from newton_lab.task_api.registry import lookup
 
 TASKS = ("GalbotG1-PickCube-v0", "GalbotG1-StackCube-v0", "GalbotG1-PickToShelf-v0", "GalbotG1-SortToShelf-v0")
+
+
 def _variant(text: str) -> dict:
     """``iterations=3,cone=pyramidal`` -> {"iterations": 3, "cone": "pyramidal"} (``PhysicsCfg`` fields)."""
     out = {}
     for part in filter(None, text.split(",")):
         key, _, value = part.partition("=")
         if key not in {f.name for f in dataclasses.fields(PhysicsCfg)} or not value:
-            raise SystemExit(f"--variant {text!r}: use field=value[,...] over PhysicsCfg's fields, e.g. "
-                             f"iterations=3,cone=pyramidal (contact_filter: None, gripper_only or robot groups "
-                             f"joined by '+', e.g. left_arm+left_gripper)")
+            raise SystemExit(
+                f"--variant {text!r}: use field=value[,...] over PhysicsCfg's fields, e.g. "
+                f"iterations=3,cone=pyramidal (contact_filter: None, gripper_only or robot groups "
+                f"joined by '+', e.g. left_arm+left_gripper)"
+            )
         if key == "contact_filter" and value != "None":
             # gripper_only: the left gripper alone; "a+b": those robot groups, each with every scene object
             out[key] = gripper_only(*([] if value == "gripper_only" else value.split("+")))
@@ -59,8 +63,9 @@ def _settings(task_id: str, variants: list[str]) -> list[tuple[str, PhysicsCfg]]
     return rows + [(v, dataclasses.replace(own, **_variant(v))) for v in variants]
 
 
-def _success(task_id: str, physics: PhysicsCfg, *, episodes: int, eval_envs: int, device: str, seed: int,
-             max_steps: int) -> tuple[int, int]:
+def _success(
+    task_id: str, physics: PhysicsCfg, *, episodes: int, eval_envs: int, device: str, seed: int, max_steps: int
+) -> tuple[int, int]:
     """(successes, episodes) of the task's expert over ``episodes`` randomised episodes, split over its choices."""
     choices = list(lookup(task_id).choice_sets())
     ok = total = 0
@@ -68,8 +73,16 @@ def _success(task_id: str, physics: PhysicsCfg, *, episodes: int, eval_envs: int
         share = episodes // len(choices) + (i < episodes % len(choices))
         if share == 0:
             continue
-        env = make_env(task_id, num_envs=min(share, eval_envs), device=device, seed=seed, randomize=True,
-                       task_options=options, cameras=False, physics=physics)
+        env = make_env(
+            task_id,
+            num_envs=min(share, eval_envs),
+            device=device,
+            seed=seed,
+            randomize=True,
+            task_options=options,
+            cameras=False,
+            physics=physics,
+        )
         summary = env.evaluate(agent=expert_agent(env), episodes=share, max_steps=max_steps, progress=False)
         ok, total = ok + int(summary["successes"]), total + share
         del env
@@ -100,8 +113,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=100)
     ap.add_argument("--max-steps", type=int, default=3000, help="expert episode step limit")
     ap.add_argument("--tasks", nargs="*", default=list(TASKS))
-    ap.add_argument("--variant", action="append", default=[], help="also the task's physics with these fields "
-                    "replaced, e.g. iterations=3,ls_iterations=3 (repeatable)")
+    ap.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        help="also the task's physics with these fields replaced, e.g. iterations=3,ls_iterations=3 (repeatable)",
+    )
     ap.add_argument("--out", default=None, help="also write the table to this file")
     args = ap.parse_args()
 
@@ -112,23 +129,63 @@ def main() -> None:
             t0 = time.perf_counter()
             r = bench(task_id, num_envs=args.num_envs, steps=args.steps, device=args.device, physics=physics)
             gc.collect()
-            ok, n = (_success(task_id, physics, episodes=args.episodes, eval_envs=args.eval_envs,
-                              device=args.device, seed=args.seed, max_steps=args.max_steps)
-                     if args.episodes > 0 else (0, 0))
+            ok, n = (
+                _success(
+                    task_id,
+                    physics,
+                    episodes=args.episodes,
+                    eval_envs=args.eval_envs,
+                    device=args.device,
+                    seed=args.seed,
+                    max_steps=args.max_steps,
+                )
+                if args.episodes > 0
+                else (0, 0)
+            )
             rate = r["env_steps_per_s"]
             task_rate = task_rate or rate
-            rows.append([task_id.removeprefix("GalbotG1-"), name, _describe(physics), f"{rate:,.0f}",
-                         f"{rate / task_rate:.2f}x", f"{r['ratio_env_step_to_bare']:.3f}",
-                         f"{ok}/{n} ({100 * ok / n:.0f} %)" if n else "–"])
-            print(json.dumps({"task": task_id, "setting": name, "env_steps_per_s": rate,
-                              "ratio_env_step_to_bare": r["ratio_env_step_to_bare"], "successes": ok, "episodes": n,
-                              "seconds": round(time.perf_counter() - t0, 1)}), file=sys.stderr, flush=True)
+            rows.append(
+                [
+                    task_id.removeprefix("GalbotG1-"),
+                    name,
+                    _describe(physics),
+                    f"{rate:,.0f}",
+                    f"{rate / task_rate:.2f}x",
+                    f"{r['ratio_env_step_to_bare']:.3f}",
+                    f"{ok}/{n} ({100 * ok / n:.0f} %)" if n else "–",
+                ]
+            )
+            print(
+                json.dumps(
+                    {
+                        "task": task_id,
+                        "setting": name,
+                        "env_steps_per_s": rate,
+                        "ratio_env_step_to_bare": r["ratio_env_step_to_bare"],
+                        "successes": ok,
+                        "episodes": n,
+                        "seconds": round(time.perf_counter() - t0, 1),
+                    }
+                ),
+                file=sys.stderr,
+                flush=True,
+            )
             device_name = f"{r['device_name']} ({r['device']})"
-    header = ["task", "setting", "physics", f"env-steps/s @ {args.num_envs}", "vs task", "env / bare",
-              f"expert success (seed {args.seed})"]
-    lines = [f"Device: {device_name}; {time.strftime('%Y-%m-%d')}; "
-             f"{time.perf_counter() - t_start:.0f} s in all.", "",
-             "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    header = [
+        "task",
+        "setting",
+        "physics",
+        f"env-steps/s @ {args.num_envs}",
+        "vs task",
+        "env / bare",
+        f"expert success (seed {args.seed})",
+    ]
+    lines = [
+        f"Device: {device_name}; {time.strftime('%Y-%m-%d')}; {time.perf_counter() - t_start:.0f} s in all.",
+        "",
+        "| " + " | ".join(header) + " |",
+        "|" + "---|" * len(header),
+    ]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     table = "\n".join(lines)
     print(table)

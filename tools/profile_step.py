@@ -46,8 +46,7 @@ def stage_of(module: str) -> str:
     if not module.startswith("mujoco_warp"):
         return "newton glue"
     leaf = module.rsplit(".", 1)[-1]
-    return next((stage for stage, fragments in STAGES if any(f in leaf for f in fragments)),
-                f"mujoco_warp {leaf}")
+    return next((stage for stage, fragments in STAGES if any(f in leaf for f in fragments)), f"mujoco_warp {leaf}")
 
 
 def kernel_modules() -> dict[str, str]:
@@ -98,10 +97,15 @@ def profile(cfg, model: newton.Model, steps: int, top: int) -> dict:
     if not results:
         return {"note": f"no CUDA activity recorded on {model.device} (Warp times kernels on CUDA devices only)"}
     ranked = sorted(per_kernel.items(), key=lambda kv: -kv[1])[:top]
-    return {"kernel_ms_per_env_step": round(total, 4), "launches_per_env_step": len(results) / steps,
-            "stages": {k: {"ms": round(v, 4), "share": round(v / total, 3)}
-                       for k, v in sorted(per_stage.items(), key=lambda kv: -kv[1])},
-            "top_kernels": [{"kernel": k, "ms": round(v, 4), "share": round(v / total, 3)} for k, v in ranked]}
+    return {
+        "kernel_ms_per_env_step": round(total, 4),
+        "launches_per_env_step": len(results) / steps,
+        "stages": {
+            k: {"ms": round(v, 4), "share": round(v / total, 3)}
+            for k, v in sorted(per_stage.items(), key=lambda kv: -kv[1])
+        },
+        "top_kernels": [{"kernel": k, "ms": round(v, 4), "share": round(v / total, 3)} for k, v in ranked],
+    }
 
 
 def solver_model(task: str, num_envs: int, device, weld: bool) -> tuple:
@@ -125,9 +129,15 @@ def main() -> None:
     for n in args.num_envs:
         for variant, weld in (("task", True), ("full", False))[: 2 if args.full else 1]:
             cfg, model = solver_model(args.task, n, device, weld)
-            row = {"task": args.task, "variant": variant, "device_name": device.name, "num_envs": n,
-                   "decimation": cfg.decimation, "dofs_per_world": model.joint_dof_count // model.world_count,
-                   "bodies_per_world": model.body_count // model.world_count}
+            row = {
+                "task": args.task,
+                "variant": variant,
+                "device_name": device.name,
+                "num_envs": n,
+                "decimation": cfg.decimation,
+                "dofs_per_world": model.joint_dof_count // model.world_count,
+                "bodies_per_world": model.body_count // model.world_count,
+            }
             print(json.dumps({**row, **profile(cfg, model, args.steps, args.top)}), flush=True)
 
 

@@ -45,7 +45,7 @@ def _frames(layout, episode: dict) -> np.ndarray:
     out[:, layout.frame_width] = flat["rewards"]
     after = layout.frame_width + 1
     for key, (a, b) in layout.next_obs.items():
-        out[:, after + a:after + b] = flat[f"next_obs/{key}"]
+        out[:, after + a : after + b] = flat[f"next_obs/{key}"]
     return out
 
 
@@ -66,15 +66,16 @@ def main() -> None:
     path = Path(args.dir) / "writer_process_cost.zarr"
     shutil.rmtree(path, ignore_errors=True)
     open_writer(path, task_id=TASK, env_args=env_args(env))
-    writer = ProcessWriter(path, task_id=TASK, layout=layout, max_queued=4096, min_batch=args.min_batch,
-                           profile_to=args.profile)
+    writer = ProcessWriter(
+        path, task_id=TASK, layout=layout, max_queued=4096, min_batch=args.min_batch, profile_to=args.profile
+    )
     time.sleep(1.0)  # the process has started
     t0 = time.perf_counter()
     for b in range(args.bursts):
         pick = [(b * args.per_burst + k) % len(frames) for k in range(args.per_burst)]
         block = np.zeros((len(pick), span, layout.width), np.float32)
         for k, i in enumerate(pick):
-            block[k, :len(frames[i])] = frames[i]
+            block[k, : len(frames[i])] = frames[i]
         writer.put_block(block, {}, [(k, len(frames[i]), True, {"seed": 0}) for k, i in enumerate(pick)])
         time.sleep(args.gap_ms / 1e3)
     loop = time.perf_counter() - t0

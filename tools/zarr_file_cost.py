@@ -76,12 +76,23 @@ def measure(source: str, root: Path, demos: int, threads: int) -> dict:
     blob = os.urandom(size)
     per_demo_s = _timed(lambda: _write_files(folders["per_demo"], blob, demos), folders["per_demo"])
     single_s = _timed(lambda: _write_files(folders["single"], blob * demos, 1), folders["single"])
-    out = {"dir": str(root), "demos": demos, "threads": threads, "bytes_per_demo": size,
-           "inodes_per_demo": len(demo) + 1, "zarr_write_s": zarr_s[0], "zarr_sync_s": zarr_s[1],
-           "packs": len(packs), "packed_inodes_per_demo": sum(1 for _ in folders["packed"].rglob("*")) / demos,
-           "packed_write_s": packed_s[0], "packed_sync_s": packed_s[1],
-           "one_file_per_demo_write_s": per_demo_s[0], "one_file_per_demo_sync_s": per_demo_s[1],
-           "one_file_write_s": single_s[0], "one_file_sync_s": single_s[1]}
+    out = {
+        "dir": str(root),
+        "demos": demos,
+        "threads": threads,
+        "bytes_per_demo": size,
+        "inodes_per_demo": len(demo) + 1,
+        "zarr_write_s": zarr_s[0],
+        "zarr_sync_s": zarr_s[1],
+        "packs": len(packs),
+        "packed_inodes_per_demo": sum(1 for _ in folders["packed"].rglob("*")) / demos,
+        "packed_write_s": packed_s[0],
+        "packed_sync_s": packed_s[1],
+        "one_file_per_demo_write_s": per_demo_s[0],
+        "one_file_per_demo_sync_s": per_demo_s[1],
+        "one_file_write_s": single_s[0],
+        "one_file_sync_s": single_s[1],
+    }
     shutil.rmtree(root, ignore_errors=True)
     return out
 
@@ -97,9 +108,23 @@ def main() -> None:
     if args.copies == 1:
         print(json.dumps(measure(args.source, Path(args.dir), args.demos, args.threads)))
         return
-    runs = [subprocess.Popen([sys.executable, __file__, "--source", args.source, "--dir", f"{args.dir}/{i}",
-                              "--demos", str(args.demos), "--threads", str(args.threads)])
-            for i in range(args.copies)]
+    runs = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                __file__,
+                "--source",
+                args.source,
+                "--dir",
+                f"{args.dir}/{i}",
+                "--demos",
+                str(args.demos),
+                "--threads",
+                str(args.threads),
+            ]
+        )
+        for i in range(args.copies)
+    ]
     sys.exit(max(run.wait() for run in runs))
 
 

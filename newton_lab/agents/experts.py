@@ -16,15 +16,21 @@ def agent_for_declaration(expert: Expert) -> BaseAgent:
     if isinstance(expert, MotionPlan):
         return PlannerAgent(expert)
     if isinstance(expert, NavExpert):
-        kwargs = dict(success_radius=expert.success_radius, yaw_tolerance=expert.yaw_tolerance,
-                      rotate_before_translate=expert.rotate_before_translate)
+        kwargs = dict(
+            success_radius=expert.success_radius,
+            yaw_tolerance=expert.yaw_tolerance,
+            rotate_before_translate=expert.rotate_before_translate,
+        )
         if expert.waypoint_spacing is None:
             return ProportionalNavAgent(expert.goal, expert.goal_yaw, **kwargs)
         return TrajectoryNavAgent(expert.goal, expert.goal_yaw, waypoint_spacing=expert.waypoint_spacing, **kwargs)
     if isinstance(expert, JointTargetExpert):
-        return JointTargetAgent(expert.targets, max_step=expert.max_step, tolerance=expert.tolerance,
-                                hold_steps=expert.hold_steps)
+        return JointTargetAgent(
+            expert.targets, max_step=expert.max_step, tolerance=expert.tolerance, hold_steps=expert.hold_steps
+        )
     if isinstance(expert, SequenceExpert):
         return SequenceAgent([SequenceStep(name, agent_for_declaration(e)) for name, e in expert.steps])
-    raise TypeError(f"unknown expert declaration {type(expert).__name__}; use a MotionPlan, NavExpert, "
-                    "JointTargetExpert or SequenceExpert")
+    raise TypeError(
+        f"unknown expert declaration {type(expert).__name__}; use a MotionPlan, NavExpert, "
+        "JointTargetExpert or SequenceExpert"
+    )

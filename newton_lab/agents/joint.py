@@ -15,8 +15,9 @@ class JointTargetAgent(BaseAgent):
     within ``tolerance`` of its target for ``hold_steps`` consecutive checks.
     """
 
-    def __init__(self, targets: dict[str, float], *, max_step: float | None = None, tolerance: float = 0.12,
-                 hold_steps: int = 1):
+    def __init__(
+        self, targets: dict[str, float], *, max_step: float | None = None, tolerance: float = 0.12, hold_steps: int = 1
+    ):
         if not targets:
             raise ValueError("JointTargetAgent needs at least one joint target")
         self.targets = {str(k): float(v) for k, v in targets.items()}

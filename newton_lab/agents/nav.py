@@ -38,8 +38,9 @@ class BaseNavAgent(BaseAgent):
         names, wheels = list(env.action_joint_names), env.robot.base_wheel_joints
         missing = [j for j in wheels if j not in names]
         if missing or not wheels:
-            raise ValueError(f"env {env.task_id} has no wheel action columns {missing}; a nav agent needs a 'base' "
-                             f"action term")
+            raise ValueError(
+                f"env {env.task_id} has no wheel action columns {missing}; a nav agent needs a 'base' action term"
+            )
         self._wheel_cols = [names.index(j) for j in wheels]
 
     def start(self, env, rows: np.ndarray, pose: torch.Tensor) -> None:
@@ -72,10 +73,20 @@ class GoalNavAgent(BaseNavAgent):
     ``max_speed`` left ``None`` are the robot's (``env.robot.nav_success_radius`` / ``nav_max_speed``).
     """
 
-    def __init__(self, goal, goal_yaw: float | None = None, *, success_radius: float | None = None,
-                 yaw_tolerance: float = 0.03, max_speed: float | None = None, yaw_gain: float = 2.0,
-                 max_yaw_rate: float = 1.0, rotate_before_translate: bool = True, max_accel: float = 1.0,
-                 max_yaw_accel: float = 2.0):
+    def __init__(
+        self,
+        goal,
+        goal_yaw: float | None = None,
+        *,
+        success_radius: float | None = None,
+        yaw_tolerance: float = 0.03,
+        max_speed: float | None = None,
+        yaw_gain: float = 2.0,
+        max_yaw_rate: float = 1.0,
+        rotate_before_translate: bool = True,
+        max_accel: float = 1.0,
+        max_yaw_accel: float = 2.0,
+    ):
         super().__init__()
         self.goal = tuple(float(v) for v in goal[:2])
         self.goal_yaw = None if goal_yaw is None else float(goal_yaw)

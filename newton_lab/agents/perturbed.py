@@ -22,8 +22,11 @@ from .base import BaseAgent
 def joint_target_columns(env) -> list[int]:
     """Action columns that are joint targets (absolute or relative; not grippers, not wheel speeds)."""
     kinds = env.joints.binding.actions.kinds
-    return [c for c, (kind, name) in enumerate(zip(kinds, env.action_joint_names))
-            if kind in ("absolute", "relative") and "gripper" not in name]
+    return [
+        c
+        for c, (kind, name) in enumerate(zip(kinds, env.action_joint_names))
+        if kind in ("absolute", "relative") and "gripper" not in name
+    ]
 
 
 class PerturbedAgent(BaseAgent):
@@ -55,8 +58,10 @@ class PerturbedAgent(BaseAgent):
         actions = self.agent.act(env, env_ids).clone()
         std = self.values.get("action_noise", 0.0)
         if std and len(self.columns):
-            noise = torch.randn((actions.shape[0], len(self.columns)), generator=self.generator,
-                                device=actions.device) * std
+            noise = (
+                torch.randn((actions.shape[0], len(self.columns)), generator=self.generator, device=actions.device)
+                * std
+            )
             actions[:, self.columns] += noise
         if not self.latency:
             return actions
@@ -80,8 +85,9 @@ class PerturbedAgent(BaseAgent):
         return self.agent.holding()
 
 
-def perturbation_table(env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None,
-                       **rollout: Any) -> list[dict[str, Any]]:
+def perturbation_table(
+    env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, **rollout: Any
+) -> list[dict[str, Any]]:
     """One ``env.evaluate`` of ``agent`` per cell (``rollout``: its keywords, e.g. episodes, max_steps), each on the
     same episodes (the env reseeded with ``seed`` first): a row per cell with its label, the perturbed values and
     the success."""
@@ -90,20 +96,30 @@ def perturbation_table(env, agent: BaseAgent, cells: list[Cell], *, seed: int = 
         env.reseed(seed)
         wrapped = PerturbedAgent(agent, cell.values, seed=seed) if cell.values else agent
         s = env.evaluate(agent=wrapped, on_step=on_step, **rollout)
-        rows.append({"perturbation": cell.label, "values": cell.values, "episodes": s["episodes"],
-                     "successes": s["successes"], "success_rate": s["success_rate"],
-                     "termination_reasons": s["termination_reasons"], "summary": s})
+        rows.append(
+            {
+                "perturbation": cell.label,
+                "values": cell.values,
+                "episodes": s["episodes"],
+                "successes": s["successes"],
+                "success_rate": s["success_rate"],
+                "termination_reasons": s["termination_reasons"],
+                "summary": s,
+            }
+        )
     return rows
 
 
-def evaluate_perturbed(env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None,
-                       **rollout: Any) -> dict[str, Any]:
+def evaluate_perturbed(
+    env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, **rollout: Any
+) -> dict[str, Any]:
     """``env.evaluate`` of ``agent`` when ``cells`` is empty; else the perturbation table's last cell's summary with
     the table under ``"perturbations"`` (its rows without their summaries), which also prints as text."""
     if not cells:
         return env.evaluate(agent=agent, on_step=on_step, **rollout)
     rows = perturbation_table(env, agent, cells, seed=seed, on_step=on_step, **rollout)
     for r in rows:
-        print(f"{r['perturbation']:<24} {r['successes']:>5} / {r['episodes']:<5} {r['success_rate']:.0%}",
-              file=sys.stderr)
+        print(
+            f"{r['perturbation']:<24} {r['successes']:>5} / {r['episodes']:<5} {r['success_rate']:.0%}", file=sys.stderr
+        )
     return {**rows[-1]["summary"], "perturbations": [{k: v for k, v in r.items() if k != "summary"} for r in rows]}

@@ -73,7 +73,8 @@ def _done_mask(step: SequenceStep, env) -> np.ndarray:
     """The step's done predicate as a (num_envs,) bool array; any other shape or dtype is refused."""
     mask = torch.as_tensor((step.done or step.agent.done)(env))
     if tuple(mask.shape) != (env.num_envs,) or mask.dtype != torch.bool:
-        raise ValueError(f"done of sequence step {step.name!r} must be a ({env.num_envs},) bool tensor, got "
-                         f"{tuple(mask.shape)} {mask.dtype}; return one flag per env row")
+        raise ValueError(
+            f"done of sequence step {step.name!r} must be a ({env.num_envs},) bool tensor, got "
+            f"{tuple(mask.shape)} {mask.dtype}; return one flag per env row"
+        )
     return mask.cpu().numpy()
-

@@ -50,9 +50,16 @@ def time_case(command: list[str], argv: str, words: str, root: Path) -> dict[str
     wall = time.perf_counter() - start
     one_line = out.stderr.count("\n") == 1
     unchanged = _tree(root) == before
-    return {"argv": argv, "exit": out.returncode, "one_line": one_line, "words": words in out.stderr,
-            "unchanged": unchanged, "refused": out.returncode == 2 and one_line and words in out.stderr and unchanged,
-            "wall_s": round(wall, 3), "cpu_s": round(_cpu_of_children() - cpu, 3)}
+    return {
+        "argv": argv,
+        "exit": out.returncode,
+        "one_line": one_line,
+        "words": words in out.stderr,
+        "unchanged": unchanged,
+        "refused": out.returncode == 2 and one_line and words in out.stderr and unchanged,
+        "wall_s": round(wall, 3),
+        "cpu_s": round(_cpu_of_children() - cpu, 3),
+    }
 
 
 def _spread(values: list[float]) -> dict[str, float]:
@@ -66,8 +73,10 @@ def bench_refusals(only: list[str] | None = None, on_case=None) -> dict[str, Any
     called after each. The results of the record: counts, wall / CPU spread, the slowest cases, every case."""
     cases = [(a, w) for a, w in CASES if not only or a.split()[0] in only]
     if not cases:
-        raise ValueError(f"--only {' '.join(only or [])}: no case of the bad-input table runs those commands; its "
-                         f"commands: {', '.join(sorted({a.split()[0] for a, _ in CASES}))}")
+        raise ValueError(
+            f"--only {' '.join(only or [])}: no case of the bad-input table runs those commands; its "
+            f"commands: {', '.join(sorted({a.split()[0] for a, _ in CASES}))}"
+        )
     command = newton_lab_command()
     results = []
     with tempfile.TemporaryDirectory(prefix="newton_lab_refusals_") as folder:
@@ -77,10 +86,18 @@ def bench_refusals(only: list[str] | None = None, on_case=None) -> dict[str, Any
             if on_case is not None:
                 on_case(results[-1])
     walls = [r["wall_s"] for r in results]
-    return {"cases": len(results), "refused": sum(r["refused"] for r in results),
-            "exit_2": sum(r["exit"] == 2 for r in results), "one_line": sum(r["one_line"] for r in results),
-            "unchanged": sum(r["unchanged"] for r in results), "under_2_s": sum(w < 2.0 for w in walls),
-            "wall_s": _spread(walls), "cpu_s": _spread([r["cpu_s"] for r in results]),
-            "slowest": [{"argv": r["argv"], "wall_s": r["wall_s"]}
-                        for r in sorted(results, key=lambda r: -r["wall_s"])[:SLOWEST]],
-            "command": " ".join(Path(c).name for c in command), "per_case": results}
+    return {
+        "cases": len(results),
+        "refused": sum(r["refused"] for r in results),
+        "exit_2": sum(r["exit"] == 2 for r in results),
+        "one_line": sum(r["one_line"] for r in results),
+        "unchanged": sum(r["unchanged"] for r in results),
+        "under_2_s": sum(w < 2.0 for w in walls),
+        "wall_s": _spread(walls),
+        "cpu_s": _spread([r["cpu_s"] for r in results]),
+        "slowest": [
+            {"argv": r["argv"], "wall_s": r["wall_s"]} for r in sorted(results, key=lambda r: -r["wall_s"])[:SLOWEST]
+        ],
+        "command": " ".join(Path(c).name for c in command),
+        "per_case": results,
+    }

@@ -15,8 +15,13 @@ def rerun_hook(args: RerunArgs, env):
         return None, lambda: None
     from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
 
-    lg = RerunLogger(env, save=args.rerun_save, spawn=args.rerun and not args.rerun_save, max_worlds=args.rerun_worlds,
-                     image_every=args.rerun_image_every)
+    lg = RerunLogger(
+        env,
+        save=args.rerun_save,
+        spawn=args.rerun and not args.rerun_save,
+        max_worlds=args.rerun_worlds,
+        image_every=args.rerun_image_every,
+    )
 
     def close() -> None:
         lg.close()
@@ -55,8 +60,17 @@ def render(args: RenderArgs) -> int:
     Image.fromarray(picture(images, args.camera)).save(args.out)
     cam, names = env.sensors.cameras.specs[args.camera], env.sensors.cameras.segmentation_names
     seen = images[f"{args.camera}_segmentation"][0].unique().tolist()
-    print(json.dumps({"task": args.task, "camera": args.camera, "resolution": [cam.width, cam.height],
-                      "visible": [names[i] for i in seen], "out": args.out}))
+    print(
+        json.dumps(
+            {
+                "task": args.task,
+                "camera": args.camera,
+                "resolution": [cam.width, cam.height],
+                "visible": [names[i] for i in seen],
+                "out": args.out,
+            }
+        )
+    )
     return 0
 
 
@@ -76,7 +90,9 @@ def teleop(args: TeleopArgs) -> int:
     finally:
         agent.close()
     lat = summary["latency"]
-    print(f"latency device frame -> action applied: mean {lat['mean_ms']:.2f} ms, max {lat['max_ms']:.2f} ms "
-          f"({lat.get('max_control_steps', 0):.2f} control steps) over {lat['frames']} frames")
+    print(
+        f"latency device frame -> action applied: mean {lat['mean_ms']:.2f} ms, max {lat['max_ms']:.2f} ms "
+        f"({lat.get('max_control_steps', 0):.2f} control steps) over {lat['frames']} frames"
+    )
     print(json.dumps({"task": args.task, "device": args.device, **summary}))
     return 0

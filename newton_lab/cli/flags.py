@@ -32,8 +32,13 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
         default = action.default
-        if ("%(default)" in text or "default" in text.lower() or not action.option_strings
-                or any(default is x for x in (None, False, argparse.SUPPRESS, REQUIRED)) or action.required):
+        if (
+            "%(default)" in text
+            or "default" in text.lower()
+            or not action.option_strings
+            or any(default is x for x in (None, False, argparse.SUPPRESS, REQUIRED))
+            or action.required
+        ):
             return text
         return f"{text} (default: %(default)s)"
 
@@ -51,8 +56,13 @@ def field_docs(cls: type) -> dict[str, str]:
             continue
         body = ast.parse(source).body[0].body
         for stmt, nxt in zip(body, body[1:]):
-            if (isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and isinstance(nxt, ast.Expr)
-                    and isinstance(nxt.value, ast.Constant) and isinstance(nxt.value.value, str)):
+            if (
+                isinstance(stmt, ast.AnnAssign)
+                and isinstance(stmt.target, ast.Name)
+                and isinstance(nxt, ast.Expr)
+                and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)
+            ):
                 docs[stmt.target.id] = " ".join(nxt.value.value.split())
     return docs
 
@@ -93,8 +103,14 @@ def _fields(cls: type, exclude: Iterable[str]) -> list[dataclasses.Field]:
     return [f for f in dataclasses.fields(cls) if f.name not in skip]
 
 
-def add_arguments(parser: argparse.ArgumentParser, cls: type, *, defaults: Mapping[str, Any] | None = None,
-                  exclude: Iterable[str] = (), choices: Mapping[str, Iterable[Any]] | None = None) -> None:
+def add_arguments(
+    parser: argparse.ArgumentParser,
+    cls: type,
+    *,
+    defaults: Mapping[str, Any] | None = None,
+    exclude: Iterable[str] = (),
+    choices: Mapping[str, Iterable[Any]] | None = None,
+) -> None:
     """One argument per field of dataclass ``cls`` (in field order), except the ``exclude``d ones."""
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
@@ -143,7 +159,10 @@ def from_namespace(cls: type, ns: argparse.Namespace, *, defaults: Mapping[str, 
     values.update({f.name: getattr(ns, f.name) for f in dataclasses.fields(cls) if hasattr(ns, f.name)})
     for f in dataclasses.fields(cls):
         if f.metadata.get("task_options"):
-            given = {k[len(TASK_OPTION_DEST):]: v for k, v in vars(ns).items()
-                     if k.startswith(TASK_OPTION_DEST) and v is not None}
+            given = {
+                k[len(TASK_OPTION_DEST) :]: v
+                for k, v in vars(ns).items()
+                if k.startswith(TASK_OPTION_DEST) and v is not None
+            }
             values[f.name] = {**values.get(f.name, {}), **given}
     return cls(**values)

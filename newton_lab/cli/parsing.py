@@ -27,8 +27,13 @@ def unrecognized(parser: argparse.ArgumentParser, extra: list[str]) -> str:
     return "unrecognized arguments: " + " ".join(hints)
 
 
-OUTPUT_FIELDS = {c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_save"), c.EvaluateArgs: ("rerun_save",),
-                 c.MimicArgs: ("output_path",), c.ExportArgs: ("root",), c.ViewArgs: ("save",)}
+OUTPUT_FIELDS = {
+    c.CollectArgs: ("dataset_path", "save_end_scenario", "rerun_save"),
+    c.EvaluateArgs: ("rerun_save",),
+    c.MimicArgs: ("output_path",),
+    c.ExportArgs: ("root",),
+    c.ViewArgs: ("save",),
+}
 """Fields naming an output file (or new folder), per argument class (and its subclasses): the command or
 example creates their parent folder (``collect --dataset-path data/demos.hdf5`` into a missing ``data/``) before
 Warp is imported, by the rule of the Python API (``newton_lab.datasets.files.output_paths``)."""
@@ -47,8 +52,12 @@ def make_output_dirs(args: object) -> None:
 
 def add_verbose(parser: argparse.ArgumentParser) -> None:
     """The ``--verbose`` switch: show Warp's banner and per-module load lines (quiet by default)."""
-    parser.add_argument("--verbose", action="store_true", default=argparse.SUPPRESS,
-                        help="show Warp's start-up and module-load output (also: NEWTON_LAB_VERBOSE=1)")
+    parser.add_argument(
+        "--verbose",
+        action="store_true",
+        default=argparse.SUPPRESS,
+        help="show Warp's start-up and module-load output (also: NEWTON_LAB_VERBOSE=1)",
+    )
 
 
 def apply_verbose(ns: argparse.Namespace) -> None:
@@ -57,9 +66,15 @@ def apply_verbose(ns: argparse.Namespace) -> None:
         set_verbose()
 
 
-def parse_args(cls: type, argv: list[str] | None = None, *, description: str | None = None,
-               defaults: Mapping[str, Any] | None = None, exclude: Iterable[str] = (),
-               choices: Mapping[str, Iterable[Any]] | None = None):
+def parse_args(
+    cls: type,
+    argv: list[str] | None = None,
+    *,
+    description: str | None = None,
+    defaults: Mapping[str, Any] | None = None,
+    exclude: Iterable[str] = (),
+    choices: Mapping[str, Iterable[Any]] | None = None,
+):
     """Parse ``argv`` (default ``sys.argv[1:]``) into a ``cls``, checked as the CLI checks it (``check_args``)
     and with its output folders created; bad input exits 2 with argparse's message (an unknown flag names the
     closest one). ``--verbose`` shows Warp's output."""

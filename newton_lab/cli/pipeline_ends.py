@@ -35,8 +35,10 @@ def interrupted_line(out: str | os.PathLike) -> str:
         done = []
     if not done:
         return f"newton-lab pipeline: interrupted before any stage finished; nothing kept in {out}"
-    return (f"newton-lab pipeline: interrupted: finished stages kept in {out}: {', '.join(done)}; the same command "
-            "resumes from them")
+    return (
+        f"newton-lab pipeline: interrupted: finished stages kept in {out}: {', '.join(done)}; the same command "
+        "resumes from them"
+    )
 
 
 @contextmanager

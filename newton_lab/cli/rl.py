@@ -16,19 +16,37 @@ def train_rl(args: TrainRLArgs) -> int:
     path = train_ppo(args.task, args.ppo_config(), args.output_dir, resume=args.resume)
     curve = json.loads((path.parent / "curve.json").read_text())
     final = curve[-1] if curve else {}
-    out = {"checkpoint": str(path), "curve": str(path.parent / "curve.json"), "iterations": final.get("iteration"),
-           "env_steps": final.get("env_steps"), "wall_s": final.get("wall_s"), "num_envs": args.num_envs,
-           "success_rate": final.get("success_rate"), "env_steps_per_s": final.get("env_steps_per_s")}
+    out = {
+        "checkpoint": str(path),
+        "curve": str(path.parent / "curve.json"),
+        "iterations": final.get("iteration"),
+        "env_steps": final.get("env_steps"),
+        "wall_s": final.get("wall_s"),
+        "num_envs": args.num_envs,
+        "success_rate": final.get("success_rate"),
+        "env_steps_per_s": final.get("env_steps_per_s"),
+    }
     if args.eval_episodes:  # the actor on held-out scenes: a seed the training never drew from
         from ..envs import make_env  # deferred: Warp/Newton are slow to import
         from ..policies.rl.agent import RLPolicyAgent  # deferred: torch is slow to import
 
-        env = make_env(args.task, num_envs=min(args.eval_episodes, args.num_envs), device=args.device,
-                       seed=args.seed + 10_000, randomize=True, task_options=dict(args.task_options), cameras=False)
+        env = make_env(
+            args.task,
+            num_envs=min(args.eval_episodes, args.num_envs),
+            device=args.device,
+            seed=args.seed + 10_000,
+            randomize=True,
+            task_options=dict(args.task_options),
+            cameras=False,
+        )
         agent = RLPolicyAgent.from_checkpoint(path, device=str(env.torch_device))
         s = env.evaluate(agent=agent, episodes=args.eval_episodes, progress=False)
-        out["evaluation"] = {"episodes": s["episodes"], "successes": s["successes"], "rate": s["success_rate"],
-                             "eval_seed": args.seed + 10_000}
+        out["evaluation"] = {
+            "episodes": s["episodes"],
+            "successes": s["successes"],
+            "rate": s["success_rate"],
+            "eval_seed": args.seed + 10_000,
+        }
     write_run_record("train-rl", args, args.task, args.device, {**out, "curve_rows": curve})
     print(json.dumps(out))
     return 0

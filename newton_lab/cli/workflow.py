@@ -17,8 +17,18 @@ from .bench import write_run_record
 from .env import rerun_hook
 from .pipeline_ends import ends_in_one_line
 
-COLLECT_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "path", "num_envs", "average_length",
-                       "termination_reasons", "diverged", "subtask_signals")
+COLLECT_REPORT_KEYS = (
+    "task",
+    "episodes",
+    "successes",
+    "success_rate",
+    "path",
+    "num_envs",
+    "average_length",
+    "termination_reasons",
+    "diverged",
+    "subtask_signals",
+)
 """Keys of the collect summary printed by ``newton-lab collect`` (then ``wall_time_s``)."""
 
 
@@ -34,8 +44,11 @@ def collect(args: CollectArgs) -> int:
     finally:
         close()
     saved = {"saved_end_scenario_path": summary["saved_end_scenario_path"]} if args.save_end_scenario else {}
-    print(json.dumps({**{k: summary[k] for k in COLLECT_REPORT_KEYS}, "wall_time_s": round(summary["wall_time_s"], 2),
-                      **saved}))
+    print(
+        json.dumps(
+            {**{k: summary[k] for k in COLLECT_REPORT_KEYS}, "wall_time_s": round(summary["wall_time_s"], 2), **saved}
+        )
+    )
     return 0
 
 
@@ -48,12 +61,14 @@ def evaluate(args: EvaluateArgs) -> int:
     from_checkpoint = checkpoint_agent(args.checkpoint, args.policy_device()) if args.checkpoint else None
     env = make_env(args.task, **args.env_kwargs())
     phases = args.phase_checkpoints()
-    agent = (phase_policy_agent(env, phases, device=args.policy_device()) if phases
-             else from_checkpoint or expert_agent(env))
+    agent = (
+        phase_policy_agent(env, phases, device=args.policy_device()) if phases else from_checkpoint or expert_agent(env)
+    )
     hook, close = rerun_hook(args, env)
     try:
-        summary = evaluate_perturbed(env, agent, args.perturbation_cells(), seed=args.seed, on_step=hook,
-                                     **args.rollout_kwargs())
+        summary = evaluate_perturbed(
+            env, agent, args.perturbation_cells(), seed=args.seed, on_step=hook, **args.rollout_kwargs()
+        )
     finally:
         close()
     out = {k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations") if k in summary}
@@ -69,9 +84,19 @@ def mimic(args: MimicArgs) -> int:
     ref = generate(args.dataset_path, **args.mimic_kwargs())
     m = ref.metadata
     wall = m.get("wall_time_s") or 0.0  # the generation loop (env and sources built before it)
-    print(json.dumps({"task": ref.task_id, "successes": m["successes"], "attempts": m["attempts"],
-                      "generation_success_rate": m["generation_success_rate"], "path": str(ref.path),
-                      "wall_time_s": wall, "demos_per_hour": m["successes"] / wall * 3600.0 if wall else None}))
+    print(
+        json.dumps(
+            {
+                "task": ref.task_id,
+                "successes": m["successes"],
+                "attempts": m["attempts"],
+                "generation_success_rate": m["generation_success_rate"],
+                "path": str(ref.path),
+                "wall_time_s": wall,
+                "demos_per_hour": m["successes"] / wall * 3600.0 if wall else None,
+            }
+        )
+    )
     return 0
 
 
@@ -79,8 +104,9 @@ def train(args: TrainArgs) -> int:
     from ..policies import Policy  # deferred: torch is slow to import
     from ..policies.diffusion import PRESETS  # deferred: torch is slow to import
 
-    path = Policy.from_backend("diffusion").train(args.datasets(), args.train_cfg(PRESETS), resume=args.resume,
-                                                  gpus=args.gpus)
+    path = Policy.from_backend("diffusion").train(
+        args.datasets(), args.train_cfg(PRESETS), resume=args.resume, gpus=args.gpus
+    )
     print(json.dumps({"checkpoint": str(path)}))
     return 0
 
@@ -93,8 +119,11 @@ def split(args: SplitArgs) -> int:
         print(json.dumps({"path": str(args.dataset_path), "filter_keys": {k: len(v) for k, v in keys.items()}}))
         return 0
     refs = split_by_phase(args.dataset_path, args.out, phases=args.phase_names())
-    print(json.dumps({name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]}
-                      for name, r in refs.items()}))
+    print(
+        json.dumps(
+            {name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]} for name, r in refs.items()}
+        )
+    )
     return 0
 
 
@@ -114,22 +143,35 @@ def pipeline(args: PipelineArgs) -> int:
     recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon)
     kwargs = args.pipeline_kwargs(recipe)
     if args.dry_run:  # the plan only: nothing is collected, trained or written, Prefect is not started
-        stages = (["collect", "split", "train per learned phase", "evaluate composed"] if long_horizon
-                  else ["collect", "mimic", "train", "evaluate"])
+        stages = (
+            ["collect", "split", "train per learned phase", "evaluate composed"]
+            if long_horizon
+            else ["collect", "mimic", "train", "evaluate"]
+        )
         print(json.dumps({"plan": {**kwargs, "long_horizon": long_horizon, "stages": stages}}, default=str))
         return 0
     with ends_in_one_line(args.out):  # Ctrl-C: one line, exit 130; SIGKILL: no server or worker left running
         configure(Path(args.out) / ".prefect")  # before Prefect is imported
         from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
+
         summary = run_pipeline(**kwargs)
     from ..flows.long_horizon import summary_lines as long_horizon_lines  # deferred: Prefect is slow to import
+
     metrics = Path(args.out).resolve() / "metrics.json"
     lines = long_horizon_lines if long_horizon else summary_lines
     print("\n".join(lines(summary, args.out, recipe["name"])))
     print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
     print(f"run record: {summary['record']}")
-    print(json.dumps({"task": summary["task"], "success_rate": summary["success_rate"], "metrics": str(metrics),
-                      "record": summary["record"]}))
+    print(
+        json.dumps(
+            {
+                "task": summary["task"],
+                "success_rate": summary["success_rate"],
+                "metrics": str(metrics),
+                "record": summary["record"],
+            }
+        )
+    )
     return 0
 
 

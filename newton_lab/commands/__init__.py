@@ -10,7 +10,6 @@ argument object into the keywords of the library call it drives (``make_env``, `
 values in one line before Warp, Newton or torch is imported (``check_args``).
 """
 
-
 from __future__ import annotations
 
 from .bench import BenchArgs, BenchCollectArgs, BenchRefusalsArgs, BenchTrainArgs, ResultsArgs, SuiteArgs
@@ -31,8 +30,33 @@ from .workflow import (
     ViewArgs,
 )
 
-__all__ = ["BenchArgs", "BenchCollectArgs", "BenchRefusalsArgs", "BenchTrainArgs", "ResultsArgs", "SuiteArgs",
-           "CameraArgs", "EnvArgs", "RenderArgs", "RerunArgs", "RolloutArgs", "TasksArgs", "camera_option",
-           "RECIPE_FIELDS", "TRAIN_OVERRIDES", "CollectArgs", "EvaluateArgs", "ExportArgs", "MimicArgs", "PipelineArgs",
-           "SplitArgs", "TeleopArgs", "TrainArgs", "TrainRLArgs", "ViewArgs", "YoloExportArgs", "YoloPredictArgs",
-           "YoloTrainArgs"]
+__all__ = [
+    "BenchArgs",
+    "BenchCollectArgs",
+    "BenchRefusalsArgs",
+    "BenchTrainArgs",
+    "ResultsArgs",
+    "SuiteArgs",
+    "CameraArgs",
+    "EnvArgs",
+    "RenderArgs",
+    "RerunArgs",
+    "RolloutArgs",
+    "TasksArgs",
+    "camera_option",
+    "RECIPE_FIELDS",
+    "TRAIN_OVERRIDES",
+    "CollectArgs",
+    "EvaluateArgs",
+    "ExportArgs",
+    "MimicArgs",
+    "PipelineArgs",
+    "SplitArgs",
+    "TeleopArgs",
+    "TrainArgs",
+    "TrainRLArgs",
+    "ViewArgs",
+    "YoloExportArgs",
+    "YoloPredictArgs",
+    "YoloTrainArgs",
+]

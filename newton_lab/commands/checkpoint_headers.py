@@ -20,8 +20,12 @@ CHECKPOINT_VERSION = 1
 """``newton_lab.policies.diffusion.CHECKPOINT_VERSION``: the newest this newton_lab reads."""
 RL_CHECKPOINT_FORMAT = "newton_lab.policies.rl"
 """``newton_lab.policies.rl.agent.CHECKPOINT_FORMAT``: a PPO actor (``newton-lab train-rl``), version 1 too."""
-SAFE = {("collections", "OrderedDict"): collections.OrderedDict, ("builtins", "set"): set,
-        ("builtins", "frozenset"): frozenset, ("builtins", "slice"): slice}
+SAFE = {
+    ("collections", "OrderedDict"): collections.OrderedDict,
+    ("builtins", "set"): set,
+    ("builtins", "frozenset"): frozenset,
+    ("builtins", "slice"): slice,
+}
 """Non-torch globals a checkpoint's pickle may name (what ``torch.load(weights_only=True)`` accepts too)."""
 
 
@@ -50,8 +54,10 @@ def checkpoint_header(path: str | Path, label: str = "checkpoint") -> dict[str, 
     where = f"{label}{p}" if label.endswith("=") else f"{label} {p}"
 
     def damaged(reason: str) -> ValueError:
-        return ValueError(f"{where} is not a newton_lab diffusion-policy checkpoint or is damaged ({reason}); "
-                          "give a checkpoint.pt written by newton-lab train")
+        return ValueError(
+            f"{where} is not a newton_lab diffusion-policy checkpoint or is damaged ({reason}); "
+            "give a checkpoint.pt written by newton-lab train"
+        )
 
     if not p.exists():
         raise FileNotFoundError(f"{where} does not exist; check the path")
@@ -74,8 +80,10 @@ def checkpoint_header(path: str | Path, label: str = "checkpoint") -> dict[str, 
     if not isinstance(payload, dict) or payload.get("format") not in (CHECKPOINT_FORMAT, RL_CHECKPOINT_FORMAT):
         raise damaged("missing or unknown 'format' tag")
     if not isinstance(payload.get("version"), int) or payload["version"] > CHECKPOINT_VERSION:
-        raise damaged(f"checkpoint version {payload.get('version')!r} is not supported (this newton_lab reads <= "
-                      f"{CHECKPOINT_VERSION})")
+        raise damaged(
+            f"checkpoint version {payload.get('version')!r} is not supported (this newton_lab reads <= "
+            f"{CHECKPOINT_VERSION})"
+        )
     if not isinstance(payload.get("info"), dict) or not isinstance(payload.get("config"), dict):
         raise damaged("no 'info' or 'config' record")
     return payload

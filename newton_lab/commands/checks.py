@@ -35,9 +35,25 @@ from .rl import TrainRLArgs
 from .teleop import TeleopArgs, check_teleop
 from .workflow import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs, SplitArgs, TrainArgs, ViewArgs
 
-COUNT_FIELDS = ("num_envs", "episodes", "max_steps", "steps", "demos", "mimic_episodes", "eval_episodes", "workers",
-                "batch_size", "rerun_worlds", "rerun_image_every", "max_attempts", "train_steps", "epochs",
-                "checkpoint_every_steps", "eval_max_steps", "gpus")
+COUNT_FIELDS = (
+    "num_envs",
+    "episodes",
+    "max_steps",
+    "steps",
+    "demos",
+    "mimic_episodes",
+    "eval_episodes",
+    "workers",
+    "batch_size",
+    "rerun_worlds",
+    "rerun_image_every",
+    "max_attempts",
+    "train_steps",
+    "epochs",
+    "checkpoint_every_steps",
+    "eval_max_steps",
+    "gpus",
+)
 """Fields that count something: an integer >= 1 when given."""
 RUNNERS = ("local", "dask")
 """The pipeline's task runners."""
@@ -48,11 +64,21 @@ ADDRESS = re.compile(r"(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9a-fA-F:]+\]|[\w.\-
 """A Dask scheduler address: [protocol://]host:port."""
 DATASET_FIELDS = ("dataset_path", "output_path")
 """Fields naming a dataset file: its suffix picks the format."""
-EXISTING_FIELDS = {MimicArgs: ("dataset_path",), EvaluateArgs: ("checkpoint",), ViewArgs: ("dataset",),
-                   BenchTrainArgs: ("dataset_path",)}
+EXISTING_FIELDS = {
+    MimicArgs: ("dataset_path",),
+    EvaluateArgs: ("checkpoint",),
+    ViewArgs: ("dataset",),
+    BenchTrainArgs: ("dataset_path",),
+}
 """Fields naming an input that must exist, per command."""
-DATASET_INPUTS = {MimicArgs: "dataset_path", ViewArgs: "dataset", BenchTrainArgs: "dataset_path",
-                  ExportArgs: "dataset_path", SplitArgs: "dataset_path", TrainArgs: "dataset_path"}
+DATASET_INPUTS = {
+    MimicArgs: "dataset_path",
+    ViewArgs: "dataset",
+    BenchTrainArgs: "dataset_path",
+    ExportArgs: "dataset_path",
+    SplitArgs: "dataset_path",
+    TrainArgs: "dataset_path",
+}
 """The field naming the dataset(s) a command reads: each must open as a newton_lab dataset."""
 
 
@@ -76,12 +102,13 @@ def check_args(args: Any) -> None:
         raise ValueError(f"{flag_of(args, sim)} {value!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
     if value is not None and str(value).startswith("cuda"):
         check_cuda_device(flag_of(args, sim), str(value), cuda_devices())
-    if "seed" in names and (not isinstance(args.seed, int) or isinstance(args.seed, bool)
-                            or not 0 <= args.seed <= SEED_MAX):
-        raise ValueError(f"--seed must be an integer in [0, {SEED_MAX}] (Warp's kernels take 32-bit seeds), got "
-                         f"{args.seed!r}")
-    if "retries" in names and (not isinstance(args.retries, int) or isinstance(args.retries, bool)
-                               or args.retries < 0):
+    if "seed" in names and (
+        not isinstance(args.seed, int) or isinstance(args.seed, bool) or not 0 <= args.seed <= SEED_MAX
+    ):
+        raise ValueError(
+            f"--seed must be an integer in [0, {SEED_MAX}] (Warp's kernels take 32-bit seeds), got {args.seed!r}"
+        )
+    if "retries" in names and (not isinstance(args.retries, int) or isinstance(args.retries, bool) or args.retries < 0):
         raise ValueError(f"--retries must be an integer >= 0 (0: no retry), got {args.retries!r}")
     if "num_envs" in names and args.num_envs is not None:
         check_num_envs(args.num_envs, device=getattr(args, "device", None))
@@ -97,8 +124,15 @@ def check_args(args: Any) -> None:
     if "cameras" in names:
         check_cameras(camera_option(args.cameras))
     if isinstance(args, BenchArgs) and args.camera is not None:
-        check_cameras({args.camera: {"resolution": tuple(args.resolution or (128, 128)),
-                                     "data": tuple(args.camera_data or ("rgb",))}}, "--camera")
+        check_cameras(
+            {
+                args.camera: {
+                    "resolution": tuple(args.resolution or (128, 128)),
+                    "data": tuple(args.camera_data or ("rgb",)),
+                }
+            },
+            "--camera",
+        )
     for name in names & {"checkpoint_every_s", "time_budget_s"}:
         value = getattr(args, name)
         if value is not None and not value > 0:
@@ -110,8 +144,9 @@ def check_args(args: Any) -> None:
         paths = value if isinstance(value, list) else [value]
         for path in (p for p in paths if p is not None):
             if Path(path).suffix.lower() not in SUFFIXES:
-                raise ValueError(f"{flag_of(args, name)} {path}: unknown dataset suffix; use one of "
-                                 f"{', '.join(SUFFIXES)}")
+                raise ValueError(
+                    f"{flag_of(args, name)} {path}: unknown dataset suffix; use one of {', '.join(SUFFIXES)}"
+                )
     if isinstance(args, EvaluateArgs):
         check_checkpoints(args)
         args.perturbation_cells()
@@ -143,32 +178,40 @@ def check_writable(path: Path) -> None:
     except OSError as exc:  # permission denied, a read-only file system, a folder that takes no files (/proc)
         from ..datasets.files.output_paths import OutputPathError  # deferred: as above
 
-        raise OutputPathError(f"cannot write {path}: {path.parent} takes no new file ({exc.strerror}); "
-                              "choose a writable path") from None
+        raise OutputPathError(
+            f"cannot write {path}: {path.parent} takes no new file ({exc.strerror}); choose a writable path"
+        ) from None
 
 
 def check_pipeline(args: PipelineArgs) -> None:
     """The pipeline's flags that no stage would refuse before Prefect starts."""
     mimicked = sorted(set(declared_sources().values()))
     if args.task not in declared_phases() and args.task not in mimicked:
-        raise ValueError(f"{args.task} has no Mimic variant, and the pipeline runs collect -> mimic -> train -> "
-                         f"evaluate; pipelines run on {', '.join(mimicked)} and the coherent tasks "
-                         f"{', '.join(declared_phases())}")
+        raise ValueError(
+            f"{args.task} has no Mimic variant, and the pipeline runs collect -> mimic -> train -> "
+            f"evaluate; pipelines run on {', '.join(mimicked)} and the coherent tasks "
+            f"{', '.join(declared_phases())}"
+        )
     if args.mimic_episodes is not None and args.task in declared_phases():
-        raise ValueError(f"{args.task} is a coherent task: its pipeline takes more coherent demos (--demos) instead "
-                         "of Mimic; drop --mimic-episodes")
+        raise ValueError(
+            f"{args.task} is a coherent task: its pipeline takes more coherent demos (--demos) instead "
+            "of Mimic; drop --mimic-episodes"
+        )
     if args.workers > 1 and args.runner != "dask":
-        raise ValueError(f"--workers {args.workers} shards the stages over Dask workers, and the local runner runs "
-                         "them in this process; add --runner dask, or drop --workers")
+        raise ValueError(
+            f"--workers {args.workers} shards the stages over Dask workers, and the local runner runs "
+            "them in this process; add --runner dask, or drop --workers"
+        )
     if args.runner == "dask" and args.address is None:  # a local cluster: worker processes on this machine
         check_workers(args.workers, args.device)
     if args.address is not None:
         if args.runner != "dask":
-            raise ValueError(f"--address {args.address} names a Dask scheduler; add --runner dask, or drop "
-                             "--address")
+            raise ValueError(f"--address {args.address} names a Dask scheduler; add --runner dask, or drop --address")
         if not ADDRESS.fullmatch(args.address):
-            raise ValueError(f"--address {args.address!r} is not a scheduler address; write [tcp://]HOST:PORT, e.g. "
-                             "tcp://10.0.0.5:8786")
+            raise ValueError(
+                f"--address {args.address!r} is not a scheduler address; write [tcp://]HOST:PORT, e.g. "
+                "tcp://10.0.0.5:8786"
+            )
 
 
 def check_run_options(args: Any, names: set[str]) -> None:
@@ -176,20 +219,25 @@ def check_run_options(args: Any, names: set[str]) -> None:
     --init-scenario that does not exist, a rerun recording not named .rrd, bench-collect's one-worker baseline."""
     if isinstance(args, CollectArgs) and args.save_end_scenario is not None:
         if args.num_envs != 1 or args.episodes != 1:
-            raise ValueError(f"--save-end-scenario needs --num-envs 1 and --episodes 1, got {args.num_envs} and "
-                             f"{args.episodes}")
+            raise ValueError(
+                f"--save-end-scenario needs --num-envs 1 and --episodes 1, got {args.num_envs} and {args.episodes}"
+            )
         if Path(args.save_end_scenario).exists():
             raise FileExistsError(f"scenario file {args.save_end_scenario} already exists; choose a new path")
     scenario = (getattr(args, "task_options", None) or {}).get("init_scenario")
     if scenario is not None and not Path(scenario).is_file():
-        raise FileNotFoundError(f"scenario file {scenario} does not exist; check the path (or save one with "
-                                "--save-end-scenario)")
+        raise FileNotFoundError(
+            f"scenario file {scenario} does not exist; check the path (or save one with --save-end-scenario)"
+        )
     if "rerun_save" in names and args.rerun_save is not None and Path(args.rerun_save).suffix.lower() != ".rrd":
         raise ValueError(f"--rerun-save {args.rerun_save}: a rerun recording is an .rrd file; name it e.g. run.rrd")
     if isinstance(args, BenchCollectArgs) and args.workers == 1 and args.baseline:
         raise ValueError("--baseline compares --workers W (W >= 2) with one worker alone; add --workers 2")
-    if (isinstance(args, BenchCollectArgs) and args.workers > 1
-            and (args.replan_batch, args.replan_wait, args.trace) != (None, None, None)):
+    if (
+        isinstance(args, BenchCollectArgs)
+        and args.workers > 1
+        and (args.replan_batch, args.replan_wait, args.trace) != (None, None, None)
+    ):
         raise ValueError("--replan-batch, --replan-wait and --trace are for one process (--workers 1)")
     if isinstance(args, PipelineArgs):
         from ..datasets.files.output_paths import output_path  # deferred: datasets imports h5py and zarr (~1 s)
@@ -207,17 +255,23 @@ def check_cameras(cameras: Any, label: str = "--cameras") -> None:
     mounts, lo, hi = camera_facts()
     for name, spec in cameras.items():
         if name not in mounts:
-            raise ValueError(f"{label}: unknown camera {name!r}{did_you_mean(name, mounts)}; the G1's cameras are "
-                             f"{', '.join(mounts)}")
+            raise ValueError(
+                f"{label}: unknown camera {name!r}{did_you_mean(name, mounts)}; the G1's cameras are "
+                f"{', '.join(mounts)}"
+            )
         res = spec if isinstance(spec, tuple) else spec.get("resolution", ())
         if len(res) != 2 or not all(lo <= v <= hi for v in res):
-            raise ValueError(f"{label}: camera {name!r} resolution {'x'.join(map(str, res))} is out of range; width "
-                             f"and height are in [{lo}, {hi}] px, e.g. {name}=96x72")
+            raise ValueError(
+                f"{label}: camera {name!r} resolution {'x'.join(map(str, res))} is out of range; width "
+                f"and height are in [{lo}, {hi}] px, e.g. {name}=96x72"
+            )
         data = () if isinstance(spec, tuple) else tuple(spec.get("data", ()))
         for d in data:
             if d not in IMAGE_DATA:
-                raise ValueError(f"{label}: camera {name!r} data {d!r}{did_you_mean(d, IMAGE_DATA)} is unknown; use "
-                                 f"{', '.join(IMAGE_DATA)}, joined with +")
+                raise ValueError(
+                    f"{label}: camera {name!r} data {d!r}{did_you_mean(d, IMAGE_DATA)} is unknown; use "
+                    f"{', '.join(IMAGE_DATA)}, joined with +"
+                )
         if len(set(data)) != len(data):
             raise ValueError(f"{label}: camera {name!r} names data {'+'.join(data)} with a repeat; name each once")
 
@@ -242,11 +296,17 @@ def check_train_rl(args: TrainRLArgs) -> None:
     if args.resume and not (out_dir / "resume.pt").is_file():
         raise FileNotFoundError(f"nothing to resume in {out_dir} (no resume.pt); start the run without --resume")
     if not args.resume and (out_dir / "checkpoint.pt").exists():
-        raise FileExistsError(f"{out_dir} holds a finished run; choose a new --output-dir (or --resume an "
-                              "interrupted one)")
+        raise FileExistsError(
+            f"{out_dir} holds a finished run; choose a new --output-dir (or --resume an interrupted one)"
+        )
 
 
-COMMAND_CHECKS = {RenderArgs: check_render, TrainRLArgs: check_train_rl, TeleopArgs: check_teleop,
-                  YoloExportArgs: check_yolo_export, YoloTrainArgs: check_yolo_train,
-                  YoloPredictArgs: check_yolo_predict}
+COMMAND_CHECKS = {
+    RenderArgs: check_render,
+    TrainRLArgs: check_train_rl,
+    TeleopArgs: check_teleop,
+    YoloExportArgs: check_yolo_export,
+    YoloTrainArgs: check_yolo_train,
+    YoloPredictArgs: check_yolo_predict,
+}
 """A command's own checks, after the shared ones."""

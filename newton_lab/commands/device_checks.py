@@ -46,8 +46,10 @@ def check_cuda_device(label: str, device: str, devices: int | str) -> None:
         why = devices if isinstance(devices, str) else "the driver shows no device"
         raise ValueError(f"{label} {device}: no CUDA device here ({why}); use {label} cpu")
     if index >= devices:
-        raise ValueError(f"{label} {device}: this machine has {devices} CUDA device{'s' * (devices > 1)} "
-                         f"(cuda:0{f' to cuda:{devices - 1}' if devices > 1 else ''}); use one of them or cpu")
+        raise ValueError(
+            f"{label} {device}: this machine has {devices} CUDA device{'s' * (devices > 1)} "
+            f"(cuda:0{f' to cuda:{devices - 1}' if devices > 1 else ''}); use one of them or cpu"
+        )
 
 
 def _memory_bytes() -> int | None:
@@ -69,9 +71,11 @@ def check_num_envs(num_envs: int, memory: int | None = None, device: str | None 
     memory = _memory_bytes() if memory is None else memory
     if memory and num_envs * ENV_BYTES > memory:
         most = memory // ENV_BYTES
-        raise ValueError(f"--num-envs {num_envs:,} needs about {num_envs * ENV_BYTES / 2**30:,.0f} GiB "
-                         f"({ENV_BYTES >> 10} KiB per row) and {where} {memory / 2**30:,.0f} GiB; use at most "
-                         f"--num-envs {most:,}")
+        raise ValueError(
+            f"--num-envs {num_envs:,} needs about {num_envs * ENV_BYTES / 2**30:,.0f} GiB "
+            f"({ENV_BYTES >> 10} KiB per row) and {where} {memory / 2**30:,.0f} GiB; use at most "
+            f"--num-envs {most:,}"
+        )
 
 
 CUDA_MEMORY = """
@@ -89,8 +93,9 @@ def cuda_memory(index: int) -> int | None:
     """Total memory of CUDA device ``index`` [bytes] from the driver, in a child process; None when it does not say
     (the device check has refused a missing device already)."""
     try:
-        out = subprocess.run([sys.executable, "-I", "-S", "-c", CUDA_MEMORY, str(index)], capture_output=True,
-                             text=True, timeout=120)
+        out = subprocess.run(
+            [sys.executable, "-I", "-S", "-c", CUDA_MEMORY, str(index)], capture_output=True, text=True, timeout=120
+        )
     except (OSError, subprocess.TimeoutExpired):
         return None
     answer = out.stdout.strip()
@@ -109,10 +114,12 @@ def check_recorded_steps(num_envs: int, max_steps: int, memory: int | None = Non
     memory = _memory_bytes() if memory is None else memory
     if memory and num_envs * max_steps * STEP_BYTES > memory:
         most = memory // (num_envs * STEP_BYTES)
-        raise ValueError(f"--max-steps {max_steps:,} with --num-envs {num_envs:,} records about "
-                         f"{num_envs * max_steps * STEP_BYTES / 2**30:,.0f} GiB per episode ({STEP_BYTES >> 10} KiB "
-                         f"per step and row) and this machine has {memory / 2**30:,.0f} GiB; use at most "
-                         f"--max-steps {most:,}")
+        raise ValueError(
+            f"--max-steps {max_steps:,} with --num-envs {num_envs:,} records about "
+            f"{num_envs * max_steps * STEP_BYTES / 2**30:,.0f} GiB per episode ({STEP_BYTES >> 10} KiB "
+            f"per step and row) and this machine has {memory / 2**30:,.0f} GiB; use at most "
+            f"--max-steps {most:,}"
+        )
 
 
 def check_workers(workers: int, device: str | None) -> None:
@@ -123,9 +130,11 @@ def check_workers(workers: int, device: str | None) -> None:
         return
     cores = os.cpu_count() or 1
     if workers > cores:
-        raise ValueError(f"--workers {workers}: with no CUDA device a local Dask cluster runs a worker process per CPU "
-                         f"core, and this machine has {cores}; use --workers {cores} or fewer, or --address of a "
-                         "cluster")
+        raise ValueError(
+            f"--workers {workers}: with no CUDA device a local Dask cluster runs a worker process per CPU "
+            f"core, and this machine has {cores}; use --workers {cores} or fewer, or --address of a "
+            "cluster"
+        )
 
 
 def check_gpus(gpus: int, device: str | None) -> None:
@@ -134,12 +143,16 @@ def check_gpus(gpus: int, device: str | None) -> None:
     devices = cuda_devices() if device is None or str(device).startswith("cuda") else 0
     if isinstance(devices, int) and devices > 0:
         if gpus > devices:
-            raise ValueError(f"--gpus {gpus}: this machine has {devices} CUDA device{'s' * (devices > 1)}; use "
-                             f"--gpus {devices} or fewer")
+            raise ValueError(
+                f"--gpus {gpus}: this machine has {devices} CUDA device{'s' * (devices > 1)}; use "
+                f"--gpus {devices} or fewer"
+            )
         return
     if device is not None and str(device).startswith("cuda"):
         return  # the device check said why there is none
     cores = os.cpu_count() or 1
     if gpus > cores:
-        raise ValueError(f"--gpus {gpus}: with no CUDA device each is a gloo process on a CPU core, and this machine "
-                         f"has {cores}; use --gpus {cores} or fewer")
+        raise ValueError(
+            f"--gpus {gpus}: with no CUDA device each is a gloo process on a CPU core, and this machine "
+            f"has {cores}; use --gpus {cores} or fewer"
+        )

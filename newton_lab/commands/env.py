@@ -31,8 +31,13 @@ class EnvArgs:
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keywords of ``make_env(self.task, **...)``."""
-        return {"num_envs": self.num_envs, "device": self.device, "seed": self.seed, "randomize": self.randomize,
-                "task_options": dict(self.task_options)}
+        return {
+            "num_envs": self.num_envs,
+            "device": self.device,
+            "seed": self.seed,
+            "randomize": self.randomize,
+            "task_options": dict(self.task_options),
+        }
 
 
 @dataclass(kw_only=True)

@@ -38,9 +38,14 @@ class YoloExportArgs(EnvArgs):
 
     def export_kwargs(self) -> dict[str, Any]:
         """Keywords of ``perception.export.export_yolo(self.task, self.output_dir, **...)``."""
-        return {"num_images": self.num_images, "split": self.split or SPLIT,
-                "resolution": self.resolution or RESOLUTION, "preview": self.preview,
-                "mask_source": self.mask_source, **self.env_kwargs()}
+        return {
+            "num_images": self.num_images,
+            "split": self.split or SPLIT,
+            "resolution": self.resolution or RESOLUTION,
+            "preview": self.preview,
+            "mask_source": self.mask_source,
+            **self.env_kwargs(),
+        }
 
 
 @dataclass(kw_only=True)
@@ -74,9 +79,18 @@ class YoloTrainArgs:
 
     def train_kwargs(self) -> dict[str, Any]:
         """Keywords of ``perception.train.train_yolo(self.dataset, self.output_dir, **...)``."""
-        return {"heldout": self.heldout, "model": self.model, "epochs": self.epochs,
-                "time_budget_s": self.time_budget_s, "batch_size": self.batch_size, "imgsz": self.imgsz,
-                "device": self.device, "workers": self.workers, "seed": self.seed, "amp": self.amp}
+        return {
+            "heldout": self.heldout,
+            "model": self.model,
+            "epochs": self.epochs,
+            "time_budget_s": self.time_budget_s,
+            "batch_size": self.batch_size,
+            "imgsz": self.imgsz,
+            "device": self.device,
+            "workers": self.workers,
+            "seed": self.seed,
+            "amp": self.amp,
+        }
 
 
 @dataclass(kw_only=True)
@@ -102,8 +116,13 @@ class YoloPredictArgs(EnvArgs):
 
     def predict_kwargs(self) -> dict[str, Any]:
         """Keywords of ``perception.predict.predict_yolo(self.weights, self.task, self.output_dir, **...)``."""
-        return {"num_images": self.num_images, "capture_every": self.capture_every, "conf": self.conf,
-                "resolution": self.resolution or RESOLUTION, **self.env_kwargs()}
+        return {
+            "num_images": self.num_images,
+            "capture_every": self.capture_every,
+            "conf": self.conf,
+            "resolution": self.resolution or RESOLUTION,
+            **self.env_kwargs(),
+        }
 
 
 def new_folder(flag: str, path: str) -> None:
@@ -119,8 +138,10 @@ def check_resolution(resolution: list[int] | None) -> None:
 
     _, min_side, max_side = camera_facts()
     if resolution is not None and (len(resolution) != 2 or not all(min_side <= v <= max_side for v in resolution)):
-        raise ValueError(f"--resolution takes width and height in [{min_side}, {max_side}] px, got "
-                         f"{' '.join(map(str, resolution))}; e.g. --resolution 298 224")
+        raise ValueError(
+            f"--resolution takes width and height in [{min_side}, {max_side}] px, got "
+            f"{' '.join(map(str, resolution))}; e.g. --resolution 298 224"
+        )
 
 
 def check_sorting_task(task: str, why: str) -> None:
@@ -152,20 +173,24 @@ def check_yolo_train(args: YoloTrainArgs) -> None:
         if not model.is_file():
             raise FileNotFoundError(f"--model {args.model}: no such checkpoint file")
     elif not (model.suffix == ".yaml" and "-seg" in model.stem):
-        raise ValueError(f"--model {args.model!r}: use a segmentation config (*-seg.yaml, e.g. {SEG_MODEL}) or a "
-                         f"*.pt checkpoint")
+        raise ValueError(
+            f"--model {args.model!r}: use a segmentation config (*-seg.yaml, e.g. {SEG_MODEL}) or a *.pt checkpoint"
+        )
     if args.imgsz is not None and not (32 <= args.imgsz <= 2048 and args.imgsz % 32 == 0):
         raise ValueError(f"--imgsz must be a multiple of 32 in [32, 2048], got {args.imgsz}")
     new_folder("--output-dir", args.output_dir)
     dataset = read_export(args.dataset, "--dataset")
     if not dataset["images"]["train"]:
-        raise ValueError(f"--dataset {args.dataset}: no training images (images/train is empty); export with a "
-                         f"train fraction, e.g. --split 0.8 0.2 0")
+        raise ValueError(
+            f"--dataset {args.dataset}: no training images (images/train is empty); export with a "
+            f"train fraction, e.g. --split 0.8 0.2 0"
+        )
     if args.heldout is not None:
         heldout = read_export(args.heldout, "--heldout")
         if heldout["names"] != dataset["names"]:
-            raise ValueError(f"--heldout {args.heldout}: its classes {heldout['names']} are not the "
-                             f"dataset's {dataset['names']}")
+            raise ValueError(
+                f"--heldout {args.heldout}: its classes {heldout['names']} are not the dataset's {dataset['names']}"
+            )
     need_ultralytics()
 
 

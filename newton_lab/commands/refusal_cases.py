@@ -37,10 +37,14 @@ CASES: list[tuple[str, str]] = [
     ("pipeline --workers 0", "--workers must be an integer >= 1"),
     ("pipeline --runner bogus", "--runner 'bogus': use local or dask"),
     ("collect --device banana --dataset-path x.hdf5", "--device 'banana' is not a device; use cpu, cuda or cuda:N"),
-    ("collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object unicorn --dataset-path x.hdf5",
-     "unknown sorting_object 'unicorn'"),
-    ("collect --task GalbotG1-PickCube-v0 --init-scenario s.yaml --dataset-path x.hdf5",
-     "GalbotG1-PickCube-v0 takes no option --init-scenario"),
+    (
+        "collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object unicorn --dataset-path x.hdf5",
+        "unknown sorting_object 'unicorn'",
+    ),
+    (
+        "collect --task GalbotG1-PickCube-v0 --init-scenario s.yaml --dataset-path x.hdf5",
+        "GalbotG1-PickCube-v0 takes no option --init-scenario",
+    ),
     ("view nope.hdf5", "dataset nope.hdf5 does not exist"),
     ("train --dataset-path src.hdf5 --checkpoint-every-steps 0", "--checkpoint-every-steps must be an integer >= 1"),
     ("train --dataset-path src.hdf5 --checkpoint-every-s -1", "--checkpoint-every-s must be > 0"),
@@ -48,8 +52,10 @@ CASES: list[tuple[str, str]] = [
     ("train --dataset-path src.hdf5 --max-steps 0", "--max-steps must be an integer >= 1"),
     ("train --dataset-path src.txt", "unknown dataset suffix"),
     # typos: the closest task id / flag is named, answered before Warp (the task ids are read from source)
-    ("collect --task GalbotG1-PickCub-v0",
-     "unknown task id 'GalbotG1-PickCub-v0' (did you mean GalbotG1-PickCube-v0?)"),
+    (
+        "collect --task GalbotG1-PickCub-v0",
+        "unknown task id 'GalbotG1-PickCub-v0' (did you mean GalbotG1-PickCube-v0?)",
+    ),
     ("evaluate --task GalbotG1-Reach-v1 --episodes 2", "(did you mean GalbotG1-Reach-v0?)"),
     ("pipeline --task GalbotG1-StackCub-v0", "(did you mean GalbotG1-StackCube-v0?)"),
     ("bench --task galbotg1-pickcube-v0", "(did you mean GalbotG1-PickCube-v0?)"),
@@ -78,82 +84,120 @@ CASES: list[tuple[str, str]] = [
     ("collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object unicorn", "unknown sorting_object 'unicorn'"),
     ("pipeline --task GalbotG1-PickCube-v0 --sorting-object banana", "takes no option --sorting-object"),
     # split --phases: the phase names recorded in the dataset (a coherent task's), a split by phase only
-    ("split --dataset-path pts.hdf5 --out parts --phases pick,plase",
-     "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place"),
+    (
+        "split --dataset-path pts.hdf5 --out parts --phases pick,plase",
+        "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place",
+    ),
     ("split --dataset-path pts.hdf5 --phases pick", "--phases selects the phases of a split by phase: give --out"),
     # a damaged or foreign dataset to append to: read from its header (h5py / zarr metadata), before Warp
     ("collect --dataset-path file.zarr", "file.zarr is not a newton_lab dataset or is damaged (not a zarr directory)"),
     ("collect --dataset-path junk.hdf5", "junk.hdf5 is not a newton_lab dataset or is damaged"),
     ("collect --dataset-path folder.hdf5", "folder.hdf5 is not a newton_lab dataset or is damaged (it is a folder"),
-    ("collect --task GalbotG1-Reach-v0 --dataset-path src.hdf5",
-     "src.hdf5 holds a dataset of task 'GalbotG1-PickCube-v0', not 'GalbotG1-Reach-v0'"),
+    (
+        "collect --task GalbotG1-Reach-v0 --dataset-path src.hdf5",
+        "src.hdf5 holds a dataset of task 'GalbotG1-PickCube-v0', not 'GalbotG1-Reach-v0'",
+    ),
     # a dataset's recording set is part of what it is: other cameras or task options are not appended
-    ("collect --cameras front_head=96x72 --dataset-path cam.hdf5",
-     "cam.hdf5 was recorded with cameras none, not front_head=96x72; append with --cameras none"),
+    (
+        "collect --cameras front_head=96x72 --dataset-path cam.hdf5",
+        "cam.hdf5 was recorded with cameras none, not front_head=96x72; append with --cameras none",
+    ),
     ("collect --obs-mode sensors --dataset-path cam.hdf5", "cam.hdf5 was recorded with --obs-mode state, not sensors"),
-    ("collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object blue_cuboid --dataset-path sort.hdf5",
-     "sort.hdf5 was recorded with --sorting-object red_cube, not blue_cuboid; append with --sorting-object red_cube"),
+    (
+        "collect --task GalbotG1-SortToShelf-Pick-v0 --sorting-object blue_cuboid --dataset-path sort.hdf5",
+        "sort.hdf5 was recorded with --sorting-object red_cube, not blue_cuboid; append with --sorting-object red_cube",
+    ),
     # cameras: a mount, a resolution, data the G1 has, each once
     ("collect --cameras bogus=96x72 --dataset-path x.hdf5", "--cameras: unknown camera 'bogus'"),
     ("collect --cameras front_haed=96x72 --dataset-path x.hdf5", "(did you mean front_head?)"),
     ("collect --cameras front_head=96x72:rgbd --dataset-path x.hdf5", "data 'rgbd' (did you mean rgb?) is unknown"),
     ("collect --cameras front_head=96x72:rgb+rgb --dataset-path x.hdf5", "names data rgb+rgb with a repeat"),
     ("collect --cameras front_head=2x2 --dataset-path x.hdf5", "resolution 2x2 is out of range; width and height"),
-    ("collect --cameras front_head=96x72,front_head=96x72 --dataset-path x.hdf5",
-     "names camera front_head twice; give each camera once"),
+    (
+        "collect --cameras front_head=96x72,front_head=96x72 --dataset-path x.hdf5",
+        "names camera front_head twice; give each camera once",
+    ),
     ("bench --camera left_wirst", "--camera: unknown camera 'left_wirst' (did you mean left_wrist?)"),
     ("bench --camera front_head --resolution 1 1", "resolution 1x1 is out of range"),
     # numbers in range: seeds Warp's kernels and numpy take, rows the memory holds, retries, GPUs the machine has
     ("collect --seed 99999999999999999999 --dataset-path x.hdf5", "--seed must be an integer in [0, 1073741823]"),
     ("collect --seed -1 --dataset-path x.hdf5", "--seed must be an integer in [0, 1073741823]"),
     ("collect --num-envs 10000000 --dataset-path x.hdf5", "--num-envs 10,000,000 needs about 4,883 GiB"),
-    ("collect --max-steps 99999999999999999 --dataset-path x.hdf5",
-     "--max-steps 99,999,999,999,999,999 with --num-envs 1 records about "),
+    (
+        "collect --max-steps 99999999999999999 --dataset-path x.hdf5",
+        "--max-steps 99,999,999,999,999,999 with --num-envs 1 records about ",
+    ),
     ("pipeline --workers 4", "--workers 4 shards the stages over Dask workers, and the local runner runs them in"),
     ("pipeline --runner dask --workers 4096 --device cpu", "--workers 4096: with no CUDA device a local Dask cluster"),
     ("pipeline --retries -1", "--retries must be an integer >= 0 (0: no retry), got -1"),
     ("pipeline --gpus 0", "--gpus must be an integer >= 1, got 0"),
     ("pipeline --eval-max-steps 0", "--eval-max-steps must be an integer >= 1, got 0"),
-    ("pipeline --task GalbotG1-PickToShelf-v0 --mimic-episodes 4",
-     "GalbotG1-PickToShelf-v0 is a coherent task: its pipeline takes more coherent demos (--demos)"),
+    (
+        "pipeline --task GalbotG1-PickToShelf-v0 --mimic-episodes 4",
+        "GalbotG1-PickToShelf-v0 is a coherent task: its pipeline takes more coherent demos (--demos)",
+    ),
     ("pipeline --task GalbotG1-Reach-v0", "GalbotG1-Reach-v0 has no Mimic variant, and the pipeline runs collect"),
     ("pipeline --runner dask --address nonsense", "--address 'nonsense' is not a scheduler address"),
     ("pipeline --address tcp://10.0.0.5:8786", "names a Dask scheduler; add --runner dask"),
     ("train --dataset-path src.hdf5 --gpus 4096 --device cpu", "--gpus 4096: with no CUDA device each is a gloo"),
     # checkpoints: the header (zip + pickle, no torch) gives the format and the task
-    ("evaluate --checkpoint trunc.pt", "--checkpoint trunc.pt is not a newton_lab diffusion-policy checkpoint or is "
-     "damaged (not a torch.save zip, or truncated)"),
+    (
+        "evaluate --checkpoint trunc.pt",
+        "--checkpoint trunc.pt is not a newton_lab diffusion-policy checkpoint or is "
+        "damaged (not a torch.save zip, or truncated)",
+    ),
     ("evaluate --checkpoint text.pt", "--checkpoint text.pt is not a newton_lab diffusion-policy checkpoint"),
     ("evaluate --checkpoint earlier", "--checkpoint earlier is a folder; give the checkpoint file in it"),
-    ("evaluate --checkpoint pick.pt --task GalbotG1-Reach-v0",
-     "--checkpoint pick.pt was trained for GalbotG1-PickCube-v0 but the env runs GalbotG1-Reach-v0"),
-    ("evaluate --checkpoint vis.pt --cameras none", "--checkpoint vis.pt sees front_head_rgb at 96x72 px, which "
-     "--cameras none does not render; evaluate with --cameras front_head=96x72"),
+    (
+        "evaluate --checkpoint pick.pt --task GalbotG1-Reach-v0",
+        "--checkpoint pick.pt was trained for GalbotG1-PickCube-v0 but the env runs GalbotG1-Reach-v0",
+    ),
+    (
+        "evaluate --checkpoint vis.pt --cameras none",
+        "--checkpoint vis.pt sees front_head_rgb at 96x72 px, which "
+        "--cameras none does not render; evaluate with --cameras front_head=96x72",
+    ),
     ("evaluate --checkpoint vis.pt --cameras front_head=64x48", "which --cameras front_head=64x48 does not render"),
-    ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint plase=pick.pt",
-     "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place"),
-    ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint pick=pick.pt",
-     "but phase 'pick' of GalbotG1-PickToShelf-v0 runs GalbotG1-PickToShelf-Pick-v0; give that phase a checkpoint"),
-    ("evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint nav=text.pt",
-     "--phase-checkpoint nav=text.pt is not a newton_lab diffusion-policy checkpoint"),
-    ("evaluate --task GalbotG1-PickCube-v0 --phase-checkpoint pick=pick.pt",
-     "--phase-checkpoint is for the phases of a coherent task, and GalbotG1-PickCube-v0 has none"),
+    (
+        "evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint plase=pick.pt",
+        "GalbotG1-PickToShelf-v0 has no phase 'plase' (did you mean place?); its phases: pick, nav, place",
+    ),
+    (
+        "evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint pick=pick.pt",
+        "but phase 'pick' of GalbotG1-PickToShelf-v0 runs GalbotG1-PickToShelf-Pick-v0; give that phase a checkpoint",
+    ),
+    (
+        "evaluate --task GalbotG1-PickToShelf-v0 --phase-checkpoint nav=text.pt",
+        "--phase-checkpoint nav=text.pt is not a newton_lab diffusion-policy checkpoint",
+    ),
+    (
+        "evaluate --task GalbotG1-PickCube-v0 --phase-checkpoint pick=pick.pt",
+        "--phase-checkpoint is for the phases of a coherent task, and GalbotG1-PickCube-v0 has none",
+    ),
     # what a run found only after Warp loaded: scenarios, recordings, Mimic's source and output, split's source
-    ("collect --save-end-scenario s.yaml --num-envs 2 --dataset-path x.hdf5",
-     "--save-end-scenario needs --num-envs 1 and --episodes 1, got 2 and 1"),
-    ("collect --task GalbotG1-PickToShelf-Nav-v0 --init-scenario nope.yaml --dataset-path x.hdf5",
-     "scenario file nope.yaml does not exist; check the path (or save one with --save-end-scenario)"),
+    (
+        "collect --save-end-scenario s.yaml --num-envs 2 --dataset-path x.hdf5",
+        "--save-end-scenario needs --num-envs 1 and --episodes 1, got 2 and 1",
+    ),
+    (
+        "collect --task GalbotG1-PickToShelf-Nav-v0 --init-scenario nope.yaml --dataset-path x.hdf5",
+        "scenario file nope.yaml does not exist; check the path (or save one with --save-end-scenario)",
+    ),
     ("collect --rerun-save x.txt --dataset-path x.hdf5", "--rerun-save x.txt: a rerun recording is an .rrd file"),
     ("mimic --dataset-path reach.pt.hdf5 --episodes 2", "task 'GalbotG1-Reach-v0' has no Mimic variant"),
-    ("mimic --dataset-path src.hdf5 --output-path pts.hdf5 --episodes 2",
-     "pts.hdf5 holds a dataset of task 'GalbotG1-PickToShelf-v0', not 'GalbotG1-PickCube-v0'; choose another"),
+    (
+        "mimic --dataset-path src.hdf5 --output-path pts.hdf5 --episodes 2",
+        "pts.hdf5 holds a dataset of task 'GalbotG1-PickToShelf-v0', not 'GalbotG1-PickCube-v0'; choose another",
+    ),
     ("mimic --dataset-path src.hdf5 --episodes 2", "src.hdf5: actions do not hold the left arm joints; Mimic needs"),
     ("split --dataset-path src.hdf5 --out parts", "src.hdf5 was recorded on GalbotG1-PickCube-v0, which has no phases"),
     ("pipeline --out afile", "cannot write afile/.prefect: its parent afile is a file; choose another path"),
     ("bench-collect --workers 1 --baseline", "--baseline compares --workers W (W >= 2) with one worker alone"),
     ("train --dataset-path src.hdf5 pts.hdf5", "pts.hdf5 (GalbotG1-PickToShelf-v0) does not match src.hdf5"),
-    ("train --dataset-path src.hdf5 --output-dir afile",
-     "cannot write afile/checkpoint.pt: its parent afile is a file"),
+    (
+        "train --dataset-path src.hdf5 --output-dir afile",
+        "cannot write afile/checkpoint.pt: its parent afile is a file",
+    ),
     # split: a new folder, at least one phase
     ("split --dataset-path pts.hdf5 --out afile", "--out afile is a file; split into a new folder"),
     ("split --dataset-path pts.hdf5 --out earlier", "--out earlier is a folder that holds files already"),
@@ -164,8 +208,10 @@ CASES: list[tuple[str, str]] = [
     ("train --dataset-path cam.hdf5 --image-keys front_head_rgb", "records no image 'front_head_rgb'"),
     ("train --dataset-path src.hdf5 --resume", "no resume file outputs/policy/resume.pt: nothing to resume there"),
     ("train --dataset-path src.hdf5 --lr 0", "--lr must be > 0, got 0.0"),
-    ("train --dataset-path src.hdf5 --init-checkpoint reach.pt",
-     "--init-checkpoint reach.pt was trained for GalbotG1-Reach-v0 and src.hdf5 holds GalbotG1-PickCube-v0"),
+    (
+        "train --dataset-path src.hdf5 --init-checkpoint reach.pt",
+        "--init-checkpoint reach.pt was trained for GalbotG1-Reach-v0 and src.hdf5 holds GalbotG1-PickCube-v0",
+    ),
 ]
 
 """(command line after ``newton-lab``, words its one-line refusal holds), run in a folder :func:`make_inputs`
@@ -188,9 +234,10 @@ def _obs_terms() -> dict[str, list[int]]:
     return out
 
 
-ENV_ARGS: dict[str, Any] = {"env_kwargs": {"num_envs": 2, "seed": 0},
-                            "newton_lab": {"sim_dt": 0.01, "decimation": 5, "action_joint_names": JOINTS,
-                                           "obs_terms": _obs_terms()}}
+ENV_ARGS: dict[str, Any] = {
+    "env_kwargs": {"num_envs": 2, "seed": 0},
+    "newton_lab": {"sim_dt": 0.01, "decimation": 5, "action_joint_names": JOINTS, "obs_terms": _obs_terms()},
+}
 """The ``env_args`` the sample datasets record."""
 
 
@@ -200,18 +247,26 @@ def sample_episode(seed: int, steps: int) -> dict[str, Any]:
     actions = rng.standard_normal((steps, len(JOINTS))).astype(np.float32)
     obs = {name: rng.standard_normal((steps, w)).astype(np.float32) for name, w in OBS.items() if name != "actions"}
     obs["actions"] = actions.copy()
-    return {"actions": actions, "obs": obs, "states": rng.standard_normal((steps, 81)).astype(np.float32),
-            "rewards": rng.random(steps).astype(np.float32), "dones": np.zeros(steps, dtype=np.int64),
-            "datagen": {"tcp_pose": rng.standard_normal((steps, 7)).astype(np.float32),
-                        "phase": np.arange(steps, dtype=np.int32)}}
+    return {
+        "actions": actions,
+        "obs": obs,
+        "states": rng.standard_normal((steps, 81)).astype(np.float32),
+        "rewards": rng.random(steps).astype(np.float32),
+        "dones": np.zeros(steps, dtype=np.int64),
+        "datagen": {
+            "tcp_pose": rng.standard_normal((steps, 7)).astype(np.float32),
+            "phase": np.arange(steps, dtype=np.int32),
+        },
+    }
 
 
 def _dataset(path: Path, task: str, env_args: dict[str, Any], lengths=(5,), failed=()) -> None:
     with open_writer(path, task_id=task, env_args=env_args, fsync=False) as w:
         for i, steps in enumerate(lengths):
             ok = i not in failed
-            w.append_episode(sample_episode(i, steps), success=ok,
-                             attrs={"termination_reason": "success" if ok else "timeout"})
+            w.append_episode(
+                sample_episode(i, steps), success=ok, attrs={"termination_reason": "success" if ok else "timeout"}
+            )
 
 
 def checkpoint_files() -> dict[str, bytes]:
@@ -222,13 +277,27 @@ def checkpoint_files() -> dict[str, bytes]:
 
     def saved(config: dict[str, Any], info: dict[str, Any]) -> bytes:
         buf = io.BytesIO()
-        torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "diffusion",
-                    "config": config, "weights": {"w": torch.zeros(64)}, "normalizers": {}, "info": info}, buf)
+        torch.save(
+            {
+                "format": CHECKPOINT_FORMAT,
+                "version": CHECKPOINT_VERSION,
+                "backend": "diffusion",
+                "config": config,
+                "weights": {"w": torch.zeros(64)},
+                "normalizers": {},
+                "info": info,
+            },
+            buf,
+        )
         return buf.getvalue()
 
-    out = {"pick.pt": saved({}, {"task_id": TASK}), "reach.pt": saved({}, {"task_id": "GalbotG1-Reach-v0"}),
-           "vis.pt": saved({"image_keys": ["front_head_rgb"]},
-                           {"task_id": TASK, "image_shapes": {"front_head_rgb": [72, 96, 3]}})}
+    out = {
+        "pick.pt": saved({}, {"task_id": TASK}),
+        "reach.pt": saved({}, {"task_id": "GalbotG1-Reach-v0"}),
+        "vis.pt": saved(
+            {"image_keys": ["front_head_rgb"]}, {"task_id": TASK, "image_shapes": {"front_head_rgb": [72, 96, 3]}}
+        ),
+    }
     out["trunc.pt"] = out["pick.pt"][: len(out["pick.pt"]) // 2]
     out["text.pt"] = b"a checkpoint, honest\n"
     return out
@@ -242,13 +311,25 @@ def make_inputs(root: Path, checkpoints: dict[str, bytes] | None = None) -> None
     and the checkpoints (``checkpoints``: those of :func:`checkpoint_files`, made when not given)."""
     root = Path(root)
     _dataset(root / "src.hdf5", TASK, ENV_ARGS, LENGTHS, failed=(1,))
-    _dataset(root / "pts.hdf5", "GalbotG1-PickToShelf-v0",
-             {**ENV_ARGS, "newton_lab": {**ENV_ARGS["newton_lab"], "phases": ["pick", "nav", "place"]}})
-    _dataset(root / "cam.hdf5", TASK, {"env_kwargs": {"task_options": {"obs_mode": "state"}},
-                                       "newton_lab": {**ENV_ARGS["newton_lab"], "cameras": {}}})
+    _dataset(
+        root / "pts.hdf5",
+        "GalbotG1-PickToShelf-v0",
+        {**ENV_ARGS, "newton_lab": {**ENV_ARGS["newton_lab"], "phases": ["pick", "nav", "place"]}},
+    )
+    _dataset(
+        root / "cam.hdf5",
+        TASK,
+        {
+            "env_kwargs": {"task_options": {"obs_mode": "state"}},
+            "newton_lab": {**ENV_ARGS["newton_lab"], "cameras": {}},
+        },
+    )
     _dataset(root / "reach.pt.hdf5", "GalbotG1-Reach-v0", ENV_ARGS)
-    _dataset(root / "sort.hdf5", "GalbotG1-SortToShelf-Pick-v0",
-             {**ENV_ARGS, "env_kwargs": {"task_options": {"sorting_object": "red_cube"}}})
+    _dataset(
+        root / "sort.hdf5",
+        "GalbotG1-SortToShelf-Pick-v0",
+        {**ENV_ARGS, "env_kwargs": {"task_options": {"sorting_object": "red_cube"}}},
+    )
     (root / "junk.hdf5").write_bytes(b"not a dataset")
     (root / "file.zarr").write_bytes(b"a file named .zarr")
     (root / "folder.hdf5").mkdir()

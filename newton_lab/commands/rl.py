@@ -50,9 +50,16 @@ class TrainRLArgs:
         """The ``PPOConfig`` of these arguments."""
         from ..policies.rl.train import PPOConfig  # deferred: rsl_rl and torch are slow to import
 
-        return PPOConfig(num_envs=self.num_envs, device=self.device, seed=self.seed,
-                         task_options=dict(self.task_options), iterations=self.iterations,
-                         time_budget_s=self.time_budget_s, chunk_iterations=self.chunk_iterations,
-                         num_steps_per_env=self.steps_per_env,
-                         **({"hidden_dims": tuple(self.hidden_dims)} if self.hidden_dims else {}),
-                         learning_rate=self.learning_rate, end_on_success=self.end_on_success)
+        return PPOConfig(
+            num_envs=self.num_envs,
+            device=self.device,
+            seed=self.seed,
+            task_options=dict(self.task_options),
+            iterations=self.iterations,
+            time_budget_s=self.time_budget_s,
+            chunk_iterations=self.chunk_iterations,
+            num_steps_per_env=self.steps_per_env,
+            **({"hidden_dims": tuple(self.hidden_dims)} if self.hidden_dims else {}),
+            learning_rate=self.learning_rate,
+            end_on_success=self.end_on_success,
+        )

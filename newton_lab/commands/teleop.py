@@ -46,14 +46,21 @@ class TeleopArgs(CameraArgs, RerunArgs, EnvArgs):
 
     def agent_kwargs(self) -> dict[str, Any]:
         """Keywords of ``TeleopAgent.from_device(self.device, **...)``."""
-        replay = ({"path": self.replay_dataset, "demo": self.replay_demo, "mode": self.replay_mode}
-                  if self.device == "replay" else {})
+        replay = (
+            {"path": self.replay_dataset, "demo": self.replay_demo, "mode": self.replay_mode}
+            if self.device == "replay"
+            else {}
+        )
         return {"task": self.task, "no_frame_policy": self.no_frame_policy, **replay}
 
     def session_kwargs(self) -> dict[str, Any]:
         """Keywords of ``teleop_session(env, agent, **...)`` (less its ``on_step`` hook)."""
-        return {"path": self.dataset_path, "max_steps": self.max_steps, "keep": self.keep,
-                "realtime": not self.no_realtime}
+        return {
+            "path": self.dataset_path,
+            "max_steps": self.max_steps,
+            "keep": self.keep,
+            "realtime": not self.no_realtime,
+        }
 
 
 def check_teleop(args: TeleopArgs) -> None:
@@ -63,8 +70,9 @@ def check_teleop(args: TeleopArgs) -> None:
     if args.no_frame_policy not in ("hold", "zero"):
         raise ValueError(f"--no-frame-policy {args.no_frame_policy!r} is unknown; use hold or zero")
     if args.device == "replay" and (args.replay_dataset is None or not Path(args.replay_dataset).exists()):
-        raise FileNotFoundError(f"--device replay needs --replay-dataset naming an existing dataset, got "
-                                f"{args.replay_dataset!r}")
+        raise FileNotFoundError(
+            f"--device replay needs --replay-dataset naming an existing dataset, got {args.replay_dataset!r}"
+        )
     if args.replay_mode not in ("actions", "tcp"):
         raise ValueError(f"--replay-mode {args.replay_mode!r} is unknown; use actions or tcp")
     if args.num_envs != 1:

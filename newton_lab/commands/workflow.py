@@ -24,8 +24,12 @@ class CollectArgs(CameraArgs, RerunArgs, RolloutArgs):
 
     def collect_kwargs(self) -> dict[str, Any]:
         """Keywords of ``env.collect(agent=..., **...)``."""
-        return {**self.rollout_kwargs(), "path": self.dataset_path, "save_end_scenario": self.save_end_scenario,
-                "writer": self.writer}
+        return {
+            **self.rollout_kwargs(),
+            "path": self.dataset_path,
+            "save_end_scenario": self.save_end_scenario,
+            "writer": self.writer,
+        }
 
 
 @dataclass(kw_only=True)
@@ -98,13 +102,32 @@ class MimicArgs(CameraArgs):
 
     def mimic_kwargs(self) -> dict[str, Any]:
         """Keywords of ``mimic(self.dataset_path, **...)``."""
-        return {"episodes": self.episodes, "num_envs": self.num_envs, "output_path": self.output_path,
-                "seed": self.seed, "device": self.device, "max_attempts": self.max_attempts,
-                "progress": not self.no_progress, "cameras": camera_option(self.cameras)}
+        return {
+            "episodes": self.episodes,
+            "num_envs": self.num_envs,
+            "output_path": self.output_path,
+            "seed": self.seed,
+            "device": self.device,
+            "max_attempts": self.max_attempts,
+            "progress": not self.no_progress,
+            "cameras": camera_option(self.cameras),
+        }
 
 
-TRAIN_OVERRIDES = ("epochs", "batch_size", "max_steps", "lr", "weight_decay", "num_workers", "time_budget_s",
-                   "init_checkpoint", "prediction_type", "compile", "bf16", "obs_min_range")
+TRAIN_OVERRIDES = (
+    "epochs",
+    "batch_size",
+    "max_steps",
+    "lr",
+    "weight_decay",
+    "num_workers",
+    "time_budget_s",
+    "init_checkpoint",
+    "prediction_type",
+    "compile",
+    "bf16",
+    "obs_min_range",
+)
 """``TrainArgs`` fields that override the preset only when given."""
 
 
@@ -285,20 +308,35 @@ class PipelineArgs:
         """Keywords of ``newton_lab.flows.orchestration.run_pipeline``: the given fields, and for the unset ones
         those of ``recipe`` (``newton_lab.flows.settings.demo_recipe(self.recipe, self.device)``)."""
         if recipe.get("long_horizon") and self.mimic_episodes is not None:
-            raise ValueError("a coherent task's pipeline takes more coherent demos (--demos) instead of Mimic; "
-                             "drop --mimic-episodes")
+            raise ValueError(
+                "a coherent task's pipeline takes more coherent demos (--demos) instead of Mimic; drop --mimic-episodes"
+            )
         fields = [k for k in RECIPE_FIELDS if k in recipe]
         counts = {k: recipe[k] if getattr(self, k) is None else getattr(self, k) for k in fields}
-        extra = {"task_options": {**recipe.get("task_options", {}), **self.task_options},
-                 "cameras": recipe.get("cameras", "none"), "recipe": recipe["name"]}
+        extra = {
+            "task_options": {**recipe.get("task_options", {}), **self.task_options},
+            "cameras": recipe.get("cameras", "none"),
+            "recipe": recipe["name"],
+        }
         if recipe.get("long_horizon"):
             extra["eval_max_steps"] = recipe["eval_max_steps"]
         if self.eval_max_steps is not None:
             extra["eval_max_steps"] = self.eval_max_steps
-        return {"runner": self.runner, "workers": self.workers, "address": self.address, "retries": self.retries,
-                "task_id": self.task, "train_cfg": self.train_cfg(recipe), "device": recipe["device"],
-                "out": str(Path(self.out).resolve()), "seed": self.seed, "gpus": self.gpus, "record": self.record,
-                **counts, **extra}
+        return {
+            "runner": self.runner,
+            "workers": self.workers,
+            "address": self.address,
+            "retries": self.retries,
+            "task_id": self.task,
+            "train_cfg": self.train_cfg(recipe),
+            "device": recipe["device"],
+            "out": str(Path(self.out).resolve()),
+            "seed": self.seed,
+            "gpus": self.gpus,
+            "record": self.record,
+            **counts,
+            **extra,
+        }
 
 
 @dataclass(kw_only=True)

@@ -22,8 +22,24 @@ from .storage import (
     set_dataset_attrs,
 )
 
-__all__ = ["DatasetRef", "DatasetProvenance", "DatasetLockedError", "DatasetWriteError", "set_dataset_attrs",
-           "EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "read_episodes", "list_demos",
-           "delete_demos",
-           "read_filter_keys", "set_filter_keys", "split_by_phase", "split_train_val", "state_tree",
-           "SUFFIXES", "FORMAT_VERSION"]
+__all__ = [
+    "DatasetRef",
+    "DatasetProvenance",
+    "DatasetLockedError",
+    "DatasetWriteError",
+    "set_dataset_attrs",
+    "EpisodeWriter",
+    "open_writer",
+    "read_dataset_info",
+    "read_episode",
+    "read_episodes",
+    "list_demos",
+    "delete_demos",
+    "read_filter_keys",
+    "set_filter_keys",
+    "split_by_phase",
+    "split_train_val",
+    "state_tree",
+    "SUFFIXES",
+    "FORMAT_VERSION",
+]

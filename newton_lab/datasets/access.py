@@ -29,8 +29,16 @@ SUFFIXES = {".hdf5": "hdf5", ".h5": "hdf5", ".zarr": "zarr"}
 BACKENDS: dict[str, ModuleType] = {"hdf5": hdf5_store, "zarr": zarr_store}
 """Storage module of each format."""
 
-__all__ = ["read_dataset_info", "read_episode", "read_episodes", "list_demos", "delete_demos", "set_dataset_attrs",
-           "SUFFIXES", "BACKENDS"]
+__all__ = [
+    "read_dataset_info",
+    "read_episode",
+    "read_episodes",
+    "list_demos",
+    "delete_demos",
+    "set_dataset_attrs",
+    "SUFFIXES",
+    "BACKENDS",
+]
 
 
 # ----------------------------------------------------------------------------- dispatch / checks
@@ -38,8 +46,7 @@ def _backend(path: str | Path) -> tuple[Path, ModuleType, str]:
     p = Path(path).expanduser()
     fmt = SUFFIXES.get(p.suffix.lower())
     if fmt is None:
-        raise ValueError(f"unknown dataset suffix {p.suffix or '(none)'!r} for {p}: "
-                         f"use one of {', '.join(SUFFIXES)}")
+        raise ValueError(f"unknown dataset suffix {p.suffix or '(none)'!r} for {p}: use one of {', '.join(SUFFIXES)}")
     return p, BACKENDS[fmt], fmt
 
 
@@ -67,8 +74,10 @@ def _root_meta(p: Path, root: dict[str, Any]) -> dict[str, Any]:
     except (TypeError, ValueError):
         raise damaged(p, "data.attrs['format_version'] is not an int") from None
     if version > FORMAT_VERSION:
-        raise ValueError(f"{p} has format_version {version}, newer than this newton_lab "
-                         f"({FORMAT_VERSION}); upgrade newton_lab to read it")
+        raise ValueError(
+            f"{p} has format_version {version}, newer than this newton_lab "
+            f"({FORMAT_VERSION}); upgrade newton_lab to read it"
+        )
     return {**root, "env_args": env_args, "task_id": task_id, "format_version": version}
 
 
@@ -138,11 +147,18 @@ def read_dataset_info(path: str | Path) -> dict[str, Any]:
     raw = backend.info(p)
     meta = _root_meta(p, raw["root"])
     demos = dict(sorted(raw["demos"].items()))
-    return {"path": str(p), "format": fmt, "format_version": meta["format_version"],
-            "task_id": meta["task_id"], "env_args": meta["env_args"],
-            "num_demos": len(demos), "total": sum(d["num_samples"] for d in demos.values()),
-            "demo_ids": list(demos), "demos": demos,
-            "provenance": json.loads(raw["root"].get("provenance", "[]"))}
+    return {
+        "path": str(p),
+        "format": fmt,
+        "format_version": meta["format_version"],
+        "task_id": meta["task_id"],
+        "env_args": meta["env_args"],
+        "num_demos": len(demos),
+        "total": sum(d["num_samples"] for d in demos.values()),
+        "demo_ids": list(demos),
+        "demos": demos,
+        "provenance": json.loads(raw["root"].get("provenance", "[]")),
+    }
 
 
 def set_dataset_attrs(path: str | Path, attrs: Mapping[str, Any]) -> None:
@@ -169,8 +185,9 @@ def read_episode(path: str | Path, demo_id: int | str) -> dict[str, Any]:
     return {**tree, "attrs": attrs}
 
 
-def read_episodes(path: str | Path, demo_ids: Iterable[int | str], keys: Iterable[str] | None = None, *,
-                  attrs: bool = False) -> Iterator[dict[str, Any]]:
+def read_episodes(
+    path: str | Path, demo_ids: Iterable[int | str], keys: Iterable[str] | None = None, *, attrs: bool = False
+) -> Iterator[dict[str, Any]]:
     """``read_episode`` of each of ``demo_ids`` in turn, through one open dataset (one walk of its demo list, not
     one per episode), with ``"attrs"`` only when ``attrs``; ``keys`` ("actions", "obs/front_head_rgb", ...) limits
     what is read to those arrays (a key a demo lacks is left out; all arrays when None)."""

@@ -34,7 +34,7 @@ def merge_datasets(paths, out, *, progress=None, zarr_settings: ZarrWriteSetting
         for p, info in zip(paths, infos):
             ids = info["demo_ids"]
             for start in range(0, len(ids), MERGE_BATCH):
-                batch = ids[start:start + MERGE_BATCH]
+                batch = ids[start : start + MERGE_BATCH]
                 if info["format"] == writer.format:
                     saved += writer.append_copies(p, batch, attrs={i: {"source": f"{p.name}:{i}"} for i in batch})
                 else:

@@ -28,8 +28,13 @@ class DatasetProvenance:
     """UTC ISO timestamp."""
 
     def as_dict(self) -> dict[str, Any]:
-        return {"operation": self.operation, "source_path": self.source_path, "config": self.config,
-                "metadata": self.metadata, "created": self.created}
+        return {
+            "operation": self.operation,
+            "source_path": self.source_path,
+            "config": self.config,
+            "metadata": self.metadata,
+            "created": self.created,
+        }
 
 
 @dataclass(frozen=True)
@@ -68,8 +73,9 @@ class DatasetRef:
     def num_demos(self) -> int:
         return self.info()["num_demos"]
 
-    def record(self, operation: str, *, config: dict | None = None, metadata: dict | None = None,
-               source_path=None) -> DatasetRef:
+    def record(
+        self, operation: str, *, config: dict | None = None, metadata: dict | None = None, source_path=None
+    ) -> DatasetRef:
         """Append a provenance entry, persist it in the dataset, and return the updated ref."""
         entry = DatasetProvenance(
             operation=operation,

@@ -76,8 +76,11 @@ def _write_phase(job: _PhaseJob) -> list[int]:
             if "dones" in seg:  # robomimic: 1 on the last step of a successful segment
                 seg["dones"] = np.zeros_like(seg["dones"])
                 seg["dones"][-1:] = int(success)
-            saved.append(writer.append_episode(seg, success=success,
-                                               attrs={"source": f"{job.source.name}:{demo}", "phase": job.name}))
+            saved.append(
+                writer.append_episode(
+                    seg, success=success, attrs={"source": f"{job.source.name}:{demo}", "phase": job.name}
+                )
+            )
     return saved
 
 
@@ -88,12 +91,14 @@ def check_phase_names(path: str | Path, task_id: str, names: Sequence[str], want
         raise ValueError(f"{path} was recorded on {task_id}, which has no phases; nothing to split")
     for name in wanted:
         if name not in names:
-            raise ValueError(f"{task_id} has no phase {name!r}{did_you_mean(name, names)}; its phases: "
-                             f"{', '.join(names)}")
+            raise ValueError(
+                f"{task_id} has no phase {name!r}{did_you_mean(name, names)}; its phases: {', '.join(names)}"
+            )
 
 
-def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[str] | None = None,
-                   workers: int | None = None) -> dict[str, DatasetRef]:
+def split_by_phase(
+    path: str | Path, out_dir: str | Path, *, phases: Sequence[str] | None = None, workers: int | None = None
+) -> dict[str, DatasetRef]:
     """Write one dataset per phase of the coherent task that recorded ``path`` (only ``phases``, by name, when
     given); returns them by phase name. Each phase is written by its own process (at most ``workers``, default
     one per phase up to the CPU count): a phase's writer spends its time compressing frames, and the phases are
@@ -124,18 +129,32 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
         comp = comp.cfg(**comp.accepted(options))
         groups = robot_binding(comp.robot).joint_groups
         joints = [j for t in comp.actions for j in groups[t.group]]
-        args = {**env_args, "env_name": ph.task_id,
-                "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints, "phases": []}}
-        jobs.append(_PhaseJob(path, stage / outs[ph.name].name, ph.name, p, p == len(cfg.phases) - 1, ph.task_id,
-                              [columns.index(j) for j in joints], args))
+        args = {
+            **env_args,
+            "env_name": ph.task_id,
+            "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints, "phases": []},
+        }
+        jobs.append(
+            _PhaseJob(
+                path,
+                stage / outs[ph.name].name,
+                ph.name,
+                p,
+                p == len(cfg.phases) - 1,
+                ph.task_id,
+                [columns.index(j) for j in joints],
+                args,
+            )
+        )
     workers = min(len(jobs), workers or os.cpu_count() or 1)
     if multiprocessing.current_process().daemon:  # e.g. a Dask worker: a daemonic process may not start children
         workers = 1
     try:
         if workers > 1:  # spawn: the parent may hold a CUDA context, which a forked child must not inherit
             context = multiprocessing.get_context("spawn")  # the writers die with this process, even on SIGKILL
-            with ProcessPoolExecutor(workers, mp_context=context, initializer=_phase_writer,
-                                     initargs=(os.getpid(),)) as pool:
+            with ProcessPoolExecutor(
+                workers, mp_context=context, initializer=_phase_writer, initargs=(os.getpid(),)
+            ) as pool:
                 try:
                     saved = list(pool.map(_write_phase, jobs))
                 except KeyboardInterrupt:
@@ -145,21 +164,28 @@ def split_by_phase(path: str | Path, out_dir: str | Path, *, phases: Sequence[st
             saved = [_write_phase(job) for job in jobs]
         _publish(stage, out_dir, [o.name for o in outs.values()])
     except KeyboardInterrupt as exc:  # Ctrl-C / SIGTERM
-        raise Interrupted(f"interrupted: the split into {out_dir} was dropped, nothing written there; run it again",
-                          getattr(exc, "signum", signal.SIGINT)) from None
+        raise Interrupted(
+            f"interrupted: the split into {out_dir} was dropped, nothing written there; run it again",
+            getattr(exc, "signum", signal.SIGINT),
+        ) from None
     except DatasetWriteError as exc:  # its message names a file of the stage, which is removed
         what = "disk full" if exc.errno == errno.ENOSPC else os.strerror(exc.errno).lower()
-        raise DatasetWriteError(f"{what} while splitting into {out_dir}: the split was dropped, nothing written "
-                                "there; free space and run it again", exc.errno) from None
+        raise DatasetWriteError(
+            f"{what} while splitting into {out_dir}: the split was dropped, nothing written "
+            "there; free space and run it again",
+            exc.errno,
+        ) from None
     except BrokenProcessPool:
-        raise DatasetWriteError(f"a phase writer of the split into {out_dir} ended abruptly (killed, or out of "
-                                f"memory); nothing was written to {out_dir}: run the split again", errno.EIO) from None
+        raise DatasetWriteError(
+            f"a phase writer of the split into {out_dir} ended abruptly (killed, or out of "
+            f"memory); nothing was written to {out_dir}: run the split again",
+            errno.EIO,
+        ) from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)  # what a failed or interrupted split wrote: never a partial output
     refs: dict[str, DatasetRef] = {}
     for job, ids in zip(jobs, saved):
-        ref = DatasetRef(outs[job.name], task_id=job.task_id,
-                         metadata={"saved_demo_ids": ids, "episodes": len(ids)})
+        ref = DatasetRef(outs[job.name], task_id=job.task_id, metadata={"saved_demo_ids": ids, "episodes": len(ids)})
         refs[job.name] = ref.record("split", config={"source": str(path), "phase": job.name, "phase_index": job.index})
     return refs
 
@@ -206,8 +232,9 @@ def remove_stale_stages(out_dir: Path) -> None:
             continue
 
 
-def split_train_val(path: str | Path, val_ratio: float = 0.1, *, seed: int = 0,
-                    filter_key: str | None = None) -> dict[str, list[str]]:
+def split_train_val(
+    path: str | Path, val_ratio: float = 0.1, *, seed: int = 0, filter_key: str | None = None
+) -> dict[str, list[str]]:
     """Write robomimic filter keys ``mask/train`` and ``mask/valid`` (``<filter_key>_train`` / ``_valid``
     when splitting the demos of an existing key), as robomimic's ``split_train_val.py`` does with the same
     seed: ``int(val_ratio * n)`` demos, drawn by a seeded shuffle, go to valid. Also writes

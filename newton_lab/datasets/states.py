@@ -15,13 +15,17 @@ from typing import Any
 import numpy as np
 
 
-def state_layout(coords: int, dofs: int, robot_coords: int, robot_dofs: int,
-                 objects: Mapping[str, tuple[int, int]]) -> dict[str, list[int]]:
+def state_layout(
+    coords: int, dofs: int, robot_coords: int, robot_dofs: int, objects: Mapping[str, tuple[int, int]]
+) -> dict[str, list[int]]:
     """Column ranges ``[start, stop)`` of the flat state of a row with ``coords`` joint coordinates and
     ``dofs`` joint velocities; ``objects`` maps a free-floating object to its (first coord, first dof)."""
-    out = {"joint_q": [0, coords], "joint_qd": [coords, coords + dofs],
-           "articulation/robot/joint_position": [0, robot_coords],
-           "articulation/robot/joint_velocity": [coords, coords + robot_dofs]}
+    out = {
+        "joint_q": [0, coords],
+        "joint_qd": [coords, coords + dofs],
+        "articulation/robot/joint_position": [0, robot_coords],
+        "articulation/robot/joint_velocity": [coords, coords + robot_dofs],
+    }
     for name, (c, d) in objects.items():
         out[f"rigid_object/{name}/root_pose"] = [c, c + 7]  # position [m] + quaternion (x, y, z, w)
         out[f"rigid_object/{name}/root_velocity"] = [coords + d, coords + d + 6]
@@ -37,8 +41,10 @@ def state_tree(states: Any, env_args: Mapping[str, Any]) -> dict[str, Any]:
     arr = np.asarray(states)
     layout = (env_args.get("newton_lab") or {}).get("state_layout")
     if not isinstance(layout, Mapping):
-        raise ValueError("the dataset's env_args has no newton_lab.state_layout to name its flat states; "
-                         "re-collect it with this newton_lab")
+        raise ValueError(
+            "the dataset's env_args has no newton_lab.state_layout to name its flat states; "
+            "re-collect it with this newton_lab"
+        )
     if arr.ndim != 2:
         raise ValueError(f"flat states must be (T, D), got shape {arr.shape}")
     tree: dict[str, Any] = {"rigid_object": {}}

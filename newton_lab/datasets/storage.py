@@ -76,9 +76,22 @@ TIME_ALIGNED = ("obs", "next_obs", "states", "rewards", "dones")  # every array 
 EpisodeItem = tuple[Mapping[str, Any], bool, Mapping[str, Any] | None]
 """One entry of :meth:`EpisodeWriter.append_episodes`: (episode, success, attrs or None)."""
 
-__all__ = ["EpisodeWriter", "open_writer", "read_dataset_info", "read_episode", "read_episodes", "list_demos",
-           "delete_demos", "set_dataset_attrs", "SUFFIXES", "BACKENDS", "FORMAT_VERSION",
-           "DatasetLockedError", "DatasetWriteError", "inject_write_fault"]
+__all__ = [
+    "EpisodeWriter",
+    "open_writer",
+    "read_dataset_info",
+    "read_episode",
+    "read_episodes",
+    "list_demos",
+    "delete_demos",
+    "set_dataset_attrs",
+    "SUFFIXES",
+    "BACKENDS",
+    "FORMAT_VERSION",
+    "DatasetLockedError",
+    "DatasetWriteError",
+    "inject_write_fault",
+]
 
 
 # ----------------------------------------------------------------------------- episode validation
@@ -92,8 +105,9 @@ def _to_tree(node: Mapping, prefix: str = "") -> dict[str, Any]:
             continue
         arr = np.asarray(value)
         if arr.dtype.kind not in "biufc":
-            raise TypeError(f"episode array {prefix + key!r} has unsupported dtype {arr.dtype} "
-                            "(use bool/int/uint/float/complex)")
+            raise TypeError(
+                f"episode array {prefix + key!r} has unsupported dtype {arr.dtype} (use bool/int/uint/float/complex)"
+            )
         out[key] = arr  # strided views too: the writers copy into chunks or packs anyway (off the caller's thread)
     return out
 
@@ -129,8 +143,11 @@ def _demo_attrs(success: bool, attrs: Mapping | None) -> dict[str, Any]:
     out = {}
     for key, value in (attrs or {}).items():
         if key in RESERVED_DEMO_ATTRS:
-            raise ValueError(f"attr {key!r} is set by the writer; pass success= instead" if key == "success"
-                             else f"attr {key!r} is set by the writer")
+            raise ValueError(
+                f"attr {key!r} is set by the writer; pass success= instead"
+                if key == "success"
+                else f"attr {key!r} is set by the writer"
+            )
         out[str(key)] = py_scalar(value, key)
     out["success"] = bool(py_scalar(success, "success"))
     return out
@@ -144,17 +161,20 @@ def recording_set(env_args: Mapping[str, Any]) -> dict[str, Any] | None:
     if not isinstance(nl, Mapping):
         return None
     cams = nl.get("cameras") or {}
-    return {"cameras": {n: (c.get("width"), c.get("height"), tuple(c.get("data", ()))) for n, c in cams.items()},
-            "obs_terms": {k: list(v) for k, v in (nl.get("obs_terms") or {}).items()},
-            "task_options": dict((env_args.get("env_kwargs") or {}).get("task_options") or {})}
+    return {
+        "cameras": {n: (c.get("width"), c.get("height"), tuple(c.get("data", ()))) for n, c in cams.items()},
+        "obs_terms": {k: list(v) for k, v in (nl.get("obs_terms") or {}).items()},
+        "task_options": dict((env_args.get("env_kwargs") or {}).get("task_options") or {}),
+    }
 
 
 def _cameras_text(cameras: Mapping[str, tuple]) -> str:
     return ",".join(f"{n}={w}x{h}:{'+'.join(d)}" for n, (w, h, d) in cameras.items()) or "none"
 
 
-def check_same_recording(path: Path, recorded: Mapping[str, Any], new: Mapping[str, Any],
-                         option_defaults: Mapping[str, Any] | None = None) -> None:
+def check_same_recording(
+    path: Path, recorded: Mapping[str, Any], new: Mapping[str, Any], option_defaults: Mapping[str, Any] | None = None
+) -> None:
     """Appending to ``path`` (recorded with env_args ``recorded``) demos made with env_args ``new``: refused in one
     line when they record other cameras, other observation terms or other task options (a dataset's recording set
     is part of what it is; demos that mix them train and export wrongly). ``option_defaults``: the task's option
@@ -162,33 +182,42 @@ def check_same_recording(path: Path, recorded: Mapping[str, Any], new: Mapping[s
     before, now = recording_set(recorded), recording_set(new)
     if before is not None and now is not None and option_defaults:
         for side in (before, now):
-            side["task_options"] = {**{k: v for k, v in option_defaults.items() if v is not None},
-                                    **side["task_options"]}
+            side["task_options"] = {
+                **{k: v for k, v in option_defaults.items() if v is not None},
+                **side["task_options"],
+            }
     if before is None or now is None:
         return
     if before["cameras"] != now["cameras"]:
-        raise ValueError(f"{path} was recorded with cameras {_cameras_text(before['cameras'])}, not "
-                         f"{_cameras_text(now['cameras'])}; append with --cameras {_cameras_text(before['cameras'])}, "
-                         "or collect into another path")
+        raise ValueError(
+            f"{path} was recorded with cameras {_cameras_text(before['cameras'])}, not "
+            f"{_cameras_text(now['cameras'])}; append with --cameras {_cameras_text(before['cameras'])}, "
+            "or collect into another path"
+        )
     for name in before["task_options"].keys() & now["task_options"].keys():
         if before["task_options"][name] != now["task_options"][name]:
             flag = "--" + name.replace("_", "-")
-            raise ValueError(f"{path} was recorded with {flag} {before['task_options'][name]}, not "
-                             f"{now['task_options'][name]}; append with {flag} {before['task_options'][name]}, or "
-                             "collect into another path")
+            raise ValueError(
+                f"{path} was recorded with {flag} {before['task_options'][name]}, not "
+                f"{now['task_options'][name]}; append with {flag} {before['task_options'][name]}, or "
+                "collect into another path"
+            )
     if before["obs_terms"] and now["obs_terms"] and before["obs_terms"] != now["obs_terms"]:
         theirs, ours = set(before["obs_terms"]), set(now["obs_terms"])
         diff = sorted(theirs ^ ours) or sorted(k for k in theirs if before["obs_terms"][k] != now["obs_terms"][k])
-        raise ValueError(f"{path} records other observation terms ({', '.join(diff)} differ: another --obs-mode or "
-                         "task options); append with the settings it was recorded with, or collect into another path")
+        raise ValueError(
+            f"{path} records other observation terms ({', '.join(diff)} differ: another --obs-mode or "
+            "task options); append with the settings it was recorded with, or collect into another path"
+        )
 
 
 # ----------------------------------------------------------------------------- writer
 class EpisodeWriter:
     """Appends episodes to one dataset; nothing is held open between appends."""
 
-    def __init__(self, path: Path, backend: ModuleType, fmt: str, task_id: str, fsync: bool,
-                 zarr_settings: ZarrWriteSettings) -> None:
+    def __init__(
+        self, path: Path, backend: ModuleType, fmt: str, task_id: str, fsync: bool, zarr_settings: ZarrWriteSettings
+    ) -> None:
         self.path, self.format, self.task_id = path, fmt, task_id
         self._backend, self._fsync, self._closed = backend, fsync, False
         self.zarr_settings = zarr_settings
@@ -198,9 +227,16 @@ class EpisodeWriter:
         """Episodes this writer has appended."""
 
     @classmethod
-    def open(cls, path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True,
-             option_defaults: Mapping[str, Any] | None = None,
-             zarr_settings: ZarrWriteSettings | None = None) -> EpisodeWriter:
+    def open(
+        cls,
+        path: str | Path,
+        *,
+        task_id: str,
+        env_args: Mapping[str, Any],
+        fsync: bool = True,
+        option_defaults: Mapping[str, Any] | None = None,
+        zarr_settings: ZarrWriteSettings | None = None,
+    ) -> EpisodeWriter:
         """Create ``path`` or append to it if it holds a dataset of the same task, recorded with the same cameras,
         observation terms and task options (``check_same_recording``; ``option_defaults``: the task's).
         ``zarr_settings``: how zarr batches are written (default ``DEFAULT_ZARR_SETTINGS``)."""
@@ -215,8 +251,14 @@ class EpisodeWriter:
             raise ValueError(f"env_args['env_name']={env['env_name']!r} differs from task_id={task_id!r}")
         env.setdefault("type", 2)
         env.setdefault("env_kwargs", {})
-        root = {"env_args": dumps_env_args(env), "total": 0, "num_demos": 0, NEXT_ID: 0,
-                "task_id": task_id, "format_version": FORMAT_VERSION}
+        root = {
+            "env_args": dumps_env_args(env),
+            "total": 0,
+            "num_demos": 0,
+            NEXT_ID: 0,
+            "task_id": task_id,
+            "format_version": FORMAT_VERSION,
+        }
         if not p.exists():
             output_path(p)  # its missing folders (data/ of data/demos.hdf5)
             try:
@@ -228,13 +270,15 @@ class EpisodeWriter:
         meta = _root_meta(p, backend.read_root(p))
         existing = meta["task_id"]
         if existing != task_id:
-            raise ValueError(f"{p} holds a dataset of task {existing!r}, not {task_id!r}; "
-                             f"choose another path for {task_id!r}")
+            raise ValueError(
+                f"{p} holds a dataset of task {existing!r}, not {task_id!r}; choose another path for {task_id!r}"
+            )
         check_same_recording(p, meta["env_args"], env, option_defaults)
         return cls(p, backend, fmt, task_id, fsync, zarr_settings)
 
-    def prepare(self, episode: Mapping[str, Any], *, success: bool,
-                attrs: Mapping[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any], int]:
+    def prepare(
+        self, episode: Mapping[str, Any], *, success: bool, attrs: Mapping[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any], int]:
         """Check one episode (one-line errors) and convert it for :meth:`append_prepared`: (tree, attrs, steps).
         The arrays are not copied (strided views stay views; only ``actions`` of another dtype becomes float32):
         do not change them until they are written."""
@@ -267,17 +311,24 @@ class EpisodeWriter:
         arrays = block.arrays() if self.format == "zarr" and len(block) >= self.zarr_settings.pack_min_batch else None
         layout = block.pack_layout(arrays) if arrays is not None else None
         if layout is None:
-            return self.append_prepared([self.prepare(tree, success=bool(ok), attrs=a)
-                                         for tree, ok, a in zip(block.trees(), block.successes, block.attrs)])
-        attrs = [{**_demo_attrs(bool(ok), a), "num_samples": int(n)}
-                 for ok, a, n in zip(block.successes, block.attrs, block.lengths)]
+            return self.append_prepared(
+                [
+                    self.prepare(tree, success=bool(ok), attrs=a)
+                    for tree, ok, a in zip(block.trees(), block.successes, block.attrs)
+                ]
+            )
+        attrs = [
+            {**_demo_attrs(bool(ok), a), "num_samples": int(n)}
+            for ok, a, n in zip(block.successes, block.attrs, block.lengths)
+        ]
         with _medium_errors(self.path, self._backend, f"after {_episodes(self.appended)}"):
             ids = self._backend.append_joined(self.path, arrays, layout, attrs, self._fsync, **self._batch_options)
         self.appended += len(ids)
         return ids
 
-    def append_copies(self, source: str | Path, demo_ids: Iterable[int | str],
-                      attrs: Mapping[int, Mapping[str, Any]] | None = None) -> list[int]:
+    def append_copies(
+        self, source: str | Path, demo_ids: Iterable[int | str], attrs: Mapping[int, Mapping[str, Any]] | None = None
+    ) -> list[int]:
         """Append demos of ``source``, a dataset of the same task and format, as stored: one durable batch (see
         :meth:`append_episodes`) whose arrays are copied, not decoded and encoded again (zarr: a batch that is
         packed, or a packed source demo, is read and written again). Each copy keeps its source attrs, updated
@@ -285,8 +336,10 @@ class EpisodeWriter:
         ``read_episodes`` and ``append_episodes``."""
         p, backend, fmt = _existing(source)
         if fmt != self.format:
-            raise ValueError(f"{p} is {fmt} and {self.path} is {self.format}: copies need one format; "
-                             f"read_episodes + append_episodes convert between them")
+            raise ValueError(
+                f"{p} is {fmt} and {self.path} is {self.format}: copies need one format; "
+                f"read_episodes + append_episodes convert between them"
+            )
         if p.resolve() == self.path.resolve():
             raise ValueError(f"cannot copy demos of {p} into itself")
         task_id = _root_meta(p, backend.read_root(p))["task_id"]
@@ -303,8 +356,9 @@ class EpisodeWriter:
                 raise ValueError(f"attr {RESERVED_DEMO_ATTRS[0]!r} is set by the writer")
         return self.append_prepared([(StoredDemo(p, i), extra[i], n) for i, n in zip(ids, samples)])
 
-    def append_episode(self, episode: Mapping[str, Any], *, success: bool,
-                       attrs: Mapping[str, Any] | None = None) -> int:
+    def append_episode(
+        self, episode: Mapping[str, Any], *, success: bool, attrs: Mapping[str, Any] | None = None
+    ) -> int:
         """Write one episode; returns its demo id once it is durable on disk."""
         if self._closed:
             raise RuntimeError(f"EpisodeWriter for {self.path} is closed")
@@ -324,10 +378,21 @@ class EpisodeWriter:
         return f"EpisodeWriter({str(self.path)!r}, task_id={self.task_id!r}, format={self.format!r})"
 
 
-def open_writer(path: str | Path, *, task_id: str, env_args: Mapping[str, Any], fsync: bool = True,
-                option_defaults: Mapping[str, Any] | None = None,
-                zarr_settings: ZarrWriteSettings | None = None) -> EpisodeWriter:
+def open_writer(
+    path: str | Path,
+    *,
+    task_id: str,
+    env_args: Mapping[str, Any],
+    fsync: bool = True,
+    option_defaults: Mapping[str, Any] | None = None,
+    zarr_settings: ZarrWriteSettings | None = None,
+) -> EpisodeWriter:
     """Alias of :meth:`EpisodeWriter.open`."""
-    return EpisodeWriter.open(path, task_id=task_id, env_args=env_args, fsync=fsync, option_defaults=option_defaults,
-                              zarr_settings=zarr_settings)
-
+    return EpisodeWriter.open(
+        path,
+        task_id=task_id,
+        env_args=env_args,
+        fsync=fsync,
+        option_defaults=option_defaults,
+        zarr_settings=zarr_settings,
+    )

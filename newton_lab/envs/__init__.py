@@ -53,8 +53,9 @@ def make_env(
     if terminate_on_success is not None:
         cfg = dataclasses.replace(cfg, terminate_on_success=bool(terminate_on_success))
     prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
-    return NewtonEnv(cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture,
-                     cameras=cameras)
+    return NewtonEnv(
+        cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture, cameras=cameras
+    )
 
 
 __all__ = ["NewtonEnv", "make_env"]

@@ -16,13 +16,7 @@ import numpy as np
 import torch
 import warp as wp
 
-from ..kernels.actions import (
-    KIND_CODE,
-    apply_actions,
-    drive_base,
-    drive_setpoints,
-    sync_setpoints,
-)
+from ..kernels.actions import KIND_CODE, apply_actions, drive_base, drive_setpoints, sync_setpoints
 from ..robots.bound import BoundRobot
 from ..task_api.cfg import TaskCfg
 from .scene import SceneLayout
@@ -38,8 +32,7 @@ class Actuation:
     targets (``sync``); joints placed by hand move target and setpoint together (``place``). Warp arrays live on the
     current device."""
 
-    def __init__(self, binding: BoundRobot, cfg: TaskCfg, layout: SceneLayout, control: newton.Control,
-                 num_envs: int):
+    def __init__(self, binding: BoundRobot, cfg: TaskCfg, layout: SceneLayout, control: newton.Control, num_envs: int):
         amap, limits = binding.actions, binding.limits
         self.num_envs, self.layout, self.control, self.sim_dt = num_envs, layout, control, cfg.sim_dt
         self.dim, self.wheel_col = amap.dim, amap.wheel_col
@@ -72,13 +65,26 @@ class Actuation:
         wp.launch(
             apply_actions,
             dim=(self.num_envs, self.dim),
-            inputs=[actions, self.kind, self.index, self.scale, self.low, self.high, self.target_low,
-                    self.target_high, self.owned, phase, lay.coords_per_world, lay.dofs_per_world],
+            inputs=[
+                actions,
+                self.kind,
+                self.index,
+                self.scale,
+                self.low,
+                self.high,
+                self.target_low,
+                self.target_high,
+                self.owned,
+                phase,
+                lay.coords_per_world,
+                lay.dofs_per_world,
+            ],
             outputs=[self.control.joint_target_q, self.control.joint_target_qd],
         )
 
-    def substep(self, actions: wp.array2d, phase: wp.array, joint_q: wp.array,
-                yaw: tuple[wp.array, int, int] | None = None) -> None:
+    def substep(
+        self, actions: wp.array2d, phase: wp.array, joint_q: wp.array, yaw: tuple[wp.array, int, int] | None = None
+    ) -> None:
         """Before one physics substep: the wheel columns' base twist (rotated by the current yaw) into
         ``control``, then ``control``'s targets into the ``drive``. The yaw is read from the env's ``joint_q``,
         or from ``yaw`` = (flat array, stride per world, offset) where the coordinates live elsewhere between
@@ -89,25 +95,50 @@ class Actuation:
             wp.launch(
                 drive_base,
                 dim=self.num_envs,
-                inputs=[actions, self.wheel_col, self.scale, self.low, self.high, self.owned, self.base_free, phase,
-                        self.lin_gain, self.yaw_gain, self.base_dof, lay.dofs_per_world, yaw_q, stride, offset],
+                inputs=[
+                    actions,
+                    self.wheel_col,
+                    self.scale,
+                    self.low,
+                    self.high,
+                    self.owned,
+                    self.base_free,
+                    phase,
+                    self.lin_gain,
+                    self.yaw_gain,
+                    self.base_dof,
+                    lay.dofs_per_world,
+                    yaw_q,
+                    stride,
+                    offset,
+                ],
                 outputs=[self.control.joint_target_qd],
             )
         wp.launch(
             drive_setpoints,
             dim=(self.num_envs, max(lay.coords_per_world, lay.dofs_per_world)),
-            inputs=[self.control.joint_target_q, self.control.joint_target_qd, self.max_step, self.coord_dof,
-                    self.dof_limited, self.sim_dt, lay.coords_per_world, lay.dofs_per_world],
+            inputs=[
+                self.control.joint_target_q,
+                self.control.joint_target_qd,
+                self.max_step,
+                self.coord_dof,
+                self.dof_limited,
+                self.sim_dt,
+                lay.coords_per_world,
+                lay.dofs_per_world,
+            ],
             outputs=[self.drive.joint_target_q, self.drive.joint_target_qd],
         )
 
     def sync(self, mask: wp.array) -> None:
         """Setpoints of the masked rows jump to their (just reset) targets."""
-        wp.launch(sync_setpoints, dim=self._target_rows.shape, inputs=[mask, self._target_rows],
-                  outputs=[self._setpoint_rows])
+        wp.launch(
+            sync_setpoints, dim=self._target_rows.shape, inputs=[mask, self._target_rows], outputs=[self._setpoint_rows]
+        )
 
-    def place(self, state: newton.State, rows: torch.Tensor, coords: list[int], dofs: list[int],
-              values: torch.Tensor) -> None:
+    def place(
+        self, state: newton.State, rows: torch.Tensor, coords: list[int], dofs: list[int], values: torch.Tensor
+    ) -> None:
         """Positions (velocities zeroed), targets and setpoints of ``rows`` x ``coords`` set to ``values`` (rows,
         coords) at once: the drive holds them there from the next substep."""
         n, at = self.num_envs, rows[:, None]

@@ -39,8 +39,13 @@ class Entity:
 def entity_table(layout: SceneLayout) -> dict[str, Entity]:
     """The scene's entities by name, in slot order."""
     return {
-        name: Entity(name=name, slot=k, body=layout.entity_body[k], dynamic=layout.entity_body[k] >= 0,
-                     coord=layout.entity_coord[k])
+        name: Entity(
+            name=name,
+            slot=k,
+            body=layout.entity_body[k],
+            dynamic=layout.entity_body[k] >= 0,
+            coord=layout.entity_coord[k],
+        )
         for k, name in enumerate(layout.entity_names)
     }
 
@@ -82,18 +87,37 @@ class StepBuffers:
     """(num_envs, coords_per_world) coordinates of each row's last finished episode."""
 
     @classmethod
-    def allocate(cls, *, num_envs: int, action_dim: int, obs_dim: int, signals: int, entities: int,
-                 articulations: int, coords_per_world: int) -> StepBuffers:
+    def allocate(
+        cls,
+        *,
+        num_envs: int,
+        action_dim: int,
+        obs_dim: int,
+        signals: int,
+        entities: int,
+        articulations: int,
+        coords_per_world: int,
+    ) -> StepBuffers:
         n, z = num_envs, wp.zeros
         return cls(
-            actions=z((n, action_dim), dtype=float), obs=z((n, max(obs_dim, 1)), dtype=float),
-            final_obs=z((n, max(obs_dim, 1)), dtype=float), reward=z(n, dtype=float),
-            terminated=z(n, dtype=bool), truncated=z(n, dtype=bool), done=z(n, dtype=bool),
-            success=z(n, dtype=bool), success_latched=z(n, dtype=bool), reason=z(n, dtype=int),
-            episode_length=z(n, dtype=int), signals=z((n, max(signals, 1)), dtype=float),
-            step_signals=z((n, max(signals, 1)), dtype=float), episode_count=z(n, dtype=int),
-            reset_mask=z(n, dtype=bool), articulation_mask=z(articulations, dtype=bool),
-            tcp_pose=z((n, 7), dtype=float), entity_poses=z((n, max(entities, 1), 7), dtype=float),
+            actions=z((n, action_dim), dtype=float),
+            obs=z((n, max(obs_dim, 1)), dtype=float),
+            final_obs=z((n, max(obs_dim, 1)), dtype=float),
+            reward=z(n, dtype=float),
+            terminated=z(n, dtype=bool),
+            truncated=z(n, dtype=bool),
+            done=z(n, dtype=bool),
+            success=z(n, dtype=bool),
+            success_latched=z(n, dtype=bool),
+            reason=z(n, dtype=int),
+            episode_length=z(n, dtype=int),
+            signals=z((n, max(signals, 1)), dtype=float),
+            step_signals=z((n, max(signals, 1)), dtype=float),
+            episode_count=z(n, dtype=int),
+            reset_mask=z(n, dtype=bool),
+            articulation_mask=z(articulations, dtype=bool),
+            tcp_pose=z((n, 7), dtype=float),
+            entity_poses=z((n, max(entities, 1), 7), dtype=float),
             terminal_q=z((n, coords_per_world), dtype=float),
         )
 
@@ -133,8 +157,10 @@ def arm_home(cfg: TaskCfg, arm_joints: int) -> np.ndarray:
     controlled arm's joint count."""
     home = np.asarray(cfg.arm_home or (0.0,) * arm_joints, dtype=np.float32)
     if home.shape != (arm_joints,):
-        raise ValueError(f"{cfg.task_id}: arm_home has {home.size} values, the {cfg.arm} arm has {arm_joints} joints; "
-                         f"give one value per joint [rad]")
+        raise ValueError(
+            f"{cfg.task_id}: arm_home has {home.size} values, the {cfg.arm} arm has {arm_joints} joints; "
+            f"give one value per joint [rad]"
+        )
     return home
 
 

@@ -30,12 +30,17 @@ class ImageTerm:
 
 def _resolution(name: str, value: Any, sides: tuple[int, int]) -> tuple[int, int]:
     lo, hi = sides
-    ok = (isinstance(value, (tuple, list)) and len(value) == 2
-          and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
-          and all(lo <= v <= hi for v in value))
+    ok = (
+        isinstance(value, (tuple, list))
+        and len(value) == 2
+        and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
+        and all(lo <= v <= hi for v in value)
+    )
     if not ok:
-        raise ValueError(f"camera {name!r} resolution must be (width, height) integers in [{lo}, {hi}] px, got "
-                         f"{value!r}; e.g. cameras={{'{name}': (96, 72)}}")
+        raise ValueError(
+            f"camera {name!r} resolution must be (width, height) integers in [{lo}, {hi}] px, got "
+            f"{value!r}; e.g. cameras={{'{name}': (96, 72)}}"
+        )
     return int(value[0]), int(value[1])
 
 
@@ -58,8 +63,9 @@ def _override(name: str, base: CameraCfg, value: Any, sides: tuple[int, int]) ->
     return CameraCfg(width=w, height=h, data=base.data)
 
 
-def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None, *,
-                    robot: RobotBinding | None = None) -> dict[str, CameraCfg]:
+def resolve_cameras(
+    cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None, *, robot: RobotBinding | None = None
+) -> dict[str, CameraCfg]:
     """The cameras an env renders: the task's (``None`` or ``True``), none (``False``), or the task's changed by
     ``{mount: (width, height)}`` / ``{mount: {"resolution": (w, h), "data": (...)}}`` (a mount of the robot that the
     task does not declare is added, so a state-only task such as StackCube renders the cameras it is asked for), or
@@ -81,8 +87,9 @@ def resolve_cameras(cfg: TaskCfg, cameras: bool | Mapping[str, Any] | str | None
                 raise ValueError(f"unknown camera {name!r}; the {robot.name}'s cameras are {mounts}")
             chosen[name] = _override(name, chosen.get(name, CameraCfg()), value, sides)
     else:
-        raise ValueError(f"cameras must be None, True, False, a dict {{camera: (width, height)}} or its text form, "
-                         f"got {cameras!r}")
+        raise ValueError(
+            f"cameras must be None, True, False, a dict {{camera: (width, height)}} or its text form, got {cameras!r}"
+        )
     for name, cam in chosen.items():
         if name not in mounts:
             raise ValueError(f"{cfg.task_id} declares unknown camera {name!r}; the {robot.name}'s are {mounts}")

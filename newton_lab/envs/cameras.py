@@ -37,8 +37,16 @@ from ..task_api.cfg import CameraCfg
 from .camera_specs import ImageTerm, image_terms, resolve_cameras
 from .pictures import picture
 
-__all__ = ["Cameras", "ImageTerm", "ImageViews", "ViewGroup", "image_terms", "picture", "resolve_cameras",
-           "segmentation_table"]
+__all__ = [
+    "Cameras",
+    "ImageTerm",
+    "ImageViews",
+    "ViewGroup",
+    "image_terms",
+    "picture",
+    "resolve_cameras",
+    "segmentation_table",
+]
 
 SKY_RGBA = (178, 190, 204, 0)
 """Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
@@ -48,8 +56,9 @@ marks them invisible because the MJCF also has visual geoms), not sites."""
 BACKGROUND, GROUND = "background", "ground"
 
 
-def segmentation_table(model: newton.Model, entity_names: list[str],
-                       robot: RobotBinding) -> tuple[tuple[str, ...], np.ndarray]:
+def segmentation_table(
+    model: newton.Model, entity_names: list[str], robot: RobotBinding
+) -> tuple[tuple[str, ...], np.ndarray]:
     """(names, shape_to_id): id 0 ``background`` (nothing hit), 1 ``ground``, then the task's objects in slot
     order, then the robot's link groups (``robot/<group>``, ``RobotBinding.link_groups``); and the id of every
     shape of the model."""
@@ -101,10 +110,22 @@ class Cameras:
     """The cameras of one env. Built lazily: construction only checks and names; the first ``render`` allocates
     the ``SensorCamera``, the buffers and the captured render graph."""
 
-    def __init__(self, specs: Mapping[str, CameraCfg], *, model: newton.Model, state: newton.State, num_envs: int,
-                 bodies_per_world: int, entity_names: list[str], capture: bool = True, randomize: bool = False,
-                 seed=lambda: 0, episode: wp.array | None = None, keep_hue: Collection[str] = (),
-                 robot: RobotBinding):
+    def __init__(
+        self,
+        specs: Mapping[str, CameraCfg],
+        *,
+        model: newton.Model,
+        state: newton.State,
+        num_envs: int,
+        bodies_per_world: int,
+        entity_names: list[str],
+        capture: bool = True,
+        randomize: bool = False,
+        seed=lambda: 0,
+        episode: wp.array | None = None,
+        keep_hue: Collection[str] = (),
+        robot: RobotBinding,
+    ):
         self.robot = RobotBinding.required(robot, "Cameras")
         """The robot the cameras ride on (mounts, intrinsics, clipping, segmentation groups)."""
         self.specs = dict(specs)
@@ -159,7 +180,7 @@ class Cameras:
         for g in self._groups:
             if camera in g.cameras:
                 k = g.cameras.index(camera)
-                return wp.to_torch(g.poses).view(-1, 7)[k * self.num_envs:(k + 1) * self.num_envs]
+                return wp.to_torch(g.poses).view(-1, 7)[k * self.num_envs : (k + 1) * self.num_envs]
         raise KeyError(self._missing(camera))
 
     def _spec(self, camera: str) -> CameraCfg:
@@ -200,11 +221,11 @@ class Cameras:
     def _build(self) -> None:
         self.segmentation_names  # noqa: B018  (fills the shape -> id table)
         self.model.bvh_build_shapes(self.state, shape_flags=RENDERED_SHAPES)
-        clear = SensorCamera.ClearData(clear_color=int.from_bytes(bytes(SKY_RGBA), "little"),
-                                       clear_depth=math.inf)
+        clear = SensorCamera.ClearData(clear_color=int.from_bytes(bytes(SKY_RGBA), "little"), clear_depth=math.inf)
         config = SensorCamera.RenderConfig(max_distance=self.robot.camera_clipping[1])
-        self.sensor = SensorCamera(self.model, default_clear_data=clear, default_render_config=config,
-                                   load_textures=False)
+        self.sensor = SensorCamera(
+            self.model, default_clear_data=clear, default_render_config=config, load_textures=False
+        )
         self.sensor.create_default_light(enable_shadows=False)
         self._shape_to_id = wp.array(self._shape_ids, dtype=wp.int32)
         self._keep_hue = wp.array([int(n in self.keep_hue) for n in self.segmentation_names], dtype=wp.int32)
@@ -225,9 +246,12 @@ class Cameras:
         wants = {d for name in names for d in self.specs[name].data}
         img = lambda dtype: wp.zeros((v, height, width), dtype=dtype)  # noqa: E731
         return ViewGroup(
-            cameras=names, width=width, height=height,
+            cameras=names,
+            width=width,
+            height=height,
             rays=wp.array(self.robot.camera_rays(width, height), dtype=wp.vec3f).reshape((height, width, 1, 2)),
-            view_body=wp.array(body, dtype=int), view_offset=wp.array(offset, dtype=wp.transform),
+            view_body=wp.array(body, dtype=int),
+            view_offset=wp.array(offset, dtype=wp.transform),
             world=wp.array(np.tile(np.arange(n, dtype=np.int32), len(names)), dtype=wp.int32),
             poses=wp.zeros(v, dtype=wp.transformf),
             color=img(wp.uint32) if "rgb" in wants else None,
@@ -263,22 +287,55 @@ class Cameras:
 
     # ------------------------------------------------------------------ render
     def _render_body(self) -> None:
-        wp.launch(shape_colors, dim=self.model.shape_count,
-                  inputs=[self._base_color, self.model.shape_world, self._shape_to_id, 2 + len(self.entity_names),
-                          self._keep_hue, self._episode, self._params, self.model.shape_color])
+        wp.launch(
+            shape_colors,
+            dim=self.model.shape_count,
+            inputs=[
+                self._base_color,
+                self.model.shape_world,
+                self._shape_to_id,
+                2 + len(self.entity_names),
+                self._keep_hue,
+                self._episode,
+                self._params,
+                self.model.shape_color,
+            ],
+        )
         first = 0
         for g in self._groups:
-            wp.launch(mount_transforms, dim=g.poses.shape[0],
-                      inputs=[self.state.body_q, g.view_body, g.view_offset, g.world, self._episode, self._params,
-                              first, g.poses])
+            wp.launch(
+                mount_transforms,
+                dim=g.poses.shape[0],
+                inputs=[
+                    self.state.body_q,
+                    g.view_body,
+                    g.view_offset,
+                    g.world,
+                    self._episode,
+                    self._params,
+                    first,
+                    g.poses,
+                ],
+            )
             first += len(g.cameras)
         self.model.bvh_refit_shapes(self.state)
         for g in self._groups:
-            self.sensor.update(self.state, g.poses, g.rays, color_image=g.color, forward_depth_image=g.depth,
-                               shape_index_image=g.shape_index, world_indices=g.world, sync_deformables=False)
+            self.sensor.update(
+                self.state,
+                g.poses,
+                g.rays,
+                color_image=g.color,
+                forward_depth_image=g.depth,
+                shape_index_image=g.shape_index,
+                world_indices=g.world,
+                sync_deformables=False,
+            )
             if g.segmentation is not None:
-                wp.launch(segmentation_ids, dim=g.segmentation.size,
-                          inputs=[g.shape_index.flatten(), self._shape_to_id, g.segmentation.flatten()])
+                wp.launch(
+                    segmentation_ids,
+                    dim=g.segmentation.size,
+                    inputs=[g.shape_index.flatten(), self._shape_to_id, g.segmentation.flatten()],
+                )
 
     def render(self, *, force: bool = False, eager: bool = False) -> dict[str, torch.Tensor]:
         """Render every view if the state changed since the last render (``force``: anyway); returns the image
@@ -321,8 +378,10 @@ class ImageViews(Mapping):
     def __getitem__(self, name: str) -> torch.Tensor:
         if name not in self._cameras.terms:
             if not self._cameras.specs:
-                raise KeyError(f"image term {name!r} needs cameras, but this env renders none (a state-only task or "
-                               f"make_env(..., cameras=False)); build the env with its task's cameras")
+                raise KeyError(
+                    f"image term {name!r} needs cameras, but this env renders none (a state-only task or "
+                    f"make_env(..., cameras=False)); build the env with its task's cameras"
+                )
             raise KeyError(f"no image term {name!r}; this env's image terms are {list(self._cameras.terms)}")
         return self._cameras.render()[name]
 

@@ -14,8 +14,9 @@ from ..task_api.registry import lookup
 from ..task_api.terms import resolve_cfg, unresolved_terms
 
 
-def check_actions(actions, *, num_envs: int, action_dim: int, device: torch.device,
-                  columns: Sequence[str]) -> torch.Tensor:
+def check_actions(
+    actions, *, num_envs: int, action_dim: int, device: torch.device, columns: Sequence[str]
+) -> torch.Tensor:
     """``actions`` if it is a finite float32 ``(num_envs, action_dim)`` tensor on ``device``; raises otherwise
     (``columns``: the action column names, quoted when the shape is wrong). The finiteness check reads the
     tensor on the host (one sync per call)."""
@@ -34,8 +35,7 @@ def check_actions(actions, *, num_envs: int, action_dim: int, device: torch.devi
         raise ValueError(f"actions must be torch.float32, got {actions.dtype}; convert with actions.float()")
     if actions.device != device:
         raise ValueError(
-            f"actions are on {actions.device} but the env runs on {device}; "
-            f"move them with actions.to('{device}')"
+            f"actions are on {actions.device} but the env runs on {device}; move them with actions.to('{device}')"
         )
     finite = torch.isfinite(actions)
     if not bool(finite.all()):
@@ -54,11 +54,15 @@ def row_mask(env_ids, num_envs: int) -> np.ndarray:
     try:
         given = torch.as_tensor(env_ids).cpu()
     except (TypeError, ValueError, RuntimeError):
-        raise ValueError(f"env_ids must be None (every row) or integer row indices (a list, numpy array or tensor), "
-                         f"got {type(env_ids).__name__} {str(env_ids)[:60]}") from None
+        raise ValueError(
+            f"env_ids must be None (every row) or integer row indices (a list, numpy array or tensor), "
+            f"got {type(env_ids).__name__} {str(env_ids)[:60]}"
+        ) from None
     if given.numel() and (given.dtype.is_floating_point or given.dtype.is_complex or given.dtype == torch.bool):
-        raise ValueError(f"env_ids must be integer row indices, got dtype {given.dtype}; pass e.g. "
-                         f"torch.nonzero(mask).flatten() for a boolean mask")
+        raise ValueError(
+            f"env_ids must be integer row indices, got dtype {given.dtype}; pass e.g. "
+            f"torch.nonzero(mask).flatten() for a boolean mask"
+        )
     ids = given.numpy().astype(np.int64).reshape(-1)
     if ids.size and (ids.min() < 0 or ids.max() >= num_envs):
         raise ValueError(f"env_ids must lie in [0, {num_envs}), got {ids.tolist()}")
@@ -87,8 +91,10 @@ def check_agent(agent) -> None:
     """``agent`` has the rollout's hooks (``AGENT_HOOKS`` and ``done_reason``): a ``BaseAgent``."""
     missing = [h for h in AGENT_HOOKS if not callable(getattr(agent, h, None))]
     if missing or not isinstance(getattr(agent, "done_reason", None), str):
-        raise ValueError(f"agent {type(agent).__name__} lacks {missing or ['done_reason']}; subclass "
-                         f"newton_lab.agents.BaseAgent (e.g. newton_lab.agents.expert_agent(env))")
+        raise ValueError(
+            f"agent {type(agent).__name__} lacks {missing or ['done_reason']}; subclass "
+            f"newton_lab.agents.BaseAgent (e.g. newton_lab.agents.expert_agent(env))"
+        )
 
 
 def check_counts(*, episodes, max_steps) -> None:
@@ -124,8 +130,10 @@ def resolved_cfg(cfg):
     (``TaskSpec.cfg()``) is refused; one whose terms were replaced after ``make_cfg`` (StackCube's
     ``reference_rewards()``) resolves the new terms here, each ``held`` counter a new one."""
     if not getattr(cfg, "task_id", None):
-        raise ValueError("this TaskCfg names no task: TaskSpec.cfg() neither names it nor resolves its generic "
-                         "terms; build the env with make_env(task_id), or from TaskSpec.make_cfg(options)")
+        raise ValueError(
+            "this TaskCfg names no task: TaskSpec.cfg() neither names it nor resolves its generic "
+            "terms; build the env with make_env(task_id), or from TaskSpec.make_cfg(options)"
+        )
     if not unresolved_terms(cfg):
         return cfg
     return resolve_cfg(cfg, first_hold_slot=cfg.hold_slots)

@@ -92,8 +92,9 @@ class NewtonEnv:
                 self.sim.capture_step()
 
     # ------------------------------------------------------------------ construction
-    def _build(self, layout, scenario, default_q, default_target_q, camera_specs, randomize: bool,
-               capture: bool) -> None:
+    def _build(
+        self, layout, scenario, default_q, default_target_q, camera_specs, randomize: bool, capture: bool
+    ) -> None:
         """The action map, the step buffers and task context, the kernels and launches, the cameras, and the named
         parts over them."""
         cfg, n = self.cfg, self.num_envs
@@ -102,47 +103,110 @@ class NewtonEnv:
         """The action's columns: the joint each commands."""
         self.action_dim = binding.actions.dim
         actuation = Actuation(binding, cfg, layout, self.control, n)
-        obs_terms = observation_layout(cfg, {ACTION_DIM: self.action_dim, ROBOT_COORDS: layout.robot_coords,
-                                             ARM_JOINTS: len(binding.context.arm_coords)})
+        obs_terms = observation_layout(
+            cfg,
+            {
+                ACTION_DIM: self.action_dim,
+                ROBOT_COORDS: layout.robot_coords,
+                ARM_JOINTS: len(binding.context.arm_coords),
+            },
+        )
         obs_dim = max((s.stop for s in obs_terms.values()), default=0)
         signal_names = tuple(cfg.signals)
         buf = StepBuffers.allocate(
-            num_envs=n, action_dim=self.action_dim, obs_dim=obs_dim, signals=len(signal_names),
-            entities=len(layout.entity_names), articulations=self.model.articulation_count,
-            coords_per_world=layout.coords_per_world)
-        ctx = build_context(cfg=cfg, layout=layout, binding=binding, state=self.state, control=self.control,
-                            actions=buf.actions, num_envs=n)
+            num_envs=n,
+            action_dim=self.action_dim,
+            obs_dim=obs_dim,
+            signals=len(signal_names),
+            entities=len(layout.entity_names),
+            articulations=self.model.articulation_count,
+            coords_per_world=layout.coords_per_world,
+        )
+        ctx = build_context(
+            cfg=cfg,
+            layout=layout,
+            binding=binding,
+            state=self.state,
+            control=self.control,
+            actions=buf.actions,
+            num_envs=n,
+        )
         kernels = build_task_kernels(cfg, obs_terms)
-        self.buffers = EnvBuffers.views(buf, ctx, obs_dim=obs_dim, entities=len(layout.entity_names),
-                                        signals=len(signal_names), command_dim=cfg.command_dim)
+        self.buffers = EnvBuffers.views(
+            buf,
+            ctx,
+            obs_dim=obs_dim,
+            entities=len(layout.entity_names),
+            signals=len(signal_names),
+            command_dim=cfg.command_dim,
+        )
         """The step's buffers as torch views (``envs.parts.EnvBuffers``); ``obs``, ``reward``, ``info`` ... are
         also on the env."""
         self.obs, self.reward, self.info = self.buffers.obs, self.buffers.reward, self.buffers.info
         self.terminated, self.truncated = self.buffers.terminated, self.buffers.truncated
-        self.task = EnvTask(obs_terms=obs_terms, obs_dim=obs_dim, signal_names=signal_names,
-                            termination_reasons=cfg.termination_reasons, entities=entity_table(layout),
-                            scenario=scenario, phases=tuple(cfg.phases), randomize=randomize, context=ctx,
-                            kernels=kernels)
+        self.task = EnvTask(
+            obs_terms=obs_terms,
+            obs_dim=obs_dim,
+            signal_names=signal_names,
+            termination_reasons=cfg.termination_reasons,
+            entities=entity_table(layout),
+            scenario=scenario,
+            phases=tuple(cfg.phases),
+            randomize=randomize,
+            context=ctx,
+            kernels=kernels,
+        )
         """The task as the env runs it (``envs.parts.EnvTask``)."""
-        cams = Cameras(camera_specs, model=self.model, state=self.state, num_envs=n,
-                       bodies_per_world=layout.bodies_per_world, entity_names=layout.entity_names, capture=capture,
-                       randomize=randomize, seed=lambda: self.seed, episode=buf.episode_count,
-                       keep_hue=[e.name for e in cfg.entities if e.keep_hue], robot=self.robot)
-        self.sensors = EnvSensors(cameras=cams, camera_specs=camera_specs, image_terms=cams.terms,
-                                  images=ImageViews(cams))
+        cams = Cameras(
+            camera_specs,
+            model=self.model,
+            state=self.state,
+            num_envs=n,
+            bodies_per_world=layout.bodies_per_world,
+            entity_names=layout.entity_names,
+            capture=capture,
+            randomize=randomize,
+            seed=lambda: self.seed,
+            episode=buf.episode_count,
+            keep_hue=[e.name for e in cfg.entities if e.keep_hue],
+            robot=self.robot,
+        )
+        self.sensors = EnvSensors(
+            cameras=cams, camera_specs=camera_specs, image_terms=cams.terms, images=ImageViews(cams)
+        )
         """The cameras and their image terms (``envs.parts.EnvSensors``)."""
         launches = StepLaunches(
-            cfg=cfg, model=self.model, state=self.state, solver=self.solver, drive=actuation.drive,
-            actuation=actuation, ctx=ctx, buffers=buf, kernels=kernels,
-            default_q=wp.array(default_q, dtype=float), default_target_q=wp.array(default_target_q, dtype=float),
-            seed=lambda: self.seed, randomize=lambda: randomize,
-            joint_space=SolverJointSpace(layout, n) if layout.welded else None)
-        self.sim = EnvSim(model=self.model, state=self.state, control=self.control, drive=actuation.drive,
-                          solver=self.solver, layout=layout, joint_space=launches.joint_space, launches=launches,
-                          cameras=cams, device=self.device)
+            cfg=cfg,
+            model=self.model,
+            state=self.state,
+            solver=self.solver,
+            drive=actuation.drive,
+            actuation=actuation,
+            ctx=ctx,
+            buffers=buf,
+            kernels=kernels,
+            default_q=wp.array(default_q, dtype=float),
+            default_target_q=wp.array(default_target_q, dtype=float),
+            seed=lambda: self.seed,
+            randomize=lambda: randomize,
+            joint_space=SolverJointSpace(layout, n) if layout.welded else None,
+        )
+        self.sim = EnvSim(
+            model=self.model,
+            state=self.state,
+            control=self.control,
+            drive=actuation.drive,
+            solver=self.solver,
+            layout=layout,
+            joint_space=launches.joint_space,
+            launches=launches,
+            cameras=cams,
+            device=self.device,
+        )
         """The physics and the step's parts alone (``envs.parts.EnvSim``)."""
-        self.joints = EnvJoints(binding=binding, actuation=actuation, sim=self.sim, num_envs=n,
-                                torch_device=self.torch_device)
+        self.joints = EnvJoints(
+            binding=binding, actuation=actuation, sim=self.sim, num_envs=n, torch_device=self.torch_device
+        )
         """The robot on this scene (``envs.parts.EnvJoints``)."""
         self._launches = launches
 
@@ -169,8 +233,13 @@ class NewtonEnv:
             signals of the state the step reached; ``info["signals"]`` belong to ``obs``). A row whose
             physics diverged (non-finite or beyond ``cfg.divergence_bounds``) ends with reason ``diverged``.
         """
-        checked = check_actions(actions, num_envs=self.num_envs, action_dim=self.action_dim,
-                                device=self.torch_device, columns=self.action_joint_names)
+        checked = check_actions(
+            actions,
+            num_envs=self.num_envs,
+            action_dim=self.action_dim,
+            device=self.torch_device,
+            columns=self.action_joint_names,
+        )
         self.buffers.actions.copy_(checked.detach())  # a policy's graph never reaches the env's buffer
         self.sim.launch_step()
         return self.obs, self.reward, self.terminated, self.truncated, self.info
@@ -203,8 +272,9 @@ class NewtonEnv:
     def collect(self, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True, **kwargs):
         """Run ``agent`` for ``episodes`` episodes and write them to ``path``; returns a ``DatasetRef``
         whose metadata is the run summary (see ``newton_lab.envs.rollout.collect``)."""
-        return rollout.collect(self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress,
-                       **kwargs)
+        return rollout.collect(
+            self, agent=agent, episodes=episodes, path=path, max_steps=max_steps, progress=progress, **kwargs
+        )
 
     def evaluate(self, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True, **kwargs):
         """Run ``agent`` for ``episodes`` episodes and report success rate and lengths (see ``rollout``)."""

@@ -70,8 +70,10 @@ def action_bounds(env: NewtonEnv) -> tuple[np.ndarray, np.ndarray]:
 def observation_space(env: NewtonEnv) -> spaces.Dict:
     """One row's observation space: a ``Box`` per observation term (then per camera image term), in the env's
     order (flattened, the state terms are ``env.obs``'s columns)."""
-    boxes = OrderedDict((name, spaces.Box(-np.inf, np.inf, (sl.stop - sl.start,), np.float32))
-                        for name, sl in env.task.obs_terms.items())
+    boxes = OrderedDict(
+        (name, spaces.Box(-np.inf, np.inf, (sl.stop - sl.start,), np.float32))
+        for name, sl in env.task.obs_terms.items()
+    )
     for name, term in env.sensors.image_terms.items():
         low, high = IMAGE_BOUNDS[term.data]
         boxes[name] = spaces.Box(low, high, tuple(term.shape), torch.empty(0, dtype=term.dtype).numpy().dtype)
@@ -84,8 +86,9 @@ class NewtonVectorEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
-    def __init__(self, task_id: str = DEFAULT_TASK_ID, num_envs: int = 1, *, env: NewtonEnv | None = None,
-                 **make_env_kwargs: Any):
+    def __init__(
+        self, task_id: str = DEFAULT_TASK_ID, num_envs: int = 1, *, env: NewtonEnv | None = None, **make_env_kwargs: Any
+    ):
         self.env = env if env is not None else make_env(task_id, num_envs=num_envs, **make_env_kwargs)
         self.num_envs = self.env.num_envs
         self.single_observation_space = observation_space(self.env)
@@ -119,8 +122,9 @@ class NewtonVectorEnv(VectorEnv):
         if mask is not None:
             mask = np.asarray(mask)
             if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
-                raise ValueError(f"options['reset_mask'] must be a ({self.num_envs},) bool array, got "
-                                 f"{mask.dtype} {mask.shape}")
+                raise ValueError(
+                    f"options['reset_mask'] must be a ({self.num_envs},) bool array, got {mask.dtype} {mask.shape}"
+                )
             obs, _ = self.env.reset(env_ids=np.flatnonzero(mask))
         elif seed is not None:
             obs, _ = self.env.reseed(int(seed))
@@ -132,13 +136,20 @@ class NewtonVectorEnv(VectorEnv):
         """One control step of every row: ``actions`` (num_envs, action_dim) numpy or torch. Returns
         ``(obs, reward, terminated, truncated, info)`` as numpy (see the module docstring for ``info``)."""
         env = self.env
-        act = torch.as_tensor(np.asarray(actions, dtype=np.float32) if not isinstance(actions, torch.Tensor)
-                              else actions, device=env.torch_device, dtype=torch.float32)
+        act = torch.as_tensor(
+            np.asarray(actions, dtype=np.float32) if not isinstance(actions, torch.Tensor) else actions,
+            device=env.torch_device,
+            dtype=torch.float32,
+        )
         obs, reward, terminated, truncated, _ = env.step(act)
         done = env.info["done"].detach().cpu().numpy().copy()
         info = self._info()
-        out = (self._obs(obs), reward.detach().cpu().numpy().copy(), terminated.detach().cpu().numpy().copy(),
-               truncated.detach().cpu().numpy().copy())
+        out = (
+            self._obs(obs),
+            reward.detach().cpu().numpy().copy(),
+            terminated.detach().cpu().numpy().copy(),
+            truncated.detach().cpu().numpy().copy(),
+        )
         if done.any():
             final = self._obs(env.buffers.final_obs, images=False)
             final_obs = np.full(self.num_envs, None, dtype=object)
@@ -159,8 +170,10 @@ class NewtonGymEnv(gymnasium.Env):
 
     def __init__(self, task_id: str = DEFAULT_TASK_ID, num_envs: int | None = None, **make_env_kwargs: Any):
         if num_envs not in (None, 1):
-            raise ValueError(f"gymnasium.make builds one world (a gymnasium.Env); for num_envs={num_envs} use "
-                             f"gymnasium.make_vec('{NAMESPACE}/{task_id}', num_envs={num_envs})")
+            raise ValueError(
+                f"gymnasium.make builds one world (a gymnasium.Env); for num_envs={num_envs} use "
+                f"gymnasium.make_vec('{NAMESPACE}/{task_id}', num_envs={num_envs})"
+            )
         self.vector = NewtonVectorEnv(task_id, num_envs=1, **make_env_kwargs)
         self.observation_space = self.vector.single_observation_space
         self.action_space = self.vector.single_action_space
@@ -187,8 +200,13 @@ def register_tasks() -> list[str]:
     for task_id in list_tasks():
         gym_id = f"{NAMESPACE}/{task_id}"
         if gym_id not in gymnasium.registry:
-            gymnasium.register(id=gym_id, entry_point=NewtonGymEnv, vector_entry_point=NewtonVectorEnv,
-                               kwargs={"task_id": task_id}, disable_env_checker=False)
+            gymnasium.register(
+                id=gym_id,
+                entry_point=NewtonGymEnv,
+                vector_entry_point=NewtonVectorEnv,
+                kwargs={"task_id": task_id},
+                disable_env_checker=False,
+            )
         ids.append(gym_id)
     return ids
 
@@ -196,5 +214,12 @@ def register_tasks() -> list[str]:
 GYM_IDS = register_tasks()
 """The gymnasium ids registered by importing this module."""
 
-__all__ = ["GYM_IDS", "NAMESPACE", "NewtonGymEnv", "NewtonVectorEnv", "action_bounds", "observation_space",
-           "register_tasks"]
+__all__ = [
+    "GYM_IDS",
+    "NAMESPACE",
+    "NewtonGymEnv",
+    "NewtonVectorEnv",
+    "action_bounds",
+    "observation_space",
+    "register_tasks",
+]

@@ -18,11 +18,22 @@ from .scene import SceneLayout
 
 
 @wp.kernel
-def full_to_solver(q: wp.array(dtype=float), qd: wp.array(dtype=float), target_q: wp.array(dtype=float),
-                   target_qd: wp.array(dtype=float), coord: wp.array(dtype=int), dof: wp.array(dtype=int),
-                   full_coords: int, full_dofs: int, coords: int, dofs: int, solver_q: wp.array(dtype=float),
-                   solver_qd: wp.array(dtype=float), solver_target_q: wp.array(dtype=float),
-                   solver_target_qd: wp.array(dtype=float)):
+def full_to_solver(
+    q: wp.array(dtype=float),
+    qd: wp.array(dtype=float),
+    target_q: wp.array(dtype=float),
+    target_qd: wp.array(dtype=float),
+    coord: wp.array(dtype=int),
+    dof: wp.array(dtype=int),
+    full_coords: int,
+    full_dofs: int,
+    coords: int,
+    dofs: int,
+    solver_q: wp.array(dtype=float),
+    solver_qd: wp.array(dtype=float),
+    solver_target_q: wp.array(dtype=float),
+    solver_target_qd: wp.array(dtype=float),
+):
     """Row ``w``, entry ``i``: the env's coordinate / velocity / drive targets into the solver's, unless welded
     (``coord[i]`` / ``dof[i]`` < 0). Position targets follow the coordinates, velocity targets the DOFs."""
     w, i = wp.tid()
@@ -39,9 +50,18 @@ def full_to_solver(q: wp.array(dtype=float), qd: wp.array(dtype=float), target_q
 
 
 @wp.kernel
-def solver_to_full(solver_q: wp.array(dtype=float), solver_qd: wp.array(dtype=float), coord: wp.array(dtype=int),
-                   dof: wp.array(dtype=int), full_coords: int, full_dofs: int, coords: int, dofs: int,
-                   q: wp.array(dtype=float), qd: wp.array(dtype=float)):
+def solver_to_full(
+    solver_q: wp.array(dtype=float),
+    solver_qd: wp.array(dtype=float),
+    coord: wp.array(dtype=int),
+    dof: wp.array(dtype=int),
+    full_coords: int,
+    full_dofs: int,
+    coords: int,
+    dofs: int,
+    q: wp.array(dtype=float),
+    qd: wp.array(dtype=float),
+):
     """Row ``w``, entry ``i``: the solver's coordinate and velocity back into the env's; welded entries keep
     their values."""
     w, i = wp.tid()
@@ -73,24 +93,38 @@ class SolverJointSpace:
         self._full = (layout.coords_per_world, layout.dofs_per_world)
         self._solver = (self.model.joint_coord_count // num_envs, self.model.joint_dof_count // num_envs)
         if self.drive.joint_target_q.shape[0] != self.model.joint_coord_count:
-            raise RuntimeError("Newton's position targets are no longer one per coordinate; envs.joint_space "
-                               "copies them by coordinate")
+            raise RuntimeError(
+                "Newton's position targets are no longer one per coordinate; envs.joint_space copies them by coordinate"
+            )
         self._dims = (num_envs, max(self._full))
 
     def push(self, state: newton.State, drive: newton.Control) -> None:
         """The env's coordinates, velocities and drive targets into the solver's (one launch)."""
         d = self.drive
-        wp.launch(full_to_solver, dim=self._dims,
-                  inputs=[state.joint_q, state.joint_qd, drive.joint_target_q, drive.joint_target_qd, self._coord,
-                          self._dof, *self._full, *self._solver],
-                  outputs=[self.state.joint_q, self.state.joint_qd, d.joint_target_q, d.joint_target_qd])
+        wp.launch(
+            full_to_solver,
+            dim=self._dims,
+            inputs=[
+                state.joint_q,
+                state.joint_qd,
+                drive.joint_target_q,
+                drive.joint_target_qd,
+                self._coord,
+                self._dof,
+                *self._full,
+                *self._solver,
+            ],
+            outputs=[self.state.joint_q, self.state.joint_qd, d.joint_target_q, d.joint_target_qd],
+        )
 
     def pull(self, state: newton.State) -> None:
         """The solver's coordinates and velocities back into the env's (one launch; welded ones keep theirs)."""
-        wp.launch(solver_to_full, dim=self._dims,
-                  inputs=[self.state.joint_q, self.state.joint_qd, self._coord, self._dof, *self._full,
-                          *self._solver],
-                  outputs=[state.joint_q, state.joint_qd])
+        wp.launch(
+            solver_to_full,
+            dim=self._dims,
+            inputs=[self.state.joint_q, self.state.joint_qd, self._coord, self._dof, *self._full, *self._solver],
+            outputs=[state.joint_q, state.joint_qd],
+        )
 
     def forward_kinematics(self, state: newton.State) -> None:
         """The env's body poses and twists from its coordinates, on the full model (after ``pull``)."""
@@ -107,6 +141,8 @@ def check_welded_reset(task_id: str, layout: SceneLayout, reset, welded_at) -> N
     moved = np.abs(got - want).max(axis=0) > 1e-5
     if moved.any():
         j = int(np.argmax(moved))
-        raise ValueError(f"{task_id}: the reset moves welded joint {names[j]!r} (welded at {want[j]:.4g}, reset to "
-                         f"{got[:, j].tolist()}); drive it with an action term or declare "
-                         "PhysicsCfg(weld_idle_joints=False)")
+        raise ValueError(
+            f"{task_id}: the reset moves welded joint {names[j]!r} (welded at {want[j]:.4g}, reset to "
+            f"{got[:, j].tolist()}); drive it with an action term or declare "
+            "PhysicsCfg(weld_idle_joints=False)"
+        )

@@ -35,10 +35,24 @@ class StepLaunches:
     live on the current device (callers hold a ``wp.ScopedDevice``). ``seed()`` and ``randomize()`` are read at
     each launch (and baked into a captured graph when it is recorded)."""
 
-    def __init__(self, *, cfg: TaskCfg, model: newton.Model, state: newton.State, solver, drive: newton.Control,
-                 actuation: Actuation, ctx: TaskContext, buffers: StepBuffers, kernels: TaskKernels,
-                 default_q: wp.array, default_target_q: wp.array, seed: Callable[[], int],
-                 randomize: Callable[[], bool], joint_space: SolverJointSpace | None = None):
+    def __init__(
+        self,
+        *,
+        cfg: TaskCfg,
+        model: newton.Model,
+        state: newton.State,
+        solver,
+        drive: newton.Control,
+        actuation: Actuation,
+        ctx: TaskContext,
+        buffers: StepBuffers,
+        kernels: TaskKernels,
+        default_q: wp.array,
+        default_target_q: wp.array,
+        seed: Callable[[], int],
+        randomize: Callable[[], bool],
+        joint_space: SolverJointSpace | None = None,
+    ):
         self.cfg, self.model, self.state, self.solver, self.drive = cfg, model, state, solver, drive
         self.joint_space = joint_space
         self.actuation, self.ctx, self.buf, self.kernels = actuation, ctx, buffers, kernels
@@ -67,8 +81,12 @@ class StepLaunches:
                 self.step()
         except Exception as e:  # noqa: BLE001 - depends on the Warp build; told, not hidden
             reason = " ".join(f"{type(e).__name__}: {e}".split())
-            warnings.warn(f"{self.cfg.task_id}: the env step could not be captured as a graph ({reason}); "
-                          "stepping eagerly (correct, slower)", GraphCaptureWarning, stacklevel=2)
+            warnings.warn(
+                f"{self.cfg.task_id}: the env step could not be captured as a graph ({reason}); "
+                "stepping eagerly (correct, slower)",
+                GraphCaptureWarning,
+                stacklevel=2,
+            )
             return None
         return cap.graph
 
@@ -104,8 +122,9 @@ class StepLaunches:
             physics, js = self.control_step_physics, self.joint_space
             state, drive = (js.state, js.drive) if js is not None else (self.state, self.drive)
             for i in range(self.cfg.decimation):  # the yaw: the env's before the push, then MuJoCo's
-                self.actuation.substep(self.buf.actions, self.ctx.phase, self.state.joint_q,
-                                       self._yaw_in_qpos if i else None)
+                self.actuation.substep(
+                    self.buf.actions, self.ctx.phase, self.state.joint_q, self._yaw_in_qpos if i else None
+                )
                 if js is not None:
                     js.push(self.state, self.drive)  # the new setpoints (the coordinates copied are not read)
                 if i == 0:
@@ -136,8 +155,11 @@ class StepLaunches:
 
     def keep_terminal_coords(self, mask: wp.array) -> None:
         """The masked rows' coordinates into ``terminal_q`` (before their reset replaces them)."""
-        wp.launch(fuse.keep_terminal_coords, dim=self.buf.terminal_q.shape,
-                  inputs=[mask, self.state.joint_q, self.buf.terminal_q])
+        wp.launch(
+            fuse.keep_terminal_coords,
+            dim=self.buf.terminal_q.shape,
+            inputs=[mask, self.state.joint_q, self.buf.terminal_q],
+        )
 
     def reset_rows(self, mask: wp.array) -> None:
         buf = self.buf
@@ -163,8 +185,11 @@ class StepLaunches:
         )
         newton.eval_fk(self.model, self.state.joint_q, self.state.joint_qd, self.state, mask=buf.articulation_mask)
         data = self.solver.mjw_data  # the reset worlds' solver history (NaN after a divergence) is cleared
-        wp.launch(fuse.clear_solver_warmstart, dim=data.qacc_warmstart.shape,
-                  inputs=[mask, data.qacc_warmstart, data.qacc, data.qvel])
+        wp.launch(
+            fuse.clear_solver_warmstart,
+            dim=data.qacc_warmstart.shape,
+            inputs=[mask, data.qacc_warmstart, data.qacc, data.qvel],
+        )
 
     def write_signals(self, out: wp.array2d) -> None:
         if self.kernels.signals is not None:

@@ -21,8 +21,15 @@ import newton
 import numpy as np
 import warp as wp
 
-REQUIRED = ("_update_mjc_data", "_apply_mjc_control", "_mujoco_warp_step", "_update_newton_state",
-            "_update_kinematic_weld_references", "mjw_data", "mjw_model")
+REQUIRED = (
+    "_update_mjc_data",
+    "_apply_mjc_control",
+    "_mujoco_warp_step",
+    "_update_newton_state",
+    "_update_kinematic_weld_references",
+    "mjw_data",
+    "mjw_model",
+)
 """The ``SolverMuJoCo`` members this path calls."""
 
 
@@ -44,8 +51,10 @@ class ControlStepPhysics:
 
     def __init__(self, solver, model: newton.Model, sim_dt: float) -> None:
         if not supported(solver):
-            raise ValueError("ControlStepPhysics needs Newton's SolverMuJoCo on MuJoCo-Warp (use_mujoco_cpu=False) "
-                             "with its own collision detection and no kinematic welds")
+            raise ValueError(
+                "ControlStepPhysics needs Newton's SolverMuJoCo on MuJoCo-Warp (use_mujoco_cpu=False) "
+                "with its own collision detection and no kinematic welds"
+            )
         self.solver, self.model, self.sim_dt = solver, model, float(sim_dt)
 
     def begin(self, state: newton.State) -> None:

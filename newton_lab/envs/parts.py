@@ -34,8 +34,20 @@ class EnvSim:
     ``joint_space`` the solver's own joint space when the task welds its idle joints (``envs.joint_space``), else
     ``None``; ``layout`` the scene's layout (``envs.scene``: joints, bodies, entities per world, welded joints)."""
 
-    def __init__(self, *, model, state, control, drive, solver, layout, joint_space: SolverJointSpace | None,
-                 launches: StepLaunches, cameras: Cameras, device):
+    def __init__(
+        self,
+        *,
+        model,
+        state,
+        control,
+        drive,
+        solver,
+        layout,
+        joint_space: SolverJointSpace | None,
+        launches: StepLaunches,
+        cameras: Cameras,
+        device,
+    ):
         self.model, self.state, self.control, self.drive, self.solver = model, state, control, drive, solver
         self.layout = layout
         self.joint_space = joint_space
@@ -180,11 +192,20 @@ class EnvBuffers:
     @classmethod
     def views(cls, buf: StepBuffers, ctx, *, obs_dim: int, entities: int, signals: int, command_dim: int):
         t = wp.to_torch
-        return cls(obs=t(buf.obs)[:, :obs_dim], reward=t(buf.reward), terminated=t(buf.terminated),
-                   truncated=t(buf.truncated), info=buf.info(ctx, signals=signals, command_dim=command_dim),
-                   actions=t(buf.actions), final_obs=t(buf.final_obs)[:, :obs_dim], terminal_joint_q=t(buf.terminal_q),
-                   episode_count=t(buf.episode_count), tcp_pose=t(buf.tcp_pose),
-                   entity_poses=t(buf.entity_poses)[:, :entities], arrays=buf)
+        return cls(
+            obs=t(buf.obs)[:, :obs_dim],
+            reward=t(buf.reward),
+            terminated=t(buf.terminated),
+            truncated=t(buf.truncated),
+            info=buf.info(ctx, signals=signals, command_dim=command_dim),
+            actions=t(buf.actions),
+            final_obs=t(buf.final_obs)[:, :obs_dim],
+            terminal_joint_q=t(buf.terminal_q),
+            episode_count=t(buf.episode_count),
+            tcp_pose=t(buf.tcp_pose),
+            entity_poses=t(buf.entity_poses)[:, :entities],
+            arrays=buf,
+        )
 
 
 class EnvJoints:
@@ -232,8 +253,10 @@ class EnvJoints:
         rows = torch.as_tensor(row_mask(env_ids, self._num_envs), device=self._torch_device).nonzero().flatten()
         vals = torch.as_tensor(values, dtype=torch.float32, device=self._torch_device)
         if vals.shape not in ((len(coords),), (len(rows), len(coords))):
-            raise ValueError(f"values has shape {tuple(vals.shape)}; pass ({len(coords)},) or ({len(rows)}, "
-                             f"{len(coords)}): one value per named joint (per row)")
+            raise ValueError(
+                f"values has shape {tuple(vals.shape)}; pass ({len(coords)},) or ({len(rows)}, "
+                f"{len(coords)}): one value per named joint (per row)"
+            )
         dofs = [sim.layout.joints.dof[n] for n in names]
         self.actuation.place(sim.state, rows, coords, dofs, vals.expand(len(rows), len(coords)))
         with wp.ScopedDevice(sim.model.device):

@@ -18,10 +18,20 @@ import threading
 import warp as wp
 
 PREFETCH_MODULES = (
-    "mujoco_warp._src.set_const", "mujoco_warp._src.smooth", "newton_lab.kernels.fuse", "newton_lab.kernels.actions",
-    "newton._src.sim.articulation", "newton_lab.kernels.context", "mujoco_warp._src.constraint",
-    "mujoco_warp._src.forward", "mujoco_warp._src.passive", "mujoco_warp._src.support", "mujoco_warp._src.solver",
-    "mujoco_warp._src.derivative", "newton._src.sim.ik.ik_common", "newton._src.sim.ik.ik_objectives",
+    "mujoco_warp._src.set_const",
+    "mujoco_warp._src.smooth",
+    "newton_lab.kernels.fuse",
+    "newton_lab.kernels.actions",
+    "newton._src.sim.articulation",
+    "newton_lab.kernels.context",
+    "mujoco_warp._src.constraint",
+    "mujoco_warp._src.forward",
+    "mujoco_warp._src.passive",
+    "mujoco_warp._src.support",
+    "mujoco_warp._src.solver",
+    "mujoco_warp._src.derivative",
+    "newton._src.sim.ik.ik_common",
+    "newton._src.sim.ik.ik_objectives",
     "newton._src.sim.ik.ik_solver",
 )
 """Modules in the order the env first launches them (``make_env`` -> first step -> planner), each compiling for

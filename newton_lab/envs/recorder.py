@@ -67,8 +67,10 @@ class EpisodeRecorder:
         self._rewards = torch.zeros(n, max_steps, device=env.torch_device)
         self._next_obs = torch.zeros(n, max_steps, env.buffers.final_obs.shape[1], device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
-        self._images = {name: torch.zeros((n, 0, *term.shape), dtype=term.dtype, device=env.torch_device)
-                        for name, term in self.image_terms.items()}
+        self._images = {
+            name: torch.zeros((n, 0, *term.shape), dtype=term.dtype, device=env.torch_device)
+            for name, term in self.image_terms.items()
+        }
 
     def _grow_images(self, last: int) -> None:
         """Make the image buffers hold step ``last`` (grown by whole ``IMAGE_CHUNK_STEPS`` chunks)."""
@@ -86,7 +88,8 @@ class EpisodeRecorder:
                 raise MemoryError(
                     f"recording {name} of {buf.shape[0]} rows for {new_cap} steps needs {need:.1f} GiB on "
                     f"{buf.device}, more than is free; record fewer rows (--num-envs), smaller frames "
-                    f"(--cameras name=WxH) or no images (--cameras none)") from None
+                    f"(--cameras name=WxH) or no images (--cameras none)"
+                ) from None
             grown[:, :cap] = buf
             self._images[name] = grown
 
@@ -129,9 +132,12 @@ class EpisodeRecorder:
         demos into a pack copies whole blocks instead of strided column slices of every demo (512 PickCube demos on the
         CPU: 0.40 -> 0.28 ms a demo, noisy)."""
         got = self.fetch(rows, lengths)
-        block = DemoBlock.from_rows(self.layout, got.stacked.cpu().numpy(),
-                                    {name: img.cpu().numpy() for name, img in got.images.items()},
-                                    [(k, t, None, {}) for k, t in enumerate(got.lengths)])
+        block = DemoBlock.from_rows(
+            self.layout,
+            got.stacked.cpu().numpy(),
+            {name: img.cpu().numpy() for name, img in got.images.items()},
+            [(k, t, None, {}) for k, t in enumerate(got.lengths)],
+        )
         return dict(zip(got.rows, block.trees())), got.finite
 
     def _stacked(self, idx: torch.Tensor, span: int) -> torch.Tensor:
@@ -173,9 +179,16 @@ def camera_args(env) -> dict[str, Any]:
     if not specs:
         return {}
     names = list(env.sensors.cameras.segmentation_names)
-    return {cam: {"width": c.width, "height": c.height, "data": list(c.data),
-                  "intrinsics": env.sensors.cameras.intrinsics(cam).tolist(), "segmentation_names": names}
-            for cam, c in specs.items()}
+    return {
+        cam: {
+            "width": c.width,
+            "height": c.height,
+            "data": list(c.data),
+            "intrinsics": env.sensors.cameras.intrinsics(cam).tolist(),
+            "segmentation_names": names,
+        }
+        for cam, c in specs.items()
+    }
 
 
 def env_args(env) -> dict[str, Any]:
@@ -202,9 +215,16 @@ def env_args(env) -> dict[str, Any]:
             "termination_reasons": list(env.task.termination_reasons),
             "phases": [ph.name for ph in env.cfg.phases],  # a coherent task's, in order (datagen/phase indexes them)
             "state_layout": state_layout(
-                q.shape[1], qd.shape[1], lay.robot_coords, lay.robot_dofs,
-                {name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot]) for name, e in env.task.entities.items()
-                 if e.dynamic}),
+                q.shape[1],
+                qd.shape[1],
+                lay.robot_coords,
+                lay.robot_dofs,
+                {
+                    name: (lay.entity_coord[e.slot], lay.entity_dof[e.slot])
+                    for name, e in env.task.entities.items()
+                    if e.dynamic
+                },
+            ),
             "cameras": camera_args(env),
         },
     }

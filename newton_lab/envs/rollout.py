@@ -44,8 +44,17 @@ only made the writer's bursts (and the wait for the last batch) longer (bench-co
 one torch thread: 4.7-5.1 demos/s gathering against 5.3-5.9 writing each as it ends)."""
 WRITE_MAX_WAIT_S = 1.0
 """Seconds an ended episode waits at most for its batch to fill (``WRITE_MIN_BATCH``)."""
-EVAL_REPORT_KEYS = ("task", "episodes", "successes", "success_rate", "average_length", "termination_reasons",
-                    "diverged", "subtask_signals", "phases")
+EVAL_REPORT_KEYS = (
+    "task",
+    "episodes",
+    "successes",
+    "success_rate",
+    "average_length",
+    "termination_reasons",
+    "diverged",
+    "subtask_signals",
+    "phases",
+)
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
 
 
@@ -94,8 +103,9 @@ class _Episodes:
 
     def enough(self) -> bool:
         if self.until_successes:
-            return self.successes >= self.episodes or (self.max_attempts is not None
-                                                       and len(self.records) >= self.max_attempts)
+            return self.successes >= self.episodes or (
+                self.max_attempts is not None and len(self.records) >= self.max_attempts
+            )
         return len(self.records) >= self.episodes
 
     def add_step(self, reward, info, ended) -> None:
@@ -109,8 +119,12 @@ class _Episodes:
 
     def snapshot(self) -> None:
         """Host copies of the per-row counters, read by :meth:`record` (call once per step, before it)."""
-        self.host = {"length": self.step_in_ep.cpu().numpy(), "reward": self.reward_total.cpu().numpy(),
-                     "reached": self.reached.cpu().numpy(), "phase": self.phase.cpu().numpy()}
+        self.host = {
+            "length": self.step_in_ep.cpu().numpy(),
+            "reward": self.reward_total.cpu().numpy(),
+            "reached": self.reached.cpu().numpy(),
+            "phase": self.phase.cpu().numpy(),
+        }
 
     def record(self, row: int, reason: str) -> dict[str, Any]:
         """The finished episode of ``row`` (from the step's :meth:`snapshot`); frees or retires the row."""
@@ -121,8 +135,9 @@ class _Episodes:
             "success": bool(self.latched[row]) and reason != DIVERGED,
             "reward_total": float(h["reward"][row]),
             "termination_reason": reason,
-            "signals_reached": [name for name, hit in zip(self.env.task.signal_names, h["reached"][row].tolist())
-                                if hit],
+            "signals_reached": [
+                name for name, hit in zip(self.env.task.signal_names, h["reached"][row].tolist()) if hit
+            ],
             "phase": self.env.cfg.phase_names[int(h["phase"][row])],
         }
         if self.quota is None or self.launched < self.quota:
@@ -141,9 +156,22 @@ class _Episodes:
             self.phase[idx] = 0
 
 
-def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=None, saver=None,
-         until_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
-         on_step=None, timers: Timers | None = None, stop=None):
+def _run(
+    env,
+    *,
+    agent,
+    episodes: int,
+    max_steps: int,
+    progress: bool,
+    recorder=None,
+    saver=None,
+    until_successes: bool = False,
+    max_attempts: int | None = None,
+    end_when_agent_done: bool = False,
+    on_step=None,
+    timers: Timers | None = None,
+    stop=None,
+):
     """Shared loop; returns per-episode records, vector steps and wall time.
 
     Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
@@ -163,8 +191,13 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
     agent.reset()
     eps = _Episodes(env, episodes=episodes, until_successes=until_successes, max_attempts=max_attempts)
     vector_steps = 0
-    bar = tqdm(total=episodes, desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
-               unit="ep", disable=None if progress else True, leave=False)  # None: a terminal only
+    bar = tqdm(
+        total=episodes,
+        desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
+        unit="ep",
+        disable=None if progress else True,
+        leave=False,
+    )  # None: a terminal only
     t0 = time.perf_counter()
     lines, last_line = progress and bar.disable, t0  # not a terminal (a log, Prefect): a line every LOG_EVERY_S
     try:
@@ -195,8 +228,13 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 keep = ended[eps.latched[ended]] if until_successes else ended
                 saver.fetch(keep, eps.host["length"][keep])
             for row in ended:
-                reason = (REASON_MAX_STEPS if cut[row] else agent.done_reason if agent_done[row]
-                          else env.task.termination_reasons[reasons[row]])
+                reason = (
+                    REASON_MAX_STEPS
+                    if cut[row]
+                    else agent.done_reason
+                    if agent_done[row]
+                    else env.task.termination_reasons[reasons[row]]
+                )
                 rec = eps.record(row, reason)
                 if saver is not None:
                     rec.update(saver.save(row, rec))
@@ -214,8 +252,12 @@ def _run(env, *, agent, episodes: int, max_steps: int, progress: bool, recorder=
                 break
             if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
                 last_line = time.perf_counter()
-                print(f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "
-                      f"successes, {last_line - t0:.0f} s", file=sys.stderr, flush=True)
+                print(
+                    f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "
+                    f"successes, {last_line - t0:.0f} s",
+                    file=sys.stderr,
+                    flush=True,
+                )
     finally:
         bar.close()
     return eps.records, vector_steps, time.perf_counter() - t0
@@ -272,11 +314,26 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
     }
 
 
-def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress: bool = True,
-            only_successes: bool = False, max_attempts: int | None = None, end_when_agent_done: bool = False,
-            dataset_task_id: str | None = None, operation: str = "collect", config: dict | None = None,
-            on_step=None, save_end_scenario=None, max_queued: int | None = None, timers: Timers | None = None,
-            writer: str = "auto"):
+def collect(
+    env,
+    *,
+    agent,
+    episodes: int,
+    path,
+    max_steps: int = 1000,
+    progress: bool = True,
+    only_successes: bool = False,
+    max_attempts: int | None = None,
+    end_when_agent_done: bool = False,
+    dataset_task_id: str | None = None,
+    operation: str = "collect",
+    config: dict | None = None,
+    on_step=None,
+    save_end_scenario=None,
+    max_queued: int | None = None,
+    timers: Timers | None = None,
+    writer: str = "auto",
+):
     """Run ``agent`` and append finished episodes to the dataset at ``path`` (``.hdf5``/``.h5`` robomimic
     layout or ``.zarr`` v3, same logical tree).
 
@@ -317,8 +374,11 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     recorder = EpisodeRecorder(env, max_steps)
     check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
     store = open_writer(Path(path), task_id=task_id, env_args=args, option_defaults=option_defaults(env.task_id))
-    batching = {"max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
-                "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1, "max_wait_s": WRITE_MAX_WAIT_S}
+    batching = {
+        "max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
+        "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1,
+        "max_wait_s": WRITE_MAX_WAIT_S,
+    }
     if _writer_kind(writer, env.num_envs) == "process":
         writer = writer_process.ProcessWriter(store.path, task_id=task_id, layout=recorder.layout, **batching)
     else:
@@ -328,26 +388,53 @@ def collect(env, *, agent, episodes: int, path, max_steps: int = 1000, progress:
     saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
     try:
         with stop_requests() as stop:  # Ctrl-C / SIGTERM: the loop ends between two steps
-            records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
-                                        recorder=saver.recorder, saver=saver, until_successes=only_successes,
-                                        max_attempts=max_attempts, end_when_agent_done=end_when_agent_done,
-                                        on_step=on_step, timers=timers, stop=stop)
+            records, steps, wall = _run(
+                env,
+                agent=agent,
+                episodes=episodes,
+                max_steps=max_steps,
+                progress=progress,
+                recorder=saver.recorder,
+                saver=saver,
+                until_successes=only_successes,
+                max_attempts=max_attempts,
+                end_when_agent_done=end_when_agent_done,
+                on_step=on_step,
+                timers=timers,
+                stop=stop,
+            )
     finally:
         timers.drain(saver.close)()  # waits for the writer: what finished is written, also on Ctrl-C or an error
     if stop:
         kept = len(saver.saved_ids())
-        raise Interrupted(f"interrupted: {kept} finished episode{'s' * (kept != 1)} of this run kept in {path} (the "
-                          "episodes in flight were dropped); run again to append more", stop.signum)
+        raise Interrupted(
+            f"interrupted: {kept} finished episode{'s' * (kept != 1)} of this run kept in {path} (the "
+            "episodes in flight were dropped); run again to append more",
+            stop.signum,
+        )
     summary = _summary(env, records, steps, wall)
-    summary.update(task=task_id, path=str(path), saved_demo_ids=saver.saved_ids(), attempts=len(records),
-                   writer_batches=writer.batches, writer=type(writer).__name__)
+    summary.update(
+        task=task_id,
+        path=str(path),
+        saved_demo_ids=saver.saved_ids(),
+        attempts=len(records),
+        writer_batches=writer.batches,
+        writer=type(writer).__name__,
+    )
     if isinstance(writer, writer_process.ProcessWriter):
         summary["writer_seconds"] = dict(writer.seconds)
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
-    cfg = {"num_envs": env.num_envs, "seed": env.seed, "randomize": env.task.randomize, "max_steps": max_steps,
-           "agent": type(agent).__name__, "task_options": env.cfg.options, **(config or {})}
+    cfg = {
+        "num_envs": env.num_envs,
+        "seed": env.seed,
+        "randomize": env.task.randomize,
+        "max_steps": max_steps,
+        "agent": type(agent).__name__,
+        "task_options": env.cfg.options,
+        **(config or {}),
+    }
     keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
     return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
 
@@ -366,12 +453,14 @@ def _writer_kind(writer: str, num_envs: int) -> str:
     return writer
 
 
-def evaluate(env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True,
-             on_step=None) -> dict[str, Any]:
+def evaluate(
+    env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True, on_step=None
+) -> dict[str, Any]:
     """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
     check_agent(agent)
-    records, steps, wall = _run(env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress,
-                                on_step=on_step)
+    records, steps, wall = _run(
+        env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress, on_step=on_step
+    )
     summary = _summary(env, records, steps, wall)
     summary["success_masks"] = [r["success"] for r in records]
     return summary

@@ -46,8 +46,7 @@ class EpisodeSaver:
     finished record, then :meth:`submit` the step's episodes to the writer as one batch. :meth:`close` waits for the
     writer."""
 
-    def __init__(self, writer: BackgroundWriter | ProcessWriter, recorder, *, seed: int,
-                 only_successes: bool) -> None:
+    def __init__(self, writer: BackgroundWriter | ProcessWriter, recorder, *, seed: int, only_successes: bool) -> None:
         self.writer, self.recorder, self.seed, self.only_successes = writer, recorder, seed, only_successes
         self.blocks = isinstance(writer, ProcessWriter)
         """Episodes go to the writer as column blocks (a writer process), not as trees."""
@@ -73,8 +72,12 @@ class EpisodeSaver:
         # diverged without tripping the guard: dropped and counted as diverged (images aside: depth holds inf)
         if not got.finite[row]:
             return {"termination_reason": DIVERGED, "success": False, "guard_missed": rec["termination_reason"]}
-        attrs = {"termination_reason": rec["termination_reason"], "env_index": rec["env_index"],
-                 "episode_length": rec["length"], "seed": self.seed}
+        attrs = {
+            "termination_reason": rec["termination_reason"],
+            "env_index": rec["env_index"],
+            "episode_length": rec["length"],
+            "seed": self.seed,
+        }
         demos.append((index[row], rec["length"], bool(rec["success"]), attrs))
         return {}
 
@@ -97,8 +100,9 @@ class EpisodeSaver:
         if self.blocks:
             self._futures += self.writer.put_block(stacked, images, demos)
             return
-        block = DemoBlock.from_rows(self.recorder.layout, stacked.cpu().numpy(),
-                                    {k: v.cpu().numpy() for k, v in images.items()}, demos)
+        block = DemoBlock.from_rows(
+            self.recorder.layout, stacked.cpu().numpy(), {k: v.cpu().numpy() for k, v in images.items()}, demos
+        )
         self._futures += self.writer.put_many(list(zip(block.trees(), block.successes, block.attrs)))
 
     def close(self) -> None:

@@ -64,25 +64,31 @@ class Scenario:
         robot_joints = sorted(n for n in coord if n not in planar)
         for name, value in self.joint_position.items():
             if name not in coord or name in planar:
-                raise ScenarioError(f"{self.origin}: articulations.robot.joint_position names unknown joint "
-                                    f"{name!r} for {task_id}; valid joints: {robot_joints}")
+                raise ScenarioError(
+                    f"{self.origin}: articulations.robot.joint_position names unknown joint "
+                    f"{name!r} for {task_id}; valid joints: {robot_joints}"
+                )
             q[coord[name]] = value
         slots = {name: k for k, name in enumerate(layout.entity_names)}
         for name, pose in self.root_poses.items():
             if name not in slots:
-                raise ScenarioError(f"{self.origin}: rigid_objects.{name} is not an object of {task_id}; "
-                                    f"valid objects: {layout.entity_names}")
+                raise ScenarioError(
+                    f"{self.origin}: rigid_objects.{name} is not an object of {task_id}; "
+                    f"valid objects: {layout.entity_names}"
+                )
             k = slots[name]
             c = layout.entity_coord[k]
             if c < 0:
                 scene = np.asarray(layout.entity_static_pose[k][:3])
                 if np.abs(np.asarray(pose[:3]) - scene).max() > 1e-3:
-                    raise ScenarioError(f"{self.origin}: rigid_objects.{name} is a static object of {task_id} "
-                                        f"at {scene.tolist()}; it cannot be moved (drop the entry)")
+                    raise ScenarioError(
+                        f"{self.origin}: rigid_objects.{name} is a static object of {task_id} "
+                        f"at {scene.tolist()}; it cannot be moved (drop the entry)"
+                    )
                 continue
             quat = np.asarray(pose[3:7], dtype=np.float64)
-            q[c: c + 3] = pose[:3]
-            q[c + 3: c + 7] = quat / np.linalg.norm(quat)
+            q[c : c + 3] = pose[:3]
+            q[c + 3 : c + 7] = quat / np.linalg.norm(quat)
         return q
 
     # ------------------------------------------------------------------ serialise
@@ -145,8 +151,9 @@ def parse_scenario(data: Any, origin: str = "<scenario>") -> Scenario:
         raise ScenarioError(f"{origin}: articulations.robot.joint_position must map joint names to numbers")
     for name, value in joints.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ScenarioError(f"{origin}: articulations.robot.joint_position.{name} must be a finite number, "
-                                f"got {value!r}")
+            raise ScenarioError(
+                f"{origin}: articulations.robot.joint_position.{name} must be a finite number, got {value!r}"
+            )
         scn.joint_position[str(name)] = float(value)
     objects = data.get("rigid_objects") or {}
     if not isinstance(objects, dict):
@@ -173,8 +180,9 @@ def load_scenario(ref: str | Path) -> Scenario:
     else:
         path = Path(text_ref).expanduser()
         if not path.is_file():
-            raise ScenarioError(f"scenario file {path} does not exist; check the path (or save one with "
-                                f"--save-end-scenario)")
+            raise ScenarioError(
+                f"scenario file {path} does not exist; check the path (or save one with --save-end-scenario)"
+            )
         text = path.read_text()
     try:
         data = yaml.safe_load(text)
@@ -196,5 +204,5 @@ def capture_scenario(env, row: int = 0, *, terminal: bool = False, source: str |
     for k, name in enumerate(lay.entity_names):
         c = lay.entity_coord[k]
         if c >= 0:
-            poses[name] = tuple(float(v) for v in q[c: c + 7])
+            poses[name] = tuple(float(v) for v in q[c : c + 7])
     return Scenario(base_pose=base, joint_position=joints, root_poses=poses, source=source or env.task_id)

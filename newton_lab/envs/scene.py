@@ -92,16 +92,21 @@ def check_contact_filter(cfg: TaskCfg, robot: RobotBinding, contact_filter: Cont
     targets = {e.name for e in cfg.entities} | {ANY_OBJECT, GROUND}
     for group, allowed in contact_filter.robot.items():
         if group not in groups:
-            raise ValueError(f"task {cfg.task_id!r} contact filter names robot group {group!r}; groups of "
-                             f"{robot.name}: {sorted(groups)}")
+            raise ValueError(
+                f"task {cfg.task_id!r} contact filter names robot group {group!r}; groups of "
+                f"{robot.name}: {sorted(groups)}"
+            )
         unknown = sorted(set(allowed) - targets)
         if unknown:
-            raise ValueError(f"task {cfg.task_id!r} contact filter lets {group!r} touch {unknown}, which the scene "
-                             f"lacks; targets: {sorted(targets)}")
+            raise ValueError(
+                f"task {cfg.task_id!r} contact filter lets {group!r} touch {unknown}, which the scene "
+                f"lacks; targets: {sorted(targets)}"
+            )
 
 
-def _filter_contacts(world: newton.ModelBuilder, cfg: TaskCfg, robot: RobotBinding, robot_shapes,
-                     entity_shapes: dict[str, int]) -> list[int]:
+def _filter_contacts(
+    world: newton.ModelBuilder, cfg: TaskCfg, robot: RobotBinding, robot_shapes, entity_shapes: dict[str, int]
+) -> list[int]:
     """Add the collision filter pairs of the task's contact filter (``cfg.physics.contact_filter``) between the
     robot's shapes and the scene objects' to the one-world builder; returns the robot shapes that may not touch
     the ground (filtered once the shared ground plane exists). No filter: nothing is added."""
@@ -236,8 +241,9 @@ def build_scene(cfg: TaskCfg, num_envs: int, device: str, robot: RobotBinding | 
     )
 
 
-def with_welded_solver(cfg: TaskCfg, layout: SceneLayout, reset_q: np.ndarray, num_envs: int,
-                       device: str) -> SceneLayout:
+def with_welded_solver(
+    cfg: TaskCfg, layout: SceneLayout, reset_q: np.ndarray, num_envs: int, device: str
+) -> SceneLayout:
     """``layout`` with a solver model in which the task's idle robot joints (``welded_joints``) are welded at
     their reset values ``reset_q`` (one world's coordinates at reset: posture and scenario); ``layout`` itself when
     the task welds nothing."""
@@ -254,5 +260,10 @@ def with_welded_solver(cfg: TaskCfg, layout: SceneLayout, reset_q: np.ndarray, n
         raise RuntimeError("collapsing the welded links changed the shapes; the contact filter would not apply")
     solver_coord, solver_dof = _joint_map(world, welded_world)
     welded = tuple(name for name in weld if solver_coord[layout.joints.coord[name]] < 0)
-    return dataclasses.replace(layout, solver_model=_replicate(welded_world, off_ground, num_envs, device),
-                               welded=welded, solver_coord=solver_coord, solver_dof=solver_dof)
+    return dataclasses.replace(
+        layout,
+        solver_model=_replicate(welded_world, off_ground, num_envs, device),
+        welded=welded,
+        solver_coord=solver_coord,
+        solver_dof=solver_dof,
+    )

@@ -17,8 +17,10 @@ def observation_layout(cfg: TaskCfg, derived: dict[str, int]) -> dict[str, slice
         size = term.size
         if isinstance(size, str):
             if size not in derived:
-                raise ValueError(f"observation {name!r} of {cfg.task_id} has size {size!r}; use an int or one of "
-                                 f"{list(DERIVED_SIZES)}")
+                raise ValueError(
+                    f"observation {name!r} of {cfg.task_id} has size {size!r}; use an int or one of "
+                    f"{list(DERIVED_SIZES)}"
+                )
             size = derived[size]
         layout[name] = slice(col, col + int(size))
         col += int(size)
@@ -40,8 +42,10 @@ def build_task_kernels(cfg: TaskCfg, obs_layout: dict[str, slice]) -> TaskKernel
     """Fuse ``cfg``'s terms into its kernels."""
     clash = sorted(set(cfg.terminations) & set(BUILTIN_TERMINATION_REASONS))
     if clash:
-        raise ValueError(f"{cfg.task_id}: termination terms may not be named {clash}; those names are the env's "
-                         f"own reasons {list(BUILTIN_TERMINATION_REASONS)}; rename the terms")
+        raise ValueError(
+            f"{cfg.task_id}: termination terms may not be named {clash}; those names are the env's "
+            f"own reasons {list(BUILTIN_TERMINATION_REASONS)}; rename the terms"
+        )
     return TaskKernels(
         task=fuse.build_task_kernel(
             phase_success=cfg.phase_success,
@@ -50,7 +54,8 @@ def build_task_kernels(cfg: TaskCfg, obs_layout: dict[str, slice]) -> TaskKernel
             terminate_on_success=cfg.terminate_on_success,
         ),
         observe=fuse.build_observation_kernel(
-            [(term.func, obs_layout[name].start) for name, term in cfg.observations.items()]),
+            [(term.func, obs_layout[name].start) for name, term in cfg.observations.items()]
+        ),
         signals=fuse.build_signal_kernel([t.func for t in cfg.signals.values()]) if cfg.signals else None,
         reset=fuse.build_reset_kernel([t.func for t in cfg.events.values()]),
     )

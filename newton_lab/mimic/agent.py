@@ -89,8 +89,9 @@ class MimicAgent(BaseAgent):
             return _Pick(sub, *cands[int(self.rng.integers(len(cands)))], None, None)
         src_obj = np.stack([src.objects[sub.object_ref][s] for src, s, _ in cands])  # (K, 7) at each segment start
         frames = self._frame(sub, cur_obj, src_obj)
-        dist = (np.linalg.norm(src_obj[:, :3] - cur_obj[:3], axis=1)
-                + self.cfg.rot_weight * rotation_angle(src_obj[:, 3:7], frames[:, 3:7]))
+        dist = np.linalg.norm(src_obj[:, :3] - cur_obj[:3], axis=1) + self.cfg.rot_weight * rotation_angle(
+            src_obj[:, 3:7], frames[:, 3:7]
+        )
         top = np.argsort(dist)[: max(sub.nn_k, 1)]
         k = int(self.rng.choice(top))
         return _Pick(sub, *cands[k], src_obj[k], frames[k])
@@ -121,19 +122,23 @@ class MimicAgent(BaseAgent):
         do not depend on batching), then every picked segment moved into its object frame at once."""
         picks = [(r, self._pick(r, self._rows[r], env_poses)) for r in rows]
         picked = [(r, p) for r, p in picks if p is not None]
-        segs = [p.src.target_tcp[p.start:p.end] for _, p in picked]
+        segs = [p.src.target_tcp[p.start : p.end] for _, p in picked]
         moved = [i for i, (_, p) in enumerate(picked) if p.frame is not None]
         if moved:
-            out = transform_segments([segs[i] for i in moved], np.stack([picked[i][1].src_obj for i in moved]),
-                                     np.stack([picked[i][1].frame for i in moved]))
+            out = transform_segments(
+                [segs[i] for i in moved],
+                np.stack([picked[i][1].src_obj for i in moved]),
+                np.stack([picked[i][1].frame for i in moved]),
+            )
             for i, seg in zip(moved, out):
                 segs[i] = seg
         for (r, p), seg in zip(picked, segs):
             plan = self._rows[r]
             use_last = self.cfg.interpolate_from_last_target_pose and self._has_last[r]
-            interp = interpolate_poses(self._last_target[r] if use_last else tcp_now[r], seg[0],
-                                       p.sub.num_interpolation_steps)
-            grip = p.src.gripper[p.start:p.end]
+            interp = interpolate_poses(
+                self._last_target[r] if use_last else tcp_now[r], seg[0], p.sub.num_interpolation_steps
+            )
+            grip = p.src.gripper[p.start : p.end]
             plan.poses = np.concatenate([interp, seg])
             plan.gripper = np.concatenate([np.full(len(interp), grip[0]), grip])
             plan.noisy = np.concatenate([np.zeros(len(interp), dtype=bool), np.ones(len(seg), dtype=bool)])
@@ -143,8 +148,9 @@ class MimicAgent(BaseAgent):
                 self._done[r] = True
 
     # ------------------------------------------------------------------ the agent contract
-    def _plan_rows(self, rows, fresh: set[int], q_env: np.ndarray, env_poses: dict[str, np.ndarray],
-                   tcp_now: np.ndarray) -> None:
+    def _plan_rows(
+        self, rows, fresh: set[int], q_env: np.ndarray, env_poses: dict[str, np.ndarray], tcp_now: np.ndarray
+    ) -> None:
         """Per-row Python only where a row starts an attempt or a subtask (bookkeeping and the source pick); the
         segments are moved for all those rows at once and copied into the padded step buffers that :meth:`act`
         indexes for every row at once."""
@@ -196,8 +202,11 @@ class MimicAgent(BaseAgent):
         noisy = np.zeros(n, dtype=bool)
         if playing.any():  # a playing row's cursor is inside its segment (planned just above)
             rows, cursor = np.nonzero(playing)[0], self._cursor[playing]
-            targets[rows], grip[rows], noisy[rows] = (self._poses[rows, cursor], self._gripper[rows, cursor],
-                                                      self._noisy[rows, cursor])
+            targets[rows], grip[rows], noisy[rows] = (
+                self._poses[rows, cursor],
+                self._gripper[rows, cursor],
+                self._noisy[rows, cursor],
+            )
         held = ~playing & self._has_last
         targets[held] = self._last_target[held]
         grip[~playing] = self._last_grip[~playing]

@@ -11,9 +11,19 @@ from .agent import MimicAgent
 from .source import load_sources
 
 
-def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: int = 1, device=None,
-          max_attempts: int | None = None, max_steps: int = 1000, progress: bool = True,
-          cameras: bool | dict | None = None) -> DatasetRef:
+def mimic(
+    dataset,
+    *,
+    episodes: int,
+    num_envs: int = 4,
+    output_path=None,
+    seed: int = 1,
+    device=None,
+    max_attempts: int | None = None,
+    max_steps: int = 1000,
+    progress: bool = True,
+    cameras: bool | dict | None = None,
+) -> DatasetRef:
     """Generate ``episodes`` successful demos from the source demos of ``dataset`` (a path or a
     ``DatasetRef``) and append them to ``output_path`` (default ``<stem>_mimic<suffix>`` beside the source).
 
@@ -36,15 +46,18 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
         raise ValueError(f"output_path {out} is the source dataset; choose another path")
     if cameras is None:  # the source's cameras (env_args newton_lab.cameras), at its resolutions and data
         recorded = src.info()["env_args"].get("newton_lab", {}).get("cameras") or {}
-        cameras = {cam: {"resolution": (c["width"], c["height"]), "data": tuple(c["data"])}
-                   for cam, c in recorded.items()} or False
+        cameras = {
+            cam: {"resolution": (c["width"], c["height"]), "data": tuple(c["data"])} for cam, c in recorded.items()
+        } or False
     # the source's task options (obs_mode included): the generated demos record what the source's did
     recorded_options = src.info()["env_args"].get("env_kwargs", {}).get("task_options") or {}
     options = {k: v for k, v in recorded_options.items() if k in variant.option_names}
-    env = make_env(mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras,
-                   task_options=options)
-    sources = load_sources(path, cfg, env.robot.kinematics(256, device=env.device, arm=cfg.arm), task_id=task_id,
-                           robot=env.robot)
+    env = make_env(
+        mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras, task_options=options
+    )
+    sources = load_sources(
+        path, cfg, env.robot.kinematics(256, device=env.device, arm=cfg.arm), task_id=task_id, robot=env.robot
+    )
     agent = MimicAgent(sources, cfg, seed=seed)
     ref = env.collect(
         agent=agent,
@@ -60,7 +73,11 @@ def mimic(dataset, *, episodes: int, num_envs: int = 4, output_path=None, seed: 
         config={"source_path": str(path), "mimic_task_id": mimic_id, "num_sources": len(sources), "seed": seed},
     )
     meta = dict(ref.metadata)
-    meta.update(source_task_id=task_id, mimic_task_id=mimic_id, num_sources=len(sources),
-                status="complete" if meta["successes"] >= episodes else "incomplete",
-                generation_success_rate=meta["successes"] / max(meta["attempts"], 1))
+    meta.update(
+        source_task_id=task_id,
+        mimic_task_id=mimic_id,
+        num_sources=len(sources),
+        status="complete" if meta["successes"] >= episodes else "incomplete",
+        generation_success_rate=meta["successes"] / max(meta["attempts"], 1),
+    )
     return DatasetRef(ref.path, task_id=task_id, metadata=meta, provenance=ref.provenance)

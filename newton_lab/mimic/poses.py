@@ -32,15 +32,28 @@ def mat_to_quat(m: np.ndarray) -> np.ndarray:
     cand = np.stack([t, r[0, 0], r[1, 1], r[2, 2]], -1)
     k = np.argmax(cand, axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):  # the branches not taken may be sqrt(<0) or /0
-        s = np.stack([np.sqrt(1.0 + t), np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]),
-                      np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]), np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])], -1) * 2
+        s = (
+            np.stack(
+                [
+                    np.sqrt(1.0 + t),
+                    np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]),
+                    np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]),
+                    np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]),
+                ],
+                -1,
+            )
+            * 2
+        )
         s0, s1, s2, s3 = (s[..., i] for i in range(4))
-        branches = np.stack([
-            np.stack([(r[2, 1] - r[1, 2]) / s0, (r[0, 2] - r[2, 0]) / s0, (r[1, 0] - r[0, 1]) / s0, 0.25 * s0], -1),
-            np.stack([0.25 * s1, (r[0, 1] + r[1, 0]) / s1, (r[0, 2] + r[2, 0]) / s1, (r[2, 1] - r[1, 2]) / s1], -1),
-            np.stack([(r[0, 1] + r[1, 0]) / s2, 0.25 * s2, (r[1, 2] + r[2, 1]) / s2, (r[0, 2] - r[2, 0]) / s2], -1),
-            np.stack([(r[0, 2] + r[2, 0]) / s3, (r[1, 2] + r[2, 1]) / s3, 0.25 * s3, (r[1, 0] - r[0, 1]) / s3], -1),
-        ], -2)
+        branches = np.stack(
+            [
+                np.stack([(r[2, 1] - r[1, 2]) / s0, (r[0, 2] - r[2, 0]) / s0, (r[1, 0] - r[0, 1]) / s0, 0.25 * s0], -1),
+                np.stack([0.25 * s1, (r[0, 1] + r[1, 0]) / s1, (r[0, 2] + r[2, 0]) / s1, (r[2, 1] - r[1, 2]) / s1], -1),
+                np.stack([(r[0, 1] + r[1, 0]) / s2, 0.25 * s2, (r[1, 2] + r[2, 1]) / s2, (r[0, 2] - r[2, 0]) / s2], -1),
+                np.stack([(r[0, 2] + r[2, 0]) / s3, (r[1, 2] + r[2, 1]) / s3, 0.25 * s3, (r[1, 0] - r[0, 1]) / s3], -1),
+            ],
+            -2,
+        )
     q[...] = np.take_along_axis(branches, k[..., None, None], axis=-2)[..., 0, :]
     q *= np.where(q[..., 3:4] < 0, -1.0, 1.0)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)

@@ -43,8 +43,7 @@ class SourceDemo:
         return ends
 
 
-def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str,
-                 robot: RobotBinding) -> list[SourceDemo]:
+def load_sources(path: Path, cfg: MimicCfg, kinematics, *, task_id: str, robot: RobotBinding) -> list[SourceDemo]:
     """Successful demos of ``path`` that carry every signal ``cfg`` segments on; ``kinematics`` (the robot's,
     ``RobotBinding.kinematics``) turns their commanded arm joints into TCP poses. ``robot``: the env's
     (``env.robot``)."""

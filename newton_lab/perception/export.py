@@ -20,9 +20,17 @@ CAPTURE_EVERY = 8
 """Control steps between two captured frames of a row: the expert moves arm and objects in between."""
 
 
-def export_yolo(task: str, output_dir: str, *, num_images: int = 50, split: Sequence[float] = SPLIT,
-                resolution: Sequence[int] = RESOLUTION, preview: int = 0, mask_source: str = "segmentation",
-                **env_kwargs: Any) -> dict[str, Any]:
+def export_yolo(
+    task: str,
+    output_dir: str,
+    *,
+    num_images: int = 50,
+    split: Sequence[float] = SPLIT,
+    resolution: Sequence[int] = RESOLUTION,
+    preview: int = 0,
+    mask_source: str = "segmentation",
+    **env_kwargs: Any,
+) -> dict[str, Any]:
     """Write ``num_images`` frames of ``task`` (a SortToShelf task) with polygon labels of the four sorting objects
     into the new folder ``output_dir``, split train / val / test by the fractions ``split`` (seeded by
     ``env_kwargs["seed"]``), at ``resolution`` (width, height [px]); ``preview`` draws the first K labelled images
@@ -34,8 +42,11 @@ def export_yolo(task: str, output_dir: str, *, num_images: int = 50, split: Sequ
     splits = assign_splits(num_images, list(split), env_kwargs.get("seed", 0))
     writer = YoloWriter(output_dir, names, splits, preview)
     try:
-        env = make_env(task, **env_kwargs,
-                       cameras={YOLO_CAMERA: {"resolution": tuple(resolution), "data": ("rgb", "segmentation")}})
+        env = make_env(
+            task,
+            **env_kwargs,
+            cameras={YOLO_CAMERA: {"resolution": tuple(resolution), "data": ("rgb", "segmentation")}},
+        )
         seg_names = env.sensors.cameras.segmentation_names
         class_ids = {seg_names.index(n): k for k, n in enumerate(names) if n in seg_names}
         agent = expert_agent(env)

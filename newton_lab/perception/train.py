@@ -24,8 +24,10 @@ def need_ultralytics() -> None:
     """A one-line ``ValueError`` saying how to install Ultralytics where it is missing (checked without importing
     it)."""
     if importlib.util.find_spec("ultralytics") is None:
-        raise ValueError(f"ultralytics is not installed here; pip install {ULTRALYTICS} (it needs torchvision; "
-                         f"docs/data.md#yolo-seg lists the commands)")
+        raise ValueError(
+            f"ultralytics is not installed here; pip install {ULTRALYTICS} (it needs torchvision; "
+            f"docs/data.md#yolo-seg lists the commands)"
+        )
 
 
 def results_csv(trainer) -> dict[str, list[float]]:
@@ -41,9 +43,13 @@ def results_csv(trainer) -> dict[str, list[float]]:
 def seg_metrics(metrics, names: dict) -> dict[str, Any]:
     """Mask and box mAP of an Ultralytics ``SegmentMetrics``, overall and per class."""
     per_class = {names[int(c)]: round(float(metrics.seg.ap50[k]), 4) for k, c in enumerate(metrics.ap_class_index)}
-    return {"mask_map50": round(float(metrics.seg.map50), 4), "mask_map50_95": round(float(metrics.seg.map), 4),
-            "box_map50": round(float(metrics.box.map50), 4), "box_map50_95": round(float(metrics.box.map), 4),
-            "mask_ap50_per_class": per_class}
+    return {
+        "mask_map50": round(float(metrics.seg.map50), 4),
+        "mask_map50_95": round(float(metrics.seg.map), 4),
+        "box_map50": round(float(metrics.box.map50), 4),
+        "box_map50_95": round(float(metrics.box.map), 4),
+        "mask_ap50_per_class": per_class,
+    }
 
 
 def _version(dist: str) -> str:
@@ -53,9 +59,21 @@ def _version(dist: str) -> str:
         return "unknown"
 
 
-def train_yolo(dataset: str, output_dir: str, *, heldout: str | None = None, model: str = SEG_MODEL,
-               epochs: int = 60, time_budget_s: float | None = None, batch_size: int = 32, imgsz: int | None = None,
-               device: str = "cuda:0", workers: int = 8, seed: int = 0, amp: bool = False) -> dict[str, Any]:
+def train_yolo(
+    dataset: str,
+    output_dir: str,
+    *,
+    heldout: str | None = None,
+    model: str = SEG_MODEL,
+    epochs: int = 60,
+    time_budget_s: float | None = None,
+    batch_size: int = 32,
+    imgsz: int | None = None,
+    device: str = "cuda:0",
+    workers: int = 8,
+    seed: int = 0,
+    amp: bool = False,
+) -> dict[str, Any]:
     """Train ``model`` (a ``*-seg.yaml`` config or a ``*.pt`` checkpoint) on the train split of export ``dataset``
     (its val split checks each epoch) for at most ``epochs`` or ``time_budget_s`` [s], then score the best weights
     on every image of export ``heldout`` (default: the dataset's val split). ``imgsz`` [px] defaults to the export's
@@ -80,23 +98,51 @@ def train_yolo(dataset: str, output_dir: str, *, heldout: str | None = None, mod
     t0 = time.perf_counter()
     yolo = YOLO(str(Path(model).expanduser()), task="segment")
     extra = {"time": time_budget_s / 3600.0} if time_budget_s else {}
-    yolo.train(data=str(out / "data.yaml"), epochs=epochs, imgsz=imgsz, batch=batch_size, device=device,
-               workers=workers, seed=seed, amp=amp, plots=False, cache="ram", project=str(out.resolve()), name="run",
-               exist_ok=True, verbose=False, **extra)
+    yolo.train(
+        data=str(out / "data.yaml"),
+        epochs=epochs,
+        imgsz=imgsz,
+        batch=batch_size,
+        device=device,
+        workers=workers,
+        seed=seed,
+        amp=amp,
+        plots=False,
+        cache="ram",
+        project=str(out.resolve()),
+        name="run",
+        exist_ok=True,
+        verbose=False,
+        **extra,
+    )
     train_s = time.perf_counter() - t0
     weights = out / "weights"
     weights.mkdir(exist_ok=True)
     os.replace(out / "run" / "weights" / "best.pt", weights / "best.pt")
-    metrics = YOLO(str(weights / "best.pt")).val(data=str(out / "heldout.yaml"), split="val", imgsz=imgsz,
-                                                 batch=batch_size, device=device, plots=False,
-                                                 project=str(out.resolve()), name="heldout", exist_ok=True)
+    metrics = YOLO(str(weights / "best.pt")).val(
+        data=str(out / "heldout.yaml"),
+        split="val",
+        imgsz=imgsz,
+        batch=batch_size,
+        device=device,
+        plots=False,
+        project=str(out.resolve()),
+        name="heldout",
+        exist_ok=True,
+    )
     held = found.get("heldout", found["dataset"])
-    summary = {"heldout": str(held["root"]) if heldout else f"{held['root']} (val split)",
-               "heldout_images": sum(held["images"].values()) if heldout else held["images"]["val"],
-               **seg_metrics(metrics, found["dataset"]["names"]), "train_images": found["dataset"]["images"]["train"],
-               "epochs": int(yolo.trainer.epoch) + 1 if getattr(yolo, "trainer", None) else None,
-               "train_s": round(train_s, 1), "imgsz": imgsz, "model": model,
-               "device": torch.cuda.get_device_name(device) if device.startswith("cuda") else "cpu",
-               "weights": str(weights / "best.pt"), "ultralytics": _version("ultralytics")}
+    summary = {
+        "heldout": str(held["root"]) if heldout else f"{held['root']} (val split)",
+        "heldout_images": sum(held["images"].values()) if heldout else held["images"]["val"],
+        **seg_metrics(metrics, found["dataset"]["names"]),
+        "train_images": found["dataset"]["images"]["train"],
+        "epochs": int(yolo.trainer.epoch) + 1 if getattr(yolo, "trainer", None) else None,
+        "train_s": round(train_s, 1),
+        "imgsz": imgsz,
+        "model": model,
+        "device": torch.cuda.get_device_name(device) if device.startswith("cuda") else "cpu",
+        "weights": str(weights / "best.pt"),
+        "ultralytics": _version("ultralytics"),
+    }
     (out / "metrics.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary

@@ -20,8 +20,18 @@ from .normalize import MinMaxNormalizer
 from .scheduler import NoiseScheduler
 from .train import train
 
-__all__ = ["Policy", "DiffusionBackend", "DiffusionPolicy", "DiffusionPolicyConfig", "SequenceDataset",
-           "MinMaxNormalizer", "NoiseScheduler", "train", "load_policy", "BACKENDS"]
+__all__ = [
+    "Policy",
+    "DiffusionBackend",
+    "DiffusionPolicy",
+    "DiffusionPolicyConfig",
+    "SequenceDataset",
+    "MinMaxNormalizer",
+    "NoiseScheduler",
+    "train",
+    "load_policy",
+    "BACKENDS",
+]
 
 
 class DiffusionBackend:
@@ -30,8 +40,14 @@ class DiffusionBackend:
     name = "diffusion"
     config_class = DiffusionPolicyConfig
 
-    def train(self, dataset: str | Path | Any, train_cfg: dict[str, Any] | DiffusionPolicyConfig | None = None, *,
-              resume: bool = False, gpus: int = 1) -> Path:
+    def train(
+        self,
+        dataset: str | Path | Any,
+        train_cfg: dict[str, Any] | DiffusionPolicyConfig | None = None,
+        *,
+        resume: bool = False,
+        gpus: int = 1,
+    ) -> Path:
         """Train on ``dataset`` (path or object with ``.path``); returns the written checkpoint path. ``resume``:
         continue the interrupted run of ``output_dir`` from its ``resume.pt``; ``gpus`` > 1: data-parallel."""
         return train(dataset, train_cfg, resume=resume, gpus=gpus)

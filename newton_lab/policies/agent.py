@@ -23,8 +23,7 @@ def _compatible_task(env, policy_task: str | None) -> bool:
     phase agent of a coherent task that has it as a component."""
     if policy_task is None or env.task_id == policy_task:
         return True
-    return (lookup(env.task_id).source_task == policy_task
-            or policy_task in [p.task_id for p in env.cfg.phases])
+    return lookup(env.task_id).source_task == policy_task or policy_task in [p.task_id for p in env.cfg.phases]
 
 
 def _trained_for_phase(policy_task: str | None, component: str) -> bool:
@@ -38,8 +37,11 @@ def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0) -> TaskF
     checkpoint is loaded and checked against its phase and the env at once: one line names a phase the task does
     not have, a checkpoint trained for another phase's task, or observation terms / cameras the env lacks."""
     _check_phases(env, checkpoints)
-    return compose_phase_policies(env, {name: PolicyAgent.from_checkpoint(path, device=device, seed=seed)
-                                        for name, path in checkpoints.items()}, sources=checkpoints)
+    return compose_phase_policies(
+        env,
+        {name: PolicyAgent.from_checkpoint(path, device=device, seed=seed) for name, path in checkpoints.items()},
+        sources=checkpoints,
+    )
 
 
 def _check_phases(env, named) -> dict:
@@ -60,8 +62,10 @@ def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None)
         where = (sources or {}).get(name, "policy")
         trained, component = agent.policy.info.get("task_id"), phases[name].task_id
         if not _trained_for_phase(trained, component):
-            raise ValueError(f"checkpoint {where} was trained for {trained}, but phase {name!r} of {env.task_id} runs "
-                             f"{component}; give that phase a checkpoint of {component}")
+            raise ValueError(
+                f"checkpoint {where} was trained for {trained}, but phase {name!r} of {env.task_id} runs "
+                f"{component}; give that phase a checkpoint of {component}"
+            )
         try:
             agent.bind(env)  # the observation, camera and action checks, now rather than at the first step
         except ValueError as exc:
@@ -87,15 +91,19 @@ class PolicyAgent(BaseAgent):
         p = self.policy
         task = p.info.get("task_id")
         if not _compatible_task(env, task):
-            raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; "
-                             f"evaluate it on {task}")
+            raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; evaluate it on {task}")
         missing = [k for k in p.obs_keys if k not in env.task.obs_terms]
         if missing:
-            raise ValueError(f"checkpoint needs observation terms {missing} that {env.task_id} does not provide; "
-                             f"available: {sorted(env.task.obs_terms)}")
+            raise ValueError(
+                f"checkpoint needs observation terms {missing} that {env.task_id} does not provide; "
+                f"available: {sorted(env.task.obs_terms)}"
+            )
         dims = p.info.get("obs_dims", {})
-        wrong = {k: (dims[k], env.task.obs_terms[k].stop - env.task.obs_terms[k].start) for k in p.obs_keys
-                 if k in dims and dims[k] != env.task.obs_terms[k].stop - env.task.obs_terms[k].start}
+        wrong = {
+            k: (dims[k], env.task.obs_terms[k].stop - env.task.obs_terms[k].start)
+            for k in p.obs_keys
+            if k in dims and dims[k] != env.task.obs_terms[k].stop - env.task.obs_terms[k].start
+        }
         if wrong:
             raise ValueError(f"checkpoint observation sizes (checkpoint, env) {wrong} do not match {env.task_id}")
         self._image_keys = self._check_images(env)
@@ -110,8 +118,9 @@ class PolicyAgent(BaseAgent):
         n, h, a = env.num_envs, p.cfg.obs_horizon, p.cfg.action_horizon
         self._history = torch.zeros(n, h, len(cols), device=env.torch_device)
         shapes = p.info.get("image_shapes", {})
-        self._frames = {k: torch.zeros((n, h, *shapes[k]), dtype=torch.uint8, device=env.torch_device)
-                        for k in self._image_keys}
+        self._frames = {
+            k: torch.zeros((n, h, *shapes[k]), dtype=torch.uint8, device=env.torch_device) for k in self._image_keys
+        }
         self._queue = torch.zeros(n, a, len(names), device=env.torch_device)
         self._cursor = np.full(n, a, dtype=np.int64)
         self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
@@ -124,15 +133,21 @@ class PolicyAgent(BaseAgent):
         terms = env.sensors.image_terms
         missing = [k for k in keys if k not in terms]
         if missing:
-            raise ValueError(f"checkpoint sees cameras {missing} that this {env.task_id} env does not render "
-                             f"(its image terms: {sorted(terms) or 'none'}); make the env with its cameras on")
+            raise ValueError(
+                f"checkpoint sees cameras {missing} that this {env.task_id} env does not render "
+                f"(its image terms: {sorted(terms) or 'none'}); make the env with its cameras on"
+            )
         shapes = self.policy.info.get("image_shapes", {})
-        wrong = {k: (tuple(shapes[k]), tuple(env.sensors.images[k].shape[1:])) for k in keys
-                 if tuple(shapes[k]) != tuple(env.sensors.images[k].shape[1:])}
+        wrong = {
+            k: (tuple(shapes[k]), tuple(env.sensors.images[k].shape[1:]))
+            for k in keys
+            if tuple(shapes[k]) != tuple(env.sensors.images[k].shape[1:])
+        }
         if wrong:
             fix = ", ".join(f"'{k.rsplit('_', 1)[0]}': ({s[0][1]}, {s[0][0]})" for k, s in wrong.items())
-            raise ValueError(f"checkpoint image sizes (trained, env) {wrong} differ (H, W, C); make the env with "
-                             f"cameras={{{fix}}}")
+            raise ValueError(
+                f"checkpoint image sizes (trained, env) {wrong} differ (H, W, C); make the env with cameras={{{fix}}}"
+            )
         return keys
 
     def reset(self, env_ids=None) -> None:
@@ -157,8 +172,9 @@ class PolicyAgent(BaseAgent):
         if replan.size:
             rows = torch.as_tensor(replan, device=env.torch_device)
             images = {"images": {k: hist[rows] for k, hist in self._frames.items()}} if self._frames else {}
-            self._queue[rows] = self.policy.predict_action(self._history[rows], generator=self._generator,
-                                                           **images).to(self._queue.device)
+            self._queue[rows] = self.policy.predict_action(self._history[rows], generator=self._generator, **images).to(
+                self._queue.device
+            )
             self._cursor[replan] = 0
         idx = torch.as_tensor(self._cursor, device=env.torch_device)
         actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()

@@ -17,23 +17,61 @@ gripper opening), no object or target pose; the scene reaches the policy only th
 PRESETS: dict[str, dict[str, Any]] = {
     "default": {},
     # A 2-core CPU budget (~18 min): a quarter-width U-Net, small batches, a higher learning rate, 10k steps.
-    "cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 64, "lr": 6e-4,
-            "warmup_steps": 300, "max_steps": 10000, "epochs": 1000},
+    "cpu": {
+        "down_dims": (32, 64, 128),
+        "diffusion_step_embed_dim": 64,
+        "batch_size": 64,
+        "lr": 6e-4,
+        "warmup_steps": 300,
+        "max_steps": 10000,
+        "epochs": 1000,
+    },
     # Visuomotor (front-head RGB + proprioception, no object pose): the full ResNet-18/GroupNorm trunk, on a GPU.
-    "vision": {"image_keys": ("front_head_rgb",), "obs_keys": PROPRIOCEPTION, "prediction_type": "sample",
-               "num_inference_steps": 5},
+    "vision": {
+        "image_keys": ("front_head_rgb",),
+        "obs_keys": PROPRIOCEPTION,
+        "prediction_type": "sample",
+        "num_inference_steps": 5,
+    },
     # Visuomotor on 2 CPU cores (96x72 frames): a quarter-width ResNet-18 trunk, proprioception only.
-    "vision_cpu": {"down_dims": (32, 64, 128), "diffusion_step_embed_dim": 64, "batch_size": 32, "lr": 6e-4,
-                   "warmup_steps": 100, "max_steps": 3000, "epochs": 1000, "encoder_width": 16,
-                   "image_feature_dim": 32, "image_keys": ("front_head_rgb",), "obs_keys": PROPRIOCEPTION,
-                   "prediction_type": "sample", "num_inference_steps": 5},
+    "vision_cpu": {
+        "down_dims": (32, 64, 128),
+        "diffusion_step_embed_dim": 64,
+        "batch_size": 32,
+        "lr": 6e-4,
+        "warmup_steps": 100,
+        "max_steps": 3000,
+        "epochs": 1000,
+        "encoder_width": 16,
+        "image_feature_dim": 32,
+        "image_keys": ("front_head_rgb",),
+        "obs_keys": PROPRIOCEPTION,
+        "prediction_type": "sample",
+        "num_inference_steps": 5,
+    },
 }
 """Named training settings; explicit fields override a preset's."""
 
-ARCHITECTURE_FIELDS = ("obs_horizon", "action_horizon", "pred_horizon", "down_dims", "kernel_size", "n_groups",
-                       "diffusion_step_embed_dim", "activation", "num_train_timesteps", "num_inference_steps",
-                       "prediction_type", "obs_keys", "image_keys", "crop", "image_feature_dim", "encoder_width")
+ARCHITECTURE_FIELDS = (
+    "obs_horizon",
+    "action_horizon",
+    "pred_horizon",
+    "down_dims",
+    "kernel_size",
+    "n_groups",
+    "diffusion_step_embed_dim",
+    "activation",
+    "num_train_timesteps",
+    "num_inference_steps",
+    "prediction_type",
+    "obs_keys",
+    "image_keys",
+    "crop",
+    "image_feature_dim",
+    "encoder_width",
+)
 """Config fields a checkpoint fixes: fine-tuning from it keeps them."""
+
 
 @dataclass(kw_only=True)
 class DiffusionPolicyConfig:
@@ -142,39 +180,63 @@ class DiffusionPolicyConfig:
         levels = len(self.down_dims)
         checks = [
             (self.obs_horizon >= 1, f"obs_horizon must be >= 1, got {self.obs_horizon}"),
-            (1 <= self.action_horizon <= self.pred_horizon - self.obs_horizon + 1,
-             f"action_horizon must be in 1..pred_horizon - obs_horizon + 1 = "
-             f"{self.pred_horizon - self.obs_horizon + 1}, got {self.action_horizon}"),
-            (levels >= 1 and all(d > 0 and d % self.n_groups == 0 for d in self.down_dims),
-             f"down_dims must be positive multiples of n_groups={self.n_groups}, got {self.down_dims}"),
-            (self.pred_horizon % 2 ** (levels - 1) == 0,
-             f"pred_horizon must be divisible by 2 ** (len(down_dims) - 1) = {2 ** (levels - 1)}, "
-             f"got {self.pred_horizon}"),
+            (
+                1 <= self.action_horizon <= self.pred_horizon - self.obs_horizon + 1,
+                f"action_horizon must be in 1..pred_horizon - obs_horizon + 1 = "
+                f"{self.pred_horizon - self.obs_horizon + 1}, got {self.action_horizon}",
+            ),
+            (
+                levels >= 1 and all(d > 0 and d % self.n_groups == 0 for d in self.down_dims),
+                f"down_dims must be positive multiples of n_groups={self.n_groups}, got {self.down_dims}",
+            ),
+            (
+                self.pred_horizon % 2 ** (levels - 1) == 0,
+                f"pred_horizon must be divisible by 2 ** (len(down_dims) - 1) = {2 ** (levels - 1)}, "
+                f"got {self.pred_horizon}",
+            ),
             (self.kernel_size % 2 == 1, f"kernel_size must be odd, got {self.kernel_size}"),
-            (1 <= self.num_inference_steps <= self.num_train_timesteps,
-             f"num_inference_steps must be in 1..num_train_timesteps={self.num_train_timesteps}, "
-             f"got {self.num_inference_steps}"),
-            (self.activation in ACTIVATIONS,
-             f"activation must be one of {', '.join(ACTIVATIONS)}, got {self.activation!r}"),
-            (self.prediction_type in PREDICTION_TYPES,
-             f"prediction_type must be one of {', '.join(PREDICTION_TYPES)}, got {self.prediction_type!r}"),
+            (
+                1 <= self.num_inference_steps <= self.num_train_timesteps,
+                f"num_inference_steps must be in 1..num_train_timesteps={self.num_train_timesteps}, "
+                f"got {self.num_inference_steps}",
+            ),
+            (
+                self.activation in ACTIVATIONS,
+                f"activation must be one of {', '.join(ACTIVATIONS)}, got {self.activation!r}",
+            ),
+            (
+                self.prediction_type in PREDICTION_TYPES,
+                f"prediction_type must be one of {', '.join(PREDICTION_TYPES)}, got {self.prediction_type!r}",
+            ),
             (len(self.betas) == 2, f"betas must be a pair, got {self.betas}"),
             (0.0 < self.crop <= 1.0, f"crop must be in (0, 1], got {self.crop}"),
             (self.obs_min_range >= 0.0, f"obs_min_range must be >= 0, got {self.obs_min_range}"),
-            (self.image_feature_dim >= 1 and self.encoder_width >= 16,
-             f"image_feature_dim must be >= 1 and encoder_width >= 16, got {self.image_feature_dim} and "
-             f"{self.encoder_width}"),
-            (self.batch_size >= 1 and self.epochs >= 1,
-             f"batch_size and epochs must be >= 1, got {self.batch_size} and {self.epochs}"),
+            (
+                self.image_feature_dim >= 1 and self.encoder_width >= 16,
+                f"image_feature_dim must be >= 1 and encoder_width >= 16, got {self.image_feature_dim} and "
+                f"{self.encoder_width}",
+            ),
+            (
+                self.batch_size >= 1 and self.epochs >= 1,
+                f"batch_size and epochs must be >= 1, got {self.batch_size} and {self.epochs}",
+            ),
             (self.max_steps is None or self.max_steps >= 1, f"max_steps must be None or >= 1, got {self.max_steps}"),
-            (self.time_budget_s is None or self.time_budget_s > 0,
-             f"time_budget_s must be None or > 0, got {self.time_budget_s}"),
-            (self.checkpoint_every_steps is None or self.checkpoint_every_steps >= 1,
-             f"checkpoint_every_steps must be None or >= 1, got {self.checkpoint_every_steps}"),
-            (self.checkpoint_every_s is None or self.checkpoint_every_s > 0,
-             f"checkpoint_every_s must be None or > 0, got {self.checkpoint_every_s}"),
-            (self.warmup_steps >= 0 and self.num_workers >= 0,
-             f"warmup_steps and num_workers must be >= 0, got {self.warmup_steps} and {self.num_workers}"),
+            (
+                self.time_budget_s is None or self.time_budget_s > 0,
+                f"time_budget_s must be None or > 0, got {self.time_budget_s}",
+            ),
+            (
+                self.checkpoint_every_steps is None or self.checkpoint_every_steps >= 1,
+                f"checkpoint_every_steps must be None or >= 1, got {self.checkpoint_every_steps}",
+            ),
+            (
+                self.checkpoint_every_s is None or self.checkpoint_every_s > 0,
+                f"checkpoint_every_s must be None or > 0, got {self.checkpoint_every_s}",
+            ),
+            (
+                self.warmup_steps >= 0 and self.num_workers >= 0,
+                f"warmup_steps and num_workers must be >= 0, got {self.warmup_steps} and {self.num_workers}",
+            ),
         ]
         for ok, message in checks:
             if not ok:

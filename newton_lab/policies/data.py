@@ -32,8 +32,11 @@ def is_image_like(name: str, arr: np.ndarray) -> bool:
 def default_obs_keys(obs: dict[str, Any], obs_terms: dict[str, Any] | None = None) -> list[str]:
     """Flat low-dim obs arrays except ``actions``, in env layout order (``obs_terms``) then by name."""
     order = {name: span[0] for name, span in (obs_terms or {}).items()}
-    keys = [k for k, v in obs.items()
-            if not isinstance(v, dict) and k not in EXCLUDED_OBS_KEYS and not is_image_like(k, np.asarray(v))]
+    keys = [
+        k
+        for k, v in obs.items()
+        if not isinstance(v, dict) and k not in EXCLUDED_OBS_KEYS and not is_image_like(k, np.asarray(v))
+    ]
     return sorted(keys, key=lambda k: (k not in order, order.get(k, 0), k))
 
 
@@ -43,17 +46,26 @@ def _check_trained_together(infos: list[dict[str, Any]]) -> None:
     for info in infos[1:]:
         names = [i["env_args"].get("newton_lab", {}).get("action_joint_names") for i in (first, info)]
         if info["task_id"] != first["task_id"] or names[0] != names[1]:
-            raise ValueError(f"{info['path']} ({info['task_id']}) does not match {first['path']} ({first['task_id']}): "
-                             "datasets trained together need the same task and action columns")
+            raise ValueError(
+                f"{info['path']} ({info['task_id']}) does not match {first['path']} ({first['task_id']}): "
+                "datasets trained together need the same task and action columns"
+            )
 
 
 class SequenceDataset(Dataset):
     """``ds[i] -> {"obs": (obs_horizon, obs_dim), "actions": (pred_horizon, action_dim)}`` float32, raw units;
     with ``image_keys`` also ``"images": {key: (obs_horizon, H, W, 3)}`` uint8 (RGB frames, held in memory)."""
 
-    def __init__(self, path: str | Path | Sequence[str | Path], *, obs_keys: Sequence[str] | None = None,
-                 obs_horizon: int = 2, pred_horizon: int = 16, success_only: bool = True,
-                 image_keys: Sequence[str] | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path | Sequence[str | Path],
+        *,
+        obs_keys: Sequence[str] | None = None,
+        obs_horizon: int = 2,
+        pred_horizon: int = 16,
+        success_only: bool = True,
+        image_keys: Sequence[str] | None = None,
+    ) -> None:
         if obs_horizon < 1 or pred_horizon < obs_horizon:
             raise ValueError(f"need 1 <= obs_horizon <= pred_horizon, got {obs_horizon} and {pred_horizon}")
         infos = [read_dataset_info(p) for p in ([path] if isinstance(path, (str, Path)) else path)]
@@ -66,14 +78,19 @@ class SequenceDataset(Dataset):
         meta = self.env_args.get("newton_lab", {})
         _check_trained_together(infos)
         self.obs_horizon, self.pred_horizon = obs_horizon, pred_horizon
-        self.demos: list[tuple[Path, int]] = [(Path(info["path"]), i) for info in infos for i in info["demo_ids"]
-                                              if info["demos"][i]["success"] or not success_only]
+        self.demos: list[tuple[Path, int]] = [
+            (Path(info["path"]), i)
+            for info in infos
+            for i in info["demo_ids"]
+            if info["demos"][i]["success"] or not success_only
+        ]
         self.demo_ids = [i for _, i in self.demos]  # ids within their file; ``demos`` pairs each with its file
         if not self.demos:
             total = sum(len(info["demo_ids"]) for info in infos)
             if total:
-                raise ValueError(f"{self.path} has no successful demos ({total} failed); "
-                                 "pass success_only=False to train on them")
+                raise ValueError(
+                    f"{self.path} has no successful demos ({total} failed); pass success_only=False to train on them"
+                )
             raise ValueError(f"{self.path} has no demos to train on")
 
         obs_rows, act_rows, obs_index, act_index, start = [], [], [], [], 0
@@ -107,8 +124,9 @@ class SequenceDataset(Dataset):
             if not self.obs_dims:
                 self.obs_dims = {k: p.shape[1] for k, p in zip(self.obs_keys, parts)}
             elif [p.shape[1] for p in parts] != list(self.obs_dims.values()):
-                raise ValueError(f"demo {demo} of {file} has obs dims differing from demo {self.demo_ids[0]} "
-                                 f"of {self.path}")
+                raise ValueError(
+                    f"demo {demo} of {file} has obs dims differing from demo {self.demo_ids[0]} of {self.path}"
+                )
         if not act_rows:
             raise ValueError(f"the selected demos of {self.path} hold no steps")
         try:
@@ -145,20 +163,26 @@ class SequenceDataset(Dataset):
         """(n, H, W, 3) uint8 RGB frames of ``obs/<key>``; one-line errors for what is not."""
         images = [k for k, v in obs.items() if not isinstance(v, dict) and np.asarray(v).ndim == 4]
         if key not in obs:
-            raise ValueError(f"demo {demo} of {file} has no image obs/{key}; image terms there: "
-                             f"{', '.join(images) or 'none (collect with --cameras)'}")
+            raise ValueError(
+                f"demo {demo} of {file} has no image obs/{key}; image terms there: "
+                f"{', '.join(images) or 'none (collect with --cameras)'}"
+            )
         arr = np.asarray(obs[key])
         if arr.dtype != np.uint8 or arr.ndim != 4 or arr.shape[0] != n or arr.shape[-1] != 3:
-            raise ValueError(f"obs/{key} of demo {demo} in {file} is {arr.dtype} {arr.shape}; image keys must be "
-                             f"RGB frames (T, H, W, 3) uint8, e.g. front_head_rgb")
+            raise ValueError(
+                f"obs/{key} of demo {demo} in {file} is {arr.dtype} {arr.shape}; image keys must be "
+                f"RGB frames (T, H, W, 3) uint8, e.g. front_head_rgb"
+            )
         return arr
 
     def _check_keys(self, keys: list[str], obs: dict[str, Any], demo: int) -> list[str]:
         low_dim = [k for k, v in obs.items() if not isinstance(v, dict) and not is_image_like(k, np.asarray(v))]
         bad = [k for k in keys if k not in low_dim]
         if bad or not keys:
-            raise ValueError(f"obs keys {bad or keys} are not low-dim obs arrays of demo {demo} in {self.path}; "
-                             f"available: {', '.join(low_dim) or 'none'}")
+            raise ValueError(
+                f"obs keys {bad or keys} are not low-dim obs arrays of demo {demo} in {self.path}; "
+                f"available: {', '.join(low_dim) or 'none'}"
+            )
         return keys
 
     @property
@@ -192,8 +216,10 @@ class SequenceDataset(Dataset):
         return out
 
     def __repr__(self) -> str:
-        return (f"SequenceDataset({self.source!r}, demos={len(self.demos)}, windows={len(self)}, "
-                f"obs_keys={list(self.obs_keys)}, obs_dim={self.obs_dim}, action_dim={self.action_dim})")
+        return (
+            f"SequenceDataset({self.source!r}, demos={len(self.demos)}, windows={len(self)}, "
+            f"obs_keys={list(self.obs_keys)}, obs_dim={self.obs_dim}, action_dim={self.action_dim})"
+        )
 
 
 def collate_batch(batch: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:

@@ -53,8 +53,10 @@ def join_from_environment(device: str) -> str:
     if torch.device(device).type == "cuda":
         local = int(os.environ.get("LOCAL_RANK", "0"))
         if local >= torch.cuda.device_count():
-            raise ValueError(f"rank {local} needs GPU {local}, this host shows {torch.cuda.device_count()}; "
-                             f"start at most {torch.cuda.device_count()} processes")
+            raise ValueError(
+                f"rank {local} needs GPU {local}, this host shows {torch.cuda.device_count()}; "
+                f"start at most {torch.cuda.device_count()} processes"
+            )
         torch.cuda.set_device(local)  # "cuda" now names this rank's GPU (the saved config keeps plain "cuda")
         dist.init_process_group("nccl", device_id=torch.device("cuda", local))
         return "cuda"
@@ -74,7 +76,7 @@ def draw_rows(draw: Callable[[int], torch.Tensor], rows: int) -> torch.Tensor:
     rank, size = world()
     if size == 1:
         return draw(rows)
-    return draw(rows * size)[rank * rows:(rank + 1) * rows]
+    return draw(rows * size)[rank * rows : (rank + 1) * rows]
 
 
 def average_gradients(parameters: Iterable[torch.nn.Parameter]) -> None:
@@ -88,7 +90,7 @@ def average_gradients(parameters: Iterable[torch.nn.Parameter]) -> None:
     flat.div_(size)
     offset = 0
     for g in grads:
-        g.copy_(flat[offset:offset + g.numel()].view_as(g))
+        g.copy_(flat[offset : offset + g.numel()].view_as(g))
         offset += g.numel()
 
 
@@ -122,22 +124,36 @@ def launch(datasets: list[str], cfg: dict[str, Any], gpus: int, *, resume: bool 
     """Train with ``gpus`` processes under torchrun (``cfg["device"]`` "cuda": one GPU each; "cpu": gloo
     processes); the checkpoint path written by rank 0. A failed worker raises with torchrun's exit status."""
     if torch.device(cfg.get("device", "cpu")).type == "cuda" and gpus > torch.cuda.device_count():
-        raise ValueError(f"--gpus {gpus} needs {gpus} GPUs, this host shows {torch.cuda.device_count()}; "
-                         f"use --gpus {torch.cuda.device_count()} or fewer")
+        raise ValueError(
+            f"--gpus {gpus} needs {gpus} GPUs, this host shows {torch.cuda.device_count()}; "
+            f"use --gpus {torch.cuda.device_count()} or fewer"
+        )
     cores = os.cpu_count() or 1
     if torch.device(cfg.get("device", "cpu")).type != "cuda" and gpus > cores:  # ~250 MB of memory each
-        raise ValueError(f"--gpus {gpus}: with --device cpu each is a gloo process on a CPU core, and this host has "
-                         f"{cores}; use --gpus {cores} or fewer")
+        raise ValueError(
+            f"--gpus {gpus}: with --device cpu each is a gloo process on a CPU core, and this host has "
+            f"{cores}; use --gpus {cores} or fewer"
+        )
     with tempfile.TemporaryDirectory(prefix="newton_lab_ddp_") as folder:
         request, answer = Path(folder) / "request.json", Path(folder) / "checkpoint.json"
         request.write_text(json.dumps({"datasets": datasets, "cfg": cfg, "resume": resume, "answer": str(answer)}))
-        command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={gpus}",
-                   "-m", "newton_lab.policies.data_parallel_rank", str(request)]
+        command = [
+            sys.executable,
+            "-m",
+            "torch.distributed.run",
+            "--standalone",
+            f"--nproc-per-node={gpus}",
+            "-m",
+            "newton_lab.policies.data_parallel_rank",
+            str(request),
+        ]
         parent = os.getpid()  # torchrun (and so its workers) ends with this process, even when it is SIGKILLed
         code = subprocess.run(
             command, check=False, preexec_fn=lambda: die_with_parent(parent, signal.SIGTERM)
         ).returncode
         if code != 0 or not answer.exists():
-            raise RuntimeError(f"data-parallel training over {gpus} processes failed (torchrun exit status {code}); "
-                               "the workers' errors are printed above")
+            raise RuntimeError(
+                f"data-parallel training over {gpus} processes failed (torchrun exit status {code}); "
+                "the workers' errors are printed above"
+            )
         return Path(json.loads(answer.read_text())["checkpoint"])

@@ -87,8 +87,14 @@ class DiffusionPolicy(nn.Module):
     task_id, control_dt, dataset and (after training) ``training`` metadata.
     """
 
-    def __init__(self, cfg: DiffusionPolicyConfig, *, obs_normalizer: MinMaxNormalizer,
-                 action_normalizer: MinMaxNormalizer, info: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        cfg: DiffusionPolicyConfig,
+        *,
+        obs_normalizer: MinMaxNormalizer,
+        action_normalizer: MinMaxNormalizer,
+        info: dict[str, Any] | None = None,
+    ) -> None:
         super().__init__()
         self.cfg = cfg
         self.obs_normalizer, self.action_normalizer = obs_normalizer, action_normalizer
@@ -100,12 +106,22 @@ class DiffusionPolicy(nn.Module):
             missing = [k for k in cfg.image_keys if k not in shapes]
             if missing:
                 raise ValueError(f"image_shapes (H, W, C) of {missing} are needed to build the image encoder")
-            encoder = ImageEncoder({k: shapes[k] for k in cfg.image_keys}, crop=cfg.crop,
-                                   feature_dim=cfg.image_feature_dim, width=cfg.encoder_width)
+            encoder = ImageEncoder(
+                {k: shapes[k] for k in cfg.image_keys},
+                crop=cfg.crop,
+                feature_dim=cfg.image_feature_dim,
+                width=cfg.encoder_width,
+            )
         cond_dim = (self.obs_dim + (encoder.feature_dim if encoder else 0)) * cfg.obs_horizon
-        unet = ConditionalUnet1D(self.action_dim, cond_dim, down_dims=cfg.down_dims,
-                                 diffusion_step_embed_dim=cfg.diffusion_step_embed_dim, kernel_size=cfg.kernel_size,
-                                 n_groups=cfg.n_groups, activation=cfg.activation)
+        unet = ConditionalUnet1D(
+            self.action_dim,
+            cond_dim,
+            down_dims=cfg.down_dims,
+            diffusion_step_embed_dim=cfg.diffusion_step_embed_dim,
+            kernel_size=cfg.kernel_size,
+            n_groups=cfg.n_groups,
+            activation=cfg.activation,
+        )
         self.model = unet if encoder is None else VisuomotorNet(unet, encoder)
         self.ema = EMA(self.model, power=cfg.ema_power)
         self.scheduler = NoiseScheduler(cfg.num_train_timesteps, clip_sample=True)
@@ -126,14 +142,25 @@ class DiffusionPolicy(nn.Module):
         """Fresh policy with normalisers fitted on a ``SequenceDataset``'s frames."""
         meta = dataset.env_args.get("newton_lab", {})
         control_dt = meta["sim_dt"] * meta["decimation"] if "sim_dt" in meta and "decimation" in meta else None
-        info = {"task_id": dataset.task_id, "obs_keys": list(dataset.obs_keys), "obs_dims": dict(dataset.obs_dims),
-                "action_joint_names": list(dataset.action_joint_names), "control_dt": control_dt,
-                "dataset": dataset.source}
+        info = {
+            "task_id": dataset.task_id,
+            "obs_keys": list(dataset.obs_keys),
+            "obs_dims": dict(dataset.obs_dims),
+            "action_joint_names": list(dataset.action_joint_names),
+            "control_dt": control_dt,
+            "dataset": dataset.source,
+        }
         if cfg.image_keys:
-            info.update(image_keys=list(cfg.image_keys),
-                        image_shapes={k: list(v) for k, v in getattr(dataset, "image_shapes", {}).items()})
-        return cls(cfg, obs_normalizer=MinMaxNormalizer.fit(dataset.obs, min_range=cfg.obs_min_range),
-                   action_normalizer=MinMaxNormalizer.fit(dataset.actions), info=info)
+            info.update(
+                image_keys=list(cfg.image_keys),
+                image_shapes={k: list(v) for k, v in getattr(dataset, "image_shapes", {}).items()},
+            )
+        return cls(
+            cfg,
+            obs_normalizer=MinMaxNormalizer.fit(dataset.obs, min_range=cfg.obs_min_range),
+            action_normalizer=MinMaxNormalizer.fit(dataset.actions),
+            info=info,
+        )
 
     @property
     def device(self) -> torch.device:
@@ -160,8 +187,10 @@ class DiffusionPolicy(nn.Module):
         cond = self.obs_normalizer.normalize(obs)
         if self.cfg.image_keys:
             if images is None:
-                raise ValueError(f"this policy sees images {self.image_keys}; pass images={{key: (B, "
-                                 f"{self.cfg.obs_horizon}, H, W, 3) uint8}}")
+                raise ValueError(
+                    f"this policy sees images {self.image_keys}; pass images={{key: (B, "
+                    f"{self.cfg.obs_horizon}, H, W, 3) uint8}}"
+                )
             net.encoder.check(images)
             cond = torch.cat([cond, net.encoder(images)], dim=-1)
         return cond.flatten(1)
@@ -181,8 +210,9 @@ class DiffusionPolicy(nn.Module):
         return F.mse_loss(pred.float(), target)
 
     @torch.no_grad()
-    def predict_action(self, obs_history: torch.Tensor, *, images=None,
-                       generator: torch.Generator | None = None) -> torch.Tensor:
+    def predict_action(
+        self, obs_history: torch.Tensor, *, images=None, generator: torch.Generator | None = None
+    ) -> torch.Tensor:
         """(B, obs_horizon, obs_dim) raw obs [and ``images`` {key: (B, obs_horizon, H, W, 3) uint8}] -> (B,
         action_horizon, action_dim) raw actions (EMA weights, DDIM).
 
@@ -194,26 +224,36 @@ class DiffusionPolicy(nn.Module):
         out_device = obs.device
         obs = obs.to(self.device, torch.float32)
         if obs.ndim != 3 or tuple(obs.shape[1:]) != (cfg.obs_horizon, self.obs_dim):
-            raise ValueError(f"obs_history must be (B, {cfg.obs_horizon}, {self.obs_dim}) "
-                             f"(obs_keys {self.obs_keys}), got {tuple(obs.shape)}")
+            raise ValueError(
+                f"obs_history must be (B, {cfg.obs_horizon}, {self.obs_dim}) "
+                f"(obs_keys {self.obs_keys}), got {tuple(obs.shape)}"
+            )
         net = self.ema.averaged.eval()
         cond = self.condition(obs, images, net)
         shape = (obs.shape[0], cfg.pred_horizon, self.action_dim)
         noise_device = generator.device if generator is not None else self.device
         x_T = torch.randn(shape, generator=generator, device=noise_device).to(self.device)
-        x0 = self.scheduler.sample(lambda x, t: net(x, t, cond), x_T, num_inference_steps=cfg.num_inference_steps,
-                                   prediction_type=cfg.prediction_type)
+        x0 = self.scheduler.sample(
+            lambda x, t: net(x, t, cond),
+            x_T,
+            num_inference_steps=cfg.num_inference_steps,
+            prediction_type=cfg.prediction_type,
+        )
         start = cfg.obs_horizon - 1
-        return self.action_normalizer.unnormalize(x0[:, start:start + cfg.action_horizon]).to(out_device)
+        return self.action_normalizer.unnormalize(x0[:, start : start + cfg.action_horizon]).to(out_device)
 
     # ------------------------------------------------------------------------- checkpoints
     def checkpoint(self) -> dict[str, Any]:
         """The checkpoint payload: EMA weights, normaliser stats, config and ``info`` (all weights_only-loadable)."""
-        return {"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "diffusion",
-                "config": self.cfg.to_dict(),
-                "weights": {k: v.detach().cpu() for k, v in self.ema.averaged.state_dict().items()},
-                "normalizers": {"obs": self.obs_normalizer.state_dict(), "action": self.action_normalizer.state_dict()},
-                "info": self.info}
+        return {
+            "format": CHECKPOINT_FORMAT,
+            "version": CHECKPOINT_VERSION,
+            "backend": "diffusion",
+            "config": self.cfg.to_dict(),
+            "weights": {k: v.detach().cpu() for k, v in self.ema.averaged.state_dict().items()},
+            "normalizers": {"obs": self.obs_normalizer.state_dict(), "action": self.action_normalizer.state_dict()},
+            "info": self.info,
+        }
 
     def save(self, path: str | Path, *, overwrite: bool = False) -> Path:
         """Write the checkpoint atomically; an existing file raises FileExistsError unless ``overwrite``."""
@@ -252,13 +292,18 @@ class DiffusionPolicy(nn.Module):
         if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
             raise damaged("missing or unknown 'format' tag")
         if not isinstance(ckpt.get("version"), int) or ckpt["version"] > CHECKPOINT_VERSION:
-            raise damaged(f"checkpoint version {ckpt.get('version')!r} is not supported "
-                          f"(this newton_lab reads <= {CHECKPOINT_VERSION})")
+            raise damaged(
+                f"checkpoint version {ckpt.get('version')!r} is not supported "
+                f"(this newton_lab reads <= {CHECKPOINT_VERSION})"
+            )
         try:
             cfg = DiffusionPolicyConfig.from_dict(ckpt["config"])
-            policy = cls(cfg, obs_normalizer=MinMaxNormalizer.from_state_dict(ckpt["normalizers"]["obs"]),
-                         action_normalizer=MinMaxNormalizer.from_state_dict(ckpt["normalizers"]["action"]),
-                         info=ckpt["info"])
+            policy = cls(
+                cfg,
+                obs_normalizer=MinMaxNormalizer.from_state_dict(ckpt["normalizers"]["obs"]),
+                action_normalizer=MinMaxNormalizer.from_state_dict(ckpt["normalizers"]["action"]),
+                info=ckpt["info"],
+            )
             policy.model.load_state_dict(ckpt["weights"])
             policy.ema.averaged.load_state_dict(ckpt["weights"])
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
@@ -267,5 +312,7 @@ class DiffusionPolicy(nn.Module):
 
     def __repr__(self) -> str:
         n = sum(p.numel() for p in self.model.parameters())
-        return (f"DiffusionPolicy(task={self.task_id!r}, obs_dim={self.obs_dim}, action_dim={self.action_dim}, "
-                f"horizons={self.cfg.obs_horizon}/{self.cfg.action_horizon}/{self.cfg.pred_horizon}, params={n:,})")
+        return (
+            f"DiffusionPolicy(task={self.task_id!r}, obs_dim={self.obs_dim}, action_dim={self.action_dim}, "
+            f"horizons={self.cfg.obs_horizon}/{self.cfg.action_horizon}/{self.cfg.pred_horizon}, params={n:,})"
+        )

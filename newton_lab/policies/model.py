@@ -21,8 +21,7 @@ class SinusoidalStepEmbedding(nn.Module):
         if dim < 4 or dim % 2:
             raise ValueError(f"step embedding dim must be even and >= 4, got {dim}")
         half = dim // 2
-        self.register_buffer("freqs", torch.exp(-math.log(10000.0) * torch.arange(half) / (half - 1)),
-                             persistent=False)
+        self.register_buffer("freqs", torch.exp(-math.log(10000.0) * torch.arange(half) / (half - 1)), persistent=False)
 
     def forward(self, t: torch.Tensor) -> torch.Tensor:
         angles = t.float()[:, None] * self.freqs[None, :]
@@ -38,15 +37,17 @@ class ConvNormAct(nn.Sequential):
     """Conv1d (same padding) -> GroupNorm -> activation."""
 
     def __init__(self, c_in: int, c_out: int, kernel_size: int, n_groups: int, act: type[nn.Module] = nn.Mish) -> None:
-        super().__init__(nn.Conv1d(c_in, c_out, kernel_size, padding=kernel_size // 2),
-                         nn.GroupNorm(n_groups, c_out), act())
+        super().__init__(
+            nn.Conv1d(c_in, c_out, kernel_size, padding=kernel_size // 2), nn.GroupNorm(n_groups, c_out), act()
+        )
 
 
 class FiLMResBlock(nn.Module):
     """Two conv blocks; the condition sets a per-channel scale and bias between them; residual 1x1 conv."""
 
-    def __init__(self, c_in: int, c_out: int, cond_dim: int, kernel_size: int, n_groups: int,
-                 act: type[nn.Module] = nn.Mish) -> None:
+    def __init__(
+        self, c_in: int, c_out: int, cond_dim: int, kernel_size: int, n_groups: int, act: type[nn.Module] = nn.Mish
+    ) -> None:
         super().__init__()
         self.block1 = ConvNormAct(c_in, c_out, kernel_size, n_groups, act)
         self.block2 = ConvNormAct(c_out, c_out, kernel_size, n_groups, act)
@@ -62,9 +63,17 @@ class FiLMResBlock(nn.Module):
 class ConditionalUnet1D(nn.Module):
     """Epsilon predictor ``forward(x (B, T, A), t (B,), global_cond (B, G)) -> (B, T, A)``."""
 
-    def __init__(self, action_dim: int, global_cond_dim: int, *, down_dims: Sequence[int] = (64, 128, 256),
-                 diffusion_step_embed_dim: int = 128, kernel_size: int = 5, n_groups: int = 8,
-                 activation: str = "mish") -> None:
+    def __init__(
+        self,
+        action_dim: int,
+        global_cond_dim: int,
+        *,
+        down_dims: Sequence[int] = (64, 128, 256),
+        diffusion_step_embed_dim: int = 128,
+        kernel_size: int = 5,
+        n_groups: int = 8,
+        activation: str = "mish",
+    ) -> None:
         super().__init__()
         if activation not in ACTIVATIONS:
             raise ValueError(f"unknown activation {activation!r}; valid: {', '.join(ACTIVATIONS)}")
@@ -76,8 +85,7 @@ class ConditionalUnet1D(nn.Module):
             raise ValueError(f"kernel_size must be odd, got {kernel_size}")
         self.num_downsamples = len(dims) - 1
         e = diffusion_step_embed_dim
-        self.step_encoder = nn.Sequential(SinusoidalStepEmbedding(e), nn.Linear(e, 4 * e), act(),
-                                          nn.Linear(4 * e, e))
+        self.step_encoder = nn.Sequential(SinusoidalStepEmbedding(e), nn.Linear(e, 4 * e), act(), nn.Linear(4 * e, e))
         cond_dim = e + global_cond_dim
 
         def block(c_in: int, c_out: int) -> FiLMResBlock:
@@ -92,14 +100,22 @@ class ConditionalUnet1D(nn.Module):
         self.mid = nn.ModuleList([block(dims[-1], dims[-1]), block(dims[-1], dims[-1])])
         self.up = nn.ModuleList()
         for c_low, c_high in reversed(levels[1:]):  # upsample, then concat the skip of that resolution
-            self.up.append(nn.ModuleList([nn.ConvTranspose1d(c_high, c_high, 4, stride=2, padding=1),
-                                          block(c_high + c_low, c_low), block(c_low, c_low)]))
-        self.head = nn.Sequential(ConvNormAct(dims[0], dims[0], kernel_size, n_groups, act),
-                                  nn.Conv1d(dims[0], action_dim, 1))
+            self.up.append(
+                nn.ModuleList(
+                    [
+                        nn.ConvTranspose1d(c_high, c_high, 4, stride=2, padding=1),
+                        block(c_high + c_low, c_low),
+                        block(c_low, c_low),
+                    ]
+                )
+            )
+        self.head = nn.Sequential(
+            ConvNormAct(dims[0], dims[0], kernel_size, n_groups, act), nn.Conv1d(dims[0], action_dim, 1)
+        )
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, global_cond: torch.Tensor) -> torch.Tensor:
         horizon = x.shape[1]
-        if horizon % (2 ** self.num_downsamples):
+        if horizon % (2**self.num_downsamples):
             raise ValueError(f"horizon {horizon} must be divisible by 2**{self.num_downsamples} (len(down_dims) - 1)")
         t = torch.as_tensor(t, device=x.device).reshape(-1).expand(x.shape[0])
         cond = torch.cat([self.step_encoder(t), global_cond], dim=-1)

@@ -47,8 +47,11 @@ class MinMaxNormalizer:
             raise ValueError(f"last dimension {x.shape[-1]} does not match the normaliser's {self.dim}")
         key = (x.device, x.dtype)  # cached: no host-to-device copy per call (and a CUDA graph can capture it)
         if key not in self._on_device:
-            self._on_device[key] = (self.low.to(x.device, x.dtype), self.scale.to(x.device, x.dtype),
-                                    self.constant.to(x.device))
+            self._on_device[key] = (
+                self.low.to(x.device, x.dtype),
+                self.scale.to(x.device, x.dtype),
+                self.constant.to(x.device),
+            )
         return self._on_device[key]
 
     def normalize(self, x: torch.Tensor) -> torch.Tensor:

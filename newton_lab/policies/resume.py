@@ -29,8 +29,16 @@ RESUME_NAME = "resume.pt"
 RESUME_FORMAT = "newton_lab.policies.resume"
 RESUME_VERSION = 1
 RESUME_KEYS = ("config", "policy", "optimizer", "data_order", "data", "progress", "rng")
-FREE_ON_RESUME = ("progress", "time_budget_s", "checkpoint_every_steps", "checkpoint_every_s", "num_workers",
-                  "output_dir", "device", "cuda_graph")
+FREE_ON_RESUME = (
+    "progress",
+    "time_budget_s",
+    "checkpoint_every_steps",
+    "checkpoint_every_s",
+    "num_workers",
+    "output_dir",
+    "device",
+    "cuda_graph",
+)
 """Config fields a resumed run may change; the others must be the interrupted run's (they shape its steps)."""
 
 
@@ -41,12 +49,18 @@ def resume_path(out_dir: str | Path) -> Path:
 def capture_rng() -> dict[str, Any]:
     """Every RNG state a training step may read: torch CPU, torch CUDA (when initialised), numpy, python."""
     np_state = np.random.get_state(legacy=False)
-    return {"torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() and torch.cuda.is_initialized()
-            else [],
-            "numpy": {**np_state, "state": {"key": torch.from_numpy(np_state["state"]["key"].astype(np.int64)),
-                                            "pos": int(np_state["state"]["pos"])}},
-            "python": random.getstate()}
+    return {
+        "torch": torch.get_rng_state(),
+        "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() and torch.cuda.is_initialized() else [],
+        "numpy": {
+            **np_state,
+            "state": {
+                "key": torch.from_numpy(np_state["state"]["key"].astype(np.int64)),
+                "pos": int(np_state["state"]["pos"]),
+            },
+        },
+        "python": random.getstate(),
+    }
 
 
 def restore_rng(state: dict[str, Any]) -> None:
@@ -54,8 +68,12 @@ def restore_rng(state: dict[str, Any]) -> None:
     if state["cuda"] and torch.cuda.is_available() and len(state["cuda"]) == torch.cuda.device_count():
         torch.cuda.set_rng_state_all(state["cuda"])
     np_state = state["numpy"]
-    np.random.set_state({**np_state, "state": {"key": np_state["state"]["key"].numpy().astype(np.uint32),
-                                               "pos": np_state["state"]["pos"]}})
+    np.random.set_state(
+        {
+            **np_state,
+            "state": {"key": np_state["state"]["key"].numpy().astype(np.uint32), "pos": np_state["state"]["pos"]},
+        }
+    )
     version, internal, gauss = state["python"]
     random.setstate((version, tuple(internal), gauss))
 
@@ -104,24 +122,32 @@ def remove_stale_temps(out_dir: Path) -> None:
 def refuse_fresh_run(out_dir: Path) -> None:
     """A fresh run must not overwrite an interrupted one's resume file."""
     if resume_path(out_dir).exists():
-        raise FileExistsError(f"{resume_path(out_dir)} holds an interrupted run; continue it with --resume "
-                              "(resume=True) or delete that file to start over")
+        raise FileExistsError(
+            f"{resume_path(out_dir)} holds an interrupted run; continue it with --resume "
+            "(resume=True) or delete that file to start over"
+        )
 
 
 def load_resume(out_dir: Path) -> dict[str, Any]:
     """The resume file of ``out_dir``, or a one-line error naming the fix."""
     path = resume_path(out_dir)
     if not path.is_file():
-        raise FileNotFoundError(f"no resume file {path}: nothing to resume there; check --output-dir, "
-                                "or train without --resume to start from step 0")
+        raise FileNotFoundError(
+            f"no resume file {path}: nothing to resume there; check --output-dir, "
+            "or train without --resume to start from step 0"
+        )
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any unpickling failure means a bad file
         state = " ".join(f"{type(exc).__name__}: {exc}".split())[:120]
-    if not isinstance(state, dict) or state.get("format") != RESUME_FORMAT or state.get("version") != RESUME_VERSION \
-            or not all(k in state for k in RESUME_KEYS):
+    if (
+        not isinstance(state, dict)
+        or state.get("format") != RESUME_FORMAT
+        or state.get("version") != RESUME_VERSION
+        or not all(k in state for k in RESUME_KEYS)
+    ):
         reason = state if isinstance(state, str) else "not a complete newton_lab resume file of this version"
         raise ValueError(f"{path} is damaged ({reason}); delete it and train without --resume to start from step 0")
     return state
@@ -130,35 +156,44 @@ def load_resume(out_dir: Path) -> dict[str, Any]:
 def check_resumable(state: dict[str, Any], cfg: DiffusionPolicyConfig, data, out_dir: Path) -> None:
     """One-line error unless ``cfg`` and ``data`` are the interrupted run's (``FREE_ON_RESUME`` may differ)."""
     saved, now = state["config"], cfg.to_dict()
-    diff = [f"{k}={saved.get(k)!r} (now {now[k]!r})" for k in now
-            if k not in FREE_ON_RESUME and saved.get(k) != now[k]]
+    diff = [f"{k}={saved.get(k)!r} (now {now[k]!r})" for k in now if k not in FREE_ON_RESUME and saved.get(k) != now[k]]
     if state["data"]["fingerprint"] != data_fingerprint(data):
         diff.append(f"the dataset ({state['data']['source']})")
     if diff:
-        raise ValueError(f"{resume_path(out_dir)} was written by a run with other settings: {', '.join(diff)}; "
-                         "resume with the same dataset and settings, or delete it to start over")
+        raise ValueError(
+            f"{resume_path(out_dir)} was written by a run with other settings: {', '.join(diff)}; "
+            "resume with the same dataset and settings, or delete it to start over"
+        )
 
 
 def resumed_config(state: dict[str, Any], cfg: DiffusionPolicyConfig) -> DiffusionPolicyConfig:
     """``cfg`` with the interrupted run's architecture when it was fine-tuned (the init checkpoint fixed it)."""
     if cfg.init_checkpoint is None:
         return cfg
-    return cfg.with_architecture_of(DiffusionPolicyConfig.from_dict(
-        {k: v for k, v in state["config"].items() if k in ARCHITECTURE_FIELDS}))
+    return cfg.with_architecture_of(
+        DiffusionPolicyConfig.from_dict({k: v for k, v in state["config"].items() if k in ARCHITECTURE_FIELDS})
+    )
 
 
 def policy_state(policy: DiffusionPolicy) -> dict[str, Any]:
-    return {"normalizers": {"obs": policy.obs_normalizer.state_dict(), "action": policy.action_normalizer.state_dict()},
-            "info": policy.info, "model": policy.model.state_dict(), "ema": policy.ema.averaged.state_dict(),
-            "ema_updates": policy.ema.num_updates}
+    return {
+        "normalizers": {"obs": policy.obs_normalizer.state_dict(), "action": policy.action_normalizer.state_dict()},
+        "info": policy.info,
+        "model": policy.model.state_dict(),
+        "ema": policy.ema.averaged.state_dict(),
+        "ema_updates": policy.ema.num_updates,
+    }
 
 
 def restore_policy(state: dict[str, Any], cfg: DiffusionPolicyConfig) -> DiffusionPolicy:
     """The interrupted run's policy (raw and EMA weights, normalisers, info) on ``cfg.device``."""
     saved = state["policy"]
-    policy = DiffusionPolicy(cfg, obs_normalizer=MinMaxNormalizer.from_state_dict(saved["normalizers"]["obs"]),
-                             action_normalizer=MinMaxNormalizer.from_state_dict(saved["normalizers"]["action"]),
-                             info=saved["info"])
+    policy = DiffusionPolicy(
+        cfg,
+        obs_normalizer=MinMaxNormalizer.from_state_dict(saved["normalizers"]["obs"]),
+        action_normalizer=MinMaxNormalizer.from_state_dict(saved["normalizers"]["action"]),
+        info=saved["info"],
+    )
     policy.model.load_state_dict(saved["model"])
     policy.ema.averaged.load_state_dict(saved["ema"])
     policy.ema.num_updates = saved["ema_updates"]

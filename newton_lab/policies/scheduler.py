@@ -56,8 +56,9 @@ class NoiseScheduler:
             self._tables[key] = self.alphas_cumprod.to(device=like.device, dtype=like.dtype)
         return self._tables[key]
 
-    def sample_timesteps(self, batch: int, device: torch.device | str = "cpu",
-                         generator: torch.Generator | None = None) -> torch.Tensor:
+    def sample_timesteps(
+        self, batch: int, device: torch.device | str = "cpu", generator: torch.Generator | None = None
+    ) -> torch.Tensor:
         """Uniform training timesteps (batch,) in [0, T)."""
         return torch.randint(0, self.num_train_timesteps, (batch,), device=device, generator=generator)
 
@@ -73,8 +74,17 @@ class NoiseScheduler:
         ratio = self.num_train_timesteps / num_inference_steps
         return [int(round(self.num_train_timesteps - i * ratio)) - 1 for i in range(num_inference_steps)]
 
-    def ddim_step(self, eps: torch.Tensor, t: int, t_prev: int, x_t: torch.Tensor, *, eta: float = 0.0,
-                  generator: torch.Generator | None = None, prediction_type: str = "epsilon") -> torch.Tensor:
+    def ddim_step(
+        self,
+        eps: torch.Tensor,
+        t: int,
+        t_prev: int,
+        x_t: torch.Tensor,
+        *,
+        eta: float = 0.0,
+        generator: torch.Generator | None = None,
+        prediction_type: str = "epsilon",
+    ) -> torch.Tensor:
         """One DDIM update x_t -> x_{t_prev} (``t_prev < 0`` means the clean sample); ``eps`` is the model
         output: the noise, or with ``prediction_type="sample"`` the clean sample x0."""
         a_t, a_prev = self._abar(torch.tensor(t), x_t), self._abar(torch.tensor(t_prev), x_t)
@@ -94,15 +104,23 @@ class NoiseScheduler:
             x_prev = x_prev + sigma * torch.randn(x_t.shape, generator=generator, device=x_t.device, dtype=x_t.dtype)
         return x_prev
 
-    def sample(self, denoise: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], x_T: torch.Tensor, *,
-               num_inference_steps: int = 10, eta: float = 0.0, generator: torch.Generator | None = None,
-               prediction_type: str = "epsilon") -> torch.Tensor:
+    def sample(
+        self,
+        denoise: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
+        x_T: torch.Tensor,
+        *,
+        num_inference_steps: int = 10,
+        eta: float = 0.0,
+        generator: torch.Generator | None = None,
+        prediction_type: str = "epsilon",
+    ) -> torch.Tensor:
         """DDIM from ``x_T`` (usually N(0, I)); ``denoise(x_t, t (B,))`` -> eps (or x0 for ``"sample"``).
         Returns x_0."""
         steps = self.ddim_timesteps(num_inference_steps)
         x = x_T
         for t, t_prev in zip(steps, steps[1:] + [-1]):
             tt = torch.full((x.shape[0],), t, dtype=torch.long, device=x.device)
-            x = self.ddim_step(denoise(x, tt), t, t_prev, x, eta=eta, generator=generator,
-                               prediction_type=prediction_type)
+            x = self.ddim_step(
+                denoise(x, tt), t, t_prev, x, eta=eta, generator=generator, prediction_type=prediction_type
+            )
         return x

@@ -113,8 +113,7 @@ def _save_run(policy: DiffusionPolicy, out_dir: Path, log: dict[str, Any]) -> Pa
     return ckpt_path
 
 
-def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from: tuple[int, float],
-                   total: int) -> int:
+def _fit_to_budget(step: int, elapsed: float, budget: float, cap: int, rate_from: tuple[int, float], total: int) -> int:
     """Planned total steps so the loop ends within ``budget`` seconds: re-planned at step 50 (rate over the
     first 50 steps), then every 100 steps from the rate since step 50 (the machine may speed up or slow
     down; each re-plan moves the cosine schedule only a little); never above ``cap``."""
@@ -142,8 +141,10 @@ def _continue(policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPoli
     if list(info.get("action_joint_names", [])) != list(data.action_joint_names):
         problems.append("its action columns differ from the dataset's")
     if problems:
-        raise ValueError(f"cannot continue from {cfg.init_checkpoint}: {'; '.join(problems)}; "
-                         "train from scratch (no init_checkpoint) or pick a matching dataset")
+        raise ValueError(
+            f"cannot continue from {cfg.init_checkpoint}: {'; '.join(problems)}; "
+            "train from scratch (no init_checkpoint) or pick a matching dataset"
+        )
     policy.cfg = cfg
     policy.info["dataset"] = data.source
     policy.model.train()
@@ -165,36 +166,64 @@ class Progress:
     resumed_at: list[int] = field(default_factory=list)
 
     def state_dict(self) -> dict[str, Any]:
-        return {"total": self.total, "cap": self.cap, "step": self.step, "rate_from": tuple(self.rate_from),
-                "epochs": self.epochs, "elapsed_s": self.elapsed_s, "resumed_at": self.resumed_at,
-                "losses": torch.stack(self.losses).cpu() if self.losses else torch.zeros(0)}
+        return {
+            "total": self.total,
+            "cap": self.cap,
+            "step": self.step,
+            "rate_from": tuple(self.rate_from),
+            "epochs": self.epochs,
+            "elapsed_s": self.elapsed_s,
+            "resumed_at": self.resumed_at,
+            "losses": torch.stack(self.losses).cpu() if self.losses else torch.zeros(0),
+        }
 
     @classmethod
     def from_state_dict(cls, state: dict[str, Any], device: torch.device) -> Progress:
-        return cls(**{**state, "rate_from": tuple(state["rate_from"]), "epochs": list(state["epochs"]),
-                      "resumed_at": list(state["resumed_at"]), "losses": list(state["losses"].to(device).unbind())})
+        return cls(
+            **{
+                **state,
+                "rate_from": tuple(state["rate_from"]),
+                "epochs": list(state["epochs"]),
+                "resumed_at": list(state["resumed_at"]),
+                "losses": list(state["losses"].to(device).unbind()),
+            }
+        )
 
 
 class Checkpointer:
     """Writes the resume file when due: every ``checkpoint_every_steps`` steps or ``checkpoint_every_s`` seconds."""
 
-    def __init__(self, cfg: DiffusionPolicyConfig, out_dir: Path, policy: DiffusionPolicy,
-                 stepper: EagerTrainStep | CudaGraphTrainStep, data: SequenceDataset) -> None:
+    def __init__(
+        self,
+        cfg: DiffusionPolicyConfig,
+        out_dir: Path,
+        policy: DiffusionPolicy,
+        stepper: EagerTrainStep | CudaGraphTrainStep,
+        data: SequenceDataset,
+    ) -> None:
         self.cfg, self.path, self.policy, self.stepper, self.data = cfg, resume_path(out_dir), policy, stepper, data
         self.last = time.perf_counter()
         self.fingerprint: str | None = None
 
     def due(self, step: int) -> bool:
         every_steps, every_s = self.cfg.checkpoint_every_steps, self.cfg.checkpoint_every_s
-        return bool((every_steps and step % every_steps == 0)
-                    or (every_s and time.perf_counter() - self.last >= every_s))
+        return bool(
+            (every_steps and step % every_steps == 0) or (every_s and time.perf_counter() - self.last >= every_s)
+        )
 
     def save(self, progress: Progress) -> None:
         self.fingerprint = self.fingerprint or data_fingerprint(self.data)
-        payload = {"format": RESUME_FORMAT, "version": RESUME_VERSION, "config": self.cfg.to_dict(),
-                   "policy": policy_state(self.policy), "optimizer": self.stepper.optimizer.state_dict(),
-                   "data_order": self.stepper.state_dict(), "progress": progress.state_dict(), "rng": capture_rng(),
-                   "data": {"fingerprint": self.fingerprint, "source": self.data.source}}
+        payload = {
+            "format": RESUME_FORMAT,
+            "version": RESUME_VERSION,
+            "config": self.cfg.to_dict(),
+            "policy": policy_state(self.policy),
+            "optimizer": self.stepper.optimizer.state_dict(),
+            "data_order": self.stepper.state_dict(),
+            "progress": progress.state_dict(),
+            "rng": capture_rng(),
+            "data": {"fingerprint": self.fingerprint, "source": self.data.source},
+        }
         write_atomic(payload, self.path)
         self.last = time.perf_counter()
 
@@ -203,8 +232,15 @@ class Checkpointer:
         self.path.unlink(missing_ok=True)
 
 
-def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep, task_id: str,
-          cfg: DiffusionPolicyConfig, run: Progress, checkpointer: Checkpointer, stop=None) -> None:
+def _loop(
+    policy: DiffusionPolicy,
+    stepper: EagerTrainStep | CudaGraphTrainStep,
+    task_id: str,
+    cfg: DiffusionPolicyConfig,
+    run: Progress,
+    checkpointer: Checkpointer,
+    stop=None,
+) -> None:
     """Optimiser steps until ``run.total`` (re-planned to ``cfg.time_budget_s``), from ``run.step`` on. ``stop``
     (``datasets.writers.interrupts.StopRequest``) set: the resume point is saved after the step in flight and
     ``Interrupted`` raised."""
@@ -213,8 +249,13 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
     policy.model.train()
     set_lr(stepper.optimizer, cfg.lr * lr_factor(run.step))
     processes, show = data_parallel.world()[1], cfg.progress and data_parallel.is_main()
-    with tqdm(total=run.total, initial=run.step, desc=f"diffusion policy {task_id}", unit="step",
-              disable=None if show else True) as bar:  # None: a terminal only (no \r bars in logs)
+    with tqdm(
+        total=run.total,
+        initial=run.step,
+        desc=f"diffusion policy {task_id}",
+        unit="step",
+        disable=None if show else True,
+    ) as bar:  # None: a terminal only (no \r bars in logs)
         lines = show and bar.disable  # not a terminal (a log file, Prefect): a plain line every LOG_EVERY_S
         last_line = time.perf_counter()
         while run.step < run.total:
@@ -225,8 +266,12 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
                 if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
                     last_line = time.perf_counter()
                     rate = run.step * cfg.batch_size * processes / max(last_line - t0, 1e-9)
-                    print(f"diffusion policy {task_id}: step {run.step}/{run.total}, loss {loss.item():.4f}, "
-                          f"{rate:,.0f} samples/s, {last_line - t0:.0f} s", file=sys.stderr, flush=True)
+                    print(
+                        f"diffusion policy {task_id}: step {run.step}/{run.total}, loss {loss.item():.4f}, "
+                        f"{rate:,.0f} samples/s, {last_line - t0:.0f} s",
+                        file=sys.stderr,
+                        flush=True,
+                    )
                 if cfg.time_budget_s is not None:
                     elapsed = time.perf_counter() - t0
                     run.total = _fit_to_budget(run.step, elapsed, cfg.time_budget_s, run.cap, run.rate_from, run.total)
@@ -244,11 +289,19 @@ def _loop(policy: DiffusionPolicy, stepper: EagerTrainStep | CudaGraphTrainStep,
                     run.elapsed_s = time.perf_counter() - t0
                     checkpointer.save(run)
                 if stop:
-                    raise Interrupted(f"interrupted at step {run.step} of {run.total}: the resume point is saved in "
-                                      f"{checkpointer.path}; continue with --resume", stop.signum)
-            run.epochs.append({"epoch": len(run.epochs) + 1,
-                               "loss": data_parallel.mean_over_ranks(torch.stack(run.losses).mean()).item(),
-                               "steps": run.step, "lr": cfg.lr * lr_factor(run.step)})
+                    raise Interrupted(
+                        f"interrupted at step {run.step} of {run.total}: the resume point is saved in "
+                        f"{checkpointer.path}; continue with --resume",
+                        stop.signum,
+                    )
+            run.epochs.append(
+                {
+                    "epoch": len(run.epochs) + 1,
+                    "loss": data_parallel.mean_over_ranks(torch.stack(run.losses).mean()).item(),
+                    "steps": run.step,
+                    "lr": cfg.lr * lr_factor(run.step),
+                }
+            )
             run.losses = []
     run.elapsed_s = time.perf_counter() - t0
 
@@ -263,8 +316,13 @@ def _resume(state: dict[str, Any], policy: DiffusionPolicy, stepper: EagerTrainS
     return run
 
 
-def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any] | None = None, *,
-          resume: bool = False, gpus: int = 1) -> Path:
+def train(
+    dataset: str | Path | Any,
+    cfg: DiffusionPolicyConfig | dict[str, Any] | None = None,
+    *,
+    resume: bool = False,
+    gpus: int = 1,
+) -> Path:
     """Train a diffusion policy on a dataset (a path, an object with ``.path``, or a list of them: same task and
     action columns, trained as one); returns the checkpoint path. ``resume``: continue the interrupted run whose
     resume file is in ``cfg.output_dir`` (same dataset and settings); without it, such a file is refused.
@@ -298,19 +356,31 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         start = DiffusionPolicy.load(cfg.init_checkpoint, device=cfg.device)
         trained, task = start.info.get("task_id"), read_dataset_info(paths[0])["task_id"]
         if trained not in (None, task):  # before its observation keys are looked for in another task's data
-            raise ValueError(f"cannot continue from {cfg.init_checkpoint}: it was trained for {trained}, the dataset "
-                             f"is {task}; train from scratch (no init_checkpoint) or pick a dataset of {trained}")
+            raise ValueError(
+                f"cannot continue from {cfg.init_checkpoint}: it was trained for {trained}, the dataset "
+                f"is {task}; train from scratch (no init_checkpoint) or pick a dataset of {trained}"
+            )
         cfg = cfg.with_architecture_of(dataclasses.replace(start.cfg, obs_keys=tuple(start.obs_keys)))
     # Ctrl-C / SIGTERM from here on: a resume point after the first step that ends after it; in one process only
     # (ranks would stop at different steps, and the others would wait for them in the next all-reduce; torchrun
     # ends its ranks with SIGTERM, which must stay fatal there)
     with stop_requests() if data_parallel.world()[1] == 1 else nullcontext() as stop:
         read_from = time.perf_counter()
-        data = SequenceDataset(paths, obs_keys=cfg.obs_keys, obs_horizon=cfg.obs_horizon,
-                               pred_horizon=cfg.pred_horizon, success_only=cfg.success_only, image_keys=cfg.image_keys)
+        data = SequenceDataset(
+            paths,
+            obs_keys=cfg.obs_keys,
+            obs_horizon=cfg.obs_horizon,
+            pred_horizon=cfg.pred_horizon,
+            success_only=cfg.success_only,
+            image_keys=cfg.image_keys,
+        )
         if cfg.progress and data_parallel.is_main():
-            print(f"diffusion policy {data.task_id}: {len(data.demos)} demos, {len(data):,} windows read in "
-                  f"{time.perf_counter() - read_from:.1f} s", file=sys.stderr, flush=True)
+            print(
+                f"diffusion policy {data.task_id}: {len(data.demos)} demos, {len(data):,} windows read in "
+                f"{time.perf_counter() - read_from:.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
         if state is not None:
             check_resumable(state, cfg, data, out_dir)
             policy = restore_policy(state, cfg)
@@ -328,15 +398,28 @@ def train(dataset: str | Path | Any, cfg: DiffusionPolicyConfig | dict[str, Any]
         checkpointer = Checkpointer(cfg, out_dir, policy, stepper, data)
         _loop(policy, stepper, data.task_id, cfg, run, checkpointer, stop=stop)
 
-    training = {"final_loss": run.epochs[-1]["loss"], "epochs": len(run.epochs), "steps": run.step,
-                "wall_time_s": round(run.elapsed_s, 3), "init_checkpoint": cfg.init_checkpoint,
-                "num_demos": len(data.demos), "num_windows": len(data), "batch_size": cfg.batch_size,
-                "cuda_graph": isinstance(stepper, CudaGraphTrainStep), "resumed_at_steps": run.resumed_at,
-                "parameters": sum(p.numel() for p in policy.model.parameters()),
-                "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    training = {
+        "final_loss": run.epochs[-1]["loss"],
+        "epochs": len(run.epochs),
+        "steps": run.step,
+        "wall_time_s": round(run.elapsed_s, 3),
+        "init_checkpoint": cfg.init_checkpoint,
+        "num_demos": len(data.demos),
+        "num_windows": len(data),
+        "batch_size": cfg.batch_size,
+        "cuda_graph": isinstance(stepper, CudaGraphTrainStep),
+        "resumed_at_steps": run.resumed_at,
+        "parameters": sum(p.numel() for p in policy.model.parameters()),
+        "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
     policy.info["training"] = training
-    log = {"task_id": data.task_id, "dataset": data.source, **training, "config": cfg.to_dict(),
-           "epoch_log": run.epochs}
+    log = {
+        "task_id": data.task_id,
+        "dataset": data.source,
+        **training,
+        "config": cfg.to_dict(),
+        "epoch_log": run.epochs,
+    }
     if not data_parallel.is_main():
         return Path(data_parallel.shared(None))
     path = _save_run(policy, out_dir, log)

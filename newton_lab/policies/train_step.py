@@ -65,9 +65,11 @@ class ResumableOrder:
 
     def load_state_dict(self, state: dict[str, Any], then: Callable[[], None] | None = None) -> None:
         if state.get("kind") != type(self).__name__:
-            raise ValueError(f"the interrupted run used the {state.get('kind')} step, this one the "
-                             f"{type(self).__name__}; resume on the same kind of device with the same cuda_graph "
-                             "setting")
+            raise ValueError(
+                f"the interrupted run used the {state.get('kind')} step, this one the "
+                f"{type(self).__name__}; resume on the same kind of device with the same cuda_graph "
+                "setting"
+            )
         self._pending = (state, then)
 
     def _begin_epoch(self) -> int:
@@ -96,8 +98,9 @@ class EagerTrainStep(ResumableOrder):
         fused = {"fused": True} if policy.device.type in ("cuda", "cpu") else {}  # one kernel for all tensors
         if cfg.compile:
             policy.compile_for_training()
-        self.optimizer = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, betas=cfg.betas,
-                                           weight_decay=cfg.weight_decay, **fused)
+        self.optimizer = torch.optim.AdamW(
+            policy.model.parameters(), lr=cfg.lr, betas=cfg.betas, weight_decay=cfg.weight_decay, **fused
+        )
         # An epoch visits every window once in random order; a dataset smaller than one batch is repeated (fresh
         # permutations) up to batch_size windows, so every step sees batch_size differently-noised windows.
         # Data-parallel: every rank walks the same order in global batches of batch_size * processes windows
@@ -106,8 +109,13 @@ class EagerTrainStep(ResumableOrder):
         rank, size = world()
         sampler = RandomSampler(data, num_samples=max(len(data), cfg.batch_size * size), generator=self.generator)
         batches = RankSlice(BatchSampler(sampler, cfg.batch_size * size, drop_last=True), rank, cfg.batch_size)
-        self.loader = DataLoader(data, batch_sampler=batches, num_workers=cfg.num_workers, collate_fn=collate_batch,
-                                 persistent_workers=cfg.num_workers > 0)
+        self.loader = DataLoader(
+            data,
+            batch_sampler=batches,
+            num_workers=cfg.num_workers,
+            collate_fn=collate_batch,
+            persistent_workers=cfg.num_workers > 0,
+        )
 
     def epoch(self) -> Iterator[torch.Tensor]:
         """Run the epoch's steps, yielding each step's (device, detached) loss."""
@@ -136,9 +144,14 @@ class CudaGraphTrainStep(ResumableOrder):
         device = policy.device
         self._init_order()
         self.policy, self.batch_size = policy, cfg.batch_size
-        self.optimizer = torch.optim.AdamW(policy.model.parameters(), lr=torch.tensor(cfg.lr, device=device),
-                                           betas=cfg.betas, weight_decay=cfg.weight_decay, fused=True,
-                                           capturable=True)
+        self.optimizer = torch.optim.AdamW(
+            policy.model.parameters(),
+            lr=torch.tensor(cfg.lr, device=device),
+            betas=cfg.betas,
+            weight_decay=cfg.weight_decay,
+            fused=True,
+            capturable=True,
+        )
         self.obs, self.actions = data.obs.to(device), data.actions.to(device)
         self.images = {k: v.to(device) for k, v in data.images.items()}  # uint8 frames: the whole set on the GPU
         self.obs_index, self.action_index = data.obs_index.to(device), data.action_index.to(device)
@@ -191,7 +204,7 @@ class CudaGraphTrainStep(ResumableOrder):
         self._resumed()
         for k in range(skip, self.steps):
             first = (k * size + self.rank) * b  # this rank's slice of the k-th global batch
-            self.index.copy_(order[first:first + b])
+            self.index.copy_(order[first : first + b])
             self.position = k + 1
             yield self._run()
 
@@ -205,14 +218,15 @@ class RankSlice:
     def __iter__(self) -> Iterator[list[int]]:
         first = self.rank * self.batch_size
         for batch in self.batches:
-            yield batch[first:first + self.batch_size]
+            yield batch[first : first + self.batch_size]
 
     def __len__(self) -> int:
         return len(self.batches)
 
 
-def make_train_step(policy: DiffusionPolicy, data: SequenceDataset,
-                    cfg: DiffusionPolicyConfig) -> EagerTrainStep | CudaGraphTrainStep:
+def make_train_step(
+    policy: DiffusionPolicy, data: SequenceDataset, cfg: DiffusionPolicyConfig
+) -> EagerTrainStep | CudaGraphTrainStep:
     """The captured step on CUDA (unless ``cfg.cuda_graph`` is off), the eager one elsewhere."""
     if policy.device.type == "cuda" and cfg.cuda_graph:
         return CudaGraphTrainStep(policy, data, cfg)

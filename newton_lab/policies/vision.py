@@ -32,8 +32,11 @@ class BasicBlock(nn.Module):
         self.norm1 = _norm(c_out)
         self.conv2 = nn.Conv2d(c_out, c_out, 3, 1, 1, bias=False)
         self.norm2 = _norm(c_out)
-        self.shortcut = (nn.Identity() if stride == 1 and c_in == c_out else
-                         nn.Sequential(nn.Conv2d(c_in, c_out, 1, stride, bias=False), _norm(c_out)))
+        self.shortcut = (
+            nn.Identity()
+            if stride == 1 and c_in == c_out
+            else nn.Sequential(nn.Conv2d(c_in, c_out, 1, stride, bias=False), _norm(c_out))
+        )
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h = F.relu(self.norm1(self.conv1(x)))
@@ -45,8 +48,9 @@ class ResNetGN(nn.Module):
 
     def __init__(self, width: int = 64, in_channels: int = 3) -> None:
         super().__init__()
-        self.stem = nn.Sequential(nn.Conv2d(in_channels, width, 7, 2, 3, bias=False), _norm(width), nn.ReLU(),
-                                  nn.MaxPool2d(3, 2, 1))
+        self.stem = nn.Sequential(
+            nn.Conv2d(in_channels, width, 7, 2, 3, bias=False), _norm(width), nn.ReLU(), nn.MaxPool2d(3, 2, 1)
+        )
         widths, layers, c = (width, 2 * width, 4 * width, 8 * width), [], width
         for i, w in enumerate(widths):
             layers += [BasicBlock(c, w, 1 if i == 0 else 2), BasicBlock(w, w)]
@@ -111,8 +115,9 @@ def crop_size(shape: Sequence[int], crop: float) -> tuple[int, int]:
 class ImageEncoder(nn.Module):
     """Every image key's frames -> concatenated features: (B, T, H, W, C) uint8 per key -> (B, T, n * feature_dim)."""
 
-    def __init__(self, shapes: Mapping[str, Sequence[int]], *, crop: float = 0.9, feature_dim: int = 64,
-                 width: int = 64) -> None:
+    def __init__(
+        self, shapes: Mapping[str, Sequence[int]], *, crop: float = 0.9, feature_dim: int = 64, width: int = 64
+    ) -> None:
         super().__init__()
         self.keys = list(shapes)
         self.shapes = {k: tuple(int(v) for v in s) for k, s in shapes.items()}
@@ -127,8 +132,10 @@ class ImageEncoder(nn.Module):
             raise ValueError(f"images {missing} are missing; the policy sees {self.keys}")
         for k in self.keys:
             if tuple(images[k].shape[2:]) != self.shapes[k]:
-                raise ValueError(f"image {k} frames are {tuple(images[k].shape[2:])}, the policy was trained on "
-                                 f"{self.shapes[k]} (H, W, C); render the env's camera at that size")
+                raise ValueError(
+                    f"image {k} frames are {tuple(images[k].shape[2:])}, the policy was trained on "
+                    f"{self.shapes[k]} (H, W, C); render the env's camera at that size"
+                )
 
     def forward(self, images: Mapping[str, torch.Tensor]) -> torch.Tensor:
         feats = []

@@ -125,8 +125,10 @@ class RobotBinding:
         """``robot``, or a one-line ``ValueError`` saying ``user`` needs one: nothing falls back to a default
         robot."""
         if not isinstance(robot, RobotBinding):
-            raise ValueError(f"{user} needs the robot it works for (robot=env.robot, or "
-                             f"newton_lab.robots.registry.robot_binding(name)), got {robot!r}")
+            raise ValueError(
+                f"{user} needs the robot it works for (robot=env.robot, or "
+                f"newton_lab.robots.registry.robot_binding(name)), got {robot!r}"
+            )
         return robot
 
     def arm(self, name: str) -> Arm:

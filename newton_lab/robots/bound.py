@@ -133,16 +133,19 @@ class ActionMap:
         """Columns of ``terms`` (``ActionTermCfg``) on the scene ``layout``; refuses unknown groups / kinds
         with a one-line ``ValueError``."""
         joints, cols = layout.joints, _Columns(robot)
-        lower, upper = (np.asarray(a.numpy()[: layout.dofs_per_world], dtype=np.float32)
-                        for a in (layout.model.joint_limit_lower, layout.model.joint_limit_upper))
+        lower, upper = (
+            np.asarray(a.numpy()[: layout.dofs_per_world], dtype=np.float32)
+            for a in (layout.model.joint_limit_lower, layout.model.joint_limit_upper)
+        )
         spans, groups, owner = {}, {}, {}
         for term in terms:
             kind = _check_term(robot, term)
             start = len(cols.names)
             for j in robot.joint_groups[term.group]:
                 if j in owner:
-                    raise ValueError(f"joint {j!r} is in action terms {owner[j]!r} and {term.name!r}; "
-                                     f"list each joint group once")
+                    raise ValueError(
+                        f"joint {j!r} is in action terms {owner[j]!r} and {term.name!r}; list each joint group once"
+                    )
                 owner[j] = term.name
                 d = joints.dof[j]
                 cols.add(j, kind, d if kind == "velocity" else joints.coord[j], term, (lower[d], upper[d]))
@@ -177,15 +180,18 @@ class ActionMap:
 def _check_term(robot: RobotBinding, term: Any) -> str:
     """The term's kind, after checking its group and type (one-line errors naming the valid values)."""
     if term.group not in robot.joint_groups:
-        raise ValueError(f"action term {term.name!r}: unknown group {term.group!r}; valid groups: "
-                         f"{', '.join(robot.joint_groups)}")
+        raise ValueError(
+            f"action term {term.name!r}: unknown group {term.group!r}; valid groups: {', '.join(robot.joint_groups)}"
+        )
     if term.type not in ACTION_KINDS:
-        raise ValueError(f"action term {term.name!r}: unknown type {term.type!r}; valid kinds: "
-                         f"{', '.join(ACTION_KINDS)}")
+        raise ValueError(
+            f"action term {term.name!r}: unknown type {term.type!r}; valid kinds: {', '.join(ACTION_KINDS)}"
+        )
     kinds = robot.group_kinds[term.group]
     if term.type not in kinds:
-        raise ValueError(f"action term {term.name!r}: type {term.type!r} does not drive group {term.group!r}; "
-                         f"use {'|'.join(kinds)}")
+        raise ValueError(
+            f"action term {term.name!r}: type {term.type!r} does not drive group {term.group!r}; use {'|'.join(kinds)}"
+        )
     return term.type
 
 
@@ -216,9 +222,16 @@ class _Columns:
 
     def build(self, terms: dict[str, slice], groups: dict[str, str], wheel_col: int) -> ActionMap:
         return ActionMap(
-            joint_names=tuple(self.names), kinds=tuple(self.kinds), terms=terms, term_groups=groups,
-            index=np.asarray(self.index, dtype=np.int32), scale=_f32(self.scale), low=_f32(self.low),
-            high=_f32(self.high), target_low=_f32(self.target_low), target_high=_f32(self.target_high),
+            joint_names=tuple(self.names),
+            kinds=tuple(self.kinds),
+            terms=terms,
+            term_groups=groups,
+            index=np.asarray(self.index, dtype=np.int32),
+            scale=_f32(self.scale),
+            low=_f32(self.low),
+            high=_f32(self.high),
+            target_low=_f32(self.target_low),
+            target_high=_f32(self.target_high),
             wheel_col=wheel_col,
         )
 
@@ -265,8 +278,9 @@ class BoundRobot:
     limits: DriveLimits
 
     @classmethod
-    def from_layout(cls, robot: RobotBinding, layout: Any, *, actions: Sequence[Any],
-                    arm: str | None = None) -> BoundRobot:
+    def from_layout(
+        cls, robot: RobotBinding, layout: Any, *, actions: Sequence[Any], arm: str | None = None
+    ) -> BoundRobot:
         """Bind ``robot`` in ``layout`` (``envs.scene.SceneLayout``) with the task's action terms and arm (the
         robot's default arm when ``None``)."""
         return cls(

@@ -24,17 +24,26 @@ mat43 = wp.types.matrix(shape=(4, 3), dtype=wp.float32)
 
 MIX = wp.constant(
     mat43(
-        -1.0, 1.0, 1.0,  # wheel1 = -vx + vy + wz
-        -1.0, -1.0, 1.0,  # wheel2 = -vx - vy + wz
-        1.0, -1.0, 1.0,  # wheel3 = vx - vy + wz
-        1.0, 1.0, 1.0,  # wheel4 = vx + vy + wz
+        -1.0,
+        1.0,
+        1.0,  # wheel1 = -vx + vy + wz
+        -1.0,
+        -1.0,
+        1.0,  # wheel2 = -vx - vy + wz
+        1.0,
+        -1.0,
+        1.0,  # wheel3 = vx - vy + wz
+        1.0,
+        1.0,
+        1.0,  # wheel4 = vx + vy + wz
     )
 )
 """Wheel i's signs for (vx, vy, wz), rows wheel1..wheel4 (each term scaled by its gain)."""
 
 
-def wheel_gains(radius: float, offset_x: float, offset_y: float, *, lin_scale: float = 1.0,
-                ang_scale: float = 1.0) -> tuple[float, float]:
+def wheel_gains(
+    radius: float, offset_x: float, offset_y: float, *, lin_scale: float = 1.0, ang_scale: float = 1.0
+) -> tuple[float, float]:
     """Mecanum gains ``(lin, yaw)``: wheel [rad/s] per base [m/s] and per base yaw [rad/s].
 
     ``lin = lin_scale / (sqrt(2) r)``, ``yaw = ang_scale / (2 sqrt(2) r (|wx| + |wy|))`` with wheel radius

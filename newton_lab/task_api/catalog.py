@@ -48,15 +48,20 @@ def _ids_in(source: str) -> list[str]:
     ids = []
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Call) and _call_name(node) in DECLARING_CALLS:
-            ids += [kw.value.value for kw in node.keywords
-                    if kw.arg == "id" and isinstance(kw.value, ast.Constant) and isinstance(kw.value.value, str)]
+            ids += [
+                kw.value.value
+                for kw in node.keywords
+                if kw.arg == "id" and isinstance(kw.value, ast.Constant) and isinstance(kw.value.value, str)
+            ]
     return ids
 
 
 OBS_MODE = DeclaredOption(
-    name="obs_mode", choices=("state", "sensors"),
+    name="obs_mode",
+    choices=("state", "sensors"),
     doc="every task: state (every observation term the task declares) or sensors (what a real robot measures: "
-        "proprioception and cameras, no object or target poses)")
+    "proprioception and cameras, no object or target poses)",
+)
 """The option every task takes (``TaskSpec.all_options``), listed after the task's own."""
 
 
@@ -86,8 +91,9 @@ def _option(call: ast.Call) -> DeclaredOption | None:
         return None
     choices = _literal(kw.get("choices"))
     doc = _literal(kw.get("doc"))
-    return DeclaredOption(name, doc if isinstance(doc, str) else "",
-                          tuple(choices) if isinstance(choices, tuple | list) else None)
+    return DeclaredOption(
+        name, doc if isinstance(doc, str) else "", tuple(choices) if isinstance(choices, tuple | list) else None
+    )
 
 
 def _options_in(source: str) -> dict[str, tuple[DeclaredOption, ...]]:
@@ -119,8 +125,10 @@ def _options_in(source: str) -> dict[str, tuple[DeclaredOption, ...]]:
             continue
         opts = kw.get("options")
         elts = opts.elts if isinstance(opts, ast.Tuple | ast.List) else []
-        found = (named.get(e.id) if isinstance(e, ast.Name) else _option(e) if isinstance(e, ast.Call) else None
-                 for e in elts)
+        found = (
+            named.get(e.id) if isinstance(e, ast.Name) else _option(e) if isinstance(e, ast.Call) else None
+            for e in elts
+        )
         out[task_id] = tuple(o for o in found if o is not None)
     return out
 
@@ -162,8 +170,10 @@ def check_task_id(task_id: str) -> None:
     packages are imported."""
     known = declared_task_ids()
     if known and task_id not in known:
-        raise ValueError(f"unknown task id {task_id!r}{did_you_mean(task_id, known)}; valid ids: "
-                         f"{', '.join(known)} (see `newton-lab tasks`)")
+        raise ValueError(
+            f"unknown task id {task_id!r}{did_you_mean(task_id, known)}; valid ids: "
+            f"{', '.join(known)} (see `newton-lab tasks`)"
+        )
 
 
 def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str], ...]]:
@@ -182,9 +192,14 @@ def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str], ...]]:
         for fn in ast.walk(ast.parse(module.read_text())):
             if not isinstance(fn, ast.FunctionDef) or fn.name not in cfgs:
                 continue
-            phases = tuple((node.args[0].value, node.args[1].value) for node in ast.walk(fn)
-                           if isinstance(node, ast.Call) and _call_name(node) == "phase" and len(node.args) >= 2
-                           and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args[:2]))
+            phases = tuple(
+                (node.args[0].value, node.args[1].value)
+                for node in ast.walk(fn)
+                if isinstance(node, ast.Call)
+                and _call_name(node) == "phase"
+                and len(node.args) >= 2
+                and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args[:2])
+            )
             if phases:
                 out[cfgs[fn.name]] = phases
     return out
@@ -230,9 +245,12 @@ def declared_mimic_arms() -> dict[str, str]:
     sources = set(declared_sources().values())
     out: dict[str, str] = {}
     for init in _task_inits():
-        arms = [_literal({k.arg: k.value for k in node.keywords}.get("arm")) or "left"
-                for module in sorted(init.parent.rglob("*.py")) for node in ast.walk(ast.parse(module.read_text()))
-                if isinstance(node, ast.Call) and _call_name(node) == "MimicCfg"]
+        arms = [
+            _literal({k.arg: k.value for k in node.keywords}.get("arm")) or "left"
+            for module in sorted(init.parent.rglob("*.py"))
+            for node in ast.walk(ast.parse(module.read_text()))
+            if isinstance(node, ast.Call) and _call_name(node) == "MimicCfg"
+        ]
         for task_id in set(_ids_in(init.read_text())) & sources:
             out[task_id] = arms[0] if arms else "left"
     return out

@@ -107,14 +107,20 @@ def parse_cameras(value: str) -> dict[str, Any]:
     {"resolution": (96, 72), "data": ("rgb", "depth")}}; cameras separated by commas. One-line error if not."""
     found = [CAMERAS_TEXT.fullmatch(part) for part in value.split(",")]
     if not all(found):
-        raise ValueError(f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[:<data>+...][,...], e.g. "
-                         f"front_head=96x72 or front_head=96x72:rgb (data: {', '.join(IMAGE_DATA)})")
+        raise ValueError(
+            f"--cameras {value!r}: use none, default or <camera>=<W>x<H>[:<data>+...][,...], e.g. "
+            f"front_head=96x72 or front_head=96x72:rgb (data: {', '.join(IMAGE_DATA)})"
+        )
     names = [m[1] for m in found]
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
         raise ValueError(f"--cameras {value!r} names camera {', '.join(twice)} twice; give each camera once")
-    return {m[1]: (int(m[2]), int(m[3])) if m[4] is None else
-            {"resolution": (int(m[2]), int(m[3])), "data": tuple(m[4].split("+"))} for m in found}
+    return {
+        m[1]: (int(m[2]), int(m[3]))
+        if m[4] is None
+        else {"resolution": (int(m[2]), int(m[3])), "data": tuple(m[4].split("+"))}
+        for m in found
+    }
 
 
 def camera_option(value: str | None) -> bool | dict[str, Any] | None:

@@ -63,13 +63,17 @@ def coherent_task(
     for p, cfg in zip(phases, parts):
         other = [e.name for e in cfg.entities]
         if other != names:
-            raise ValueError(f"phase {p.name!r} ({p.task_id}) has objects {other} but the coherent task's world has "
-                             f"{names}; components of a coherent task must share one world")
+            raise ValueError(
+                f"phase {p.name!r} ({p.task_id}) has objects {other} but the coherent task's world has "
+                f"{names}; components of a coherent task must share one world"
+            )
         if tuple(cfg.arm_home) != tuple(first.arm_home) or cfg.arm != first.arm:
             raise ValueError(f"phase {p.name!r} ({p.task_id}) uses another arm or arm reference posture")
         if cfg.robot != first.robot:
-            raise ValueError(f"phase {p.name!r} ({p.task_id}) runs robot {cfg.robot!r} but the coherent task's first "
-                             f"phase runs {first.robot!r}; components of a coherent task share one robot")
+            raise ValueError(
+                f"phase {p.name!r} ({p.task_id}) runs robot {cfg.robot!r} but the coherent task's first "
+                f"phase runs {first.robot!r}; components of a coherent task share one robot"
+            )
 
     if actions is None:
         actions = _union_by_name(cfg.actions for cfg in parts)
@@ -77,8 +81,9 @@ def coherent_task(
     for p in phases:
         missing = sorted(set(p.action_groups or ()) - groups)
         if missing:
-            raise ValueError(f"phase {p.name!r} commands {missing} but the coherent task's action terms have groups "
-                             f"{sorted(groups)}")
+            raise ValueError(
+                f"phase {p.name!r} commands {missing} but the coherent task's action terms have groups {sorted(groups)}"
+            )
 
     observations = _union_of_dicts(cfg.observations for cfg in parts)  # widths are derived by the env
     terms: dict[str, TerminationTermCfg] = {}
@@ -125,5 +130,3 @@ def _union_by_name(term_lists) -> list:
         for term in terms:
             out.setdefault(term.name, term)
     return list(out.values())
-
-

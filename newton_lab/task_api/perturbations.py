@@ -25,19 +25,38 @@ class Axis:
     integer: bool = False
 
 
-AXES: dict[str, Axis] = {a.name: a for a in (
-    Axis("action_noise", 0.02, 0.05, "rad",
-         "Gaussian noise of this standard deviation on every joint-target column of the agent's actions (arms, "
-         "lift; not grippers, not wheel speeds), drawn anew at every step: a controller that does not track "
-         "exactly."),
-    Axis("action_latency", 1, 3, "steps",
-         "the env receives the action the agent chose this many control steps earlier (an episode's first "
-         "actions repeat its first): a slower perception and control loop.", integer=True),
-    Axis("posture_noise", 0.05, 0.15, "rad",
-         "at every episode's start, before the agent first looks, each joint of the action's joint-target columns "
-         "moves from the task's start posture by a uniform offset in [-level, level]: a robot that does not start "
-         "where the demos started."),
-)}
+AXES: dict[str, Axis] = {
+    a.name: a
+    for a in (
+        Axis(
+            "action_noise",
+            0.02,
+            0.05,
+            "rad",
+            "Gaussian noise of this standard deviation on every joint-target column of the agent's actions (arms, "
+            "lift; not grippers, not wheel speeds), drawn anew at every step: a controller that does not track "
+            "exactly.",
+        ),
+        Axis(
+            "action_latency",
+            1,
+            3,
+            "steps",
+            "the env receives the action the agent chose this many control steps earlier (an episode's first "
+            "actions repeat its first): a slower perception and control loop.",
+            integer=True,
+        ),
+        Axis(
+            "posture_noise",
+            0.05,
+            0.15,
+            "rad",
+            "at every episode's start, before the agent first looks, each joint of the action's joint-target columns "
+            "moves from the task's start posture by a uniform offset in [-level, level]: a robot that does not start "
+            "where the demos started.",
+        ),
+    )
+}
 """Every axis, by name. Levels: ``mild`` is within what a real cell would see on a good day, ``strong`` beyond."""
 
 LEVELS = ("mild", "strong")
@@ -57,8 +76,7 @@ def _value(axis: Axis, level: str, item: str) -> float:
     try:
         value = float(level)
     except ValueError:
-        raise ValueError(f"--perturb {item!r}: level {level!r} is not mild, strong or a number "
-                         f"[{axis.unit}]") from None
+        raise ValueError(f"--perturb {item!r}: level {level!r} is not mild, strong or a number [{axis.unit}]") from None
     if not value >= 0 or value != value or value == float("inf"):
         raise ValueError(f"--perturb {item!r}: a level is a finite number >= 0 [{axis.unit}]")
     if axis.integer and value != int(value):
@@ -71,14 +89,18 @@ def parse_cells(text: str) -> list[Cell]:
     axes and levels."""
     text = text.strip()
     if text == "sweep":
-        return [Cell("none", {})] + [Cell(f"{name}={level}", {name: float(getattr(axis, level))})
-                                     for name, axis in AXES.items() for level in LEVELS]
+        return [Cell("none", {})] + [
+            Cell(f"{name}={level}", {name: float(getattr(axis, level))})
+            for name, axis in AXES.items()
+            for level in LEVELS
+        ]
     values: dict[str, float] = {}
     for item in (part.strip() for part in text.split(",")):
         name, sep, level = item.partition("=")
         if not sep or not name or not level:
-            raise ValueError(f"--perturb {item!r}: write AXIS=LEVEL (e.g. action_noise=mild) or sweep; axes: "
-                             f"{', '.join(AXES)}")
+            raise ValueError(
+                f"--perturb {item!r}: write AXIS=LEVEL (e.g. action_noise=mild) or sweep; axes: {', '.join(AXES)}"
+            )
         if name not in AXES:
             raise ValueError(f"--perturb: unknown axis {name!r}; valid axes: {', '.join(AXES)}")
         if name in values:

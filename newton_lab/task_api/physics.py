@@ -106,15 +106,25 @@ class PhysicsCfg:
         if self.cone not in CONES:
             raise ValueError(f"physics cone {self.cone!r} is not one of {CONES}")
         if self.iterations < 1 or self.ls_iterations < 1:
-            raise ValueError(f"physics iterations and ls_iterations must be >= 1, got {self.iterations}, "
-                             f"{self.ls_iterations}")
+            raise ValueError(
+                f"physics iterations and ls_iterations must be >= 1, got {self.iterations}, {self.ls_iterations}"
+            )
 
     def solver_options(self) -> dict:
         """The ``newton.solvers.SolverMuJoCo`` keyword arguments of these settings."""
-        return dict(use_mujoco_cpu=False, solver="newton", integrator="implicitfast", cone=self.cone,
-                    iterations=self.iterations, ls_iterations=self.ls_iterations, tolerance=self.tolerance,
-                    ls_tolerance=self.ls_tolerance, impratio=self.impratio, nconmax=self.contacts_per_world,
-                    njmax=self.constraints_per_world)
+        return dict(
+            use_mujoco_cpu=False,
+            solver="newton",
+            integrator="implicitfast",
+            cone=self.cone,
+            iterations=self.iterations,
+            ls_iterations=self.ls_iterations,
+            tolerance=self.tolerance,
+            ls_tolerance=self.ls_tolerance,
+            impratio=self.impratio,
+            nconmax=self.contacts_per_world,
+            njmax=self.constraints_per_world,
+        )
 
 
 def merged(physics: list[PhysicsCfg]) -> PhysicsCfg:

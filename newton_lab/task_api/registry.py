@@ -71,13 +71,15 @@ class TaskSpec:
         unknown = sorted(set(options) - set(self.option_names))
         if unknown:
             hint = did_you_mean(unknown[0], self.option_names) if len(unknown) == 1 else ""
-            raise ValueError(f"unknown task option(s) {unknown} for {self.id}{hint}; "
-                             f"valid options: {self.option_names}")
+            raise ValueError(
+                f"unknown task option(s) {unknown} for {self.id}{hint}; valid options: {self.option_names}"
+            )
         for opt in self.all_options:
             value = options.get(opt.name)
             if value is not None and opt.choices is not None and value not in opt.choices:
-                raise ValueError(f"unknown {opt.name} {value!r}{did_you_mean(value, opt.choices)}; "
-                                 f"valid values: {list(opt.choices)}")
+                raise ValueError(
+                    f"unknown {opt.name} {value!r}{did_you_mean(value, opt.choices)}; valid values: {list(opt.choices)}"
+                )
         return options
 
     def choice_sets(self) -> list[dict[str, Any]]:
@@ -111,13 +113,14 @@ class TaskSpec:
     def make_expert(self, options: Mapping[str, Any] | None = None) -> Expert:
         """The expert declaration for ``options``; raises when the task declares none."""
         if self.expert is None:
-            raise ValueError(f"task {self.id!r} declares no expert; pass an agent (e.g. a policy) or, for a "
-                             "coherent task, use TaskFlowAgent")
+            raise ValueError(
+                f"task {self.id!r} declares no expert; pass an agent (e.g. a policy) or, for a "
+                "coherent task, use TaskFlowAgent"
+            )
         return self.expert(**self._own(self.check_options(options)))
 
 
-OBS_MODE = TaskOption(name=_OBS_MODE_DECL.name, choices=_OBS_MODE_DECL.choices, default="state",
-                      doc=_OBS_MODE_DECL.doc)
+OBS_MODE = TaskOption(name=_OBS_MODE_DECL.name, choices=_OBS_MODE_DECL.choices, default="state", doc=_OBS_MODE_DECL.doc)
 """The option every task takes: ``sensors`` drops the privileged observation terms (``ObsTermCfg.privileged``)."""
 BUILTIN_OPTIONS = (OBS_MODE,)
 

@@ -77,8 +77,10 @@ def bind(func: Any, params: Mapping[str, Any] | None = None) -> Any:
     if isinstance(func, TermFactory):
         return func(**dict(params or {}))
     if params:
-        raise ValueError(f"params {sorted(params)} given to {getattr(func, '__name__', func)!r}, which is a plain "
-                         "@wp.func; declare it with @term_factory to take parameters")
+        raise ValueError(
+            f"params {sorted(params)} given to {getattr(func, '__name__', func)!r}, which is a plain "
+            "@wp.func; declare it with @term_factory to take parameters"
+        )
     return func
 
 
@@ -113,11 +115,15 @@ class TermResolver:
 
     def slot(self, name: Any, param: str, term: str) -> int:
         if isinstance(name, int) and not isinstance(name, bool):
-            raise ValueError(f"{self.task}: term {term} parameter {param}={name}: name the object (one of "
-                             f"{list(self.entity_names)}), not its slot number")
+            raise ValueError(
+                f"{self.task}: term {term} parameter {param}={name}: name the object (one of "
+                f"{list(self.entity_names)}), not its slot number"
+            )
         if name not in self.entity_names:
-            raise ValueError(f"{self.task}: term {term} parameter {param}={name!r} names no scene object"
-                             f"{did_you_mean(name, self.entity_names)}; objects: {list(self.entity_names)}")
+            raise ValueError(
+                f"{self.task}: term {term} parameter {param}={name!r} names no scene object"
+                f"{did_you_mean(name, self.entity_names)}; objects: {list(self.entity_names)}"
+            )
         return self.entity_names.index(name)
 
     def __call__(self, func: Any) -> Any:
@@ -142,8 +148,11 @@ class TermResolver:
         kwargs = {}
         for key, value in term.params:
             if key in f.entities:
-                kwargs[key] = (tuple(self.slot(n, key, term.name) for n in value) if isinstance(value, tuple)
-                               else self.slot(value, key, term.name))
+                kwargs[key] = (
+                    tuple(self.slot(n, key, term.name) for n in value)
+                    if isinstance(value, tuple)
+                    else self.slot(value, key, term.name)
+                )
             else:
                 kwargs[key] = self._value(value)
         if f.hold_counter:
@@ -178,7 +187,9 @@ def resolve_cfg(cfg, *, first_hold_slot: int = 0):
     resolver.hold_slots = first_hold_slot
     fields: dict[str, Any] = {"phase_success": [resolver(bind(f)) for f in cfg.phase_success]}
     for name in TERM_FIELDS:
-        fields[name] = {k: dataclasses.replace(t, func=resolver(bind(t.func, t.params)), params={})
-                        for k, t in getattr(cfg, name).items()}
+        fields[name] = {
+            k: dataclasses.replace(t, func=resolver(bind(t.func, t.params)), params={})
+            for k, t in getattr(cfg, name).items()
+        }
     fields["hold_slots"] = max(cfg.hold_slots, resolver.hold_slots)
     return dataclasses.replace(cfg, **fields)

@@ -21,30 +21,44 @@ def eye_for(robot_xyz, scene_xyz) -> rrb.EyeControls3D:
     pitch = np.deg2rad(30.0)
     target = np.array([*(0.5 * (robot[:2] + scene[:2])), 0.6])
     direction = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
-    return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=target + EYE_DISTANCE * direction,
-                             look_target=target, eye_up=[0.0, 0.0, 1.0])
+    return rrb.EyeControls3D(
+        kind=rrb.Eye3DKind.Orbital,
+        position=target + EYE_DISTANCE * direction,
+        look_target=target,
+        eye_up=[0.0, 0.0, 1.0],
+    )
 
 
 def camera_panel(camera: str, data) -> rrb.Tabs:
     """Row 0's ``camera``: one 2D view per image stream of ``data`` (in the camera's image space)."""
     origin = f"world/0/cameras/{camera}"
-    return rrb.Tabs(*(rrb.Spatial2DView(origin=origin, contents=f"$origin/{d}", name=f"{camera} {d}") for d in data),
-                    name=camera)
+    return rrb.Tabs(
+        *(rrb.Spatial2DView(origin=origin, contents=f"$origin/{d}", name=f"{camera} {d}") for d in data), name=camera
+    )
 
 
-def default_blueprint(rows: int, *, eye: rrb.EyeControls3D | None = None, hidden=(),
-                      cameras: dict | None = None) -> rrb.Blueprint:
+def default_blueprint(
+    rows: int, *, eye: rrb.EyeControls3D | None = None, hidden=(), cameras: dict | None = None
+) -> rrb.Blueprint:
     """The layout: 3D ``world`` view (``hidden`` entity paths switched off), a column of camera panels
     (``cameras``: {camera: image data}, none without), then per-row ``metrics/<row>`` plots as tabs over the
     ``events`` log."""
-    scene = rrb.Spatial3DView(origin="world", name="scene", eye_controls=eye,
-                              overrides={path: rrb.EntityBehavior(visible=False) for path in hidden})
-    plots = rrb.Tabs(*(rrb.TimeSeriesView(origin=f"metrics/{w}", name=f"row {w}") for w in range(rows)),
-                     name="scalars per row")
+    scene = rrb.Spatial3DView(
+        origin="world",
+        name="scene",
+        eye_controls=eye,
+        overrides={path: rrb.EntityBehavior(visible=False) for path in hidden},
+    )
+    plots = rrb.Tabs(
+        *(rrb.TimeSeriesView(origin=f"metrics/{w}", name=f"row {w}") for w in range(rows)), name="scalars per row"
+    )
     side = rrb.Vertical(plots, rrb.TextLogView(origin="events", name="episode events"), row_shares=[2, 1])
     columns, shares = [scene, side], [3, 1]
     if cameras:
         columns, shares = [scene, rrb.Vertical(*(camera_panel(c, d) for c, d in cameras.items())), side], [3, 2, 1]
-    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=shares),
-                         rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                         rrb.TimePanel(state="collapsed"))
+    return rrb.Blueprint(
+        rrb.Horizontal(*columns, column_shares=shares),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed"),
+    )

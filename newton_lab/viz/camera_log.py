@@ -47,9 +47,17 @@ def env_streams(env) -> list[CameraStream]:
     """The cameras ``env`` renders (none for a state-only env)."""
     cams = env.sensors.cameras
     names = tuple(cams.segmentation_names) if any("segmentation" in c.data for c in cams.specs.values()) else ()
-    return [CameraStream(name, c.width, c.height, tuple(d for d in IMAGE_DATA if d in c.data),
-                         np.asarray(cams.intrinsics(name), dtype=float), names if "segmentation" in c.data else ())
-            for name, c in cams.specs.items()]
+    return [
+        CameraStream(
+            name,
+            c.width,
+            c.height,
+            tuple(d for d in IMAGE_DATA if d in c.data),
+            np.asarray(cams.intrinsics(name), dtype=float),
+            names if "segmentation" in c.data else (),
+        )
+        for name, c in cams.specs.items()
+    ]
 
 
 def dataset_streams(obs: Mapping[str, np.ndarray], env_args: Mapping, robot: RobotBinding) -> list[CameraStream]:
@@ -78,8 +86,9 @@ def mount_poses(model, body_q: np.ndarray, camera: str, robot: RobotBinding) -> 
     for s, label in enumerate(model.shape_label):
         if label.rsplit("/", 1)[-1] == site and world[s] == 0:
             b, xf = int(model.shape_body.numpy()[s]), model.shape_transform.numpy()[s]
-            t = wp.transform_multiply(wp.transform(*[float(x) for x in body_q[b]]),
-                                      wp.transform(*[float(x) for x in xf]))
+            t = wp.transform_multiply(
+                wp.transform(*[float(x) for x in body_q[b]]), wp.transform(*[float(x) for x in xf])
+            )
             return np.array([*t.p, *t.q], dtype=np.float64)
     raise ValueError(f"the {robot.name} model has no camera site {site!r} for camera {camera!r}")
 
@@ -88,21 +97,37 @@ def annotation_context(names) -> rr.AnnotationContext:
     """Segmentation id -> name, with a fixed colour per id (id 0, nothing hit, black)."""
     colors = np.random.default_rng(7).integers(40, 256, size=(max(len(names), 1), 3), dtype=np.uint8)
     colors[0] = 0
-    return rr.AnnotationContext([rr.AnnotationInfo(id=i, label=n, color=colors[i].tolist())
-                                 for i, n in enumerate(names)])
+    return rr.AnnotationContext(
+        [rr.AnnotationInfo(id=i, label=n, color=colors[i].tolist()) for i, n in enumerate(names)]
+    )
 
 
 def log_camera_statics(rec: rr.RecordingStream, row: int, cam: CameraStream) -> None:
     """The camera's pinhole (K, resolution, RUB axes) and segmentation names, static."""
     path = camera_path(row, cam.name)
-    rec.log(path, rr.Pinhole(image_from_camera=cam.intrinsics, resolution=[cam.width, cam.height],
-                             camera_xyz=CAMERA_XYZ, image_plane_distance=IMAGE_PLANE_DISTANCE), static=True)
+    rec.log(
+        path,
+        rr.Pinhole(
+            image_from_camera=cam.intrinsics,
+            resolution=[cam.width, cam.height],
+            camera_xyz=CAMERA_XYZ,
+            image_plane_distance=IMAGE_PLANE_DISTANCE,
+        ),
+        static=True,
+    )
     if cam.segmentation_names:
         rec.log(path, annotation_context(cam.segmentation_names), static=True)
 
 
-def log_camera_frame(rec: rr.RecordingStream, row: int, cam: CameraStream, pose, frames: Mapping[str, np.ndarray],
-                     *, jpeg_quality: int | None = None) -> None:
+def log_camera_frame(
+    rec: rr.RecordingStream,
+    row: int,
+    cam: CameraStream,
+    pose,
+    frames: Mapping[str, np.ndarray],
+    *,
+    jpeg_quality: int | None = None,
+) -> None:
     """One frame of ``cam``: its world pose (xyz, xyzw) and the images of ``frames`` (``rgb`` (H, W, 3) uint8,
     ``depth`` (H, W) [m], ``segmentation`` (H, W) ids) at the recording's current time."""
     path = camera_path(row, cam.name)
@@ -116,5 +141,6 @@ def log_camera_frame(rec: rr.RecordingStream, row: int, cam: CameraStream, pose,
         rec.log(f"{path}/depth", rr.DepthImage(np.where(np.isfinite(d), d, 0.0).astype(np.float32), meter=1.0))
     if "segmentation" in frames:
         s = np.asarray(frames["segmentation"])
-        rec.log(f"{path}/segmentation", rr.SegmentationImage(s.astype(np.uint16 if s.max(initial=0) < 65536 else
-                                                                      np.uint32)))
+        rec.log(
+            f"{path}/segmentation", rr.SegmentationImage(s.astype(np.uint16 if s.max(initial=0) < 65536 else np.uint32))
+        )

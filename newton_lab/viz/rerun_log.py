@@ -23,14 +23,7 @@ from ..datasets import read_dataset_info, read_episode, state_tree
 from ..datasets.files.output_paths import output_path
 from ..envs import make_env
 from .blueprint import default_blueprint, eye_for
-from .camera_log import (
-    CameraStream,
-    dataset_streams,
-    env_streams,
-    log_camera_frame,
-    log_camera_statics,
-    mount_poses,
-)
+from .camera_log import CameraStream, dataset_streams, env_streams, log_camera_frame, log_camera_statics, mount_poses
 from .shapes import entity_name, log_model_shapes, row_offsets
 
 
@@ -45,10 +38,22 @@ class RerunLogger:
     raw pixels; ``cameras`` replaces the env's cameras (a replay passes the recorded ones and the frames to
     ``log_step``)."""
 
-    def __init__(self, env, *, save: str | Path | None = None, spawn: bool = False, connect: str | None = None,
-                 max_worlds: int = 4, app_id: str = "newton_lab", row_spacing: float = 2.5,
-                 episodes_per_row: int | None = None, images: bool = True, image_every: int = 1,
-                 jpeg_quality: int | None = None, cameras: list[CameraStream] | None = None):
+    def __init__(
+        self,
+        env,
+        *,
+        save: str | Path | None = None,
+        spawn: bool = False,
+        connect: str | None = None,
+        max_worlds: int = 4,
+        app_id: str = "newton_lab",
+        row_spacing: float = 2.5,
+        episodes_per_row: int | None = None,
+        images: bool = True,
+        image_every: int = 1,
+        jpeg_quality: int | None = None,
+        cameras: list[CameraStream] | None = None,
+    ):
         if save is None and connect is None and not spawn:
             raise ValueError("RerunLogger needs a sink: save='file.rrd', spawn=True or connect='rerun+http://...'")
         if not isinstance(max_worlds, int) or max_worlds < 1:
@@ -77,8 +82,9 @@ class RerunLogger:
         for w in range(self.rows):
             for cam in self.cameras:
                 log_camera_statics(self.rec, w, cam)
-        self.blueprint = default_blueprint(self.rows, eye=self._eye(), hidden=logged.hidden,
-                                           cameras={c.name: c.data for c in self.cameras})
+        self.blueprint = default_blueprint(
+            self.rows, eye=self._eye(), hidden=logged.hidden, cameras={c.name: c.data for c in self.cameras}
+        )
         if self.path is not None:
             output_path(self.path)
             self.rec.save(str(self.path), default_blueprint=self.blueprint)
@@ -116,13 +122,18 @@ class RerunLogger:
                 continue
             if self._open[w] and self._frames[w] > 0:  # (a reset before any frame starts the first episode)
                 self._ended[w] += 1
-                self.rec.log(f"events/{w}", rr.TextLog(
-                    f"row {w} episode {self._ended[w]} failed (stopped by the loop) after {self._frames[w]} steps",
-                    level="WARN"))
+                self.rec.log(
+                    f"events/{w}",
+                    rr.TextLog(
+                        f"row {w} episode {self._ended[w]} failed (stopped by the loop) after {self._frames[w]} steps",
+                        level="WARN",
+                    ),
+                )
             self._open[w], self._frames[w] = True, 0
             if self._drawn(w):
-                self.rec.log(f"events/{w}", rr.TextLog(f"row {w} reset: episode {self._ended[w] + 1} starts",
-                                                       level="DEBUG"))
+                self.rec.log(
+                    f"events/{w}", rr.TextLog(f"row {w} reset: episode {self._ended[w] + 1} starts", level="DEBUG")
+                )
 
     def _log_ends(self, info) -> None:
         """``events/<row>``: an episode's end (success or failure, reason, length; episodes numbered from 1 per
@@ -138,20 +149,34 @@ class RerunLogger:
             self._ended[w] += 1
             self._open[w] = False
             why = self.env.task.termination_reasons[int(reason[w])]
-            self.rec.log(f"events/{w}", rr.TextLog(
-                f"row {w} episode {self._ended[w]} {'succeeded' if ok else 'failed'} ({why}) after "
-                f"{int(length[w])} steps", level="INFO" if ok else "WARN"))
+            self.rec.log(
+                f"events/{w}",
+                rr.TextLog(
+                    f"row {w} episode {self._ended[w]} {'succeeded' if ok else 'failed'} ({why}) after "
+                    f"{int(length[w])} steps",
+                    level="INFO" if ok else "WARN",
+                ),
+            )
 
     def _camera_frames(self):
         """The env's current images and camera poses of the logged rows: ({camera: {data: (rows, ...)}},
         {camera: (rows, 7)})."""
         env, n = self.env, self.rows
-        frames = {c.name: {d: env.sensors.images[f"{c.name}_{d}"][:n].cpu().numpy() for d in c.data}
-                  for c in self.cameras}
+        frames = {
+            c.name: {d: env.sensors.images[f"{c.name}_{d}"][:n].cpu().numpy() for d in c.data} for c in self.cameras
+        }
         return frames, {c.name: env.sensors.cameras.poses(c.name)[:n].cpu().numpy() for c in self.cameras}
 
-    def log_step(self, *, reward=None, success=None, body_q: np.ndarray | None = None, info=None,
-                 camera_frames=None, camera_poses=None) -> None:
+    def log_step(
+        self,
+        *,
+        reward=None,
+        success=None,
+        body_q: np.ndarray | None = None,
+        info=None,
+        camera_frames=None,
+        camera_poses=None,
+    ) -> None:
         """Log the current body poses of the first rows (or ``body_q`` given (rows * bodies, 7)), the TCP
         marker, per-row phase / reward / success scalars, the cameras (every ``image_every``-th step: the env's
         images, or ``camera_frames`` {camera: {data: (rows, ...)}} at ``camera_poses`` {camera: (rows, 7)}) and
@@ -175,12 +200,20 @@ class RerunLogger:
                 continue
             self._frames[w] += 1
             for b in range(self._bpw):
-                self.rec.log(self.body_path(w, b),
-                             rr.Transform3D(translation=q[w, b, :3], quaternion=rr.Quaternion(xyzw=q[w, b, 3:7])))
+                self.rec.log(
+                    self.body_path(w, b),
+                    rr.Transform3D(translation=q[w, b, :3], quaternion=rr.Quaternion(xyzw=q[w, b, 3:7])),
+                )
             self.rec.log(f"world/{w}/tcp", rr.Points3D([tcp[w]], radii=[0.01], colors=[[255, 200, 0]]))
             for cam in self.cameras if shoot else ():
-                log_camera_frame(self.rec, w, cam, camera_poses[cam.name][w],
-                                 {d: camera_frames[cam.name][d][w] for d in cam.data}, jpeg_quality=self.jpeg_quality)
+                log_camera_frame(
+                    self.rec,
+                    w,
+                    cam,
+                    camera_poses[cam.name][w],
+                    {d: camera_frames[cam.name][d][w] for d in cam.data},
+                    jpeg_quality=self.jpeg_quality,
+                )
             self.rec.log(f"metrics/{w}/phase", rr.Scalars(float(env.info["phase"][w])))
             if reward is not None:
                 self.rec.log(f"metrics/{w}/reward", rr.Scalars(float(reward[w])))
@@ -207,8 +240,15 @@ class RerunLogger:
         self.rec.disconnect()
 
 
-def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, spawn: bool = False,
-                   device: str | None = "cpu", jpeg_quality: int | None = None) -> np.ndarray:
+def replay_episode(
+    path,
+    episode: int = 0,
+    *,
+    save: str | Path | None = None,
+    spawn: bool = False,
+    device: str | None = "cpu",
+    jpeg_quality: int | None = None,
+) -> np.ndarray:
     """Re-apply a recorded episode's states (robot joints, object poses) frame by frame on a one-row env of
     its task and log them to rerun, with the episode's recorded camera images (``obs/<camera>_rgb`` / ``_depth``
     / ``_segmentation``) on their pinholes (``datagen/camera_poses/<camera>``, else the mount's pose).
@@ -216,15 +256,28 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
     info = read_dataset_info(path)
     ids = info["demo_ids"]
     if episode not in ids:
-        raise ValueError(f"{path} has no episode {episode}; available: {ids[:5]}{'...' if len(ids) > 5 else ''} "
-                         f"({len(ids)} episodes)")
+        raise ValueError(
+            f"{path} has no episode {episode}; available: {ids[:5]}{'...' if len(ids) > 5 else ''} "
+            f"({len(ids)} episodes)"
+        )
     ep = read_episode(path, episode)
     env = make_env(info["task_id"], num_envs=1, device=device, capture=False, cameras=False)  # images are recorded
     obs = ep.get("obs", {})
     streams = dataset_streams(obs, info["env_args"], env.robot)
     cam_poses = ep.get("datagen", {}).get("camera_poses", {})
-    logger = RerunLogger(env, save=save, spawn=spawn, max_worlds=1, app_id="newton_lab_replay", cameras=streams,
-                         jpeg_quality=jpeg_quality) if (save is not None or spawn) else None
+    logger = (
+        RerunLogger(
+            env,
+            save=save,
+            spawn=spawn,
+            max_worlds=1,
+            app_id="newton_lab_replay",
+            cameras=streams,
+            jpeg_quality=jpeg_quality,
+        )
+        if (save is not None or spawn)
+        else None
+    )
     states = state_tree(ep["states"], info["env_args"])  # flat (format 2) or nested (format 1)
     robot = states["articulation"]["robot"]["joint_position"]
     objects = states.get("rigid_object", {})
@@ -241,8 +294,14 @@ def replay_episode(path, episode: int = 0, *, save: str | Path | None = None, sp
         if logger is not None:
             env.sim.observe()
             frames = {c.name: {d: np.asarray(obs[f"{c.name}_{d}"][t])[None] for d in c.data} for c in streams}
-            at = {c.name: (np.asarray(cam_poses[c.name][t]) if c.name in cam_poses
-                           else mount_poses(env.model, body_q, c.name, env.robot))[None] for c in streams}
+            at = {
+                c.name: (
+                    np.asarray(cam_poses[c.name][t])
+                    if c.name in cam_poses
+                    else mount_poses(env.model, body_q, c.name, env.robot)
+                )[None]
+                for c in streams
+            }
             logger.log_step(body_q=body_q, camera_frames=frames, camera_poses=at)
     if logger is not None:
         logger.close()

@@ -46,19 +46,25 @@ def _mesh3d(mesh: newton.Mesh, scale, color, offset=(0.0, 0.0, 0.0)) -> rr.Mesh3
     if normals is not None:  # normals of a scaled surface scale by 1 / scale
         normals = np.asarray(normals, dtype=np.float32) / np.where(s == 0, 1.0, s)
         normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
-    return rr.Mesh3D(vertex_positions=verts, triangle_indices=np.asarray(mesh.indices).reshape(-1, 3),
-                     vertex_normals=normals, albedo_factor=color)
+    return rr.Mesh3D(
+        vertex_positions=verts,
+        triangle_indices=np.asarray(mesh.indices).reshape(-1, 3),
+        vertex_normals=normals,
+        albedo_factor=color,
+    )
 
 
 def _heightfield(src, color) -> rr.Mesh3D:
     heights = src.min_z + src.data * (src.max_z - src.min_z)  # as Newton's own viewer draws it
-    mesh = newton.Mesh.create_heightfield(heightfield=heights.T, extent_x=2 * src.hx, extent_y=2 * src.hy,
-                                          ground_z=src.min_z, compute_inertia=False)
+    mesh = newton.Mesh.create_heightfield(
+        heightfield=heights.T, extent_x=2 * src.hx, extent_y=2 * src.hy, ground_z=src.min_z, compute_inertia=False
+    )
     return _mesh3d(mesh, (1.0, 1.0, 1.0), color)
 
 
-def shape_archetype(kind: int, scale, src, color, *, site: bool = False, plane_extent=(10.0, 10.0),
-                    plane_center=(0.0, 0.0)):
+def shape_archetype(
+    kind: int, scale, src, color, *, site: bool = False, plane_extent=(10.0, 10.0), plane_center=(0.0, 0.0)
+):
     """The rerun archetype drawing one shape in its own frame (``Model.shape_type`` / ``shape_scale`` /
     ``shape_source`` conventions: capsule, cylinder and cone along local Z; plane normal local Z).
     ``plane_extent`` (x, y) [m] and ``plane_center`` are used for infinite planes."""
@@ -71,19 +77,21 @@ def shape_archetype(kind: int, scale, src, color, *, site: bool = False, plane_e
     if kind == G.ELLIPSOID:
         return rr.Ellipsoids3D(half_sizes=[[sx, sy, sz]], colors=[color], fill_mode=fill)
     if kind == G.CAPSULE:  # rerun's capsule starts at its translation and runs along +Z
-        return rr.Capsules3D(lengths=[2 * sy], radii=[sx], translations=[[0, 0, -sy]], colors=[color],
-                             fill_mode=fill)
+        return rr.Capsules3D(lengths=[2 * sy], radii=[sx], translations=[[0, 0, -sy]], colors=[color], fill_mode=fill)
     if kind == G.CYLINDER:
         return rr.Cylinders3D(lengths=[2 * sy], radii=[sx], colors=[color], fill_mode=fill)
     if kind == G.CONE:
-        return _mesh3d(newton.Mesh.create_cone(sx, sy, up_axis=newton.Axis.Z, compute_inertia=False), (1, 1, 1),
-                       color)
+        return _mesh3d(newton.Mesh.create_cone(sx, sy, up_axis=newton.Axis.Z, compute_inertia=False), (1, 1, 1), color)
     if kind in (G.MESH, G.CONVEX_MESH):
         return _mesh3d(src, scale, color)
     if kind == G.PLANE:
         w, h = (2 * sx, 2 * sy) if sx > 0 and sy > 0 else plane_extent
-        return _mesh3d(newton.Mesh.create_plane(w, h, compute_inertia=False), (1, 1, 1), color,
-                       offset=(*(plane_center if sx <= 0 else (0.0, 0.0)), 0.0))
+        return _mesh3d(
+            newton.Mesh.create_plane(w, h, compute_inertia=False),
+            (1, 1, 1),
+            color,
+            offset=(*(plane_center if sx <= 0 else (0.0, 0.0)), 0.0),
+        )
     if kind == G.HFIELD:
         return _heightfield(src, color)
     if kind == G.GAUSSIAN:
@@ -106,8 +114,9 @@ def row_offsets(rows: int, spacing: float) -> np.ndarray:
     return np.array([[(w // cols) * spacing, (w % cols) * spacing, 0.0] for w in range(rows)], dtype=np.float32)
 
 
-def log_model_shapes(rec: rr.RecordingStream, model: newton.Model, body_paths: dict[int, str], rows: int,
-                     offsets: np.ndarray) -> LoggedShapes:
+def log_model_shapes(
+    rec: rr.RecordingStream, model: newton.Model, body_paths: dict[int, str], rows: int, offsets: np.ndarray
+) -> LoggedShapes:
     """Log every shape of worlds ``< rows`` and of no world (static) on ``rec``; ``body_paths`` maps a
     model body index to its entity path (``world/<row>/<body>``), ``offsets`` (rows, 3) places the rows."""
     stype, scale = model.shape_type.numpy(), model.shape_scale.numpy()
@@ -131,8 +140,19 @@ def log_model_shapes(rec: rr.RecordingStream, model: newton.Model, body_paths: d
         color = [*(round(255 * float(c)) for c in colors[s]), round(255 * float(opacity[s]))]
         t = xform[s]
         rec.log(path, rr.Transform3D(translation=t[:3], quaternion=rr.Quaternion(xyzw=t[3:7])), static=True)
-        rec.log(path, shape_archetype(int(stype[s]), scale[s], model.shape_source[s], color, site=kind == "site",
-                                      plane_extent=extent, plane_center=center), static=True)
+        rec.log(
+            path,
+            shape_archetype(
+                int(stype[s]),
+                scale[s],
+                model.shape_source[s],
+                color,
+                site=kind == "site",
+                plane_extent=extent,
+                plane_center=center,
+            ),
+            static=True,
+        )
         out.paths[s] = path
         if kind == "collision" and b in visual_bodies:
             out.hidden.append(path)

@@ -9,8 +9,14 @@ from newton_lab.task_api.terms import term_factory
 
 
 @term_factory(entities=("entity",))
-def randomize_position(*, entity: int, x_range: tuple[float, float], y_range: tuple[float, float], z: float,
-                       yaw_range: tuple[float, float] = (0.0, 0.0)):
+def randomize_position(
+    *,
+    entity: int,
+    x_range: tuple[float, float],
+    y_range: tuple[float, float],
+    z: float,
+    yaw_range: tuple[float, float] = (0.0, 0.0),
+):
     """When randomising: ``entity`` at x, y uniform in ``x_range``, ``y_range`` [m], centre height ``z`` [m],
     yaw uniform in ``yaw_range`` [rad] (drawn only when the range is not empty; else yaw 0). Env frame."""
     x0, x1 = (float(v) for v in x_range)

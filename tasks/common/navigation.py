@@ -37,10 +37,11 @@ def nav_observations(goal_xy: tuple[float, float]) -> dict[str, ObsTermCfg]:
 def nav_rewards(goal_xy: tuple[float, float], radius: float) -> dict[str, RewardTermCfg]:
     """The BaseNav rewards: -distance (weight 2), goal reached (10), squared actions (-0.02)."""
     goal = {"goal_xy": tuple(float(v) for v in goal_xy)}
-    return {"distance": RewardTermCfg(func=neg_goal_distance, params=goal, weight=2.0),
-            "goal_reached": RewardTermCfg(func=indicator(term=goal_reached(goal_xy=goal_xy, radius=radius)),
-                                          weight=10.0),
-            "action_l2": RewardTermCfg(func=action_l2, weight=-0.02)}
+    return {
+        "distance": RewardTermCfg(func=neg_goal_distance, params=goal, weight=2.0),
+        "goal_reached": RewardTermCfg(func=indicator(term=goal_reached(goal_xy=goal_xy, radius=radius)), weight=10.0),
+        "action_l2": RewardTermCfg(func=action_l2, weight=-0.02),
+    }
 
 
 @wp.func

@@ -136,5 +136,10 @@ GRIPPER_POS = ObsTermCfg(func=gripper_pos, size=1)
 def manipulation_observations(**objects: ObsTermCfg) -> dict[str, ObsTermCfg]:
     """The left-arm manipulation observation: last action, robot joints, TCP pose (7), gripper (1), then the
     task's object terms."""
-    return {"actions": LAST_ACTION, "robot_joint_pos": ROBOT_JOINT_POS, "tcp_pose": TCP_POSE,
-            "gripper_pos": GRIPPER_POS, **objects}
+    return {
+        "actions": LAST_ACTION,
+        "robot_joint_pos": ROBOT_JOINT_POS,
+        "tcp_pose": TCP_POSE,
+        "gripper_pos": GRIPPER_POS,
+        **objects,
+    }

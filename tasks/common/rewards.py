@@ -146,8 +146,10 @@ def staged_rewards(*stages: Stage) -> dict[str, RewardTermCfg]:
         raise ValueError(f"staged_rewards needs at least one stage and unique stage names, got {names}")
     dones = tuple(s.done for s in stages)
     weight = DENSE_REWARD_MAX / len(stages)
-    return {s.name: RewardTermCfg(func=stage_reward(index=i, dones=dones, shaping=s.shaping), weight=weight)
-            for i, s in enumerate(stages)}
+    return {
+        s.name: RewardTermCfg(func=stage_reward(index=i, dones=dones, shaping=s.shaping), weight=weight)
+        for i, s in enumerate(stages)
+    }
 
 
 def gated(after: Callable, stages: list[Stage]) -> list[Stage]:
@@ -185,13 +187,16 @@ def phased_rewards(phases: list[tuple[str, dict[str, RewardTermCfg]]]) -> dict[s
     for name, terms in phases:
         total = sum(t.weight for t in terms.values())
         if any(t.weight < 0 for t in terms.values()) or abs(total - DENSE_REWARD_MAX) > 1e-6:
-            raise ValueError(f"phase {name!r}: phased_rewards needs a dense reward with weights >= 0 summing to "
-                             f"{DENSE_REWARD_MAX}, got {total}; build it with staged_rewards")
+            raise ValueError(
+                f"phase {name!r}: phased_rewards needs a dense reward with weights >= 0 summing to "
+                f"{DENSE_REWARD_MAX}, got {total}; build it with staged_rewards"
+            )
     out = {"phase": RewardTermCfg(func=phase_index, weight=DENSE_REWARD_MAX / n)}
     for i, (name, terms) in enumerate(phases):
         for term_name, t in terms.items():
-            out[f"{name}/{term_name}"] = RewardTermCfg(func=phase_gated(phase=i, term=bind(t.func, t.params)),
-                                                       weight=t.weight / n)
+            out[f"{name}/{term_name}"] = RewardTermCfg(
+                func=phase_gated(phase=i, term=bind(t.func, t.params)), weight=t.weight / n
+            )
     return out
 
 
@@ -284,9 +289,12 @@ def pick_to_carry_stages(*, entity: str, grasped_term: Callable, lift_z: float, 
     while grasped, bring the arm to ``ctx.arm_home`` (``at_carry``: the task's stateless success predicate;
     shaping ``1 - tanh(|q_arm - home|)``, rad). Shared by the PickToShelf / SortToShelf Pick tasks."""
     lifted_and_grasped = all_of(terms=(grasped_term, lifted(entity=entity, min_z=lift_z)))
-    return [reach_stage(entity), Stage("grasping", grasped_term),
-            Stage("lifting", lifted_and_grasped, lift_shaping(entity=entity, min_z=lift_z)),
-            Stage("carrying", at_carry, carry_shaping)]
+    return [
+        reach_stage(entity),
+        Stage("grasping", grasped_term),
+        Stage("lifting", lifted_and_grasped, lift_shaping(entity=entity, min_z=lift_z)),
+        Stage("carrying", at_carry, carry_shaping),
+    ]
 
 
 @term_factory()
@@ -307,5 +315,8 @@ def drive_shaping(*, goal_xy: tuple[float, float], goal_yaw: float):
 def drive_stage(*, goal_xy: tuple[float, float], goal_yaw: float, radius: float, yaw_tol: float) -> Stage:
     """Base within ``radius`` [m] of ``goal_xy`` and within ``yaw_tol`` [rad] of ``goal_yaw``; shaping: the mean of
     ``1 - tanh(d)`` (d [m]) and ``1 - tanh(|yaw error|)`` (rad)."""
-    return Stage("driving", base_at(goal_xy=goal_xy, radius=radius, goal_yaw=goal_yaw, yaw_tol=yaw_tol),
-                 drive_shaping(goal_xy=goal_xy, goal_yaw=goal_yaw))
+    return Stage(
+        "driving",
+        base_at(goal_xy=goal_xy, radius=radius, goal_yaw=goal_yaw, yaw_tol=yaw_tol),
+        drive_shaping(goal_xy=goal_xy, goal_yaw=goal_yaw),
+    )

@@ -11,8 +11,9 @@ CUBE_MASS = 0.04
 
 def table() -> EntityCfg:
     """0.8 x 1.0 x 0.05 static table, top at z = 0.10."""
-    return EntityCfg(name="table", size=(0.8, 1.0, 0.05), pos=(-0.30, 0.0, 0.075), dynamic=False,
-                     color=(0.42, 0.44, 0.40))
+    return EntityCfg(
+        name="table", size=(0.8, 1.0, 0.05), pos=(-0.30, 0.0, 0.075), dynamic=False, color=(0.42, 0.44, 0.40)
+    )
 
 
 def cube(name: str, pos, color) -> EntityCfg:

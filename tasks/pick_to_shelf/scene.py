@@ -23,10 +23,13 @@ SCENE = SceneCfg(
     EntityCfg(name="table", size=(0.8, 0.9, 0.50), pos=(-0.30, 0.0, 0.075), dynamic=False, color=(0.42, 0.44, 0.40)),
     EntityCfg(name="bar", size=BAR_SIZE, pos=BAR_POS, mass=0.05, color=(0.85, 0.18, 0.12)),
     EntityCfg(name="shelf_deck", size=DECK_SIZE, pos=DECK_POS, dynamic=False, color=(0.08, 0.22, 0.85)),
-    EntityCfg(name="shelf_back_baffle", size=(0.50, 0.06, 0.595), pos=(-1.7, -2.17, 0.2975), dynamic=False,
-              color=SHELF_COLOR),
-    EntityCfg(name="shelf_left_baffle", size=(0.06, 0.40, 0.595), pos=(-1.92, -2.0, 0.2975), dynamic=False,
-              color=SHELF_COLOR),
-    EntityCfg(name="shelf_right_baffle", size=(0.06, 0.40, 0.595), pos=(-1.48, -2.0, 0.2975), dynamic=False,
-              color=SHELF_COLOR),
+    EntityCfg(
+        name="shelf_back_baffle", size=(0.50, 0.06, 0.595), pos=(-1.7, -2.17, 0.2975), dynamic=False, color=SHELF_COLOR
+    ),
+    EntityCfg(
+        name="shelf_left_baffle", size=(0.06, 0.40, 0.595), pos=(-1.92, -2.0, 0.2975), dynamic=False, color=SHELF_COLOR
+    ),
+    EntityCfg(
+        name="shelf_right_baffle", size=(0.06, 0.40, 0.595), pos=(-1.48, -2.0, 0.2975), dynamic=False, color=SHELF_COLOR
+    ),
 )

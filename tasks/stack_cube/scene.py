@@ -15,5 +15,10 @@ _COLORS = ((0.85, 0.18, 0.12), (0.95, 0.76, 0.10), (0.12, 0.62, 0.24))
 """Red, yellow, green: the colour names the cube (``keep_hue``), so that a policy from pixels knows which goes where
 under vision randomisation."""
 
-SCENE = SceneCfg(table(), *(dataclasses.replace(cube(name, pos, color), keep_hue=True)
-                            for name, pos, color in zip(CUBES, CUBE_INITS, _COLORS)))
+SCENE = SceneCfg(
+    table(),
+    *(
+        dataclasses.replace(cube(name, pos, color), keep_hue=True)
+        for name, pos, color in zip(CUBES, CUBE_INITS, _COLORS)
+    ),
+)

@@ -31,8 +31,15 @@ REFINE_ROTATION_RAD = math.radians(0.5)
 class PlannerAgent(BaseAgent):
     """Executes ``plan`` for every row; see ``newton_lab.task_api.motion_plan`` for the step format."""
 
-    def __init__(self, plan: MotionPlan, *, ik_iterations: int = 16, refine_iterations: int = 32,
-                 replan_batch: int | None = None, replan_wait: int | None = None):
+    def __init__(
+        self,
+        plan: MotionPlan,
+        *,
+        ik_iterations: int = 16,
+        refine_iterations: int = 32,
+        replan_batch: int | None = None,
+        replan_wait: int | None = None,
+    ):
         self.plan = plan
         self.ik_iterations = ik_iterations
         """LM steps of every IK solve (the targets of PickCube, StackCube, LiftCube, Reach and SortToShelf converge
@@ -96,8 +103,13 @@ class PlannerAgent(BaseAgent):
             self._actions = wp.from_torch(env.current_action().contiguous())
         self._waiting_since = np.full(n, -1, dtype=np.int64)  # act count at which a row began waiting; -1: none
         self._acts = 0
-        self._batch = (self.replan_batch if self.replan_batch is not None
-                       else max(1, n // REPLAN_ROWS) if n >= REPLAN_MIN_ROWS else 1)
+        self._batch = (
+            self.replan_batch
+            if self.replan_batch is not None
+            else max(1, n // REPLAN_ROWS)
+            if n >= REPLAN_MIN_ROWS
+            else 1
+        )
         self._wait = self.replan_wait if self.replan_wait is not None else REPLAN_WAIT
 
     # ------------------------------------------------------------------ planning
@@ -114,8 +126,17 @@ class PlannerAgent(BaseAgent):
         bx, by, byaw = env.joints.coords(env.robot.base_planar_joints)
         yaw = q[:, byaw]
         poses["base"] = np.stack(
-            [q[:, bx], q[:, by], np.zeros_like(yaw),
-             np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
+            [
+                q[:, bx],
+                q[:, by],
+                np.zeros_like(yaw),
+                np.zeros_like(yaw),
+                np.zeros_like(yaw),
+                np.sin(yaw / 2),
+                np.cos(yaw / 2),
+            ],
+            axis=1,
+        )
         return poses
 
     def _target_quat(self, step, poses: dict[str, np.ndarray], r: int) -> np.ndarray:
@@ -176,8 +197,13 @@ class PlannerAgent(BaseAgent):
         # before it (the carried cube still swings) nor in the step that opens it (the fingers are still opening)
         steps = plan.steps
         opening = [j > 0 and s.gripper_open and not steps[j - 1].gripper_open for j, s in enumerate(steps)]
-        early = [plan.settle_steps > 0 and plan.settle_tolerance > 0 and not o and not (j + 1 < len(steps) and
-                 opening[j + 1]) for j, o in enumerate(opening)]
+        early = [
+            plan.settle_steps > 0
+            and plan.settle_tolerance > 0
+            and not o
+            and not (j + 1 < len(steps) and opening[j + 1])
+            for j, o in enumerate(opening)
+        ]
         for n_step, step in enumerate(plan.steps):
             gripper = self._robot.gripper_open if step.gripper_open else self._robot.gripper_closed
             moves = step.target is not None or step.joints is not None

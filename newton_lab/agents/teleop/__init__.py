@@ -8,5 +8,15 @@ from .devices import DEVICES
 from .frames import LatestFrame, TeleopFrame
 from .session import review_demo, teleop_session
 
-__all__ = ["CONTRACTS", "DEVICES", "FrameMapper", "LatestFrame", "TeleopAgent", "TeleopFrame", "USER_EXIT",
-           "review_demo", "teleop_session", "teleop_tasks"]
+__all__ = [
+    "CONTRACTS",
+    "DEVICES",
+    "FrameMapper",
+    "LatestFrame",
+    "TeleopAgent",
+    "TeleopFrame",
+    "USER_EXIT",
+    "review_demo",
+    "teleop_session",
+    "teleop_tasks",
+]

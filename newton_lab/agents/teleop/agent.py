@@ -23,8 +23,15 @@ class TeleopAgent(BaseAgent):
 
     done_reason = USER_EXIT
 
-    def __init__(self, device: TeleopDevice, *, task_id: str, contract: str, no_frame_policy: str = "hold",
-                 twist_scale: float = 1.0):
+    def __init__(
+        self,
+        device: TeleopDevice,
+        *,
+        task_id: str,
+        contract: str,
+        no_frame_policy: str = "hold",
+        twist_scale: float = 1.0,
+    ):
         self.device, self.task_id, self.contract = device, task_id, contract
         self.no_frame_policy, self.twist_scale = no_frame_policy, twist_scale
         check_mapping(contract, no_frame_policy)  # now, not at the first step
@@ -35,8 +42,9 @@ class TeleopAgent(BaseAgent):
         self._jogs: dict[str, TcpJog] = {}
 
     @classmethod
-    def from_device(cls, name: str, *, task: str, no_frame_policy: str = "hold", twist_scale: float = 1.0,
-                    **device_kwargs) -> TeleopAgent:
+    def from_device(
+        cls, name: str, *, task: str, no_frame_policy: str = "hold", twist_scale: float = 1.0, **device_kwargs
+    ) -> TeleopAgent:
         """Check that device ``name`` can drive ``task`` (one line naming the tasks it can, before the device
         is opened), then open it. ``device_kwargs`` go to the device (e.g. ``transport=`` for gp001,
         ``path=`` for replay)."""
@@ -52,8 +60,13 @@ class TeleopAgent(BaseAgent):
     def setup(self, env) -> None:
         if env.task_id != self.task_id:
             raise ValueError(f"this TeleopAgent drives {self.task_id}, not {env.task_id}; build one per task")
-        self.mapper = FrameMapper(self.contract, env.action_joint_names, no_frame_policy=self.no_frame_policy,
-                                  twist_scale=self.twist_scale, robot=env.robot)
+        self.mapper = FrameMapper(
+            self.contract,
+            env.action_joint_names,
+            no_frame_policy=self.no_frame_policy,
+            twist_scale=self.twist_scale,
+            robot=env.robot,
+        )
         self._jogs = {arm: TcpJog(env, arm) for arm in self.device.jog_arms}  # IK captured before the operator moves
 
     def reset(self, env_ids=None) -> None:
@@ -93,8 +106,11 @@ class TeleopAgent(BaseAgent):
     def latency(self, control_dt: float | None = None) -> dict[str, float]:
         """Device frame -> action applied: mean / max [ms] over the new frames (and max in control steps)."""
         lat = np.asarray(self.latencies) * 1e3
-        out = {"frames": int(lat.size), "mean_ms": float(lat.mean()) if lat.size else 0.0,
-               "max_ms": float(lat.max()) if lat.size else 0.0}
+        out = {
+            "frames": int(lat.size),
+            "mean_ms": float(lat.mean()) if lat.size else 0.0,
+            "max_ms": float(lat.max()) if lat.size else 0.0,
+        }
         if control_dt:
             out["max_control_steps"] = out["max_ms"] / (control_dt * 1e3)
         return out

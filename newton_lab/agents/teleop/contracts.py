@@ -73,8 +73,15 @@ class FrameMapper:
     command (one operator); ``rows`` limits it to some rows (the others keep ``current``). ``robot``: the env's
     (``env.robot``: joint groups, gripper range, wheel gains, leg lift)."""
 
-    def __init__(self, contract: str, action_joint_names: Sequence[str], *, robot: RobotBinding,
-                 no_frame_policy: str = "hold", twist_scale: float = 1.0):
+    def __init__(
+        self,
+        contract: str,
+        action_joint_names: Sequence[str],
+        *,
+        robot: RobotBinding,
+        no_frame_policy: str = "hold",
+        twist_scale: float = 1.0,
+    ):
         check_mapping(contract, no_frame_policy)
         self.contract, self.no_frame_policy, self.twist_scale = contract, no_frame_policy, float(twist_scale)
         self.robot = RobotBinding.required(robot, "FrameMapper")
@@ -93,7 +100,7 @@ class FrameMapper:
         for arm in ("left", "right"):
             cols = self.columns.get(f"{arm}_arm", [])
             if cols and arm in arms:
-                out[:, cols] = torch.as_tensor(np.asarray(arms[arm], dtype=np.float32)[:len(cols)], device=out.device)
+                out[:, cols] = torch.as_tensor(np.asarray(arms[arm], dtype=np.float32)[: len(cols)], device=out.device)
             cols = self.columns.get(f"{arm}_gripper", [])
             if cols:  # a gripper is commanded every step: open unless the frame closes it
                 opened = frame.gripper_open.get(arm, True)
@@ -103,9 +110,9 @@ class FrameMapper:
             vx, vy, wz = (0.0, 0.0, 0.0) if frame.base_twist is None else frame.base_twist
             s = self.twist_scale
             twist = torch.tensor([[vx * s, vy * s, wz * s]], dtype=torch.float32, device=out.device)
-            out[:, cols] = twist_to_wheels_torch(twist, self.robot.wheel_gains)[0, :len(cols)]
+            out[:, cols] = twist_to_wheels_torch(twist, self.robot.wheel_gains)[0, : len(cols)]
         cols = self.columns.get("legs", [])
         if cols and frame.body_height is not None:
             legs = leg_targets(frame.body_height, self.robot)
-            out[:, cols] = torch.as_tensor(legs[:len(cols)], dtype=out.dtype, device=out.device)
+            out[:, cols] = torch.as_tensor(legs[: len(cols)], dtype=out.dtype, device=out.device)
         return out

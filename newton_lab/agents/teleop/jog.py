@@ -33,7 +33,7 @@ class TcpJog:
         """TCP position error of the last IK solution [m] (forward kinematics)."""
 
     def _robot_q(self, env) -> np.ndarray:
-        q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, :self._robot_coords]
+        q = wp.to_torch(env.state.joint_q).view(env.num_envs, -1)[:, : self._robot_coords]
         return q.detach().cpu().numpy().astype(np.float32)
 
     def reset(self, env) -> None:

@@ -11,8 +11,16 @@ from typing import Any, TextIO
 
 from .agent import TeleopAgent
 
-ANSWERS = {"keep": "keep", "k": "keep", "drop": "drop", "d": "drop", "exit": "exit", "e": "exit", "quit": "exit",
-           "q": "exit"}
+ANSWERS = {
+    "keep": "keep",
+    "k": "keep",
+    "drop": "drop",
+    "d": "drop",
+    "exit": "exit",
+    "e": "exit",
+    "quit": "exit",
+    "q": "exit",
+}
 STATUS_EVERY_S = 0.2
 """Wall time between two status-line updates [s]."""
 
@@ -75,9 +83,11 @@ class StatusLine:
         gripper = "open" if frame is None or frame.gripper_open.get("left", True) else "closed"
         cmd = getattr(dev, "command", "")
         msg = getattr(dev, "message", "")
-        self.out.write(f"\rstep {self.step:5d} | tcp {tcp[0]:+.3f} {tcp[1]:+.3f} {tcp[2]:+.3f} m | "
-                       f"ik err {self.agent.jog_error() * 1e3:4.1f} mm | gripper {gripper:6s} | "
-                       f"success {'yes' if success else 'no '} | > {cmd:<8s} {msg}\x1b[K")
+        self.out.write(
+            f"\rstep {self.step:5d} | tcp {tcp[0]:+.3f} {tcp[1]:+.3f} {tcp[2]:+.3f} m | "
+            f"ik err {self.agent.jog_error() * 1e3:4.1f} mm | gripper {gripper:6s} | "
+            f"success {'yes' if success else 'no '} | > {cmd:<8s} {msg}\x1b[K"
+        )
         self.out.flush()
 
 
@@ -102,16 +112,26 @@ def teleop_session(
     status = StatusLine(env, agent, out, realtime=realtime, chain=on_step)
     while keep is None or len(kept) < keep:
         status.step = 0
-        ref = env.collect(agent=agent, episodes=1, path=path, max_steps=max_steps, end_when_agent_done=True,
-                          progress=False, on_step=status, operation="teleop",
-                          config={"device": agent.device.name, "contract": agent.contract})
+        ref = env.collect(
+            agent=agent,
+            episodes=1,
+            path=path,
+            max_steps=max_steps,
+            end_when_agent_done=True,
+            progress=False,
+            on_step=status,
+            operation="teleop",
+            config={"device": agent.device.name, "contract": agent.contract},
+        )
         agent.device.pause()
         episodes += 1
         m = ref.metadata
         ids = list(m["saved_demo_ids"])
         reason = next(iter(m["termination_reasons"]), "?")
-        note = (f"episode {episodes}: {m['episode_lengths'][0]} steps, success {'yes' if m['successes'] else 'no'}, "
-                f"ended by {reason}. ")
+        note = (
+            f"episode {episodes}: {m['episode_lengths'][0]} steps, success {'yes' if m['successes'] else 'no'}, "
+            f"ended by {reason}. "
+        )
         answer = review_demo(fd, out, note)
         if answer == "keep":
             kept += ids
@@ -123,5 +143,10 @@ def teleop_session(
         if answer == "exit":
             break
     out.flush()
-    return {"kept_demo_ids": kept, "dropped_demo_ids": dropped, "episodes": episodes, "path": str(path),
-            "latency": agent.latency(env.cfg.control_dt)}
+    return {
+        "kept_demo_ids": kept,
+        "dropped_demo_ids": dropped,
+        "episodes": episodes,
+        "path": str(path),
+        "latency": agent.latency(env.cfg.control_dt),
+    }

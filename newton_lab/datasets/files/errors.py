@@ -30,4 +30,5 @@ def damaged(path: Path, reason: str) -> ValueError:
     reason = " ".join(str(reason).split())[:200]
     return ValueError(
         f"{path} is not a newton_lab dataset or is damaged ({reason}); it was left untouched: "
-        "re-collect the episodes into a new path (or restore a backup)")
+        "re-collect the episodes into a new path (or restore a backup)"
+    )

@@ -22,6 +22,7 @@ def contained(root: str | Path, rel: str | Path, what: str) -> Path:
     base = Path(root).expanduser().resolve()
     target = (base / Path(rel).expanduser()).resolve()
     if target != base and base not in target.parents:
-        raise OutsidePathError(f"{what} points outside {base} ({str(rel)!r}); the file is damaged or was edited "
-                               "by hand: re-create it")
+        raise OutsidePathError(
+            f"{what} points outside {base} ({str(rel)!r}); the file is damaged or was edited by hand: re-create it"
+        )
     return target

@@ -91,4 +91,5 @@ def dumps_env_args(env_args: dict) -> str:
         if isinstance(o, np.ndarray):
             return o.tolist()
         raise TypeError(f"env_args value of type {type(o).__name__} is not JSON serialisable")
+
     return json.dumps(env_args, default=default, sort_keys=True)

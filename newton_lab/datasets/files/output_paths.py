@@ -50,8 +50,9 @@ def output_path(path: str | os.PathLike, *, create: bool = True) -> Path:
         except (FileExistsError, NotADirectoryError):  # a file put there meanwhile
             raise _refusal(p, _file_above(p) or p.parent) from None
         except OSError as exc:  # permission denied, a read-only file system, a folder that takes none (/proc)
-            raise OutputPathError(f"cannot write {p}: cannot create the folder {p.parent} ({exc.strerror}); "
-                                  "choose a writable path") from None
+            raise OutputPathError(
+                f"cannot write {p}: cannot create the folder {p.parent} ({exc.strerror}); choose a writable path"
+            ) from None
     return p
 
 

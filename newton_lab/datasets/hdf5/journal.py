@@ -46,11 +46,11 @@ def _rollback(raw, path: Path, fsync: bool) -> None:
         return
     if len(blob) >= _HEAD.size:
         magic, size0, crc = _HEAD.unpack_from(blob)
-        if magic == MAGIC and crc == zlib.crc32(blob[:_HEAD.size - 4]):
+        if magic == MAGIC and crc == zlib.crc32(blob[: _HEAD.size - 4]):
             records, pos = [], _HEAD.size
             while pos + _REC.size <= len(blob):
                 off, n, rcrc = _REC.unpack_from(blob, pos)
-                data = blob[pos + _REC.size: pos + _REC.size + n]
+                data = blob[pos + _REC.size : pos + _REC.size + n]
                 if len(data) != n or zlib.crc32(data) != rcrc:
                     break  # torn tail: its in-place write never happened
                 records.append((off, data))
@@ -75,8 +75,10 @@ def recover(path: Path, wait_s: float, fsync: bool = True) -> None:
     try:
         raw = open(path, "r+b", buffering=0)  # noqa: SIM115
     except PermissionError:
-        raise ValueError(f"{path} has an interrupted write ({journal_path(path).name}); "
-                         "open it once with write access to roll it back") from None
+        raise ValueError(
+            f"{path} has an interrupted write ({journal_path(path).name}); "
+            "open it once with write access to roll it back"
+        ) from None
     with raw:
         lock_exclusive(raw.fileno(), path, wait_s)
         _rollback(raw, path, fsync)
@@ -87,7 +89,7 @@ def _write_all(f, data) -> None:
     view = memoryview(data).cast("B")
     while view.nbytes:
         write_fault_point()
-        view = view[f.write(view):]
+        view = view[f.write(view) :]
 
 
 class JournaledFile:
@@ -141,11 +143,11 @@ class JournaledFile:
         if start < min(end, self._valid):
             self._raw.seek(start)
             got = self._raw.read(min(end, self._valid) - start)
-            buf[:len(got)] = got
+            buf[: len(got)] = got
         for off, blob in self._mem:
             lo, hi = max(off, start), min(off + len(blob), end)
             if lo < hi:
-                buf[lo - start:hi - start] = blob[lo - off:hi - off]
+                buf[lo - start : hi - start] = blob[lo - off : hi - off]
         self._pos = start + len(buf)
         return bytes(buf)
 
@@ -166,7 +168,7 @@ class JournaledFile:
         if self.error is None:
             return self._raw.readinto(buf)
         data = self._read_failed(memoryview(buf).nbytes)
-        memoryview(buf).cast("B")[:len(data)] = data
+        memoryview(buf).cast("B")[: len(data)] = data
         return len(data)
 
     def write(self, data) -> int:
@@ -193,7 +195,7 @@ class JournaledFile:
             except OSError as e:
                 self._fail(e, self._raw.tell())
         self._len, self._valid = size, min(self._valid, size)
-        self._mem = [(off, blob[:size - off]) for off, blob in self._mem if off < size]
+        self._mem = [(off, blob[: size - off]) for off, blob in self._mem if off < size]
         return size
 
     def flush(self) -> None:

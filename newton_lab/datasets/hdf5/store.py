@@ -249,8 +249,10 @@ def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> Non
 def info(path: Path) -> dict[str, Any]:
     with _open_read(path) as f:
         data = _data(f, path)
-        demos = {i: {"num_samples": int(g.attrs["num_samples"]), "success": bool(g.attrs.get("success", False))}
-                 for i, g in _committed(data).items()}
+        demos = {
+            i: {"num_samples": int(g.attrs["num_samples"]), "success": bool(g.attrs.get("success", False))}
+            for i, g in _committed(data).items()
+        }
         return {"root": _attrs(data), "demos": demos}
 
 
@@ -284,8 +286,13 @@ def delete(path: Path, ids: list[int], fsync: bool = True) -> None:
         for i in ids:
             del data[demo_name(i)]
         demos = _committed(data)
-        data.attrs.update({"total": sum(int(d.attrs["num_samples"]) for d in demos.values()),
-                           "num_demos": len(demos), NEXT_ID: next_id})
+        data.attrs.update(
+            {
+                "total": sum(int(d.attrs["num_samples"]) for d in demos.values()),
+                "num_demos": len(demos),
+                NEXT_ID: next_id,
+            }
+        )
         gone = {demo_name(i) for i in ids}
         _write_masks(f, {k: [n for n in names if n not in gone] for k, names in _read_masks(f).items()})
 
@@ -294,8 +301,9 @@ def _read_masks(f: h5py.File) -> dict[str, list[str]]:
     g = f.get("mask")
     if not isinstance(g, h5py.Group):
         return {}
-    return {k: [from_stored(n) for n in np.asarray(v[()]).reshape(-1)] for k, v in g.items()
-            if isinstance(v, h5py.Dataset)}
+    return {
+        k: [from_stored(n) for n in np.asarray(v[()]).reshape(-1)] for k, v in g.items() if isinstance(v, h5py.Dataset)
+    }
 
 
 def _write_masks(f: h5py.File, masks: dict[str, list[str]]) -> None:

@@ -33,8 +33,10 @@ from __future__ import annotations
 try:
     import pyarrow  # noqa: F401  (checked here so every submodule gets the hint)
 except ImportError as exc:  # pragma: no cover - pyarrow is a dependency of newton_lab
-    raise ImportError("newton_lab.datasets.lerobot needs pyarrow: pip install 'pyarrow>=15' "
-                      "(a newton_lab dependency; reinstall newton_lab)") from exc
+    raise ImportError(
+        "newton_lab.datasets.lerobot needs pyarrow: pip install 'pyarrow>=15' "
+        "(a newton_lab dependency; reinstall newton_lab)"
+    ) from exc
 
 from .tables import CODEBASE_VERSION, ROBOT_TYPE
 from .validate import validate_lerobot_v3

@@ -28,11 +28,23 @@ SOURCE_PATH = "meta/newton_lab_source.json"
 IMAGE_PREFIX = "observation.images."
 IMAGE_NAMES = ["height", "width", "channels"]
 # LeRobot's bookkeeping columns (dtype, shape (1,)), in LeRobot's order.
-INDEX_FEATURES = {"timestamp": "float32", "frame_index": "int64", "episode_index": "int64",
-                  "index": "int64", "task_index": "int64"}
+INDEX_FEATURES = {
+    "timestamp": "float32",
+    "frame_index": "int64",
+    "episode_index": "int64",
+    "index": "int64",
+    "task_index": "int64",
+}
 STATS = ("min", "max", "mean", "std", "count")
-EPISODE_COLUMNS = ("episode_index", "tasks", "length", "data/chunk_index", "data/file_index",
-                   "dataset_from_index", "dataset_to_index")
+EPISODE_COLUMNS = (
+    "episode_index",
+    "tasks",
+    "length",
+    "data/chunk_index",
+    "data/file_index",
+    "dataset_from_index",
+    "dataset_to_index",
+)
 TIMESTAMP_TOLERANCE_S = 1e-4  # LeRobot's default tolerance_s
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PNG_LEVEL = 6
@@ -56,8 +68,12 @@ def png(image: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     rows = np.empty((h, w * 3 + 1), np.uint8)
     rows[:, 0] = 4
     rows[:, 1:] = ((x - pred) & 0xFF).astype(np.uint8)
-    return (PNG_SIGNATURE + _png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-            + _png_chunk(b"IDAT", zlib.compress(rows.tobytes(), level)) + _png_chunk(b"IEND", b""))
+    return (
+        PNG_SIGNATURE
+        + _png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+        + _png_chunk(b"IDAT", zlib.compress(rows.tobytes(), level))
+        + _png_chunk(b"IEND", b"")
+    )
 
 
 def _png_chunk(tag: bytes, body: bytes) -> bytes:
@@ -70,9 +86,15 @@ def image_column(frames: np.ndarray) -> pa.ChunkedArray:
     chunks = []
     for lo in range(0, len(frames), IMAGE_BATCH):
         hi = min(lo + IMAGE_BATCH, len(frames))
-        chunks.append(pa.StructArray.from_arrays(
-            [pa.array([png(frames[i]) for i in range(lo, hi)], pa.binary()),
-             pa.array([f"frame-{i:06d}.png" for i in range(lo, hi)], pa.string())], fields=list(typ)))
+        chunks.append(
+            pa.StructArray.from_arrays(
+                [
+                    pa.array([png(frames[i]) for i in range(lo, hi)], pa.binary()),
+                    pa.array([f"frame-{i:06d}.png" for i in range(lo, hi)], pa.string()),
+                ],
+                fields=list(typ),
+            )
+        )
     return pa.chunked_array(chunks, typ)
 
 
@@ -80,18 +102,22 @@ def _fixed_list(values: np.ndarray) -> pa.FixedSizeListArray:
     return pa.FixedSizeListArray.from_arrays(pa.array(values.reshape(-1), pa.float32()), values.shape[1])
 
 
-def episode_table(state: np.ndarray, actions: np.ndarray, images: dict[str, np.ndarray], fps: int,
-                  episode_index: int, start: int) -> tuple[pa.Table, dict[str, np.ndarray]]:
+def episode_table(
+    state: np.ndarray, actions: np.ndarray, images: dict[str, np.ndarray], fps: int, episode_index: int, start: int
+) -> tuple[pa.Table, dict[str, np.ndarray]]:
     """One episode's frame rows (``images`` in feature order, ``start`` = its first global index)."""
     steps = actions.shape[0]
     frame_index = np.arange(steps, dtype=np.int64)
     columns: dict[str, Any] = {"observation.state": _fixed_list(state), "action": _fixed_list(actions)}
     for term, frames in images.items():
         columns[IMAGE_PREFIX + term] = image_column(frames)
-    scalars = {"timestamp": (frame_index / fps).astype(np.float32), "frame_index": frame_index,
-               "episode_index": np.full(steps, episode_index, np.int64),
-               "index": np.arange(start, start + steps, dtype=np.int64),
-               "task_index": np.zeros(steps, np.int64)}
+    scalars = {
+        "timestamp": (frame_index / fps).astype(np.float32),
+        "frame_index": frame_index,
+        "episode_index": np.full(steps, episode_index, np.int64),
+        "index": np.arange(start, start + steps, dtype=np.int64),
+        "task_index": np.zeros(steps, np.int64),
+    }
     for key, values in scalars.items():
         columns[key] = pa.array(values, pa.from_numpy_dtype(np.dtype(INDEX_FEATURES[key])))
     return pa.table(columns), scalars
@@ -101,8 +127,7 @@ def episode_table(state: np.ndarray, actions: np.ndarray, images: dict[str, np.n
 def vector_stats(x: np.ndarray) -> dict[str, np.ndarray]:
     """Per-dimension min / max / mean / std (float64) and count of (T, ...) values."""
     x = np.asarray(x, np.float64).reshape(len(x), -1)
-    return {"min": x.min(0), "max": x.max(0), "mean": x.mean(0), "std": x.std(0),
-            "count": np.array([len(x)], np.int64)}
+    return {"min": x.min(0), "max": x.max(0), "mean": x.mean(0), "std": x.std(0), "count": np.array([len(x)], np.int64)}
 
 
 def image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
@@ -110,16 +135,19 @@ def image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
     n = frames.shape[0] * frames.shape[1] * frames.shape[2]
     total, squares = np.zeros(3), np.zeros(3)
     for lo in range(0, len(frames), 64):
-        px = frames[lo:lo + 64].reshape(-1, 3).astype(np.float64)
+        px = frames[lo : lo + 64].reshape(-1, 3).astype(np.float64)
         total += px.sum(0)
         squares += np.square(px).sum(0)
     mean = total / n
     std = np.sqrt(np.maximum(squares / n - mean**2, 0.0))
     shape = (3, 1, 1)
-    return {"min": (frames.min(axis=(0, 1, 2)) / 255.0).reshape(shape),
-            "max": (frames.max(axis=(0, 1, 2)) / 255.0).reshape(shape),
-            "mean": (mean / 255.0).reshape(shape), "std": (std / 255.0).reshape(shape),
-            "count": np.array([len(frames)], np.int64)}
+    return {
+        "min": (frames.min(axis=(0, 1, 2)) / 255.0).reshape(shape),
+        "max": (frames.max(axis=(0, 1, 2)) / 255.0).reshape(shape),
+        "mean": (mean / 255.0).reshape(shape),
+        "std": (std / 255.0).reshape(shape),
+        "count": np.array([len(frames)], np.int64),
+    }
 
 
 def aggregate(per_episode: list[dict[str, dict[str, np.ndarray]]]) -> dict[str, dict[str, np.ndarray]]:
@@ -132,9 +160,13 @@ def aggregate(per_episode: list[dict[str, dict[str, np.ndarray]]]) -> dict[str, 
         means = np.stack([s["mean"] for s in items])
         mean = (weights * means).sum(0)
         var = (weights * (np.stack([s["std"] for s in items]) ** 2 + (means - mean) ** 2)).sum(0)
-        out[key] = {"min": np.min([s["min"] for s in items], axis=0), "max": np.max([s["max"] for s in items], axis=0),
-                    "mean": mean, "std": np.sqrt(np.maximum(var, 0.0)),
-                    "count": np.array([int(counts.sum())], np.int64)}
+        out[key] = {
+            "min": np.min([s["min"] for s in items], axis=0),
+            "max": np.max([s["max"] for s in items], axis=0),
+            "mean": mean,
+            "std": np.sqrt(np.maximum(var, 0.0)),
+            "count": np.array([int(counts.sum())], np.int64),
+        }
     return out
 
 
@@ -194,16 +226,33 @@ def write_tasks(path: Path, tasks: list[str]) -> None:
     """tasks.parquet as pandas writes a frame indexed by "task" (LeRobot reads it with pandas)."""
     pandas_meta = {
         "index_columns": ["task"],
-        "column_indexes": [{"name": None, "field_name": None, "pandas_type": "unicode", "numpy_type": "object",
-                            "metadata": {"encoding": "UTF-8"}}],
-        "columns": [{"name": "task_index", "field_name": "task_index", "pandas_type": "int64",
-                     "numpy_type": "int64", "metadata": None},
-                    {"name": "task", "field_name": "task", "pandas_type": "unicode", "numpy_type": "object",
-                     "metadata": None}],
-        "attributes": {}, "creator": {"library": "pyarrow", "version": pa.__version__}, "pandas_version": "2.2.3",
+        "column_indexes": [
+            {
+                "name": None,
+                "field_name": None,
+                "pandas_type": "unicode",
+                "numpy_type": "object",
+                "metadata": {"encoding": "UTF-8"},
+            }
+        ],
+        "columns": [
+            {
+                "name": "task_index",
+                "field_name": "task_index",
+                "pandas_type": "int64",
+                "numpy_type": "int64",
+                "metadata": None,
+            },
+            {"name": "task", "field_name": "task", "pandas_type": "unicode", "numpy_type": "object", "metadata": None},
+        ],
+        "attributes": {},
+        "creator": {"library": "pyarrow", "version": pa.__version__},
+        "pandas_version": "2.2.3",
     }
-    schema = pa.schema([("task_index", pa.int64()), ("task", pa.string())],
-                       metadata={b"pandas": json.dumps(pandas_meta).encode()})
-    table = pa.table({"task_index": pa.array(range(len(tasks)), pa.int64()), "task": pa.array(tasks, pa.string())},
-                     schema=schema)
+    schema = pa.schema(
+        [("task_index", pa.int64()), ("task", pa.string())], metadata={b"pandas": json.dumps(pandas_meta).encode()}
+    )
+    table = pa.table(
+        {"task_index": pa.array(range(len(tasks)), pa.int64()), "task": pa.array(tasks, pa.string())}, schema=schema
+    )
     pq.write_table(table, str(path))

@@ -46,9 +46,16 @@ def even_shape(shape: tuple[int, int, int]) -> tuple[int, int, int]:
 def video_info(shape: tuple[int, int, int], fps: int) -> dict[str, Any]:
     """The ``info`` block of a video feature in ``info.json``."""
     h, w, c = even_shape(shape)
-    return {"video.height": h, "video.width": w, "video.codec": video_codec()[0].removeprefix("lib"),
-            "video.pix_fmt": PIX_FMT, "video.is_depth_map": False, "video.fps": fps, "video.channels": c,
-            "has_audio": False}
+    return {
+        "video.height": h,
+        "video.width": w,
+        "video.codec": video_codec()[0].removeprefix("lib"),
+        "video.pix_fmt": PIX_FMT,
+        "video.is_depth_map": False,
+        "video.fps": fps,
+        "video.channels": c,
+        "has_audio": False,
+    }
 
 
 def _padded(frames: np.ndarray) -> np.ndarray:
@@ -139,5 +146,9 @@ def probe(path: Path) -> dict[str, Any]:
 
 
 def _stream_meta(stream: Any) -> dict[str, Any]:
-    return {"width": stream.codec_context.width, "height": stream.codec_context.height,
-            "fps": float(stream.average_rate or stream.base_rate or 0), "codec": stream.codec_context.name}
+    return {
+        "width": stream.codec_context.width,
+        "height": stream.codec_context.height,
+        "fps": float(stream.average_rate or stream.base_rate or 0),
+        "codec": stream.codec_context.name,
+    }

@@ -70,24 +70,41 @@ class _Plan:
 
     def features(self) -> dict[str, dict[str, Any]]:
         feats: dict[str, dict[str, Any]] = {
-            "observation.state": {"dtype": "float32", "shape": [self.state_dim],
-                                  "names": [f"{t}.{i}" for t, w in self.state_terms for i in range(w)]},
+            "observation.state": {
+                "dtype": "float32",
+                "shape": [self.state_dim],
+                "names": [f"{t}.{i}" for t, w in self.state_terms for i in range(w)],
+            },
             "action": {"dtype": "float32", "shape": [self.action_dim], "names": list(self.action_names)},
         }
         for term, shape in self.image_terms:
             feats[IMAGE_PREFIX + term] = (
-                {"dtype": "video", "shape": list(even_shape(shape)), "names": list(IMAGE_NAMES),
-                 "info": video_info(shape, self.fps)} if self.video else
-                {"dtype": "image", "shape": list(shape), "names": list(IMAGE_NAMES)})
+                {
+                    "dtype": "video",
+                    "shape": list(even_shape(shape)),
+                    "names": list(IMAGE_NAMES),
+                    "info": video_info(shape, self.fps),
+                }
+                if self.video
+                else {"dtype": "image", "shape": list(shape), "names": list(IMAGE_NAMES)}
+            )
         for key, dtype in INDEX_FEATURES.items():
             feats[key] = {"dtype": dtype, "shape": [1], "names": None}
         return feats
 
 
-def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None = None, fps: int | None = None,
-                   include_failed: bool = False, state_keys: Sequence[str] | None = None,
-                   task_description: str | None = None, data_files_size_in_mb: int = DATA_FILES_SIZE_IN_MB,
-                   video: bool = True) -> dict[str, Any]:
+def export_lerobot(
+    dataset: Any,
+    root: str | os.PathLike,
+    *,
+    repo_id: str | None = None,
+    fps: int | None = None,
+    include_failed: bool = False,
+    state_keys: Sequence[str] | None = None,
+    task_description: str | None = None,
+    data_files_size_in_mb: int = DATA_FILES_SIZE_IN_MB,
+    video: bool = True,
+) -> dict[str, Any]:
     """Write the demos of ``dataset`` as a LeRobot v3.0 dataset at ``root`` (which must not exist).
 
     Args:
@@ -112,21 +129,31 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
     root = Path(root).expanduser()
     _refuse_existing(root)
     source = _source_path(dataset)
-    if not (isinstance(data_files_size_in_mb, int) and not isinstance(data_files_size_in_mb, bool)
-            and data_files_size_in_mb > 0):
+    if not (
+        isinstance(data_files_size_in_mb, int)
+        and not isinstance(data_files_size_in_mb, bool)
+        and data_files_size_in_mb > 0
+    ):
         raise ValueError(f"data_files_size_in_mb must be a positive int, got {data_files_size_in_mb!r}")
     info = read_dataset_info(source)
     _refuse_nested(root, Path(info["path"]))
-    plan, first = _make_plan(info, repo_id=repo_id, fps=fps, include_failed=include_failed,
-                             state_keys=state_keys, task_description=task_description)
+    plan, first = _make_plan(
+        info,
+        repo_id=repo_id,
+        fps=fps,
+        include_failed=include_failed,
+        state_keys=state_keys,
+        task_description=task_description,
+    )
     plan.video = bool(video)
 
     output_path(root)
     tmp = root.parent / f".{root.name}.partial-{uuid.uuid4().hex}"
     tmp.mkdir()  # not mkdtemp: the renamed root should get the usual (umask) permissions
     try:
-        data_files, video_files, frames = _write_all(tmp, plan, first, data_files_size_in_mb * 1024 * 1024,
-                                        data_files_size_in_mb)
+        data_files, video_files, frames = _write_all(
+            tmp, plan, first, data_files_size_in_mb * 1024 * 1024, data_files_size_in_mb
+        )
         _fsync_tree(tmp)
         _refuse_existing(root)  # created by someone else meanwhile: keep theirs, drop ours
         os.rename(tmp, root)
@@ -134,19 +161,29 @@ def export_lerobot(dataset: Any, root: str | os.PathLike, *, repo_id: str | None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {"root": str(root), "repo_id": plan.repo_id, "episodes": len(plan.demo_ids), "frames": frames,
-            "skipped_failed": len(plan.skipped_failed), "fps": plan.fps, "task": plan.task,
-            "demo_ids": list(plan.demo_ids), "skipped_empty": len(plan.skipped_empty),
-            "state_keys": [t for t, _ in plan.state_terms],
-            "image_keys": [IMAGE_PREFIX + t for t, _ in plan.image_terms], "data_files": data_files,
-            "video_files": video_files}
+    return {
+        "root": str(root),
+        "repo_id": plan.repo_id,
+        "episodes": len(plan.demo_ids),
+        "frames": frames,
+        "skipped_failed": len(plan.skipped_failed),
+        "fps": plan.fps,
+        "task": plan.task,
+        "demo_ids": list(plan.demo_ids),
+        "skipped_empty": len(plan.skipped_empty),
+        "state_keys": [t for t, _ in plan.state_terms],
+        "image_keys": [IMAGE_PREFIX + t for t, _ in plan.image_terms],
+        "data_files": data_files,
+        "video_files": video_files,
+    }
 
 
 # ----------------------------------------------------------------------------- argument checks
 def _refuse_existing(root: Path) -> None:
     if os.path.lexists(root):
-        raise FileExistsError(f"LeRobot root {root} already exists; choose a new root or delete it "
-                              "(nothing was written)")
+        raise FileExistsError(
+            f"LeRobot root {root} already exists; choose a new root or delete it (nothing was written)"
+        )
 
 
 def _refuse_nested(root: Path, source: Path) -> None:
@@ -161,8 +198,9 @@ def _source_path(dataset: Any) -> Path:
     path = getattr(dataset, "path", None)
     if isinstance(path, (str, os.PathLike)):
         return Path(path)
-    raise TypeError(f"dataset must be a path or an object with a .path attribute (e.g. a DatasetRef), "
-                    f"got {type(dataset).__name__}")
+    raise TypeError(
+        f"dataset must be a path or an object with a .path attribute (e.g. a DatasetRef), got {type(dataset).__name__}"
+    )
 
 
 def _resolve_fps(fps: Any, nl: Mapping[str, Any], source: Path) -> int:
@@ -171,8 +209,10 @@ def _resolve_fps(fps: Any, nl: Mapping[str, Any], source: Path) -> int:
             period = float(nl["sim_dt"]) * int(nl["decimation"])
             value: Any = 1.0 / period
         except (KeyError, TypeError, ValueError, ZeroDivisionError):
-            raise ValueError(f"{source} has no usable env_args['newton_lab'] sim_dt/decimation to derive the "
-                             "frame rate from; pass fps=<int>") from None
+            raise ValueError(
+                f"{source} has no usable env_args['newton_lab'] sim_dt/decimation to derive the "
+                "frame rate from; pass fps=<int>"
+            ) from None
         what = f"the control rate 1/(sim_dt*decimation) = {value:.6g} Hz of {source}"
     else:
         value, what = fps, f"fps={fps!r}"
@@ -214,8 +254,9 @@ def _obs_order(nl: Mapping[str, Any], present: Iterable[str]) -> list[str]:
     return known + sorted(t for t in present if t not in declared)
 
 
-def _make_plan(info: dict[str, Any], *, repo_id, fps, include_failed, state_keys,
-               task_description) -> tuple[_Plan, dict[str, Any]]:
+def _make_plan(
+    info: dict[str, Any], *, repo_id, fps, include_failed, state_keys, task_description
+) -> tuple[_Plan, dict[str, Any]]:
     source, task_id = Path(info["path"]), info["task_id"]
     nl = info["env_args"].get("newton_lab")
     nl = nl if isinstance(nl, Mapping) else {}
@@ -232,8 +273,9 @@ def _make_plan(info: dict[str, Any], *, repo_id, fps, include_failed, state_keys
     chosen = [i for i in candidates if demos[i]["num_samples"] >= 1]
     if not chosen:
         hint = "" if include_failed or not failed else " (pass include_failed=True to export the failed ones)"
-        raise ValueError(f"{source} has no episodes to export: {len(demos)} demos, {len(failed)} failed, "
-                         f"{len(empty)} empty{hint}")
+        raise ValueError(
+            f"{source} has no episodes to export: {len(demos)} demos, {len(failed)} failed, {len(empty)} empty{hint}"
+        )
 
     first = read_episode(source, chosen[0])
     obs = {k: np.asarray(v) for k, v in first.get("obs", {}).items() if not isinstance(v, Mapping)}
@@ -254,11 +296,13 @@ def _make_plan(info: dict[str, Any], *, repo_id, fps, include_failed, state_keys
             if t not in obs:
                 raise ValueError(f"state_keys: no obs term {t!r} in {where}; available: {', '.join(order) or 'none'}")
             if kinds[t] == "image":
-                raise ValueError(f"state_keys: {t!r} is an image term (exported as {IMAGE_PREFIX}{t}), "
-                                 "not a (T, d) state term")
+                raise ValueError(
+                    f"state_keys: {t!r} is an image term (exported as {IMAGE_PREFIX}{t}), not a (T, d) state term"
+                )
             if kinds[t] != "vector":
-                raise ValueError(f"state_keys: obs term {t!r} has shape {obs[t].shape} dtype {obs[t].dtype}, "
-                                 "not a real (T, d) array")
+                raise ValueError(
+                    f"state_keys: obs term {t!r} has shape {obs[t].shape} dtype {obs[t].dtype}, not a real (T, d) array"
+                )
     actions = np.asarray(first["actions"])
     a_dim = int(actions.shape[1])
     names = nl.get("action_joint_names")
@@ -266,10 +310,22 @@ def _make_plan(info: dict[str, Any], *, repo_id, fps, include_failed, state_keys
         names = [f"action.{i}" for i in range(a_dim)]
     images = [(t, tuple(int(s) for s in obs[t].shape[1:])) for t in order if kinds[t] == "image"]
     ignored = [t for t in order if kinds[t] == "other" or (kinds[t] == "vector" and t not in state)]
-    plan = _Plan(source=source, source_format=info["format"], task_id=task_id, repo_id=repo, task=task,
-                 fps=fps_i, demo_ids=chosen, skipped_failed=[] if include_failed else failed,
-                 skipped_empty=empty, state_terms=[(t, 1 if obs[t].ndim == 1 else int(obs[t].shape[1])) for t in state],
-                 action_dim=a_dim, action_names=list(names), image_terms=images, ignored_terms=ignored)
+    plan = _Plan(
+        source=source,
+        source_format=info["format"],
+        task_id=task_id,
+        repo_id=repo,
+        task=task,
+        fps=fps_i,
+        demo_ids=chosen,
+        skipped_failed=[] if include_failed else failed,
+        skipped_empty=empty,
+        state_terms=[(t, 1 if obs[t].ndim == 1 else int(obs[t].shape[1])) for t in state],
+        action_dim=a_dim,
+        action_names=list(names),
+        image_terms=images,
+        ignored_terms=ignored,
+    )
     return plan, first
 
 
@@ -278,8 +334,9 @@ def _episode_arrays(ep: Mapping[str, Any], plan: _Plan, demo_id: int) -> tuple[n
     where = f"demo_{demo_id} of {plan.source}"
     actions = np.asarray(ep["actions"])
     if actions.ndim != 2 or actions.shape[1] != plan.action_dim:
-        raise ValueError(f"{where}: actions have shape {actions.shape}; expected (T, {plan.action_dim}) like "
-                         f"demo_{plan.demo_ids[0]}")
+        raise ValueError(
+            f"{where}: actions have shape {actions.shape}; expected (T, {plan.action_dim}) like demo_{plan.demo_ids[0]}"
+        )
     steps = actions.shape[0]
     obs = ep.get("obs", {})
     parts = []
@@ -303,8 +360,9 @@ def _episode_arrays(ep: Mapping[str, Any], plan: _Plan, demo_id: int) -> tuple[n
 
 
 # ----------------------------------------------------------------------------- writing
-def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
-               limit_mb: int) -> tuple[list[str], list[str], int]:
+def _write_all(
+    tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int, limit_mb: int
+) -> tuple[list[str], list[str], int]:
     """Write data files, videos and meta/ into ``tmp``; returns (data file paths, video file paths, frames)."""
     files = DataFiles(tmp, limit_bytes)
     limit = VIDEO_FILES_SIZE_IN_MB << 20
@@ -327,10 +385,20 @@ def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
             stats.update({IMAGE_PREFIX + t: image_stats(images[t]) for t, _ in plan.image_terms})
             stats.update({k: vector_stats(v) for k, v in scalars.items()})
             steps = len(actions)
-            rows.append({"episode_index": episode_index, "tasks": [plan.task], "length": steps,
-                         "data/chunk_index": chunk, "data/file_index": file,
-                         "dataset_from_index": start, "dataset_to_index": start + steps,
-                         "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0, **located})
+            rows.append(
+                {
+                    "episode_index": episode_index,
+                    "tasks": [plan.task],
+                    "length": steps,
+                    "data/chunk_index": chunk,
+                    "data/file_index": file,
+                    "dataset_from_index": start,
+                    "dataset_to_index": start + steps,
+                    "meta/episodes/chunk_index": 0,
+                    "meta/episodes/file_index": 0,
+                    **located,
+                }
+            )
             ep_stats.append(stats)
             start += steps
         first.clear()
@@ -342,8 +410,14 @@ def _write_all(tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int,
     return files.paths, [p for v in videos.values() for p in v.paths], start
 
 
-def _write_meta(tmp: Path, plan: _Plan, rows: list[dict[str, Any]],
-                ep_stats: list[dict[str, dict[str, np.ndarray]]], frames: int, limit_mb: int) -> None:
+def _write_meta(
+    tmp: Path,
+    plan: _Plan,
+    rows: list[dict[str, Any]],
+    ep_stats: list[dict[str, dict[str, np.ndarray]]],
+    frames: int,
+    limit_mb: int,
+) -> None:
     """meta/: episodes, tasks, stats.json, info.json and the newton_lab provenance file."""
     meta = tmp / "meta"
     meta.mkdir()
@@ -352,21 +426,36 @@ def _write_meta(tmp: Path, plan: _Plan, rows: list[dict[str, Any]],
     stats = aggregate(ep_stats)
     _write_json(meta / "stats.json", {k: {s: v.tolist() for s, v in st.items()} for k, st in stats.items()})
     info = {
-        "codebase_version": CODEBASE_VERSION, "robot_type": ROBOT_TYPE,
-        "total_episodes": len(rows), "total_frames": frames, "total_tasks": 1,
-        "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": limit_mb,
-        "video_files_size_in_mb": VIDEO_FILES_SIZE_IN_MB, "fps": plan.fps,
-        "splits": {"train": f"0:{len(rows)}"}, "data_path": DATA_PATH,
+        "codebase_version": CODEBASE_VERSION,
+        "robot_type": ROBOT_TYPE,
+        "total_episodes": len(rows),
+        "total_frames": frames,
+        "total_tasks": 1,
+        "chunks_size": CHUNKS_SIZE,
+        "data_files_size_in_mb": limit_mb,
+        "video_files_size_in_mb": VIDEO_FILES_SIZE_IN_MB,
+        "fps": plan.fps,
+        "splits": {"train": f"0:{len(rows)}"},
+        "data_path": DATA_PATH,
         "video_path": VIDEO_PATH if plan.image_terms and plan.video else None,
         "features": plan.features(),
     }
     _write_json(meta / "info.json", info)
-    _write_json(tmp / SOURCE_PATH, {
-        "exporter": "newton_lab.datasets.lerobot", "source": str(plan.source), "source_format": plan.source_format,
-        "task_id": plan.task_id, "demo_ids": plan.demo_ids, "skipped_failed_demo_ids": plan.skipped_failed,
-        "skipped_empty_demo_ids": plan.skipped_empty, "state_keys": [t for t, _ in plan.state_terms],
-        "image_terms": [t for t, _ in plan.image_terms], "ignored_obs_terms": plan.ignored_terms,
-    })
+    _write_json(
+        tmp / SOURCE_PATH,
+        {
+            "exporter": "newton_lab.datasets.lerobot",
+            "source": str(plan.source),
+            "source_format": plan.source_format,
+            "task_id": plan.task_id,
+            "demo_ids": plan.demo_ids,
+            "skipped_failed_demo_ids": plan.skipped_failed,
+            "skipped_empty_demo_ids": plan.skipped_empty,
+            "state_keys": [t for t, _ in plan.state_terms],
+            "image_terms": [t for t, _ in plan.image_terms],
+            "ignored_obs_terms": plan.ignored_terms,
+        },
+    )
 
 
 def _write_json(path: Path, obj: Any) -> None:

@@ -77,10 +77,20 @@ class BackgroundWriter(LatchedErrors):
 
     Use as a context manager, or call :meth:`close` (it waits for every queued episode)."""
 
-    def __init__(self, writer: EpisodeWriter, *, max_queued: int = 256, max_queued_bytes: int = 1 << 30,
-                 min_batch: int = 1, max_wait_s: float = 1.0) -> None:
-        for name, value in (("max_queued", max_queued), ("max_queued_bytes", max_queued_bytes),
-                            ("min_batch", min_batch)):
+    def __init__(
+        self,
+        writer: EpisodeWriter,
+        *,
+        max_queued: int = 256,
+        max_queued_bytes: int = 1 << 30,
+        min_batch: int = 1,
+        max_wait_s: float = 1.0,
+    ) -> None:
+        for name, value in (
+            ("max_queued", max_queued),
+            ("max_queued_bytes", max_queued_bytes),
+            ("min_batch", min_batch),
+        ):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
         if not max_wait_s >= 0:
@@ -136,9 +146,12 @@ class BackgroundWriter(LatchedErrors):
             self._raise(always=True)
 
             def room() -> bool:
-                return (self._error is not None or not self._queue or not self._thread.is_alive()
-                        or (self._episodes + count <= self.max_queued
-                            and self._bytes + size <= self.max_queued_bytes))
+                return (
+                    self._error is not None
+                    or not self._queue
+                    or not self._thread.is_alive()
+                    or (self._episodes + count <= self.max_queued and self._bytes + size <= self.max_queued_bytes)
+                )
 
             if not room():
                 self._blocked += 1
@@ -193,8 +206,12 @@ class BackgroundWriter(LatchedErrors):
 
     def _due(self) -> bool:
         """The queue is to be written now (under the lock; see the module docstring's Batching)."""
-        return bool(self._queue) and (self._episodes >= self.min_batch or self._blocked > 0 or self._hurry > 0
-                                      or time.monotonic() - self._since >= self.max_wait_s)
+        return bool(self._queue) and (
+            self._episodes >= self.min_batch
+            or self._blocked > 0
+            or self._hurry > 0
+            or time.monotonic() - self._since >= self.max_wait_s
+        )
 
     def _loop(self) -> None:
         while True:
@@ -226,7 +243,7 @@ class BackgroundWriter(LatchedErrors):
                 ids = self.writer.append_block(DemoBlock.join([block for block, _, _ in run]))
                 results, at = [], 0
                 for _, _, n in run:
-                    results.append(ids[at:at + n])
+                    results.append(ids[at : at + n])
                     at += n
             else:
                 results = self.writer.append_prepared([item for item, _, _ in run])

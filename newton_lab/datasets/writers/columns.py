@@ -53,8 +53,13 @@ class DemoBlock:
     attrs: list[dict[str, Any]]
 
     @classmethod
-    def from_rows(cls, layout: ColumnLayout, stacked: np.ndarray, images: dict[str, np.ndarray],
-                  demos: list[tuple[int, int, bool | None, dict[str, Any]]]) -> DemoBlock:
+    def from_rows(
+        cls,
+        layout: ColumnLayout,
+        stacked: np.ndarray,
+        images: dict[str, np.ndarray],
+        demos: list[tuple[int, int, bool | None, dict[str, Any]]],
+    ) -> DemoBlock:
         """The demos ``(row, length, success, attrs)`` of a ``(rows, steps, width)`` block and its image terms
         ``(rows, steps, ...)``, copied out (one gather per array: the block may be reused at once) and split into
         their arrays here, while the burst is small: splitting a joined batch of thousands of demos instead reads
@@ -73,8 +78,12 @@ class DemoBlock:
         out["states"] = np.concatenate([f[:, slice(*layout.frame[key])] for key in STATES], axis=1)
         out["rewards"] = np.ascontiguousarray(f[:, layout.frame_width])
         after = layout.frame_width + 1
-        out.update({f"next_obs/{key}": np.ascontiguousarray(f[:, after + a:after + b])
-                    for key, (a, b) in layout.next_obs.items()})
+        out.update(
+            {
+                f"next_obs/{key}": np.ascontiguousarray(f[:, after + a : after + b])
+                for key, (a, b) in layout.next_obs.items()
+            }
+        )
         for key in [k for k in out if k.startswith("datagen/subtask_signals/")]:
             out[key] = out[key][:, 0].astype(bool)
         out["datagen/phase"] = out["datagen/phase"][:, 0].astype(np.int32)
@@ -86,9 +95,12 @@ class DemoBlock:
         """One block of the demos of ``blocks``, in order."""
         if len(blocks) == 1:
             return blocks[0]
-        return cls({key: np.concatenate([b.columns[key] for b in blocks]) for key in blocks[0].columns},
-                   [n for b in blocks for n in b.lengths], [s for b in blocks for s in b.successes],
-                   [a for b in blocks for a in b.attrs])
+        return cls(
+            {key: np.concatenate([b.columns[key] for b in blocks]) for key in blocks[0].columns},
+            [n for b in blocks for n in b.lengths],
+            [s for b in blocks for s in b.successes],
+            [a for b in blocks for a in b.attrs],
+        )
 
     def __len__(self) -> int:
         return len(self.lengths)
@@ -125,8 +137,8 @@ class DemoBlock:
         for k, (start, length) in enumerate(zip(self.starts.tolist(), self.lengths)):
             tree: dict[str, Any] = {"obs": {}, "datagen": {"subtask_signals": {}}, "next_obs": {}}
             for key, arr in arrays.items():
-                put(tree, key, arr[start:start + length])
-            tree["initial_state"] = initial[k:k + 1]
+                put(tree, key, arr[start : start + length])
+            tree["initial_state"] = initial[k : k + 1]
             out.append(tree)
         return out
 
@@ -134,8 +146,9 @@ class DemoBlock:
         """The zarr pack index's ``arrays`` for :meth:`arrays` (what ``zarr.packs.layout`` makes of the demos'
         trees: None per step, 1 for ``initial_state``), or None where a tree holds an empty group (a task without
         subtask signals), which a pack cannot hold."""
-        if not any(key.startswith("datagen/subtask_signals/") for key in arrays) or \
-                not any(key.startswith("next_obs/") for key in arrays):
+        if not any(key.startswith("datagen/subtask_signals/") for key in arrays) or not any(
+            key.startswith("next_obs/") for key in arrays
+        ):
             return None
         every_step = all(n == 1 for n in self.lengths)  # then initial_state has as many rows as the demo has steps
         return {key: (None if key != "initial_state" or every_step else 1) for key in arrays}

@@ -82,10 +82,21 @@ class ProcessWriter(LatchedErrors):
     """The collecting side: :meth:`put_block` copies a burst into the ring and queues it; futures give each demo's id
     once durable (or the write's error). :meth:`close` waits for every queued episode and stops the process."""
 
-    def __init__(self, path: str | Path, *, task_id: str, layout: ColumnLayout, fsync: bool = True,
-                 max_queued: int = 256, max_queued_bytes: int = 1 << 30, min_batch: int = 1, max_wait_s: float = 1.0,
-                 ring_bytes: int = RING_BYTES, zarr_settings: ZarrWriteSettings | None = None,
-                 profile_to: str | Path | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        task_id: str,
+        layout: ColumnLayout,
+        fsync: bool = True,
+        max_queued: int = 256,
+        max_queued_bytes: int = 1 << 30,
+        min_batch: int = 1,
+        max_wait_s: float = 1.0,
+        ring_bytes: int = RING_BYTES,
+        zarr_settings: ZarrWriteSettings | None = None,
+        profile_to: str | Path | None = None,
+    ) -> None:
         """``zarr_settings``: how the process writes zarr batches (default ``DEFAULT_ZARR_SETTINGS``);
         ``profile_to``: a path where the process saves a cProfile of its batch writes when it ends."""
         self.path, self.layout = Path(path), layout
@@ -100,17 +111,34 @@ class ProcessWriter(LatchedErrors):
         self._pending: dict[int, Future] = {}  # burst -> its ids
         self._next = 0
         self._closed = False
-        self._proc = start_child("newton_lab.datasets.writers.process_main", "main", str(self._fd),
-                                 pass_fds=(self._fd,))
+        self._proc = start_child(
+            "newton_lab.datasets.writers.process_main", "main", str(self._fd), pass_fds=(self._fd,)
+        )
         os.set_inheritable(self._fd, False)
-        self._send(("open", str(self.path), task_id, fsync, ring_bytes, layout,
-                    {"max_queued": max_queued, "max_queued_bytes": max_queued_bytes, "min_batch": min_batch,
-                     "max_wait_s": max_wait_s}, zarr_settings, None if profile_to is None else str(profile_to)))
+        self._send(
+            (
+                "open",
+                str(self.path),
+                task_id,
+                fsync,
+                ring_bytes,
+                layout,
+                {
+                    "max_queued": max_queued,
+                    "max_queued_bytes": max_queued_bytes,
+                    "min_batch": min_batch,
+                    "max_wait_s": max_wait_s,
+                },
+                zarr_settings,
+                None if profile_to is None else str(profile_to),
+            )
+        )
         self._reader = threading.Thread(target=self._read, name=f"writer process {self.path.name}", daemon=True)
         self._reader.start()
 
-    def put_block(self, stacked, images: dict[str, Any],
-                  demos: list[tuple[int, int, bool, dict[str, Any]]]) -> list[Future]:
+    def put_block(
+        self, stacked, images: dict[str, Any], demos: list[tuple[int, int, bool, dict[str, Any]]]
+    ) -> list[Future]:
         """Queue the episodes of a block: ``stacked`` (rows, steps, ``layout.width``) float32 (a torch tensor on any
         device, or numpy), ``images`` term -> (rows, steps, ...) of the same rows, and per demo ``(row in the block,
         length, success, attrs)``. Blocks while the ring has no room. A block larger than a quarter of the ring (many
@@ -120,13 +148,18 @@ class ProcessWriter(LatchedErrors):
         per_part = max(1, self._ring.size // 4 // max(row_bytes, 1))
         futures = []
         for first in range(0, len(demos), per_part):
-            part = demos[first:first + per_part]
+            part = demos[first : first + per_part]
             rows = [row for row, _, _, _ in part]
             if len(part) == len(demos):
                 futures.append(self._put_part(stacked, images, part))
             else:  # each part's rows, renumbered from 0
-                futures.append(self._put_part(stacked[rows], {k: v[rows] for k, v in images.items()},
-                                              [(k, *rest) for k, (_, *rest) in enumerate(part)]))
+                futures.append(
+                    self._put_part(
+                        stacked[rows],
+                        {k: v[rows] for k, v in images.items()},
+                        [(k, *rest) for k, (_, *rest) in enumerate(part)],
+                    )
+                )
         return futures
 
     def _put_part(self, stacked, images: dict[str, Any], demos: list) -> Future:
@@ -137,9 +170,11 @@ class ProcessWriter(LatchedErrors):
             start = self._ring.take(sum(sizes))
             while start is None:
                 if not self._ring.held():
-                    raise MemoryError(f"an episode of {sum(sizes) / 2**20:.0f} MiB does not fit the writer's "
-                                      f"{self._ring.size / 2**20:.0f} MiB ring; record shorter episodes or smaller "
-                                      f"frames, or pass writer='thread'")
+                    raise MemoryError(
+                        f"an episode of {sum(sizes) / 2**20:.0f} MiB does not fit the writer's "
+                        f"{self._ring.size / 2**20:.0f} MiB ring; record shorter episodes or smaller "
+                        f"frames, or pass writer='thread'"
+                    )
                 self._cv.wait(0.5)
                 self._raise(always=True)
                 if self._proc.poll() is not None:
@@ -178,8 +213,10 @@ class ProcessWriter(LatchedErrors):
         os.close(self._fd)
         with self._cv:
             if self._pending and self._error is None:
-                self._error = RuntimeError(f"the writer process of {self.path} exited (code {self._proc.returncode}) "
-                                           f"before writing {len(self._pending)} bursts of episodes")
+                self._error = RuntimeError(
+                    f"the writer process of {self.path} exited (code {self._proc.returncode}) "
+                    f"before writing {len(self._pending)} bursts of episodes"
+                )
                 for future in self._pending.values():
                     future.set_exception(self._error)
             self._raise(always=False)

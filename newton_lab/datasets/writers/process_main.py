@@ -30,6 +30,7 @@ from .columns import DemoBlock
 
 def _timed(append, spent: dict[str, float], profile: cProfile.Profile | None):
     """``append`` (``EpisodeWriter.append_block``) adding its seconds to ``spent["write"]`` (and profiled)."""
+
     def timed(block: DemoBlock) -> list[int]:
         t0 = time.perf_counter()
         if profile is not None:
@@ -40,6 +41,7 @@ def _timed(append, spent: dict[str, float], profile: cProfile.Profile | None):
             if profile is not None:
                 profile.disable()
             spent["write"] += time.perf_counter() - t0
+
     return timed
 
 
@@ -78,7 +80,8 @@ def serve(fd: int, inbox, outbox) -> None:
             try:
                 arrays: dict[str, Any] = {
                     name: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape)), offset=at).reshape(shape)
-                    for name, at, shape, dtype in specs}
+                    for name, at, shape, dtype in specs
+                }
                 block = DemoBlock.from_rows(layout, arrays.pop(""), arrays, demos)  # copies out of the ring
                 del arrays
             except Exception as e:  # noqa: BLE001 - handed to the collector
@@ -113,4 +116,3 @@ def _portable(error: BaseException) -> BaseException:
 def main() -> None:
     """Entry: the ring's descriptor in ``sys.argv[1]``; messages on stdin, replies on the original stdout."""
     serve(int(sys.argv[1]), *child_pipes())
-

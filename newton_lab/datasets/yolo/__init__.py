@@ -13,6 +13,22 @@ from .labels import (
 )
 from .pictures import OVERLAY_COLORS, mask_iou, montage, overlay
 
-__all__ = ["SPLITS", "YoloWriter", "assign_splits", "default_imgsz", "read_export", "training_specs",
-           "HUE_TOLERANCE_DEG", "MIN_AREA_PX", "MIN_SATURATION", "SIMPLIFY_PX", "color_segmentation", "label_lines",
-           "mask_polygon", "OVERLAY_COLORS", "mask_iou", "montage", "overlay"]
+__all__ = [
+    "SPLITS",
+    "YoloWriter",
+    "assign_splits",
+    "default_imgsz",
+    "read_export",
+    "training_specs",
+    "HUE_TOLERANCE_DEG",
+    "MIN_AREA_PX",
+    "MIN_SATURATION",
+    "SIMPLIFY_PX",
+    "color_segmentation",
+    "label_lines",
+    "mask_polygon",
+    "OVERLAY_COLORS",
+    "mask_iou",
+    "montage",
+    "overlay",
+]

@@ -78,21 +78,28 @@ class YoloWriter:
 
     def close(self) -> dict[str, object]:
         """Write data.yaml and move the dataset into place; returns a summary."""
-        spec = {"path": str(self.root.resolve()), **{s: f"images/{s}" for s in SPLITS},
-                "names": dict(enumerate(self.names))}
+        spec = {
+            "path": str(self.root.resolve()),
+            **{s: f"images/{s}" for s in SPLITS},
+            "names": dict(enumerate(self.names)),
+        }
         (self.tmp / "data.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
         if self.root.exists():
             self.root.rmdir()  # an empty folder (checked at the start)
         os.rename(self.tmp, self.root)
-        return {"output_dir": str(self.root), "images": self.count,
-                "splits": {s: self.splits[:self.count].count(s) for s in SPLITS},
-                "instances": dict(zip(self.names, self.seen.tolist()))}
+        return {
+            "output_dir": str(self.root),
+            "images": self.count,
+            "splits": {s: self.splits[: self.count].count(s) for s in SPLITS},
+            "instances": dict(zip(self.names, self.seen.tolist())),
+        }
 
     def abort(self) -> None:
         shutil.rmtree(self.tmp, ignore_errors=True)
 
 
 # ---- what training and prediction read of an export (``newton-lab yolo-train`` / ``yolo-predict``) ----
+
 
 def read_export(root: str | os.PathLike, flag: str = "--dataset") -> dict[str, object]:
     """What a ``yolo-export`` folder holds: ``names`` (class id -> name), ``images`` (PNG count per split) and
@@ -105,8 +112,10 @@ def read_export(root: str | os.PathLike, flag: str = "--dataset") -> dict[str, o
         spec = yaml.safe_load(spec_file.read_text())
         names = {int(k): str(v) for k, v in dict(spec["names"]).items()}
     except (yaml.YAMLError, KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise ValueError(f"{flag} {root}: data.yaml has no names list ({type(exc).__name__}); write a dataset with "
-                         f"`newton-lab yolo-export`") from None
+        raise ValueError(
+            f"{flag} {root}: data.yaml has no names list ({type(exc).__name__}); write a dataset with "
+            f"`newton-lab yolo-export`"
+        ) from None
     images = {s: len(list((root / "images" / s).glob("*.png"))) for s in SPLITS}
     if not sum(images.values()):
         raise ValueError(f"{flag} {root}: no images under images/{{train,val,test}}")
@@ -120,12 +129,17 @@ def training_specs(dataset: dict, heldout: dict | None, out: str | os.PathLike) 
     """The Ultralytics data specs of a run: training on ``dataset``'s train split with its val split for the
     per-epoch checks, and the evaluation spec: every image of ``heldout`` (all its splits), or ``dataset``'s val
     split without one. Absolute folders; labels are found by Ultralytics' rule (``images`` -> ``labels``)."""
+
     def dirs(ds: dict, splits) -> list[str]:
         return [str(ds["root"] / "images" / s) for s in splits if ds["images"][s]]
 
     names = dict(dataset["names"])
-    train = {"path": str(Path(out).expanduser().resolve()), "train": dirs(dataset, ["train"]),
-             "val": dirs(dataset, ["val"]) or dirs(dataset, ["train"]), "names": names}
+    train = {
+        "path": str(Path(out).expanduser().resolve()),
+        "train": dirs(dataset, ["train"]),
+        "val": dirs(dataset, ["val"]) or dirs(dataset, ["train"]),
+        "names": names,
+    }
     evaluate = dict(train, val=dirs(heldout, SPLITS) if heldout else train["val"])
     return train, evaluate
 

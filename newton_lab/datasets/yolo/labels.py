@@ -16,7 +16,6 @@ SIMPLIFY_PX = 0.75
 """Douglas-Peucker tolerance [px] of the label polygons."""
 
 
-
 def mask_polygon(mask: np.ndarray, tolerance: float = SIMPLIFY_PX) -> np.ndarray | None:
     """Outer contour of the largest region of a boolean (H, W) mask as (K, 2) float (x, y) in pixel units (pixel
     k spans [k, k + 1)), simplified to ``tolerance`` px; None when the mask has fewer than ``MIN_AREA_PX`` px."""
@@ -51,7 +50,7 @@ def _douglas_peucker(points: np.ndarray, tolerance: float) -> np.ndarray:
             continue
         a, b = points[lo], points[hi]
         seg = b - a
-        rel = points[lo + 1:hi] - a
+        rel = points[lo + 1 : hi] - a
         norm = float(np.hypot(*seg))
         dist = np.abs(seg[0] * rel[:, 1] - seg[1] * rel[:, 0]) / norm if norm > 0 else np.hypot(rel[:, 0], rel[:, 1])
         k = int(np.argmax(dist))

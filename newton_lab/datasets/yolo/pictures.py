@@ -12,15 +12,21 @@ OVERLAY_COLORS = ((255, 0, 255), (0, 255, 255), (255, 140, 0), (255, 255, 255), 
 """Overlay colour of each class id (cycled): far from the objects' own red, blue, yellow and green."""
 
 
-
 def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
     """Intersection over union of two boolean masks (0 when both are empty)."""
     union = int((a | b).sum())
     return float((a & b).sum() / union) if union else 0.0
 
 
-def overlay(rgb: np.ndarray, masks: np.ndarray, classes: Sequence[int], scores: Sequence[float],
-            names: Sequence[str] | dict, scale: int = 3, alpha: float = 0.45) -> Image.Image:
+def overlay(
+    rgb: np.ndarray,
+    masks: np.ndarray,
+    classes: Sequence[int],
+    scores: Sequence[float],
+    names: Sequence[str] | dict,
+    scale: int = 3,
+    alpha: float = 0.45,
+) -> Image.Image:
     """An (H, W, 3) uint8 frame at ``scale`` x size with each predicted (H, W) mask of ``masks`` (N, H, W) tinted in
     its class colour (``OVERLAY_COLORS``), outlined, and named with its score at the mask's top-left corner."""
     h, w = rgb.shape[:2]

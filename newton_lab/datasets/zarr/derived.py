@@ -52,7 +52,7 @@ def _next(source: np.ndarray, b: np.ndarray, ends: np.ndarray) -> bool:
         return False
     rs, rb = _rows_bytes(source), _rows_bytes(b)
     probe = min(PROBE_ROWS, int(ends[0]) - 1)
-    if probe > 0 and not np.array_equal(rb[:probe], rs[1:probe + 1]):
+    if probe > 0 and not np.array_equal(rb[:probe], rs[1 : probe + 1]):
         return False
     shifted = rb[:-1].copy()
     shifted[ends[:-1] - 1] = rs[ends[:-1]]  # a demo's last row is stored apart: left out of the comparison
@@ -68,7 +68,7 @@ def derive(values: dict[str, np.ndarray], layout: dict[str, int | None], counts:
     for key in sorted((k for k, rows in layout.items() if rows is None), key=_order):
         value = values[key]
         ref = next((f"{SAME}:{other}" for other in stored if _same(values[other], value)), None)
-        source = "obs/" + key[len("next_obs/"):] if key.startswith("next_obs/") else None
+        source = "obs/" + key[len("next_obs/") :] if key.startswith("next_obs/") else None
         if ref is None and source in stored and _next(values[source], value, ends):
             ref = f"{NEXT}:{source}"
         if ref is None:

@@ -15,8 +15,13 @@ from .nodes import inodes_of
 from .settings import DEFAULT_ZARR_SETTINGS, ZarrWriteSettings
 
 
-def check_room(path: str | Path, demos: int, tree: dict[str, Any], batch: int = 1,
-               settings: ZarrWriteSettings = DEFAULT_ZARR_SETTINGS) -> None:
+def check_room(
+    path: str | Path,
+    demos: int,
+    tree: dict[str, Any],
+    batch: int = 1,
+    settings: ZarrWriteSettings = DEFAULT_ZARR_SETTINGS,
+) -> None:
     """Refuse (one-line ``ValueError``) writing ``demos`` demos shaped like ``tree``, in batches of ``batch`` demos
     (a collection's: its envs, which end together at most), to the zarr dataset ``path`` when even one chunk per
     array would need more inodes than its filesystem has free (``tree`` may be one step long: image arrays, one
@@ -31,9 +36,11 @@ def check_room(path: str | Path, demos: int, tree: dict[str, Any], batch: int = 
     packed = batch >= settings.pack_min_batch
     need = math.ceil(demos / batch) * zarr_packs.inodes_of_pack(tree, batch) if packed else demos * inodes_of(tree)
     if st.f_files and need > st.f_favail:
-        raise ValueError(f"{path}: {demos} zarr demos need at least {need:,} inodes ({need / demos:.3g} a demo) "
-                         f"and the filesystem has {st.f_favail:,} free: write .hdf5 (one file per dataset), "
-                         "collect fewer episodes, or use a filesystem with more inodes")
+        raise ValueError(
+            f"{path}: {demos} zarr demos need at least {need:,} inodes ({need / demos:.3g} a demo) "
+            f"and the filesystem has {st.f_favail:,} free: write .hdf5 (one file per dataset), "
+            "collect fewer episodes, or use a filesystem with more inodes"
+        )
 
 
 def out_of_room(path: Path) -> tuple[str, str]:
@@ -47,5 +54,7 @@ def out_of_room(path: Path) -> tuple[str, str]:
     if st.f_files == 0 or st.f_favail > 0:
         return "disk full", ""
     free = st.f_bavail * st.f_frsize / 2**30
-    return "out of inodes", (f" ({free:.1f} GiB still free, no file can be made: write .hdf5, one file per dataset, "
-                             "or use a filesystem with more inodes)")
+    return "out of inodes", (
+        f" ({free:.1f} GiB still free, no file can be made: write .hdf5, one file per dataset, "
+        "or use a filesystem with more inodes)"
+    )

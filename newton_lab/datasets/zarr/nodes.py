@@ -47,8 +47,11 @@ def array_kwargs(value: np.ndarray) -> dict[str, Any]:
     (``c.<t>.0``)."""
     flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}  # one directory per array, not per chunk row
     level = IMAGE_ZSTD_LEVEL if value.ndim >= 3 else STATE_ZSTD_LEVEL
-    return {"chunks": chunk_shape(value.shape, value.itemsize) if value.ndim else "auto",
-            "compressors": ZstdCodec(level=level), **flat}
+    return {
+        "chunks": chunk_shape(value.shape, value.itemsize) if value.ndim else "auto",
+        "compressors": ZstdCodec(level=level),
+        **flat,
+    }
 
 
 @functools.lru_cache(maxsize=4096)
@@ -71,10 +74,14 @@ def _template(dtype: str, ndim: int) -> tuple[str, Zstd] | None:
         zarr.create_array(LocalStore(tmp), data=probe, **array_kwargs(probe))
         meta = json.loads(Path(tmp, "zarr.json").read_text())
     codecs = meta.get("codecs", [])
-    if ([c.get("name") for c in codecs] != ["bytes", "zstd"] or meta.get("attributes")
-            or meta.get("chunk_key_encoding", {}).get("name") != "default"
-            or meta.get("storage_transformers") or meta.get("chunk_grid", {}).get("name") != "regular"
-            or meta["chunk_key_encoding"].get("configuration", {}).get("separator") != "."):
+    if (
+        [c.get("name") for c in codecs] != ["bytes", "zstd"]
+        or meta.get("attributes")
+        or meta.get("chunk_key_encoding", {}).get("name") != "default"
+        or meta.get("storage_transformers")
+        or meta.get("chunk_grid", {}).get("name") != "regular"
+        or meta["chunk_key_encoding"].get("configuration", {}).get("separator") != "."
+    ):
         return None
     zstd = codecs[1].get("configuration", {})
     compressor = Zstd(level=int(zstd.get("level", 0)), checksum=bool(zstd.get("checksum", False)))
@@ -92,7 +99,7 @@ def write_file(path: str, data) -> None:
     try:
         view = memoryview(data).cast("B")
         while view:
-            view = view[os.write(fd, view):]
+            view = view[os.write(fd, view) :]
     finally:
         os.close(fd)
 
@@ -107,8 +114,11 @@ def _array_meta(dtype: str, shape: tuple[int, ...]) -> tuple[bytes, Zstd, tuple[
         return None
     text, compressor = template
     chunks = chunk_shape(shape, np.dtype(dtype).itemsize)
-    return (text.replace('"%SHAPE%"', json.dumps(list(shape)))
-            .replace('"%CHUNKS%"', json.dumps(list(chunks))).encode(), compressor, chunks)
+    return (
+        text.replace('"%SHAPE%"', json.dumps(list(shape))).replace('"%CHUNKS%"', json.dumps(list(chunks))).encode(),
+        compressor,
+        chunks,
+    )
 
 
 def write_array(node: str, value: np.ndarray, tasks: list[Callable[[], None]] | None = None) -> bool:
@@ -168,8 +178,9 @@ def write_group(node: str | Path, attrs: dict[str, Any]) -> None:
     write_file(f"{node}/zarr.json", json.dumps({"attributes": attrs, "zarr_format": 3, "node_type": "group"}).encode())
 
 
-def write_demo(node: Path, attrs: dict[str, Any], tree: dict[str, Any],
-               fallback: Callable[[str, np.ndarray], None]) -> None:
+def write_demo(
+    node: Path, attrs: dict[str, Any], tree: dict[str, Any], fallback: Callable[[str, np.ndarray], None]
+) -> None:
     """Demo group ``node`` with ``attrs`` and every array of the nested ``tree``; ``fallback(relpath, value)``
     writes an array this module does not (with zarr-python), after the groups exist. Not durable until the
     caller syncs (one ``syncfs`` per batch). A ``StoredDemo`` tree is copied (``copy_demo``)."""
@@ -206,8 +217,20 @@ def copy_demo(node: str | Path, attrs: dict[str, Any], src: StoredDemo) -> None:
     write_file(f"{node}/zarr.json", json.dumps(meta, indent=2).encode())
 
 
-_PLAIN_DTYPES = {"bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "float16",
-                 "float32", "float64"}
+_PLAIN_DTYPES = {
+    "bool",
+    "int8",
+    "int16",
+    "int32",
+    "int64",
+    "uint8",
+    "uint16",
+    "uint32",
+    "uint64",
+    "float16",
+    "float32",
+    "float64",
+}
 DECODER = Zstd()
 
 
@@ -225,12 +248,18 @@ def plain_dtype(meta: dict[str, Any]) -> np.dtype | None:
     bytes -> zstd, a numeric fill value, rank >= 1); None for any other array."""
     codecs = meta.get("codecs", [])
     key = meta.get("chunk_key_encoding", {})
-    if (meta.get("data_type") not in _PLAIN_DTYPES or not meta.get("shape") or 0 in meta["shape"]
-            or meta.get("storage_transformers") or meta.get("chunk_grid", {}).get("name") != "regular"
-            or key.get("name") != "default" or key.get("configuration", {}).get("separator") != "."
-            or [c.get("name") for c in codecs] != ["bytes", "zstd"]
-            or (codecs[0].get("configuration") or {}).get("endian", "little") != "little"
-            or not isinstance(meta.get("fill_value"), (bool, int, float))):
+    if (
+        meta.get("data_type") not in _PLAIN_DTYPES
+        or not meta.get("shape")
+        or 0 in meta["shape"]
+        or meta.get("storage_transformers")
+        or meta.get("chunk_grid", {}).get("name") != "regular"
+        or key.get("name") != "default"
+        or key.get("configuration", {}).get("separator") != "."
+        or [c.get("name") for c in codecs] != ["bytes", "zstd"]
+        or (codecs[0].get("configuration") or {}).get("endian", "little") != "little"
+        or not isinstance(meta.get("fill_value"), (bool, int, float))
+    ):
         return None
     return np.dtype(meta["data_type"]).newbyteorder("<")
 
@@ -257,8 +286,7 @@ def read_array(node: str, meta: dict[str, Any]) -> np.ndarray | None:
     return out
 
 
-def read_tree(node: str | Path, keys: tuple[str, ...] | None,
-              fallback: Callable[[str], np.ndarray]) -> dict[str, Any]:
+def read_tree(node: str | Path, keys: tuple[str, ...] | None, fallback: Callable[[str], np.ndarray]) -> dict[str, Any]:
     """Every array under the group ``node`` nested as stored (sorted), or only those named by ``keys``
     ("actions", "obs/front_head_rgb"; a key that is not an array is left out); ``fallback(relpath)`` reads an array
     ``read_array`` does not (with zarr-python)."""

@@ -120,8 +120,7 @@ def layout(items: list[tuple[Any, dict[str, Any], int]]) -> tuple[dict[str, int 
     return out, flats
 
 
-def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any], int]],
-               pack_min_batch: int) -> list:
+def batch_jobs(stage: Path, ids: list[int], items: list[tuple[Any, dict[str, Any], int]], pack_min_batch: int) -> list:
     """The write jobs of a batch (``(tree, attrs, num_samples)`` per demo id): one ``PackJob`` of all of them when
     the batch has ``pack_min_batch`` demos or more (``ZarrWriteSettings``) of one layout; else one
     ``(folder, attrs, tree)`` per demo. Folders go under ``stage``."""
@@ -163,8 +162,11 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks:
             fallback(key, value)
 
 
-def write_job(job: PackJob | tuple[Path, dict[str, Any], dict[str, Any]],
-              fallback: Callable[[Path, str, np.ndarray], None], tasks: Any = None) -> None:
+def write_job(
+    job: PackJob | tuple[Path, dict[str, Any], dict[str, Any]],
+    fallback: Callable[[Path, str, np.ndarray], None],
+    tasks: Any = None,
+) -> None:
     """Write a pack, or one demo group ``(folder, attrs, tree)``; ``fallback(node, relpath, value)`` and a pack's
     ``tasks`` as above."""
     if isinstance(job, PackJob):
@@ -214,8 +216,9 @@ class PackReader:
     (with zarr-python; None: ``locate`` only). Pack list, indexes, array metadata and recent chunks are kept while
     it lives."""
 
-    def __init__(self, data_dir: Path, limit: int | None,
-                 fallback: Callable[[str, int, int], np.ndarray] | None) -> None:
+    def __init__(
+        self, data_dir: Path, limit: int | None, fallback: Callable[[str, int, int], np.ndarray] | None
+    ) -> None:
         self._dir, self._limit, self._fallback = data_dir, limit, fallback
         self._firsts: list[int] | None = None
         self._indexes: dict[int, dict[str, Any] | None] = {}
@@ -245,8 +248,9 @@ class PackReader:
         k, start, attrs = entry
         return pack_name(first), int(k), int(start), attrs, index["arrays"]
 
-    def read(self, found: tuple[str, int, int, dict[str, Any], dict[str, Any]],
-             keys: tuple[str, ...] | None) -> dict[str, Any]:
+    def read(
+        self, found: tuple[str, int, int, dict[str, Any], dict[str, Any]], keys: tuple[str, ...] | None
+    ) -> dict[str, Any]:
         """The demo's tree (only ``keys`` when given; a key it lacks is left out), nested and sorted."""
         name, k, start, attrs, arrays = found
         flat = {}
@@ -261,8 +265,13 @@ class PackReader:
 
     def _array(self, name: str, key: str, rows: int | None, k: int, start: int, attrs: dict[str, Any]) -> np.ndarray:
         """Demo ``k``'s rows of the stored array ``key`` (``rows`` from the index)."""
-        a, b = ((start, start + int(attrs["num_samples"])) if rows is None
-                else (k, k + 1) if rows == 0 else (k * rows, (k + 1) * rows))
+        a, b = (
+            (start, start + int(attrs["num_samples"]))
+            if rows is None
+            else (k, k + 1)
+            if rows == 0
+            else (k * rows, (k + 1) * rows)
+        )
         value = self._rows(f"{name}/{key}", a, b)
         return value.reshape(value.shape[1:]) if rows == 0 else value
 
@@ -279,7 +288,7 @@ class PackReader:
         for ci in range(a // c, (b - 1) // c + 1):
             block = self._chunk(node, ci, (c, *shape[1:]), dtype, meta["fill_value"])
             lo, hi = max(a, ci * c), min(b, (ci + 1) * c)
-            out[lo - a:hi - a] = block[lo - ci * c:hi - ci * c]
+            out[lo - a : hi - a] = block[lo - ci * c : hi - ci * c]
         return out
 
     def _chunk(self, node: str, ci: int, shape: tuple[int, ...], dtype: np.dtype, fill: Any) -> np.ndarray:

@@ -106,8 +106,10 @@ def locked(path: Path) -> Iterator[zarr.Group]:
         fd = os.open(path / "zarr.json", os.O_RDWR)  # never written: opened for writing to lock it
     except OSError as e:
         if e.errno in (errno.EACCES, errno.EPERM, errno.EROFS):  # readable, so not damaged: read-only here
-            raise ValueError(f"{path} is read-only here ({e.strerror}); it was left untouched: make it writable, or "
-                             "write into another path") from None
+            raise ValueError(
+                f"{path} is read-only here ({e.strerror}); it was left untouched: make it writable, or "
+                "write into another path"
+            ) from None
         raise damaged(path, f"zarr.json: {e.strerror}") from None
     try:
         lock_exclusive(fd, path)

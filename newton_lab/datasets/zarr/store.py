@@ -39,8 +39,18 @@ BATCH_SECONDS = {"files": 0.0, "sync": 0.0}
 threads) and in the one ``syncfs`` that makes them durable; cumulative, read as differences (``bench-collect``'s
 writer split)."""
 
-__all__ = ["create", "read_root", "append", "set_root_attrs", "info", "read", "read_many", "delete", "read_masks",
-           "set_masks"]
+__all__ = [
+    "create",
+    "read_root",
+    "append",
+    "set_root_attrs",
+    "info",
+    "read",
+    "read_many",
+    "delete",
+    "read_masks",
+    "set_masks",
+]
 
 STAGING = f"{PARTIAL_PREFIX}batches"  # data/_partial_batches/<uuid>/{demo,pack}_<i>: a batch being written
 
@@ -158,8 +168,9 @@ def _commit(data: zarr.Group, counters: dict[str, int]) -> None:
     data.attrs.update(counters)
 
 
-def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool,
-           settings: ZarrWriteSettings) -> list[int]:
+def append(
+    path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], fsync: bool, settings: ZarrWriteSettings
+) -> list[int]:
     """Under the lock, write ``items`` ((tree, attrs, num_samples), ...) as one batch: each demo (or each pack of
     demos, ``zarr.packs.batch_jobs``) into ``data/_partial_batches/<uuid>/demo_<i>`` (``pack_<i>``), one
     ``syncfs``, rename each into ``data/``, then commit by advancing ``next_demo_id`` (and ``total`` /
@@ -170,20 +181,39 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
     sibling writes of a failed one: they can only land in the batch's unique staging folder. The cost per
     demo does not depend on how many the dataset holds (no scan of ``data/``)."""
     min_batch = settings.pack_min_batch
-    return _append_jobs(path, len(items), sum(int(n) for _, _, n in items), fsync, settings,
-                        lambda stage, ids: batch_jobs(stage, ids, _unpacked(items, min_batch), min_batch))
+    return _append_jobs(
+        path,
+        len(items),
+        sum(int(n) for _, _, n in items),
+        fsync,
+        settings,
+        lambda stage, ids: batch_jobs(stage, ids, _unpacked(items, min_batch), min_batch),
+    )
 
 
-def append_joined(path: Path, arrays: dict[str, np.ndarray], layout: dict[str, int | None],
-                  attrs: list[dict[str, Any]], fsync: bool, settings: ZarrWriteSettings) -> list[int]:
+def append_joined(
+    path: Path,
+    arrays: dict[str, np.ndarray],
+    layout: dict[str, int | None],
+    attrs: list[dict[str, Any]],
+    fsync: bool,
+    settings: ZarrWriteSettings,
+) -> list[int]:
     """As :func:`append`, for demos whose arrays come joined (``columns.DemoBlock.arrays``; ``attrs`` per demo with
     its ``num_samples``): one pack, written straight from them."""
-    return _append_jobs(path, len(attrs), sum(int(a["num_samples"]) for a in attrs), fsync, settings,
-                        lambda stage, ids: [PackJob(stage / pack_name(ids[0]), ids, attrs, None, layout, arrays)])
+    return _append_jobs(
+        path,
+        len(attrs),
+        sum(int(a["num_samples"]) for a in attrs),
+        fsync,
+        settings,
+        lambda stage, ids: [PackJob(stage / pack_name(ids[0]), ids, attrs, None, layout, arrays)],
+    )
 
 
-def _append_jobs(path: Path, demos: int, samples: int, fsync: bool, settings: ZarrWriteSettings,
-                 make_jobs) -> list[int]:
+def _append_jobs(
+    path: Path, demos: int, samples: int, fsync: bool, settings: ZarrWriteSettings, make_jobs
+) -> list[int]:
     """The batch write of :func:`append`: ``make_jobs(stage, ids)`` gives the write jobs of the ``demos`` new ids."""
     with locked(path) as data:
         next_id, total, count = _counters(data, path)
@@ -260,8 +290,13 @@ def set_root_attrs(path: Path, attrs: dict[str, Any], fsync: bool = True) -> Non
 def info(path: Path) -> dict[str, Any]:
     root = read_root(path)
     committed, _ = _scan(path, root.get(NEXT_ID))
-    return {"root": root, "demos": {i: {"num_samples": int(a["num_samples"]), "success": bool(a.get("success", False))}
-                                    for i, a in committed.items()}}
+    return {
+        "root": root,
+        "demos": {
+            i: {"num_samples": int(a["num_samples"]), "success": bool(a.get("success", False))}
+            for i, a in committed.items()
+        },
+    }
 
 
 def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -273,8 +308,9 @@ def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, att
     "obs/front_head_rgb") limits what is read (all when None). A demo not committed raises ``KeyError``."""
     data = data_group(open_root(path), path)
     limit = data.attrs.get(NEXT_ID)
-    packs = PackReader(path / "data", None if limit is None else int(limit),
-                       fallback=lambda rel, a, b: np.asarray(data[rel][a:b]))
+    packs = PackReader(
+        path / "data", None if limit is None else int(limit), fallback=lambda rel, a, b: np.asarray(data[rel][a:b])
+    )
     for i in demo_ids:
         stored = node_attrs(path / "data" / demo_name(i))
         if stored is None and (found := packs.locate(i)) is not None:
@@ -287,8 +323,11 @@ def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, att
         if stored is None or "num_samples" not in stored or (limit is not None and i >= int(limit)):
             raise KeyError(i)
         try:
-            tree = read_tree(path / "data" / demo_name(i), keys,
-                             fallback=lambda rel, i=i: np.asarray(data[f"{demo_name(i)}/{rel}"][...]))
+            tree = read_tree(
+                path / "data" / demo_name(i),
+                keys,
+                fallback=lambda rel, i=i: np.asarray(data[f"{demo_name(i)}/{rel}"][...]),
+            )
             yield (tree, {k: from_stored(v) for k, v in stored.items()}) if attrs else tree
         except Exception as e:  # noqa: BLE001
             raise damaged(path, f"{demo_name(i)}: {type(e).__name__}: {e}") from None

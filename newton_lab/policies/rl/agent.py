@@ -54,12 +54,16 @@ class RLPolicyAgent(BaseAgent):
         if task != env.task_id:
             raise ValueError(f"checkpoint was trained for {task} but the env runs {env.task_id}; evaluate it on {task}")
         if int(env.obs.shape[1]) != self.info["obs_dim"]:
-            raise ValueError(f"checkpoint observes {self.info['obs_dim']} values, {env.task_id} gives "
-                             f"{env.obs.shape[1]}: evaluate with the task options it was trained with "
-                             f"({self.info['task_options']})")
+            raise ValueError(
+                f"checkpoint observes {self.info['obs_dim']} values, {env.task_id} gives "
+                f"{env.obs.shape[1]}: evaluate with the task options it was trained with "
+                f"({self.info['task_options']})"
+            )
         if list(env.action_joint_names) != list(self.info["action_joint_names"]):
-            raise ValueError(f"checkpoint actions {self.info['action_joint_names']} differ from the env's "
-                             f"{list(env.action_joint_names)}")
+            raise ValueError(
+                f"checkpoint actions {self.info['action_joint_names']} differ from the env's "
+                f"{list(env.action_joint_names)}"
+            )
         rest = torch.tensor(self.map_state["rest"], dtype=torch.float32)
         self.action_map = ActionMap(env, ActionScales(**self.map_state["scales"]), rest=rest)
 

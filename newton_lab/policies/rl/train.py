@@ -73,21 +73,37 @@ class PPOConfig:
         """rsl_rl's ``OnPolicyRunner`` configuration (actor on ``policy``, critic on ``critic``)."""
         mlp = {"hidden_dims": list(self.hidden_dims), "activation": "elu", "obs_normalization": True}
         return {
-            "num_steps_per_env": self.num_steps_per_env, "save_interval": 10 ** 9, "logger": "tensorboard",
+            "num_steps_per_env": self.num_steps_per_env,
+            "save_interval": 10**9,
+            "logger": "tensorboard",
             "obs_groups": {"actor": ["policy"], "critic": ["critic"]},
-            "actor": {"class_name": "MLPModel", **mlp,
-                      "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": self.init_noise_std}},
+            "actor": {
+                "class_name": "MLPModel",
+                **mlp,
+                "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": self.init_noise_std},
+            },
             "critic": {"class_name": "MLPModel", **mlp},
-            "algorithm": {"class_name": "PPO", "learning_rate": self.learning_rate,
-                          "num_learning_epochs": self.num_learning_epochs, "num_mini_batches": self.num_mini_batches,
-                          "entropy_coef": self.entropy_coef, "gamma": self.gamma, "lam": self.lam,
-                          "desired_kl": self.desired_kl, "schedule": "adaptive", "clip_param": 0.2,
-                          "value_loss_coef": 1.0, "max_grad_norm": 1.0, "use_clipped_value_loss": True},
+            "algorithm": {
+                "class_name": "PPO",
+                "learning_rate": self.learning_rate,
+                "num_learning_epochs": self.num_learning_epochs,
+                "num_mini_batches": self.num_mini_batches,
+                "entropy_coef": self.entropy_coef,
+                "gamma": self.gamma,
+                "lam": self.lam,
+                "desired_kl": self.desired_kl,
+                "schedule": "adaptive",
+                "clip_param": 0.2,
+                "value_loss_coef": 1.0,
+                "max_grad_norm": 1.0,
+                "use_clipped_value_loss": True,
+            },
         }
 
 
-def train_ppo(task_id: str, cfg: PPOConfig, output_dir: str | Path, *, resume: bool = False,
-              progress: bool = True) -> Path:
+def train_ppo(
+    task_id: str, cfg: PPOConfig, output_dir: str | Path, *, resume: bool = False, progress: bool = True
+) -> Path:
     """Train PPO on ``task_id`` into ``output_dir`` (``checkpoint.pt``, ``curve.json``, ``resume.pt``, tensorboard
     events); ``resume``: continue the run whose ``resume.pt`` is there. Returns the checkpoint's path."""
     out = Path(output_dir)
@@ -98,8 +114,16 @@ def train_ppo(task_id: str, cfg: PPOConfig, output_dir: str | Path, *, resume: b
         raise FileExistsError(f"{out} holds a finished run; choose a new --output-dir (or --resume an interrupted one)")
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
-    env = make_env(task_id, num_envs=cfg.num_envs, device=cfg.device, seed=cfg.seed, randomize=True,
-                   task_options=cfg.task_options, cameras=False, terminate_on_success=cfg.end_on_success)
+    env = make_env(
+        task_id,
+        num_envs=cfg.num_envs,
+        device=cfg.device,
+        seed=cfg.seed,
+        randomize=True,
+        task_options=cfg.task_options,
+        cameras=False,
+        terminate_on_success=cfg.end_on_success,
+    )
     saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
     vec = RslRlVecEnv(env, cfg.scales)
     if saved is not None:  # the action map of the interrupted run (its start posture)
@@ -125,16 +149,25 @@ def train_ppo(task_id: str, cfg: PPOConfig, output_dir: str | Path, *, resume: b
         seconds = time.perf_counter() - t0
         elapsed += seconds
         counts = vec.take_episode_counts()
-        row = {"iteration": _done(curve) + n, "env_steps": (_done(curve) + n) * steps_per_iteration,
-               "wall_s": round(elapsed, 2), "env_steps_per_s": n * steps_per_iteration / seconds, **counts}
+        row = {
+            "iteration": _done(curve) + n,
+            "env_steps": (_done(curve) + n) * steps_per_iteration,
+            "wall_s": round(elapsed, 2),
+            "env_steps_per_s": n * steps_per_iteration / seconds,
+            **counts,
+        }
         curve.append(row)
         _save_resume(resume_path, runner, vec, curve, elapsed)
         for snapshot in out.glob("model_*.pt"):  # rsl_rl's own end-of-learn save: resume.pt holds the same
             snapshot.unlink()
         if progress:
             rate = "–" if row["success_rate"] is None else f"{row['success_rate']:.0%}"
-            print(f"ppo {task_id}: iteration {row['iteration']}/{cfg.iterations}, success {rate}, "
-                  f"{row['env_steps_per_s']:,.0f} env-steps/s, {elapsed:.0f} s", file=sys.stderr, flush=True)
+            print(
+                f"ppo {task_id}: iteration {row['iteration']}/{cfg.iterations}, success {rate}, "
+                f"{row['env_steps_per_s']:,.0f} env-steps/s, {elapsed:.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
     (out / "curve.json").write_text(json.dumps(curve, indent=1))
     path = out / "checkpoint.pt"
     tmp = out / ".checkpoint.pt.tmp"
@@ -149,9 +182,18 @@ def _done(curve: list[dict[str, Any]]) -> int:
 
 def _save_resume(path: Path, runner, vec: RslRlVecEnv, curve, elapsed: float) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
-    torch.save({"runner": runner.alg.save(), "iteration": runner.current_learning_iteration, "curve": curve,
-                "elapsed_s": elapsed, "action_map": vec.action_map.state(), "torch_rng": torch.get_rng_state(),
-                "cuda_rng": torch.cuda.get_rng_state(vec.device) if vec.device.type == "cuda" else None}, tmp)
+    torch.save(
+        {
+            "runner": runner.alg.save(),
+            "iteration": runner.current_learning_iteration,
+            "curve": curve,
+            "elapsed_s": elapsed,
+            "action_map": vec.action_map.state(),
+            "torch_rng": torch.get_rng_state(),
+            "cuda_rng": torch.cuda.get_rng_state(vec.device) if vec.device.type == "cuda" else None,
+        },
+        tmp,
+    )
     tmp.replace(path)
 
 
@@ -159,12 +201,23 @@ def _checkpoint(task_id: str, env, cfg: PPOConfig, runner, vec: RslRlVecEnv, cur
     """The deterministic actor (TorchScript), what it observes and how its actions map."""
     actor = runner.alg.get_policy()
     config = {k: v for k, v in asdict(cfg).items() if k not in ("device",)}
-    return {"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "backend": "ppo",
-            "config": config,
-            "info": {"task_id": task_id, "task_options": dict(env.cfg.options), "obs_dim": int(env.obs.shape[1]),
-                     "action_joint_names": list(env.action_joint_names), "image_keys": [],
-                     "iterations": _done(curve), "final": curve[-1] if curve else None},
-            "action_map": vec.action_map.state(), "actor_script": _scripted(actor)}
+    return {
+        "format": CHECKPOINT_FORMAT,
+        "version": CHECKPOINT_VERSION,
+        "backend": "ppo",
+        "config": config,
+        "info": {
+            "task_id": task_id,
+            "task_options": dict(env.cfg.options),
+            "obs_dim": int(env.obs.shape[1]),
+            "action_joint_names": list(env.action_joint_names),
+            "image_keys": [],
+            "iterations": _done(curve),
+            "final": curve[-1] if curve else None,
+        },
+        "action_map": vec.action_map.state(),
+        "actor_script": _scripted(actor),
+    }
 
 
 def _scripted(actor) -> torch.Tensor:

@@ -85,10 +85,13 @@ class RslRlVecEnv(VecEnv):
         """Episodes ended, successes, their mean return and the mean reward of a step since the last call (then
         reset)."""
         n = self.ended["episodes"]
-        out = {"episodes": n, "successes": self.ended["successes"],
-               "success_rate": self.ended["successes"] / n if n else None,
-               "mean_return": self.ended["return_sum"] / n if n else None,
-               "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None}
+        out = {
+            "episodes": n,
+            "successes": self.ended["successes"],
+            "success_rate": self.ended["successes"] / n if n else None,
+            "mean_return": self.ended["return_sum"] / n if n else None,
+            "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None,
+        }
         self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
         self.reward_sum.zero_()
         self.reward_steps = 0

@@ -18,12 +18,18 @@ import numpy as np
 from . import spec
 
 REFERENCE_OFFSETS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float, float]]] = {
-    "front_head": ((0.0860441614606322, -0.04430213071916153, 0.03775394593541334),
-                   (-0.16830090763876662, 0.686891777200189, 0.174601740354762, 0.6851048993897368)),
-    "left_wrist": ((-0.028503262323055674, 0.010121006758704362, 0.06923672234517289),
-                   (0.5181547595278811, -0.4896793386321121, 0.47473422704547164, -0.5160980567362753)),
-    "right_wrist": ((-0.027569458572299, 0.007515698932418123, 0.06927524658358669),
-                    (-0.5102597706172789, 0.4892647456674752, -0.479785589522129, 0.5196737084204334)),
+    "front_head": (
+        (0.0860441614606322, -0.04430213071916153, 0.03775394593541334),
+        (-0.16830090763876662, 0.686891777200189, 0.174601740354762, 0.6851048993897368),
+    ),
+    "left_wrist": (
+        (-0.028503262323055674, 0.010121006758704362, 0.06923672234517289),
+        (0.5181547595278811, -0.4896793386321121, 0.47473422704547164, -0.5160980567362753),
+    ),
+    "right_wrist": (
+        (-0.027569458572299, 0.007515698932418123, 0.06927524658358669),
+        (-0.5102597706172789, 0.4892647456674752, -0.479785589522129, 0.5196737084204334),
+    ),
 }
 """Camera offset from its mount link, ROS optical convention: (pos [m], rot xyzw), as the reference's code has it."""
 
@@ -51,10 +57,14 @@ MAX_RESOLUTION = 4096
 def _quat_mul(a, b) -> np.ndarray:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz])
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
 
 
 def _quat_rotate(q, v) -> np.ndarray:

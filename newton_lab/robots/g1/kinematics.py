@@ -117,16 +117,29 @@ class TcpKinematics:
         first use (every size shares the compiled kernels: the problem count is a launch dimension)."""
         if k not in self._solvers:
             with wp.ScopedDevice(self.device):
-                pos = ik.IKObjectivePosition(link_index=self._link, link_offset=wp.vec3(*spec.TCP_OFFSET_POS),
-                                             target_positions=wp.zeros(k, dtype=wp.vec3))
+                pos = ik.IKObjectivePosition(
+                    link_index=self._link,
+                    link_offset=wp.vec3(*spec.TCP_OFFSET_POS),
+                    target_positions=wp.zeros(k, dtype=wp.vec3),
+                )
                 rot = ik.IKObjectiveRotation(
-                    link_index=self._link, link_offset_rotation=wp.quat(*spec.TCP_OFFSET_QUAT),
-                    target_rotations=wp.array(np.tile(spec.TOP_DOWN_TCP_QUAT, (k, 1)), dtype=wp.vec4))
-                limits = ik.IKObjectiveJointLimit(joint_limit_lower=self._model.joint_limit_lower,
-                                                  joint_limit_upper=self._model.joint_limit_upper, weight=10.0)
-                solver = ik.IKSolver(model=self._model, n_problems=k, objectives=[pos, rot, limits],
-                                     lambda_initial=0.1, jacobian_mode=ik.IKJacobianType.ANALYTIC,
-                                     joint_dof_mask=wp.array(self._mask, dtype=wp.bool))
+                    link_index=self._link,
+                    link_offset_rotation=wp.quat(*spec.TCP_OFFSET_QUAT),
+                    target_rotations=wp.array(np.tile(spec.TOP_DOWN_TCP_QUAT, (k, 1)), dtype=wp.vec4),
+                )
+                limits = ik.IKObjectiveJointLimit(
+                    joint_limit_lower=self._model.joint_limit_lower,
+                    joint_limit_upper=self._model.joint_limit_upper,
+                    weight=10.0,
+                )
+                solver = ik.IKSolver(
+                    model=self._model,
+                    n_problems=k,
+                    objectives=[pos, rot, limits],
+                    lambda_initial=0.1,
+                    jacobian_mode=ik.IKJacobianType.ANALYTIC,
+                    joint_dof_mask=wp.array(self._mask, dtype=wp.bool),
+                )
                 self._solvers[k] = _Solve(pos, rot, solver, k, len(self._chain))
         return self._solvers[k]
 

@@ -13,5 +13,6 @@ from . import spec
 
 def wheel_gains(*, lin_scale: float = 1.0, ang_scale: float = 1.0) -> tuple[float, float]:
     """The G1's mecanum gains ``(lin, yaw)``: wheel [rad/s] per base [m/s] and per base yaw [rad/s]."""
-    return mecanum.wheel_gains(spec.WHEEL_RADIUS, spec.WHEEL_OFFSET_X, spec.WHEEL_OFFSET_Y, lin_scale=lin_scale,
-                               ang_scale=ang_scale)
+    return mecanum.wheel_gains(
+        spec.WHEEL_RADIUS, spec.WHEEL_OFFSET_X, spec.WHEEL_OFFSET_Y, lin_scale=lin_scale, ang_scale=ang_scale
+    )

@@ -30,10 +30,12 @@ G1 = RobotBinding(
     joint_groups=spec.JOINT_GROUPS,
     group_kinds=GROUP_KINDS,
     arms={
-        "left": Arm(joints=spec.LEFT_ARM_JOINTS, gripper=spec.LEFT_GRIPPER_JOINT,
-                    end_effector=spec.END_EFFECTOR_LINK["left"]),
-        "right": Arm(joints=spec.RIGHT_ARM_JOINTS, gripper=spec.RIGHT_GRIPPER_JOINT,
-                     end_effector=spec.END_EFFECTOR_LINK["right"]),
+        "left": Arm(
+            joints=spec.LEFT_ARM_JOINTS, gripper=spec.LEFT_GRIPPER_JOINT, end_effector=spec.END_EFFECTOR_LINK["left"]
+        ),
+        "right": Arm(
+            joints=spec.RIGHT_ARM_JOINTS, gripper=spec.RIGHT_GRIPPER_JOINT, end_effector=spec.END_EFFECTOR_LINK["right"]
+        ),
     },
     default_arm=spec.DEFAULT_ARM,
     base_planar_joints=spec.BASE_PLANAR_JOINTS,

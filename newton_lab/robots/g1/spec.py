@@ -30,8 +30,16 @@ GRIPPER_FINGER_JOINTS = (
     "right_gripper_r_finger_joint",
 )
 
-ALL_JOINT_NAMES = (BASE_PLANAR_JOINTS + BASE_WHEEL_JOINTS + LEG_JOINTS + HEAD_JOINTS + LEFT_ARM_JOINTS
-                   + RIGHT_ARM_JOINTS + (LEFT_GRIPPER_JOINT, RIGHT_GRIPPER_JOINT) + GRIPPER_FINGER_JOINTS)
+ALL_JOINT_NAMES = (
+    BASE_PLANAR_JOINTS
+    + BASE_WHEEL_JOINTS
+    + LEG_JOINTS
+    + HEAD_JOINTS
+    + LEFT_ARM_JOINTS
+    + RIGHT_ARM_JOINTS
+    + (LEFT_GRIPPER_JOINT, RIGHT_GRIPPER_JOINT)
+    + GRIPPER_FINGER_JOINTS
+)
 """Every joint of the MJCF (34; the planar base's three count separately, as the env indexes them)."""
 
 JOINT_GROUPS: dict[str, tuple[str, ...]] = {

@@ -42,23 +42,29 @@ from .terminations import (
 
 def pick_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:
     """SortToShelf-Pick: reach, grasp, lift, ready posture (1/4 each)."""
-    return staged_rewards(*pick_to_carry_stages(entity=obj.name, grasped_term=grasped_object(obj),
-                                                lift_z=obj.lift_min_z, at_carry=at_carry(obj)))
+    return staged_rewards(
+        *pick_to_carry_stages(
+            entity=obj.name, grasped_term=grasped_object(obj), lift_z=obj.lift_min_z, at_carry=at_carry(obj)
+        )
+    )
 
 
 def place_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:
     """SortToShelf-Place: hold, place in the cell, release, retract (1/4 each)."""
-    return staged_rewards(Stage("grasping", grasped_object(obj)),
-                          Stage("placing", in_cell(obj), point_shaping(entity=obj.name, point=obj.target)),
-                          Stage("releasing", released_in_cell(obj), gripper_openness),
-                          Stage("retracting", placed(obj), carry_shaping))
+    return staged_rewards(
+        Stage("grasping", grasped_object(obj)),
+        Stage("placing", in_cell(obj), point_shaping(entity=obj.name, point=obj.target)),
+        Stage("releasing", released_in_cell(obj), gripper_openness),
+        Stage("retracting", placed(obj), carry_shaping),
+    )
 
 
 def nav_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:
     """The nav phase of the coherent task: drive to the place base position facing the shelf, then the place-start
     posture (the Nav success condition without its 20-step hold) (1/2 each)."""
-    drive = drive_stage(goal_xy=obj.place_base_xy, goal_yaw=SHELF_NAV_YAW, radius=PLACE_START_BASE_TOL,
-                        yaw_tol=PLACE_START_YAW_TOL)
+    drive = drive_stage(
+        goal_xy=obj.place_base_xy, goal_yaw=SHELF_NAV_YAW, radius=PLACE_START_BASE_TOL, yaw_tol=PLACE_START_YAW_TOL
+    )
     posing = Stage("posing", at_place_start(obj), posture_shaping(arm=obj.approach_arm, legs=obj.legs))
     return staged_rewards(drive, posing)
 

@@ -62,11 +62,17 @@ def held_at_carry(obj: SortingObject):
 
 def at_place_start(obj: SortingObject):
     """Base at the place position facing the shelf, legs and arm in the place-start posture (stateless)."""
-    return all_of(terms=(
-        base_at(goal_xy=obj.place_base_xy, radius=PLACE_START_BASE_TOL, goal_yaw=SHELF_NAV_YAW,
-                yaw_tol=PLACE_START_YAW_TOL),
-        at_posture(arm=obj.approach_arm, legs=obj.legs, tol=PLACE_START_JOINT_TOL),
-    ))
+    return all_of(
+        terms=(
+            base_at(
+                goal_xy=obj.place_base_xy,
+                radius=PLACE_START_BASE_TOL,
+                goal_yaw=SHELF_NAV_YAW,
+                yaw_tol=PLACE_START_YAW_TOL,
+            ),
+            at_posture(arm=obj.approach_arm, legs=obj.legs, tol=PLACE_START_JOINT_TOL),
+        )
+    )
 
 
 def held_at_place_start(obj: SortingObject):
@@ -76,8 +82,12 @@ def held_at_place_start(obj: SortingObject):
 
 def in_cell(obj: SortingObject):
     """Object resting in its cell (upright where required), whatever the gripper does."""
-    return all_of(terms=(at_point(entity=obj.name, point=obj.target, xy_tol=PLACE_XY_TOL, z_tol=PLACE_DZ_TOL),
-                         upright(entity=obj.name, min_up_dot=obj.upright_min)))
+    return all_of(
+        terms=(
+            at_point(entity=obj.name, point=obj.target, xy_tol=PLACE_XY_TOL, z_tol=PLACE_DZ_TOL),
+            upright(entity=obj.name, min_up_dot=obj.upright_min),
+        )
+    )
 
 
 def released_in_cell(obj: SortingObject):

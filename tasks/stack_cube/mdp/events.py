@@ -43,8 +43,11 @@ def randomize_cube_positions(*, cubes: tuple[int, int, int], prestacked: bool = 
             p0 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
             p1 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
             p2 = wp.vec2(wp.randf(rng, X_RANGE[0], X_RANGE[1]), wp.randf(rng, Y_RANGE[0], Y_RANGE[1]))
-            if (wp.length(p0 - p1) >= MIN_SEPARATION and wp.length(p1 - p2) >= MIN_SEPARATION
-                    and wp.length(p0 - p2) >= MIN_SEPARATION):
+            if (
+                wp.length(p0 - p1) >= MIN_SEPARATION
+                and wp.length(p1 - p2) >= MIN_SEPARATION
+                and wp.length(p0 - p2) >= MIN_SEPARATION
+            ):
                 break
         ps = wp.mat33(p0[0], p0[1], 0.0, p1[0], p1[1], 0.0, p2[0], p2[1], 0.0)
         first = wp.quat_identity()

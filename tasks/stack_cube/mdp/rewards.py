@@ -33,9 +33,12 @@ from .terminations import STACK_DZ, grasped_cube, stack_success, stacked
 def _subtask_stages(top: str, bottom: str) -> list[Stage]:
     """Reach, grasp, stack ``top`` on ``bottom``, let go (stage names ``<top>_reaching`` ...)."""
     on = stacked(top, bottom)
-    return [reach_stage(top, f"{top}_reaching"), Stage(f"{top}_grasping", grasped_cube(top)),
-            Stage(f"{top}_placing", on, place_shaping(entity=top, target=bottom, offset=(0.0, 0.0, STACK_DZ))),
-            Stage(f"{top}_releasing", all_of(terms=(on, negated(term=grasped_cube(top)))), gripper_openness)]
+    return [
+        reach_stage(top, f"{top}_reaching"),
+        Stage(f"{top}_grasping", grasped_cube(top)),
+        Stage(f"{top}_placing", on, place_shaping(entity=top, target=bottom, offset=(0.0, 0.0, STACK_DZ))),
+        Stage(f"{top}_releasing", all_of(terms=(on, negated(term=grasped_cube(top)))), gripper_openness),
+    ]
 
 
 def dense_rewards() -> dict[str, RewardTermCfg]:
@@ -75,10 +78,12 @@ def reference_rewards() -> dict[str, RewardTermCfg]:
     """The reference platform's StackCube reward: stacking shaping x2 (each), full-stack bonus x20,
     action rate x-1e-4; in about [-0.01, 24]. Opt in with ``dataclasses.replace(cfg, rewards=reference_rewards())``."""
     return {
-        "cube_2_on_cube_1": RewardTermCfg(func=stacking_shaping, params={"top": "cube_2", "bottom": "cube_1"},
-                                          weight=2.0),
-        "cube_3_on_cube_2": RewardTermCfg(func=stacking_shaping, params={"top": "cube_3", "bottom": "cube_2"},
-                                          weight=2.0),
+        "cube_2_on_cube_1": RewardTermCfg(
+            func=stacking_shaping, params={"top": "cube_2", "bottom": "cube_1"}, weight=2.0
+        ),
+        "cube_3_on_cube_2": RewardTermCfg(
+            func=stacking_shaping, params={"top": "cube_3", "bottom": "cube_2"}, weight=2.0
+        ),
         "stack_success": RewardTermCfg(func=indicator(term=stack_success()), weight=20.0),
         "action_rate": RewardTermCfg(func=action_rate, weight=-1e-4),
     }

@@ -27,5 +27,13 @@ def device_class(name: str) -> type[TeleopDevice]:
     return DEVICES[name]
 
 
-__all__ = ["DEVICES", "Gp001Device", "GamepadDevice", "KeyboardDevice", "ReplayDevice", "SpaceMouseDevice",
-           "TeleopDevice", "device_class"]
+__all__ = [
+    "DEVICES",
+    "Gp001Device",
+    "GamepadDevice",
+    "KeyboardDevice",
+    "ReplayDevice",
+    "SpaceMouseDevice",
+    "TeleopDevice",
+    "device_class",
+]

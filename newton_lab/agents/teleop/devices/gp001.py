@@ -75,8 +75,14 @@ def map_gp001(raw: dict, *, height: float, speed: float = 1.0) -> tuple[TeleopFr
         if pos is not None and len(pos) >= 7:
             arms[arm] = np.asarray(pos[:7], dtype=np.float64)
     grippers = {"left": bool(axes[3] >= GRIPPER_OPEN_THRESHOLD), "right": bool(axes[4] >= GRIPPER_OPEN_THRESHOLD)}
-    frame = TeleopFrame(timestamp=time.perf_counter(), arm_joints=arms, gripper_open=grippers, base_twist=twist,
-                        body_height=height, raw=raw)
+    frame = TeleopFrame(
+        timestamp=time.perf_counter(),
+        arm_joints=arms,
+        gripper_open=grippers,
+        base_twist=twist,
+        body_height=height,
+        raw=raw,
+    )
     return frame, height
 
 

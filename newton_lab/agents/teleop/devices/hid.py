@@ -46,8 +46,14 @@ class _JogDevice(TeleopDevice):
                 vel, toggled = reading
                 self.offset += np.asarray(vel) * dt * np.array([self.speed] * 3 + [self.yaw_speed])
                 self.gripper_open ^= toggled
-                self.frames.put(TeleopFrame(timestamp=now, tcp_offset={self.arm: self.offset.copy()},
-                                            gripper_open={self.arm: self.gripper_open}, base_twist=self.twist))
+                self.frames.put(
+                    TeleopFrame(
+                        timestamp=now,
+                        tcp_offset={self.arm: self.offset.copy()},
+                        gripper_open={self.arm: self.gripper_open},
+                        base_twist=self.twist,
+                    )
+                )
             time.sleep(POLL_S)
 
     def start(self) -> None:
@@ -72,12 +78,16 @@ class SpaceMouseDevice(_JogDevice):
         try:
             import hid  # noqa: PLC0415  deferred: an optional extra (hidapi)
         except ImportError:
-            raise ValueError("spacemouse: the hidapi package is not installed; pip install 'newton_lab[teleop]' "
-                             "(or use --device keyboard)") from None
+            raise ValueError(
+                "spacemouse: the hidapi package is not installed; pip install 'newton_lab[teleop]' "
+                "(or use --device keyboard)"
+            ) from None
         found = [d for d in hid.enumerate() if d.get("vendor_id") == SPACEMOUSE_VENDOR_ID]
         if not found:
-            raise ValueError("spacemouse: no 3Dconnexion device is connected (hidapi found none); plug one in or use "
-                             "--device keyboard")
+            raise ValueError(
+                "spacemouse: no 3Dconnexion device is connected (hidapi found none); plug one in or use "
+                "--device keyboard"
+            )
         self._dev = hid.device()
         self._dev.open(found[0]["vendor_id"], found[0]["product_id"])
         self._dev.set_nonblocking(True)
@@ -88,10 +98,10 @@ class SpaceMouseDevice(_JogDevice):
         if not data:
             return None
         if data[0] == 1:  # translation report: three little-endian int16 in [-350, 350]
-            t = [int.from_bytes(bytes(data[1 + 2 * i:3 + 2 * i]), "little", signed=True) / 350.0 for i in range(3)]
+            t = [int.from_bytes(bytes(data[1 + 2 * i : 3 + 2 * i]), "little", signed=True) / 350.0 for i in range(3)]
             return np.array([t[1], t[0], -t[2], 0.0]), False
         if data[0] == 2:  # rotation report: yaw is the third axis
-            r = [int.from_bytes(bytes(data[1 + 2 * i:3 + 2 * i]), "little", signed=True) / 350.0 for i in range(3)]
+            r = [int.from_bytes(bytes(data[1 + 2 * i : 3 + 2 * i]), "little", signed=True) / 350.0 for i in range(3)]
             return np.array([0.0, 0.0, 0.0, -r[2]]), False
         if data[0] == 3:  # buttons: bit 0 = left
             pressed = bool(data[1] & 1)
@@ -108,13 +118,17 @@ class GamepadDevice(_JogDevice):
         try:
             import evdev  # noqa: PLC0415  deferred: an optional extra (Linux input events)
         except ImportError:
-            raise ValueError("gamepad: the evdev package is not installed; pip install 'newton_lab[teleop]' "
-                             "(or use --device keyboard)") from None
+            raise ValueError(
+                "gamepad: the evdev package is not installed; pip install 'newton_lab[teleop]' "
+                "(or use --device keyboard)"
+            ) from None
         pads = [evdev.InputDevice(p) for p in evdev.list_devices()]
         pads = [p for p in pads if evdev.ecodes.EV_ABS in p.capabilities()]
         if not pads:
-            raise ValueError("gamepad: no joystick is exposed under /dev/input (evdev found none); plug one in or "
-                             "use --device keyboard")
+            raise ValueError(
+                "gamepad: no joystick is exposed under /dev/input (evdev found none); plug one in or "
+                "use --device keyboard"
+            )
         self._pad, self._ecodes = pads[0], evdev.ecodes
         self._axes = np.zeros(4)
 

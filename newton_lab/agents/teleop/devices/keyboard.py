@@ -24,10 +24,14 @@ from ..frames import TeleopFrame
 from .base import TeleopDevice
 
 JOG_KEYS = {
-    "i": (0, +1), "k": (0, -1),   # TCP x (world, away from the robot / towards it)
-    "j": (1, +1), "l": (1, -1),   # TCP y (left / right)
-    "r": (2, +1), "f": (2, -1),   # TCP z (up / down)
-    "u": (3, +1), "y": (3, -1),   # TCP yaw (counter-clockwise / clockwise seen from above)
+    "i": (0, +1),
+    "k": (0, -1),  # TCP x (world, away from the robot / towards it)
+    "j": (1, +1),
+    "l": (1, -1),  # TCP y (left / right)
+    "r": (2, +1),
+    "f": (2, -1),  # TCP z (up / down)
+    "u": (3, +1),
+    "y": (3, -1),  # TCP yaw (counter-clockwise / clockwise seen from above)
 }
 """Key -> (offset axis, sign): x, y, z [m] by the jog step, yaw [rad] by the yaw step."""
 TWIST_KEYS = {"\x1b[A": (0, +1), "\x1b[B": (0, -1), "\x1b[D": (1, +1), "\x1b[C": (1, -1), "q": (2, +1), "w": (2, -1)}
@@ -48,8 +52,17 @@ class KeyboardDevice(TeleopDevice):
     name = "keyboard"
     contracts = ("left_arm_manipulation", "mobile_full_body")
 
-    def __init__(self, fd: int | None = None, *, step: float = 0.01, yaw_step: float = math.radians(5.0),
-                 twist_step: float = 0.05, yaw_rate_step: float = 0.1, height_step: float = 0.02, arm: str = "left"):
+    def __init__(
+        self,
+        fd: int | None = None,
+        *,
+        step: float = 0.01,
+        yaw_step: float = math.radians(5.0),
+        twist_step: float = 0.05,
+        yaw_rate_step: float = 0.1,
+        height_step: float = 0.02,
+        arm: str = "left",
+    ):
         super().__init__()
         self.fd = sys.stdin.fileno() if fd is None else fd
         self.step, self.yaw_step = float(step), float(yaw_step)
@@ -171,7 +184,12 @@ class KeyboardDevice(TeleopDevice):
             self.message = f"unknown command {command!r}; type done to end the episode"
 
     def _publish(self) -> None:
-        self.frames.put(TeleopFrame(
-            timestamp=time.perf_counter(), tcp_offset={self.arm: self.offset.copy()},
-            gripper_open={self.arm: self.gripper_open}, base_twist=tuple(float(v) for v in self.twist),
-            body_height=self.height))
+        self.frames.put(
+            TeleopFrame(
+                timestamp=time.perf_counter(),
+                tcp_offset={self.arm: self.offset.copy()},
+                gripper_open={self.arm: self.gripper_open},
+                base_twist=tuple(float(v) for v in self.twist),
+                body_height=self.height,
+            )
+        )

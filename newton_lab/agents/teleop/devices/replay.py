@@ -23,7 +23,7 @@ def tcp_offsets(tcp: np.ndarray) -> np.ndarray:
     """(T, 4) jog offsets (dx, dy, dz [m], dyaw [rad]) of recorded TCP poses (T, 7 xyzw) from the first one."""
     inv0 = np.tile(tcp[:1, 3:7] * np.array([-1.0, -1.0, -1.0, 1.0]), (len(tcp), 1))
     x, y, z, w = quat_mul(tcp[:, 3:7], inv0).T  # world-frame rotation since the start: near identity, so its
-    out = np.zeros((len(tcp), 4))              # yaw is well defined (a top-down TCP's own yaw is not)
+    out = np.zeros((len(tcp), 4))  # yaw is well defined (a top-down TCP's own yaw is not)
     out[:, :3] = tcp[:, :3] - tcp[0, :3]
     out[:, 3] = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return out

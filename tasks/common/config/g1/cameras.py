@@ -17,5 +17,7 @@ def front_head_rgb_depth_segmentation() -> dict[str, CameraCfg]:
 
 def teleop_rgb() -> dict[str, CameraCfg]:
     """PickCube-Teleop: the operator's views, ``left_wrist`` and ``front_head`` RGB at 640 x 480."""
-    return {"left_wrist": CameraCfg(width=640, height=480, data=("rgb",)),
-            "front_head": CameraCfg(width=640, height=480, data=("rgb",))}
+    return {
+        "left_wrist": CameraCfg(width=640, height=480, data=("rgb",)),
+        "front_head": CameraCfg(width=640, height=480, data=("rgb",)),
+    }

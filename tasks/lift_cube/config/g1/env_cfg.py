@@ -34,13 +34,21 @@ def lift_cube_cfg() -> TaskCfg:
         actions=left_arm_actions(),
         observations=obs.manipulation_observations(cube_pose=obs.pose_of("cube")),
         phase_success=[held(term=lifted_and_grasped, steps=HOLD_STEPS)],
-        terminations={"cube_dropped": TerminationTermCfg(func=dropped,
-                                                         params={"entity": "cube", "below_z": DROPPED_Z})},
-        rewards=staged_rewards(reach_stage("cube"), Stage("grasping", grasped_cube),
-                               Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", min_z=LIFTED_Z))),
+        terminations={
+            "cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": DROPPED_Z})
+        },
+        rewards=staged_rewards(
+            reach_stage("cube"),
+            Stage("grasping", grasped_cube),
+            Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", min_z=LIFTED_Z)),
+        ),
         signals={"grasped_cube": TermCfg(func=grasped_cube)},
-        events={"randomize_cube": TermCfg(func=randomize_position, params={
-            "entity": "cube", "x_range": (-0.38, -0.22), "y_range": (0.08, 0.26), "z": CUBE_INIT[2]})},
+        events={
+            "randomize_cube": TermCfg(
+                func=randomize_position,
+                params={"entity": "cube", "x_range": (-0.38, -0.22), "y_range": (0.08, 0.26), "z": CUBE_INIT[2]},
+            )
+        },
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
         root_pos=postures.MANIPULATION_ROOT_POS,
         episode_length_s=20.0,

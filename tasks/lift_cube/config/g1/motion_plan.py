@@ -11,8 +11,9 @@ def plan() -> MotionPlan:
             MotionStep(name="approach_cube", target=AssetTarget("cube", (0.0, 0.0, 0.205))),
             MotionStep(name="descend_to_cube", target=AssetTarget("cube", (0.0, 0.0, 0.035))),
             MotionStep(name="close_left_gripper", gripper_open=False, hold=25),
-            MotionStep(name="lift_cube", target=AssetTarget("cube", (0.0, 0.0, 0.175)), gripper_open=False,
-                       linear=4, hold=20),
+            MotionStep(
+                name="lift_cube", target=AssetTarget("cube", (0.0, 0.0, 0.175)), gripper_open=False, linear=4, hold=20
+            ),
         ),
         max_joint_step=0.03,
         settle_steps=12,

@@ -46,8 +46,9 @@ def pick_cube_cfg() -> TaskCfg:
     return TaskCfg(
         entities=SCENE.entities,
         actions=left_arm_actions(),
-        observations=obs.manipulation_observations(cube_pose=obs.pose_of("cube"),
-                                                   blue_block_pos=obs.position_of("blue_block")),
+        observations=obs.manipulation_observations(
+            cube_pose=obs.pose_of("cube"), blue_block_pos=obs.position_of("blue_block")
+        ),
         phase_success=[released],
         terminations={"cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": 0.05})},
         rewards=staged_rewards(
@@ -58,8 +59,12 @@ def pick_cube_cfg() -> TaskCfg:
             Stage("success", released),
         ),
         signals={"grasped_cube": TermCfg(func=grasped_cube)},
-        events={"randomize_cube_position": TermCfg(func=randomize_position, params={
-            "entity": "cube", "x_range": (-0.38, -0.22), "y_range": (0.12, 0.26), "z": CUBE_INIT[2]})},
+        events={
+            "randomize_cube_position": TermCfg(
+                func=randomize_position,
+                params={"entity": "cube", "x_range": (-0.38, -0.22), "y_range": (0.12, 0.26), "z": CUBE_INIT[2]},
+            )
+        },
         posture=manipulation_posture(postures.TABLE_TOP_LEFT_ARM, postures.TABLE_TOP_HEAD),
         root_pos=postures.MANIPULATION_ROOT_POS,
         fixed_base=True,

@@ -9,5 +9,5 @@ MIMIC = MimicCfg(
     subtasks=(
         SubtaskCfg(object_ref="cube", term_signal="grasped_cube", term_offset_range=(5, 15)),
         SubtaskCfg(object_ref="blue_block", term_signal=None),
-    ),
+    )
 )

@@ -27,10 +27,16 @@ def plan() -> MotionPlan:
             MotionStep(name="close_left_gripper", gripper_open=False, hold=25),
             MotionStep(name="lift_cube", target=AssetTarget("cube", (0.0, 0.0, 0.135)), gripper_open=False),
             MotionStep(name="move_above_target", target=_above_block, gripper_open=False),
-            MotionStep(name="descend_to_target", target=AssetTarget("blue_block", (0.0, 0.0, 0.09)),
-                       gripper_open=False),
-            MotionStep(name="lower_onto_target", target=AssetTarget("blue_block", (0.0, 0.0, 0.07)),
-                       gripper_open=False, max_joint_step=0.004, settle=False),
+            MotionStep(
+                name="descend_to_target", target=AssetTarget("blue_block", (0.0, 0.0, 0.09)), gripper_open=False
+            ),
+            MotionStep(
+                name="lower_onto_target",
+                target=AssetTarget("blue_block", (0.0, 0.0, 0.07)),
+                gripper_open=False,
+                max_joint_step=0.004,
+                settle=False,
+            ),
             MotionStep(name="open_left_gripper", target=AssetTarget("blue_block", (0.0, 0.0, 0.07))),
         ),
         max_joint_step=0.03,

@@ -47,9 +47,11 @@ def _world(obj: SortingObject, **fields) -> TaskCfg:
         observations=obs.manipulation_observations(object_pose=obs.pose_of(obj.name)),
         phase_success=[],
         terminations={"object_dropped": _dropped(obj)},
-        signals={"grasped_object": TermCfg(func=terminations.grasped_object(obj)),
-                 # how far a failed place got: the object let go inside its cell (then knocked out, or not)
-                 "released_in_cell": TermCfg(func=terminations.released_in_cell(obj))},
+        signals={
+            "grasped_object": TermCfg(func=terminations.grasped_object(obj)),
+            # how far a failed place got: the object let go inside its cell (then knocked out, or not)
+            "released_in_cell": TermCfg(func=terminations.released_in_cell(obj)),
+        },
         posture=shelf_posture(),
         root_pos=scene.ROBOT_ROOT,
         arm_home=postures.CARRY_LEFT_ARM,
@@ -71,9 +73,14 @@ def pick_cfg(sorting_object: str | None = None) -> TaskCfg:
     terms = {"object_dropped": _dropped(obj)}
     if obj.upright_min > 0:
         terms["object_tipped"] = TerminationTermCfg(func=tipped, params={"entity": obj.name})
-    return _world(obj, phase_success=[terminations.held_at_carry(obj)], terminations=terms,
-                  events={"permute_objects": TermCfg(func=events.permute_objects, params={"objects": tuple(OBJECTS)})},
-                  rewards=rewards.pick_rewards(obj), options={"sorting_object": obj.name})
+    return _world(
+        obj,
+        phase_success=[terminations.held_at_carry(obj)],
+        terminations=terms,
+        events={"permute_objects": TermCfg(func=events.permute_objects, params={"objects": tuple(OBJECTS)})},
+        rewards=rewards.pick_rewards(obj),
+        options={"sorting_object": obj.name},
+    )
 
 
 def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
@@ -82,8 +89,11 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
     obj = lookup_object(sorting_object)
     return _world(
         obj,
-        actions=base_actions() + [ActionTermCfg(name="leg_action", group="legs", type="absolute"),
-                                      ActionTermCfg(name="arm_action", group="left_arm", type="absolute")],
+        actions=base_actions()
+        + [
+            ActionTermCfg(name="leg_action", group="legs", type="absolute"),
+            ActionTermCfg(name="arm_action", group="left_arm", type="absolute"),
+        ],
         observations=nav.nav_observations(obj.place_base_xy),
         phase_success=[terminations.held_at_place_start(obj)],
         rewards=nav.nav_rewards(obj.place_base_xy, NAV_SUCCESS_RADIUS),
@@ -97,11 +107,14 @@ def nav_cfg(sorting_object: str | None = None, init_scenario: str | None = None)
 def place_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
     """Put the object in its cell, let go and retract the arm (success: ``placed``)."""
     obj = lookup_object(sorting_object)
-    return _world(obj, phase_success=[terminations.placed(obj)],
-                  rewards=rewards.place_rewards(obj),
-                  scenario=_scenario("place", obj, init_scenario),
-                  initial_targets=carried_gripper_closed(),
-                  options={"sorting_object": obj.name})
+    return _world(
+        obj,
+        phase_success=[terminations.placed(obj)],
+        rewards=rewards.place_rewards(obj),
+        scenario=_scenario("place", obj, init_scenario),
+        initial_targets=carried_gripper_closed(),
+        options={"sorting_object": obj.name},
+    )
 
 
 def coherent_cfg(sorting_object: str | None = None) -> TaskCfg:

@@ -26,8 +26,9 @@ def pick_plan(sorting_object: str | None = None) -> MotionPlan:
             MotionStep(name=f"approach_{o}", target=AssetTarget(o, (-0.12, 0.0, 0.025)), quat=side, linear=4),
             MotionStep(name=f"descend_to_{o}", target=AssetTarget(o, (-0.01, 0.0, 0.025)), quat=side, linear=4),
             MotionStep(name="close_left_gripper", gripper_open=False, hold=25),
-            MotionStep(name=f"lift_{o}", target=AssetTarget(o, (0.0, 0.0, 0.22)), quat=side, gripper_open=False,
-                       linear=3),
+            MotionStep(
+                name=f"lift_{o}", target=AssetTarget(o, (0.0, 0.0, 0.22)), quat=side, gripper_open=False, linear=3
+            ),
             MotionStep(name=f"carry_{o}", joints=postures.CARRY_LEFT_ARM, gripper_open=False, hold=10),
         ),
         max_joint_step=0.04,
@@ -60,17 +61,33 @@ def place_plan(sorting_object: str | None = None, init_scenario: str | None = No
 def nav_expert(sorting_object: str | None = None) -> NavExpert:
     """Drive only: turn to face the shelf, then straight to the object's place position."""
     obj = lookup_object(sorting_object)
-    return NavExpert(goal=obj.place_base_xy, goal_yaw=SHELF_NAV_YAW, success_radius=NAV_SUCCESS_RADIUS,
-                     yaw_tolerance=0.04, rotate_before_translate=True, waypoint_spacing=10.0)
+    return NavExpert(
+        goal=obj.place_base_xy,
+        goal_yaw=SHELF_NAV_YAW,
+        success_radius=NAV_SUCCESS_RADIUS,
+        yaw_tolerance=0.04,
+        rotate_before_translate=True,
+        waypoint_spacing=10.0,
+    )
 
 
 def nav_sequence_expert(sorting_object: str | None = None, init_scenario: str | None = None) -> SequenceExpert:
     """The Nav expert: drive -> legs (ramped, lifted for the upper row) -> arm to the place-start posture."""
     obj = lookup_object(sorting_object)
-    return SequenceExpert(steps=(
-        ("drive", nav_expert(obj.name)),
-        ("posture_legs", JointTargetExpert(targets=dict(zip(spec.LEG_JOINTS, obj.legs)), max_step=0.04,
-                                           tolerance=0.12, hold_steps=20)),
-        ("posture_arm", JointTargetExpert(targets=dict(zip(spec.LEFT_ARM_JOINTS, obj.approach_arm)), max_step=0.04,
-                                          tolerance=0.12)),
-    ))
+    return SequenceExpert(
+        steps=(
+            ("drive", nav_expert(obj.name)),
+            (
+                "posture_legs",
+                JointTargetExpert(
+                    targets=dict(zip(spec.LEG_JOINTS, obj.legs)), max_step=0.04, tolerance=0.12, hold_steps=20
+                ),
+            ),
+            (
+                "posture_arm",
+                JointTargetExpert(
+                    targets=dict(zip(spec.LEFT_ARM_JOINTS, obj.approach_arm)), max_step=0.04, tolerance=0.12
+                ),
+            ),
+        )
+    )

@@ -39,8 +39,12 @@ CUBE_YAWS = {"random": True, "zero": False}
 
 
 def _reset(cube_yaw: str, prestacked: bool = False) -> dict[str, TermCfg]:
-    return {"randomize_cube_positions": TermCfg(func=events.randomize_cube_positions, params={
-        "cubes": CUBES, "prestacked": prestacked, "turned": CUBE_YAWS[cube_yaw]})}
+    return {
+        "randomize_cube_positions": TermCfg(
+            func=events.randomize_cube_positions,
+            params={"cubes": CUBES, "prestacked": prestacked, "turned": CUBE_YAWS[cube_yaw]},
+        )
+    }
 
 
 def _world(head: str, cube_yaw: str, **fields) -> TaskCfg:
@@ -85,22 +89,33 @@ def _subtask_observations():
     """The subtasks' (and the phased task's) observation: the platform's manipulation terms (``robot_joint_pos``,
     ``tcp_pose``, ...: what the visuomotor training presets read) and the cube poses, where StackCube keeps the
     reference's names (``joint_pos``, ``eef_pose``)."""
-    return obs.manipulation_observations(cube_positions=obs.positions_of(*CUBES),
-                                         cube_orientations=obs.orientations_of(*CUBES))
+    return obs.manipulation_observations(
+        cube_positions=obs.positions_of(*CUBES), cube_orientations=obs.orientations_of(*CUBES)
+    )
 
 
 def cube_2_cfg(head: str = "level", cube_yaw: str = "random") -> TaskCfg:
     """The first subtask on its own: StackCube's world and reset; success when cube_2 is stacked on cube_1 and
     released."""
-    return _world(head, cube_yaw, observations=_subtask_observations(), rewards=rewards.cube_2_rewards(),
-                  phase_success=[stacked_and_released("cube_2", "cube_1")])
+    return _world(
+        head,
+        cube_yaw,
+        observations=_subtask_observations(),
+        rewards=rewards.cube_2_rewards(),
+        phase_success=[stacked_and_released("cube_2", "cube_1")],
+    )
 
 
 def cube_3_cfg(head: str = "level", cube_yaw: str = "random") -> TaskCfg:
     """The second subtask on its own: the cubes reset with cube_2 already on cube_1; success is StackCube's (the
     full stack, released)."""
-    return _world(head, cube_yaw, observations=_subtask_observations(), rewards=rewards.cube_3_rewards(),
-                  events=_reset(cube_yaw, prestacked=True))
+    return _world(
+        head,
+        cube_yaw,
+        observations=_subtask_observations(),
+        rewards=rewards.cube_3_rewards(),
+        events=_reset(cube_yaw, prestacked=True),
+    )
 
 
 def phased_cfg(head: str = "level", cube_yaw: str = "random") -> TaskCfg:

@@ -19,5 +19,5 @@ MIMIC = MimicCfg(
         SubtaskCfg(object_ref="cube_1", term_signal="cube_2_on_cube_1", term_offset_range=(12, 18), yaw_symmetry=CUBE),
         SubtaskCfg(object_ref="cube_3", term_signal="cube_3_grasped", term_offset_range=(37, 48), yaw_symmetry=CUBE),
         SubtaskCfg(object_ref="cube_2", term_signal=None, yaw_symmetry=CUBE),
-    ),
+    )
 )
