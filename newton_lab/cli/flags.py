@@ -8,68 +8,14 @@ or ``positional``; the ``task_options`` field becomes one flag per option any ta
 from __future__ import annotations
 
 import argparse
-import ast
 import dataclasses
-import functools
-import inspect
-import re
-import textwrap
 import types
 import typing
 from collections.abc import Iterable, Mapping
 from typing import Any, Literal
 
 from ..task_api.catalog import all_declared_options
-
-REQUIRED = dataclasses.MISSING
-"""A ``defaults`` value making a field required (an example that needs ``--checkpoint``)."""
-
-
-class HelpFormatter(argparse.RawDescriptionHelpFormatter):
-    """Descriptions kept as written; every option with a default shows it (``(default: ...)``) unless its
-    help already says its default; switches and unset optionals show none."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        text = action.help or ""
-        default = action.default
-        if (
-            "%(default)" in text
-            or "default" in text.lower()
-            or not action.option_strings
-            or any(default is x for x in (None, False, argparse.SUPPRESS, REQUIRED))
-            or action.required
-        ):
-            return text
-        return f"{text} (default: %(default)s)"
-
-
-@functools.cache
-def field_docs(cls: type) -> dict[str, str]:
-    """The docstring under each field of dataclass ``cls`` (own or inherited; the nearest class wins)."""
-    docs: dict[str, str] = {}
-    for klass in reversed(cls.__mro__):
-        if not dataclasses.is_dataclass(klass):
-            continue
-        try:
-            source = textwrap.dedent(inspect.getsource(klass))
-        except (OSError, TypeError):
-            continue
-        body = ast.parse(source).body[0].body
-        for stmt, nxt in zip(body, body[1:]):
-            if (
-                isinstance(stmt, ast.AnnAssign)
-                and isinstance(stmt.target, ast.Name)
-                and isinstance(nxt, ast.Expr)
-                and isinstance(nxt.value, ast.Constant)
-                and isinstance(nxt.value.value, str)
-            ):
-                docs[stmt.target.id] = " ".join(nxt.value.value.split())
-    return docs
-
-
-def _help(doc: str) -> str:
-    """A field docstring as argparse help: reST literals as plain backticks, ``%`` escaped."""
-    return re.sub(r"``([^`]*)``", r"`\1`", doc).replace("%", "%%")
+from .help_text import REQUIRED, field_docs, help_of
 
 
 def _unwrap_optional(tp: Any) -> Any:
@@ -124,7 +70,7 @@ def add_arguments(
         if f.name in choices:
             kwargs["choices"] = list(choices[f.name])
         if doc := docs.get(f.name):
-            kwargs["help"] = _help(doc)
+            kwargs["help"] = help_of(doc)
         if f.metadata.get("positional"):
             parser.add_argument(f.name, **kwargs)
             continue
@@ -146,7 +92,7 @@ def add_task_option_flags(parser: argparse.ArgumentParser) -> None:
     Literal choices are offered in the help; whether the chosen task takes the option is checked with the rest
     of the arguments (``check_args``)."""
     for name, opt in sorted(all_declared_options().items()):
-        help_text = _help(opt.doc or f"task option {name}")
+        help_text = help_of(opt.doc or f"task option {name}")
         if opt.choices:
             help_text += f" (one of: {', '.join(opt.choices)})"
         parser.add_argument("--" + name.replace("_", "-"), dest=TASK_OPTION_DEST + name, default=None, help=help_text)

@@ -14,7 +14,8 @@ from .. import commands as c
 from ..commands.checks import check_args, check_writable
 from ..kernels.runtime import set_verbose
 from ..task_api.catalog import did_you_mean
-from .flags import REQUIRED, HelpFormatter, add_arguments, from_namespace
+from .flags import add_arguments, from_namespace
+from .help_text import REQUIRED, HelpFormatter
 
 __all__ = ["REQUIRED", "add_verbose", "apply_verbose", "make_output_dirs", "parse_args", "unrecognized"]
 

@@ -1,21 +1,17 @@
-"""The workflow commands (``collect``, ``evaluate``, ``mimic``, ``train``, ``split``, ``export``, ``pipeline``,
-``view``): each calls the library with its argument object (``newton_lab.commands.workflow``), prints its result
-(one JSON line last) and returns the exit status. The library imports are deferred into the commands on purpose:
-Warp/Newton (envs), torch (policies) and Prefect (flows) each take seconds to import, and a command pays only for
-what it runs."""
+"""The workflow commands (``collect``, ``evaluate``, ``mimic``, ``train``, ``split``, ``export``, ``view``;
+``pipeline`` has a module of its own): each calls the library with its argument object
+(``newton_lab.commands.workflow``), prints its result (one JSON line last) and returns the exit status. The library
+imports are deferred into the commands on purpose: Warp/Newton (envs), torch (policies) and Prefect (flows) each
+take seconds to import, and a command pays only for what it runs."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from ..commands import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs, SplitArgs, TrainArgs, ViewArgs
-from ..flows.report import summary_lines
-from ..flows.settings import configure, demo_recipe
-from ..task_api.registry import lookup
+from ..commands import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
 from .bench import write_run_record
 from .env import rerun_hook
-from .pipeline_ends import ends_in_one_line
 
 COLLECT_REPORT_KEYS = (
     "task",
@@ -133,45 +129,6 @@ def export(args: ExportArgs) -> int:
     out = export_lerobot(args.dataset_path, args.root, include_failed=args.include_failed, video=not args.no_video)
     keys = ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps", "image_keys", "video_files")
     print(json.dumps({k: out[k] for k in keys}))
-    return 0
-
-
-def pipeline(args: PipelineArgs) -> int:
-    from .. import tasks as _registered  # noqa: F401  deferred: registering the tasks imports Warp
-
-    long_horizon = bool(lookup(args.task).make_cfg({}).phases)  # a coherent task: the long-horizon flow
-    recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon)
-    kwargs = args.pipeline_kwargs(recipe)
-    if args.dry_run:  # the plan only: nothing is collected, trained or written, Prefect is not started
-        stages = (
-            ["collect", "split", "train per learned phase", "evaluate composed"]
-            if long_horizon
-            else ["collect", "mimic", "train", "evaluate"]
-        )
-        print(json.dumps({"plan": {**kwargs, "long_horizon": long_horizon, "stages": stages}}, default=str))
-        return 0
-    with ends_in_one_line(args.out):  # Ctrl-C: one line, exit 130; SIGKILL: no server or worker left running
-        configure(Path(args.out) / ".prefect")  # before Prefect is imported
-        from ..flows.orchestration import run_pipeline  # deferred: Prefect is slow to import, and after configure
-
-        summary = run_pipeline(**kwargs)
-    from ..flows.long_horizon import summary_lines as long_horizon_lines  # deferred: Prefect is slow to import
-
-    metrics = Path(args.out).resolve() / "metrics.json"
-    lines = long_horizon_lines if long_horizon else summary_lines
-    print("\n".join(lines(summary, args.out, recipe["name"])))
-    print("stages: " + ", ".join(f"{k} {'/'.join(v)}" for k, v in summary["stage_states"].items()))
-    print(f"run record: {summary['record']}")
-    print(
-        json.dumps(
-            {
-                "task": summary["task"],
-                "success_rate": summary["success_rate"],
-                "metrics": str(metrics),
-                "record": summary["record"],
-            }
-        )
-    )
     return 0
 
 
