@@ -113,7 +113,7 @@ def test_sigkill_mid_collection_keeps_finished_episodes(tmp_path):
 
 def test_collect_to_a_log_prints_progress_lines(pick_env, tmp_path, monkeypatch, capsys):
     """stderr not a terminal (a log file, Prefect): no tqdm bar, plain lines with the episodes ended so far."""
-    monkeypatch.setattr("newton_lab.envs.rollout.LOG_EVERY_S", 0.0)
+    monkeypatch.setattr("newton_lab.envs.rollout_loop.LOG_EVERY_S", 0.0)
     pick_env.collect(agent=ZeroAgent(), episodes=4, path=tmp_path / "log.hdf5", max_steps=2, progress=True)
     lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith(f"{pick_env.task_id}: step ")]
     assert len(lines) >= 2 and "4 episodes ended, 0 successes" in lines[-1], lines

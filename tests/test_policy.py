@@ -22,7 +22,7 @@ from newton_lab.policies import (
     load_policy,
 )
 from newton_lab.policies.model import ConditionalUnet1D
-from newton_lab.policies.train import _fit_to_budget, warmup_cosine
+from newton_lab.policies.train_loop import fit_to_budget, warmup_cosine
 
 ROOT = Path(__file__).resolve().parents[1]
 TASK = "GalbotG1-PickCube-v0"
@@ -117,13 +117,13 @@ def test_schedule_is_monotone_and_bounded():
 
 def test_time_budget_replans_the_run_and_its_schedule():
     # 50 steps in 10 s (5 steps/s) with a 100 s budget: 50 + 90 s * 5 * 0.97 = 486 steps, below the cap
-    assert _fit_to_budget(50, 10.0, 100.0, 10_000, (50, 0.0), 10_000) == 486
-    assert _fit_to_budget(50, 10.0, 100.0, 300, (50, 0.0), 300) == 300  # never above the cap
-    assert _fit_to_budget(51, 10.0, 100.0, 10_000, (50, 10.0), 486) == 486  # only re-planned every 100 steps
+    assert fit_to_budget(50, 10.0, 100.0, 10_000, (50, 0.0), 10_000) == 486
+    assert fit_to_budget(50, 10.0, 100.0, 300, (50, 0.0), 300) == 300  # never above the cap
+    assert fit_to_budget(51, 10.0, 100.0, 10_000, (50, 10.0), 486) == 486  # only re-planned every 100 steps
     # from step 50 on the rate excludes the warm-up: 450 steps in 20 s after it -> 22.5 steps/s
-    assert _fit_to_budget(500, 30.0, 100.0, 10_000, (50, 10.0), 486) == 500 + int(70 * 22.5 * 0.97)
-    assert _fit_to_budget(500, 120.0, 100.0, 10_000, (50, 10.0), 486) == 500  # over budget: stop now
-    assert _fit_to_budget(10_000, 30.0, 100.0, 10_000, (50, 10.0), 10_000) == 10_000  # the cap is final
+    assert fit_to_budget(500, 30.0, 100.0, 10_000, (50, 10.0), 486) == 500 + int(70 * 22.5 * 0.97)
+    assert fit_to_budget(500, 120.0, 100.0, 10_000, (50, 10.0), 486) == 500  # over budget: stop now
+    assert fit_to_budget(10_000, 30.0, 100.0, 10_000, (50, 10.0), 10_000) == 10_000  # the cap is final
     total = 1000
     factor = warmup_cosine(10, lambda: total)
     assert factor(9) == 1.0 and factor(505) == pytest.approx(0.5, abs=0.01)
@@ -421,7 +421,7 @@ def test_train_never_overwrites_a_checkpoint(dataset, tmp_path):
 
 def test_training_to_a_log_prints_progress_lines(dataset, tmp_path, monkeypatch, capsys):
     """stderr not a terminal (a log file, Prefect): no tqdm bar, but a read line and plain step lines."""
-    monkeypatch.setattr(sys.modules["newton_lab.policies.train"], "LOG_EVERY_S", 0.0)
+    monkeypatch.setattr(sys.modules["newton_lab.policies.train_loop"], "LOG_EVERY_S", 0.0)
     cfg = {**TINY, "max_steps": 3, "warmup_steps": 1, "batch_size": 8, "output_dir": str(tmp_path), "progress": True}
     Policy.from_backend("diffusion").train(dataset, cfg)
     err = capsys.readouterr().err.splitlines()

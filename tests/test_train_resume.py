@@ -24,7 +24,7 @@ from newton_lab.cli import main
 from newton_lab.commands import TrainArgs
 from newton_lab.policies import DiffusionPolicy, train
 from newton_lab.policies.diffusion import PRESETS
-from newton_lab.policies.train import Checkpointer
+from newton_lab.policies.train_loop import Checkpointer
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = dict(TINY, lr=1e-2, warmup_steps=3, batch_size=8, epochs=100, max_steps=14, seed=0)

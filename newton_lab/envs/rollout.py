@@ -9,16 +9,8 @@ episode, nor any episode holding a non-finite value, and both summaries count th
 
 from __future__ import annotations
 
-import sys
-import time
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import numpy as np
-import torch
-from tqdm import tqdm
 
 from ..datasets import DatasetRef, open_writer
 from ..datasets.writers import process as writer_process
@@ -26,14 +18,12 @@ from ..datasets.writers.background_thread import BackgroundWriter
 from ..datasets.writers.interrupts import Interrupted, stop_requests
 from ..datasets.zarr.inodes import check_room
 from ..task_api.cfg import DIVERGED
-from .checks import check_agent, check_collect, check_counts, option_defaults
+from .checks import check_agent, check_collect, option_defaults
 from .recorder import EpisodeRecorder, env_args
+from .rollout_loop import REASON_MAX_STEPS, Timers, run_episodes  # noqa: F401 - Timers, REASON_MAX_STEPS: re-exported
 from .saver import EpisodeSaver, WrappedWriter, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
 
-REASON_MAX_STEPS = "max_steps"
-LOG_EVERY_S = 30.0
-"""Seconds between the plain progress lines of a rollout whose stderr is not a terminal."""
 WRITE_MIN_BATCH = 256
 """Episodes the background writer gathers before it writes a batch (or ``WRITE_MAX_WAIT_S`` after the oldest came):
 each batch costs a lock, a ``syncfs`` and a commit, and a zarr batch of 32 demos or more is packed into a few
@@ -56,211 +46,6 @@ EVAL_REPORT_KEYS = (
     "phases",
 )
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
-
-
-def _same(fn: Callable) -> Callable:
-    return fn
-
-
-@dataclass(frozen=True)
-class Timers:
-    """Wrappers a rollout puts around its calls, to time them (``newton_lab.bench``'s collection split): each is
-    given the callable and returns the one to call in its place."""
-
-    step: Callable[[Callable], Callable] = _same
-    """Wraps ``env.step``."""
-    act: Callable[[Callable], Callable] = _same
-    """Wraps ``agent.act``."""
-    write: Callable[[Callable], Callable] = _same
-    """Wraps the dataset writer's batch write (``EpisodeWriter.append_prepared``, called on the writer's thread)."""
-    hand_over: Callable[[Callable], Callable] = _same
-    """Wraps the loop's hand-over of ended episodes (``EpisodeSaver.fetch``: their gather and finite check on the
-    device; ``EpisodeSaver.submit``: the copy off the device, the trees for a writer thread, and the queueing, waiting
-    while the writer's queue is full)."""
-    drain: Callable[[Callable], Callable] = _same
-    """Wraps the wait for the writer after the loop (``EpisodeSaver.close``)."""
-
-
-class _Episodes:
-    """Per-row bookkeeping of the loop: step counts, returns, latched success and subtask signals (on the
-    device until an episode ends), finished records, and which rows may still start an episode."""
-
-    def __init__(self, env, *, episodes: int, until_successes: bool, max_attempts: int | None):
-        n, dev = env.num_envs, env.torch_device
-        self.env, self.episodes, self.until_successes, self.max_attempts = env, episodes, until_successes, max_attempts
-        self.quota = max_attempts if until_successes and max_attempts else (None if until_successes else episodes)
-        self.active = np.arange(n) < (self.quota if self.quota is not None else n)
-        self.launched = int(self.active.sum())
-        self.step_in_ep = torch.zeros(n, dtype=torch.long, device=dev)
-        self.reward_total = torch.zeros(n, device=dev)
-        self.latched = np.zeros(n, dtype=bool)
-        self.reached = torch.zeros((n, len(env.task.signal_names)), dtype=torch.bool, device=dev)
-        self.phase = torch.zeros(n, dtype=torch.long, device=dev)
-        """The furthest phase each row's episode has reached (a coherent task's rows reset to phase 0)."""
-        self.records: list[dict[str, Any]] = []
-        self.successes = 0
-        self.host: dict[str, np.ndarray] = {}
-
-    def enough(self) -> bool:
-        if self.until_successes:
-            return self.successes >= self.episodes or (
-                self.max_attempts is not None and len(self.records) >= self.max_attempts
-            )
-        return len(self.records) >= self.episodes
-
-    def add_step(self, reward, info, ended) -> None:
-        """Count the step; ``ended`` (rows whose episode ended in it) keep the phase they had reached: their
-        ``info["phase"]`` is already the next episode's."""
-        self.step_in_ep += 1
-        self.reward_total += reward
-        self.latched |= info["success"].cpu().numpy()
-        self.reached |= info["step_signals"] > 0.5
-        self.phase = torch.where(ended, self.phase, torch.maximum(self.phase, info["phase"].long()))
-
-    def snapshot(self) -> None:
-        """Host copies of the per-row counters, read by :meth:`record` (call once per step, before it)."""
-        self.host = {
-            "length": self.step_in_ep.cpu().numpy(),
-            "reward": self.reward_total.cpu().numpy(),
-            "reached": self.reached.cpu().numpy(),
-            "phase": self.phase.cpu().numpy(),
-        }
-
-    def record(self, row: int, reason: str) -> dict[str, Any]:
-        """The finished episode of ``row`` (from the step's :meth:`snapshot`); frees or retires the row."""
-        h = self.host
-        rec = {
-            "env_index": int(row),
-            "length": int(h["length"][row]),
-            "success": bool(self.latched[row]) and reason != DIVERGED,
-            "reward_total": float(h["reward"][row]),
-            "termination_reason": reason,
-            "signals_reached": [
-                name for name, hit in zip(self.env.task.signal_names, h["reached"][row].tolist()) if hit
-            ],
-            "phase": self.env.cfg.phase_names[int(h["phase"][row])],
-        }
-        if self.quota is None or self.launched < self.quota:
-            self.launched += 1
-        else:
-            self.active[row] = False
-        return rec
-
-    def clear(self, finished: np.ndarray) -> None:
-        if finished.any():
-            idx = torch.as_tensor(np.nonzero(finished)[0], device=self.env.torch_device)
-            self.step_in_ep[idx] = 0
-            self.reward_total[idx] = 0.0
-            self.latched[finished] = False
-            self.reached[idx] = False
-            self.phase[idx] = 0
-
-
-def _run(
-    env,
-    *,
-    agent,
-    episodes: int,
-    max_steps: int,
-    progress: bool,
-    recorder=None,
-    saver=None,
-    until_successes: bool = False,
-    max_attempts: int | None = None,
-    end_when_agent_done: bool = False,
-    on_step=None,
-    timers: Timers | None = None,
-    stop=None,
-):
-    """Shared loop; returns per-episode records, vector steps and wall time.
-
-    Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
-    ones (at most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the
-    agent reports it has nothing more to do (Mimic generation), with reason ``agent.done_reason`` (default
-    ``agent_done``; a teleop operator's ``done`` is ``user_exit``).
-    ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
-    (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
-    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (a ``writers.interrupts.StopRequest``):
-    once set, the loop ends after the step in flight (its ended episodes are handed over; the others are dropped).
-    """
-    check_counts(episodes=episodes, max_steps=max_steps)
-    n = env.num_envs
-    timers = timers or Timers()
-    step, act = timers.step(env.step), timers.act(agent.act)
-    env.reset()
-    agent.reset()
-    eps = _Episodes(env, episodes=episodes, until_successes=until_successes, max_attempts=max_attempts)
-    vector_steps = 0
-    bar = tqdm(
-        total=episodes,
-        desc=f"{env.task_id} {'successes' if until_successes else 'episodes'}",
-        unit="ep",
-        disable=None if progress else True,
-        leave=False,
-    )  # None: a terminal only
-    t0 = time.perf_counter()
-    lines, last_line = progress and bar.disable, t0  # not a terminal (a log, Prefect): a line every LOG_EVERY_S
-    try:
-        while not eps.enough():
-            actions = act(env)
-            held = agent.holding()  # rows waiting for a plan (PlannerAgent): their episode starts later
-            if recorder is not None:
-                recorder.record(eps.step_in_ep, actions)
-            _, reward, terminated, truncated, info = step(actions)
-            vector_steps += 1
-            if recorder is not None:
-                recorder.record_outcome(eps.step_in_ep, reward)
-            if on_step is not None:
-                on_step(reward, info)
-            eps.add_step(reward, info, terminated | truncated)
-            done = (terminated | truncated).cpu().numpy()
-            cut = (eps.step_in_ep >= max_steps).cpu().numpy() & ~done
-            agent_done = np.zeros(n, dtype=bool)
-            if end_when_agent_done:
-                agent_done = agent.done(env).cpu().numpy() & ~done & ~cut
-            ended = np.nonzero((done | cut | agent_done) & eps.active)[0]
-            reasons = info["termination_reason"].cpu().numpy()
-            if (cut | agent_done).any():
-                env.reset(np.nonzero(cut | agent_done)[0])
-            if len(ended):
-                eps.snapshot()  # one device->host copy of the per-row counters
-            if saver is not None and len(ended):
-                keep = ended[eps.latched[ended]] if until_successes else ended
-                saver.fetch(keep, eps.host["length"][keep])
-            for row in ended:
-                reason = (
-                    REASON_MAX_STEPS
-                    if cut[row]
-                    else agent.done_reason
-                    if agent_done[row]
-                    else env.task.termination_reasons[reasons[row]]
-                )
-                rec = eps.record(row, reason)
-                if saver is not None:
-                    rec.update(saver.save(row, rec))
-                eps.records.append(rec)
-                eps.successes += rec["success"]
-                bar.update(1 if not until_successes else int(rec["success"]))
-                bar.set_postfix(success=f"{eps.successes}/{len(eps.records)}")
-                if eps.enough():
-                    break
-            if saver is not None:
-                saver.submit()
-            restarted = done | cut | agent_done
-            eps.clear(restarted if held is None else restarted | held)
-            if stop:
-                break
-            if lines and time.perf_counter() - last_line >= LOG_EVERY_S:
-                last_line = time.perf_counter()
-                print(
-                    f"{env.task_id}: step {vector_steps}, {len(eps.records)} episodes ended, {eps.successes} "
-                    f"successes, {last_line - t0:.0f} s",
-                    file=sys.stderr,
-                    flush=True,
-                )
-    finally:
-        bar.close()
-    return eps.records, vector_steps, time.perf_counter() - t0
 
 
 def _overflow_worlds(env) -> int:
@@ -369,49 +154,108 @@ def collect(
     """
     task_id = dataset_task_id or env.task_id
     check_collect(env.num_envs, agent=agent, path=path, episodes=episodes, save_end_scenario=save_end_scenario)
+    recorder, store = _open_store(env, path, task_id, episodes, max_steps)
+    timers = timers or Timers()
+    saver = _make_saver(env, store, task_id, recorder, writer, max_queued, timers, only_successes)
+    records, steps, wall = _run_saving(
+        env,
+        path,
+        saver,
+        timers,
+        agent=agent,
+        episodes=episodes,
+        max_steps=max_steps,
+        progress=progress,
+        until_successes=only_successes,
+        max_attempts=max_attempts,
+        end_when_agent_done=end_when_agent_done,
+        on_step=on_step,
+    )
+    summary = _collect_summary(env, records, steps, wall, task_id, path, saver, save_end_scenario)
+    return _recorded(
+        env, agent, DatasetRef(Path(path), task_id=task_id, metadata=summary), operation, max_steps, config
+    )
+
+
+def _open_store(env, path, task_id: str, episodes: int, max_steps: int):
+    """The episode recorder of ``env`` and the dataset at ``path`` opened for appending (a zarr store is first
+    checked for inodes enough)."""
     args = env_args(env)
     args["env_name"] = task_id
     recorder = EpisodeRecorder(env, max_steps)
     check_room(path, episodes, recorder.episode(0, 1), batch=min(env.num_envs, episodes))  # zarr: inodes enough?
     store = open_writer(Path(path), task_id=task_id, env_args=args, option_defaults=option_defaults(env.task_id))
+    return recorder, store
+
+
+def _make_saver(env, store, task_id, recorder, writer: str, max_queued, timers: Timers, only_successes: bool):
+    """The saver of ``collect``: its background writer (``_make_writer``) behind the recorder, the hand-over timed."""
+    writer = _make_writer(store, task_id, recorder, env.num_envs, writer, max_queued, timers)
+    saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
+    saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
+    return saver
+
+
+def _run_saving(env, path, saver: EpisodeSaver, timers: Timers, **loop):
+    """``run_episodes`` with ``saver`` taking the ended episodes; the writer is drained at the end, also on Ctrl-C or
+    an error (what finished is written). A stop request (Ctrl-C / SIGTERM) ends the loop between two steps and
+    raises ``Interrupted`` once the writer is drained."""
+    try:
+        with stop_requests() as stop:
+            out = run_episodes(env, recorder=saver.recorder, saver=saver, timers=timers, stop=stop, **loop)
+    finally:
+        timers.drain(saver.close)()
+    if stop:
+        raise _interrupted(len(saver.saved_ids()), path, stop.signum)
+    return out
+
+
+def _interrupted(kept: int, path, signum) -> Interrupted:
+    """The end of a collection stopped by Ctrl-C / SIGTERM: what it kept, where."""
+    return Interrupted(
+        f"interrupted: {kept} finished episode{'s' * (kept != 1)} of this run kept in {path} (the "
+        "episodes in flight were dropped); run again to append more",
+        signum,
+    )
+
+
+def _recorded(env, agent, ref: DatasetRef, operation: str, max_steps: int, config: dict | None) -> DatasetRef:
+    """``ref`` with the collection's operation record (the env, the agent, the counts) appended to its dataset."""
+    summary = ref.metadata
+    cfg = {
+        "num_envs": env.num_envs,
+        "seed": env.seed,
+        "randomize": env.task.randomize,
+        "max_steps": max_steps,
+        "agent": type(agent).__name__,
+        "task_options": env.cfg.options,
+        **(config or {}),
+    }
+    keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
+    return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
+
+
+def _make_writer(
+    store, task_id: str, recorder: EpisodeRecorder, num_envs: int, writer: str, max_queued: int | None, timers
+):
+    """``collect``'s background writer of ``store``: a writer process or a thread (``writer``, resolved by
+    ``_writer_kind``), gathering batches as ``WRITE_MIN_BATCH`` and ``WRITE_MAX_WAIT_S`` say, at most ``max_queued``
+    episodes queued (default 256 or one per row, whichever is more)."""
     batching = {
-        "max_queued": max(256, env.num_envs) if max_queued is None else max_queued,
-        "min_batch": WRITE_MIN_BATCH if env.num_envs >= WRITE_MIN_BATCH else 1,
+        "max_queued": max(256, num_envs) if max_queued is None else max_queued,
+        "min_batch": WRITE_MIN_BATCH if num_envs >= WRITE_MIN_BATCH else 1,
         "max_wait_s": WRITE_MAX_WAIT_S,
     }
-    if _writer_kind(writer, env.num_envs) == "process":
-        writer = writer_process.ProcessWriter(store.path, task_id=task_id, layout=recorder.layout, **batching)
+    if _writer_kind(writer, num_envs) == "process":
+        return writer_process.ProcessWriter(store.path, task_id=task_id, layout=recorder.layout, **batching)
     else:
-        writer = BackgroundWriter(store if timers is None else WrappedWriter(store, timers.write), **batching)
-    saver = EpisodeSaver(writer, recorder, seed=env.seed, only_successes=only_successes)
-    timers = timers or Timers()
-    saver.fetch, saver.submit = timers.hand_over(saver.fetch), timers.hand_over(saver.submit)
-    try:
-        with stop_requests() as stop:  # Ctrl-C / SIGTERM: the loop ends between two steps
-            records, steps, wall = _run(
-                env,
-                agent=agent,
-                episodes=episodes,
-                max_steps=max_steps,
-                progress=progress,
-                recorder=saver.recorder,
-                saver=saver,
-                until_successes=only_successes,
-                max_attempts=max_attempts,
-                end_when_agent_done=end_when_agent_done,
-                on_step=on_step,
-                timers=timers,
-                stop=stop,
-            )
-    finally:
-        timers.drain(saver.close)()  # waits for the writer: what finished is written, also on Ctrl-C or an error
-    if stop:
-        kept = len(saver.saved_ids())
-        raise Interrupted(
-            f"interrupted: {kept} finished episode{'s' * (kept != 1)} of this run kept in {path} (the "
-            "episodes in flight were dropped); run again to append more",
-            stop.signum,
-        )
+        return BackgroundWriter(store if timers is None else WrappedWriter(store, timers.write), **batching)
+
+
+def _collect_summary(env, records, steps: int, wall: float, task_id: str, path, saver, save_end_scenario):
+    """The evaluation summary of a collection, with what was written where: the saved demo ids, the attempts, the
+    writer's batches (and a writer process's own seconds), the scenario the episode ended in when asked."""
+    writer = saver.writer
     summary = _summary(env, records, steps, wall)
     summary.update(
         task=task_id,
@@ -425,18 +269,7 @@ def collect(
         summary["writer_seconds"] = dict(writer.seconds)
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
-    ref = DatasetRef(Path(path), task_id=task_id, metadata=summary)
-    cfg = {
-        "num_envs": env.num_envs,
-        "seed": env.seed,
-        "randomize": env.task.randomize,
-        "max_steps": max_steps,
-        "agent": type(agent).__name__,
-        "task_options": env.cfg.options,
-        **(config or {}),
-    }
-    keys = ("episodes", "successes", "success_rate", "saved_demo_ids", "attempts", "diverged")
-    return ref.record(operation, config=cfg, metadata={k: summary[k] for k in keys})
+    return summary
 
 
 WRITER_KINDS = ("auto", "thread", "process")
@@ -458,7 +291,7 @@ def evaluate(
 ) -> dict[str, Any]:
     """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
     check_agent(agent)
-    records, steps, wall = _run(
+    records, steps, wall = run_episodes(
         env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress, on_step=on_step
     )
     summary = _summary(env, records, steps, wall)

@@ -6,12 +6,10 @@ Everything is written into a hidden sibling ``.<root name>.partial-*`` and renam
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import uuid
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,16 +17,15 @@ import numpy as np
 
 from ..files.durability import fsync_path
 from ..files.output_paths import output_path
-from ..storage import read_dataset_info, read_episode, read_episodes
+from ..storage import read_dataset_info, read_episodes
+from .plan import Plan, episode_arrays, make_plan
 from .tables import (
     CHUNKS_SIZE,
     CODEBASE_VERSION,
     DATA_FILES_SIZE_IN_MB,
     DATA_PATH,
     EPISODES_PATH,
-    IMAGE_NAMES,
     IMAGE_PREFIX,
-    INDEX_FEATURES,
     ROBOT_TYPE,
     SOURCE_PATH,
     VIDEO_FILES_SIZE_IN_MB,
@@ -41,56 +38,7 @@ from .tables import (
     write_episodes,
     write_tasks,
 )
-from .video import VideoFiles, even_shape, video_info
-
-
-@dataclass
-class _Plan:
-    """Everything decided before the first byte is written."""
-
-    source: Path
-    source_format: str
-    task_id: str
-    repo_id: str
-    task: str
-    fps: int
-    demo_ids: list[int]
-    skipped_failed: list[int]
-    skipped_empty: list[int]
-    state_terms: list[tuple[str, int]]  # (obs term, width), in state column order
-    action_dim: int
-    action_names: list[str]
-    image_terms: list[tuple[str, tuple[int, int, int]]]  # (obs term, (H, W, 3))
-    ignored_terms: list[str] = field(default_factory=list)
-    video: bool = True  # image terms as mp4 "video" features (else PNG "image" features in the data files)
-
-    @property
-    def state_dim(self) -> int:
-        return sum(w for _, w in self.state_terms)
-
-    def features(self) -> dict[str, dict[str, Any]]:
-        feats: dict[str, dict[str, Any]] = {
-            "observation.state": {
-                "dtype": "float32",
-                "shape": [self.state_dim],
-                "names": [f"{t}.{i}" for t, w in self.state_terms for i in range(w)],
-            },
-            "action": {"dtype": "float32", "shape": [self.action_dim], "names": list(self.action_names)},
-        }
-        for term, shape in self.image_terms:
-            feats[IMAGE_PREFIX + term] = (
-                {
-                    "dtype": "video",
-                    "shape": list(even_shape(shape)),
-                    "names": list(IMAGE_NAMES),
-                    "info": video_info(shape, self.fps),
-                }
-                if self.video
-                else {"dtype": "image", "shape": list(shape), "names": list(IMAGE_NAMES)}
-            )
-        for key, dtype in INDEX_FEATURES.items():
-            feats[key] = {"dtype": dtype, "shape": [1], "names": None}
-        return feats
+from .video import VideoFiles
 
 
 def export_lerobot(
@@ -137,7 +85,7 @@ def export_lerobot(
         raise ValueError(f"data_files_size_in_mb must be a positive int, got {data_files_size_in_mb!r}")
     info = read_dataset_info(source)
     _refuse_nested(root, Path(info["path"]))
-    plan, first = _make_plan(
+    plan, first = make_plan(
         info,
         repo_id=repo_id,
         fps=fps,
@@ -161,6 +109,11 @@ def export_lerobot(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    return _export_summary(root, plan, frames, data_files, video_files)
+
+
+def _export_summary(root: Path, plan: Plan, frames: int, data_files: list, video_files: list) -> dict[str, Any]:
+    """``export_lerobot``'s result: what was written where, and which source demos were skipped."""
     return {
         "root": str(root),
         "repo_id": plan.repo_id,
@@ -203,165 +156,10 @@ def _source_path(dataset: Any) -> Path:
     )
 
 
-def _resolve_fps(fps: Any, nl: Mapping[str, Any], source: Path) -> int:
-    if fps is None:
-        try:
-            period = float(nl["sim_dt"]) * int(nl["decimation"])
-            value: Any = 1.0 / period
-        except (KeyError, TypeError, ValueError, ZeroDivisionError):
-            raise ValueError(
-                f"{source} has no usable env_args['newton_lab'] sim_dt/decimation to derive the "
-                "frame rate from; pass fps=<int>"
-            ) from None
-        what = f"the control rate 1/(sim_dt*decimation) = {value:.6g} Hz of {source}"
-    else:
-        value, what = fps, f"fps={fps!r}"
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{what} is not a number; pass fps=<positive int>")
-    value = float(value)
-    if not math.isfinite(value) or round(value) < 1 or abs(value - round(value)) > 1e-6 * round(value):
-        raise ValueError(f"{what} is not a positive whole number; LeRobot needs an integer fps: pass fps=<int>")
-    return int(round(value))
-
-
-def _text(value: Any, name: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise ValueError(f"{name} must be a non-empty str, got {value!r}")
-    return value
-
-
-def _obs_kind(arr: np.ndarray) -> str:
-    if arr.ndim == 4 and arr.shape[-1] == 3 and arr.dtype == np.uint8:
-        return "image"
-    if arr.ndim in (1, 2) and arr.dtype.kind in "biuf":
-        return "vector"
-    return "other"
-
-
-def _obs_order(nl: Mapping[str, Any], present: Iterable[str]) -> list[str]:
-    """Obs terms in the env's column order (env_args obs_terms starts), then any others by name."""
-    declared = nl.get("obs_terms") if isinstance(nl.get("obs_terms"), Mapping) else {}
-
-    def start(name: str) -> float:
-        span = declared.get(name)
-        try:
-            return float(span[0])
-        except (TypeError, ValueError, IndexError, KeyError):
-            return math.inf
-
-    present = list(present)
-    known = sorted((t for t in present if t in declared), key=lambda t: (start(t), t))
-    return known + sorted(t for t in present if t not in declared)
-
-
-def _make_plan(
-    info: dict[str, Any], *, repo_id, fps, include_failed, state_keys, task_description
-) -> tuple[_Plan, dict[str, Any]]:
-    source, task_id = Path(info["path"]), info["task_id"]
-    nl = info["env_args"].get("newton_lab")
-    nl = nl if isinstance(nl, Mapping) else {}
-    fps_i = _resolve_fps(fps, nl, source)
-    repo = _text(repo_id, "repo_id") if repo_id is not None else f"newton_lab/{task_id.lower()}"
-    task = _text(task_description, "task_description") if task_description is not None else task_id
-    if state_keys is not None and (isinstance(state_keys, (str, bytes)) or not isinstance(state_keys, Iterable)):
-        raise TypeError(f"state_keys must be a list of obs term names, got {state_keys!r}")
-
-    demos = info["demos"]
-    failed = [i for i, d in demos.items() if not d["success"]]
-    candidates = [i for i, d in demos.items() if include_failed or d["success"]]
-    empty = [i for i in candidates if demos[i]["num_samples"] < 1]
-    chosen = [i for i in candidates if demos[i]["num_samples"] >= 1]
-    if not chosen:
-        hint = "" if include_failed or not failed else " (pass include_failed=True to export the failed ones)"
-        raise ValueError(
-            f"{source} has no episodes to export: {len(demos)} demos, {len(failed)} failed, {len(empty)} empty{hint}"
-        )
-
-    first = read_episode(source, chosen[0])
-    obs = {k: np.asarray(v) for k, v in first.get("obs", {}).items() if not isinstance(v, Mapping)}
-    kinds = {k: _obs_kind(v) for k, v in obs.items()}
-    order = _obs_order(nl, obs)
-    where = f"demo_{chosen[0]} of {source}"
-    if state_keys is None:
-        state = [t for t in order if kinds[t] == "vector" and t != "actions"]
-        if not state:
-            raise ValueError(f"{where} has no (T, d) obs term for observation.state; pass state_keys=[...]")
-    else:
-        state = [str(t) for t in state_keys]
-        if not state:
-            raise ValueError("state_keys is empty; name at least one obs term")
-        if len(set(state)) != len(state):
-            raise ValueError(f"state_keys has duplicates: {state}")
-        for t in state:
-            if t not in obs:
-                raise ValueError(f"state_keys: no obs term {t!r} in {where}; available: {', '.join(order) or 'none'}")
-            if kinds[t] == "image":
-                raise ValueError(
-                    f"state_keys: {t!r} is an image term (exported as {IMAGE_PREFIX}{t}), not a (T, d) state term"
-                )
-            if kinds[t] != "vector":
-                raise ValueError(
-                    f"state_keys: obs term {t!r} has shape {obs[t].shape} dtype {obs[t].dtype}, not a real (T, d) array"
-                )
-    actions = np.asarray(first["actions"])
-    a_dim = int(actions.shape[1])
-    names = nl.get("action_joint_names")
-    if not (isinstance(names, list) and len(names) == a_dim and all(isinstance(n, str) for n in names)):
-        names = [f"action.{i}" for i in range(a_dim)]
-    images = [(t, tuple(int(s) for s in obs[t].shape[1:])) for t in order if kinds[t] == "image"]
-    ignored = [t for t in order if kinds[t] == "other" or (kinds[t] == "vector" and t not in state)]
-    plan = _Plan(
-        source=source,
-        source_format=info["format"],
-        task_id=task_id,
-        repo_id=repo,
-        task=task,
-        fps=fps_i,
-        demo_ids=chosen,
-        skipped_failed=[] if include_failed else failed,
-        skipped_empty=empty,
-        state_terms=[(t, 1 if obs[t].ndim == 1 else int(obs[t].shape[1])) for t in state],
-        action_dim=a_dim,
-        action_names=list(names),
-        image_terms=images,
-        ignored_terms=ignored,
-    )
-    return plan, first
-
-
 # ----------------------------------------------------------------------------- per-episode data
-def _episode_arrays(ep: Mapping[str, Any], plan: _Plan, demo_id: int) -> tuple[np.ndarray, np.ndarray, dict]:
-    where = f"demo_{demo_id} of {plan.source}"
-    actions = np.asarray(ep["actions"])
-    if actions.ndim != 2 or actions.shape[1] != plan.action_dim:
-        raise ValueError(
-            f"{where}: actions have shape {actions.shape}; expected (T, {plan.action_dim}) like demo_{plan.demo_ids[0]}"
-        )
-    steps = actions.shape[0]
-    obs = ep.get("obs", {})
-    parts = []
-    for term, width in plan.state_terms:
-        if term not in obs or isinstance(obs[term], Mapping):
-            raise ValueError(f"{where} has no obs term {term!r} (needed for observation.state)")
-        arr = np.asarray(obs[term])
-        arr = arr.reshape(-1, 1) if arr.ndim == 1 else arr
-        if arr.ndim != 2 or arr.shape != (steps, width):
-            raise ValueError(f"{where}: obs term {term!r} has shape {arr.shape}; expected ({steps}, {width})")
-        parts.append(arr.astype(np.float32, copy=False))
-    images = {}
-    for term, shape in plan.image_terms:
-        arr = np.asarray(obs.get(term)) if term in obs else None
-        if arr is None or arr.dtype != np.uint8 or arr.shape != (steps, *shape):
-            got = "missing" if arr is None else f"{arr.dtype} {arr.shape}"
-            raise ValueError(f"{where}: image obs term {term!r} is {got}; expected uint8 {(steps, *shape)}")
-        images[term] = arr
-    state = np.ascontiguousarray(np.concatenate(parts, axis=1), dtype=np.float32)
-    return state, np.ascontiguousarray(actions, dtype=np.float32), images
-
-
 # ----------------------------------------------------------------------------- writing
 def _write_all(
-    tmp: Path, plan: _Plan, first: dict[str, Any], limit_bytes: int, limit_mb: int
+    tmp: Path, plan: Plan, first: dict[str, Any], limit_bytes: int, limit_mb: int
 ) -> tuple[list[str], list[str], int]:
     """Write data files, videos and meta/ into ``tmp``; returns (data file paths, video file paths, frames)."""
     files = DataFiles(tmp, limit_bytes)
@@ -374,7 +172,7 @@ def _write_all(
     try:
         for episode_index, demo_id in enumerate(plan.demo_ids):
             ep = first if episode_index == 0 else next(rest)
-            state, actions, images = _episode_arrays(ep, plan, demo_id)
+            state, actions, images = episode_arrays(ep, plan, demo_id)
             del ep
             in_table = {} if plan.video else images  # PNG columns in the data file, or mp4 files beside it
             table, scalars = episode_table(state, actions, in_table, plan.fps, episode_index, start)
@@ -412,7 +210,7 @@ def _write_all(
 
 def _write_meta(
     tmp: Path,
-    plan: _Plan,
+    plan: Plan,
     rows: list[dict[str, Any]],
     ep_stats: list[dict[str, dict[str, np.ndarray]]],
     frames: int,
