@@ -10,7 +10,6 @@ phase's policy sees the scenes that the phase before it leaves behind, which is 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +18,7 @@ from prefect import flow, get_run_logger, unmapped
 from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
-from .run_record import StageClock, pipeline_record, write_pipeline_record
+from .run_record import StageClock, record_run
 from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
 from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 
@@ -98,21 +97,7 @@ def long_horizon_pipeline(
     log.info(
         "split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items())
     )
-    arts, s_train = results(
-        train_task.map(
-            dataset=[split[p] for p in phases],
-            train_cfg=unmapped(dict(train_cfg)),
-            out_dir=unmapped(out),
-            name=[f"policy_{p}" for p in phases],
-            gpus=unmapped(gpus),
-        ),
-        "train",
-    )
-    checkpoints = dict(zip(phases, arts))
-    clock.lap("train")
-    for art in arts:
-        runlog.publish_loss_curve(art)
-    log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
+    checkpoints, s_train = _train_phases(split, phases, train_cfg, out, gpus, clock)
     metrics, s_eval = run_evaluate(
         None,
         task_id,
@@ -128,13 +113,7 @@ def long_horizon_pipeline(
         phase_checkpoints=checkpoints,
     )
     clock.lap("evaluate")
-    log.info(
-        "evaluate: %s; success rate %.1f%% over %d episodes; %s",
-        "/".join(s_eval),
-        100 * metrics["success_rate"],
-        metrics["episodes"],
-        ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in metrics["phases"].items()),
-    )
+    log.info("evaluate: %s", evaluation_line(s_eval, metrics))
     summary = {
         "task": task_id,
         "success_rate": metrics["success_rate"],
@@ -143,19 +122,30 @@ def long_horizon_pipeline(
         "artifacts": {"demos": demo_art, "phases": split, "checkpoints": checkpoints},
         "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval},
     }
-    rec = pipeline_record(
-        summary,
-        clock,
-        seed=seed,
-        device=train_cfg.get("device", device),
-        train_cfg=dict(train_cfg),
-        cameras=cameras,
-        task_options=options,
-        recipe=recipe,
+    settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
+    return record_run(summary, clock, out_dir, **settings, cameras=cameras, task_options=options, recipe=recipe)
+
+
+def _train_phases(split: dict, phases: list[str], train_cfg: dict[str, Any], out: str, gpus: int, clock):
+    """One training per learned phase on its split dataset (side by side where the runner allows), each loss curve
+    published; returns the checkpoints by phase and the trainings' states."""
+    log = get_run_logger()
+    arts, s_train = results(
+        train_task.map(
+            dataset=[split[p] for p in phases],
+            train_cfg=unmapped(dict(train_cfg)),
+            out_dir=unmapped(out),
+            name=[f"policy_{p}" for p in phases],
+            gpus=unmapped(gpus),
+        ),
+        "train",
     )
-    summary["record"] = str(write_pipeline_record(rec, out_dir))
-    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
-    return summary
+    checkpoints = dict(zip(phases, arts))
+    clock.lap("train")
+    for art in arts:
+        runlog.publish_loss_curve(art)
+    log.info("train: %s (%s)", "/".join(s_train), ", ".join(phases))
+    return checkpoints, s_train
 
 
 def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | None = None) -> list[str]:
@@ -187,3 +177,12 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
     if ev.get("recording"):
         lines.append(f"  evaluation rrd  {ev['recording']}")
     return lines
+
+
+def evaluation_line(states: list[str], metrics: dict[str, Any]) -> str:
+    """The evaluate stage's log line: its states, the composed success rate and each phase's passed / reached."""
+    phases = ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in metrics["phases"].items())
+    return (
+        f"{'/'.join(states)}; success rate {100 * metrics['success_rate']:.1f}% over {metrics['episodes']} "
+        f"episodes; {phases}"
+    )

@@ -12,7 +12,6 @@ task runner and its one cluster.
 
 from __future__ import annotations
 
-import json
 import socket
 from pathlib import Path
 from typing import Any
@@ -26,7 +25,7 @@ from ..task_api.registry import lookup
 from . import runlog
 from .cluster import cluster_options, pins_gpus, quiet_shutdown
 from .long_horizon import has_phases, long_horizon_pipeline
-from .run_record import StageClock, pipeline_record, write_pipeline_record
+from .run_record import StageClock, record_run
 from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, check_api_reachable
 from .stage_runs import (
     REPORTED_ERRORS,
@@ -187,18 +186,8 @@ def pipeline(
         "artifacts": {"demos": demo_art, "mimic": gen_art, "checkpoint": ckpt_art},
         "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval},
     }
-    rec = pipeline_record(
-        summary,
-        clock,
-        seed=seed,
-        device=(train_cfg or {}).get("device", device),
-        train_cfg=dict(train_cfg or {}),
-        cameras=cameras,
-        task_options=options,
-        recipe=recipe,
-    )
-    summary["record"] = str(write_pipeline_record(rec, out_dir))
-    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    settings = {"seed": seed, "device": (train_cfg or {}).get("device", device), "train_cfg": dict(train_cfg or {})}
+    record_run(summary, clock, out_dir, **settings, cameras=cameras, task_options=options, recipe=recipe)
     runlog.publish_summary(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir)
     return summary
 

@@ -5,6 +5,7 @@ adds its own record: one answered from cache shows stages ``Cached`` and seconds
 from __future__ import annotations
 
 import datetime as dt
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -83,3 +84,11 @@ def write_pipeline_record(record: dict[str, Any], out_dir: Path) -> Path:
     """``<out_dir>/records/<UTC time>.json``."""
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%S%fZ")
     return write_record(record, Path(out_dir) / "records" / f"pipeline-{stamp}.json")
+
+
+def record_run(summary: dict[str, Any], clock: StageClock, out_dir: Path, **settings) -> dict[str, Any]:
+    """``summary`` (a pipeline flow's result) with its run record written into ``<out_dir>/records/``
+    (``pipeline_record``'s ``settings``) and ``summary["record"]`` naming it, and ``<out_dir>/metrics.json``."""
+    summary["record"] = str(write_pipeline_record(pipeline_record(summary, clock, **settings), out_dir))
+    (out_dir / "metrics.json").write_text(json.dumps(summary, indent=1))
+    return summary

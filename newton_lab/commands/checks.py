@@ -89,27 +89,7 @@ def check_args(args: Any) -> None:
     if "task" in names and args.task is not None:  # (an example's optional --task)
         check_task_id(args.task)  # first: it needs no import at all (typo'd ids answer at once)
         check_task_options(args.task, getattr(args, "task_options", None) or {})
-    for name in names & set(COUNT_FIELDS):
-        value = getattr(args, name)
-        if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
-            raise ValueError(f"{flag_of(args, name)} must be an integer >= 1, got {value!r}")
-    if "prefill" in names and (not isinstance(args.prefill, int) or isinstance(args.prefill, bool) or args.prefill < 0):
-        raise ValueError(f"--prefill must be an integer >= 0, got {args.prefill!r}")
-    # the simulation / training device (teleop's own --device names the operator's device; its --sim-device is this)
-    sim = "sim_device" if "sim_device" in names else "device" if "device" in names else None
-    value = getattr(args, sim) if sim else None
-    if value is not None and not DEVICE.fullmatch(str(value)):
-        raise ValueError(f"{flag_of(args, sim)} {value!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
-    if value is not None and str(value).startswith("cuda"):
-        check_cuda_device(flag_of(args, sim), str(value), cuda_devices())
-    if "seed" in names and (
-        not isinstance(args.seed, int) or isinstance(args.seed, bool) or not 0 <= args.seed <= SEED_MAX
-    ):
-        raise ValueError(
-            f"--seed must be an integer in [0, {SEED_MAX}] (Warp's kernels take 32-bit seeds), got {args.seed!r}"
-        )
-    if "retries" in names and (not isinstance(args.retries, int) or isinstance(args.retries, bool) or args.retries < 0):
-        raise ValueError(f"--retries must be an integer >= 0 (0: no retry), got {args.retries!r}")
+    _check_scalars(args, names)
     if "num_envs" in names and args.num_envs is not None:
         check_num_envs(args.num_envs, device=getattr(args, "device", None))
         if "max_steps" in names and args.max_steps is not None and isinstance(args, CollectArgs):
@@ -137,16 +117,7 @@ def check_args(args: Any) -> None:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise ValueError(f"{flag_of(args, name)} must be > 0 [s], got {value!r}")
-    from ..datasets.storage import SUFFIXES  # deferred: the datasets package imports h5py and zarr (~1 s)
-
-    for name in names & set(DATASET_FIELDS):
-        value = getattr(args, name)
-        paths = value if isinstance(value, list) else [value]
-        for path in (p for p in paths if p is not None):
-            if Path(path).suffix.lower() not in SUFFIXES:
-                raise ValueError(
-                    f"{flag_of(args, name)} {path}: unknown dataset suffix; use one of {', '.join(SUFFIXES)}"
-                )
+    _check_dataset_suffixes(args, names)
     if isinstance(args, EvaluateArgs):
         check_checkpoints(args)
         args.perturbation_cells()
@@ -168,6 +139,45 @@ def check_args(args: Any) -> None:
     for cls, check in COMMAND_CHECKS.items():
         if isinstance(args, cls):
             check(args)
+
+
+def _check_scalars(args: Any, names: set[str]) -> None:
+    """Counts >= 1, ``--prefill`` >= 0, the simulation / training device, the seed's range and ``--retries`` >= 0."""
+    for name in names & set(COUNT_FIELDS):
+        value = getattr(args, name)
+        if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < 1):
+            raise ValueError(f"{flag_of(args, name)} must be an integer >= 1, got {value!r}")
+    if "prefill" in names and (not isinstance(args.prefill, int) or isinstance(args.prefill, bool) or args.prefill < 0):
+        raise ValueError(f"--prefill must be an integer >= 0, got {args.prefill!r}")
+    # the simulation / training device (teleop's own --device names the operator's device; its --sim-device is this)
+    sim = "sim_device" if "sim_device" in names else "device" if "device" in names else None
+    value = getattr(args, sim) if sim else None
+    if value is not None and not DEVICE.fullmatch(str(value)):
+        raise ValueError(f"{flag_of(args, sim)} {value!r} is not a device; use cpu, cuda or cuda:N (e.g. cuda:0)")
+    if value is not None and str(value).startswith("cuda"):
+        check_cuda_device(flag_of(args, sim), str(value), cuda_devices())
+    if "seed" in names and (
+        not isinstance(args.seed, int) or isinstance(args.seed, bool) or not 0 <= args.seed <= SEED_MAX
+    ):
+        raise ValueError(
+            f"--seed must be an integer in [0, {SEED_MAX}] (Warp's kernels take 32-bit seeds), got {args.seed!r}"
+        )
+    if "retries" in names and (not isinstance(args.retries, int) or isinstance(args.retries, bool) or args.retries < 0):
+        raise ValueError(f"--retries must be an integer >= 0 (0: no retry), got {args.retries!r}")
+
+
+def _check_dataset_suffixes(args: Any, names: set[str]) -> None:
+    """Every dataset path argument names a known format by its suffix."""
+    from ..datasets.storage import SUFFIXES  # deferred: the datasets package imports h5py and zarr (~1 s)
+
+    for name in names & set(DATASET_FIELDS):
+        value = getattr(args, name)
+        paths = value if isinstance(value, list) else [value]
+        for path in (p for p in paths if p is not None):
+            if Path(path).suffix.lower() not in SUFFIXES:
+                raise ValueError(
+                    f"{flag_of(args, name)} {path}: unknown dataset suffix; use one of {', '.join(SUFFIXES)}"
+                )
 
 
 def check_writable(path: Path) -> None:

@@ -112,7 +112,6 @@ def split_by_phase(
 
     cfg = lookup(task_id).make_cfg(options)
     check_phase_names(path, task_id, [p.name for p in cfg.phases], phases or ())
-    columns = env_args["newton_lab"]["action_joint_names"]
     chosen = [(i, ph) for i, ph in enumerate(cfg.phases) if phases is None or ph.name in phases]
     outs = {ph.name: out_dir / f"{ph.name}{path.suffix}" for _, ph in chosen}
     taken = [str(o) for o in outs.values() if o.exists()]
@@ -123,6 +122,19 @@ def split_by_phase(
     remove_stale_stages(out_dir)
     stage = out_dir.parent / f".{out_dir.name}.{os.getpid()}.partial"  # beside out_dir: renamed into it when done
     stage.mkdir()
+    jobs = _phase_jobs(path, stage, outs, chosen, len(cfg.phases), options, env_args)
+    saved = _write_phases(jobs, workers, stage, out_dir, [o.name for o in outs.values()])
+    refs: dict[str, DatasetRef] = {}
+    for job, ids in zip(jobs, saved):
+        ref = DatasetRef(outs[job.name], task_id=job.task_id, metadata={"saved_demo_ids": ids, "episodes": len(ids)})
+        refs[job.name] = ref.record("split", config={"source": str(path), "phase": job.name, "phase_index": job.index})
+    return refs
+
+
+def _phase_jobs(path: Path, stage: Path, outs: dict, chosen: list, n_phases: int, options: dict, env_args: dict):
+    """One ``_PhaseJob`` per chosen phase: its component task's action columns picked out of the coherent task's,
+    written into the stage folder."""
+    columns = env_args["newton_lab"]["action_joint_names"]
     jobs = []
     for p, ph in chosen:
         comp = lookup(ph.task_id)
@@ -140,12 +152,19 @@ def split_by_phase(
                 stage / outs[ph.name].name,
                 ph.name,
                 p,
-                p == len(cfg.phases) - 1,
+                p == n_phases - 1,
                 ph.task_id,
                 [columns.index(j) for j in joints],
                 args,
             )
         )
+    return jobs
+
+
+def _write_phases(jobs: list, workers: int | None, stage: Path, out_dir: Path, names: list[str]) -> list:
+    """Write the phase datasets into ``stage`` (in processes of their own where more than one), then publish them
+    into ``out_dir``; on Ctrl-C, a full disk or a killed writer nothing reaches ``out_dir``. Returns each job's
+    saved demo ids."""
     workers = min(len(jobs), workers or os.cpu_count() or 1)
     if multiprocessing.current_process().daemon:  # e.g. a Dask worker: a daemonic process may not start children
         workers = 1
@@ -162,7 +181,7 @@ def split_by_phase(
                     raise
         else:
             saved = [_write_phase(job) for job in jobs]
-        _publish(stage, out_dir, [o.name for o in outs.values()])
+        _publish(stage, out_dir, names)
     except KeyboardInterrupt as exc:  # Ctrl-C / SIGTERM
         raise Interrupted(
             f"interrupted: the split into {out_dir} was dropped, nothing written there; run it again",
@@ -183,11 +202,7 @@ def split_by_phase(
         ) from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)  # what a failed or interrupted split wrote: never a partial output
-    refs: dict[str, DatasetRef] = {}
-    for job, ids in zip(jobs, saved):
-        ref = DatasetRef(outs[job.name], task_id=job.task_id, metadata={"saved_demo_ids": ids, "episodes": len(ids)})
-        refs[job.name] = ref.record("split", config={"source": str(path), "phase": job.name, "phase_index": job.index})
-    return refs
+    return saved
 
 
 def _phase_writer(parent: int) -> None:

@@ -97,6 +97,13 @@ class NewtonEnv:
     ) -> None:
         """The action map, the step buffers and task context, the kernels and launches, the cameras, and the named
         parts over them."""
+        binding, actuation, buf, ctx, kernels = self._build_task(layout, scenario, randomize)
+        cams = self._build_sensors(layout, camera_specs, buf, capture, randomize)
+        self._build_sim(layout, binding, actuation, buf, ctx, kernels, cams, default_q, default_target_q, randomize)
+
+    def _build_task(self, layout, scenario, randomize: bool):
+        """The action map and actuation, the observation layout, the step buffers, the task context and kernels:
+        ``self.buffers`` and ``self.task``."""
         cfg, n = self.cfg, self.num_envs
         binding = BoundRobot.from_layout(self.robot, layout, actions=cfg.actions, arm=cfg.arm)
         self.action_joint_names = binding.actions.joint_names
@@ -157,6 +164,11 @@ class NewtonEnv:
             kernels=kernels,
         )
         """The task as the env runs it (``envs.parts.EnvTask``)."""
+        return binding, actuation, buf, ctx, kernels
+
+    def _build_sensors(self, layout, camera_specs, buf, capture: bool, randomize: bool):
+        """The cameras and their image terms: ``self.sensors``."""
+        cfg, n = self.cfg, self.num_envs
         cams = Cameras(
             camera_specs,
             model=self.model,
@@ -175,6 +187,13 @@ class NewtonEnv:
             cameras=cams, camera_specs=camera_specs, image_terms=cams.terms, images=ImageViews(cams)
         )
         """The cameras and their image terms (``envs.parts.EnvSensors``)."""
+        return cams
+
+    def _build_sim(
+        self, layout, binding, actuation, buf, ctx, kernels, cams, default_q, default_target_q, randomize: bool
+    ) -> None:
+        """The step's launches, the physics part and the joints: ``self.sim``, ``self.joints``."""
+        cfg, n = self.cfg, self.num_envs
         launches = StepLaunches(
             cfg=cfg,
             model=self.model,

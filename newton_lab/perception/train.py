@@ -116,20 +116,7 @@ def train_yolo(
         **extra,
     )
     train_s = time.perf_counter() - t0
-    weights = out / "weights"
-    weights.mkdir(exist_ok=True)
-    os.replace(out / "run" / "weights" / "best.pt", weights / "best.pt")
-    metrics = YOLO(str(weights / "best.pt")).val(
-        data=str(out / "heldout.yaml"),
-        split="val",
-        imgsz=imgsz,
-        batch=batch_size,
-        device=device,
-        plots=False,
-        project=str(out.resolve()),
-        name="heldout",
-        exist_ok=True,
-    )
+    weights, metrics = _score_best(out, imgsz, batch_size, device)
     held = found.get("heldout", found["dataset"])
     summary = {
         "heldout": str(held["root"]) if heldout else f"{held['root']} (val split)",
@@ -146,3 +133,24 @@ def train_yolo(
     }
     (out / "metrics.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def _score_best(out: Path, imgsz: int, batch_size: int, device: str):
+    """The run's best weights moved to ``<out>/weights/best.pt`` and scored on the held-out split (heldout.yaml)."""
+    from ultralytics import YOLO  # deferred: an optional package (it needs torchvision)
+
+    weights = out / "weights"
+    weights.mkdir(exist_ok=True)
+    os.replace(out / "run" / "weights" / "best.pt", weights / "best.pt")
+    metrics = YOLO(str(weights / "best.pt")).val(
+        data=str(out / "heldout.yaml"),
+        split="val",
+        imgsz=imgsz,
+        batch=batch_size,
+        device=device,
+        plots=False,
+        project=str(out.resolve()),
+        name="heldout",
+        exist_ok=True,
+    )
+    return weights, metrics

@@ -127,6 +127,11 @@ class SequenceDataset(Dataset):
                 raise ValueError(
                     f"demo {demo} of {file} has obs dims differing from demo {self.demo_ids[0]} of {self.path}"
                 )
+        self._stack(obs_rows, act_rows, frames, obs_index, act_index, meta.get("action_joint_names"))
+
+    def _stack(self, obs_rows, act_rows, frames, obs_index, act_index, action_names) -> None:
+        """The episodes' rows as one tensor per kind (observations, actions, each image key) and the windows'
+        indices into them; refused when the demos disagree on sizes."""
         if not act_rows:
             raise ValueError(f"the selected demos of {self.path} hold no steps")
         try:
@@ -142,7 +147,7 @@ class SequenceDataset(Dataset):
         """(H, W, C) of every image key."""
         self.obs_index = torch.from_numpy(np.concatenate(obs_index))
         self.action_index = torch.from_numpy(np.concatenate(act_index))
-        names = meta.get("action_joint_names") or [f"action_{i}" for i in range(self.action_dim)]
+        names = action_names or [f"action_{i}" for i in range(self.action_dim)]
         if len(names) != self.action_dim:
             raise ValueError(f"{self.path}: {len(names)} action_joint_names but actions have {self.action_dim} columns")
         self.action_joint_names: tuple[str, ...] = tuple(names)

@@ -193,17 +193,7 @@ class PlannerAgent(BaseAgent):
         tcp_prev = poses["tcp"][:, :3].copy()  # start of the next straight-line TCP move
         solved = None  # (point, quat, error) of the last IK solve, whose solution q_seed holds
         i = 0
-        # a settle may end once the arm is there (MotionPlan.settle_tolerance), but not around the gripper opening:
-        # before it (the carried cube still swings) nor in the step that opens it (the fingers are still opening)
-        steps = plan.steps
-        opening = [j > 0 and s.gripper_open and not steps[j - 1].gripper_open for j, s in enumerate(steps)]
-        early = [
-            plan.settle_steps > 0
-            and plan.settle_tolerance > 0
-            and not o
-            and not (j + 1 < len(steps) and opening[j + 1])
-            for j, o in enumerate(opening)
-        ]
+        early = _early_settles(plan)
         for n_step, step in enumerate(plan.steps):
             gripper = self._robot.gripper_open if step.gripper_open else self._robot.gripper_closed
             moves = step.target is not None or step.joints is not None
@@ -249,6 +239,11 @@ class PlannerAgent(BaseAgent):
                 tcp_prev = self._kin.tcp_poses(q_fk)[:, :3]
         self.plan_failures += int(failed.sum())
         self._plan_length[rows] = frame
+        self._upload(env, rows, k, way, start, seg_start, seg_interp, settle_at, frame)
+
+    def _upload(self, env, rows, k: int, way, start, seg_start, seg_interp, settle_at, frame) -> None:
+        """The planned rows' waypoints, segments and settles into the device arrays the action kernel reads, each
+        row's cursor at its first segment."""
         idx = torch.as_tensor(rows, device=env.torch_device)
         t = wp.to_torch
         t(self._waypoints)[idx] = torch.as_tensor(way, dtype=torch.float32, device=env.torch_device)
@@ -324,3 +319,16 @@ class PlannerAgent(BaseAgent):
         """Rows whose plan has played to its last frame."""
         cursor = wp.to_torch(self._cursor).cpu().numpy()
         return torch.as_tensor(cursor >= self._plan_length, device=env.torch_device)
+
+
+def _early_settles(plan) -> list[bool]:
+    """Per step of ``plan``: whether its settle may end early, once the arm is there (``MotionPlan.settle_tolerance``);
+    never around the gripper opening: before it (the carried cube still swings) nor in the step that opens it (the
+    fingers are still opening)."""
+    steps = plan.steps
+    opening = [j > 0 and s.gripper_open and not steps[j - 1].gripper_open for j, s in enumerate(steps)]
+    early = [
+        plan.settle_steps > 0 and plan.settle_tolerance > 0 and not o and not (j + 1 < len(steps) and opening[j + 1])
+        for j, o in enumerate(opening)
+    ]
+    return early
