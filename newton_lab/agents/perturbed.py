@@ -1,9 +1,11 @@
-"""``PerturbedAgent``: any agent, evaluated under the perturbations of ``task_api.perturbations`` (action noise,
-action latency, start-posture noise), and ``perturbation_table``: one evaluation per cell of a ``--perturb`` request.
+"""``PerturbedAgent``: any agent, evaluated under the agent-side perturbations of ``task_api.perturbations``
+(action noise, action latency, start-posture noise), and ``perturbation_table``: one evaluation per cell of a
+``--perturb`` request, the env-side axes (physics, cameras, light) written into the env for the cell's episodes by
+``envs.perturb.perturbed`` and put back after.
 
-The perturbations sit between the agent and the env, so they apply to every agent (an expert, a diffusion policy, a
-PPO actor) and every task without touching either: the agent sees the env as it is, the env gets the perturbed
-actions, and the start posture is moved before the agent first looks at a new episode.
+The agent-side perturbations sit between the agent and the env, so they apply to every agent (an expert, a diffusion
+policy, a PPO actor) and every task without touching either: the agent sees the env as it is, the env gets the
+perturbed actions, and the start posture is moved before the agent first looks at a new episode.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..task_api.perturbations import Cell
+from ..envs.perturb import ENV_KINDS, perturbed
+from ..task_api.perturbations import AXES, Cell
 from .base import BaseAgent
 
 
@@ -85,17 +88,30 @@ class PerturbedAgent(BaseAgent):
         return self.agent.holding()
 
 
+def usable_cells(env, cells: list[Cell]) -> list[Cell]:
+    """``cells`` without the swept camera and light cells when ``env`` renders no cameras (they would change
+    nothing; a cell asked for by name is refused by ``envs.perturb`` instead)."""
+    if env.sensors.camera_specs:
+        return cells
+    blind = [c for c in cells if c.swept and any(AXES[a].acts_on in ("camera", "light") for a in c.values)]
+    if blind:
+        print(f"skipping {len(blind)} camera and light cells: this env renders no cameras", file=sys.stderr)
+    return [c for c in cells if c not in blind]
+
+
 def perturbation_table(
     env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, **rollout: Any
 ) -> list[dict[str, Any]]:
     """One ``env.evaluate`` of ``agent`` per cell (``rollout``: its keywords, e.g. episodes, max_steps), each on the
-    same episodes (the env reseeded with ``seed`` first): a row per cell with its label, the perturbed values and
-    the success."""
+    same episodes (the env perturbed, then reseeded with ``seed``; put back after): a row per cell with its label,
+    the perturbed values and the success."""
     rows = []
-    for cell in cells:
-        env.reseed(seed)
-        wrapped = PerturbedAgent(agent, cell.values, seed=seed) if cell.values else agent
-        s = env.evaluate(agent=wrapped, on_step=on_step, **rollout)
+    for cell in usable_cells(env, cells):
+        with perturbed(env, cell.values, seed=seed):
+            env.reseed(seed)
+            on_agent = {k: v for k, v in cell.values.items() if AXES[k].acts_on not in ENV_KINDS}
+            wrapped = PerturbedAgent(agent, on_agent, seed=seed) if on_agent else agent
+            s = env.evaluate(agent=wrapped, on_step=on_step, **rollout)
         rows.append(
             {
                 "perturbation": cell.label,

@@ -43,7 +43,8 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     without one run their component's expert"""
     perturb: str | None = None
     """evaluate under perturbations: AXIS=LEVEL,... together (LEVEL mild, strong or a number; axes action_noise,
-    action_latency, posture_noise), or sweep: unperturbed, then each axis at each level alone (one row each)"""
+    action_latency, posture_noise, object_mass, friction, camera_shift, camera_tilt, camera_fov, light_intensity,
+    light_direction), or sweep: unperturbed, then each axis at each level alone (one row each)"""
 
     run_record: str | None = None
     """write the run record (JSON) here; with --perturb one is written anyway, by default to

@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import newton
 import numpy as np
 import torch
 
@@ -108,3 +109,28 @@ def image_terms(specs: Mapping[str, CameraCfg]) -> dict[str, ImageTerm]:
                 dtype = {"rgb": torch.uint8, "depth": torch.float32, "segmentation": torch.int32}[data]
                 out[f"{cam}_{data}"] = ImageTerm(f"{cam}_{data}", cam, data, shape, dtype)
     return out
+
+
+BACKGROUND, GROUND = "background", "ground"
+
+
+def segmentation_table(
+    model: newton.Model, entity_names: list[str], robot: RobotBinding
+) -> tuple[tuple[str, ...], np.ndarray]:
+    """(names, shape_to_id): id 0 ``background`` (nothing hit), 1 ``ground``, then the task's objects in slot
+    order, then the robot's link groups (``robot/<group>``, ``RobotBinding.link_groups``); and the id of every
+    shape of the model."""
+    names = [BACKGROUND, GROUND, *entity_names, *robot.link_groups]
+    ids = {n: i for i, n in enumerate(names)}
+    world = model.shape_world.numpy()
+    body = model.shape_body.numpy()
+    table = np.zeros(model.shape_count, dtype=np.int32)
+    for s in range(model.shape_count):
+        label = model.shape_label[s].rsplit("/", 1)[-1]
+        if world[s] < 0:
+            table[s] = ids[GROUND]
+        elif label in entity_names:
+            table[s] = ids[label]
+        elif body[s] >= 0:
+            table[s] = ids[robot.link_group(model.body_label[body[s]].rsplit("/", 1)[-1])]
+    return tuple(names), table

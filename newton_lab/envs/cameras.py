@@ -34,7 +34,7 @@ from newton.sensors import SensorCamera
 from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
 from ..robots.binding import RobotBinding
 from ..task_api.cfg import CameraCfg
-from .camera_specs import ImageTerm, image_terms, resolve_cameras
+from .camera_specs import ImageTerm, image_terms, resolve_cameras, segmentation_table
 from .pictures import picture
 
 __all__ = [
@@ -48,34 +48,13 @@ __all__ = [
     "segmentation_table",
 ]
 
+DEFAULT_LIGHT_DIRECTION = (-0.5773502691896258, 0.5773502691896258, -0.5773502691896258)
+"""Direction the light shines in (world frame, unit; Newton's default for a z-up model): down, from +x and -y."""
 SKY_RGBA = (178, 190, 204, 0)
 """Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
 RENDERED_SHAPES = newton.ShapeFlags.VISIBLE | newton.ShapeFlags.COLLIDE_SHAPES
 """Shapes the cameras see: visual and collision geometry (the G1 MJCF's collision geoms are its body; Newton
 marks them invisible because the MJCF also has visual geoms), not sites."""
-BACKGROUND, GROUND = "background", "ground"
-
-
-def segmentation_table(
-    model: newton.Model, entity_names: list[str], robot: RobotBinding
-) -> tuple[tuple[str, ...], np.ndarray]:
-    """(names, shape_to_id): id 0 ``background`` (nothing hit), 1 ``ground``, then the task's objects in slot
-    order, then the robot's link groups (``robot/<group>``, ``RobotBinding.link_groups``); and the id of every
-    shape of the model."""
-    names = [BACKGROUND, GROUND, *entity_names, *robot.link_groups]
-    ids = {n: i for i, n in enumerate(names)}
-    world = model.shape_world.numpy()
-    body = model.shape_body.numpy()
-    table = np.zeros(model.shape_count, dtype=np.int32)
-    for s in range(model.shape_count):
-        label = model.shape_label[s].rsplit("/", 1)[-1]
-        if world[s] < 0:
-            table[s] = ids[GROUND]
-        elif label in entity_names:
-            table[s] = ids[label]
-        elif body[s] >= 0:
-            table[s] = ids[robot.link_group(model.body_label[body[s]].rsplit("/", 1)[-1])]
-    return tuple(names), table
 
 
 @dataclass
@@ -146,6 +125,23 @@ class Cameras:
         self._groups: list[ViewGroup] = []
         self._names: tuple[str, ...] | None = None
         self._graph = None
+        self.light: tuple[tuple[float, float, float], float] = (DEFAULT_LIGHT_DIRECTION, 1.0)
+        """The scene's one directional light, for every row: (unit direction, world frame; intensity, the radiance
+        of its white light); ``relight`` changes it."""
+
+    def relight(self, direction, intensity: float = 1.0) -> None:
+        """Set the directional light (``light``): ``direction`` a unit vector (world frame), ``intensity`` >= 0.
+        Newton's renderer has one light list for all worlds, so it changes every row's pictures."""
+        self.light = (tuple(float(c) for c in direction), float(intensity))
+        if self.built:  # the light's arrays are new: the captured render must read them
+            with wp.ScopedDevice(self.model.device):
+                self._light()
+                self._graph = self._capture() if self.capture else None
+        self.stale = True
+
+    def _light(self) -> None:
+        (x, y, z), gain = self.light
+        self.sensor.create_default_light(enable_shadows=False, direction=wp.vec3f(x, y, z), color=(gain, gain, gain))
 
     @property
     def segmentation_names(self) -> tuple[str, ...]:
@@ -226,7 +222,7 @@ class Cameras:
         self.sensor = SensorCamera(
             self.model, default_clear_data=clear, default_render_config=config, load_textures=False
         )
-        self.sensor.create_default_light(enable_shadows=False)
+        self._light()
         self._shape_to_id = wp.array(self._shape_ids, dtype=wp.int32)
         self._keep_hue = wp.array([int(n in self.keep_hue) for n in self.segmentation_names], dtype=wp.int32)
         self._base_color = wp.clone(self.model.shape_color)

@@ -1,11 +1,19 @@
-"""The perturbation axes of an evaluation (``newton-lab evaluate --perturb``): what each one changes, in which
-unit, and its two named levels. Task-independent: every axis acts on the robot's joints or on the agent's actions,
-which every task has. Plain data and parsing (no Warp, no torch), so that a bad ``--perturb`` is refused before
-either loads; ``newton_lab.agents.perturbed`` applies them.
+"""The perturbation axes of an evaluation (``newton-lab evaluate --perturb``) and of domain randomisation
+(``newton-lab collect --domain-randomize``): what each one changes, in which unit, and its two named levels.
+Task-independent: every axis acts on what every task has: the agent's actions and the robot's joints (``acts_on``
+``"agent"``, applied by ``newton_lab.agents.perturbed``), the physics of the scene's objects, the cameras and the
+light (``"physics"``, ``"camera"``, ``"light"``, applied to the env by ``newton_lab.envs.perturb``). Plain data and
+parsing (no Warp, no torch), so that a bad ``--perturb`` is refused before either loads.
 
 Grammar of ``--perturb``: ``AXIS=LEVEL[,AXIS=LEVEL...]`` (one evaluation with those perturbations together; LEVEL
 is ``mild``, ``strong`` or a number in the axis's unit), or ``sweep`` (the unperturbed evaluation, then one per
 axis and level, each alone: the table of rows a robustness report shows).
+
+Not here, because the renderer cannot do it: a per-row light (Newton 1.8's ``SensorCamera`` has one light list for
+all worlds: the light axes change every row alike, and domain randomisation keeps to the per-row brightness gain of
+``randomize``), a per-row field of view (one ray bundle per resolution), textures and unseen colours (the cameras
+render untextured shapes, and ``randomize`` already draws every object and table colour), distractor objects (a
+scene's objects are fixed when its model is built).
 """
 
 from __future__ import annotations
@@ -23,6 +31,18 @@ class Axis:
     unit: str
     doc: str
     integer: bool = False
+    acts_on: str = "agent"
+    """What applies it: ``"agent"`` (between the agent and the env), ``"physics"``, ``"camera"`` or ``"light"``
+    (the env, from the evaluation's start)."""
+    scale: bool = False
+    """A multiplier: 1 leaves the evaluation as it is, and a level is a number > 0 (else 0 is the neutral level)."""
+    per_row: bool = True
+    """Domain randomisation can draw it per env row (else one value is every row's)."""
+
+    @property
+    def neutral(self) -> float:
+        """The level that changes nothing."""
+        return 1.0 if self.scale else 0.0
 
 
 AXES: dict[str, Axis] = {
@@ -55,6 +75,77 @@ AXES: dict[str, Axis] = {
             "moves from the task's start posture by a uniform offset in [-level, level]: a robot that does not start "
             "where the demos started.",
         ),
+        Axis(
+            "object_mass",
+            1.5,
+            3.0,
+            "x",
+            "the mass and inertia of every movable object of the scene (the task's dynamic entities) are multiplied "
+            "by the level: a heavier (> 1) or lighter (< 1) object than the demos lifted.",
+            acts_on="physics",
+            scale=True,
+        ),
+        Axis(
+            "friction",
+            0.7,
+            0.4,
+            "x",
+            "the sliding friction coefficient of every shape of each row's world (objects, table, the robot's "
+            "fingers and pads) is multiplied by the level (the ground's is kept). MuJoCo takes the larger of two "
+            "touching shapes' coefficients, so scaling the objects' alone would leave the pads' (1.5) in charge.",
+            acts_on="physics",
+            scale=True,
+        ),
+        Axis(
+            "camera_shift",
+            2.0,
+            5.0,
+            "cm",
+            "every camera moves this far from its mount pose, in a direction drawn per camera and row (seeded), "
+            "and stays there for the evaluation: a camera knocked out of calibration. Reset randomisation already "
+            "jitters each view by <= 1 cm.",
+            acts_on="camera",
+        ),
+        Axis(
+            "camera_tilt",
+            2.0,
+            5.0,
+            "deg",
+            "every camera turns by this angle about an axis drawn per camera and row (seeded), kept for the "
+            "evaluation. Reset randomisation already jitters each view by <= 1 deg.",
+            acts_on="camera",
+        ),
+        Axis(
+            "camera_fov",
+            3.0,
+            8.0,
+            "deg",
+            "every camera's horizontal field of view widens by this angle (the G1's is 47.2 deg; the vertical one "
+            "follows, square pixels): another lens. ``cameras.intrinsics`` still reports the calibrated matrix.",
+            acts_on="camera",
+            per_row=False,
+        ),
+        Axis(
+            "light_intensity",
+            0.6,
+            0.3,
+            "x",
+            "the radiance of the scene's directional light is multiplied by the level (the ambient light is kept): "
+            "a dimmer (< 1) or brighter (> 1) room.",
+            acts_on="light",
+            scale=True,
+            per_row=False,
+        ),
+        Axis(
+            "light_direction",
+            45.0,
+            120.0,
+            "deg",
+            "the directional light turns by this angle about the vertical (its elevation kept): shading and "
+            "highlights from another side.",
+            acts_on="light",
+            per_row=False,
+        ),
     )
 }
 """Every axis, by name. Levels: ``mild`` is within what a real cell would see on a good day, ``strong`` beyond."""
@@ -68,6 +159,8 @@ class Cell:
 
     label: str
     values: dict[str, float]
+    swept: bool = False
+    """Part of a ``sweep`` (an evaluation that cannot apply it, e.g. a camera axis without cameras, skips it)."""
 
 
 def _value(axis: Axis, level: str, item: str) -> float:
@@ -77,6 +170,8 @@ def _value(axis: Axis, level: str, item: str) -> float:
         value = float(level)
     except ValueError:
         raise ValueError(f"--perturb {item!r}: level {level!r} is not mild, strong or a number [{axis.unit}]") from None
+    if axis.scale and not (0 < value < float("inf")):
+        raise ValueError(f"--perturb {item!r}: {axis.name} is a factor, a finite number > 0 (1 changes nothing)")
     if not value >= 0 or value != value or value == float("inf"):
         raise ValueError(f"--perturb {item!r}: a level is a finite number >= 0 [{axis.unit}]")
     if axis.integer and value != int(value):
@@ -90,7 +185,7 @@ def parse_cells(text: str) -> list[Cell]:
     text = text.strip()
     if text == "sweep":
         return [Cell("none", {})] + [
-            Cell(f"{name}={level}", {name: float(getattr(axis, level))})
+            Cell(f"{name}={level}", {name: float(getattr(axis, level))}, swept=True)
             for name, axis in AXES.items()
             for level in LEVELS
         ]
