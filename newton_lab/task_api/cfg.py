@@ -200,6 +200,13 @@ class PhaseCfg:
     """Joint groups whose action columns this phase commands; the others hold. ``None``: all."""
     fixed_base: bool = False
     """Zero base twist during this phase, whatever the wheel columns say."""
+    kind: str | None = None
+    """What the phase does when several phases do the same to different objects (SortToShelf-All's ``pick_1`` ..
+    ``pick_4`` are ``pick``); ``None``: its name."""
+    target_option: str | None = None
+    """The component option whose value differs per row (SortToShelf-All's ``sorting_object``): the coherent
+    task's observation term of that name holds each row's value one-hot over the option's choices, and the
+    phase's expert is the component's expert for each value, switched per row. ``None``: the task's options."""
 
 
 @dataclass(kw_only=True)

@@ -21,9 +21,25 @@ from .physics import merged as merged_physics
 from .registry import lookup
 
 
-def phase(name: str, task_id: str, *, terms: tuple[str, ...], fixed_base: bool = False) -> PhaseCfg:
-    """A phase running component ``task_id`` that commands the joint groups ``terms`` (e.g. ``("base",)``)."""
-    return PhaseCfg(name=name, task_id=task_id, action_groups=tuple(terms), fixed_base=fixed_base)
+def phase(
+    name: str,
+    task_id: str,
+    *,
+    terms: tuple[str, ...],
+    fixed_base: bool = False,
+    kind: str | None = None,
+    target_option: str | None = None,
+) -> PhaseCfg:
+    """A phase running component ``task_id`` that commands the joint groups ``terms`` (e.g. ``("base",)``);
+    ``kind`` and ``target_option`` as ``PhaseCfg`` has them."""
+    return PhaseCfg(
+        name=name,
+        task_id=task_id,
+        action_groups=tuple(terms),
+        fixed_base=fixed_base,
+        kind=kind,
+        target_option=target_option,
+    )
 
 
 def task_sequence(*phases: PhaseCfg) -> tuple[PhaseCfg, ...]:

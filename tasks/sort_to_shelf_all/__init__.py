@@ -1,0 +1,48 @@
+"""SortToShelf-All: sort all four SortToShelf objects into their shelf cells in one episode (coherent task), and the
+Return component it needs between objects.
+
+Each episode draws the order at reset (``mdp.events.draw_sort_order``, over the objects also shuffled on the table);
+per object the phases are pick, nav, place and, but after the last, return: 15 phases, ``pick_1`` .. ``place_4``
+(``order.phase_layout``). The pick, nav and place phases run SortToShelf's components for the row's target object;
+return drives back to the table, where every pick starts.
+
+How a phase policy knows its object: one policy per phase, conditioned on a one-hot of the target object in the
+observation (``sorting_object``, 4 columns; not privileged, so ``obs_mode="sensors"`` keeps it, while every object
+pose is dropped). The task-flow agent switches the experts per row on the same one-hot. Why not per-object policies:
+a pick policy for one object would see only its own episodes (a quarter of the demos), four times the trainings, and
+a policy composed per object would need the same per-row switch anyway; the objects differ mostly in their table
+slot and cell, which the one-hot and the camera carry.
+"""
+
+from newton_lab.tasks.sort_to_shelf.objects import DEFAULT_OBJECT, OBJECTS
+
+from newton_lab.task_api.registry import TaskOption, TaskSpec, register
+
+from .config.g1.env_cfg import TARGET_OPTION, all_cfg, return_cfg
+from .config.g1.experts import return_expert
+
+register(
+    TaskSpec(
+        id="GalbotG1-SortToShelf-Return-v0",
+        cfg=return_cfg,
+        expert=return_expert,
+        options=(
+            TaskOption(
+                name=TARGET_OPTION,
+                choices=tuple(OBJECTS),
+                default=DEFAULT_OBJECT,
+                doc="SortToShelf-Return: start from the place start of this object",
+            ),
+            TaskOption(name="init_scenario", doc="start from this scenario YAML (default: the object's place start)"),
+        ),
+        description="Back from the shelf to the table: legs down, arm to ready, drive to the pick position.",
+    )
+)
+register(
+    TaskSpec(
+        id="GalbotG1-SortToShelf-All-v0",
+        cfg=all_cfg,
+        description="Sort all four objects into their cells in a per-episode order: 15 phases (coherent task).",
+        teleop="mobile_full_body",
+    )
+)

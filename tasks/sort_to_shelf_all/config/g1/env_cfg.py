@@ -1,0 +1,133 @@
+"""SortToShelf-All configurations: the Return component (back from the shelf to the table) and the coherent task
+that sorts all four objects in one episode, in a per-episode order.
+
+The coherent task is built here rather than by ``coherent_task``: its phases' predicates are SortToShelf's
+per-object ones switched per row on the object the phase acts on (``mdp.terminations.for_target``), which one
+component per phase (with one fixed ``sorting_object``) cannot express. Its phases still name SortToShelf's
+components, so the split labels every segment with the component it ran, and the experts are theirs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from newton_lab.tasks.common import navigation as nav, observations as obs
+from newton_lab.tasks.common.config.g1 import cameras, postures
+from newton_lab.tasks.common.config.g1.setup import base_actions, carried_gripper_closed, shelf_posture
+from newton_lab.tasks.sort_to_shelf import scene
+from newton_lab.tasks.sort_to_shelf.config.g1.env_cfg import PHYSICS
+from newton_lab.tasks.sort_to_shelf.mdp import terminations as one
+from newton_lab.tasks.sort_to_shelf.mdp.events import permute_objects
+from newton_lab.tasks.sort_to_shelf.objects import OBJECTS, sorting_object as lookup_object
+
+from newton_lab.robots.g1 import spec
+from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.compose import phase
+
+from ...mdp import events, observations as all_obs, terminations as terms
+from ...order import KINDS, OBJECT_COUNT, PICK, phase_layout
+
+SORT_SCENARIOS = Path(scene.__file__).parent / "config" / "g1" / "scenarios"
+TABLE_XY = scene.ROBOT_ROOT[:2]
+"""Where the robot picks from: its reset position at the table [m]."""
+TABLE_LEGS = (0.0,) * len(spec.LEG_JOINTS)
+"""Legs down at the table [rad]."""
+COMPONENTS = {
+    "pick": ("GalbotG1-SortToShelf-Pick-v0", ("left_arm", "left_gripper")),
+    "nav": ("GalbotG1-SortToShelf-Nav-v0", ("base", "legs", "left_arm")),
+    "place": ("GalbotG1-SortToShelf-Place-v0", ("left_arm", "left_gripper")),
+    "return": ("GalbotG1-SortToShelf-Return-v0", ("base", "legs", "left_arm")),
+}
+"""Phase kind -> (component task, the joint groups it commands)."""
+TARGET_OPTION = "sorting_object"
+"""The component option that differs per row: the phase's target object (its one-hot observation has this name)."""
+
+
+def _mobile_actions(*, clip: bool) -> list[ActionTermCfg]:
+    return base_actions(clip=clip) + [
+        ActionTermCfg(name="leg_action", group="legs", type="absolute"),
+        ActionTermCfg(name="arm_action", group="left_arm", type="absolute"),
+    ]
+
+
+def _common(**fields) -> TaskCfg:
+    base = dict(
+        entities=scene.SCENE.entities,
+        terminations={"object_dropped": TerminationTermCfg(func=terms.any_dropped())},
+        posture=shelf_posture(),
+        root_pos=scene.ROBOT_ROOT,
+        arm_home=postures.CARRY_LEFT_ARM,
+        physics=PHYSICS,
+        cameras=cameras.front_head_rgb_depth_segmentation(),
+    )
+    base.update(fields)
+    return TaskCfg(**base)
+
+
+def return_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
+    """Back from the shelf to the table: legs down, arm at ready, base at its reset position facing the table
+    (success: all of it held 20 steps). Alone it starts from SortToShelf's place start of ``sorting_object`` (the
+    object still in hand); inside SortToShelf-All, wherever the place left the robot."""
+    obj = lookup_object(sorting_object)
+    return _common(
+        actions=_mobile_actions(clip=True),
+        observations=nav.nav_observations(TABLE_XY),
+        phase_success=[terms.at_table(TABLE_XY, postures.CARRY_LEFT_ARM, TABLE_LEGS)],
+        scenario=init_scenario or str(SORT_SCENARIOS / f"place_{obj.name}.yaml"),
+        initial_targets=carried_gripper_closed(),
+        fixed_base=False,
+        options={TARGET_OPTION: obj.name},
+    )
+
+
+def _phase_success(kind: str):
+    if kind == "return":
+        return terms.at_table(TABLE_XY, postures.CARRY_LEFT_ARM, TABLE_LEGS)
+    return {"pick": terms.picked, "nav": terms.at_place_start, "place": terms.placed}[kind]()
+
+
+def all_cfg() -> TaskCfg:
+    """Pick -> nav -> place -> return for each object of the row's order, the last without return (15 phases);
+    every object on the table is shuffled over the slots and the order drawn at reset."""
+    layout = phase_layout()
+    phases = [
+        phase(
+            name,
+            COMPONENTS[kind][0],
+            terms=COMPONENTS[kind][1],
+            fixed_base=kind == "pick",
+            kind=kind,
+            target_option=TARGET_OPTION if kind != "return" else None,
+        )
+        for name, kind in layout
+    ]
+    signals = {
+        "grasped_object": TermCfg(func=terms.grasped_target()),
+        "released_in_cell": TermCfg(func=terms.released_target()),
+    }
+    signals.update({f"sorted_{o.name}": TermCfg(func=one.released_in_cell(o)) for o in OBJECTS.values()})
+    return _common(
+        actions=_mobile_actions(clip=False)
+        + [ActionTermCfg(name="gripper_action", group="left_gripper", type="binary")],
+        observations=obs.manipulation_observations(
+            object_pose=all_obs.TARGET_POSE, **{TARGET_OPTION: all_obs.TARGET_ONE_HOT}
+        ),
+        phase_success=[_phase_success(kind) for _, kind in layout],
+        phases=phases,
+        terminations={
+            "object_dropped": TerminationTermCfg(func=terms.any_dropped()),
+            "object_tipped": TerminationTermCfg(func=terms.target_tipped(PICK)),
+        },
+        signals=signals,
+        events={
+            "permute_objects": TermCfg(func=permute_objects, params={"objects": tuple(OBJECTS)}),
+            "draw_sort_order": TermCfg(func=events.draw_sort_order),
+        },
+        command_dim=OBJECT_COUNT,
+        fixed_base=False,
+        terminate_on_success=True,
+    )
+
+
+if tuple(COMPONENTS) != KINDS:
+    raise ValueError(f"COMPONENTS {tuple(COMPONENTS)} must name one component per phase kind {KINDS}")

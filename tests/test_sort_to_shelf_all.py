@@ -1,0 +1,132 @@
+"""SortToShelf-All: four objects, fifteen phases, one episode (real physics on CPU Warp, 1-2 worlds).
+
+The layout and the per-episode order, the target one-hot that conditions a phase policy (and survives
+``obs_mode="sensors"``), the expert sorting all four objects, the split into phase datasets, and a composed
+evaluation with stand-in phase policies."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from newton_lab.envs import make_env
+from newton_lab.task_api.registry import lookup
+
+TASK = "GalbotG1-SortToShelf-All-v0"
+OBJECTS = ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")
+PHASES = [f"{k}_{i}" for i in range(1, 5) for k in ("pick", "nav", "place", "return")][:-1]
+
+
+@pytest.fixture(scope="module")
+def env():
+    return make_env(TASK, num_envs=2, device="cpu", seed=3, randomize=True, cameras=False)
+
+
+@pytest.fixture(scope="module")
+def expert_run(env, tmp_path_factory):
+    """One expert episode per row, recorded (the split's source)."""
+    from newton_lab.agents import expert_agent
+
+    path = tmp_path_factory.mktemp("sort_all") / "demos.hdf5"
+    ref = env.collect(agent=expert_agent(env), episodes=2, path=path, max_steps=3000, progress=False)
+    return SimpleNamespace(ref=ref)
+
+
+def _order(env, row: int) -> list[int]:
+    return [int(v) for v in env.info["command"][row].tolist()]
+
+
+def test_layout_options_and_sensor_observation():
+    cfg = lookup(TASK).make_cfg({})
+    assert cfg.phase_names == PHASES
+    assert [p.kind for p in cfg.phases] == [name.split("_")[0] for name in PHASES]
+    by_kind = {p.kind: p.task_id for p in cfg.phases}
+    assert by_kind == {
+        "pick": "GalbotG1-SortToShelf-Pick-v0",
+        "nav": "GalbotG1-SortToShelf-Nav-v0",
+        "place": "GalbotG1-SortToShelf-Place-v0",
+        "return": "GalbotG1-SortToShelf-Return-v0",
+    }
+    assert {p.target_option for p in cfg.phases if p.kind != "return"} == {"sorting_object"}
+    assert [p.fixed_base for p in cfg.phases] == [p.kind == "pick" for p in cfg.phases]
+    assert [t.name for t in cfg.actions] == ["base_action", "leg_action", "arm_action", "gripper_action"]
+    sensors = lookup(TASK).make_cfg({"obs_mode": "sensors"})
+    assert "sorting_object" in sensors.observations, "the target one-hot is the instruction, not a pose"
+    assert not any(t.privileged for t in sensors.observations.values())
+    assert "object_pose" in cfg.observations and "object_pose" not in sensors.observations
+    with pytest.raises(ValueError, match=r"unknown task option\(s\) \['sorting_object'\]"):
+        lookup(TASK).make_cfg({"sorting_object": "red_cube"})
+
+
+def test_order_is_a_permutation_drawn_per_episode(env):
+    orders = set()
+    for _ in range(3):
+        env.reset()
+        for row in range(env.num_envs):
+            order = _order(env, row)
+            assert sorted(order) == [0, 1, 2, 3]
+            orders.add(tuple(order))
+    assert len(orders) >= 3, f"the order is drawn per row and episode; saw only {orders}"
+    fixed = make_env(TASK, num_envs=1, device="cpu", cameras=False)
+    fixed.reset()
+    assert _order(fixed, 0) == [0, 1, 2, 3], "without randomisation the objects are sorted in OBJECTS order"
+
+
+def test_target_one_hot_follows_the_phase(env):
+    env.reset()
+    hot = env.task.obs_terms["sorting_object"]
+    order = _order(env, 0)
+    assert int(env.obs[0, hot].argmax()) == order[0] and float(env.obs[0, hot].sum()) == 1.0
+    for phase, position in ((4, 1), (11, 2), (14, 3)):  # pick_2, return_3 (still the third object), place_4
+        env.info["phase"][0] = phase
+        env.step(env.current_action())
+        assert int(env.info["phase"][0]) == phase
+        assert int(env.obs[0, hot].argmax()) == order[position], f"phase {PHASES[phase]}"
+
+
+def test_expert_sorts_all_four_objects_in_the_drawn_order(expert_run):
+    from newton_lab.tasks.sort_to_shelf.objects import OBJECTS as SPEC
+
+    from newton_lab.datasets import list_demos, read_dataset_info, read_episode
+
+    ref = expert_run.ref
+    assert ref["episodes"] == 2 and ref["success_rate"] == 1.0, ref.metadata
+    info, orders = read_dataset_info(ref.path), []
+    for demo in list_demos(ref.path):
+        assert info["demos"][demo]["success"]
+        ep = read_episode(ref.path, demo)
+        phase = ep["datagen"]["phase"].reshape(-1)
+        assert np.array_equal(np.unique(phase), np.arange(len(PHASES)))
+        assert np.all(np.diff(phase) >= 0), "phases advance in order, none skipped"
+        hot = ep["obs"]["sorting_object"]
+        order = [OBJECTS[int(hot[np.argmax(phase == 4 * k)].argmax())] for k in range(4)]  # at each pick's start
+        assert sorted(order) == sorted(OBJECTS)
+        signals = ep["datagen"]["subtask_signals"]
+        first_sorted = {name: int(np.argmax(signals[f"sorted_{name}"] > 0.5)) for name in OBJECTS}
+        assert all(signals[f"sorted_{name}"].any() for name in OBJECTS)
+        assert sorted(OBJECTS, key=first_sorted.get) == order, "each object lands in its cell in the drawn order"
+        for name in OBJECTS:
+            xy = ep["datagen"]["object_poses"][name][-1, :2]
+            assert np.linalg.norm(xy - np.asarray(SPEC[name].target[:2])) < 0.10, f"{name} ends in its cell"
+        orders.append(order)
+    assert orders[0] != orders[1], "the two rows sort in different orders (seed 3)"
+
+
+def test_split_writes_one_dataset_per_phase(expert_run, tmp_path):
+    from newton_lab.datasets import list_demos, read_dataset_info, read_episode
+    from newton_lab.datasets.split import split_by_phase
+
+    parts = split_by_phase(expert_run.ref.path, tmp_path / "phases", workers=1)
+    assert list(parts) == PHASES
+    for name, ref in parts.items():
+        info = read_dataset_info(ref.path)
+        kind = name.split("_")[0]
+        assert info["task_id"] == f"GalbotG1-SortToShelf-{kind.capitalize()}-v0"
+        demos = list_demos(ref.path)
+        assert len(demos) == 2 and all(info["demos"][d]["success"] for d in demos), name
+    pick, ret = read_episode(parts["pick_2"].path, 0), read_episode(parts["return_1"].path, 0)
+    assert pick["actions"].shape[1] == 8 and ret["actions"].shape[1] == 16  # arm + gripper; wheels, legs, arm
+    assert pick["obs"]["sorting_object"].shape[1] == 4
+    assert np.all(pick["obs"]["sorting_object"].sum(axis=1) == 1.0)
