@@ -128,6 +128,22 @@ def test_a_short_run_raises_the_reward_of_a_step(tmp_path):
     assert len(rewards) == 3 and rewards[-1] > rewards[0], rewards
 
 
+def test_episode_length_s_sets_the_time_limit_of_the_training_episodes(tmp_path):
+    """Reach's own limit (12 s, 240 steps) ends no episode in 16 steps a row; a 0.5 s limit (10 steps) ends one on
+    every row, as time-outs (the curve counts them); a limit <= 0 is refused by make_env in one line."""
+    from newton_lab.envs import make_env  # deferred: Warp
+    from newton_lab.policies.rl.train import PPOConfig, train_ppo  # deferred: rsl_rl, Warp
+
+    ended = {}
+    for name, limit in (("task", None), ("short", 0.5)):
+        cfg = PPOConfig(iterations=2, episode_length_s=limit, **{**TINY_PPO, "chunk_iterations": 2})
+        train_ppo(TASK, cfg, tmp_path / name, progress=False)
+        ended[name] = sum(r["episodes"] for r in _curve(tmp_path / name))
+    assert ended == {"task": 0, "short": TINY_PPO["num_envs"]}, ended
+    with pytest.raises(ValueError, match="episode_length_s must be > 0"):
+        make_env(TASK, episode_length_s=0.0)
+
+
 def test_evaluate_runs_the_ppo_actor_and_refuses_another_task(run):
     tmp, out = run
     done = cli(

@@ -113,7 +113,7 @@ def check_args(args: Any) -> None:
             },
             "--camera",
         )
-    for name in names & {"checkpoint_every_s", "time_budget_s"}:
+    for name in names & {"checkpoint_every_s", "time_budget_s", "episode_length_s"}:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise ValueError(f"{flag_of(args, name)} must be > 0 [s], got {value!r}")

@@ -36,6 +36,9 @@ class TrainRLArgs:
     end_on_success: bool = False
     """end training episodes at the task's success (default: they run to the time limit, so that PPO is not taught
     to hover outside the success region; see PPOConfig.end_on_success)"""
+    episode_length_s: float | None = None
+    """time limit of the training episodes [s] (default: the task's; PickCube's 3600 s is too long for PPO: a row
+    whose cube went out of reach would keep it there)"""
     output_dir: str = "outputs/ppo"
     """folder of checkpoint.pt, curve.json, resume.pt and the tensorboard log"""
     resume: bool = False
@@ -62,4 +65,5 @@ class TrainRLArgs:
             **({"hidden_dims": tuple(self.hidden_dims)} if self.hidden_dims else {}),
             learning_rate=self.learning_rate,
             end_on_success=self.end_on_success,
+            episode_length_s=self.episode_length_s,
         )

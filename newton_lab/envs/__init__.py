@@ -24,6 +24,7 @@ def make_env(
     cameras: bool | dict[str, Any] | str | None = None,
     physics: PhysicsCfg | None = None,
     terminate_on_success: bool | None = None,
+    episode_length_s: float | None = None,
     **options: Any,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
@@ -40,6 +41,8 @@ def make_env(
     ``PhysicsCfg()`` for the settings every task ran with before choosing its own (``tools/physics_table.py``).
     ``terminate_on_success``: whether the last phase's success ends the episode (``None``: the task's choice,
     ``TaskCfg.terminate_on_success``); reinforcement learning trains with ``False`` (``policies.rl.train``).
+    ``episode_length_s``: the episodes' time limit [s] (``None``: the task's, ``TaskCfg.episode_length_s``); a
+    time-out truncates the episode.
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
@@ -52,6 +55,10 @@ def make_env(
         cfg = dataclasses.replace(cfg, physics=physics)
     if terminate_on_success is not None:
         cfg = dataclasses.replace(cfg, terminate_on_success=bool(terminate_on_success))
+    if episode_length_s is not None:
+        if not episode_length_s > 0:
+            raise ValueError(f"episode_length_s must be > 0 [s], got {episode_length_s!r}")
+        cfg = dataclasses.replace(cfg, episode_length_s=float(episode_length_s))
     prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
     return NewtonEnv(
         cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture, cameras=cameras

@@ -67,6 +67,11 @@ class PPOConfig:
     that income away, and PPO learns to hover just outside the success region (CPU Reach, 128 envs, 60
     iterations: 3 of 16 held-out episodes with it on). Training episodes run to their time limit and count a
     success when it happened at any step; evaluation ends episodes at success as the task says."""
+    episode_length_s: float | None = None
+    """training episodes' time limit [s] (``None``: the task's). PickCube's is 3600 s, as on the reference
+    platform; with it a row whose cube was pushed out of reach stays there for the rest of the run (on an H200,
+    iterations 175-300 of a 4096-row PickCube run ended 68-86 episodes per 25 iterations, all by a dropped cube),
+    so PPO on it needs a limit of a few times the expert's episode (about 4 s)"""
     scales: ActionScales = field(default_factory=ActionScales)
 
     def runner_cfg(self) -> dict[str, Any]:
@@ -123,6 +128,7 @@ def train_ppo(
         task_options=cfg.task_options,
         cameras=False,
         terminate_on_success=cfg.end_on_success,
+        episode_length_s=cfg.episode_length_s,
     )
     saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
     vec = RslRlVecEnv(env, cfg.scales)
