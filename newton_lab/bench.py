@@ -42,13 +42,18 @@ def bench(
     camera: str | None = None,
     resolution: tuple[int, int] = (128, 128),
     camera_data: tuple[str, ...] = ("rgb",),
+    cameras: dict[str, Any] | None = None,
     physics: PhysicsCfg | None = None,
 ) -> dict[str, Any]:
     """Env-steps/s, bare world-steps/s and their per-step time ratio (env step / decimation solver steps).
     ``physics`` replaces the task's physics settings (``make_env``; ``tools/physics_table.py`` compares them).
     With ``camera``: also env-steps/s with that camera rendered every step (``resolution`` (w, h) [px],
-    ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it (``_ceiling``)."""
-    cams = False if camera is None else {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
+    ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it; ``cameras``
+    (``make_env``'s dict, e.g. ``{"front_head": {"resolution": (96, 72)}, "left_wrist": ...}``) instead: several
+    views rendered every step, the ceiling rendering each of them bare."""
+    if camera is not None:
+        cameras = {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
+    cams = cameras or False
     env = make_env(task_id, num_envs=num_envs, device=device, seed=0, cameras=cams, physics=physics)
     step_graph = env.sim.step_graph
     if step_graph is None:
@@ -75,34 +80,29 @@ def bench(
         "bare_world_steps_per_s": num_envs * dec / t_bare,
         "ratio_env_step_to_bare": t_env / t_bare,
     }
-    if camera is not None:
-        out.update(_camera_figures(env, camera, steps))
+    if cams:
+        out.update(_camera_figures(env, list(env.sensors.camera_specs), steps))
     return out
 
 
-def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
+def _camera_figures(env, names: list[str], steps: int) -> dict[str, Any]:
     """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
     reading ``env.sensors.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of
-    one view per world at the same poses and resolution (BVH refit + render, captured)."""
+    each view per world at the same poses and resolution (one BVH refit, then one render per view; captured)."""
     env.render()  # builds and captures the render graph
     cams = env.sensors.cameras
     render_graph = cams.render_graph
     if render_graph is None:
         raise RuntimeError(f"camera render capture is unavailable on {env.device}")
-    spec = cams.specs[camera]
     with wp.ScopedDevice(env.device):
         sensor = SensorCamera(env.model)
         sensor.create_default_light(enable_shadows=False)
-        rays = next(g.rays for g in cams.view_groups if camera in g.cameras)  # the env's pinhole rays
-        n = env.num_envs
-        color = sensor.allocate_image_color(n, spec.width, spec.height) if "rgb" in spec.data else None
-        depth = sensor.allocate_image_depth(n, spec.width, spec.height) if "depth" in spec.data else None
-        seg = sensor.allocate_image_shape_index(n, spec.width, spec.height) if "segmentation" in spec.data else None
-        poses = wp.from_torch(cams.poses(camera).contiguous(), dtype=wp.transformf)
+        views = [_bare_view(sensor, cams, name, env.num_envs) for name in names]
 
         def bare_render():
             env.model.bvh_refit_shapes(env.state)
-            sensor.update(env.state, poses, rays, color_image=color, depth_image=depth, shape_index_image=seg)
+            for poses, rays, images in views:
+                sensor.update(env.state, poses, rays, **images)
 
         bare_render()  # compiles before the capture
         with wp.ScopedCapture(device=env.device) as cap:
@@ -122,15 +122,30 @@ def _camera_figures(env, camera: str, steps: int) -> dict[str, Any]:
     if env.device.is_cuda:
         free, total = torch.cuda.mem_get_info(env.device.ordinal)
         mem = (total - free) / 2**20 / env.num_envs
+    first = cams.specs[names[0]]
     return {
-        "camera": camera,
-        "resolution": [spec.width, spec.height],
-        "camera_data": list(spec.data),
+        "camera": "+".join(names),
+        "resolution": [first.width, first.height],
+        "camera_data": list(first.data),
+        "cameras": {n: [cams.specs[n].width, cams.specs[n].height, list(cams.specs[n].data)] for n in names},
         "env_steps_per_s_with_camera": env.num_envs / t_cam,
         "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
         "ratio_camera_env_to_ceiling": t_ceiling / t_cam,
         "gpu_mem_used_mib_per_env": mem,
     }
+
+
+def _bare_view(sensor, cams, name: str, num_envs: int):
+    """View ``name``'s camera poses, the env's own pinhole rays for it, and bare output images of its size and data."""
+    spec = cams.specs[name]
+    rays = next(g.rays for g in cams.view_groups if name in g.cameras)
+    w, h, data = spec.width, spec.height, spec.data
+    images = {
+        "color_image": sensor.allocate_image_color(num_envs, w, h) if "rgb" in data else None,
+        "depth_image": sensor.allocate_image_depth(num_envs, w, h) if "depth" in data else None,
+        "shape_index_image": sensor.allocate_image_shape_index(num_envs, w, h) if "segmentation" in data else None,
+    }
+    return wp.from_torch(cams.poses(name).contiguous(), dtype=wp.transformf), rays, images
 
 
 def bench_train(

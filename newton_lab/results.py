@@ -141,9 +141,12 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
     for path, rec in _of_kind(records, "bench"):
         r = rec["results"]
-        cam = r.get("camera")
-        width, height = r.get("resolution") or ("?", "?")
-        camera = f"{cam} {width}x{height} {'+'.join(r.get('camera_data') or ['rgb'])}" if cam else "none"
+        views = r.get("cameras") or (
+            {r["camera"]: [*(r.get("resolution") or ("?", "?")), r.get("camera_data") or ["rgb"]]}
+            if r.get("camera")
+            else {}
+        )
+        camera = ", ".join(f"{name} {w}x{h} {'+'.join(data)}" for name, (w, h, data) in views.items()) or "none"
         rows.append(
             [
                 _short(rec["task"]),
@@ -155,7 +158,7 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
                 _link(path, page_dir),
             ]
         )
-        if cam:
+        if views:
             rows.append(
                 [
                     _short(rec["task"]),

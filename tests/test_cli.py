@@ -132,6 +132,18 @@ def test_bench_prints_side_by_side_figures(capsys):
 
 
 @pytest.mark.slow
+def test_bench_times_several_cameras_against_their_bare_renders(capsys):
+    argv = ["bench", "--task", "GalbotG1-PickCube-v0", "--num-envs", "1", "--steps", "5", "--device", "cpu"]
+    assert main([*argv, "--cameras", "front_head=32x24:rgb,left_wrist=24x16:rgb+depth"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["cameras"] == {"front_head": [32, 24, ["rgb"]], "left_wrist": [24, 16, ["rgb", "depth"]]}
+    assert out["camera"] == "front_head+left_wrist" and out["ceiling_env_steps_per_s"] > 0
+    assert out["env_steps_per_s_with_camera"] > 0 and out["ratio_camera_env_to_ceiling"] > 0
+    assert main([*argv, "--cameras", "front_head=32x24:rgb", "--camera", "front_head"]) == 2
+    assert "--camera and --cameras both given" in capsys.readouterr().err
+
+
+@pytest.mark.slow
 def test_bench_collect_splits_the_time(capsys, tmp_path):
     path = tmp_path / "b.hdf5"
     assert (

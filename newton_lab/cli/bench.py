@@ -21,15 +21,16 @@ def write_run_record(kind: str, args, task: str | None, device: str | None, resu
 def bench(args: BenchArgs) -> int:
     from ..bench import bench as measure  # deferred: Warp/Newton are slow to import
 
-    cam = (
-        {}
-        if args.camera is None
-        else {
+    if args.cameras is not None:
+        cam = {"cameras": camera_option(args.cameras)}
+    elif args.camera is not None:
+        cam = {
             "camera": args.camera,
             "resolution": tuple(args.resolution or (128, 128)),
             "camera_data": tuple(args.camera_data or ("rgb",)),
         }
-    )
+    else:
+        cam = {}
     out = measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)
     write_run_record("bench", args, args.task, args.device, out)
     print(json.dumps(out))

@@ -41,6 +41,9 @@ class BenchArgs(BenchEnvArgs):
     """camera image width and height [px] (default 128 128)"""
     camera_data: list[str] | None = None
     """camera outputs: rgb, depth, segmentation (default rgb)"""
+    cameras: str | None = None
+    """several views rendered every step instead of --camera, as collect's --cameras (e.g.
+    front_head=96x72:rgb,left_wrist=96x72:rgb); the ceiling renders each of them bare"""
 
 
 @dataclass(kw_only=True)

@@ -103,6 +103,10 @@ def check_args(args: Any) -> None:
         raise ValueError(f"--runner {args.runner!r}{did_you_mean(args.runner, RUNNERS)}: use {' or '.join(RUNNERS)}")
     if "cameras" in names:
         check_cameras(camera_option(args.cameras))
+    if isinstance(args, BenchArgs) and args.camera is not None and args.cameras is not None:
+        raise ValueError("--camera and --cameras both given; give one (--cameras takes several views)")
+    if isinstance(args, BenchArgs) and args.cameras is not None and not camera_option(args.cameras):
+        raise ValueError(f"--cameras {args.cameras!r} names no view to time; name one or more (front_head=96x72:rgb)")
     if isinstance(args, BenchArgs) and args.camera is not None:
         check_cameras(
             {
