@@ -199,3 +199,15 @@ def test_a_batch_of_episodes_fetched_at_once_equals_each_read_alone(pick_env):
     before = trees[1]["actions"].copy()
     recorder._frames.zero_()
     assert np.array_equal(trees[1]["actions"], before)  # host copies, not views of the recorder's buffers
+
+
+def test_evaluate_times_the_env_step_and_the_agent(pick_env):
+    """An evaluation says what the agent's act costs against the env step it drives (seconds, and milliseconds per
+    vector step)."""
+    from newton_lab.agents import ZeroAgent
+
+    summary = pick_env.evaluate(agent=ZeroAgent(), episodes=2, max_steps=3, progress=False)
+    t, steps = summary["timing"], summary["vector_steps"]
+    assert steps == 3 and t["env_step_s"] > 0 and t["agent_s"] > 0
+    assert t["env_step_ms_per_step"] == pytest.approx(1e3 * t["env_step_s"] / steps)
+    assert t["agent_ms_per_step"] == pytest.approx(1e3 * t["agent_s"] / steps)

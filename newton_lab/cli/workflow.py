@@ -67,7 +67,7 @@ def evaluate(args: EvaluateArgs) -> int:
         )
     finally:
         close()
-    out = {k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations") if k in summary}
+    out = {k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations", "timing") if k in summary}
     if args.perturb or args.run_record:
         write_run_record("evaluate", args, args.task, args.device, {**out, "checkpoint": args.checkpoint})
     print(json.dumps(out))

@@ -20,7 +20,7 @@ from ..datasets.zarr.inodes import check_room
 from ..task_api.cfg import DIVERGED
 from .checks import check_agent, check_collect, option_defaults
 from .recorder import EpisodeRecorder, env_args
-from .rollout_loop import REASON_MAX_STEPS, Timers, run_episodes  # noqa: F401 - Timers, REASON_MAX_STEPS: re-exported
+from .rollout_loop import REASON_MAX_STEPS, StepClock, Timers, run_episodes  # noqa: F401 - Timers, REASON_MAX_STEPS: re-exported
 from .saver import EpisodeSaver, WrappedWriter, all_finite  # noqa: F401 - all_finite: re-exported (tests, callers)
 from .scenario import capture_scenario
 
@@ -289,11 +289,20 @@ def _writer_kind(writer: str, num_envs: int) -> str:
 def evaluate(
     env, *, agent, episodes: int, max_steps: int = 1000, progress: bool = True, on_step=None
 ) -> dict[str, Any]:
-    """Run ``agent`` for ``episodes`` episodes; success is latched per episode."""
+    """Run ``agent`` for ``episodes`` episodes; success is latched per episode. ``timing``: the seconds in the env
+    step and in the agent's act (``StepClock``)."""
     check_agent(agent)
+    clock = StepClock(env.torch_device)
     records, steps, wall = run_episodes(
-        env, agent=agent, episodes=episodes, max_steps=max_steps, progress=progress, on_step=on_step
+        env,
+        agent=agent,
+        episodes=episodes,
+        max_steps=max_steps,
+        progress=progress,
+        on_step=on_step,
+        timers=clock.timers(),
     )
     summary = _summary(env, records, steps, wall)
     summary["success_masks"] = [r["success"] for r in records]
+    summary["timing"] = clock.figures(steps)
     return summary

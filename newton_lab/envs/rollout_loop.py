@@ -45,6 +45,40 @@ class Timers:
     """Wraps the wait for the writer after the loop (``EpisodeSaver.close``)."""
 
 
+class StepClock:
+    """Seconds an evaluation spends in ``env.step`` and in ``agent.act``, each call waiting for the device at its end
+    (so the work it queued is charged to it, not to the next call that waits): what the policy's inference costs
+    against the env step it drives."""
+
+    def __init__(self, device: torch.device) -> None:
+        self.device = device
+        self.seconds = {"env_step": 0.0, "agent": 0.0}
+
+    def _wrap(self, name: str, fn: Callable) -> Callable:
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            out = fn(*args, **kwargs)
+            if self.device.type == "cuda":
+                torch.cuda.synchronize(self.device)
+            self.seconds[name] += time.perf_counter() - t0
+            return out
+
+        return timed
+
+    def timers(self) -> Timers:
+        return Timers(step=lambda fn: self._wrap("env_step", fn), act=lambda fn: self._wrap("agent", fn))
+
+    def figures(self, vector_steps: int) -> dict[str, float]:
+        """Seconds in each, and milliseconds per vector step (all rows at once)."""
+        steps = max(vector_steps, 1)
+        return {
+            "env_step_s": self.seconds["env_step"],
+            "agent_s": self.seconds["agent"],
+            "env_step_ms_per_step": 1e3 * self.seconds["env_step"] / steps,
+            "agent_ms_per_step": 1e3 * self.seconds["agent"] / steps,
+        }
+
+
 class RowEpisodes:
     """Per-row bookkeeping of the loop: step counts, returns, latched success and subtask signals (on the
     device until an episode ends), finished records, and which rows may still start an episode."""
