@@ -69,6 +69,7 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
         "episodes": args.episodes,
         "num_envs": args.num_envs,
         "seed": args.seed,
+        **({"domain_randomize": args.domain_randomization()} if args.domain_randomize else {}),
     }
     if (done := _guard(out, name, inputs)) is not None:
         return done
@@ -88,9 +89,12 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
 def _collect(args: CollectArgs) -> dict[str, Any]:
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
+    from ..envs.perturb import collect_randomized  # deferred: Warp/Newton are slow to import
 
     env = make_env(args.task, **args.env_kwargs())
-    return env.collect(agent=expert_agent(env), **args.collect_kwargs())
+    return collect_randomized(
+        env, args.domain_randomization(), seed=args.seed, agent=expert_agent(env), **args.collect_kwargs()
+    )
 
 
 def _on_device(device: str | None, fn, *args):

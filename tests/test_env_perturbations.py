@@ -5,6 +5,10 @@ those cells; bad levels are refused in one line."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
+import newton
 import numpy as np
 import pytest
 import torch
@@ -12,8 +16,9 @@ import warp as wp
 
 from newton_lab.agents import expert_agent, perturbation_table
 from newton_lab.agents.perturbed import usable_cells
-from newton_lab.envs.perturb import MASS_ARRAYS, perturb_env, perturbed
-from newton_lab.task_api.perturbations import AXES, LEVELS, parse_cells
+from newton_lab.datasets import DatasetRef
+from newton_lab.envs.perturb import MASS_ARRAYS, draw_levels, perturb_env, perturbed, randomize_env
+from newton_lab.task_api.perturbations import AXES, LEVELS, parse_cells, parse_randomization
 
 ENV_AXES = [name for name, axis in AXES.items() if axis.acts_on != "agent"]
 
@@ -164,3 +169,97 @@ def test_the_sweep_has_rows_for_the_env_axes_and_puts_the_env_back(pick_env):
     assert [r["perturbation"] for r in rows] == ["none", "object_mass=strong", "friction=strong"]
     assert rows[1]["values"] == {"object_mass": 3.0} and all(r["episodes"] == 2 for r in rows)
     assert all(not _changed(old, _arrays(m)) for m, old in zip(_models(env), before, strict=True))
+
+
+# ------------------------------------------------------------------------------------ domain randomisation
+def test_domain_randomization_takes_the_per_row_env_axes_only():
+    assert parse_randomization("object_mass=mild, friction=0.5,camera_shift=strong") == {
+        "object_mass": 1.5,
+        "friction": 0.5,
+        "camera_shift": 5.0,
+    }
+    for bad, words in [
+        ("light_intensity=mild", "is not drawn per env row"),
+        ("camera_fov=mild", "is not drawn per env row"),
+        ("action_noise=mild", "is not drawn per env row"),
+        ("wind=mild", "is not an axis"),
+        ("object_mass", "write AXIS=LEVEL"),
+        ("object_mass=0", "a factor"),
+        ("friction=1,friction=2", "twice"),
+    ]:
+        with pytest.raises(ValueError, match="--domain-randomize") as err:
+            parse_randomization(bad)
+        assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_draws_are_per_row_seeded_and_within_the_level():
+    a = draw_levels({"object_mass": 2.0, "camera_tilt": 3.0}, 64, seed=5)
+    assert np.array_equal(a["object_mass"], draw_levels({"object_mass": 2.0}, 64, seed=5)["object_mass"])
+    assert not np.array_equal(a["object_mass"], draw_levels({"object_mass": 2.0}, 64, seed=6)["object_mass"])
+    assert ((a["object_mass"] >= 0.5) & (a["object_mass"] <= 2.0)).all()
+    assert (a["object_mass"] < 1).any() and (a["object_mass"] > 1).any()  # both sides of the nominal
+    assert ((a["camera_tilt"] >= 0) & (a["camera_tilt"] <= 3.0)).all() and np.ptp(a["camera_tilt"]) > 1.0
+
+
+def test_randomize_env_gives_each_row_its_draw(pick_env):
+    env = pick_env
+    before = [_arrays(m) for m in _models(env)]
+    restore = perturb_env(env, {})  # nothing: the same arrays
+    restore()
+    draws = randomize_env(env, {"object_mass": 2.0, "friction": 0.5}, seed=3)
+    try:
+        assert set(draws) == {"object_mass", "friction"} and len(draws["object_mass"]) == env.num_envs
+        assert draws["object_mass"][0] != draws["object_mass"][1]
+        model, old = env.model, before[0]
+        new = _arrays(model)
+        cubes = _object_bodies(model)
+        world = model.body_world.numpy()[cubes]
+        np.testing.assert_allclose(
+            new["body_mass"][cubes], old["body_mass"][cubes] * np.array(draws["object_mass"])[world], rtol=1e-5
+        )
+        shapes = model.shape_world.numpy()
+        for w in range(env.num_envs):
+            mine = shapes == w
+            ratio = new["shape_material_mu"][mine] / old["shape_material_mu"][mine]
+            np.testing.assert_allclose(ratio, draws["friction"][w], rtol=1e-5)
+        assert _changed(old, new) == {*MASS_ARRAYS, "shape_material_mu"}
+    finally:
+        for model, arrays in zip(_models(env), before, strict=True):  # the fixture is shared: put it back
+            for name in (*MASS_ARRAYS, "shape_material_mu"):
+                getattr(model, name).assign(arrays[name])
+        env.solver.notify_model_changed(newton.ModelFlags.BODY_INERTIAL_PROPERTIES | newton.ModelFlags.SHAPE_PROPERTIES)
+
+
+def test_collect_records_the_rows_draws_in_the_dataset(tmp_path):
+    path = tmp_path / "demos.hdf5"
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "newton_lab.cli",
+            "collect",
+            "--task",
+            "GalbotG1-Reach-v0",
+            "--episodes",
+            "2",
+            "--num-envs",
+            "2",
+            "--device",
+            "cpu",
+            "--randomize",
+            "--max-steps",
+            "150",
+            "--domain-randomize",
+            "friction=mild",
+            "--dataset-path",
+            str(path),
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    (entry,) = [p for p in DatasetRef.open(path).provenance if p.operation == "collect"]
+    rows = entry.config["domain_randomization"]["friction"]
+    assert len(rows) == 2 and all(0.7 <= r <= 1 / 0.7 for r in rows) and rows[0] != rows[1]

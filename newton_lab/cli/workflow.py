@@ -31,12 +31,15 @@ COLLECT_REPORT_KEYS = (
 def collect(args: CollectArgs) -> int:
     from ..agents import expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
+    from ..envs.perturb import collect_randomized  # deferred: Warp/Newton are slow to import
 
     env = make_env(args.task, **args.env_kwargs())
     agent = expert_agent(env)
     hook, close = rerun_hook(args, env)
     try:
-        summary = env.collect(agent=agent, on_step=hook, **args.collect_kwargs())
+        summary = collect_randomized(
+            env, args.domain_randomization(), seed=args.seed, agent=agent, on_step=hook, **args.collect_kwargs()
+        )
     finally:
         close()
     saved = {"saved_end_scenario_path": summary["saved_end_scenario_path"]} if args.save_end_scenario else {}

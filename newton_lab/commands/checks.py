@@ -125,6 +125,8 @@ def check_args(args: Any) -> None:
     if isinstance(args, EvaluateArgs):
         check_checkpoints(args)
         args.perturbation_cells()
+    if isinstance(args, CollectArgs):
+        args.domain_randomization()
     if isinstance(args, SplitArgs):
         check_split_out(args)
     for name in EXISTING_FIELDS.get(type(args), ()):

@@ -26,6 +26,8 @@ CASES: list[tuple[str, str]] = [
     ("evaluate --perturb wind=mild", "--perturb: unknown axis 'wind'; valid axes: action_noise, action_latency"),
     ("evaluate --perturb action_noise=huge", "level 'huge' is not mild, strong or a number [rad]"),
     ("evaluate --perturb action_latency=1.5", "action_latency takes a whole number of steps"),
+    ("collect --domain-randomize light_intensity=mild", "'light_intensity' is not drawn per env row"),
+    ("evaluate --perturb object_mass=0", "object_mass is a factor, a finite number > 0"),
     ("mimic --dataset-path nope.hdf5 --episodes 2", "--dataset-path nope.hdf5 does not exist"),
     ("mimic --dataset-path src.hdf5 --output-path out.csv", "unknown dataset suffix"),
     ("mimic --dataset-path src.hdf5 --episodes 0", "--episodes must be an integer >= 1"),

@@ -21,6 +21,17 @@ class CollectArgs(CameraArgs, RerunArgs, RolloutArgs):
     writer: Literal["auto", "thread", "process"] = "auto"
     """who writes the episodes: a thread of this process, or a process of its own that gets each step's ended
     episodes as one shared-memory block; auto: the process from 256 rows on"""
+    domain_randomize: str | None = None
+    """domain randomisation: AXIS=LEVEL,... (axes object_mass, friction, camera_shift, camera_tilt; LEVEL mild,
+    strong or a number): each env row draws its own value up to LEVEL (factors: between 1/LEVEL and LEVEL), kept for
+    the run and written into the dataset's provenance"""
+
+    def domain_randomization(self) -> dict[str, float]:
+        """``--domain-randomize`` as axis -> level (``task_api.perturbations.parse_randomization``; one-line
+        errors); empty without it."""
+        from ..task_api.perturbations import parse_randomization  # deferred: only this flag needs it (plain Python)
+
+        return parse_randomization(self.domain_randomize) if self.domain_randomize is not None else {}
 
     def collect_kwargs(self) -> dict[str, Any]:
         """Keywords of ``env.collect(agent=..., **...)``."""

@@ -204,3 +204,31 @@ def perturbed(env, values: Mapping[str, object], *, seed: int = 0):
         yield env
     finally:
         restore()
+
+
+def draw_levels(levels: Mapping[str, float], num_envs: int, *, seed: int = 0) -> dict[str, np.ndarray]:
+    """A level per row of each axis up to ``levels`` (axis -> level in its unit), drawn from ``seed``: a factor
+    log-uniform between 1 / level and level (both sides of the nominal), else a uniform magnitude in [0, level]."""
+    rng = np.random.default_rng([seed, 0x5EED])
+    out = {}
+    for name, level in levels.items():
+        u = rng.uniform(-1.0, 1.0, num_envs) if AXES[name].scale else rng.uniform(0.0, 1.0, num_envs)
+        out[name] = np.exp(u * abs(math.log(level))) if AXES[name].scale else u * level
+    return out
+
+
+def randomize_env(env, levels: Mapping[str, float], *, seed: int = 0) -> dict[str, list[float]]:
+    """Domain randomisation: each row of ``env`` gets its own draw (``draw_levels``) of every axis of ``levels``
+    (``task_api.perturbations.parse_randomization``), kept for the env's life; then every row restarts the episodes
+    of ``seed`` (``env.reseed``). Returns the draws (axis -> one level per row), for the dataset's provenance."""
+    draws = draw_levels(levels, env.num_envs, seed=seed)
+    perturb_env(env, draws, seed=seed)
+    env.reseed(seed)
+    return {name: [round(float(v), 6) for v in rows] for name, rows in draws.items()}
+
+
+def collect_randomized(env, levels: Mapping[str, float], *, seed: int = 0, **collect: object):
+    """``env.collect(**collect)`` under domain randomisation ``levels`` (``randomize_env``; none when empty), the
+    rows' draws recorded in the dataset's provenance entry (``config["domain_randomization"]``)."""
+    config = {"domain_randomization": randomize_env(env, levels, seed=seed)} if levels else None
+    return env.collect(config=config, **collect)

@@ -163,19 +163,19 @@ class Cell:
     """Part of a ``sweep`` (an evaluation that cannot apply it, e.g. a camera axis without cameras, skips it)."""
 
 
-def _value(axis: Axis, level: str, item: str) -> float:
+def _value(axis: Axis, level: str, item: str, flag: str = "--perturb") -> float:
     if level in LEVELS:
         return float(getattr(axis, level))
     try:
         value = float(level)
     except ValueError:
-        raise ValueError(f"--perturb {item!r}: level {level!r} is not mild, strong or a number [{axis.unit}]") from None
+        raise ValueError(f"{flag} {item!r}: level {level!r} is not mild, strong or a number [{axis.unit}]") from None
     if axis.scale and not (0 < value < float("inf")):
-        raise ValueError(f"--perturb {item!r}: {axis.name} is a factor, a finite number > 0 (1 changes nothing)")
+        raise ValueError(f"{flag} {item!r}: {axis.name} is a factor, a finite number > 0 (1 changes nothing)")
     if not value >= 0 or value != value or value == float("inf"):
-        raise ValueError(f"--perturb {item!r}: a level is a finite number >= 0 [{axis.unit}]")
+        raise ValueError(f"{flag} {item!r}: a level is a finite number >= 0 [{axis.unit}]")
     if axis.integer and value != int(value):
-        raise ValueError(f"--perturb {item!r}: {axis.name} takes a whole number of {axis.unit}")
+        raise ValueError(f"{flag} {item!r}: {axis.name} takes a whole number of {axis.unit}")
     return value
 
 
@@ -202,3 +202,27 @@ def parse_cells(text: str) -> list[Cell]:
             raise ValueError(f"--perturb names {name} twice; give each axis once")
         values[name] = _value(AXES[name], level, item)
     return [Cell(",".join(f"{k}={v:g}" for k, v in values.items()), values)]
+
+
+RANDOMIZED_KINDS = ("physics", "camera")
+"""Kinds of axis domain randomisation draws per env row (the light and the field of view are one for all rows; the
+agent's axes would put noise into the demos themselves)."""
+
+
+def parse_randomization(text: str) -> dict[str, float]:
+    """The axes and levels ``--domain-randomize text`` asks for (``AXIS=LEVEL[,AXIS=LEVEL...]``; LEVEL ``mild``,
+    ``strong`` or a number in the axis's unit): each row draws its own value up to that level
+    (``envs.perturb.randomize_env``). One-line errors naming the axes it takes."""
+    flag, usable = "--domain-randomize", [n for n, a in AXES.items() if a.acts_on in RANDOMIZED_KINDS and a.per_row]
+    values: dict[str, float] = {}
+    for item in (part.strip() for part in text.split(",")):
+        name, sep, level = item.partition("=")
+        if not sep or not name or not level:
+            raise ValueError(f"{flag} {item!r}: write AXIS=LEVEL (e.g. object_mass=mild); axes: {', '.join(usable)}")
+        if name not in usable:
+            why = "is not an axis" if name not in AXES else "is not drawn per env row"
+            raise ValueError(f"{flag}: {name!r} {why}; it takes {', '.join(usable)}")
+        if name in values:
+            raise ValueError(f"{flag} names {name} twice; give each axis once")
+        values[name] = _value(AXES[name], level, item, flag)
+    return values
