@@ -263,3 +263,15 @@ def test_collect_records_the_rows_draws_in_the_dataset(tmp_path):
     (entry,) = [p for p in DatasetRef.open(path).provenance if p.operation == "collect"]
     rows = entry.config["domain_randomization"]["friction"]
     assert len(rows) == 2 and all(0.7 <= r <= 1 / 0.7 for r in rows) and rows[0] != rows[1]
+
+
+def test_the_robustness_page_is_generated_from_the_axes():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "tools"))  # tools/ is no package
+    import docs_tables  # noqa: PLC0415
+
+    table = docs_tables.perturbations_page()
+    assert all(f"| `{name}` | {axis.acts_on} | {axis.unit} |" in table for name, axis in AXES.items())
+    assert "<!-- generated: perturbations -->" in (root / "docs" / "robustness.md").read_text()

@@ -1,9 +1,9 @@
 """MkDocs hook of the user guide (``hooks:`` in ``mkdocs.yml``): a page line ``<!-- generated: NAME -->`` is
 replaced by the markdown that ``tools/docs_tables.py`` builds from the code (``tasks``, ``robot``, ``cli``,
-``recipes``), so the reference tables are never typed by hand. Each table is built once per build. An inline
-``<!-- figure: NAME -->`` (``demo_cpu``, ``demo_gpu``, ``picktoshelf_cpu``, ...) is replaced by a figure read from the
-newest run record in ``docs/results/``, linked to it (``docs_tables.FIGURES``): time promises are the records', never
-typed.
+``recipes``, ``perturbations``), so the reference tables are never typed by hand. Each table is built once per
+build. An inline ``<!-- figure: NAME -->`` (``demo_cpu``, ``demo_gpu``, ``picktoshelf_cpu``, ...) is replaced by a
+figure read from the newest run record in ``docs/results/``, linked to it (``docs_tables.FIGURES``): time promises
+are the records', never typed.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ GENERATORS = {
     "robot": docs_tables.robot_page,
     "cli": docs_tables.cli_page,
     "recipes": docs_tables.recipes_page,
+    "perturbations": docs_tables.perturbations_page,
 }
 
 

@@ -327,6 +327,29 @@ def cli_page() -> str:
     return "\n\n".join(parts) + "\n"
 
 
+# ------------------------------------------------------------------------------------------------ perturbations
+def perturbations_page() -> str:
+    """Every perturbation axis (``newton_lab.task_api.perturbations.AXES``): what applies it, unit, levels, whether
+    domain randomisation draws it per row, and what it changes."""
+    from newton_lab.task_api.perturbations import AXES, RANDOMIZED_KINDS
+
+    rows = [
+        [
+            f"`{a.name}`",
+            a.acts_on,
+            a.unit,
+            f"{a.mild:g}",
+            f"{a.strong:g}",
+            f"{a.neutral:g}",
+            "yes" if a.acts_on in RANDOMIZED_KINDS and a.per_row else "no",
+            _cell(a.doc),
+        ]
+        for a in AXES.values()
+    ]
+    header = ["axis", "acts on", "unit", "mild", "strong", "unchanged at", "`--domain-randomize`", "what changes"]
+    return _table(header, rows) + "\n"
+
+
 # ------------------------------------------------------------------------------------------------ recipes
 def recipes_page() -> str:
     """The pipeline's recipes (``newton_lab.flows.settings``): counts, what the policy sees, training."""
