@@ -198,3 +198,20 @@ def test_the_train_rl_flow_trains_evaluates_records_and_is_cached(tmp_path):
     record = json.loads(Path(first["record"]).read_text())
     assert record["kind"] == "train-rl" and record["results"]["success"]["eval_seed"] == 10_000
     assert record["results"]["iterations"] == 1 and len(record["results"]["curve_rows"]) == 1
+
+
+def test_domain_randomization_of_the_training_rows_is_physics_only_and_recorded(tmp_path):
+    """``--domain-randomize`` draws each training row's physics (``envs.perturb.randomize_env``) and the checkpoint's
+    config records the levels; a camera axis is refused in one line (the rows render no cameras)."""
+    from newton_lab.commands.rl import TrainRLArgs
+    from newton_lab.policies.rl.train import PPOConfig, train_ppo  # deferred: rsl_rl, Warp
+
+    assert TrainRLArgs(domain_randomize="object_mass=mild,friction=0.5").ppo_config().domain_randomize == {
+        "object_mass": 1.5,
+        "friction": 0.5,
+    }
+    with pytest.raises(ValueError, match="render no cameras"):
+        TrainRLArgs(domain_randomize="camera_shift=mild").ppo_config()
+    cfg = PPOConfig(iterations=1, domain_randomize={"friction": 0.5}, **TINY_PPO)
+    path = train_ppo(TASK, cfg, tmp_path / "dr", progress=False)
+    assert torch.load(path, weights_only=False)["config"]["domain_randomize"] == {"friction": 0.5}

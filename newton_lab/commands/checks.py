@@ -307,7 +307,9 @@ def check_render(args: RenderArgs) -> None:
 
 
 def check_train_rl(args: TrainRLArgs) -> None:
-    """``train-rl``'s output folder: a resume point to resume from, or no finished run in it."""
+    """``train-rl``'s output folder: a resume point to resume from, or no finished run in it; its domain
+    randomisation."""
+    args.domain_randomization()
     out_dir = Path(args.output_dir)
     if args.resume and not (out_dir / "resume.pt").is_file():
         raise FileNotFoundError(f"nothing to resume in {out_dir} (no resume.pt); start the run without --resume")

@@ -27,6 +27,10 @@ CASES: list[tuple[str, str]] = [
     ("evaluate --perturb action_noise=huge", "level 'huge' is not mild, strong or a number [rad]"),
     ("evaluate --perturb action_latency=1.5", "action_latency takes a whole number of steps"),
     ("collect --domain-randomize light_intensity=mild", "'light_intensity' is not drawn per env row"),
+    (
+        "train-rl --device cpu --domain-randomize camera_tilt=mild",
+        "train-rl's rows render no cameras; randomise physics",
+    ),
     ("evaluate --perturb object_mass=0", "object_mass is a factor, a finite number > 0"),
     ("mimic --dataset-path nope.hdf5 --episodes 2", "--dataset-path nope.hdf5 does not exist"),
     ("mimic --dataset-path src.hdf5 --output-path out.csv", "unknown dataset suffix"),

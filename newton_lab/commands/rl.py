@@ -47,7 +47,20 @@ class TrainRLArgs:
     """then evaluate the actor on this many held-out randomised episodes (seed + 10000; default: no evaluation)"""
     run_record: str | None = None
     """write the run record (JSON) here (default outputs/records/train-rl-<task>-<UTC time>.json)"""
+    domain_randomize: str | None = None
+    """domain randomisation: AXIS=LEVEL,... of the physics axes (object_mass, friction; LEVEL mild, strong or a
+    factor): each env row draws its own value between 1/LEVEL and LEVEL, kept for the run"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
+
+    def domain_randomization(self) -> dict[str, float]:
+        """``--domain-randomize`` as axis -> level; one-line errors (the rows render no cameras: physics only)."""
+        from ..task_api.perturbations import AXES, parse_randomization  # deferred: only this flag needs it
+
+        levels = parse_randomization(self.domain_randomize) if self.domain_randomize is not None else {}
+        seen = [name for name in levels if AXES[name].acts_on != "physics"]
+        if seen:
+            raise ValueError(f"--domain-randomize {seen[0]}: train-rl's rows render no cameras; randomise physics")
+        return levels
 
     def ppo_config(self):
         """The ``PPOConfig`` of these arguments."""
@@ -66,4 +79,5 @@ class TrainRLArgs:
             learning_rate=self.learning_rate,
             end_on_success=self.end_on_success,
             episode_length_s=self.episode_length_s,
+            domain_randomize=self.domain_randomization(),
         )

@@ -26,6 +26,7 @@ import torch
 from rsl_rl.runners import OnPolicyRunner
 
 from ...envs import make_env
+from ...envs.perturb import randomize_env
 from .actions import ActionScales
 from .vec_env import RslRlVecEnv
 
@@ -72,6 +73,9 @@ class PPOConfig:
     platform; with it a row whose cube was pushed out of reach stays there for the rest of the run (on an H200,
     iterations 175-300 of a 4096-row PickCube run ended 68-86 episodes per 25 iterations, all by a dropped cube),
     so PPO on it needs a limit of a few times the expert's episode (about 4 s)"""
+    domain_randomize: dict[str, float] = field(default_factory=dict)
+    """domain randomisation (``task_api.perturbations.parse_randomization``: physics axes, the rows render no
+    cameras): each env row draws its own object mass and friction up to these levels, kept for the run"""
     scales: ActionScales = field(default_factory=ActionScales)
 
     def runner_cfg(self) -> dict[str, Any]:
@@ -130,6 +134,8 @@ def train_ppo(
         terminate_on_success=cfg.end_on_success,
         episode_length_s=cfg.episode_length_s,
     )
+    if cfg.domain_randomize:  # each row's own physics for the whole run (a resumed run draws the same)
+        randomize_env(env, cfg.domain_randomize, seed=cfg.seed)
     saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
     vec = RslRlVecEnv(env, cfg.scales)
     if saved is not None:  # the action map of the interrupted run (its start posture)
