@@ -9,11 +9,12 @@ Grammar of ``--perturb``: ``AXIS=LEVEL[,AXIS=LEVEL...]`` (one evaluation with th
 is ``mild``, ``strong`` or a number in the axis's unit), or ``sweep`` (the unperturbed evaluation, then one per
 axis and level, each alone: the table of rows a robustness report shows).
 
-Not here, because the renderer cannot do it: a per-row light (Newton 1.8's ``SensorCamera`` has one light list for
-all worlds: the light axes change every row alike, and domain randomisation keeps to the per-row brightness gain of
-``randomize``), a per-row field of view (one ray bundle per resolution), textures and unseen colours (the cameras
-render untextured shapes, and ``randomize`` already draws every object and table colour), distractor objects (a
-scene's objects are fixed when its model is built).
+Not here: a per-row light (Newton 1.8's ``SensorCamera`` has one light list for all worlds: the light axes change
+every row alike, and domain randomisation keeps to the per-row brightness gain of ``randomize``), a per-row field of
+view (one ray bundle per resolution), unseen colours (``randomize`` already draws every object and table colour
+uniformly), textures (the only one the renderer makes at run time is its grey checkerboard, drawn only with
+``RenderConfig.enable_textures``, which the env's cameras leave off; not built yet), distractor objects (a scene's
+objects are fixed when its model is built).
 """
 
 from __future__ import annotations
