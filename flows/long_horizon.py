@@ -19,26 +19,25 @@ from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .run_record import StageClock, record_run
-from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
+from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES, learned_kinds, with_inputs
 from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 
 split_task = stage_task(stages.split_stage, "split")
 
 COLLECT_MAX_STEPS = 3000
-"""Step limit of an expert coherent episode in the collect stage (PickToShelf's take ~470, SortToShelf's ~440);
+"""Step limit of an expert coherent episode in the collect stage (PickToShelf's take ~470, SortToShelf's ~440,
+SortToShelf-All's ~2350);
 ``eval_max_steps`` bounds the evaluation alone."""
-NAVIGATION_GROUPS = ("base",)
-"""Joint groups of a phase that navigates: such a phase runs its component's expert, not a learned policy."""
 
 
 def learned_phases(task_id: str, task_options: dict[str, Any] | None = None) -> list[str]:
-    """The phases of a coherent task that the pipeline trains a policy for (all but the navigating ones)."""
+    """The phase kinds of a coherent task that the pipeline trains a policy for (``settings.learned_kinds``)."""
     from .. import tasks  # noqa: F401  deferred: registering the task ids imports Warp
 
     cfg = lookup(task_id).make_cfg(dict(task_options or {}))
     if not cfg.phases:
         raise ValueError(f"{task_id} has no phases; run the single-task pipeline on it (no long-horizon recipe)")
-    return [p.name for p in cfg.phases if not set(p.action_groups or ()) & set(NAVIGATION_GROUPS)]
+    return learned_kinds(cfg)
 
 
 def has_phases(task_id: str) -> bool:
@@ -77,6 +76,7 @@ def long_horizon_pipeline(
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
     phases = learned_phases(task_id, options)
+    train_cfg = with_inputs(train_cfg, lookup(task_id).make_cfg(options).target_observations)
     clock = StageClock()
     demo_art, s_collect = run_collect(
         task_id,
@@ -149,8 +149,8 @@ def _train_phases(split: dict, phases: list[str], train_cfg: dict[str, Any], out
 
 
 def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | None = None) -> list[str]:
-    """Human-readable end of a long-horizon run: demos, per-phase datasets and trainings, the composed success
-    and where each phase's rows stopped, then where to look."""
+    """Human-readable end of a long-horizon run: demos, per-phase datasets and trainings, the composed success,
+    where each phase's rows stopped and in how many episodes each subtask signal fired, then where to look."""
     arts, ev = summary["artifacts"], summary["evaluation"]
     demos = arts["demos"]["metrics"]
     head = f"{summary['task']} long-horizon pipeline" + (f" ({recipe} recipe)" if recipe else "")
@@ -172,6 +172,9 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
     for phase, p in ev["phases"].items():
         stalled = ", ".join(f"{k} {v}" for k, v in p["stalled"].items()) or "none"
         lines.append(f"    {phase:<13} passed {p['passed']}/{p['reached']} (stopped: {stalled})")
+    if ev.get("subtask_signals"):  # e.g. SortToShelf-All's sorted_<object>: episodes that sorted each object
+        signals = ", ".join(f"{k} {v}/{ev['episodes']}" for k, v in ev["subtask_signals"].items())
+        lines.append(f"    signals       {signals}")
     lines += ["where to look:", f"  metrics         {Path(out_dir).resolve() / 'metrics.json'}"]
     lines += [f"  checkpoint      {phase}: {art['path']}" for phase, art in arts["checkpoints"].items()]
     if ev.get("recording"):

@@ -96,6 +96,17 @@ LONG_HORIZON_RECIPES: dict[str, dict[str, Any]] = {
 """Counts, cameras and training of ``newton-lab pipeline`` on a coherent task (``newton_lab.flows.long_horizon``):
 every policy input is what the robot measures: its cameras (``cameras``: the ``--cameras`` of collection and
 evaluation) and proprioception (``obs_mode="sensors"``: no object or target pose)."""
+LONG_HORIZON_TASK_RECIPES: dict[str, dict[str, dict[str, Any]]] = {
+    # SortToShelf-All: an expert episode takes ~2350 steps (PickToShelf's ~470), and each episode gives every
+    # learned phase kind four segments (one policy per kind: pick_1 .. pick_4 train one pick policy), so 160 demos
+    # give each policy 640 segments, as many as PickToShelf's 600 demos; policies move slower than the expert,
+    # so evaluation runs to 5000 steps.
+    "GalbotG1-SortToShelf-All-v0": {
+        "gpu": {"demos": 160, "eval_max_steps": 5000},
+        "cpu": {"demos": 2, "eval_episodes": 2, "eval_max_steps": 3000},
+    }
+}
+"""Per coherent task, what differs from ``LONG_HORIZON_RECIPES`` (by recipe name)."""
 LONG_HORIZON_OPTIONS = {"obs_mode": "sensors"}
 """Task options the long-horizon pipeline always sets (policies see no privileged state)."""
 
@@ -114,11 +125,13 @@ def _sees_cuda() -> bool:
         return torch.cuda.is_available()
 
 
-def demo_recipe(name: str = "auto", device: str | None = None, *, long_horizon: bool = False) -> dict[str, Any]:
+def demo_recipe(
+    name: str = "auto", device: str | None = None, *, long_horizon: bool = False, task: str | None = None
+) -> dict[str, Any]:
     """The demo recipe ``name`` ("cpu", "gpu", or "auto": gpu when torch sees a CUDA device and ``device`` is not
     a CPU), with ``name`` resolved, ``device`` (envs: "cpu" for the cpu recipe, else the given one or Warp's) and
     ``train_device`` (the given device, else cpu / cuda) added; ``long_horizon``: a coherent task's recipe
-    (``LONG_HORIZON_RECIPES``)."""
+    (``LONG_HORIZON_RECIPES``, with ``task``'s own counts from ``LONG_HORIZON_TASK_RECIPES``)."""
     if name not in (*DEMO_RECIPES, "auto"):
         raise ValueError(f"unknown demo recipe {name!r}; valid recipes: auto, {', '.join(DEMO_RECIPES)}")
     if name == "auto":
@@ -127,13 +140,39 @@ def demo_recipe(name: str = "auto", device: str | None = None, *, long_horizon: 
     env_device = device if device is not None else ("cpu" if name == "cpu" else None)
     train_device = device if device is not None else ("cpu" if name == "cpu" else "cuda")
     recipes = LONG_HORIZON_RECIPES if long_horizon else DEMO_RECIPES
+    own = LONG_HORIZON_TASK_RECIPES.get(task, {}).get(name, {}) if long_horizon else {}
     return {
         **recipes[name],
+        **own,
         "name": name,
         "device": env_device,
         "train_device": train_device,
         "long_horizon": long_horizon,
     }
+
+
+NAVIGATION_GROUPS = ("base",)
+"""Joint groups of a phase that navigates: such a phase runs its component's expert, not a learned policy."""
+
+
+def learned_kinds(cfg) -> list[str]:
+    """The phase kinds of a coherent task's ``cfg`` that the long-horizon pipeline trains a policy for: all but the
+    navigating ones, one policy per kind (``TaskCfg.phase_kinds``: SortToShelf-All's ``pick`` runs in ``pick_1`` ..
+    ``pick_4``)."""
+    return [
+        kind
+        for kind, ix in cfg.phase_kinds.items()
+        if not set(cfg.phases[ix[0]].action_groups or ()) & set(NAVIGATION_GROUPS)
+    ]
+
+
+def with_inputs(train_cfg: dict[str, Any], obs_keys: list[str]) -> dict[str, Any]:
+    """``train_cfg`` whose policy also observes ``obs_keys`` (a coherent task's per-row targets,
+    ``TaskCfg.target_observations``), where it names its observation terms (none named: it sees them all)."""
+    named = train_cfg.get("obs_keys")
+    if not obs_keys or named is None:
+        return train_cfg
+    return {**train_cfg, "obs_keys": [*named, *(k for k in obs_keys if k not in named)]}
 
 
 DEFAULTS = {

@@ -43,6 +43,7 @@ ROWS: dict[str, list[Row]] = {
             _pipeline(f"sorttoshelf-{o}", "GalbotG1-SortToShelf-v0", "gpu", "--sorting-object", o)
             for o in SORTING_OBJECTS
         ],
+        _pipeline("sorttoshelf-all", "GalbotG1-SortToShelf-All-v0", "gpu"),
         _pipeline("stackcube-phased", "GalbotG1-StackCube-Phased-v0", "gpu", "--head", "table"),
         *[
             _bench(

@@ -114,19 +114,71 @@ def test_expert_sorts_all_four_objects_in_the_drawn_order(expert_run):
     assert orders[0] != orders[1], "the two rows sort in different orders (seed 3)"
 
 
-def test_split_writes_one_dataset_per_phase(expert_run, tmp_path):
+def test_split_writes_one_dataset_per_phase_kind(expert_run, tmp_path):
     from newton_lab.datasets import list_demos, read_dataset_info, read_episode
     from newton_lab.datasets.split import split_by_phase
 
     parts = split_by_phase(expert_run.ref.path, tmp_path / "phases", workers=1)
-    assert list(parts) == PHASES
-    for name, ref in parts.items():
+    assert list(parts) == ["pick", "nav", "place", "return"]
+    for kind, ref in parts.items():
         info = read_dataset_info(ref.path)
-        kind = name.split("_")[0]
         assert info["task_id"] == f"GalbotG1-SortToShelf-{kind.capitalize()}-v0"
         demos = list_demos(ref.path)
-        assert len(demos) == 2 and all(info["demos"][d]["success"] for d in demos), name
-    pick, ret = read_episode(parts["pick_2"].path, 0), read_episode(parts["return_1"].path, 0)
-    assert pick["actions"].shape[1] == 8 and ret["actions"].shape[1] == 16  # arm + gripper; wheels, legs, arm
-    assert pick["obs"]["sorting_object"].shape[1] == 4
-    assert np.all(pick["obs"]["sorting_object"].sum(axis=1) == 1.0)
+        assert len(demos) == (6 if kind == "return" else 8), "a segment per phase of the kind, per episode"
+        assert all(info["demos"][d]["success"] for d in demos), kind
+        assert ref.metadata["episodes"] == len(demos)
+    pick = [read_episode(parts["pick"].path, d) for d in list_demos(parts["pick"].path)]
+    assert [str(ep["attrs"]["phase"]) for ep in pick[:4]] == ["pick_1", "pick_2", "pick_3", "pick_4"]
+    assert all(ep["actions"].shape[1] == 8 for ep in pick)  # arm + gripper
+    targets = [int(ep["obs"]["sorting_object"][0].argmax()) for ep in pick[:4]]
+    assert sorted(targets) == [0, 1, 2, 3], "one episode's four picks are of its four objects"
+    assert read_episode(parts["return"].path, 0)["actions"].shape[1] == 16  # wheels, legs, arm
+    only = split_by_phase(expert_run.ref.path, tmp_path / "only", phases=["place"], workers=1)
+    assert list(only) == ["place"]
+    with pytest.raises(
+        ValueError, match=r"has no phase 'pick_1' \(did you mean pick\?\); its phases: pick, nav, place, return"
+    ):
+        split_by_phase(expert_run.ref.path, tmp_path / "none", phases=["pick_1"])
+
+
+@pytest.fixture(scope="module")
+def phase_policies(expert_run, tmp_path_factory):
+    """A tiny state policy per learned kind (pick, place), trained a few steps on the split demos, conditioned on
+    the target one-hot; the flow's learned kinds and its training inputs."""
+    from newton_lab.flows.settings import learned_kinds, with_inputs
+
+    from newton_lab.datasets.split import split_by_phase
+    from newton_lab.policies import Policy
+
+    root = tmp_path_factory.mktemp("sort_all_policies")
+    parts = split_by_phase(expert_run.ref.path, root / "phases", workers=1)
+    cfg = lookup(TASK).make_cfg({"obs_mode": "sensors"})
+    base = {"obs_keys": ["robot_joint_pos", "gripper_pos"], "down_dims": (16, 32, 64), "diffusion_step_embed_dim": 32}
+    train = with_inputs({**base, "max_steps": 3, "batch_size": 8, "progress": False}, cfg.target_observations)
+    assert train["obs_keys"] == ["robot_joint_pos", "gripper_pos", "sorting_object"]
+    return {
+        kind: Policy.from_backend("diffusion").train(parts[kind], {**train, "output_dir": str(root / kind)})
+        for kind in learned_kinds(cfg)
+    }
+
+
+def test_composed_evaluation_with_one_policy_per_kind(phase_policies):
+    from newton_lab.policies.agent import phase_policy_agent
+
+    assert list(phase_policies) == ["pick", "place"]
+    env = make_env(
+        TASK, num_envs=2, device="cpu", seed=5, randomize=True, cameras=False, task_options={"obs_mode": "sensors"}
+    )
+    agent = phase_policy_agent(env, {k: str(v) for k, v in phase_policies.items()})
+    picks = {id(agent.phase_agents[i]) for i, name in enumerate(PHASES) if name.startswith("pick")}
+    assert len(picks) == 1, "one pick policy runs pick_1 .. pick_4"
+    assert "sorting_object" in agent.phase_agents[0].policy.obs_keys
+    summary = env.evaluate(agent=agent, episodes=2, max_steps=40, progress=False)
+    phases = summary["phases"]
+    assert list(phases) == PHASES and summary["episodes"] == 2
+    assert phases["pick_1"]["reached"] == 2 and phases["pick_1"]["passed"] == 0, "3 training steps lift nothing"
+    assert sum(phases["pick_1"]["stalled"].values()) == 2
+    assert set(phases["pick_1"]["stalled"]) <= {"max_steps", "object_tipped", "object_dropped"}
+    assert set(summary["subtask_signals"]) >= {f"sorted_{o}" for o in OBJECTS}
+    with pytest.raises(ValueError, match=r"has no phase 'lift'; its phases: pick, nav, place, return"):
+        phase_policy_agent(env, {"lift": str(phase_policies["pick"])})

@@ -32,6 +32,7 @@ def test_every_row_is_a_product_command_and_the_gpu_rows_cover_the_headline_task
         "GalbotG1-PickCube-v0",
         "GalbotG1-PickToShelf-v0",
         "GalbotG1-SortToShelf-v0",
+        "GalbotG1-SortToShelf-All-v0",
         "GalbotG1-StackCube-Phased-v0",
     }
     assert sum("--sorting-object" in r.args for r in ROWS["gpu"]) == 4

@@ -353,7 +353,12 @@ def perturbations_page() -> str:
 # ------------------------------------------------------------------------------------------------ recipes
 def recipes_page() -> str:
     """The pipeline's recipes (``newton_lab.flows.settings``): counts, what the policy sees, training."""
-    from newton_lab.flows.settings import DEMO_RECIPES, LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES
+    from newton_lab.flows.settings import (
+        DEMO_RECIPES,
+        LONG_HORIZON_OPTIONS,
+        LONG_HORIZON_RECIPES,
+        LONG_HORIZON_TASK_RECIPES,
+    )
 
     def training(train: dict) -> str:
         parts = [f"preset `{train['preset']}`" if "preset" in train else "quarter-width U-Net"]
@@ -398,6 +403,21 @@ def recipes_page() -> str:
         ]
         for name, r in LONG_HORIZON_RECIPES.items()
     ]
+    for task, own in LONG_HORIZON_TASK_RECIPES.items():  # a coherent task's own counts over the recipe's
+        for name, counts in own.items():
+            r = {**LONG_HORIZON_RECIPES[name], **counts}
+            rows.append(
+                [
+                    f"`{name}`",
+                    f"`{task}`",
+                    str(r["demos"]),
+                    "–",
+                    sees(r, LONG_HORIZON_OPTIONS) + " + the target one-hot",
+                    training(r["train"]) + " per learned phase kind",
+                    str(r["eval_episodes"]),
+                    str(r["num_envs"]),
+                ]
+            )
     return (
         _table(
             [

@@ -34,11 +34,12 @@ class TaskFlowAgent(BaseAgent):
 
     @classmethod
     def from_env(cls, env, agents: dict[str, BaseAgent] | None = None) -> TaskFlowAgent:
-        """Default phase agents come from the component tasks; ``agents`` overrides some by phase name."""
+        """Default phase agents come from the component tasks; ``agents`` overrides some by phase name, or by kind
+        (one agent for every phase of that kind, ``PhaseCfg.kind``)."""
         phases = env.cfg.phases
         if not phases:
             raise ValueError(f"{env.task_id} is not a coherent task (it has no phases); use its own expert agent")
-        agents = dict(agents or {})
+        agents = _by_phase_name(phases, dict(agents or {}))
         unknown = sorted(set(agents) - {p.name for p in phases})
         if unknown:
             raise ValueError(
@@ -94,6 +95,16 @@ class TaskFlowAgent(BaseAgent):
         phase = env.info["phase"]
         last = len(self.phase_agents) - 1
         return (phase == last) & self.phase_agents[last].done(env)
+
+
+def _by_phase_name(phases, agents: dict[str, BaseAgent]) -> dict[str, BaseAgent]:
+    """``agents`` keyed by phase name: an agent given for a kind goes to every phase of that kind."""
+    kinds = {p.kind for p in phases if p.kind} - {p.name for p in phases}
+    out = {key: agent for key, agent in agents.items() if key not in kinds}
+    for p in phases:
+        if p.kind in kinds and p.kind in agents:
+            out.setdefault(p.name, agents[p.kind])
+    return out
 
 
 class TargetSwitchAgent(BaseAgent):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..commands import PipelineArgs
 from ..flows.report import summary_lines
-from ..flows.settings import configure, demo_recipe
+from ..flows.settings import configure, demo_recipe, learned_kinds, with_inputs
 from ..task_api.registry import lookup
 from .pipeline_ends import ends_in_one_line
 
@@ -17,16 +17,21 @@ from .pipeline_ends import ends_in_one_line
 def pipeline(args: PipelineArgs) -> int:
     from .. import tasks as _registered  # noqa: F401  deferred: registering the tasks imports Warp
 
-    long_horizon = bool(lookup(args.task).make_cfg({}).phases)  # a coherent task: the long-horizon flow
-    recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon)
+    cfg = lookup(args.task).make_cfg({})
+    long_horizon = bool(cfg.phases)  # a coherent task: the long-horizon flow
+    recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon, task=args.task)
     kwargs = args.pipeline_kwargs(recipe)
+    kwargs["train_cfg"] = with_inputs(kwargs["train_cfg"], cfg.target_observations)
     if args.dry_run:  # the plan only: nothing is collected, trained or written, Prefect is not started
         stages = (
             ["collect", "split", "train per learned phase", "evaluate composed"]
             if long_horizon
             else ["collect", "mimic", "train", "evaluate"]
         )
-        print(json.dumps({"plan": {**kwargs, "long_horizon": long_horizon, "stages": stages}}, default=str))
+        plan = {**kwargs, "long_horizon": long_horizon, "stages": stages}
+        if long_horizon:
+            plan["learned_phases"] = learned_kinds(cfg)
+        print(json.dumps({"plan": plan}, default=str))
         return 0
     with ends_in_one_line(args.out):  # Ctrl-C: one line, exit 130; SIGKILL: no server or worker left running
         configure(Path(args.out) / ".prefect")  # before Prefect is imported

@@ -11,7 +11,13 @@ import importlib.util
 from pathlib import Path
 from typing import Any
 
-from ..task_api.catalog import declared_mimic_arms, declared_phases, declared_sources, did_you_mean
+from ..task_api.catalog import (
+    declared_mimic_arms,
+    declared_phase_kinds,
+    declared_phases,
+    declared_sources,
+    did_you_mean,
+)
 from .checkpoint_headers import checkpoint_header
 from .env import camera_option
 from .workflow import CollectArgs, EvaluateArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
@@ -51,7 +57,7 @@ def check_checkpoints(args: EvaluateArgs) -> None:
         check_policy_cameras(f"--checkpoint {args.checkpoint}", header, args.cameras)
     if not phases:
         return
-    task_phases = dict(declared_phases().get(args.task, ()))
+    task_phases = {**dict(declared_phases().get(args.task, ())), **declared_phase_kinds().get(args.task, {})}
     if not task_phases:
         raise ValueError(
             f"--phase-checkpoint is for the phases of a coherent task, and {args.task} has none; use "
@@ -61,7 +67,7 @@ def check_checkpoints(args: EvaluateArgs) -> None:
         if phase not in task_phases:
             raise ValueError(
                 f"--phase-checkpoint {phase}={path}: {args.task} has no phase {phase!r}"
-                f"{did_you_mean(phase, task_phases)}; its phases: {', '.join(task_phases)}"
+                f"{did_you_mean(phase, task_phases)}; its phases: {', '.join(_listed(args.task))}"
             )
         if not Path(path).exists():
             raise FileNotFoundError(f"--phase-checkpoint {phase}={path}: {path} does not exist; check the path")
@@ -72,6 +78,13 @@ def check_checkpoints(args: EvaluateArgs) -> None:
                 f"checkpoint {path} was trained for {trained}, but phase {phase!r} of {args.task} runs "
                 f"{component}; give that phase a checkpoint of {component}"
             )
+
+
+def _listed(task_id: str) -> list[str]:
+    """What ``--phase-checkpoint`` names for ``task_id``: its phase kinds where several phases share one, else its
+    phases."""
+    kinds, names = declared_phase_kinds().get(task_id, {}), [n for n, _ in declared_phases().get(task_id, ())]
+    return list(kinds) if len(kinds) < len(names) else names
 
 
 def check_policy_cameras(label: str, header: dict, cameras: str) -> None:
@@ -290,13 +303,14 @@ def check_mimic_output(args: MimicArgs, path: str, info: dict[str, Any]) -> None
 
 
 def check_split_phases(args: SplitArgs, path: str, info: dict[str, Any]) -> None:
-    """``split --phases`` names phases that the dataset's task has (as recorded in its ``env_args``; a dataset
+    """``split --phases`` names phases (kinds) that the dataset's task has (as recorded in its ``env_args``; a dataset
     recorded before the phase names were is checked after the task is built), and only with ``--out``."""
     if not args.out:
         raise ValueError("--phases selects the phases of a split by phase: give --out too")
     from ..datasets.split import check_phase_names  # deferred: the datasets package imports h5py and zarr (~1 s)
 
-    recorded = info["env_args"].get("newton_lab", {}).get("phases")
+    facts = info["env_args"].get("newton_lab", {})
+    recorded = facts.get("phase_kinds") or facts.get("phases")
     if recorded is not None:
         check_phase_names(path, info["task_id"], recorded, args.phase_names())
 

@@ -1,10 +1,11 @@
 """Split a dataset: robomimic train / valid filter keys (:func:`split_train_val`), or one dataset per
 phase of a coherent task (:func:`split_by_phase`).
 
-By phase: each episode contributes its contiguous steps of phase ``p`` to ``<out_dir>/<phase name>.<suffix>``, labelled
-with the component task id; the actions keep only the component's columns (by joint name) and the
-segment's ``initial_state`` is the recorded state at its first step. A segment is successful when the row
-moved on to the next phase (the last phase: when the episode succeeded).
+By phase: each episode contributes its contiguous steps of phase ``p`` to ``<out_dir>/<phase kind>.<suffix>`` (the
+kind is the phase's name unless several phases share one, as SortToShelf-All's ``pick_1`` .. ``pick_4``: each of
+them is one segment there), labelled with the component task id; the actions keep only the component's columns (by
+joint name) and the segment's ``initial_state`` is the recorded state at its first step. A segment is successful
+when the row moved on to the next phase (the last phase: when the episode succeeded).
 """
 
 from __future__ import annotations
@@ -49,39 +50,47 @@ class _PhaseJob:
     source: Path
     out: Path
     name: str
-    index: int
-    last: bool
+    indices: tuple[int, ...]
+    """The phases of this kind (one segment per episode each)."""
+    phase_names: tuple[str, ...]
+    last: int
+    """Index of the coherent task's last phase."""
     task_id: str
     cols: list[int]
     env_args: dict[str, Any]
 
 
 def _write_phase(job: _PhaseJob) -> list[int]:
-    """Write ``job``'s phase dataset: every episode's steps of that phase; returns the saved demo ids."""
+    """Write ``job``'s phase dataset: every episode's steps of each of its phases, a segment per phase; returns the
+    saved demo ids."""
     info = read_dataset_info(job.source)
     saved = []
     with open_writer(job.out, task_id=job.task_id, env_args=job.env_args) as writer:
         for demo, ep in zip(info["demo_ids"], read_episodes(job.source, info["demo_ids"], attrs=True)):
             attrs = ep.pop("attrs")
             phase = np.asarray(ep["datagen"]["phase"]).reshape(-1)
-            sel = np.nonzero(phase == job.index)[0]
-            if sel.size == 0:
-                continue
-            steps = phase.shape[0]
-            seg = _slice({k: v for k, v in ep.items() if k != "initial_state"}, sel, steps)
-            seg["actions"] = np.asarray(seg["actions"])[:, job.cols]
-            if "states" in ep:  # (1, ...) like a collected episode's initial_state
-                seg["initial_state"] = _slice(ep["states"], sel[:1], steps)
-            success = bool(attrs.get("success", False)) if job.last else bool((phase > job.index).any())
-            if "dones" in seg:  # robomimic: 1 on the last step of a successful segment
-                seg["dones"] = np.zeros_like(seg["dones"])
-                seg["dones"][-1:] = int(success)
-            saved.append(
-                writer.append_episode(
-                    seg, success=success, attrs={"source": f"{job.source.name}:{demo}", "phase": job.name}
-                )
-            )
+            for index, name in zip(job.indices, job.phase_names):
+                sel = np.nonzero(phase == index)[0]
+                if sel.size == 0:
+                    continue
+                success = bool(attrs.get("success", False)) if index == job.last else bool((phase > index).any())
+                seg = _segment(ep, sel, phase.shape[0], job.cols, success)
+                source = {"source": f"{job.source.name}:{demo}", "phase": name}
+                saved.append(writer.append_episode(seg, success=success, attrs=source))
     return saved
+
+
+def _segment(ep: dict, sel: np.ndarray, steps: int, cols: list[int], success: bool) -> dict:
+    """The steps ``sel`` of episode ``ep`` with the component's action ``cols``; ``initial_state`` and robomimic's
+    ``dones`` made for the segment."""
+    seg = _slice({k: v for k, v in ep.items() if k != "initial_state"}, sel, steps)
+    seg["actions"] = np.asarray(seg["actions"])[:, cols]
+    if "states" in ep:  # (1, ...) like a collected episode's initial_state
+        seg["initial_state"] = _slice(ep["states"], sel[:1], steps)
+    if "dones" in seg:  # robomimic: 1 on the last step of a successful segment
+        seg["dones"] = np.zeros_like(seg["dones"])
+        seg["dones"][-1:] = int(success)
+    return seg
 
 
 def check_phase_names(path: str | Path, task_id: str, names: Sequence[str], wanted: Sequence[str]) -> None:
@@ -99,8 +108,8 @@ def check_phase_names(path: str | Path, task_id: str, names: Sequence[str], want
 def split_by_phase(
     path: str | Path, out_dir: str | Path, *, phases: Sequence[str] | None = None, workers: int | None = None
 ) -> dict[str, DatasetRef]:
-    """Write one dataset per phase of the coherent task that recorded ``path`` (only ``phases``, by name, when
-    given); returns them by phase name. Each phase is written by its own process (at most ``workers``, default
+    """Write one dataset per phase kind of the coherent task that recorded ``path`` (only ``phases``, by kind, when
+    given); returns them by kind. Each phase is written by its own process (at most ``workers``, default
     one per phase up to the CPU count): a phase's writer spends its time compressing frames, and the phases are
     independent. Existing output files are never replaced."""
     path, out_dir = Path(path), Path(out_dir)
@@ -111,9 +120,12 @@ def split_by_phase(
     from .. import tasks  # noqa: F401  (deferred: registering the tasks imports Warp; storage stays Warp-free)
 
     cfg = lookup(task_id).make_cfg(options)
-    check_phase_names(path, task_id, [p.name for p in cfg.phases], phases or ())
-    chosen = [(i, ph) for i, ph in enumerate(cfg.phases) if phases is None or ph.name in phases]
-    outs = {ph.name: out_dir / f"{ph.name}{path.suffix}" for _, ph in chosen}
+    kinds = cfg.phase_kinds if cfg.phases else {}
+    check_phase_names(path, task_id, list(kinds), phases or ())
+    chosen = [
+        (kind, [(i, cfg.phases[i]) for i in ix]) for kind, ix in kinds.items() if phases is None or kind in phases
+    ]
+    outs = {kind: out_dir / f"{kind}{path.suffix}" for kind, _ in chosen}
     taken = [str(o) for o in outs.values() if o.exists()]
     if taken:
         raise FileExistsError(f"{taken} already exist; split into a new folder")
@@ -127,16 +139,22 @@ def split_by_phase(
     refs: dict[str, DatasetRef] = {}
     for job, ids in zip(jobs, saved):
         ref = DatasetRef(outs[job.name], task_id=job.task_id, metadata={"saved_demo_ids": ids, "episodes": len(ids)})
-        refs[job.name] = ref.record("split", config={"source": str(path), "phase": job.name, "phase_index": job.index})
+        config = {"source": str(path), "phase": job.name, "phase_index": job.indices[0]}
+        if len(job.indices) > 1:
+            config["phase_indices"] = list(job.indices)
+        refs[job.name] = ref.record("split", config=config)
     return refs
 
 
 def _phase_jobs(path: Path, stage: Path, outs: dict, chosen: list, n_phases: int, options: dict, env_args: dict):
-    """One ``_PhaseJob`` per chosen phase: its component task's action columns picked out of the coherent task's,
-    written into the stage folder."""
+    """One ``_PhaseJob`` per chosen phase kind: its component task's action columns picked out of the coherent
+    task's, written into the stage folder."""
     columns = env_args["newton_lab"]["action_joint_names"]
     jobs = []
-    for p, ph in chosen:
+    for kind, members in chosen:
+        ph = members[0][1]
+        if {m.task_id for _, m in members} != {ph.task_id}:
+            raise ValueError(f"the phases of kind {kind!r} run different components; give each its own kind")
         comp = lookup(ph.task_id)
         comp = comp.cfg(**comp.accepted(options))
         groups = robot_binding(comp.robot).joint_groups
@@ -149,10 +167,11 @@ def _phase_jobs(path: Path, stage: Path, outs: dict, chosen: list, n_phases: int
         jobs.append(
             _PhaseJob(
                 path,
-                stage / outs[ph.name].name,
-                ph.name,
-                p,
-                p == n_phases - 1,
+                stage / outs[kind].name,
+                kind,
+                tuple(i for i, _ in members),
+                tuple(m.name for _, m in members),
+                n_phases - 1,
                 ph.task_id,
                 [columns.index(j) for j in joints],
                 args,

@@ -214,6 +214,7 @@ def env_args(env) -> dict[str, Any]:
             "signals": list(env.task.signal_names),
             "termination_reasons": list(env.task.termination_reasons),
             "phases": [ph.name for ph in env.cfg.phases],  # a coherent task's, in order (datagen/phase indexes them)
+            "phase_kinds": list(env.cfg.phase_kinds) if env.cfg.phases else [],  # what the split writes
             "state_layout": state_layout(
                 q.shape[1],
                 qd.shape[1],

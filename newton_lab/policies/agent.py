@@ -32,7 +32,8 @@ def _trained_for_phase(policy_task: str | None, component: str) -> bool:
 
 
 def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0) -> TaskFlowAgent:
-    """A coherent task's agent: the trained policy of ``checkpoints`` (phase name -> checkpoint path) in its phase,
+    """A coherent task's agent: the trained policy of ``checkpoints`` (phase name or kind -> checkpoint path; a kind's
+    policy runs every phase of that kind) in its phase,
     the component's expert in the others (e.g. a learned pick and place with the nav expert between them). Each
     checkpoint is loaded and checked against its phase and the env at once: one line names a phase the task does
     not have, a checkpoint trained for another phase's task, or observation terms / cameras the env lacks."""
@@ -45,13 +46,16 @@ def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0) -> TaskF
 
 
 def _check_phases(env, named) -> dict:
+    """The phases by name and by kind (the first phase of each kind: a kind's phases share their component)."""
     phases = {p.name: p for p in env.cfg.phases}
     if not phases:
         raise ValueError(f"{env.task_id} has no phases; give one --checkpoint for it instead of phase checkpoints")
-    unknown = sorted(set(named) - set(phases))
+    kinds = {kind: env.cfg.phases[ix[0]] for kind, ix in env.cfg.phase_kinds.items()}
+    unknown = sorted(set(named) - set(phases) - set(kinds))
     if unknown:
-        raise ValueError(f"{env.task_id} has no phase {unknown[0]!r}; its phases: {', '.join(phases)}")
-    return phases
+        listed = ", ".join(kinds) if len(kinds) < len(phases) else ", ".join(phases)
+        raise ValueError(f"{env.task_id} has no phase {unknown[0]!r}; its phases: {listed}")
+    return {**phases, **kinds}
 
 
 def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None) -> TaskFlowAgent:

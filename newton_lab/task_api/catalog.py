@@ -176,10 +176,10 @@ def check_task_id(task_id: str) -> None:
         )
 
 
-def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str], ...]]:
-    """Coherent task id -> its phases as (phase name, component task id), for one task package: the
+def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str, str], ...]]:
+    """Coherent task id -> its phases as (phase name, component task id, kind), for one task package: the
     ``TaskSpec(id=..., cfg=NAME)`` of its ``__init__`` and the literal ``phase("name", "task id", ...)`` calls in the
-    body of the function ``NAME`` (any module of the package)."""
+    body of the function ``NAME`` (any module of the package); the kind is a literal ``kind=`` or the name."""
     cfgs: dict[str, str] = {}  # cfg function name -> task id
     for node in ast.walk(ast.parse((package / "__init__.py").read_text())):
         if isinstance(node, ast.Call) and _call_name(node) == "TaskSpec":
@@ -187,13 +187,13 @@ def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str], ...]]:
             task_id, cfg = _literal(kw.get("id")), kw.get("cfg")
             if isinstance(task_id, str) and isinstance(cfg, ast.Name):
                 cfgs[cfg.id] = task_id
-    out: dict[str, tuple[tuple[str, str], ...]] = {}
+    out: dict[str, tuple[tuple[str, str, str], ...]] = {}
     for module in sorted(package.rglob("*.py")):
         for fn in ast.walk(ast.parse(module.read_text())):
             if not isinstance(fn, ast.FunctionDef) or fn.name not in cfgs:
                 continue
             phases = tuple(
-                (node.args[0].value, node.args[1].value)
+                (node.args[0].value, node.args[1].value, _literal_kind(node) or node.args[0].value)
                 for node in ast.walk(fn)
                 if isinstance(node, ast.Call)
                 and _call_name(node) == "phase"
@@ -205,15 +205,29 @@ def _phases_in(package: Path) -> dict[str, tuple[tuple[str, str], ...]]:
     return out
 
 
+def _literal_kind(call: ast.Call) -> str | None:
+    kind = _literal({k.arg: k.value for k in call.keywords}.get("kind"))
+    return kind if isinstance(kind, str) else None
+
+
 @functools.cache
+def _declared_phase_calls() -> dict[str, tuple[tuple[str, str, str], ...]]:
+    out: dict[str, tuple[tuple[str, str, str], ...]] = {}
+    for init in _task_inits():
+        out.update(_phases_in(init.parent))
+    return out
+
+
 def declared_phases() -> dict[str, tuple[tuple[str, str], ...]]:
     """Coherent task id -> its phases, in order, as (phase name, component task id), read from the task packages'
     source (no import of the tasks); a task that is not coherent is absent. tests/test_cli.py checks it against
     the registry."""
-    out: dict[str, tuple[tuple[str, str], ...]] = {}
-    for init in _task_inits():
-        out.update(_phases_in(init.parent))
-    return out
+    return {t: tuple((name, comp) for name, comp, _ in ph) for t, ph in _declared_phase_calls().items()}
+
+
+def declared_phase_kinds() -> dict[str, dict[str, str]]:
+    """Coherent task id -> its phase kinds (``PhaseCfg.kind``, else the name) -> component task id, from source."""
+    return {t: {kind: comp for _, comp, kind in ph} for t, ph in _declared_phase_calls().items()}
 
 
 @functools.cache

@@ -301,6 +301,21 @@ class TaskCfg:
         return [p.name for p in self.phases] if self.phases else ["task"]
 
     @property
+    def phase_kinds(self) -> dict[str, list[int]]:
+        """Phase indices by kind (``PhaseCfg.kind``, else the phase's name), kinds in first-phase order: what the
+        split writes one dataset for and a phase policy runs (``{"task": [0]}`` for a single-phase task)."""
+        kinds: dict[str, list[int]] = {}
+        for i, p in enumerate(self.phases):
+            kinds.setdefault(p.kind or p.name, []).append(i)
+        return kinds or {"task": [0]}
+
+    @property
+    def target_observations(self) -> list[str]:
+        """Observation terms a phase policy must see besides its sensors: the per-row target of its phases
+        (``PhaseCfg.target_option``, e.g. SortToShelf-All's ``sorting_object`` one-hot), in first-phase order."""
+        return list(dict.fromkeys(p.target_option for p in self.phases if p.target_option))
+
+    @property
     def divergence_bounds(self) -> tuple[float, float, float]:
         """(max body distance [m], linear speed [m/s], angular speed [rad/s]) the task kernel guards."""
         return (float(self.max_body_distance), float(self.max_body_linear_speed), float(self.max_body_angular_speed))

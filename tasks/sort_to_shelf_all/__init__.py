@@ -21,20 +21,24 @@ from newton_lab.task_api.registry import TaskOption, TaskSpec, register
 from .config.g1.env_cfg import TARGET_OPTION, all_cfg, return_cfg
 from .config.g1.experts import return_expert
 
+_OBJECT = TaskOption(
+    name="sorting_object",
+    choices=("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"),
+    default=DEFAULT_OBJECT,
+    doc="SortToShelf-Return: start from the place start of this object",
+)
+if _OBJECT.choices != tuple(OBJECTS) or _OBJECT.name != TARGET_OPTION:
+    raise ValueError(f"sorting_object choices {_OBJECT.choices} must name the objects {tuple(OBJECTS)}")
+_INIT_SCENARIO = TaskOption(
+    name="init_scenario", doc="start from this scenario YAML (default: the object's place start)"
+)
+
 register(
     TaskSpec(
         id="GalbotG1-SortToShelf-Return-v0",
         cfg=return_cfg,
         expert=return_expert,
-        options=(
-            TaskOption(
-                name=TARGET_OPTION,
-                choices=tuple(OBJECTS),
-                default=DEFAULT_OBJECT,
-                doc="SortToShelf-Return: start from the place start of this object",
-            ),
-            TaskOption(name="init_scenario", doc="start from this scenario YAML (default: the object's place start)"),
-        ),
+        options=(_OBJECT, _INIT_SCENARIO),
         description="Back from the shelf to the table: legs down, arm to ready, drive to the pick position.",
     )
 )

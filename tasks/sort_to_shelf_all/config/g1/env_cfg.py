@@ -21,8 +21,8 @@ from newton_lab.tasks.sort_to_shelf.mdp.events import permute_objects
 from newton_lab.tasks.sort_to_shelf.objects import OBJECTS, sorting_object as lookup_object
 
 from newton_lab.robots.g1 import spec
-from newton_lab.task_api.cfg import ActionTermCfg, TaskCfg, TermCfg, TerminationTermCfg
-from newton_lab.task_api.compose import phase
+from newton_lab.task_api.cfg import ActionTermCfg, PhaseCfg, TaskCfg, TermCfg, TerminationTermCfg
+from newton_lab.task_api.compose import phase as compose_phase
 
 from ...mdp import events, observations as all_obs, terminations as terms
 from ...order import KINDS, OBJECT_COUNT, PICK, phase_layout
@@ -86,21 +86,43 @@ def _phase_success(kind: str):
     return {"pick": terms.picked, "nav": terms.at_place_start, "place": terms.placed}[kind]()
 
 
+def phase(name: str, task_id: str, *, kind: str) -> PhaseCfg:
+    """Phase ``name`` of ``kind`` running component ``task_id`` (its joint groups, base held while picking, the
+    per-row target object but while returning)."""
+    if COMPONENTS[kind][0] != task_id:
+        raise ValueError(f"phase {name!r} of kind {kind!r} runs {COMPONENTS[kind][0]}, not {task_id}")
+    return compose_phase(
+        name,
+        task_id,
+        terms=COMPONENTS[kind][1],
+        fixed_base=kind == "pick",
+        kind=kind,
+        target_option=None if kind == "return" else TARGET_OPTION,
+    )
+
+
 def all_cfg() -> TaskCfg:
     """Pick -> nav -> place -> return for each object of the row's order, the last without return (15 phases);
     every object on the table is shuffled over the slots and the order drawn at reset."""
-    layout = phase_layout()
     phases = [
-        phase(
-            name,
-            COMPONENTS[kind][0],
-            terms=COMPONENTS[kind][1],
-            fixed_base=kind == "pick",
-            kind=kind,
-            target_option=TARGET_OPTION if kind != "return" else None,
-        )
-        for name, kind in layout
+        phase("pick_1", "GalbotG1-SortToShelf-Pick-v0", kind="pick"),
+        phase("nav_1", "GalbotG1-SortToShelf-Nav-v0", kind="nav"),
+        phase("place_1", "GalbotG1-SortToShelf-Place-v0", kind="place"),
+        phase("return_1", "GalbotG1-SortToShelf-Return-v0", kind="return"),
+        phase("pick_2", "GalbotG1-SortToShelf-Pick-v0", kind="pick"),
+        phase("nav_2", "GalbotG1-SortToShelf-Nav-v0", kind="nav"),
+        phase("place_2", "GalbotG1-SortToShelf-Place-v0", kind="place"),
+        phase("return_2", "GalbotG1-SortToShelf-Return-v0", kind="return"),
+        phase("pick_3", "GalbotG1-SortToShelf-Pick-v0", kind="pick"),
+        phase("nav_3", "GalbotG1-SortToShelf-Nav-v0", kind="nav"),
+        phase("place_3", "GalbotG1-SortToShelf-Place-v0", kind="place"),
+        phase("return_3", "GalbotG1-SortToShelf-Return-v0", kind="return"),
+        phase("pick_4", "GalbotG1-SortToShelf-Pick-v0", kind="pick"),
+        phase("nav_4", "GalbotG1-SortToShelf-Nav-v0", kind="nav"),
+        phase("place_4", "GalbotG1-SortToShelf-Place-v0", kind="place"),
     ]
+    if [(p.name, p.kind) for p in phases] != phase_layout():
+        raise ValueError(f"SortToShelf-All's phases must follow order.phase_layout(): {phase_layout()}")
     signals = {
         "grasped_object": TermCfg(func=terms.grasped_target()),
         "released_in_cell": TermCfg(func=terms.released_target()),
@@ -112,7 +134,7 @@ def all_cfg() -> TaskCfg:
         observations=obs.manipulation_observations(
             object_pose=all_obs.TARGET_POSE, **{TARGET_OPTION: all_obs.TARGET_ONE_HOT}
         ),
-        phase_success=[_phase_success(kind) for _, kind in layout],
+        phase_success=[_phase_success(p.kind) for p in phases],
         phases=phases,
         terminations={
             "object_dropped": TerminationTermCfg(func=terms.any_dropped()),
