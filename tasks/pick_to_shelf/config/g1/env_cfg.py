@@ -12,6 +12,9 @@ openness, done with the gripper open; the 20-step hold is not required): 1/3 eac
 r_phase) / 3`` with the pick, drive (to the nav goal, yaw not required) and place rewards.
 """
 
+# The tutorial lists parts of this file at the docs site's column width (about 85 characters): the formatter
+# leaves them.
+# fmt: off
 from __future__ import annotations
 
 import math
@@ -73,12 +76,8 @@ PLACE_HOLD_STEPS = 20
 
 grasped_bar = grasped(entity="bar")
 at_carry = all_of(terms=(lifted(entity="bar", min_z=CARRY_MIN_Z), arm_at_home(tol=CARRY_ARM_TOL)))
-bar_on_shelf = all_of(
-    terms=(
-        resting_on(entity="bar", target="shelf_deck", height=SHELF_DZ, xy_tol=0.10, z_tol=0.04),
-        upright(entity="bar", min_up_dot=0.90),
-    )
-)
+bar_on_shelf = all_of(terms=(resting_on(entity="bar", target="shelf_deck", height=SHELF_DZ, xy_tol=0.10, z_tol=0.04),
+                             upright(entity="bar", min_up_dot=0.90)))
 bar_released_on_shelf = all_of(terms=(bar_on_shelf, gripper_open(tol=0.05)))
 goal_reached = nav.goal_reached(goal_xy=NAV_GOAL_XY, radius=NAV_SUCCESS_RADIUS)
 
@@ -95,10 +94,8 @@ def _world(**fields) -> TaskCfg:
         actions=left_arm_actions(),
         observations=obs.manipulation_observations(bar_pose=obs.pose_of("bar")),
         phase_success=[],
-        terminations={
-            "bar_dropped": TerminationTermCfg(func=dropped, params={"entity": "bar", "below_z": 0.2}),
-            "bar_tipped": TerminationTermCfg(func=tipped, params={"entity": "bar"}),
-        },
+        terminations={"bar_dropped": TerminationTermCfg(func=dropped, params={"entity": "bar", "below_z": 0.2}),
+                      "bar_tipped": TerminationTermCfg(func=tipped, params={"entity": "bar"})},
         signals={"grasped_bar": TermCfg(func=grasped_bar)},
         posture=shelf_posture(),
         root_pos=ROBOT_ROOT,
@@ -113,9 +110,8 @@ def _world(**fields) -> TaskCfg:
 
 def pick_rewards():
     """PickToShelf-Pick: reach, grasp, lift, carry posture (1/4 each)."""
-    return staged_rewards(
-        *pick_to_carry_stages(entity="bar", grasped_term=grasped_bar, lift_z=CARRY_MIN_Z, at_carry=at_carry)
-    )
+    return staged_rewards(*pick_to_carry_stages(entity="bar", grasped_term=grasped_bar, lift_z=CARRY_MIN_Z,
+                                                at_carry=at_carry))
 
 
 def place_rewards():
@@ -129,16 +125,9 @@ def place_rewards():
 
 def pick_cfg() -> TaskCfg:
     """Pick the bar from the table and bring it to the carry posture (success: ``at_carry`` held 10 steps)."""
-    return _world(
-        phase_success=[held(term=at_carry, steps=CARRY_HOLD)],
-        rewards=pick_rewards(),
-        events={
-            "randomize_bar_position": TermCfg(
-                func=randomize_position,
-                params={"entity": "bar", "x_range": (-0.58, -0.42), "y_range": (0.10, 0.30), "z": BAR_POS[2]},
-            )
-        },
-    )
+    return _world(phase_success=[held(term=at_carry, steps=CARRY_HOLD)], rewards=pick_rewards(),
+                  events={"randomize_bar_position": TermCfg(func=randomize_position, params={
+                      "entity": "bar", "x_range": (-0.58, -0.42), "y_range": (0.10, 0.30), "z": BAR_POS[2]})})
 
 
 def nav_cfg(init_scenario: str | None = None) -> TaskCfg:
@@ -167,9 +156,8 @@ def place_cfg(init_scenario: str | None = None) -> TaskCfg:
 
 def coherent_cfg() -> TaskCfg:
     """Pick -> Nav -> Place in one episode; the episode succeeds when the bar stands on the shelf."""
-    drive = staged_rewards(
-        drive_stage(goal_xy=NAV_GOAL_XY, goal_yaw=NAV_GOAL_YAW, radius=NAV_SUCCESS_RADIUS, yaw_tol=math.pi)
-    )
+    drive = staged_rewards(drive_stage(goal_xy=NAV_GOAL_XY, goal_yaw=NAV_GOAL_YAW, radius=NAV_SUCCESS_RADIUS,
+                                       yaw_tol=math.pi))
     return coherent_task(
         phases=task_sequence(
             phase("pick", "GalbotG1-PickToShelf-Pick-v0", terms=("left_arm", "left_gripper")),
@@ -182,11 +170,5 @@ def coherent_cfg() -> TaskCfg:
 
 def nav_expert(init_scenario: str | None = None) -> NavExpert:
     """PickToShelf-Nav expert: turn to face the shelf, then drive straight to the goal."""
-    return NavExpert(
-        goal=NAV_GOAL_XY,
-        goal_yaw=NAV_GOAL_YAW,
-        success_radius=NAV_SUCCESS_RADIUS,
-        yaw_tolerance=0.03,
-        rotate_before_translate=True,
-        waypoint_spacing=10.0,
-    )
+    return NavExpert(goal=NAV_GOAL_XY, goal_yaw=NAV_GOAL_YAW, success_radius=NAV_SUCCESS_RADIUS, yaw_tolerance=0.03,
+                     rotate_before_translate=True, waypoint_spacing=10.0)
