@@ -86,6 +86,16 @@ def test_target_one_hot_follows_the_phase(env):
         assert int(env.obs[0, hot].argmax()) == order[position], f"phase {PHASES[phase]}"
 
 
+def test_the_target_switch_refuses_in_one_line(env):
+    from newton_lab.agents import TargetSwitchAgent, ZeroAgent
+
+    with pytest.raises(ValueError, match=r"PickToShelf-Pick-v0 has no option 'sorting_object' with choices"):
+        TargetSwitchAgent.of_component("GalbotG1-PickToShelf-Pick-v0", "sorting_object")
+    switch = TargetSwitchAgent("colour", {"red": ZeroAgent(), "blue": ZeroAgent()})
+    with pytest.raises(ValueError, match=r"needs an observation term 'colour' of 2 columns \(the one-hot of"):
+        switch.act(env)
+
+
 def test_expert_sorts_all_four_objects_in_the_drawn_order(expert_run):
     from newton_lab.tasks.sort_to_shelf.objects import OBJECTS as SPEC
 

@@ -10,7 +10,7 @@ from .nav import BaseNavAgent, GoalNavAgent, ProportionalNavAgent, TrajectoryNav
 from .perturbed import PerturbedAgent, evaluate_perturbed, perturbation_table
 from .planner.agent import PlannerAgent
 from .sequence import SequenceAgent, SequenceStep
-from .task_flow import TaskFlowAgent, expert_agent
+from .task_flow import TargetSwitchAgent, TaskFlowAgent, expert_agent
 from .teleop import TeleopAgent
 
 __all__ = [
@@ -23,6 +23,7 @@ __all__ = [
     "ProportionalNavAgent",
     "SequenceAgent",
     "SequenceStep",
+    "TargetSwitchAgent",
     "TaskFlowAgent",
     "TeleopAgent",
     "TrajectoryNavAgent",

@@ -25,12 +25,12 @@ _OBJECT = TaskOption(
     name="sorting_object",
     choices=("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder"),
     default=DEFAULT_OBJECT,
-    doc="SortToShelf-Return: start from the place start of this object",
+    doc="SortToShelf-Return: start where SortToShelf-Place left this object in its cell",
 )
 if _OBJECT.choices != tuple(OBJECTS) or _OBJECT.name != TARGET_OPTION:
     raise ValueError(f"sorting_object choices {_OBJECT.choices} must name the objects {tuple(OBJECTS)}")
 _INIT_SCENARIO = TaskOption(
-    name="init_scenario", doc="start from this scenario YAML (default: the object's place start)"
+    name="init_scenario", doc="start from this scenario YAML (default: the end of the object's place)"
 )
 
 register(

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from newton_lab.tasks.common import navigation as nav, observations as obs
 from newton_lab.tasks.common.config.g1 import cameras, postures
-from newton_lab.tasks.common.config.g1.setup import base_actions, carried_gripper_closed, shelf_posture
+from newton_lab.tasks.common.config.g1.setup import base_actions, shelf_posture
 from newton_lab.tasks.sort_to_shelf import scene
 from newton_lab.tasks.sort_to_shelf.config.g1.env_cfg import PHYSICS
 from newton_lab.tasks.sort_to_shelf.mdp import terminations as one
@@ -27,7 +27,7 @@ from newton_lab.task_api.compose import phase as compose_phase
 from ...mdp import events, observations as all_obs, terminations as terms
 from ...order import KINDS, OBJECT_COUNT, PICK, phase_layout
 
-SORT_SCENARIOS = Path(scene.__file__).parent / "config" / "g1" / "scenarios"
+SCENARIOS = Path(__file__).parent / "scenarios"
 TABLE_XY = scene.ROBOT_ROOT[:2]
 """Where the robot picks from: its reset position at the table [m]."""
 TABLE_LEGS = (0.0,) * len(spec.LEG_JOINTS)
@@ -66,15 +66,15 @@ def _common(**fields) -> TaskCfg:
 
 def return_cfg(sorting_object: str | None = None, init_scenario: str | None = None) -> TaskCfg:
     """Back from the shelf to the table: legs down, arm at ready, base at its reset position facing the table
-    (success: all of it held 20 steps). Alone it starts from SortToShelf's place start of ``sorting_object`` (the
-    object still in hand); inside SortToShelf-All, wherever the place left the robot."""
+    (success: all of it held 20 steps). Alone it starts where SortToShelf-Place's expert left ``sorting_object``
+    (``scenarios/return_<object>.yaml``, captured with ``--save-end-scenario``); inside SortToShelf-All, wherever
+    the place left the robot."""
     obj = lookup_object(sorting_object)
     return _common(
         actions=_mobile_actions(clip=True),
         observations=nav.nav_observations(TABLE_XY),
         phase_success=[terms.at_table(TABLE_XY, postures.CARRY_LEFT_ARM, TABLE_LEGS)],
-        scenario=init_scenario or str(SORT_SCENARIOS / f"place_{obj.name}.yaml"),
-        initial_targets=carried_gripper_closed(),
+        scenario=init_scenario or str(SCENARIOS / f"return_{obj.name}.yaml"),
         fixed_base=False,
         options={TARGET_OPTION: obj.name},
     )
