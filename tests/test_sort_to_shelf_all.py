@@ -115,6 +115,8 @@ def test_expert_sorts_all_four_objects_in_the_drawn_order(expert_run):
         assert sorted(order) == sorted(OBJECTS)
         signals = ep["datagen"]["subtask_signals"]
         first_sorted = {name: int(np.argmax(signals[f"sorted_{name}"] > 0.5)) for name in OBJECTS}
+        first_picked = {name: int(np.argmax(signals[f"picked_{name}"] > 0.5)) for name in OBJECTS}
+        assert sorted(OBJECTS, key=first_picked.get) == order, "each object is picked in the drawn order"
         assert all(signals[f"sorted_{name}"].any() for name in OBJECTS)
         assert sorted(OBJECTS, key=first_sorted.get) == order, "each object lands in its cell in the drawn order"
         for name in OBJECTS:
@@ -189,6 +191,6 @@ def test_composed_evaluation_with_one_policy_per_kind(phase_policies):
     assert phases["pick_1"]["reached"] == 2 and phases["pick_1"]["passed"] == 0, "3 training steps lift nothing"
     assert sum(phases["pick_1"]["stalled"].values()) == 2
     assert set(phases["pick_1"]["stalled"]) <= {"max_steps", "object_tipped", "object_dropped"}
-    assert set(summary["subtask_signals"]) >= {f"sorted_{o}" for o in OBJECTS}
+    assert set(summary["subtask_signals"]) >= {f"{s}_{o}" for o in OBJECTS for s in ("picked", "sorted")}
     with pytest.raises(ValueError, match=r"has no phase 'lift'; its phases: pick, nav, place, return"):
         phase_policy_agent(env, {"lift": str(phase_policies["pick"])})

@@ -12,6 +12,10 @@ pose is dropped). The task-flow agent switches the experts per row on the same o
 a pick policy for one object would see only its own episodes (a quarter of the demos), four times the trainings, and
 a policy composed per object would need the same per-row switch anyway; the objects differ mostly in their table
 slot and cell, which the one-hot and the camera carry.
+
+Where episodes stall: the evaluation's ``phases`` (each of the 15) and, per object, the signals ``picked_<object>``
+(lifted to the ready posture) and ``sorted_<object>`` (let go in its cell). The task declares no dense reward: its
+policies are learned from demos, and no PPO runs on it.
 """
 
 from newton_lab.tasks.sort_to_shelf.objects import DEFAULT_OBJECT, OBJECTS

@@ -127,6 +127,8 @@ def all_cfg() -> TaskCfg:
         "grasped_object": TermCfg(func=terms.grasped_target()),
         "released_in_cell": TermCfg(func=terms.released_target()),
     }
+    # per object, whatever its place in the order: lifted to the ready posture, and let go in its cell
+    signals.update({f"picked_{o.name}": TermCfg(func=one.at_carry(o)) for o in OBJECTS.values()})
     signals.update({f"sorted_{o.name}": TermCfg(func=one.released_in_cell(o)) for o in OBJECTS.values()})
     return _common(
         actions=_mobile_actions(clip=False)
