@@ -194,3 +194,20 @@ def test_composed_evaluation_with_one_policy_per_kind(phase_policies):
     assert set(summary["subtask_signals"]) >= {f"{s}_{o}" for o in OBJECTS for s in ("picked", "sorted")}
     with pytest.raises(ValueError, match=r"has no phase 'lift'; its phases: pick, nav, place, return"):
         phase_policy_agent(env, {"lift": str(phase_policies["pick"])})
+
+
+def test_the_gpu_pipeline_plan_and_its_suite_row(capsys):
+    import json
+
+    from newton_lab.flows.suite_rows import rows_of
+
+    from newton_lab.cli import main
+
+    assert main(["pipeline", "--task", TASK, "--recipe", "gpu", "--dry-run"]) == 0
+    plan = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["plan"]
+    assert plan["long_horizon"] and plan["learned_phases"] == ["pick", "place"]
+    assert plan["demos"] == 160 and plan["eval_max_steps"] == 5000
+    keys = plan["train_cfg"]["obs_keys"]
+    assert keys[-1] == "sorting_object" and not any("pose" in k for k in keys), "the one-hot, and no object pose"
+    (row,) = rows_of("gpu", ["sorttoshelf-all"])
+    assert row.is_pipeline and row.args[:3] == ("pipeline", "--task", TASK) and "gpu" in row.args
