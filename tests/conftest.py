@@ -25,6 +25,7 @@ MODULE_SECONDS = {
     "test_storage.py": 29,
     "test_writers.py": 23,
     "test_mobile.py": 23,
+    "test_sort_to_shelf_all.py": 45,
     "test_flows_long_horizon.py": 110,
     "test_docs.py": 90,
     "test_data_parallel.py": 15,
