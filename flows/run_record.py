@@ -72,6 +72,7 @@ def pipeline_record(
             "termination_reasons": ev.get("termination_reasons"),
         },
         "phases": ev.get("phases"),
+        "subtask_signals": ev.get("subtask_signals"),  # episodes each fired in (SortToShelf-All: per object)
         "stage_states": summary["stage_states"],
     }
     wall = command_wall_s()

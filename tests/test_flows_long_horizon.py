@@ -74,6 +74,8 @@ def test_every_stage_ran_and_the_composed_task_was_evaluated(first_run):
     assert record["command"].startswith(f"newton-lab pipeline --task {TASK} --recipe cpu")
     assert record["results"]["learned_phases"] == ["pick", "place"] and record["results"]["recipe"] == "cpu"
     assert set(record["results"]["phases"]) == {"pick", "nav", "place"}
+    assert set(record["results"]["subtask_signals"]) == set(ev["subtask_signals"]) >= {"grasped_bar"}
+    assert "signals" in stdout and "grasped_bar" in stdout
     assert set(record["results"]["timings_s"]) == {"collect", "split", "train", "evaluate", "flow"}
     # the phase datasets carry the component task and only the phase's columns; each policy trained on its own
     phases = summary["artifacts"]["phases"]
