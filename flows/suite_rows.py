@@ -35,6 +35,24 @@ def _bench(name: str, *args: str) -> Row:
     return Row(name, (*args, "--run-record", f"{{out}}/records/{name}.json"))
 
 
+ROBUST_EVALUATION = (
+    "--episodes",
+    "100",
+    "--num-envs",
+    "100",
+    "--device",
+    "cuda:0",
+    "--randomize",
+    "--seed",
+    "10000",
+    "--obs-mode",
+    "sensors",
+    "--perturb",
+    "sweep",
+)
+"""How the robustness rows evaluate: the pipelines' held-out seed (their seed + 10000), 100 episodes a cell, the
+policies seeing what they were trained on (cameras and proprioception), every axis and level of ``--perturb``."""
+
 ROWS: dict[str, list[Row]] = {
     "gpu": [
         _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "gpu"),
@@ -151,6 +169,33 @@ ROWS: dict[str, list[Row]] = {
             "--bf16",
             "--device",
             "cuda",
+        ),
+        # off the training distribution: the demo's and PickToShelf's policies (their pipeline rows above) on the
+        # held-out seed under every perturbation axis at each level (21 evaluations of 100 episodes each)
+        _bench(
+            "robust-pickcube-demo",
+            "evaluate",
+            "--task",
+            "GalbotG1-PickCube-v0",
+            "--checkpoint",
+            "{out}/pickcube-demo/policy/checkpoint.pt",
+            *ROBUST_EVALUATION,
+            "--cameras",
+            "front_head=96x72:rgb",
+        ),
+        _bench(
+            "robust-picktoshelf",
+            "evaluate",
+            "--task",
+            "GalbotG1-PickToShelf-v0",
+            "--phase-checkpoint",
+            "pick={out}/picktoshelf/policy_pick/checkpoint.pt",
+            "place={out}/picktoshelf/policy_place/checkpoint.pt",
+            *ROBUST_EVALUATION,
+            "--cameras",
+            "front_head=96x72:rgb,left_wrist=96x72:rgb",
+            "--max-steps",
+            "3000",
         ),
     ],
     "cpu": [
