@@ -8,6 +8,7 @@ diffusion-policy training step (``bench_train``); expert collection (``bench-col
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
 from typing import Any
 
@@ -156,11 +157,13 @@ def bench_train(
     device: str = "cpu",
     preset: str = "default",
     bf16: bool = False,
+    channels_last: bool = False,
 ) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
-    autocast (keys ``..._bf16``). Also where a step's time goes (``step_breakdown``), the achieved TFLOP/s at the
-    fastest variant's rate and, on CUDA, the peak GPU memory."""
+    autocast (keys ``..._bf16``), with ``channels_last`` each also with the network's weights in channels-last
+    layout (keys ``..._cl``: the convolutions then run channels-last). Also where a step's time goes
+    (``step_breakdown``), the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
     data = SequenceDataset(
@@ -182,11 +185,14 @@ def bench_train(
         "image_keys": list(data.image_keys),
         "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
     }
-    for kind, precision in [(k, p) for p in ([False, True] if bf16 else [False]) for k in kinds]:
+    both = {True: [False, True], False: [False]}
+    for layout_cl, precision, kind in itertools.product(both[channels_last], both[bf16], kinds):
         torch.manual_seed(0)
         run_cfg = dataclasses.replace(cfg, bf16=precision)
-        name = kind.__name__ + ("_bf16" if precision else "")
+        name = kind.__name__ + ("_bf16" if precision else "") + ("_cl" if layout_cl else "")
         policy = DiffusionPolicy.from_dataset(data, run_cfg).to(device)
+        if layout_cl:
+            policy.model.to(memory_format=torch.channels_last)
         stepper, done, t0, loss = kind(policy, data, run_cfg), 0, 0.0, None
         while done < steps + 10:  # 10 untimed steps: allocation, autotuning, capture
             for loss in stepper.epoch():  # noqa: B007 - the last step's loss is read after the loop

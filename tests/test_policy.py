@@ -541,6 +541,7 @@ def test_train_bench_prints_the_eager_rate_on_cpu(dataset, capsys, tmp_path):
                 "3",
                 "--preset",
                 "cpu",
+                "--channels-last",
                 "--run-record",
                 str(tmp_path / "record.json"),
             ]
@@ -549,6 +550,9 @@ def test_train_bench_prints_the_eager_rate_on_cpu(dataset, capsys, tmp_path):
     )
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["EagerTrainStep_steps_per_s"] > 0 and np.isfinite(out["EagerTrainStep_final_loss"])
+    # the channels-last layout changes where the numbers sit in memory, not the numbers
+    assert out["EagerTrainStep_cl_steps_per_s"] > 0
+    assert out["EagerTrainStep_cl_final_loss"] == pytest.approx(out["EagerTrainStep_final_loss"], rel=1e-4)
     assert "CudaGraphTrainStep_steps_per_s" not in out  # no capture without CUDA
     assert set(out["breakdown_ms"]) == {"data", "forward", "backward", "optimizer"}
     assert all(v > 0 for v in out["breakdown_ms"].values()) and out["flops_per_sample"] > 0

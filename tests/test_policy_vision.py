@@ -4,6 +4,8 @@ windows from a real image dataset, shape / key mismatch errors, the checkpoint r
 
 from __future__ import annotations
 
+import json
+
 import pytest
 import torch
 
@@ -176,3 +178,15 @@ def test_image_policy_overfits_two_demos_and_replays_one(image_demos, tmp_path):
         if result["successes"] >= 1:
             break
     assert result["successes"] >= 1, result
+
+
+def test_bench_train_times_the_image_encoders_channels_last_to_the_same_loss(image_demos, tmp_path, capsys):
+    """``bench-train --channels-last``: the convolutions in channels-last layout give the same training step (the
+    layout moves numbers in memory, not their values)."""
+    from newton_lab.cli import main
+
+    argv = ["bench-train", "--dataset-path", str(image_demos), "--batch-size", "4", "--steps", "2"]
+    assert main([*argv, "--preset", "vision_cpu", "--channels-last", "--run-record", str(tmp_path / "r.json")]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["image_keys"] and out["EagerTrainStep_cl_steps_per_s"] > 0
+    assert out["EagerTrainStep_cl_final_loss"] == pytest.approx(out["EagerTrainStep_final_loss"], rel=1e-3)

@@ -78,6 +78,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         device=args.device,
         preset=args.preset,
         bf16=args.bf16,
+        channels_last=args.channels_last,
     )
     write_run_record("bench-train", args, out.get("task"), args.device, out)
     print(json.dumps(out))

@@ -97,6 +97,9 @@ class BenchTrainArgs(RunRecordArgs):
     """Named training settings (network size)."""
     bf16: bool = False
     """also time the steps under bfloat16 autocast (float32 and bf16 side by side)"""
+    channels_last: bool = False
+    """also time each variant with the network's weights in channels-last layout (the image encoders' convolutions
+    then run channels-last: keys ..._cl)"""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""
 
