@@ -167,6 +167,7 @@ ROWS: dict[str, list[Row]] = {
             "--steps",
             "100",
             "--bf16",
+            "--channels-last",
             "--device",
             "cuda",
         ),
