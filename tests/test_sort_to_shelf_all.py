@@ -119,6 +119,10 @@ def test_expert_sorts_all_four_objects_in_the_drawn_order(expert_run):
         assert sorted(OBJECTS, key=first_picked.get) == order, "each object is picked in the drawn order"
         assert all(signals[f"sorted_{name}"].any() for name in OBJECTS)
         assert sorted(OBJECTS, key=first_sorted.get) == order, "each object lands in its cell in the drawn order"
+        r, n = ep["rewards"], len(PHASES)  # (phase + r_phase) / 15; a step that ends phase p is rewarded in p + 1
+        assert np.isfinite(r).all() and r.min() >= 0.0 and r[-1] == pytest.approx(1.0, abs=1e-5)
+        for p in range(n):
+            assert p / n - 1e-5 <= r[phase == p].min() <= r[phase == p].max() <= (p + 2) / n + 1e-5, PHASES[p]
         for name in OBJECTS:
             xy = ep["datagen"]["object_poses"][name][-1, :2]
             assert np.linalg.norm(xy - np.asarray(SPEC[name].target[:2])) < 0.10, f"{name} ends in its cell"

@@ -14,8 +14,8 @@ a policy composed per object would need the same per-row switch anyway; the obje
 slot and cell, which the one-hot and the camera carry.
 
 Where episodes stall: the evaluation's ``phases`` (each of the 15) and, per object, the signals ``picked_<object>``
-(lifted to the ready posture) and ``sorted_<object>`` (let go in its cell). The task declares no dense reward: its
-policies are learned from demos, and no PPO runs on it.
+(lifted to the ready posture) and ``sorted_<object>`` (let go in its cell). Its dense reward is SortToShelf's staged
+reward of the row's target in each phase, ``(phase + r_phase) / 15`` (``mdp.rewards``).
 """
 
 from newton_lab.tasks.sort_to_shelf.objects import DEFAULT_OBJECT, OBJECTS

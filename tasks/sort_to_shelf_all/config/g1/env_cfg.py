@@ -24,7 +24,7 @@ from newton_lab.robots.g1 import spec
 from newton_lab.task_api.cfg import ActionTermCfg, PhaseCfg, TaskCfg, TermCfg, TerminationTermCfg
 from newton_lab.task_api.compose import phase as compose_phase
 
-from ...mdp import events, observations as all_obs, terminations as terms
+from ...mdp import events, observations as all_obs, rewards, terminations as terms
 from ...order import KINDS, OBJECT_COUNT, PICK, phase_layout
 
 SCENARIOS = Path(__file__).parent / "scenarios"
@@ -74,6 +74,7 @@ def return_cfg(sorting_object: str | None = None, init_scenario: str | None = No
         actions=_mobile_actions(clip=True),
         observations=nav.nav_observations(TABLE_XY),
         phase_success=[terms.at_table(TABLE_XY, postures.CARRY_LEFT_ARM, TABLE_LEGS)],
+        rewards=rewards.return_rewards(TABLE_XY, postures.CARRY_LEFT_ARM, TABLE_LEGS),
         scenario=init_scenario or str(SCENARIOS / f"return_{obj.name}.yaml"),
         fixed_base=False,
         options={TARGET_OPTION: obj.name},
@@ -143,6 +144,9 @@ def all_cfg() -> TaskCfg:
             "object_tipped": TerminationTermCfg(func=terms.target_tipped(PICK)),
         },
         signals=signals,
+        rewards=rewards.all_rewards(
+            [(p.name, p.kind) for p in phases], rewards.return_rewards(TABLE_XY, postures.CARRY_LEFT_ARM, TABLE_LEGS)
+        ),
         events={
             "permute_objects": TermCfg(func=permute_objects, params={"objects": tuple(OBJECTS)}),
             "draw_sort_order": TermCfg(func=events.draw_sort_order),
