@@ -92,3 +92,38 @@ def test_evaluation_summary_says_where_rows_stop(coherent_env):
     expert = env.evaluate(agent=compose_phase_policies(env, {}), episodes=2, max_steps=1500, progress=False)
     assert expert["success_rate"] == 1.0
     assert all(p == {"reached": 2, "passed": 2, "stalled": {}} for p in expert["phases"].values())
+
+
+class CountingPolicy(ConstantPolicy):
+    """``ConstantPolicy`` that remembers how many rows each of its re-plans was asked for."""
+
+    def __init__(self, env, component: str):
+        super().__init__(env, component)
+        self.batches: list[int] = []
+
+    def predict_action(self, history, generator=None):
+        self.batches.append(history.shape[0])
+        return super().predict_action(history, generator)
+
+
+def test_a_phase_policy_plans_only_for_the_rows_in_its_phase(coherent_env):
+    env = coherent_env
+    pick = PolicyAgent(CountingPolicy(env, "GalbotG1-PickToShelf-Pick-v0"))
+    agent = compose_phase_policies(env, {"pick": pick})
+    env.reset()
+    agent.act(env)
+    assert pick.policy.batches == [2], "both rows start in pick and plan together"
+    env.info["phase"][1] = 1  # row 1 leaves for nav; row 0 picks on
+    horizon = pick.policy.cfg.action_horizon
+    for _ in range(2 * horizon):
+        agent.act(env)
+    assert pick.policy.batches[1:] == [1, 1], "one re-plan per action horizon, for row 0 alone"
+
+
+def test_evaluation_asks_no_plans_for_rows_without_an_episode_left(coherent_env):
+    env = coherent_env
+    pick = PolicyAgent(CountingPolicy(env, "GalbotG1-PickToShelf-Pick-v0"))
+    summary = env.evaluate(agent=compose_phase_policies(env, {"pick": pick}), episodes=1, max_steps=12, progress=False)
+    assert len(summary["success_masks"]) == 1
+    # one episode on two rows: row 1 never runs one, so every re-plan is row 0's alone
+    assert pick.policy.batches and set(pick.policy.batches) == {1}

@@ -365,6 +365,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         "keep_hue=False)",
         "tests/test_cameras.py",
     ),
+    one_patch(
+        "policy-plans-for-every-row",
+        "A phase policy plans only for the rows in its phase, and evaluation only for rows with an episode left",
+        "newton_lab/policies/agent.py",
+        "replan = asked[self._cursor[asked] >= self._queue.shape[1]]",
+        "replan = np.nonzero(self._cursor >= self._queue.shape[1])[0]",
+        "tests/test_phase_policies.py",
+    ),
 )
 
 

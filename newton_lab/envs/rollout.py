@@ -301,6 +301,7 @@ def evaluate(
         progress=progress,
         on_step=on_step,
         timers=clock.timers(),
+        act_for_active_rows=True,
     )
     summary = _summary(env, records, steps, wall)
     summary["success_masks"] = [r["success"] for r in records]

@@ -222,6 +222,7 @@ def run_episodes(
     on_step=None,
     timers: Timers | None = None,
     stop=None,
+    act_for_active_rows: bool = False,
 ):
     """Shared loop; returns per-episode records, vector steps and wall time.
 
@@ -233,6 +234,9 @@ def run_episodes(
     (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
     ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (a ``writers.interrupts.StopRequest``):
     once set, the loop ends after the step in flight (its ended episodes are handed over; the others are dropped).
+    ``act_for_active_rows`` (evaluation): once some rows have no episode left to run, the agent is asked to act for
+    the others alone (its ``env_ids``), so that a policy's inference in the last stalled episodes is not spent on
+    rows whose steps count for nothing.
     """
     check_counts(episodes=episodes, max_steps=max_steps)
     timers = timers or Timers()
@@ -244,7 +248,8 @@ def run_episodes(
     shown = _Progress(env, episodes, until_successes, progress)
     try:
         while not eps.enough():
-            actions = act(env)
+            asked = None if not act_for_active_rows or eps.active.all() else np.nonzero(eps.active)[0]
+            actions = act(env, asked)
             held = agent.holding()  # rows waiting for a plan (PlannerAgent): their episode starts later
             if recorder is not None:
                 recorder.record(eps.step_in_ep, actions)

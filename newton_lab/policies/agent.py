@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..agents.base import BaseAgent
+from ..agents.base import BaseAgent, as_rows
 from ..agents.task_flow import TaskFlowAgent
 from ..task_api.registry import lookup
 from .diffusion import DiffusionPolicy
@@ -159,6 +159,8 @@ class PolicyAgent(BaseAgent):
         super().reset(env_ids)
 
     def act(self, env, env_ids=None) -> torch.Tensor:
+        """The next action of every row; the rows of ``env_ids`` (all when ``None``) re-plan when their queue has
+        run out (the others' actions are the env's held ones or stale: the caller uses only ``env_ids``)."""
         fresh = self.fresh_rows(env)
         obs = env.obs[:, self._cols]
         self._history[:, :-1] = self._history[:, 1:].clone()
@@ -172,7 +174,10 @@ class PolicyAgent(BaseAgent):
             for hist in self._frames.values():
                 hist[rows] = hist[rows, -1:].expand_as(hist[rows]).clone()
             self._cursor[fresh] = self._queue.shape[1]
-        replan = np.nonzero(self._cursor >= self._queue.shape[1])[0]
+        # only the rows asked for re-plan: in a coherent task those in this policy's phase (a row entering it is
+        # reset, so the queues of the others are never read); inference for the rest was wasted work
+        asked = as_rows(env_ids, env.num_envs)
+        replan = asked[self._cursor[asked] >= self._queue.shape[1]]
         if replan.size:
             rows = torch.as_tensor(replan, device=env.torch_device)
             images = {"images": {k: hist[rows] for k, hist in self._frames.items()}} if self._frames else {}
@@ -180,7 +185,7 @@ class PolicyAgent(BaseAgent):
                 self._queue.device
             )
             self._cursor[replan] = 0
-        idx = torch.as_tensor(self._cursor, device=env.torch_device)
+        idx = torch.as_tensor(np.minimum(self._cursor, self._queue.shape[1] - 1), device=env.torch_device)
         actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()
         self._cursor += 1
         if self._act_cols is None:
