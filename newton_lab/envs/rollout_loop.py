@@ -99,6 +99,10 @@ class RowEpisodes:
         self.successes = 0
         self.host: dict[str, np.ndarray] = {}
 
+    def active_rows(self) -> np.ndarray:
+        """The rows that may still run an episode."""
+        return np.nonzero(self.active)[0]
+
     def enough(self) -> bool:
         if self.until_successes:
             return self.successes >= self.episodes or (
@@ -226,17 +230,14 @@ def run_episodes(
 ):
     """Shared loop; returns per-episode records, vector steps and wall time.
 
-    Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful
-    ones (at most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the
-    agent reports it has nothing more to do (Mimic generation), with reason ``agent.done_reason`` (default
-    ``agent_done``; a teleop operator's ``done`` is ``user_exit``).
-    ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger). ``saver``
-    (``envs.saver.EpisodeSaver``, with ``recorder``) gets the episodes that end in a step as one batch.
-    ``timers`` wrap ``env.step`` and ``agent.act`` (see ``Timers``). ``stop`` (a ``writers.interrupts.StopRequest``):
-    once set, the loop ends after the step in flight (its ended episodes are handed over; the others are dropped).
-    ``act_for_active_rows`` (evaluation): once some rows have no episode left to run, the agent is asked to act for
-    the others alone (its ``env_ids``), so that a policy's inference in the last stalled episodes is not spent on
-    rows whose steps count for nothing.
+    Stops after ``episodes`` finished episodes, or with ``until_successes`` after ``episodes`` successful ones (at
+    most ``max_attempts`` episodes). ``end_when_agent_done`` ends a row's episode as soon as the agent reports it has
+    nothing more to do (Mimic generation), with reason ``agent.done_reason`` (default ``agent_done``; a teleop
+    operator's ``done`` is ``user_exit``).
+    ``on_step(reward, info)`` is called after every env step (e.g. a rerun logger); ``saver`` (``EpisodeSaver``, with
+    ``recorder``) gets the episodes that end in a step as one batch; ``timers`` wrap ``env.step`` and ``agent.act``.
+    ``stop`` (a ``StopRequest``): once set, the loop ends after the step in flight (its ended episodes are handed
+    over; the others are dropped). ``act_for_active_rows`` (evaluation): rows with no episode left get no plans.
     """
     check_counts(episodes=episodes, max_steps=max_steps)
     timers = timers or Timers()
@@ -248,8 +249,7 @@ def run_episodes(
     shown = _Progress(env, episodes, until_successes, progress)
     try:
         while not eps.enough():
-            asked = None if not act_for_active_rows or eps.active.all() else np.nonzero(eps.active)[0]
-            actions = act(env, asked)
+            actions = act(env) if not act_for_active_rows or eps.active.all() else act(env, eps.active_rows())
             held = agent.holding()  # rows waiting for a plan (PlannerAgent): their episode starts later
             if recorder is not None:
                 recorder.record(eps.step_in_ep, actions)
