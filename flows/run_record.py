@@ -63,6 +63,7 @@ def pipeline_record(
         "learned_phases": summary.get("learned_phases"),
         "counts": counts,
         "timings_s": {**clock.seconds, "flow": clock.total()},
+        "collect_seconds": demos.get("seconds"),  # where the collect stage's time went (stages.COLLECT_SECONDS)
         "success": {
             "episodes": ev["episodes"],
             "successes": ev["successes"],

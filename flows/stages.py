@@ -12,6 +12,7 @@ import concurrent.futures
 import json
 import multiprocessing
 import shutil
+import time
 from pathlib import Path
 from typing import Any
 
@@ -74,7 +75,9 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
     if (done := _guard(out, name, inputs)) is not None:
         return done
     _fresh(path)
+    t0 = time.perf_counter()
     ref = _on_device(args.device, _collect, args)
+    t1 = time.perf_counter()
     art = artifact(
         path,
         "dataset",
@@ -83,7 +86,24 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
         success_rate=ref["success_rate"],
         samples=dataset_samples(path),
     )
+    art["metrics"]["seconds"] = {
+        **ref["stage_seconds"],
+        "loop": round(ref["wall_time_s"], 2),
+        "call": round(t1 - t0, 2),
+        "hash": round(time.perf_counter() - t1, 2),
+    }
     return _finish(out, name, inputs, art)
+
+
+COLLECT_SECONDS = {
+    "call": "the collection's call: its own process on a GPU (start-up and imports), env and writer included",
+    "env_build": "make_env: the scene, the model and the env's buffers",
+    "collect": "env.collect: the episode loop, then the writer draining what the loop handed it",
+    "loop": "the episode loop alone (Warp's first kernel compile included)",
+    "hash": "the dataset's content hash and sample count, after the call",
+}
+"""Where a collect stage's seconds went (``metrics["seconds"]`` of its artifact, ``collect_seconds`` of a
+pipeline's run record: those of the run that made the artifact, also in a re-run answered from the cache)."""
 
 
 def _collect(args: CollectArgs) -> dict[str, Any]:
@@ -91,10 +111,14 @@ def _collect(args: CollectArgs) -> dict[str, Any]:
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.perturb import collect_randomized  # deferred: Warp/Newton are slow to import
 
+    t0 = time.perf_counter()
     env = make_env(args.task, **args.env_kwargs())
-    return collect_randomized(
+    t1 = time.perf_counter()
+    ref = collect_randomized(
         env, args.domain_randomization(), seed=args.seed, agent=expert_agent(env), **args.collect_kwargs()
     )
+    ref.metadata["stage_seconds"] = {"env_build": round(t1 - t0, 2), "collect": round(time.perf_counter() - t1, 2)}
+    return ref
 
 
 def _on_device(device: str | None, fn, *args):

@@ -15,6 +15,7 @@ from pathlib import Path
 import h5py
 import pytest
 import torch
+from newton_lab.flows.stages import COLLECT_SECONDS
 
 pytestmark = pytest.mark.slow
 
@@ -77,6 +78,9 @@ def test_every_stage_ran_and_the_composed_task_was_evaluated(first_run):
     assert set(record["results"]["subtask_signals"]) == set(ev["subtask_signals"]) >= {"grasped_bar"}
     assert "signals" in stdout and "grasped_bar" in stdout
     assert set(record["results"]["timings_s"]) == {"collect", "split", "train", "evaluate", "flow"}
+    seconds = record["results"]["collect_seconds"]  # where the collect stage went, each part inside the one above it
+    assert set(seconds) == set(COLLECT_SECONDS)
+    assert 0 < seconds["loop"] <= seconds["collect"] < seconds["call"] <= record["results"]["timings_s"]["collect"]
     # the phase datasets carry the component task and only the phase's columns; each policy trained on its own
     phases = summary["artifacts"]["phases"]
     for name, component in (("pick", "Pick"), ("place", "Place"), ("nav", "Nav")):

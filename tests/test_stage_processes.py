@@ -31,5 +31,7 @@ def test_an_env_stage_runs_in_a_process_of_its_own_where_cuda_would(tmp_path, mo
     info = read_dataset_info(tmp_path / "demos.hdf5")
     assert art["metrics"]["episodes"] == 2 and len(info["demo_ids"]) == 2
     assert art["metrics"]["samples"] == info["total"] > 0
+    seconds = art["metrics"]["seconds"]  # timed inside the stage's process, handed back with its result
+    assert set(seconds) == set(stages.COLLECT_SECONDS) and 0 < seconds["loop"] <= seconds["collect"] < seconds["call"]
     assert (tmp_path / "demos.manifest.json").is_file()
     assert stages.collect_stage(args=args)["sha256"] == art["sha256"]  # the finished stage is answered from disk
