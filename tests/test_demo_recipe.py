@@ -134,3 +134,14 @@ def test_train_image_keys_flag_overrides_the_preset():
 def test_no_record_reaches_the_flow():
     assert PipelineArgs().pipeline_kwargs(demo_recipe("cpu"))["record"] is True
     assert PipelineArgs(record=False).pipeline_kwargs(demo_recipe("cpu"))["record"] is False
+
+
+def test_a_task_recipe_overrides_counts_and_training_but_keeps_the_rest():
+    base = demo_recipe("gpu", "cuda:0", long_horizon=True)
+    stack = demo_recipe("gpu", "cuda:0", long_horizon=True, task="GalbotG1-StackCube-Phased-v0")
+    assert stack["demos"] == 800 and stack["train"]["time_budget_s"] == 600
+    assert {k: v for k, v in stack["train"].items() if k != "time_budget_s"} == {
+        k: v for k, v in base["train"].items() if k != "time_budget_s"
+    }
+    assert stack["cameras"] == base["cameras"] and stack["eval_episodes"] == base["eval_episodes"]
+    assert demo_recipe("cpu", "cpu", long_horizon=True, task="GalbotG1-StackCube-Phased-v0")["demos"] == 4
