@@ -373,6 +373,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         "replan = np.nonzero(self._cursor >= self._queue.shape[1])[0]",
         "tests/test_phase_policies.py",
     ),
+    one_patch(
+        "evaluation-acts-for-idle-rows",
+        "An evaluation asks the agent to act only for the rows that still have an episode to run",
+        "newton_lab/envs/rollout_loop.py",
+        "actions = act(env) if not act_for_active_rows or eps.active.all() else act(env, eps.active_rows())",
+        "actions = act(env)",
+        "tests/test_phase_policies.py",
+    ),
 )
 
 
