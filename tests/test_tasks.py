@@ -95,7 +95,7 @@ def test_stack_cube_runs_as_two_phases_with_stack_cubes_world_and_success():
     full stack does (StackCube's own success); its expert is the two subtasks' plans, the second planned from the
     poses the first leaves. The second subtask on its own resets with cube_2 already on cube_1 (here with the
     ``cube_yaw="zero"`` option: every cube at yaw 0)."""
-    from newton_lab.agents.task_flow import expert_agent
+    from newton_lab.agents.experts import expert_agent
     from newton_lab.envs import make_env
 
     env = make_env("GalbotG1-StackCube-Phased-v0", num_envs=1, device="cpu", seed=3, randomize=True)

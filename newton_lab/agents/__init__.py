@@ -4,13 +4,18 @@ base; ``SequenceAgent`` and ``TaskFlowAgent`` compose agents per row; ``TeleopAg
 ``PerturbedAgent`` evaluates any of them under action noise, latency and start-posture noise."""
 
 from .base import BaseAgent, ZeroAgent
-from .experts import agent_for_declaration
-from .joint import JointTargetAgent
+from .experts import (
+    JointTargetAgent,
+    SequenceAgent,
+    SequenceStep,
+    TargetSwitchAgent,
+    TaskFlowAgent,
+    agent_for_declaration,
+    expert_agent,
+)
 from .nav import BaseNavAgent, GoalNavAgent, ProportionalNavAgent, TrajectoryNavAgent
 from .perturbed import PerturbedAgent, evaluate_perturbed, perturbation_table
 from .planner.agent import PlannerAgent
-from .sequence import SequenceAgent, SequenceStep
-from .task_flow import TargetSwitchAgent, TaskFlowAgent, expert_agent
 from .teleop import TeleopAgent
 
 __all__ = [

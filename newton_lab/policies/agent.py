@@ -13,7 +13,7 @@ import numpy as np
 import torch
 
 from ..agents.base import BaseAgent, as_rows
-from ..agents.task_flow import TaskFlowAgent
+from ..agents.experts import TaskFlowAgent
 from ..task_api.registry import lookup
 from .diffusion import DiffusionPolicy
 
