@@ -11,7 +11,6 @@ import numpy as np
 import torch
 
 from ..task_api.registry import lookup
-from ..task_api.terms import resolve_cfg, unresolved_terms
 
 
 def check_actions(
@@ -123,17 +122,3 @@ def option_defaults(task_id: str) -> dict[str, Any]:
         return {o.name: o.default for o in lookup(task_id).all_options}
     except (KeyError, ValueError):  # an env of a task the registry does not hold (built from a cfg)
         return {}
-
-
-def resolved_cfg(cfg):
-    """``cfg`` with its generic terms resolved, or a one-line ``ValueError``: a cfg that names no task
-    (``TaskSpec.cfg()``) is refused; one whose terms were replaced after ``make_cfg`` (StackCube's
-    ``reference_rewards()``) resolves the new terms here, each ``held`` counter a new one."""
-    if not getattr(cfg, "task_id", None):
-        raise ValueError(
-            "this TaskCfg names no task: TaskSpec.cfg() neither names it nor resolves its generic "
-            "terms; build the env with make_env(task_id), or from TaskSpec.make_cfg(options)"
-        )
-    if not unresolved_terms(cfg):
-        return cfg
-    return resolve_cfg(cfg, first_hold_slot=cfg.hold_slots)

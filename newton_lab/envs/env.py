@@ -25,11 +25,12 @@ from ..robots.binding import RobotBinding
 from ..robots.bound import BoundRobot
 from ..robots.registry import robot_binding
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS, TaskCfg
+from ..task_api.terms import resolved_cfg
 from . import rollout
 from .actuation import Actuation
 from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coordinates
 from .cameras import Cameras, ImageViews, resolve_cameras
-from .checks import check_actions, check_seed, resolved_cfg, row_mask
+from .checks import check_actions, check_seed, row_mask
 from .joint_space import SolverJointSpace, check_welded_reset
 from .launches import StepLaunches
 from .parts import EnvBuffers, EnvJoints, EnvSensors, EnvSim, EnvTask

@@ -6,9 +6,10 @@ parameters name scene objects. A task lists it with parameters by name, as mjlab
     TerminationTermCfg(func=common.dropped, params={"entity": "cube", "below_z": 0.05})
     phase_success=[common.lifted(entity="cube", min_z=0.225, hold_steps=5)]   # a bound Term
 
-When the env is built, ``resolve_cfg`` turns every term into a plain ``@wp.func``: object names become their
-slots in the task's entity list, and the factory bakes slots and constants into the generated function as
-compile-time constants (Warp closures), so the fused task kernel is what a hand-written term would give.
+When a cfg is made (``TaskSpec.make_cfg``), ``resolve_cfg`` turns every term into a plain ``@wp.func``: object names
+become their slots in the task's entity list, and the factory bakes slots and constants into the generated function
+as compile-time constants (Warp closures), so the fused task kernel is what a hand-written term would give. The env
+takes a cfg through ``resolved_cfg``, which resolves terms replaced after ``make_cfg`` and refuses an unnamed cfg.
 Parameters may hold other terms (a reward stage's predicate, ``held(...)``'s condition): they are resolved
 first. A factory declared with ``hold_counter=True`` also gets ``hold_slot``, a per-row counter index of its
 own (``ctx.hold``), so no task keeps slot numbers by hand.
@@ -193,3 +194,17 @@ def resolve_cfg(cfg, *, first_hold_slot: int = 0):
         }
     fields["hold_slots"] = max(cfg.hold_slots, resolver.hold_slots)
     return dataclasses.replace(cfg, **fields)
+
+
+def resolved_cfg(cfg):
+    """The cfg an env is built from: ``cfg`` with its generic terms resolved, or a one-line ``ValueError``: a cfg
+    that names no task (``TaskSpec.cfg()``) is refused; one whose terms were replaced after ``make_cfg`` (StackCube's
+    ``reference_rewards()``) resolves the new terms here, each ``held`` counter a new one."""
+    if not getattr(cfg, "task_id", None):
+        raise ValueError(
+            "this TaskCfg names no task: TaskSpec.cfg() neither names it nor resolves its generic "
+            "terms; build the env with make_env(task_id), or from TaskSpec.make_cfg(options)"
+        )
+    if not unresolved_terms(cfg):
+        return cfg
+    return resolve_cfg(cfg, first_hold_slot=cfg.hold_slots)
