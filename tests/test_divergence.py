@@ -14,7 +14,7 @@ from newton_lab.kernels import fuse
 from newton_lab.agents import ZeroAgent
 from newton_lab.datasets import list_demos, read_episode
 from newton_lab.envs import rollout
-from newton_lab.envs.terms import build_task_kernels
+from newton_lab.envs.launches import build_task_kernels
 from newton_lab.task_api.cfg import BUILTIN_TERMINATION_REASONS, DIVERGED
 
 FAULT = 1e30

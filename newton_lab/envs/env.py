@@ -32,10 +32,9 @@ from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coo
 from .cameras import Cameras, ImageViews, resolve_cameras
 from .checks import check_actions, check_seed, row_mask
 from .joint_space import SolverJointSpace, check_welded_reset
-from .launches import StepLaunches
+from .launches import StepLaunches, build_task_kernels, observation_layout
 from .parts import EnvBuffers, EnvJoints, EnvSensors, EnvSim, EnvTask
 from .scene import build_scene, with_welded_solver
-from .terms import build_task_kernels, observation_layout
 
 __all__ = ["Entity", "NewtonEnv"]
 

@@ -1,6 +1,8 @@
-"""The launches of one env step, in order, on arrays allocated once, so that the whole sequence records as one
-Warp graph (a CUDA graph on a GPU, Warp's CPU graph on the CPU).
+"""A task's fused kernels and the launches of one env step, in order, on arrays allocated once, so that the whole
+sequence records as one Warp graph (a CUDA graph on a GPU, Warp's CPU graph on the CPU).
 
+The task's declared terms give the observation layout (``observation_layout``: each term's columns) and its fused
+kernels (``build_task_kernels``, through ``newton_lab.kernels.fuse``). One step:
 actions -> control targets (``Actuation.apply``) -> ``decimation`` x (base twist and drive setpoints, then
 ``solver.step``, in the solver's joint space when joints are welded: ``envs.joint_space``) -> fused task kernel
 (phase, success, terminations, reward) -> subtask signals and observation of the state reached (``final_obs``) and the
@@ -12,18 +14,71 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import newton
 import warp as wp
 
 from ..kernels import fuse
 from ..kernels.context import TaskContext, record_poses
-from ..task_api.cfg import TaskCfg
+from ..task_api.cfg import BUILTIN_TERMINATION_REASONS, DERIVED_SIZES, TaskCfg
 from . import mujoco_substeps
 from .actuation import Actuation
 from .buffers import StepBuffers
 from .joint_space import SolverJointSpace
-from .terms import TaskKernels
+
+
+def observation_layout(cfg: TaskCfg, derived: dict[str, int]) -> dict[str, slice]:
+    """Column slice of every observation term, in declaration order. ``derived`` gives the widths the env
+    knows (``action_dim``, ``robot_coords``, ``arm_joints``)."""
+    layout, col = {}, 0
+    for name, term in cfg.observations.items():
+        size = term.size
+        if isinstance(size, str):
+            if size not in derived:
+                raise ValueError(
+                    f"observation {name!r} of {cfg.task_id} has size {size!r}; use an int or one of "
+                    f"{list(DERIVED_SIZES)}"
+                )
+            size = derived[size]
+        layout[name] = slice(col, col + int(size))
+        col += int(size)
+    return layout
+
+
+@dataclass(frozen=True)
+class TaskKernels:
+    """The fused kernels of one task: step (phase, success, terminations, reward), observation, subtask
+    signals (``None`` without signals) and masked reset."""
+
+    task: Any
+    observe: Any
+    signals: Any
+    reset: Any
+
+
+def build_task_kernels(cfg: TaskCfg, obs_layout: dict[str, slice]) -> TaskKernels:
+    """Fuse ``cfg``'s terms into its kernels."""
+    clash = sorted(set(cfg.terminations) & set(BUILTIN_TERMINATION_REASONS))
+    if clash:
+        raise ValueError(
+            f"{cfg.task_id}: termination terms may not be named {clash}; those names are the env's "
+            f"own reasons {list(BUILTIN_TERMINATION_REASONS)}; rename the terms"
+        )
+    return TaskKernels(
+        task=fuse.build_task_kernel(
+            phase_success=cfg.phase_success,
+            terminations=[(t.func, t.phase) for t in cfg.terminations.values()],
+            rewards=[(t.func, t.weight) for t in cfg.rewards.values()],
+            terminate_on_success=cfg.terminate_on_success,
+        ),
+        observe=fuse.build_observation_kernel(
+            [(term.func, obs_layout[name].start) for name, term in cfg.observations.items()]
+        ),
+        signals=fuse.build_signal_kernel([t.func for t in cfg.signals.values()]) if cfg.signals else None,
+        reset=fuse.build_reset_kernel([t.func for t in cfg.events.values()]),
+    )
 
 
 class GraphCaptureWarning(RuntimeWarning):

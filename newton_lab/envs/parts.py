@@ -139,7 +139,7 @@ class EnvTask:
     """The ``TaskContext`` struct every fused kernel reads (state arrays, robot indices, phase, per-row counters
     such as ``episode_step``); the step writes it."""
     kernels: Any
-    """The task's fused kernels (``envs.terms.TaskKernels``: ``task``, ``observe``, ``signals``, ``reset``)."""
+    """The task's fused kernels (``envs.launches.TaskKernels``: ``task``, ``observe``, ``signals``, ``reset``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
