@@ -28,7 +28,7 @@ KINDS = ("pipeline", "bench", "bench-collect", "bench-train", "bench-refusals", 
 PRODUCT_COMMANDS = ("newton-lab ", "make demo")
 """How a record's ``command`` starts when a user can run it as it is (the CLI, or the README's main job)."""
 RECORDS_DIR = Path("outputs/records")
-"""Where a benchmark command writes its record when ``--record`` is not given."""
+"""Where a command writes its run record when ``--run-record`` is not given."""
 
 _invocation: list[str] | None = None
 _started: float | None = None
@@ -184,8 +184,19 @@ def write_record(record: dict[str, Any], path: str | os.PathLike) -> Path:
     return path
 
 
+def write_run_record(
+    kind: str, path: str | os.PathLike | None, *, task: str | None, device: str | None, results: dict[str, Any]
+) -> Path:
+    """The record of the command that is running (its wall time so far, ``command_wall_s``), written at ``path`` (the
+    command's ``--run-record``; ``default_path`` when ``None``), its path said on stderr; returns the path."""
+    record = make_record(kind, task=task, device=device, results=results, wall_s=command_wall_s())
+    written = write_record(record, path or default_path(kind, task))
+    print(f"run record: {written}", file=sys.stderr)
+    return written
+
+
 def default_path(kind: str, task: str | None) -> Path:
-    """``outputs/records/<kind>-<task>-<UTC time>.json`` for a benchmark run without ``--record``."""
+    """``outputs/records/<kind>-<task>-<UTC time>.json`` for a command run without ``--run-record``."""
     stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     short = (task or "all").replace("GalbotG1-", "").replace("-v0", "")
     return RECORDS_DIR / f"{kind}-{short}-{stamp}.json"

@@ -7,15 +7,8 @@ import json
 import sys
 
 from ..commands import BenchArgs, BenchCollectArgs, BenchRefusalsArgs, BenchTrainArgs, camera_option
-from ..records import command_wall_s, default_path, make_record, write_record
+from ..records import write_run_record
 from . import watchdog
-
-
-def write_run_record(kind: str, args, task: str | None, device: str | None, results: dict) -> None:
-    """The benchmark's run record at ``--run-record`` (default under outputs/records/); its path on stderr."""
-    rec = make_record(kind, task=task, device=device, results=results, wall_s=command_wall_s())
-    path = write_record(rec, args.run_record or default_path(kind, task))
-    print(f"run record: {path}", file=sys.stderr)
 
 
 def bench(args: BenchArgs) -> int:
@@ -32,7 +25,7 @@ def bench(args: BenchArgs) -> int:
     else:
         cam = {}
     out = measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)
-    write_run_record("bench", args, args.task, args.device, out)
+    write_run_record("bench", args.run_record, task=args.task, device=args.device, results=out)
     print(json.dumps(out))
     return 0
 
@@ -63,7 +56,7 @@ def bench_collect(args: BenchCollectArgs) -> int:
     else:
         watchdog.start()  # killed, it leaves no Dask worker running
         out = bench_collect_on_workers(args.task, workers=args.workers, baseline=args.baseline, **common)
-    write_run_record("bench-collect", args, args.task, args.device, out)
+    write_run_record("bench-collect", args.run_record, task=args.task, device=args.device, results=out)
     print(json.dumps(out))
     return 0
 
@@ -80,7 +73,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         bf16=args.bf16,
         channels_last=args.channels_last,
     )
-    write_run_record("bench-train", args, out.get("task"), args.device, out)
+    write_run_record("bench-train", args.run_record, task=out.get("task"), device=args.device, results=out)
     print(json.dumps(out))
     return 0
 
@@ -97,6 +90,6 @@ def bench_refusals(args: BenchRefusalsArgs) -> int:
             )
 
     out = measure(args.only, on_case=progress)
-    write_run_record("bench-refusals", args, None, "cpu", out)
+    write_run_record("bench-refusals", args.run_record, task=None, device="cpu", results=out)
     print(json.dumps({k: v for k, v in out.items() if k != "per_case"}))
     return 0 if out["refused"] == out["cases"] else 1

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 
 from ..commands import TrainRLArgs
-from .bench import write_run_record
+from ..records import write_run_record
 
 
 def train_rl(args: TrainRLArgs) -> int:
@@ -47,6 +47,7 @@ def train_rl(args: TrainRLArgs) -> int:
             "rate": s["success_rate"],
             "eval_seed": args.seed + 10_000,
         }
-    write_run_record("train-rl", args, args.task, args.device, {**out, "curve_rows": curve})
+    results = {**out, "curve_rows": curve}
+    write_run_record("train-rl", args.run_record, task=args.task, device=args.device, results=results)
     print(json.dumps(out))
     return 0

@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 from ..commands import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
-from .bench import write_run_record
+from ..records import write_run_record
 from .env import rerun_hook
 
 COLLECT_REPORT_KEYS = (
@@ -72,7 +72,8 @@ def evaluate(args: EvaluateArgs) -> int:
         close()
     out = {k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations", "timing") if k in summary}
     if args.perturb or args.run_record:
-        write_run_record("evaluate", args, args.task, args.device, {**out, "checkpoint": args.checkpoint})
+        results = {**out, "checkpoint": args.checkpoint}
+        write_run_record("evaluate", args.run_record, task=args.task, device=args.device, results=results)
     print(json.dumps(out))
     return 0
 
