@@ -314,7 +314,7 @@ def test_a_joint_coupled_to_a_free_one_stays_free_and_welding_refuses_unknown_jo
 def test_a_reset_that_moves_a_welded_joint_is_refused_in_one_line():
     """The env compares the first reset's coordinates of its welded joints with the values the solver welded them
     at: a reset that moved one (an event randomising the head, say) is refused, naming the joint and the fix."""
-    from newton_lab.envs.joint_space import check_welded_reset
+    from newton_lab.envs.drive import check_welded_reset
 
     env = make_env(PICK, num_envs=1, device="cpu", seed=0, cameras=False)
     names = list(env.sim.layout.welded)

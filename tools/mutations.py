@@ -312,7 +312,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     one_patch(
         "welded-drive-targets-dropped",
         "with idle joints welded, the solver tracks the env's drive targets",
-        "newton_lab/envs/joint_space.py",
+        "newton_lab/envs/drive.py",
         "            solver_target_q[w * coords + j] = target_q[w * full_coords + i]\n",
         "            pass\n",
         "tests/test_physics_settings.py",
@@ -320,7 +320,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     one_patch(
         "welded-coords-not-read-back",
         "with idle joints welded, env.state follows the solver's coordinates",
-        "newton_lab/envs/joint_space.py",
+        "newton_lab/envs/drive.py",
         "            q[w * full_coords + i] = solver_q[w * coords + j]\n",
         "            pass\n",
         "tests/test_physics_settings.py",

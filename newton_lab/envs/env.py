@@ -27,11 +27,10 @@ from ..robots.registry import robot_binding
 from ..task_api.cfg import ACTION_DIM, ARM_JOINTS, ROBOT_COORDS, TaskCfg
 from ..task_api.terms import resolved_cfg
 from . import rollout
-from .actuation import Actuation
 from .buffers import Entity, StepBuffers, build_context, entity_table, reset_coordinates
 from .cameras import Cameras, ImageViews, resolve_cameras
 from .checks import check_actions, check_seed, row_mask
-from .joint_space import SolverJointSpace, check_welded_reset
+from .drive import Actuation, SolverJointSpace, check_welded_reset
 from .launches import StepLaunches, build_task_kernels, observation_layout
 from .parts import EnvBuffers, EnvJoints, EnvSensors, EnvSim, EnvTask
 from .scene import build_scene, with_welded_solver

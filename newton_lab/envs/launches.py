@@ -4,7 +4,7 @@ sequence records as one Warp graph (a CUDA graph on a GPU, Warp's CPU graph on t
 The task's declared terms give the observation layout (``observation_layout``: each term's columns) and its fused
 kernels (``build_task_kernels``, through ``newton_lab.kernels.fuse``). One step:
 actions -> control targets (``Actuation.apply``) -> ``decimation`` x (base twist and drive setpoints, then
-``solver.step``, in the solver's joint space when joints are welded: ``envs.joint_space``) -> fused task kernel
+``solver.step``, in the solver's joint space when joints are welded: ``envs.drive``) -> fused task kernel
 (phase, success, terminations, reward) -> subtask signals and observation of the state reached (``final_obs``) and the
 finished rows' coordinates -> masked reset of finished rows (+ seeded randomisation, setpoints synced, forward
 kinematics, solver warm start cleared) -> observation, signals, poses.
@@ -24,9 +24,8 @@ from ..kernels import fuse
 from ..kernels.context import TaskContext, record_poses
 from ..task_api.cfg import BUILTIN_TERMINATION_REASONS, DERIVED_SIZES, TaskCfg
 from . import mujoco_substeps
-from .actuation import Actuation
 from .buffers import StepBuffers
-from .joint_space import SolverJointSpace
+from .drive import Actuation, SolverJointSpace
 
 
 def observation_layout(cfg: TaskCfg, derived: dict[str, int]) -> dict[str, slice]:

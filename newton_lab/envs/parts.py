@@ -18,11 +18,10 @@ import torch
 import warp as wp
 
 from ..robots.bound import BoundRobot
-from .actuation import Actuation
 from .buffers import Entity, StepBuffers
 from .cameras import Cameras, ImageViews
 from .checks import row_mask
-from .joint_space import SolverJointSpace
+from .drive import Actuation, SolverJointSpace
 from .launches import StepLaunches
 
 
@@ -31,7 +30,7 @@ class EnvSim:
 
     ``model``, ``state``, ``control`` and ``solver`` are Newton's own objects (also ``env.model`` ...); ``drive`` is
     the ``Control`` the solver tracks (``control``'s targets, velocity-limited joints' setpoints rate-limited);
-    ``joint_space`` the solver's own joint space when the task welds its idle joints (``envs.joint_space``), else
+    ``joint_space`` the solver's own joint space when the task welds its idle joints (``envs.drive``), else
     ``None``; ``layout`` the scene's layout (``envs.scene``: joints, bodies, entities per world, welded joints)."""
 
     def __init__(
@@ -215,7 +214,7 @@ class EnvJoints:
         self.binding = binding
         """``robots.bound.BoundRobot``: the robot half of the task context, the action map, the drive limits."""
         self.actuation = actuation
-        """The action map and drive limits on the device (``envs.actuation.Actuation``)."""
+        """The action map and drive limits on the device (``envs.drive.Actuation``)."""
         self._sim, self._num_envs, self._torch_device = sim, num_envs, torch_device
 
     @property

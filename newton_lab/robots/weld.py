@@ -3,7 +3,7 @@ MuJoCo rides the body rigidly on its parent (no degree of freedom), together wit
 constraints that name it.
 
 Why in the MJCF: Newton's importer makes a joint-less body a fixed joint of the same body, so the welded model
-keeps every body (same order, same shapes) and only loses coordinates, which is what ``envs.joint_space`` needs to
+keeps every body (same order, same shapes) and only loses coordinates, which is what ``envs.drive`` needs to
 mirror the solver's coordinates into the full robot's layout. MuJoCo has no per-joint "locked" flag; welding by
 equality constraints would add rows to every solve instead of removing degrees of freedom.
 """

@@ -89,7 +89,7 @@ class PhysicsCfg:
     """Weld every robot joint that no action term drives at its reset value (posture, scenario), and merge the
     links it held into their parents, so the solver integrates only the driven joints (and the joints coupled to
     them, a gripper's fingers; the planar base stays free unless ``TaskCfg.fixed_base``). The env keeps the full
-    robot's layout: a welded joint reads its reset value and zero velocity (``envs.joint_space``). A welded joint
+    robot's layout: a welded joint reads its reset value and zero velocity (``envs.drive``). A welded joint
     is rigid where its drive would give a little under load, and a reset must not move it (the env refuses one
     that does, when it is built). On the 2-core CPU, env-steps/s at 4 envs: PickCube 3.11x, StackCube 1.44x,
     PickToShelf 1.73x, SortToShelf 1.44x, Reach 5.72x, BaseNav 7.90x, every expert's success unchanged
