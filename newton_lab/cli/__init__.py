@@ -1,8 +1,8 @@
 """The ``newton-lab`` console script: ``tasks``, ``collect``, ``evaluate``, ``bench``, ``bench-train``, ...
 
 Every command's flags are generated from its argument dataclass in ``newton_lab.commands`` (one argument
-model for the CLI, the examples and the Prefect stages); ``workflow``, ``env``, ``bench``, ``rl`` and ``perception``
-hold what each command does (a call into the library and a printed summary).
+model for the CLI, the examples and the Prefect stages); ``workflow``, ``datasets``, ``env``, ``bench``, ``rl`` and
+``perception`` hold what each command does (a call into the library and a printed summary).
 """
 
 from __future__ import annotations

@@ -5,30 +5,9 @@ from __future__ import annotations
 
 import json
 
-from ..commands import RenderArgs, RerunArgs, TasksArgs, TeleopArgs
+from ..commands import RenderArgs, TasksArgs, TeleopArgs
 from ..task_api.registry import list_tasks, lookup
-
-
-def rerun_hook(args: RerunArgs, env):
-    """A rerun ``on_step`` hook when --rerun / --rerun-save is given, else None (and a closer)."""
-    if not (args.rerun or args.rerun_save):
-        return None, lambda: None
-    from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
-
-    lg = RerunLogger(
-        env,
-        save=args.rerun_save,
-        spawn=args.rerun and not args.rerun_save,
-        max_worlds=args.rerun_worlds,
-        image_every=args.rerun_image_every,
-    )
-
-    def close() -> None:
-        lg.close()
-        if lg.path is not None:
-            print(f"rerun recording: {lg.path} (open it with: rerun {lg.path})")
-
-    return lg.on_step, close
+from .workflow import rerun_hook
 
 
 def list_task_ids(args: TasksArgs) -> int:

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from .. import commands as c
-from . import bench, env, perception, pipeline, rl, suite, workflow
+from . import bench, datasets, env, perception, pipeline, rl, suite, workflow
 
 
 @dataclass(frozen=True)
@@ -35,11 +35,11 @@ COMMANDS: dict[str, Command] = {
         "PPO (rsl_rl) on a task's dense reward: checkpoint, curve, resume point, tensorboard log",
     ),
     "split": Command(
-        c.SplitArgs, workflow.split, "robomimic train/valid filter keys (mask/), or one dataset per phase (--out)"
+        c.SplitArgs, datasets.split, "robomimic train/valid filter keys (mask/), or one dataset per phase (--out)"
     ),
-    "export": Command(c.ExportArgs, workflow.export, "export a dataset to LeRobot v3"),
+    "export": Command(c.ExportArgs, datasets.export, "export a dataset to LeRobot v3"),
     "pipeline": Command(c.PipelineArgs, pipeline.pipeline, "Prefect flow: collect -> mimic -> train -> evaluate"),
-    "view": Command(c.ViewArgs, workflow.view, "replay a recorded episode into rerun by re-applying its states"),
+    "view": Command(c.ViewArgs, datasets.view, "replay a recorded episode into rerun by re-applying its states"),
     "bench": Command(c.BenchArgs, bench.bench, "env-steps/s of the captured step vs the bare solver on the same model"),
     "bench-collect": Command(
         c.BenchCollectArgs,

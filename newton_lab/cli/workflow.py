@@ -1,17 +1,15 @@
-"""The workflow commands (``collect``, ``evaluate``, ``mimic``, ``train``, ``split``, ``export``, ``view``;
-``pipeline`` has a module of its own): each calls the library with its argument object
-(``newton_lab.commands.workflow``), prints its result (one JSON line last) and returns the exit status. The library
-imports are deferred into the commands on purpose: Warp/Newton (envs), torch (policies) and Prefect (flows) each
-take seconds to import, and a command pays only for what it runs."""
+"""The pipeline's stages as commands (``collect``, ``mimic``, ``train``, ``evaluate``; ``pipeline`` chains them in a
+module of its own), and the rerun stream of the episodes a command runs (``rerun_hook``; ``teleop`` streams too): each
+calls the library with its argument object (``newton_lab.commands.workflow``), prints its result (one JSON line last)
+and returns the exit status. The library imports are deferred into the commands on purpose: Warp/Newton (envs), torch
+(policies) and rerun-sdk (viz) each take seconds to import, and a command pays only for what it runs."""
 
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
-from ..commands import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
+from ..commands import CollectArgs, EvaluateArgs, MimicArgs, RerunArgs, TrainArgs
 from ..records import write_run_record
-from .env import rerun_hook
 
 COLLECT_REPORT_KEYS = (
     "task",
@@ -26,6 +24,28 @@ COLLECT_REPORT_KEYS = (
     "subtask_signals",
 )
 """Keys of the collect summary printed by ``newton-lab collect`` (then ``wall_time_s``)."""
+
+
+def rerun_hook(args: RerunArgs, env):
+    """A rerun ``on_step`` hook when --rerun / --rerun-save is given, else None (and a closer)."""
+    if not (args.rerun or args.rerun_save):
+        return None, lambda: None
+    from ..viz import RerunLogger  # deferred: rerun-sdk is slow to import
+
+    lg = RerunLogger(
+        env,
+        save=args.rerun_save,
+        spawn=args.rerun and not args.rerun_save,
+        max_worlds=args.rerun_worlds,
+        image_every=args.rerun_image_every,
+    )
+
+    def close() -> None:
+        lg.close()
+        if lg.path is not None:
+            print(f"rerun recording: {lg.path} (open it with: rerun {lg.path})")
+
+    return lg.on_step, close
 
 
 def collect(args: CollectArgs) -> int:
@@ -108,39 +128,4 @@ def train(args: TrainArgs) -> int:
         args.datasets(), args.train_cfg(PRESETS), resume=args.resume, gpus=args.gpus
     )
     print(json.dumps({"checkpoint": str(path)}))
-    return 0
-
-
-def split(args: SplitArgs) -> int:
-    from ..datasets import split_by_phase, split_train_val  # deferred: the dataset package imports Warp/Newton
-
-    if args.out is None:
-        keys = split_train_val(args.dataset_path, args.val_ratio, seed=args.seed, filter_key=args.filter_key)
-        print(json.dumps({"path": str(args.dataset_path), "filter_keys": {k: len(v) for k, v in keys.items()}}))
-        return 0
-    refs = split_by_phase(args.dataset_path, args.out, phases=args.phase_names())
-    print(
-        json.dumps(
-            {name: {"path": str(r.path), "task": r.task_id, "episodes": r["episodes"]} for name, r in refs.items()}
-        )
-    )
-    return 0
-
-
-def export(args: ExportArgs) -> int:
-    from ..datasets.lerobot import export_lerobot  # deferred: pyarrow, Warp/Newton are slow
-
-    out = export_lerobot(args.dataset_path, args.root, include_failed=args.include_failed, video=not args.no_video)
-    keys = ("root", "repo_id", "episodes", "frames", "skipped_failed", "fps", "image_keys", "video_files")
-    print(json.dumps({k: out[k] for k in keys}))
-    return 0
-
-
-def view(args: ViewArgs) -> int:
-    from ..viz import replay_episode  # deferred: rerun-sdk is slow to import
-
-    poses = replay_episode(args.dataset, args.episode, save=args.save, spawn=args.spawn)
-    if args.save:
-        print(f"rerun recording: {Path(args.save).resolve()} (open it with: rerun {Path(args.save).resolve()})")
-    print(json.dumps({"dataset": args.dataset, "episode": args.episode, "frames": len(poses), "rrd": args.save}))
     return 0
