@@ -242,12 +242,27 @@ def refusal_rows(records, page_dir: Path) -> list[list[str]]:
     return rows
 
 
+def _evaluated_agent(rec: dict[str, Any]) -> str:
+    """What an ``evaluate`` record ran: its phase policies (by phase), its checkpoint's folder, or the expert. Records
+    written before ``phase_checkpoints`` was recorded name their phases in the command (``--phase-checkpoint``)."""
+    r = rec["results"]
+    phases = r.get("phase_checkpoints") or {}
+    if not phases and "--phase-checkpoint" in rec["command"]:
+        args = rec["command"].split("--phase-checkpoint", 1)[1].split(" --", 1)[0].split()
+        phases = dict(a.partition("=")[::2] for a in args if "=" in a)
+    if phases:
+        return "phase policies: " + ", ".join(phases)
+    if r.get("checkpoint"):
+        return Path(r["checkpoint"]).parent.name or Path(r["checkpoint"]).name
+    return "expert"
+
+
 def robustness_rows(records, page_dir: Path) -> list[list[str]]:
     """One row per evaluation of an ``evaluate --perturb`` record."""
     rows = []
     for path, rec in _of_kind(records, "evaluate"):
         r = rec["results"]
-        agent = (Path(r["checkpoint"]).parent.name or Path(r["checkpoint"]).name) if r.get("checkpoint") else "expert"
+        agent = _evaluated_agent(rec)
         for cell in r.get("perturbations") or []:
             rows.append(
                 [

@@ -137,3 +137,28 @@ def test_evaluate_prints_the_perturbation_table(tmp_path):
     assert record["kind"] == "evaluate" and record["command"].startswith("newton-lab evaluate --task")
     (table_row,) = robustness_rows([(tmp_path / "r.json", record)], tmp_path)
     assert table_row[2] == "expert" and table_row[4] == f"**{row['successes']} / 2**"
+
+
+def test_a_robustness_row_names_the_phase_policies_it_evaluated(tmp_path):
+    """A composed evaluation is shown as its phase policies, from the record or (older records) its command."""
+    from newton_lab.results import robustness_rows
+
+    cell = {"perturbation": "camera_shift=2", "episodes": 100, "successes": 60}
+    base = {"kind": "evaluate", "task": "GalbotG1-PickToShelf-v0", "device": {"name": "NVIDIA H200"}}
+    recorded = {
+        **base,
+        "command": "newton-lab evaluate --task GalbotG1-PickToShelf-v0",
+        "results": {
+            "checkpoint": None,
+            "phase_checkpoints": {"pick": "a.pt", "place": "b.pt"},
+            "perturbations": [cell],
+        },
+    }
+    older = {
+        **base,
+        "command": "newton-lab evaluate --phase-checkpoint pick=p/a.pt place=p/b.pt --episodes 100",
+        "results": {"checkpoint": None, "perturbations": [cell]},
+    }
+    for record in (recorded, older):
+        (row,) = robustness_rows([(tmp_path / "r.json", record)], tmp_path)
+        assert row[2] == "phase policies: pick, place" and row[4] == "**60 / 100**"

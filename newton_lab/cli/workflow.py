@@ -92,7 +92,7 @@ def evaluate(args: EvaluateArgs) -> int:
         close()
     out = {k: summary[k] for k in (*EVAL_REPORT_KEYS, "perturbations", "timing") if k in summary}
     if args.perturb or args.run_record:
-        results = {**out, "checkpoint": args.checkpoint}
+        results = {**out, "checkpoint": args.checkpoint, "phase_checkpoints": phases or None}
         write_run_record("evaluate", args.run_record, task=args.task, device=args.device, results=results)
     print(json.dumps(out))
     return 0
