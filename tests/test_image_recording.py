@@ -1,6 +1,6 @@
-"""Image recording (issue 13): collect and mimic write the env's image terms per frame into HDF5 and zarr, one
-frame per chunk, compressed; the recorded frames are what ``env.sensors.images`` showed at that step; a SIGKILLed image
-collect keeps every finished episode readable; a state-only env renders nothing."""
+"""Image recording: collect and mimic write the env's image terms per frame into HDF5 (one frame per chunk) and zarr
+(~1 MB chunks along time), compressed; the recorded frames are what ``env.sensors.images`` showed at that step; a
+SIGKILLed image collect keeps every finished episode readable; a state-only env renders nothing."""
 
 from __future__ import annotations
 
@@ -97,7 +97,8 @@ def test_cli_collect_writes_full_size_rgb_frames_one_per_chunk(tmp_path, suffix)
         assert poses.shape == (6, 7) and np.allclose(np.linalg.norm(poses[:, 3:], axis=1), 1, atol=1e-4)
         assert set(ep["obs"]) - {"front_head_rgb"} == set(ep["next_obs"])  # images: obs only
     chunks, codec = image_chunks(path, "obs/front_head_rgb")
-    assert chunks == (1, 224, 298, 3) and codec == ("zstd" if suffix == ".zarr" else "gzip")
+    frames = 5 if suffix == ".zarr" else 1  # zarr: ~1 MB along time (a chunk is a file); HDF5: one frame a chunk
+    assert chunks == (frames, 224, 298, 3) and codec == ("zstd" if suffix == ".zarr" else "gzip")
     from newton_lab.datasets.lerobot import export_lerobot, validate_lerobot_v3  # deferred: pyarrow, PyAV
 
     export_lerobot(path, tmp_path / "lerobot", include_failed=True)  # the 6-step episodes did not succeed

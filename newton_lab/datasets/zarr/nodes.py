@@ -34,7 +34,7 @@ from ..files.layout import StoredDemo, demo_name, nest, time_chunks
 from ..files.write_faults import write_fault_point
 
 IMAGE_ZSTD_LEVEL = 3
-"""zstd level of image arrays (one frame per chunk)."""
+"""zstd level of image arrays (frames chunked along time like the other arrays, ~1 MB raw a chunk)."""
 STATE_ZSTD_LEVEL = 1
 """zstd level of the other arrays (states, actions, signals): level 1 stores a PickCube demo's arrays in
 1.3 % more bytes than zarr's default (level 3) at about half the compression time, the largest CPU share of a
@@ -42,9 +42,14 @@ writer process."""
 
 
 def array_kwargs(value: np.ndarray) -> dict[str, Any]:
-    """``create_array`` keywords of a demo array: image frames (T, H, W[, 3]) one frame per chunk, zstd 3; the
-    rest split along time, zstd 1 (docs/data.md: Image datasets). Chunk files sit in the array's folder
-    (``c.<t>.0``)."""
+    """``create_array`` keywords of a demo array: every array split along time into ~1 MB chunks (``time_chunks``),
+    image frames (T, H, W[, 3]) at zstd 3, the rest at zstd 1 (docs/data.md: Image datasets). Chunk files sit in the
+    array's folder (``c.<t>.0``).
+
+    Why frames are not one per chunk (as in HDF5, where a chunk is no file): a file per frame made a two-camera
+    PickToShelf demo ~800 files, and their creation, not the physics or the render, bound collection with cameras
+    (``bench-collect-picktoshelf-cameras``). 50 frames of 96x72 RGB make one chunk; readers keep decoded chunks
+    (``zarr.packs.PackReader``), so reading frames in order decodes each chunk once."""
     flat = {"chunk_key_encoding": {"name": "default", "separator": "."}}  # one directory per array, not per chunk row
     level = IMAGE_ZSTD_LEVEL if value.ndim >= 3 else STATE_ZSTD_LEVEL
     return {
@@ -57,7 +62,7 @@ def array_kwargs(value: np.ndarray) -> dict[str, Any]:
 @functools.lru_cache(maxsize=4096)
 def chunk_shape(shape: tuple[int, ...], itemsize: int) -> tuple[int, ...]:
     """Chunk shape of an array of rank >= 1 (see ``array_kwargs``)."""
-    return (1, *shape[1:]) if len(shape) >= 3 else time_chunks(shape, itemsize)
+    return time_chunks(shape, itemsize)
 
 
 def chunk_grid(shape: tuple[int, ...], chunks: tuple[int, ...]) -> list[int]:

@@ -14,7 +14,7 @@ A pack group's attrs hold its index, ``{"pack": {"arrays": {path: rows}, "demos"
 per demo (row ``k``), or a reference ``"same:<array>"`` / ``"next:<array>"`` (``zarr.derived``). The ids of a pack
 are ``first .. first + n - 1`` when written; a delete drops ids from the index (the rows stay until the pack is
 empty, then the pack goes). Arrays are stored as ``zarr.nodes`` stores a demo's (same codecs, ~1 MB time chunks,
-one image frame per chunk), so zarr-python reads them as well (a referenced array: its source, and for ``next``
+image frames too), so zarr-python reads them as well (a referenced array: its source, and for ``next``
 each demo's last row under its own name).
 """
 
