@@ -171,6 +171,26 @@ ROWS: dict[str, list[Row]] = {
             "--device",
             "cuda",
         ),
+        # the network the long-horizon recipe trains (two views, proprioception) on PickToShelf's pick phase data
+        _bench(
+            "bench-train-vision-picktoshelf-pick",
+            "bench-train",
+            "--dataset-path",
+            "{out}/picktoshelf/phases/pick.hdf5",
+            "--preset",
+            "vision",
+            "--obs-keys",
+            "robot_joint_pos,gripper_pos",
+            "--image-keys",
+            "front_head_rgb,left_wrist_rgb",
+            "--batch-size",
+            "256",
+            "--steps",
+            "100",
+            "--bf16",
+            "--device",
+            "cuda",
+        ),
         # off the training distribution: the demo's and PickToShelf's policies (their pipeline rows above) on the
         # held-out seed under every perturbation axis at each level (21 evaluations of 100 episodes each)
         _bench(

@@ -158,13 +158,17 @@ def bench_train(
     preset: str = "default",
     bf16: bool = False,
     channels_last: bool = False,
+    obs_keys: tuple[str, ...] | None = None,
+    image_keys: tuple[str, ...] | None = None,
 ) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
     autocast (keys ``..._bf16``), with ``channels_last`` each also with the network's weights in channels-last
-    layout (keys ``..._cl``: the convolutions then run channels-last). Also where a step's time goes
+    layout (keys ``..._cl``: the convolutions then run channels-last); ``obs_keys`` / ``image_keys`` replace the
+    preset's (e.g. the long-horizon recipe's two views). Also where a step's time goes
     (``step_breakdown``), the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
+    fields.update({k: v for k, v in (("obs_keys", obs_keys), ("image_keys", image_keys)) if v})
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
     data = SequenceDataset(
         dataset,
@@ -182,6 +186,7 @@ def bench_train(
         "preset": preset,
         "device_name": torch.cuda.get_device_name(device) if on_cuda else "cpu",
         "windows": len(data),
+        "obs_keys": list(cfg.obs_keys or ()),
         "image_keys": list(data.image_keys),
         "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
     }

@@ -190,3 +190,17 @@ def test_bench_train_times_the_image_encoders_channels_last_to_the_same_loss(ima
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["image_keys"] and out["EagerTrainStep_cl_steps_per_s"] > 0
     assert out["EagerTrainStep_cl_final_loss"] == pytest.approx(out["EagerTrainStep_final_loss"], rel=1e-3)
+
+
+def test_bench_train_takes_the_recipes_keys(image_demos, capsys):
+    """``bench-train --obs-keys ... --image-keys ...`` times the network a recipe trains (its views and its
+    proprioception), not the preset's."""
+    from newton_lab.cli import main
+
+    argv = ["bench-train", "--dataset-path", str(image_demos), "--batch-size", "4", "--steps", "2"]
+    keys = ["--obs-keys", ",".join(PROPRIO), "--image-keys", "front_head_rgb"]
+    assert main([*argv, "--preset", "vision_cpu", *keys]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["obs_keys"] == list(PROPRIO) and out["image_keys"] == ["front_head_rgb"]
+    assert main([*argv, "--preset", "vision_cpu", "--image-keys", "left_wrist_rgb"]) == 2  # not in the dataset
+    assert "left_wrist_rgb" in capsys.readouterr().err

@@ -100,8 +100,21 @@ class BenchTrainArgs(RunRecordArgs):
     channels_last: bool = False
     """also time each variant with the network's weights in channels-last layout (the image encoders' convolutions
     then run channels-last: keys ..._cl)"""
+    obs_keys: str | None = None
+    """comma-separated obs terms to condition on, as train's (default: the preset's)"""
+    image_keys: str | None = None
+    """comma-separated camera terms the policy sees, as train's (e.g. front_head_rgb,left_wrist_rgb: the
+    long-horizon recipe's two views; default: the preset's)"""
     device: str = "cpu"
     """Torch device (cpu, cuda, cuda:1, ...)."""
+
+    def key_overrides(self) -> dict[str, tuple[str, ...]]:
+        """``--obs-keys`` / ``--image-keys`` as the training config's tuples (only those given)."""
+        return {
+            key: tuple(k.strip() for k in getattr(self, key).split(",") if k.strip())
+            for key in ("obs_keys", "image_keys")
+            if getattr(self, key)
+        }
 
 
 @dataclass(kw_only=True)
