@@ -64,12 +64,14 @@ def long_horizon_pipeline(
     gpus: int = 1,
     record: bool = True,
     recipe: str | None = None,
+    domain_randomize: dict[str, float] | None = None,
 ) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
     run record (``<out>/records/``; ``summary["record"]``).
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
-    ``gpus`` > 1 trains each phase data-parallel."""
+    ``gpus`` > 1 trains each phase data-parallel; ``domain_randomize`` (axis -> level) randomises collection's rows
+    (the evaluation stays on the task's own distribution)."""
     runlog.quiet_console(REPORTED_ERRORS)
     runlog.restore_caller_sigterm()
     log = get_run_logger()
@@ -89,6 +91,7 @@ def long_horizon_pipeline(
         cameras=cameras,
         task_options=options,
         max_steps=COLLECT_MAX_STEPS,
+        domain_randomize=domain_randomize,
     )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
@@ -123,7 +126,16 @@ def long_horizon_pipeline(
         "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval},
     }
     settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
-    return record_run(summary, clock, out_dir, **settings, cameras=cameras, task_options=options, recipe=recipe)
+    return record_run(
+        summary,
+        clock,
+        out_dir,
+        **settings,
+        cameras=cameras,
+        task_options=options,
+        recipe=recipe,
+        domain_randomize=domain_randomize or None,
+    )
 
 
 def _train_phases(split: dict, phases: list[str], train_cfg: dict[str, Any], out: str, gpus: int, clock):

@@ -187,8 +187,10 @@ def run_collect(
     cameras=PIPELINE_CAMERAS,
     task_options=None,
     max_steps=None,
+    domain_randomize=None,
 ):
-    """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos)."""
+    """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos); with
+    ``domain_randomize`` (axis -> level) each row draws its own physics and camera offsets (collect's flag)."""
     args = CollectArgs(
         task=task_id,
         episodes=episodes,
@@ -200,6 +202,11 @@ def run_collect(
         cameras=cameras,
         task_options=dict(task_options or {}),
         **({"max_steps": max_steps} if max_steps else {}),
+        **(
+            {"domain_randomize": ",".join(f"{k}={v:g}" for k, v in domain_randomize.items())}
+            if domain_randomize
+            else {}
+        ),
     )
     return run_dataset_stage(
         collect_task, args, shards=shards, out=out, stage="collect", name="demos", path_field="dataset_path"

@@ -35,6 +35,9 @@ def _bench(name: str, *args: str) -> Row:
     return Row(name, (*args, "--run-record", f"{{out}}/records/{name}.json"))
 
 
+ROBUST_RANDOMIZATION = "object_mass=mild,friction=mild,camera_shift=mild,camera_tilt=mild"
+"""The robust recipe's domain randomisation: every axis collection can draw per row, at its mild level."""
+
 ROBUST_EVALUATION = (
     "--episodes",
     "100",
@@ -57,6 +60,8 @@ ROWS: dict[str, list[Row]] = {
     "gpu": [
         _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "gpu"),
         _pipeline("picktoshelf", "GalbotG1-PickToShelf-v0", "gpu"),
+        # the robust recipe: the same, its collection's rows drawing physics and camera offsets (docs/robustness.md)
+        _pipeline("picktoshelf-robust", "GalbotG1-PickToShelf-v0", "gpu", "--domain-randomize", ROBUST_RANDOMIZATION),
         *[
             _pipeline(f"sorttoshelf-{o}", "GalbotG1-SortToShelf-v0", "gpu", "--sorting-object", o)
             for o in SORTING_OBJECTS
@@ -212,6 +217,20 @@ ROWS: dict[str, list[Row]] = {
             "--phase-checkpoint",
             "pick={out}/picktoshelf/policy_pick/checkpoint.pt",
             "place={out}/picktoshelf/policy_place/checkpoint.pt",
+            *ROBUST_EVALUATION,
+            "--cameras",
+            "front_head=96x72:rgb,left_wrist=96x72:rgb",
+            "--max-steps",
+            "3000",
+        ),
+        _bench(
+            "robust-picktoshelf-robust",
+            "evaluate",
+            "--task",
+            "GalbotG1-PickToShelf-v0",
+            "--phase-checkpoint",
+            "pick={out}/picktoshelf-robust/policy_pick/checkpoint.pt",
+            "place={out}/picktoshelf-robust/policy_place/checkpoint.pt",
             *ROBUST_EVALUATION,
             "--cameras",
             "front_head=96x72:rgb,left_wrist=96x72:rgb",

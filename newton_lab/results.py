@@ -95,6 +95,8 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
         data = f"{counts.get('expert_demos')} expert" + (
             f" + {counts['mimic_demos']} Mimic" if counts.get("mimic_demos") else ""
         )
+        if res.get("domain_randomize"):  # the robust recipe: collection's rows drew these axes
+            data += ", randomised " + ", ".join(f"{k}={v:g}" for k, v in res["domain_randomize"].items())
         phases = res.get("phases") or {}
         per_phase = (
             ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in phases.items()) if len(phases) > 1 else "–"

@@ -37,9 +37,12 @@ COMMAND = [
     "--eval-max-steps",
     "300",
     "--no-record",
+    "--domain-randomize",
+    "friction=mild,camera_shift=mild",
 ]
 """The smallest size: 5 training steps make a policy that may wander until the step limit, so the limit is 300
-steps (an expert coherent episode is ~470)."""
+steps (an expert coherent episode is ~470). Collection is domain-randomised (the robust recipe's flag): each row
+draws its own friction and camera offset."""
 
 
 def run_pipeline(out: Path) -> subprocess.CompletedProcess:
@@ -81,6 +84,13 @@ def test_every_stage_ran_and_the_composed_task_was_evaluated(first_run):
     seconds = record["results"]["collect_seconds"]  # where the collect stage went, each part inside the one above it
     assert set(seconds) == set(COLLECT_SECONDS)
     assert 0 < seconds["loop"] <= seconds["collect"] < seconds["call"] <= record["results"]["timings_s"]["collect"]
+    assert record["results"]["domain_randomize"] == {"friction": 0.7, "camera_shift": 2.0}
+    from newton_lab.datasets import DatasetRef
+
+    (entry,) = [
+        p for p in DatasetRef.open(summary["artifacts"]["demos"]["path"]).provenance if p.operation == "collect"
+    ]
+    assert {k: len(v) for k, v in entry.config["domain_randomization"].items()} == {"friction": 2, "camera_shift": 2}
     # the phase datasets carry the component task and only the phase's columns; each policy trained on its own
     phases = summary["artifacts"]["phases"]
     for name, component in (("pick", "Pick"), ("place", "Place"), ("nav", "Nav")):

@@ -221,3 +221,13 @@ def test_recipe_choice_without_a_gpu_is_the_cpu_one_and_the_gpu_one_sees_pixels(
         ).stdout
     )["plan"]
     assert coherent["long_horizon"] and coherent["stages"][1] == "split" and coherent["demos"] >= 600
+    robust = subprocess.run(
+        [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--domain-randomize", "camera_shift=mild"],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+    )
+    assert json.loads(robust.stdout)["plan"]["domain_randomize"] == {"camera_shift": 2.0}
+    refused = subprocess.run([*run, "--domain-randomize", "friction=mild"], capture_output=True, text=True, cwd=ROOT)
+    assert refused.returncode == 2 and "Mimic" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1

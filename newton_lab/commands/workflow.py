@@ -298,6 +298,9 @@ class PipelineArgs:
     record: bool = True
     """record the first evaluation episodes to <out>/evaluation.rrd (rerun); --no-record on a host without
     rerun-sdk"""
+    domain_randomize: str | None = None
+    """a coherent task's collection with domain randomisation, as collect's --domain-randomize (AXIS=LEVEL,...;
+    axes object_mass, friction, camera_shift, camera_tilt): the robust recipe of docs/robustness.md"""
     dry_run: bool = False
     """print the resolved plan (recipe, counts, cameras, task options, training) as JSON and run nothing"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
@@ -332,6 +335,16 @@ class PipelineArgs:
         }
         if recipe.get("long_horizon"):
             extra["eval_max_steps"] = recipe["eval_max_steps"]
+        if self.domain_randomize is not None:
+            from ..task_api.perturbations import parse_randomization  # deferred: only this flag needs it
+
+            levels = parse_randomization(self.domain_randomize)
+            if not recipe.get("long_horizon"):
+                raise ValueError(
+                    "--domain-randomize: the pipeline draws it for a coherent task's collection, and Mimic would "
+                    "expand these demos without it; run collect --domain-randomize, then train"
+                )
+            extra["domain_randomize"] = levels
         if self.eval_max_steps is not None:
             extra["eval_max_steps"] = self.eval_max_steps
         return {
