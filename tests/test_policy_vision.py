@@ -204,3 +204,26 @@ def test_bench_train_takes_the_recipes_keys(image_demos, capsys):
     assert out["obs_keys"] == list(PROPRIO) and out["image_keys"] == ["front_head_rgb"]
     assert main([*argv, "--preset", "vision_cpu", "--image-keys", "left_wrist_rgb"]) == 2  # not in the dataset
     assert "left_wrist_rgb" in capsys.readouterr().err
+
+
+def test_padded_sampling_gives_the_eager_actions(image_demos, tmp_path):
+    """The graphed sampler's path (rows padded to a power-of-two bucket, copied into static inputs, the padding's
+    actions dropped), run without graphs on the CPU, gives the actions ``predict_action`` gives for the same rows and
+    seed; on a GPU the same inputs are replayed from one CUDA graph per bucket."""
+    from newton_lab.policies import Policy
+    from newton_lab.policies.data import SequenceDataset
+    from newton_lab.policies.graphed import GraphedSampler, bucket
+
+    assert [bucket(n, 100) for n in (1, 2, 3, 5, 64, 65, 100)] == [1, 2, 4, 8, 64, 100, 100]
+    policy = DiffusionPolicy.load(Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path)))
+    windows = SequenceDataset(image_demos, obs_keys=PROPRIO, image_keys=("front_head_rgb",)).__getitems__(
+        [0, 3, 5, 7, 9]
+    )
+    sampler = GraphedSampler(policy, rows=8, static=True)
+    assert not sampler.graphs  # no CUDA here: the static buffers, called eagerly
+    for seed, rows in enumerate((slice(0, 3), slice(0, 1), slice(2, 5))):  # a bucket of 4 (built, then reused), of 1
+        obs, images = windows["obs"][rows], {"front_head_rgb": windows["images"]["front_head_rgb"][rows]}
+        eager = policy.predict_action(obs, images=images, generator=torch.Generator().manual_seed(seed))
+        noise = policy.initial_noise(obs.shape[0], torch.Generator().manual_seed(seed))
+        torch.testing.assert_close(sampler(obs, images, noise), eager, rtol=1e-4, atol=1e-5)
+    assert sorted(sampler._buckets) == [1, 4]

@@ -374,6 +374,22 @@ MUTATIONS: tuple[Mutation, ...] = (
         "tests/test_phase_policies.py",
     ),
     one_patch(
+        "graphed-sampling-reads-stale-observations",
+        "A captured policy call reads the rows it is asked for, not the last call's observations",
+        "newton_lab/policies/graphed.py",
+        'entry["obs"][:n].copy_(obs)',
+        'entry["obs"][:n].copy_(obs) if size not in self._buckets else None',
+        "tests/test_policy_vision.py",
+    ),
+    one_patch(
+        "graphed-sampling-returns-the-padding",
+        "A captured policy call returns the actions of the rows it was asked for, not its padded bucket",
+        "newton_lab/policies/graphed.py",
+        'return entry["out"][:n].clone()',
+        'return entry["out"][: entry["out"].shape[0]].clone()',
+        "tests/test_policy_vision.py",
+    ),
+    one_patch(
         "evaluation-acts-for-idle-rows",
         "An evaluation asks the agent to act only for the rows that still have an episode to run",
         "newton_lab/envs/rollout_loop.py",

@@ -77,11 +77,16 @@ def evaluate(args: EvaluateArgs) -> int:
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies.agent import checkpoint_agent, phase_policy_agent  # deferred: torch is slow to import
 
-    from_checkpoint = checkpoint_agent(args.checkpoint, args.policy_device()) if args.checkpoint else None
+    graphs = not args.eager_policy
+    from_checkpoint = (
+        checkpoint_agent(args.checkpoint, args.policy_device(), graphs=graphs) if args.checkpoint else None
+    )
     env = make_env(args.task, **args.env_kwargs())
     phases = args.phase_checkpoints()
     agent = (
-        phase_policy_agent(env, phases, device=args.policy_device()) if phases else from_checkpoint or expert_agent(env)
+        phase_policy_agent(env, phases, device=args.policy_device(), graphs=graphs)
+        if phases
+        else from_checkpoint or expert_agent(env)
     )
     hook, close = rerun_hook(args, env)
     try:

@@ -57,6 +57,9 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     action_latency, posture_noise, object_mass, friction, camera_shift, camera_tilt, camera_fov, light_intensity,
     light_direction), or sweep: unperturbed, then each axis at each level alone (one row each)"""
 
+    eager_policy: bool = False
+    """sample a diffusion policy's actions eagerly instead of from CUDA graphs (on a GPU; the record's timing then
+    gives the other side of the A/B)"""
     run_record: str | None = None
     """write the run record (JSON) here; with --perturb one is written anyway, by default to
     outputs/records/evaluate-<task>-<UTC time>.json"""

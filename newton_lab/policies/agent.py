@@ -16,6 +16,7 @@ from ..agents.base import BaseAgent, as_rows
 from ..agents.experts import TaskFlowAgent
 from ..task_api.registry import lookup
 from .diffusion import DiffusionPolicy
+from .graphed import GraphedSampler
 
 
 def _compatible_task(env, policy_task: str | None) -> bool:
@@ -31,7 +32,7 @@ def _trained_for_phase(policy_task: str | None, component: str) -> bool:
     return policy_task is None or policy_task == component or lookup(policy_task).source_task == component
 
 
-def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0) -> TaskFlowAgent:
+def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0, graphs: bool = True) -> TaskFlowAgent:
     """A coherent task's agent: the trained policy of ``checkpoints`` (phase name or kind -> checkpoint path; a kind's
     policy runs every phase of that kind) in its phase,
     the component's expert in the others (e.g. a learned pick and place with the nav expert between them). Each
@@ -40,7 +41,10 @@ def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0) -> TaskF
     _check_phases(env, checkpoints)
     return compose_phase_policies(
         env,
-        {name: PolicyAgent.from_checkpoint(path, device=device, seed=seed) for name, path in checkpoints.items()},
+        {
+            name: PolicyAgent.from_checkpoint(path, device=device, seed=seed, graphs=graphs)
+            for name, path in checkpoints.items()
+        },
         sources=checkpoints,
     )
 
@@ -80,16 +84,18 @@ def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None)
 class PolicyAgent(BaseAgent):
     """Acts with ``policy`` (an object with ``predict_action``, ``obs_keys``, ``info``, ``cfg``)."""
 
-    def __init__(self, policy, *, seed: int = 0):
+    def __init__(self, policy, *, seed: int = 0, graphs: bool = True):
         self.policy = policy
         self.seed = seed
+        self.graphs = graphs
+        """On CUDA, sample actions from CUDA graphs (``policies.graphed``); False: eagerly."""
 
     @classmethod
-    def from_checkpoint(cls, path, *, device=None, seed: int = 0) -> PolicyAgent:
+    def from_checkpoint(cls, path, *, device=None, seed: int = 0, graphs: bool = True) -> PolicyAgent:
         """Load a checkpoint written by ``Policy.from_backend(...).train``; missing / damaged files raise."""
         if not Path(path).exists():
             raise FileNotFoundError(f"checkpoint {path} does not exist; train one first (examples/03_train.py)")
-        return cls(DiffusionPolicy.load(path, device=device or "cpu"), seed=seed)
+        return cls(DiffusionPolicy.load(path, device=device or "cpu"), seed=seed, graphs=graphs)
 
     def setup(self, env) -> None:
         p = self.policy
@@ -128,6 +134,7 @@ class PolicyAgent(BaseAgent):
         self._queue = torch.zeros(n, a, len(names), device=env.torch_device)
         self._cursor = np.full(n, a, dtype=np.int64)
         self._generator = torch.Generator(device="cpu").manual_seed(self.seed)
+        self._sampler = GraphedSampler(p, n, enabled=self.graphs) if hasattr(p, "sample_actions") else None
 
     def _check_images(self, env) -> list[str]:
         """The policy's image keys after checking the env renders them at the trained size (one line otherwise)."""
@@ -180,10 +187,14 @@ class PolicyAgent(BaseAgent):
         replan = asked[self._cursor[asked] >= self._queue.shape[1]]
         if replan.size:
             rows = torch.as_tensor(replan, device=env.torch_device)
-            images = {"images": {k: hist[rows] for k, hist in self._frames.items()}} if self._frames else {}
-            self._queue[rows] = self.policy.predict_action(self._history[rows], generator=self._generator, **images).to(
-                self._queue.device
-            )
+            images = {k: hist[rows] for k, hist in self._frames.items()} if self._frames else None
+            if self._sampler is None:  # a policy object of its own kind: its predict_action
+                seen = {"images": images} if images else {}
+                planned = self.policy.predict_action(self._history[rows], generator=self._generator, **seen)
+            else:  # the noise predict_action would draw, then its sampling (from CUDA graphs on a GPU)
+                noise = self.policy.initial_noise(len(replan), self._generator)
+                planned = self._sampler(self._history[rows], images, noise)
+            self._queue[rows] = planned.to(self._queue.device)
             self._cursor[replan] = 0
         idx = torch.as_tensor(np.minimum(self._cursor, self._queue.shape[1] - 1), device=env.torch_device)
         actions = self._queue[torch.arange(env.num_envs, device=env.torch_device), idx].contiguous()
@@ -195,11 +206,11 @@ class PolicyAgent(BaseAgent):
         return out
 
 
-def checkpoint_agent(path: str | Path, device: str = "cpu") -> BaseAgent:
+def checkpoint_agent(path: str | Path, device: str = "cpu", *, graphs: bool = True) -> BaseAgent:
     """A checkpoint's agent: a diffusion policy (``newton-lab train``) or a PPO actor (``newton-lab train-rl``), told
-    apart by the checkpoint's format tag."""
+    apart by the checkpoint's format tag (``graphs``: the diffusion policy's sampling from CUDA graphs on a GPU)."""
     from .rl.agent import RLPolicyAgent, is_rl_checkpoint  # deferred: only a PPO checkpoint needs its agent
 
     if is_rl_checkpoint(path):
         return RLPolicyAgent.from_checkpoint(path, device=device)
-    return PolicyAgent.from_checkpoint(path, device=device)
+    return PolicyAgent.from_checkpoint(path, device=device, graphs=graphs)

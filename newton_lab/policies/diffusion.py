@@ -219,20 +219,29 @@ class DiffusionPolicy(nn.Module):
         Returned steps are obs_horizon-1 .. obs_horizon-1+action_horizon-1 of the predicted sequence, i.e.
         the action for the newest observation first. ``generator`` makes the initial noise reproducible.
         """
-        cfg = self.cfg
         obs = torch.as_tensor(obs_history)
-        out_device = obs.device
-        obs = obs.to(self.device, torch.float32)
-        if obs.ndim != 3 or tuple(obs.shape[1:]) != (cfg.obs_horizon, self.obs_dim):
+        if obs.ndim != 3 or tuple(obs.shape[1:]) != (self.cfg.obs_horizon, self.obs_dim):
             raise ValueError(
-                f"obs_history must be (B, {cfg.obs_horizon}, {self.obs_dim}) "
+                f"obs_history must be (B, {self.cfg.obs_horizon}, {self.obs_dim}) "
                 f"(obs_keys {self.obs_keys}), got {tuple(obs.shape)}"
             )
-        net = self.ema.averaged.eval()
-        cond = self.condition(obs, images, net)
-        shape = (obs.shape[0], cfg.pred_horizon, self.action_dim)
+        return self.sample_actions(obs, images, self.initial_noise(obs.shape[0], generator)).to(obs.device)
+
+    def initial_noise(self, batch: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        """x_T of ``batch`` samples, N(0, I) (B, pred_horizon, action_dim), drawn on ``generator``'s device and
+        moved to the policy's."""
         noise_device = generator.device if generator is not None else self.device
-        x_T = torch.randn(shape, generator=generator, device=noise_device).to(self.device)
+        shape = (batch, self.cfg.pred_horizon, self.action_dim)
+        return torch.randn(shape, generator=generator, device=noise_device).to(self.device)
+
+    @torch.no_grad()
+    def sample_actions(self, obs: torch.Tensor, images, x_T: torch.Tensor) -> torch.Tensor:
+        """The device work of ``predict_action`` from its initial noise ``x_T``: condition, DDIM, unnormalise ->
+        (B, action_horizon, action_dim) on the policy's device. No host round trip, so a CUDA graph can capture it
+        (``policies.graphed.GraphedSampler``)."""
+        cfg = self.cfg
+        net = self.ema.averaged.eval()
+        cond = self.condition(obs.to(self.device, torch.float32), images, net)
         x0 = self.scheduler.sample(
             lambda x, t: net(x, t, cond),
             x_T,
@@ -240,7 +249,7 @@ class DiffusionPolicy(nn.Module):
             prediction_type=cfg.prediction_type,
         )
         start = cfg.obs_horizon - 1
-        return self.action_normalizer.unnormalize(x0[:, start : start + cfg.action_horizon]).to(out_device)
+        return self.action_normalizer.unnormalize(x0[:, start : start + cfg.action_horizon])
 
     # ------------------------------------------------------------------------- checkpoints
     def checkpoint(self) -> dict[str, Any]:

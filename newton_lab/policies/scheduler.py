@@ -87,7 +87,8 @@ class NoiseScheduler:
     ) -> torch.Tensor:
         """One DDIM update x_t -> x_{t_prev} (``t_prev < 0`` means the clean sample); ``eps`` is the model
         output: the noise, or with ``prediction_type="sample"`` the clean sample x0."""
-        a_t, a_prev = self._abar(torch.tensor(t), x_t), self._abar(torch.tensor(t_prev), x_t)
+        # steps filled on x_t's device, not copied from the host: a CUDA graph can capture the sampling loop
+        a_t, a_prev = (self._abar(torch.full((), s, dtype=torch.long, device=x_t.device), x_t) for s in (t, t_prev))
         if prediction_type == "sample":  # direction term from the (clipped) predicted x0
             x0 = eps.clamp(-1.0, 1.0) if self.clip_sample else eps
             eps = (x_t - a_t.sqrt() * x0) / (1 - a_t).sqrt()
