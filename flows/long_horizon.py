@@ -126,16 +126,8 @@ def long_horizon_pipeline(
         "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval},
     }
     settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
-    return record_run(
-        summary,
-        clock,
-        out_dir,
-        **settings,
-        cameras=cameras,
-        task_options=options,
-        recipe=recipe,
-        domain_randomize=domain_randomize or None,
-    )
+    settings.update(cameras=cameras, task_options=options, recipe=recipe, domain_randomize=domain_randomize or None)
+    return record_run(summary, clock, out_dir, **settings)
 
 
 def _train_phases(split: dict, phases: list[str], train_cfg: dict[str, Any], out: str, gpus: int, clock):

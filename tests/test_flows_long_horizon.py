@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import h5py
+import numpy as np
 import pytest
 import torch
 from newton_lab.flows.stages import COLLECT_SECONDS
@@ -96,6 +97,13 @@ def test_every_stage_ran_and_the_composed_task_was_evaluated(first_run):
     for name, component in (("pick", "Pick"), ("place", "Place"), ("nav", "Nav")):
         with h5py.File(phases[name]["path"], "r") as f:
             assert json.loads(f["data"].attrs["env_args"])["env_name"] == f"GalbotG1-PickToShelf-{component}-v0"
+    from newton_lab.datasets import read_episode
+
+    for name, index in (("pick", 0), ("place", 2)):  # each segment holds its demo's very frames of the phase
+        seg = read_episode(phases[name]["path"], 0)
+        demo = read_episode(summary["artifacts"]["demos"]["path"], int(seg["attrs"]["source"].split(":")[1]))
+        rows = np.nonzero(np.asarray(demo["datagen"]["phase"]).reshape(-1) == index)[0]
+        np.testing.assert_array_equal(seg["obs"]["front_head_rgb"], demo["obs"]["front_head_rgb"][rows])
     for name in ("pick", "place"):
         ckpt = torch.load(summary["artifacts"]["checkpoints"][name]["path"], weights_only=True)
         assert ckpt["info"]["task_id"] == f"GalbotG1-PickToShelf-{name.title()}-v0"

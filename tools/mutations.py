@@ -390,6 +390,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         "tests/test_policy_vision.py",
     ),
     one_patch(
+        "split-copies-the-first-frames",
+        "A phase dataset holds the frames of its phase's steps, copied as the source stored them",
+        "newton_lab/datasets/hdf5/frames.py",
+        "[self.chunks[i] for i in rows]",
+        "self.chunks[: len(rows)]",
+        "tests/test_stored_frames.py",
+    ),
+    one_patch(
         "evaluation-acts-for-idle-rows",
         "An evaluation asks the agent to act only for the rows that still have an episode to run",
         "newton_lab/envs/rollout_loop.py",

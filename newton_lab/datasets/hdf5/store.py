@@ -20,6 +20,7 @@ from ..files.errors import damaged
 from ..files.layout import NEXT_ID, PARTIAL_PREFIX, StoredDemo, demo_id_of, demo_name, from_stored, nest
 from ..files.locking import locked_error
 from . import journal
+from .frames import StoredFrames
 
 # Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
 LIBVER = ("earliest", "v110")
@@ -111,6 +112,8 @@ def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
     for key, value in tree.items():
         if isinstance(value, dict):
             _write_tree(g.create_group(key), value)
+        elif isinstance(value, StoredFrames):  # another dataset's compressed frames, copied as they are
+            value.write(g, key)
         elif value.ndim == 0 or value.size == 0:
             g.create_dataset(key, data=value)
         elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, gzip 4 (docs/data.md: Image datasets)
@@ -135,11 +138,15 @@ def _read_array(dset: h5py.h5d.DatasetID) -> np.ndarray:
     return out
 
 
-def _read_node(gid: h5py.h5g.GroupID) -> dict[str, Any]:
+def _read_node(gid: h5py.h5g.GroupID, stored_frames: bool = False) -> dict[str, Any]:
     out = {}
     for name in gid:  # link names in the group's name order, as h5py's Group.items()
         obj = h5py.h5o.open(gid, name)
-        out[name.decode()] = _read_node(obj) if isinstance(obj, h5py.h5g.GroupID) else _read_array(obj)
+        if isinstance(obj, h5py.h5g.GroupID):
+            out[name.decode()] = _read_node(obj, stored_frames)
+            continue
+        frames = StoredFrames.read(h5py.Dataset(obj)) if stored_frames and len(obj.shape) >= 3 else None
+        out[name.decode()] = _read_array(obj) if frames is None else frames
     return out
 
 
@@ -261,9 +268,12 @@ def read(path: Path, demo_id: int) -> tuple[dict[str, Any], dict[str, Any]]:
         return next(one)
 
 
-def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, attrs: bool = False) -> Iterator[Any]:
+def read_many(
+    path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, attrs: bool = False, stored_frames: bool = False
+) -> Iterator[Any]:
     """Each demo's tree (with ``attrs``: and its attrs) through one open file, each demo looked up by name
-    (``keys``: see ``_read_keys``). A demo not committed raises ``KeyError``."""
+    (``keys``: see ``_read_keys``; ``stored_frames``: image frames as their compressed chunks, ``StoredFrames``,
+    where stored one a chunk). A demo not committed raises ``KeyError``."""
     with _open_read(path) as f:
         data = _data(f, path)
         for i in demo_ids:
@@ -271,7 +281,7 @@ def read_many(path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, att
             if g is None:
                 raise KeyError(i)
             try:
-                tree = _read_keys(g, keys)
+                tree = _read_node(g.id, stored_frames=True) if stored_frames else _read_keys(g, keys)
                 item = (tree, _attrs(g)) if attrs else tree
             except (OSError, RuntimeError) as e:
                 raise damaged(path, f"{demo_name(i)}: {e}") from None
