@@ -88,6 +88,7 @@ class GraphedSampler:
                 call()
         torch.cuda.current_stream().wait_stream(side)
         graph = torch.cuda.CUDAGraph()
-        with torch.cuda.graph(graph), torch.no_grad():
+        # thread_local: a Warp or writer thread's CUDA calls meanwhile do not void this capture
+        with torch.cuda.graph(graph, capture_error_mode="thread_local"), torch.no_grad():
             out = call()
         return graph, out
