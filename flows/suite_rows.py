@@ -193,6 +193,7 @@ ROWS: dict[str, list[Row]] = {
             "--steps",
             "100",
             "--bf16",
+            "--cudnn-benchmark",
             "--device",
             "cuda",
         ),

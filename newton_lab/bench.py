@@ -160,12 +160,14 @@ def bench_train(
     channels_last: bool = False,
     obs_keys: tuple[str, ...] | None = None,
     image_keys: tuple[str, ...] | None = None,
+    cudnn_benchmark: bool = False,
 ) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
     autocast (keys ``..._bf16``), with ``channels_last`` each also with the network's weights in channels-last
     layout (keys ``..._cl``: the convolutions then run channels-last); ``obs_keys`` / ``image_keys`` replace the
-    preset's (e.g. the long-horizon recipe's two views). Also where a step's time goes
+    preset's (e.g. the long-horizon recipe's two views); with ``cudnn_benchmark`` each also with cuDNN's autotuner
+    on (keys ``..._tuned``). Also where a step's time goes
     (``step_breakdown``), the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     fields.update({k: v for k, v in (("obs_keys", obs_keys), ("image_keys", image_keys)) if v})
@@ -191,10 +193,14 @@ def bench_train(
         "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
     }
     both = {True: [False, True], False: [False]}
-    for layout_cl, precision, kind in itertools.product(both[channels_last], both[bf16], kinds):
+    grid = itertools.product(both[cudnn_benchmark], both[channels_last], both[bf16], kinds)
+    for tuned, layout_cl, precision, kind in grid:  # the autotuner last: once on, it stays on in the process
+        torch.backends.cudnn.benchmark = tuned
         torch.manual_seed(0)
         run_cfg = dataclasses.replace(cfg, bf16=precision)
-        name = kind.__name__ + ("_bf16" if precision else "") + ("_cl" if layout_cl else "")
+        name = (
+            kind.__name__ + ("_bf16" if precision else "") + ("_cl" if layout_cl else "") + ("_tuned" if tuned else "")
+        )
         policy = DiffusionPolicy.from_dataset(data, run_cfg).to(device)
         if layout_cl:
             policy.model.to(memory_format=torch.channels_last)

@@ -202,6 +202,9 @@ def test_bench_train_takes_the_recipes_keys(image_demos, capsys):
     assert main([*argv, "--preset", "vision_cpu", *keys]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["obs_keys"] == list(PROPRIO) and out["image_keys"] == ["front_head_rgb"]
+    assert main([*argv, "--preset", "vision_cpu", "--cudnn-benchmark"]) == 0  # both sides of the autotuner's A/B
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["EagerTrainStep_steps_per_s"] > 0 and out["EagerTrainStep_tuned_steps_per_s"] > 0
     assert main([*argv, "--preset", "vision_cpu", "--image-keys", "left_wrist_rgb"]) == 2  # not in the dataset
     assert "left_wrist_rgb" in capsys.readouterr().err
 

@@ -72,6 +72,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         preset=args.preset,
         bf16=args.bf16,
         channels_last=args.channels_last,
+        cudnn_benchmark=args.cudnn_benchmark,
         **args.key_overrides(),
     )
     write_run_record("bench-train", args.run_record, task=out.get("task"), device=args.device, results=out)

@@ -100,6 +100,8 @@ class BenchTrainArgs(RunRecordArgs):
     channels_last: bool = False
     """also time each variant with the network's weights in channels-last layout (the image encoders' convolutions
     then run channels-last: keys ..._cl)"""
+    cudnn_benchmark: bool = False
+    """also time each variant with cuDNN's autotuner on (torch.backends.cudnn.benchmark: keys ..._tuned)"""
     obs_keys: str | None = None
     """comma-separated obs terms to condition on, as train's (default: the preset's)"""
     image_keys: str | None = None

@@ -141,6 +141,7 @@ TRAIN_OVERRIDES = (
     "prediction_type",
     "compile",
     "bf16",
+    "cudnn_benchmark",
     "obs_min_range",
 )
 """``TrainArgs`` fields that override the preset only when given."""
@@ -184,6 +185,8 @@ class TrainArgs:
     """run the network through torch.compile (CPU: about a minute of compiling, then faster steps)"""
     bf16: bool | None = None
     """forward and backward under bfloat16 autocast (weights, optimiser state stay float32)"""
+    cudnn_benchmark: bool | None = None
+    """on CUDA, cuDNN times its convolution algorithms for the fixed shapes once and keeps the fastest"""
     time_budget_s: float | None = None
     """wall-clock budget [s]: the run is shortened to fit (LR schedule re-planned)"""
     device: str = "cpu"

@@ -128,6 +128,9 @@ class DiffusionPolicyConfig:
     bf16: bool = False
     """Run the networks' forward and backward under bfloat16 autocast (encoder convolutions, U-Net); weights,
     optimiser state, normalisers and the loss stay float32."""
+    cudnn_benchmark: bool = False
+    """On CUDA, let cuDNN time its convolution algorithms for the step's fixed shapes once and keep the fastest
+    (``torch.backends.cudnn.benchmark``); ``bench-train --cudnn-benchmark`` measures both sides."""
     compile: bool = False
     """The eager step (CPU, or CUDA with cuda_graph off) runs the network through ``torch.compile``: about a minute
     of compiling on 2 CPU cores, then each step takes ~0.55x the time (the quarter-width U-Net on CPU is bound

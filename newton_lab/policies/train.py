@@ -211,6 +211,8 @@ def train(
         # the captured step (its side stream, the graph's pool) works on the current device: make it cuda:k
         # (training on cuda:1 from a process whose current device was cuda:0 failed in capture)
         torch.cuda.set_device(torch.device(cfg.device))
+    if torch.device(cfg.device).type == "cuda" and cfg.cudnn_benchmark:
+        torch.backends.cudnn.benchmark = True  # process-wide: a training runs in a process of its own
     cfg, state, start = _starting_point(cfg, paths[0], out_dir, resume)
     # Ctrl-C / SIGTERM from here on: a resume point after the first step that ends after it; in one process only
     # (ranks would stop at different steps, and the others would wait for them in the next all-reduce; torchrun
