@@ -56,7 +56,7 @@ def cam_env():
 
 
 @pytest.mark.parametrize("suffix", [".zarr", ".hdf5"])
-def test_cli_collect_writes_full_size_rgb_frames_one_per_chunk(tmp_path, suffix):
+def test_cli_collect_writes_full_size_rgb_frames_in_compressed_chunks(tmp_path, suffix):
     path = tmp_path / f"d{suffix}"
     proc = subprocess.run(
         cli(
