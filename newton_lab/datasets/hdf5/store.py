@@ -272,8 +272,8 @@ def read_many(
     path: Path, demo_ids: list[int], keys: tuple[str, ...] | None, attrs: bool = False, stored_frames: bool = False
 ) -> Iterator[Any]:
     """Each demo's tree (with ``attrs``: and its attrs) through one open file, each demo looked up by name
-    (``keys``: see ``_read_keys``; ``stored_frames``: image frames as their compressed chunks, ``StoredFrames``,
-    where stored one a chunk). A demo not committed raises ``KeyError``."""
+    (``keys``: see ``_read_keys``; ``stored_frames``, with every key: image frames as their compressed chunks,
+    ``StoredFrames``, where stored one a chunk). A demo not committed raises ``KeyError``."""
     with _open_read(path) as f:
         data = _data(f, path)
         for i in demo_ids:
@@ -281,7 +281,7 @@ def read_many(
             if g is None:
                 raise KeyError(i)
             try:
-                tree = _read_node(g.id, stored_frames=True) if stored_frames else _read_keys(g, keys)
+                tree = _read_node(g.id, stored_frames) if keys is None else _read_keys(g, keys)
                 item = (tree, _attrs(g)) if attrs else tree
             except (OSError, RuntimeError) as e:
                 raise damaged(path, f"{demo_name(i)}: {e}") from None
