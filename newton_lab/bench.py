@@ -161,13 +161,15 @@ def bench_train(
     obs_keys: tuple[str, ...] | None = None,
     image_keys: tuple[str, ...] | None = None,
     cudnn_benchmark: bool = False,
+    compile: bool = False,
 ) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
     side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
     autocast (keys ``..._bf16``), with ``channels_last`` each also with the network's weights in channels-last
     layout (keys ``..._cl``: the convolutions then run channels-last); ``obs_keys`` / ``image_keys`` replace the
     preset's (e.g. the long-horizon recipe's two views); with ``cudnn_benchmark`` each also with cuDNN's autotuner
-    on (keys ``..._tuned``). Also where a step's time goes
+    on (keys ``..._tuned``); with ``compile`` the eager step also through ``torch.compile`` at the last variant's
+    precision and autotuning (key ``EagerTrainStep_compiled...``). Also where a step's time goes
     (``step_breakdown``), the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     fields.update({k: v for k, v in (("obs_keys", obs_keys), ("image_keys", image_keys)) if v})
@@ -193,30 +195,21 @@ def bench_train(
         "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
     }
     both = {True: [False, True], False: [False]}
-    grid = itertools.product(both[cudnn_benchmark], both[channels_last], both[bf16], kinds)
-    for tuned, layout_cl, precision, kind in grid:  # the autotuner last: once on, it stays on in the process
-        torch.backends.cudnn.benchmark = tuned
-        torch.manual_seed(0)
-        run_cfg = dataclasses.replace(cfg, bf16=precision)
-        name = (
-            kind.__name__ + ("_bf16" if precision else "") + ("_cl" if layout_cl else "") + ("_tuned" if tuned else "")
+    grid = [
+        (kind, tuned, layout_cl, precision, False)
+        for tuned, layout_cl, precision, kind in itertools.product(
+            both[cudnn_benchmark], both[channels_last], both[bf16], kinds
         )
-        policy = DiffusionPolicy.from_dataset(data, run_cfg).to(device)
-        if layout_cl:
-            policy.model.to(memory_format=torch.channels_last)
-        stepper, done, t0, loss = kind(policy, data, run_cfg), 0, 0.0, None
-        while done < steps + 10:  # 10 untimed steps: allocation, autotuning, capture
-            for loss in stepper.epoch():  # noqa: B007 - the last step's loss is read after the loop
-                done += 1
-                if done == 10:
-                    if on_cuda:
-                        torch.cuda.synchronize(device)
-                    t0 = time.perf_counter()
-                if done == steps + 10:
-                    break
-        final = loss.item()  # waits for the queued steps
-        out[f"{name}_steps_per_s"] = steps / (time.perf_counter() - t0)
-        out[f"{name}_samples_per_s"] = out[f"{name}_steps_per_s"] * batch_size
+    ]  # the autotuner last: once on, it stays on in the process
+    grid += [(EagerTrainStep, cudnn_benchmark, False, bf16, True)] if compile else []
+    for kind, tuned, layout_cl, precision, compiled in grid:
+        torch.backends.cudnn.benchmark = tuned
+        tags = (("_compiled", compiled), ("_bf16", precision), ("_cl", layout_cl), ("_tuned", tuned))
+        name = kind.__name__ + "".join(tag for tag, on in tags if on)
+        run_cfg = dataclasses.replace(cfg, bf16=precision, compile=compiled)
+        rate, final = _time_variant(kind, data, run_cfg, layout_cl, steps)
+        out[f"{name}_steps_per_s"] = rate
+        out[f"{name}_samples_per_s"] = rate * batch_size
         out[f"{name}_final_loss"] = final
     if len(kinds) == 2:
         out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]
@@ -226,6 +219,28 @@ def bench_train(
     if on_cuda:
         out["gpu_mem_peak_mib"] = torch.cuda.max_memory_allocated(device) / 2**20
     return out
+
+
+def _time_variant(kind, data: SequenceDataset, cfg: DiffusionPolicyConfig, channels_last: bool, steps: int):
+    """(steps/s, final loss) of ``steps`` optimiser steps of ``kind`` on a fresh policy (seed 0), after 10 untimed
+    ones (allocation, autotuning, capture, compilation)."""
+    torch.manual_seed(0)
+    policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
+    if channels_last:
+        policy.model.to(memory_format=torch.channels_last)
+    on_cuda = torch.device(cfg.device).type == "cuda"
+    stepper, done, t0, loss = kind(policy, data, cfg), 0, 0.0, None
+    while done < steps + 10:
+        for loss in stepper.epoch():  # noqa: B007 - the last step's loss is read after the loop
+            done += 1
+            if done == 10:
+                if on_cuda:
+                    torch.cuda.synchronize(cfg.device)
+                t0 = time.perf_counter()
+            if done == steps + 10:
+                break
+    final = loss.item()  # waits for the queued steps
+    return steps / (time.perf_counter() - t0), final
 
 
 def step_breakdown(data: SequenceDataset, cfg: DiffusionPolicyConfig, steps: int = 20) -> dict[str, Any]:

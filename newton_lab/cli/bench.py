@@ -73,6 +73,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         bf16=args.bf16,
         channels_last=args.channels_last,
         cudnn_benchmark=args.cudnn_benchmark,
+        compile=args.compile,
         **args.key_overrides(),
     )
     write_run_record("bench-train", args.run_record, task=out.get("task"), device=args.device, results=out)

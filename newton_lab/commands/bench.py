@@ -102,6 +102,9 @@ class BenchTrainArgs(RunRecordArgs):
     then run channels-last: keys ..._cl)"""
     cudnn_benchmark: bool = False
     """also time each variant with cuDNN's autotuner on (torch.backends.cudnn.benchmark: keys ..._tuned)"""
+    compile: bool = False
+    """also time the eager step through torch.compile, at bf16 when --bf16 and tuned when --cudnn-benchmark
+    (key EagerTrainStep_compiled...; compiling takes a minute or more)"""
     obs_keys: str | None = None
     """comma-separated obs terms to condition on, as train's (default: the preset's)"""
     image_keys: str | None = None
