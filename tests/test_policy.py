@@ -171,6 +171,17 @@ def test_ddim_with_sample_prediction_recovers_and_clips_x0():
         s.ddim_step(x0, 99, 89, x_T, prediction_type="v")
 
 
+def test_ddim_sampling_reads_no_device_value_on_the_host():
+    """The sampling loop runs on meta tensors (no data: a host read of a device value, such as indexing with a 0-d
+    tensor, raises there). On CUDA such a read is a sync, and it voids the graph capture of ``GraphedSampler``:
+    indexing the alpha_bar table with a 0-d step tensor did, and every evaluation ran eagerly."""
+    s = NoiseScheduler(100)
+    x_T = torch.zeros(4, 16, 3, device="meta")
+    for prediction_type in ("epsilon", "sample"):
+        out = s.sample(lambda x, t: x, x_T, num_inference_steps=5, prediction_type=prediction_type)
+        assert out.device.type == "meta" and out.shape == x_T.shape
+
+
 # ----------------------------------------------------------------------------- normaliser
 def test_normalizer_round_trip_and_constant_dims():
     data = torch.tensor([[0.0, -3.0, 7.25], [2.0, 1.0, 7.25], [1.0, 5.0, 7.25]])

@@ -215,3 +215,52 @@ def test_domain_randomization_of_the_training_rows_is_physics_only_and_recorded(
     cfg = PPOConfig(iterations=1, domain_randomize={"friction": 0.5}, **TINY_PPO)
     path = train_ppo(TASK, cfg, tmp_path / "dr", progress=False)
     assert torch.load(path, weights_only=False)["config"]["domain_randomize"] == {"friction": 0.5}
+
+
+def test_delta_joint_mode_steps_each_arm_target_from_the_current_one_within_its_box():
+    """``joint_mode="delta"``: an action of 1 moves every absolute arm target by ``relative_scale`` from the env's
+    current target (the gripper column keeps its span), never past ``joint_scale`` from the start posture; the
+    env's reset puts the targets back at the start posture; without the current targets the map refuses."""
+    from newton_lab.envs import make_env  # deferred: Warp
+    from newton_lab.policies.rl.actions import ActionMap, ActionScales
+
+    env = make_env("GalbotG1-LiftCube-v0", num_envs=2, device="cpu", cameras=False)  # seven arm joints, a gripper
+    env.reset()
+    amap = ActionMap(env, ActionScales(joint_mode="delta", joint_scale=0.12))
+    arm = amap.stepped
+    assert arm is not None and int(arm.sum()) == 7 and not bool(arm[-1])
+    ones = torch.ones(2, env.action_dim)
+    first = amap(ones, env.current_action())
+    torch.testing.assert_close(first[:, arm], (amap.rest + 0.05)[arm].expand(2, -1))
+    assert float(first[0, -1]) == pytest.approx(env.robot.gripper_closed)
+    for _ in range(4):  # 4 steps of 0.05 rad: stopped at 0.12 rad from the start posture
+        env.step(amap(ones, env.current_action()))
+    torch.testing.assert_close(env.current_action()[:, arm], (amap.rest + 0.12)[arm].expand(2, -1))
+    env.reset()
+    torch.testing.assert_close(env.current_action()[:, arm], amap.rest[arm].expand(2, -1))
+    with pytest.raises(ValueError, match="current=env.current_action"):
+        amap(ones)
+    with pytest.raises(ValueError, match="joint_mode must be one of absolute, delta"):
+        ActionScales(joint_mode="velocity")
+
+
+def test_a_delta_mode_actor_is_evaluated_with_its_mode(tmp_path):
+    """The checkpoint keeps the joint mode (a dict of scales is taken, as the Prefect flow passes it): the
+    evaluation agent steps the arm from the current targets as the training did; resuming in another mode is
+    refused."""
+    from newton_lab.envs import make_env  # deferred: Warp
+    from newton_lab.policies.rl.agent import RLPolicyAgent
+    from newton_lab.policies.rl.train import PPOConfig, train_ppo  # deferred: rsl_rl, Warp
+
+    cfg = PPOConfig(iterations=1, scales={"joint_mode": "delta"}, **TINY_PPO)
+    path = train_ppo(TASK, cfg, tmp_path / "delta", progress=False)
+    env = make_env(TASK, num_envs=2, device="cpu", cameras=False)
+    env.reset()
+    agent = RLPolicyAgent.from_checkpoint(path)
+    action = agent.act(env)
+    assert agent.action_map.scales.joint_mode == "delta"
+    step = (action - env.current_action())[:, agent.action_map.stepped]
+    assert float(step.abs().max()) <= 0.05 + 1e-6
+    (path.parent / "checkpoint.pt").rename(path.parent / "kept.pt")  # an interrupted run: only resume.pt
+    with pytest.raises(ValueError, match="joint_mode delta; resume it with that mode"):
+        train_ppo(TASK, PPOConfig(iterations=2, **TINY_PPO), tmp_path / "delta", resume=True, progress=False)

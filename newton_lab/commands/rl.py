@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 from ..task_api.registry import DEFAULT_TASK_ID
 
@@ -47,6 +47,9 @@ class TrainRLArgs:
     """then evaluate the actor on this many held-out randomised episodes (seed + 10000; default: no evaluation)"""
     run_record: str | None = None
     """write the run record (JSON) here (default outputs/records/train-rl-<task>-<UTC time>.json)"""
+    joint_mode: Literal["absolute", "delta"] = "absolute"
+    """how the actor drives the arm joints: absolute (start posture + 1 rad * action) or delta (current target +
+    0.05 rad * action per step, within 1 rad of the start posture; see ActionScales.joint_mode)"""
     domain_randomize: str | None = None
     """domain randomisation: AXIS=LEVEL,... of the physics axes (object_mass, friction; LEVEL mild, strong or a
     factor): each env row draws its own value between 1/LEVEL and LEVEL, kept for the run"""
@@ -64,6 +67,7 @@ class TrainRLArgs:
 
     def ppo_config(self):
         """The ``PPOConfig`` of these arguments."""
+        from ..policies.rl.actions import ActionScales  # deferred: torch is slow to import
         from ..policies.rl.train import PPOConfig  # deferred: rsl_rl and torch are slow to import
 
         return PPOConfig(
@@ -80,4 +84,5 @@ class TrainRLArgs:
             end_on_success=self.end_on_success,
             episode_length_s=self.episode_length_s,
             domain_randomize=self.domain_randomization(),
+            scales=ActionScales(joint_mode=self.joint_mode),
         )

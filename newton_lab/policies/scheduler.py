@@ -46,7 +46,9 @@ class NoiseScheduler:
         """alpha_bar at integer steps ``t`` (negative = clean, alpha_bar 1), shaped to broadcast over ``like``."""
         t = torch.as_tensor(t, device=like.device).long()
         table = self._table(like)  # indexed where ``t`` lives: no device round trip (a sync per training step)
-        a = torch.where(t >= 0, table.index_select(0, t.clamp(min=0).reshape(-1)).reshape(t.shape), torch.ones((), dtype=like.dtype, device=like.device))
+        # index_select, not table[t]: a 0-d index tensor is read on the host (a sync that voids a CUDA graph capture)
+        picked = table.index_select(0, t.clamp(min=0).reshape(-1)).reshape(t.shape)
+        a = torch.where(t >= 0, picked, torch.ones((), dtype=like.dtype, device=like.device))
         return a.reshape(a.shape + (1,) * (like.ndim - a.ndim))
 
     def _table(self, like: torch.Tensor) -> torch.Tensor:

@@ -77,6 +77,12 @@ class PPOConfig:
     """domain randomisation (``task_api.perturbations.parse_randomization``: physics axes, the rows render no
     cameras): each env row draws its own object mass and friction up to these levels, kept for the run"""
     scales: ActionScales = field(default_factory=ActionScales)
+    """what an action of 1 means per column kind, and how arm joints are driven (``ActionScales.joint_mode``); a
+    dict of its fields is taken too (the Prefect flow's ``ppo`` argument)"""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.scales, dict):
+            self.scales = ActionScales(**self.scales)
 
     def runner_cfg(self) -> dict[str, Any]:
         """rsl_rl's ``OnPolicyRunner`` configuration (actor on ``policy``, critic on ``critic``)."""
@@ -139,6 +145,9 @@ def train_ppo(
     saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
     vec = RslRlVecEnv(env, cfg.scales)
     if saved is not None:  # the action map of the interrupted run (its start posture)
+        mode = saved["action_map"]["scales"].get("joint_mode", "absolute")
+        if mode != cfg.scales.joint_mode:
+            raise ValueError(f"the interrupted run drove its joints with joint_mode {mode}; resume it with that mode")
         vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
         vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
     runner = OnPolicyRunner(vec, cfg.runner_cfg(), log_dir=str(out), device=str(env.torch_device))

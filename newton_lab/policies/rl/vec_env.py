@@ -60,7 +60,7 @@ class RslRlVecEnv(VecEnv):
         return self._observations()
 
     def step(self, actions: torch.Tensor):
-        _, reward, terminated, truncated, info = self.env.step(self.action_map(actions))
+        _, reward, terminated, truncated, info = self.env.step(self.action_map(actions, self.env.current_action()))
         dones = terminated | truncated
         reward = reward.clone()
         self.returns += reward
