@@ -132,6 +132,38 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
     assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
 
 
+def test_evaluation_and_training_tables_split_their_time_and_name_each_variant(tmp_path):
+    """An evaluation record's row shows policy and env milliseconds per env step and how the policy sampled (eager
+    with ``--eager-policy``); a perturbed one goes to the robustness table only. A bench-train row lists every
+    variant's samples/s in words, the fastest first in its own column."""
+    timing = {"agent_ms_per_step": 11.04, "env_step_ms_per_step": 4.21}
+    base = {
+        "episodes": 100,
+        "successes": 98,
+        "success_rate": 0.98,
+        "timing": timing,
+        "phase_checkpoints": {"pick": "p"},
+    }
+    evaluated = [
+        (Path("graphed.json"), _record("evaluate", base, command="newton-lab evaluate --task T")),
+        (Path("eager.json"), _record("evaluate", base, command="newton-lab evaluate --task T --eager-policy")),
+        (Path("perturbed.json"), _record("evaluate", {**base, "perturbations": [{"perturbation": "none"}]})),
+    ]
+    rows = results.evaluation_rows(evaluated, Path("."))
+    assert [r[3] for r in rows] == ["CUDA graphs where the device has them", "eager"]
+    assert rows[0][2:7] == [
+        "phase policies: pick",
+        "CUDA graphs where the device has them",
+        "**98 / 100**",
+        "11.0",
+        "4.2",
+    ]
+    rates = {"EagerTrainStep_samples_per_s": 4_800.0, "CudaGraphTrainStep_bf16_tuned_samples_per_s": 8_100.0}
+    trained = [(Path("t.json"), _record("bench-train", {"batch_size": 256, "image_keys": ["a", "b"], **rates}))]
+    (row,) = results.training_rows(trained, Path("."))
+    assert row[4] == "8.1 k" and row[6] == "eager 4.8 k, graph bf16 tuned 8.1 k"
+
+
 def test_bench_refusals_times_each_case_in_a_fresh_process_and_its_table_shows_the_spread(
     tmp_path, monkeypatch, capsys
 ):
