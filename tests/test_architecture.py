@@ -3,7 +3,8 @@
 Layers, lowest first; a module may import its own layer and the ones below, never one above:
 
     robots, assets  ->  kernels  ->  task_api  ->  tasks  ->  datasets  ->  envs  ->  agents  ->  mimic
-    ->  policies  ->  perception  ->  viz  ->  commands, bench, bench_collect, cli, flows, records, results
+    ->  policies  ->  perception  ->  viz  ->  commands, bench, bench_collect, bench_train, cli, flows, records,
+    results
 
 Also: no import cycle between modules or between packages, no ``importlib`` of project modules by name,
 imports at module top (a deliberately deferred import says ``deferred`` in a comment on its line), no
@@ -43,7 +44,7 @@ LAYERS = [
     ("policies",),
     ("perception",),
     ("viz",),
-    ("commands", "bench", "bench_collect", "cli", "flows", "records", "results"),
+    ("commands", "bench", "bench_collect", "bench_train", "cli", "flows", "records", "results"),
 ]
 RANK = {unit: i for i, units in enumerate(LAYERS) for unit in units}
 MAX_MODULE_LINES = 400

@@ -192,6 +192,31 @@ def test_bench_train_times_the_image_encoders_channels_last_to_the_same_loss(ima
     assert out["EagerTrainStep_cl_final_loss"] == pytest.approx(out["EagerTrainStep_final_loss"], rel=1e-3)
 
 
+def test_bench_train_profile_names_the_operators_that_spend_the_step(image_demos, capsys):
+    """``bench-train --profile``: the eager step's operators by their own time per step, largest first, with their
+    families; the image encoders' convolutions are among them."""
+    from newton_lab.bench_train import _family
+    from newton_lab.cli import main
+
+    argv = ["bench-train", "--dataset-path", str(image_demos), "--batch-size", "4", "--steps", "2"]
+    assert main([*argv, "--preset", "vision_cpu", "--profile"]) == 0
+    prof = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["profile"]
+    top = [row["ms_per_step"] for row in prof["top"]]
+    assert prof["clock"] == "cpu" and top == sorted(top, reverse=True) and top[0] > 0
+    assert sum(prof["families_ms_per_step"].values()) == pytest.approx(prof["ms_per_step"], rel=1e-6)
+    assert prof["families_ms_per_step"].get("convolution", 0) > 0
+    assert [_family(op) for op in ("aten::cudnn_convolution", "aten::native_group_norm", "aten::addmm")] == [
+        "convolution",
+        "normalisation",
+        "matmul",
+    ]
+    assert [_family(op) for op in ("aten::_to_copy", "aten::_fused_adamw_", "aten::mul")] == [
+        "cast and copy",
+        "optimiser",
+        "elementwise and other",
+    ]
+
+
 def test_bench_train_takes_the_recipes_keys(image_demos, capsys):
     """``bench-train --obs-keys ... --image-keys ...`` times the network a recipe trains (its views and its
     proprioception), not the preset's."""

@@ -62,7 +62,7 @@ def bench_collect(args: BenchCollectArgs) -> int:
 
 
 def bench_train(args: BenchTrainArgs) -> int:
-    from ..bench import bench_train as measure  # deferred: torch is slow to import
+    from ..bench_train import bench_train as measure  # deferred: torch is slow to import
 
     out = measure(
         args.dataset_path,
@@ -74,6 +74,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         channels_last=args.channels_last,
         cudnn_benchmark=args.cudnn_benchmark,
         compile=args.compile,
+        profile=args.profile,
         **args.key_overrides(),
     )
     write_run_record("bench-train", args.run_record, task=out.get("task"), device=args.device, results=out)

@@ -105,6 +105,9 @@ class BenchTrainArgs(RunRecordArgs):
     compile: bool = False
     """also time the eager step through torch.compile, at bf16 when --bf16 and tuned when --cudnn-benchmark
     (key EagerTrainStep_compiled...; compiling takes a minute or more)"""
+    profile: bool = False
+    """also profile the eager step's operators (torch.profiler): device time per step by operator and by family
+    (convolution, normalisation, matmul, cast and copy, optimiser, other), in the record's profile"""
     obs_keys: str | None = None
     """comma-separated obs terms to condition on, as train's (default: the preset's)"""
     image_keys: str | None = None
