@@ -56,6 +56,26 @@ ROBUST_EVALUATION = (
 """How the robustness rows evaluate: the pipelines' held-out seed (their seed + 10000), 100 episodes a cell, the
 policies seeing what they were trained on (cameras and proprioception), every axis and level of ``--perturb``."""
 
+PICKTOSHELF_EVALUATION = (
+    "--episodes",
+    "100",
+    "--num-envs",
+    "100",
+    "--device",
+    "cuda:0",
+    "--randomize",
+    "--seed",
+    "10000",
+    "--obs-mode",
+    "sensors",
+    "--cameras",
+    "front_head=96x72:rgb,left_wrist=96x72:rgb",
+    "--max-steps",
+    "3000",
+)
+"""How the PickToShelf pipeline evaluates its phase policies (its recipe's episodes, views and step limit, its
+held-out seed), as one ``evaluate`` command's flags."""
+
 ROWS: dict[str, list[Row]] = {
     "gpu": [
         _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "gpu"),
@@ -196,9 +216,26 @@ ROWS: dict[str, list[Row]] = {
             "100",
             "--bf16",
             "--cudnn-benchmark",
+            "--profile",
             "--device",
             "cuda",
         ),
+        # the evaluation's time per env step, policy against env, with policy sampling replayed from CUDA graphs and
+        # eagerly (--eager-policy), on the PickToShelf row's policies and held-out seed
+        *[
+            _bench(
+                f"evaluate-picktoshelf-{name}-policy",
+                "evaluate",
+                "--task",
+                "GalbotG1-PickToShelf-v0",
+                "--phase-checkpoint",
+                "pick={out}/picktoshelf/policy_pick/checkpoint.pt",
+                "place={out}/picktoshelf/policy_place/checkpoint.pt",
+                *PICKTOSHELF_EVALUATION,
+                *extra,
+            )
+            for name, extra in (("graphed", ()), ("eager", ("--eager-policy",)))
+        ],
         # off the training distribution: the demo's and PickToShelf's policies (their pipeline rows above) on the
         # held-out seed under every perturbation axis at each level (21 evaluations of 100 episodes each)
         _bench(
