@@ -216,6 +216,7 @@ ROWS: dict[str, list[Row]] = {
             "100",
             "--bf16",
             "--cudnn-benchmark",
+            "--bf16-norms",
             "--profile",
             "--device",
             "cuda",

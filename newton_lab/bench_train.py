@@ -30,17 +30,19 @@ def bench_train(
     image_keys: tuple[str, ...] | None = None,
     cudnn_benchmark: bool = False,
     compile: bool = False,
+    bf16_norms: bool = False,
     profile: bool = False,
 ) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
-        side in one process on fresh policies of the same architecture; with ``bf16`` each also under bfloat16
-        autocast (keys ``..._bf16``), with ``channels_last`` each also with the network's weights in channels-last
-        layout (keys ``..._cl``: the convolutions then run channels-last); ``obs_keys`` / ``image_keys`` replace the
-        preset's (e.g. the long-horizon recipe's two views); with ``cudnn_benchmark`` each also with cuDNN's autotuner
-        on (keys ``..._tuned``); with ``compile`` the eager step also through ``torch.compile`` at the last variant's
-        precision and autotuning (key ``EagerTrainStep_compiled...``); with ``profile`` the operators of the eager step
-    that spend the device's time (``op_profile``). Also where a step's time goes
-        (``step_breakdown``), the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
+    side in one process on fresh policies of the same architecture. Variants, each keyed by its tags:
+    ``bf16`` each also under bfloat16 autocast (``..._bf16``); ``channels_last`` each also with the network's
+    weights in channels-last layout (``..._cl``: the convolutions then run channels-last); ``cudnn_benchmark`` each
+    also with cuDNN's autotuner on (``..._tuned``); ``compile`` the eager step also through ``torch.compile`` at the
+    last variant's precision and autotuning (``EagerTrainStep_compiled...``); ``bf16_norms`` the captured step (the
+    eager one off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``).
+    ``obs_keys`` / ``image_keys`` replace the preset's (e.g. the long-horizon recipe's two views). Also where a step's
+    time goes (``step_breakdown``; with ``profile`` the operators that spend the device's time, ``op_profile``),
+    the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
     fields = {k: v for k, v in PRESETS[preset].items() if k not in ("batch_size", "max_steps", "epochs")}
     fields.update({k: v for k, v in (("obs_keys", obs_keys), ("image_keys", image_keys)) if v})
     cfg = DiffusionPolicyConfig(**fields, batch_size=batch_size, device=device)
@@ -64,19 +66,11 @@ def bench_train(
         "image_keys": list(data.image_keys),
         "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
     }
-    both = {True: [False, True], False: [False]}
-    grid = [
-        (kind, tuned, layout_cl, precision, False)
-        for tuned, layout_cl, precision, kind in itertools.product(
-            both[cudnn_benchmark], both[channels_last], both[bf16], kinds
-        )
-    ]  # the autotuner last: once on, it stays on in the process
-    grid += [(EagerTrainStep, cudnn_benchmark, False, bf16, True)] if compile else []
-    for kind, tuned, layout_cl, precision, compiled in grid:
+    for kind, name, tuned, layout_cl, overrides in _variants(
+        kinds, bf16, channels_last, cudnn_benchmark, compile, bf16_norms
+    ):
         torch.backends.cudnn.benchmark = tuned
-        tags = (("_compiled", compiled), ("_bf16", precision), ("_cl", layout_cl), ("_tuned", tuned))
-        name = kind.__name__ + "".join(tag for tag, on in tags if on)
-        run_cfg = dataclasses.replace(cfg, bf16=precision, compile=compiled)
+        run_cfg = dataclasses.replace(cfg, **overrides)
         rate, final = _time_variant(kind, data, run_cfg, layout_cl, steps)
         out[f"{name}_steps_per_s"] = rate
         out[f"{name}_samples_per_s"] = rate * batch_size
@@ -89,6 +83,30 @@ def bench_train(
     if on_cuda:
         out["gpu_mem_peak_mib"] = torch.cuda.max_memory_allocated(device) / 2**20
     return out
+
+
+def _variants(kinds, bf16: bool, channels_last: bool, cudnn_benchmark: bool, compile: bool, bf16_norms: bool):
+    """``bench_train``'s variants in the order they run (the autotuner last: once on, it stays on in the process):
+    (step kind, key, autotuned, channels-last, config overrides)."""
+    both = {True: [False, True], False: [False]}
+    grid = [
+        (kind, tuned, layout_cl, precision, False, False)
+        for tuned, layout_cl, precision, kind in itertools.product(
+            both[cudnn_benchmark], both[channels_last], both[bf16], kinds
+        )
+    ]
+    grid += [(EagerTrainStep, cudnn_benchmark, False, bf16, True, False)] if compile else []
+    grid += [(kinds[-1], cudnn_benchmark, False, True, False, True)] if bf16_norms else []
+    for kind, tuned, layout_cl, precision, compiled, norms in grid:
+        tags = (
+            ("_compiled", compiled),
+            ("_bf16norms", norms),
+            ("_bf16", precision),
+            ("_cl", layout_cl),
+            ("_tuned", tuned),
+        )
+        name = kind.__name__ + "".join(tag for tag, on in tags if on)
+        yield kind, name, tuned, layout_cl, {"bf16": precision, "compile": compiled, "bf16_norms": norms}
 
 
 def _time_variant(kind, data: SequenceDataset, cfg: DiffusionPolicyConfig, channels_last: bool, steps: int):

@@ -115,6 +115,36 @@ def test_bf16_training_keeps_float32_weights(image_demos, tmp_path):
     )
 
 
+def test_bf16_norms_run_the_group_norms_in_the_autocast_dtype_with_the_same_weights(image_demos, tmp_path):
+    """``bf16_norms``: under autocast each GroupNorm computes in bfloat16 (a float32 input comes out bfloat16, as
+    close to the float32 norm as bf16 rounding allows; off, it stays float32 as ``nn.GroupNorm`` does); outside
+    autocast nothing changes. A policy trained that way keeps the norms' switch in its config, float32 weights
+    and the state dict's keys."""
+    from newton_lab.policies import Policy
+    from newton_lab.policies.diffusion import DiffusionPolicy
+    from newton_lab.policies.norm import GroupNorm, set_low_precision_norms
+
+    norm, x = GroupNorm(4, 32), torch.randn(3, 32, 9, 7)
+    ref = norm(x)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        assert norm(x).dtype == torch.float32
+        set_low_precision_norms(norm, True)
+        low = norm(x)
+    assert low.dtype == torch.bfloat16
+    torch.testing.assert_close(low.float(), ref, atol=0.05, rtol=0.02)
+    torch.testing.assert_close(norm(x), ref)  # no autocast: float32 as before
+
+    path = Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path, bf16=True, bf16_norms=True))
+    ckpt = torch.load(path, weights_only=True)
+    assert ckpt["config"]["bf16_norms"] is True
+    assert {v.dtype for v in ckpt["weights"].values() if v.is_floating_point()} == {torch.float32}
+    policy = DiffusionPolicy.load(path)
+    norms = [m for m in policy.model.modules() if isinstance(m, GroupNorm)]
+    assert norms and all(m.low_precision for m in norms)
+    plain = DiffusionPolicy.load(Policy.from_backend("diffusion").train(image_demos, _cfg(tmp_path / "plain")))
+    assert plain.model.state_dict().keys() == policy.model.state_dict().keys()
+
+
 def test_policy_agent_refuses_other_cameras(image_demos, tmp_path):
     from newton_lab.envs import make_env
     from newton_lab.policies import Policy
@@ -194,13 +224,15 @@ def test_bench_train_times_the_image_encoders_channels_last_to_the_same_loss(ima
 
 def test_bench_train_profile_names_the_operators_that_spend_the_step(image_demos, capsys):
     """``bench-train --profile``: the eager step's operators by their own time per step, largest first, with their
-    families; the image encoders' convolutions are among them."""
+    families; the image encoders' convolutions are among them. ``--bf16-norms`` adds its variant."""
     from newton_lab.bench_train import _family
     from newton_lab.cli import main
 
     argv = ["bench-train", "--dataset-path", str(image_demos), "--batch-size", "4", "--steps", "2"]
-    assert main([*argv, "--preset", "vision_cpu", "--profile"]) == 0
-    prof = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["profile"]
+    assert main([*argv, "--preset", "vision_cpu", "--profile", "--bf16", "--bf16-norms"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["EagerTrainStep_bf16norms_bf16_steps_per_s"] > 0  # the norms' variant beside plain bf16
+    prof = out["profile"]
     top = [row["ms_per_step"] for row in prof["top"]]
     assert prof["clock"] == "cpu" and top == sorted(top, reverse=True) and top[0] > 0
     assert sum(prof["families_ms_per_step"].values()) == pytest.approx(prof["ms_per_step"], rel=1e-6)

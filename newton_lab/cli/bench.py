@@ -74,6 +74,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         channels_last=args.channels_last,
         cudnn_benchmark=args.cudnn_benchmark,
         compile=args.compile,
+        bf16_norms=args.bf16_norms,
         profile=args.profile,
         **args.key_overrides(),
     )

@@ -105,6 +105,9 @@ class BenchTrainArgs(RunRecordArgs):
     compile: bool = False
     """also time the eager step through torch.compile, at bf16 when --bf16 and tuned when --cudnn-benchmark
     (key EagerTrainStep_compiled...; compiling takes a minute or more)"""
+    bf16_norms: bool = False
+    """also time the captured step under bf16 with its GroupNorms in bf16 too (CUDA autocast otherwise runs them in
+    float32; key CudaGraphTrainStep_bf16norms_bf16...)"""
     profile: bool = False
     """also profile the eager step's operators (torch.profiler): device time per step by operator and by family
     (convolution, normalisation, matmul, cast and copy, optimiser, other), in the record's profile"""

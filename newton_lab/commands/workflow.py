@@ -142,6 +142,7 @@ TRAIN_OVERRIDES = (
     "compile",
     "bf16",
     "cudnn_benchmark",
+    "bf16_norms",
     "obs_min_range",
 )
 """``TrainArgs`` fields that override the preset only when given."""
@@ -185,6 +186,8 @@ class TrainArgs:
     """run the network through torch.compile (CPU: about a minute of compiling, then faster steps)"""
     bf16: bool | None = None
     """forward and backward under bfloat16 autocast (weights, optimiser state stay float32)"""
+    bf16_norms: bool | None = None
+    """with --bf16, the GroupNorms run in bfloat16 too (CUDA autocast otherwise runs each in float32)"""
     cudnn_benchmark: bool | None = None
     """on CUDA, cuDNN times its convolution algorithms for the fixed shapes once and keeps the fastest"""
     time_budget_s: float | None = None

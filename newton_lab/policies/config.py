@@ -128,6 +128,9 @@ class DiffusionPolicyConfig:
     bf16: bool = False
     """Run the networks' forward and backward under bfloat16 autocast (encoder convolutions, U-Net); weights,
     optimiser state, normalisers and the loss stay float32."""
+    bf16_norms: bool = False
+    """With ``bf16``, the GroupNorms run in bfloat16 too (``policies.norm``): CUDA autocast otherwise runs each in
+    float32, casting every activation up and back down around it. ``bench-train --bf16-norms`` measures both."""
     cudnn_benchmark: bool = False
     """On CUDA, let cuDNN time its convolution algorithms for the step's fixed shapes once and keep the fastest
     (``torch.backends.cudnn.benchmark``); ``bench-train --cudnn-benchmark`` measures both sides."""

@@ -20,6 +20,7 @@ from .config import ARCHITECTURE_FIELDS, PRESETS, DiffusionPolicyConfig  # noqa:
 from .data_parallel import draw_rows
 from .ema import EMA
 from .model import ConditionalUnet1D
+from .norm import set_low_precision_norms
 from .normalize import MinMaxNormalizer
 from .scheduler import NoiseScheduler
 from .vision import ImageEncoder
@@ -123,6 +124,7 @@ class DiffusionPolicy(nn.Module):
             activation=cfg.activation,
         )
         self.model = unet if encoder is None else VisuomotorNet(unet, encoder)
+        set_low_precision_norms(self.model, cfg.bf16_norms)  # before the EMA copy: its norms follow the model's
         self.ema = EMA(self.model, power=cfg.ema_power)
         self.scheduler = NoiseScheduler(cfg.num_train_timesteps, clip_sample=True)
 

@@ -12,6 +12,8 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
+from .norm import GroupNorm
+
 
 class SinusoidalStepEmbedding(nn.Module):
     """Transformer-style sin/cos embedding of the (integer) diffusion step."""
@@ -38,7 +40,7 @@ class ConvNormAct(nn.Sequential):
 
     def __init__(self, c_in: int, c_out: int, kernel_size: int, n_groups: int, act: type[nn.Module] = nn.Mish) -> None:
         super().__init__(
-            nn.Conv1d(c_in, c_out, kernel_size, padding=kernel_size // 2), nn.GroupNorm(n_groups, c_out), act()
+            nn.Conv1d(c_in, c_out, kernel_size, padding=kernel_size // 2), GroupNorm(n_groups, c_out), act()
         )
 
 

@@ -17,10 +17,11 @@ import torch.nn.functional as F
 from torch import nn
 
 from .data_parallel import draw_rows
+from .norm import GroupNorm
 
 
-def _norm(channels: int) -> nn.GroupNorm:
-    return nn.GroupNorm(max(1, channels // 16), channels)  # 16 channels per group, as Chi et al. replace BN
+def _norm(channels: int) -> GroupNorm:
+    return GroupNorm(max(1, channels // 16), channels)  # 16 channels per group, as Chi et al. replace BN
 
 
 class BasicBlock(nn.Module):

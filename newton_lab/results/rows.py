@@ -167,6 +167,7 @@ VARIANT_WORDS = {
     "EagerTrainStep": "eager",
     "CudaGraphTrainStep": "graph",
     "compiled": "compiled",
+    "bf16norms": "bf16 norms",
     "bf16": "bf16",
     "cl": "channels-last",
     "tuned": "tuned",
