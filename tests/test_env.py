@@ -230,6 +230,19 @@ def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
     assert proc.returncode == 0, proc.stderr[-2000:]
 
 
+def test_kernel_prefetch_compiles_side_by_side_on_a_many_core_gpu_host_only(eager_env):
+    """One module at a time for a CPU device (its compile shares the model build's cores), up to 8 at once for a
+    CUDA device, leaving a core to the model build; the thread-pool path loads every imported module of the list
+    (run here on the CPU with two workers: the kernel cache answers, nothing new is compiled)."""
+    from newton_lab.envs.prefetch import PREFETCH_MODULES, _load_all, prefetch_workers
+
+    assert [prefetch_workers(True, 16), prefetch_workers(False, 16), prefetch_workers(False, 4)] == [1, 8, 3]
+    assert prefetch_workers(False, 1) == 1
+    names = _load_all("cpu", workers=2)
+    assert names and set(names) <= set(PREFETCH_MODULES) and "mujoco_warp._src.forward" in names
+    assert all(wp.get_module(name).execs for name in names)
+
+
 def test_each_action_column_is_clipped_to_its_range(eager_env):
     """``apply_actions`` writes ``clamp(scale * a, low, high)`` to each column's joint target: far past the
     gripper's clip (open .. closed) lands on the bound, an unbounded arm column passes through."""
