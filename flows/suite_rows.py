@@ -162,26 +162,30 @@ ROWS: dict[str, list[Row]] = {
             "--dataset-path",
             "{out}/bench_collect_{stamp}/demos.zarr",
         ),
-        _bench(
-            "bench-collect-picktoshelf-cameras",
-            "bench-collect",
-            "--task",
-            "GalbotG1-PickToShelf-v0",
-            "--num-envs",
-            "1024",
-            "--episodes",
-            "1024",  # one wave: 4096 (two 96x72 views, ~1,000 frames a demo) had not ended after 330 s on an H200
-            "--device",
-            "cuda:0",
-            "--prefill",
-            "0",
-            "--cameras",
-            "front_head=96x72:rgb,left_wrist=96x72:rgb",
-            "--obs-mode",
-            "sensors",
-            "--dataset-path",
-            "{out}/bench_collect_cameras_{stamp}/demos.zarr",
-        ),
+        *[
+            _bench(
+                f"bench-collect-picktoshelf-cameras{suffix}",
+                "bench-collect",
+                "--task",
+                "GalbotG1-PickToShelf-v0",
+                "--num-envs",
+                "1024",
+                "--episodes",
+                "1024",  # one wave: 4096 (two 96x72 views, ~1,000 frames a demo) had not ended after 330 s on an H200
+                "--device",
+                "cuda:0",
+                "--prefill",
+                "0",
+                "--cameras",
+                "front_head=96x72:rgb,left_wrist=96x72:rgb",
+                "--obs-mode",
+                "sensors",
+                "--dataset-path",
+                f"{{out}}/bench_collect_cameras{suffix}_{{stamp}}/demos.{fmt}",
+            )
+            # zarr (frames in ~1 MB time chunks) and HDF5 (a frame a chunk: the format the pipelines collect in)
+            for suffix, fmt in (("", "zarr"), ("-hdf5", "hdf5"))
+        ],
         _bench(
             "bench-train-vision",
             "bench-train",
