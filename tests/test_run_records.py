@@ -132,6 +132,17 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
     assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
 
 
+def test_the_stage_table_splits_a_pipelines_time_with_its_env_build_and_steps():
+    """Each pipeline record's row gives its stages' wall times (a stage it did not run: a dash), collect's env build
+    where recorded, and the training steps of each policy."""
+    res = _pipeline_results()
+    res["timings_s"] = {"collect": 258.8, "split": 23.4, "train": 445.4, "evaluate": 44.9}
+    res["collect_seconds"] = {"env_build": 110.5}
+    res["counts"]["train_steps"] = {"pick": 6221, "place": 6221}
+    (row,) = results.stage_rows([(Path("p.json"), _record("pipeline", res))], Path("."))
+    assert row[3:9] == ["4:19 (1:50 env build)", "–", "0:23", "7:25 (pick 6,221, place 6,221 steps)", "0:45", "2:03"]
+
+
 def test_evaluation_and_training_tables_split_their_time_and_name_each_variant(tmp_path):
     """An evaluation record's row shows policy and env milliseconds per env step and how the policy sampled (eager
     with ``--eager-policy``); a perturbed one goes to the robustness table only. A bench-train row lists every

@@ -3,10 +3,10 @@ typed twice: ``newton-lab results`` rewrites the block between ``BEGIN`` and ``E
 from the records in ``docs/results/``, and ``--check`` fails when the page and the records disagree.
 
 Tables: learned policies (per task: expert success, learned success with its episodes and held-out seed, what
-the policy sees, time to policy), PPO runs, evaluations under perturbations, env-steps/s with and without cameras,
-expert demos per GPU-hour, evaluation time per env step (policy and env), training samples/s per variant, seconds
-from a bad command line to its one-line refusal. Every row names its device and links its record. ``rows``: one
-function per table; ``page``: the records read and the page rewritten.
+the policy sees, time to policy), each pipeline's stage times, PPO runs, evaluations under perturbations,
+env-steps/s with and without cameras, expert demos per GPU-hour, evaluation time per env step (policy and env),
+training samples/s per variant, seconds from a bad command line to its one-line refusal. Every row names its device
+and links its record. ``rows``: one function per table; ``page``: the records read and the page rewritten.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from .rows import (
     refusal_rows,
     rl_rows,
     robustness_rows,
+    stage_rows,
     training_rows,
 )
 
@@ -38,6 +39,7 @@ __all__ = [
     "render_page",
     "rl_rows",
     "robustness_rows",
+    "stage_rows",
     "training_rows",
     "update",
 ]

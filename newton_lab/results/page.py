@@ -16,6 +16,7 @@ from .rows import (
     refusal_rows,
     rl_rows,
     robustness_rows,
+    stage_rows,
     training_rows,
 )
 
@@ -60,6 +61,11 @@ SECTIONS = [
             "record",
         ],
         policy_rows,
+    ),
+    (
+        "Where a pipeline's time goes",
+        ["task", "device", "recipe", "collect", "mimic", "split", "train", "evaluate", "command wall", "record"],
+        stage_rows,
     ),
     (
         "Reinforcement learning (PPO)",

@@ -85,6 +85,36 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
     return rows
 
 
+def stage_rows(records, page_dir: Path) -> list[list[str]]:
+    """One row per pipeline record: where its time went, stage by stage (``results.timings_s``), with collect's env
+    build (kernel compiles on a cold cache) and the training steps of each policy where the record has them."""
+    rows = []
+    for path, rec in _of_kind(records, "pipeline"):
+        res = rec["results"]
+        times, built = res.get("timings_s") or {}, (res.get("collect_seconds") or {}).get("env_build")
+        steps = res["counts"].get("train_steps") or {}
+
+        def stage(name: str, times=times) -> str:
+            return _mmss(times.get(name)) if name in times else "–"
+
+        rows.append(
+            [
+                f"{_short(rec['task'])}{_options(rec)}",
+                rec["device"]["name"],
+                res.get("recipe") or "–",
+                stage("collect") + (f" ({_mmss(built)} env build)" if built is not None else ""),
+                stage("mimic"),
+                stage("split"),
+                stage("train")
+                + (" (" + ", ".join(f"{k} {v:,}" for k, v in steps.items()) + " steps)" if steps else ""),
+                stage("evaluate"),
+                _mmss(rec.get("wall_s")),
+                _link(path, page_dir),
+            ]
+        )
+    return rows
+
+
 def rl_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
     for path, rec in _of_kind(records, "train-rl"):
