@@ -38,7 +38,7 @@ def _bench(name: str, *args: str) -> Row:
 ROBUST_RANDOMIZATION = "object_mass=mild,friction=mild,camera_shift=mild,camera_tilt=mild"
 """The robust recipe's domain randomisation: every axis collection can draw per row, at its mild level."""
 
-ROBUST_EVALUATION = (
+HELD_OUT_EVALUATION = (
     "--episodes",
     "100",
     "--num-envs",
@@ -50,31 +50,21 @@ ROBUST_EVALUATION = (
     "10000",
     "--obs-mode",
     "sensors",
-    "--perturb",
-    "sweep",
 )
-"""How the robustness rows evaluate: the pipelines' held-out seed (their seed + 10000), 100 episodes a cell, the
-policies seeing what they were trained on (cameras and proprioception), every axis and level of ``--perturb``."""
+"""How the evaluation rows evaluate: the pipelines' held-out seed (their seed + 10000), 100 episodes, the policies
+seeing what they were trained on (cameras and proprioception)."""
+
+ROBUST_EVALUATION = (*HELD_OUT_EVALUATION, "--perturb", "sweep")
+"""How the robustness rows evaluate: held out, 100 episodes a cell, every axis and level of ``--perturb``."""
 
 PICKTOSHELF_EVALUATION = (
-    "--episodes",
-    "100",
-    "--num-envs",
-    "100",
-    "--device",
-    "cuda:0",
-    "--randomize",
-    "--seed",
-    "10000",
-    "--obs-mode",
-    "sensors",
+    *HELD_OUT_EVALUATION,
     "--cameras",
     "front_head=96x72:rgb,left_wrist=96x72:rgb",
     "--max-steps",
     "3000",
 )
-"""How the PickToShelf pipeline evaluates its phase policies (its recipe's episodes, views and step limit, its
-held-out seed), as one ``evaluate`` command's flags."""
+"""How the PickToShelf pipeline evaluates its phase policies (its recipe's views and step limit), as flags."""
 
 ROWS: dict[str, list[Row]] = {
     "gpu": [

@@ -17,6 +17,11 @@ def _options(rec: dict[str, Any]) -> str:
     return "".join(f" `{v}`" for v in opts.values())
 
 
+def _task(rec: dict[str, Any]) -> str:
+    """A record's task, short, with its task options' values (``SortToShelf `red_cube```)."""
+    return f"{_short(rec['task'])}{_options(rec)}"
+
+
 def _mmss(seconds: float | None) -> str:
     if seconds is None:
         return "–"
@@ -70,7 +75,7 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
         )
         rows.append(
             [
-                f"{_short(rec['task'])}{_options(rec)}",
+                _task(rec),
                 rec["device"]["name"],
                 res.get("recipe") or "–",
                 _sees(res),
@@ -99,7 +104,7 @@ def stage_rows(records, page_dir: Path) -> list[list[str]]:
 
         rows.append(
             [
-                f"{_short(rec['task'])}{_options(rec)}",
+                _task(rec),
                 rec["device"]["name"],
                 res.get("recipe") or "–",
                 stage("collect") + (f" ({_mmss(built)} env build)" if built is not None else ""),
@@ -123,7 +128,7 @@ def rl_rows(records, page_dir: Path) -> list[list[str]]:
         learned = f"**{ev['successes']} / {ev['episodes']}** (seed {ev['eval_seed']})" if ev else "–"
         rows.append(
             [
-                f"{_short(rec['task'])}{_options(rec)}",
+                _task(rec),
                 rec["device"]["name"],
                 str(r.get("num_envs", "–")),
                 str(r.get("iterations")),
@@ -282,7 +287,7 @@ def robustness_rows(records, page_dir: Path) -> list[list[str]]:
         for cell in r.get("perturbations") or []:
             rows.append(
                 [
-                    f"{_short(rec['task'])}{_options(rec)}",
+                    _task(rec),
                     rec["device"]["name"],
                     agent,
                     f"`{cell['perturbation']}`",
@@ -303,7 +308,7 @@ def evaluation_rows(records, page_dir: Path) -> list[list[str]]:
             continue
         rows.append(
             [
-                f"{_short(rec['task'])}{_options(rec)}",
+                _task(rec),
                 rec["device"]["name"],
                 _evaluated_agent(rec),
                 "eager" if "--eager-policy" in rec["command"] else "CUDA graphs where the device has them",

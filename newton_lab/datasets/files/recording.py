@@ -35,14 +35,11 @@ def check_same_recording(
     is part of what it is; demos that mix them train and export wrongly). ``option_defaults``: the task's option
     defaults, for an option one side left unset (else only options both sides name are compared)."""
     before, now = recording_set(recorded), recording_set(new)
-    if before is not None and now is not None and option_defaults:
-        for side in (before, now):
-            side["task_options"] = {
-                **{k: v for k, v in option_defaults.items() if v is not None},
-                **side["task_options"],
-            }
     if before is None or now is None:
         return
+    defaults = {k: v for k, v in (option_defaults or {}).items() if v is not None}
+    for side in (before, now):
+        side["task_options"] = {**defaults, **side["task_options"]}
     if before["cameras"] != now["cameras"]:
         raise ValueError(
             f"{path} was recorded with cameras {_cameras_text(before['cameras'])}, not "

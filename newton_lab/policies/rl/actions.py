@@ -95,6 +95,10 @@ class ActionMap:
         stepped = torch.minimum(torch.maximum(current + out, self.low), self.high)
         return torch.where(self.stepped, stepped, out)
 
+    def for_env(self, actions: torch.Tensor, env) -> torch.Tensor:
+        """``env``'s action for ``actions``: reads its current targets only when a column steps from them."""
+        return self(actions, env.current_action() if self.stepped is not None else None)
+
     def state(self) -> dict[str, Any]:
         """What a checkpoint keeps to map the same way at evaluation."""
         return {"scales": self.scales.as_dict(), "rest": self.rest.cpu().tolist()}

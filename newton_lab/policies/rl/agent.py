@@ -71,4 +71,4 @@ class RLPolicyAgent(BaseAgent):
         self.bind(env)
         with torch.no_grad():
             actions = self.actor(env.obs.to(self.device)).to(env.torch_device)
-        return self.action_map(actions, env.current_action())
+        return self.action_map.for_env(actions, env)

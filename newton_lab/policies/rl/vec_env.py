@@ -60,7 +60,7 @@ class RslRlVecEnv(VecEnv):
         return self._observations()
 
     def step(self, actions: torch.Tensor):
-        _, reward, terminated, truncated, info = self.env.step(self.action_map(actions, self.env.current_action()))
+        _, reward, terminated, truncated, info = self.env.step(self.action_map.for_env(actions, self.env))
         dones = terminated | truncated
         reward = reward.clone()
         self.returns += reward
