@@ -358,6 +358,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         "tests/test_interrupts.py::test_ctrl_c_during_train_saves_the_resume_point",
     ),
     one_patch(
+        "grasp-reward-for-closing-on-nothing",
+        "The reward's grasp stage pays only for fingers closed on something, not for closing beside the object",
+        "tasks/common/terminations.py",
+        "        return finger_lag(ctx, w) > min_lag",
+        "        return finger_lag(ctx, w) > -1.0",
+        "tests/test_rewards.py::test_a_gripper_closed_beside_the_cube_earns_no_grasp_reward",
+    ),
+    one_patch(
         "stack-cube-colours-redrawn",
         "StackCube from pixels: the cubes keep their hue under randomisation",
         "tasks/stack_cube/scene.py",

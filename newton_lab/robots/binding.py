@@ -53,6 +53,9 @@ class Arm:
     """The gripper's master joint (its target runs from ``RobotBinding.gripper_open`` to ``gripper_closed``)."""
     end_effector: str
     """The body the TCP is fixed in (``RobotBinding.tcp_offset_pos`` / ``tcp_offset_quat`` from it)."""
+    fingers: tuple[str, ...] = ()
+    """The finger slides the gripper's master drives (``RobotBinding.finger_travel_per_rad`` of travel per radian);
+    where they lag behind the master, something is between them (``TaskContext.finger_coords``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,6 +96,8 @@ class RobotBinding:
     """Gripper master target when open [rad]."""
     gripper_closed: float
     """Gripper master target when closed [rad]."""
+    finger_travel_per_rad: float
+    """How far each finger slides inward per radian of the gripper master, with nothing between them [m/rad]."""
     nav_max_speed: float
     """Base speed limit of the nav agents [m/s]."""
     nav_success_radius: float

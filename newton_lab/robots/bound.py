@@ -63,6 +63,8 @@ class RobotContext:
     gripper_open: float
     gripper_closed: float
     """The gripper master's open and closed values [rad]."""
+    finger_coords: tuple[int, ...]
+    finger_travel_per_rad: float
     arm_coords: tuple[int, ...]
 
     @classmethod
@@ -84,6 +86,8 @@ class RobotContext:
             gripper_coord=coord[chosen.gripper],
             gripper_open=float(robot.gripper_open),
             gripper_closed=float(robot.gripper_closed),
+            finger_coords=tuple(coord[j] for j in chosen.fingers),
+            finger_travel_per_rad=float(robot.finger_travel_per_rad),
             arm_coords=tuple(coord[j] for j in chosen.joints),
         )
 
@@ -99,6 +103,8 @@ class RobotContext:
         ctx.gripper_coord = self.gripper_coord
         ctx.gripper_open = self.gripper_open
         ctx.gripper_closed = self.gripper_closed
+        ctx.finger_coords = wp.array(self.finger_coords, dtype=int) if self.finger_coords else wp.zeros(0, dtype=int)
+        ctx.finger_travel_per_rad = self.finger_travel_per_rad
         ctx.arm_coords = wp.array(self.arm_coords, dtype=int)
 
 

@@ -24,7 +24,7 @@ from newton_lab.kernels.context import TaskContext, base_pose2d, entity_pos, gri
 from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.task_api.terms import bind, term_factory
 
-from .terminations import all_of, base_at, lifted, posture_error, posture_vectors
+from .terminations import all_of, base_at, grasped, holding, lifted, posture_error, posture_vectors
 
 DENSE_REWARD_MAX = 1.0
 """Upper bound of a staged dense reward (sum of its terms); its lower bound is 0."""
@@ -284,14 +284,15 @@ def reach_stage(entity: str, name: str = "reaching") -> Stage:
     return Stage(name, tcp_near(entity=entity), reach_shaping(entity=entity))
 
 
-def pick_to_carry_stages(*, entity: str, grasped_term: Callable, lift_z: float, at_carry: Callable) -> list[Stage]:
-    """Reach, grasp (``grasped_term``), lift ``entity`` to centre height ``lift_z`` [m] (shaping ``1 - tanh(5 dz)``)
-    while grasped, bring the arm to ``ctx.arm_home`` (``at_carry``: the task's stateless success predicate;
-    shaping ``1 - tanh(|q_arm - home|)``, rad). Shared by the PickToShelf / SortToShelf Pick tasks."""
-    lifted_and_grasped = all_of(terms=(grasped_term, lifted(entity=entity, min_z=lift_z)))
+def pick_to_carry_stages(*, entity: str, lift_z: float, at_carry: Callable) -> list[Stage]:
+    """Reach, grasp (``holding``: the fingers closed on something), lift ``entity`` to centre height ``lift_z`` [m]
+    (shaping ``1 - tanh(5 dz)``) while grasped, bring the arm to ``ctx.arm_home`` (``at_carry``: the task's
+    stateless success predicate; shaping ``1 - tanh(|q_arm - home|)``, rad). Shared by the PickToShelf /
+    SortToShelf Pick tasks."""
+    lifted_and_grasped = all_of(terms=(grasped(entity=entity), lifted(entity=entity, min_z=lift_z)))
     return [
         reach_stage(entity),
-        Stage("grasping", grasped_term),
+        Stage("grasping", holding(entity=entity)),
         Stage("lifting", lifted_and_grasped, lift_shaping(entity=entity, min_z=lift_z)),
         Stage("carrying", at_carry, carry_shaping),
     ]

@@ -16,6 +16,7 @@ from newton_lab.kernels.context import (
     base_pose2d,
     entity_pos,
     entity_up_dot,
+    finger_lag,
     gripper_q,
     held_for,
     tcp_distance,
@@ -29,6 +30,9 @@ GRASP_DIST = 0.06
 GRASP_GRIPPER_MIN = 0.3
 """Gripper closed on the object: the authored fingers stop on a 5 cm object near 0.67 rad, so 0.3 separates
 open from closed-on-object [rad]. (The reference's 1.2 equals the closed target and never fires on an object.)"""
+HOLD_FINGER_LAG = 0.005
+"""An object is between the fingers when each stopped at least this far short of the master's drive [m] (the G1
+closed on a 5 cm cube: 1.6 cm; closed on nothing: under 1 mm)."""
 GRIPPER_OPEN_TOL = 0.05
 """Gripper counts as open at or below this [rad]."""
 
@@ -43,6 +47,26 @@ def grasped(*, entity: int, max_dist: float = GRASP_DIST, gripper_min: float = G
         return tcp_distance(ctx, w, entity) < max_dist and wp.abs(gripper_q(ctx, w)) > gripper_min
 
     return grasped_entity
+
+
+@term_factory()
+def fingers_blocked(*, min_lag: float = HOLD_FINGER_LAG):
+    """Something is between the fingers: each stopped at least ``min_lag`` [m] short of where the gripper master
+    drives it (``finger_lag``)."""
+    min_lag = float(min_lag)
+
+    @wp.func
+    def fingers_stopped(ctx: TaskContext, w: int) -> bool:
+        return finger_lag(ctx, w) > min_lag
+
+    return fingers_stopped
+
+
+def holding(*, entity: str, **grasp):
+    """``grasped(entity=entity, **grasp)`` with the fingers blocked (``fingers_blocked``): the grasp of the reward
+    stages. ``grasped`` alone also holds for a gripper closed on nothing beside the object (its TCP 4.5 cm from the
+    cube's centre), a state worth as much as a real grasp to PPO and one it finds and stays at."""
+    return all_of(terms=(grasped(entity=entity, **grasp), fingers_blocked()))
 
 
 @term_factory(entities=("entity",))

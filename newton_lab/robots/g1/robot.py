@@ -31,10 +31,16 @@ G1 = RobotBinding(
     group_kinds=GROUP_KINDS,
     arms={
         "left": Arm(
-            joints=spec.LEFT_ARM_JOINTS, gripper=spec.LEFT_GRIPPER_JOINT, end_effector=spec.END_EFFECTOR_LINK["left"]
+            joints=spec.LEFT_ARM_JOINTS,
+            gripper=spec.LEFT_GRIPPER_JOINT,
+            end_effector=spec.END_EFFECTOR_LINK["left"],
+            fingers=spec.GRIPPER_FINGER_JOINTS[:2],
         ),
         "right": Arm(
-            joints=spec.RIGHT_ARM_JOINTS, gripper=spec.RIGHT_GRIPPER_JOINT, end_effector=spec.END_EFFECTOR_LINK["right"]
+            joints=spec.RIGHT_ARM_JOINTS,
+            gripper=spec.RIGHT_GRIPPER_JOINT,
+            end_effector=spec.END_EFFECTOR_LINK["right"],
+            fingers=spec.GRIPPER_FINGER_JOINTS[2:],
         ),
     },
     default_arm=spec.DEFAULT_ARM,
@@ -49,6 +55,7 @@ G1 = RobotBinding(
     top_down_tcp_quat=spec.TOP_DOWN_TCP_QUAT,
     gripper_open=spec.GRIPPER_OPEN,
     gripper_closed=spec.GRIPPER_CLOSED,
+    finger_travel_per_rad=spec.FINGER_TRAVEL_PER_RAD,
     nav_max_speed=spec.NAV_MAX_SPEED,
     nav_success_radius=spec.NAV_SUCCESS_RADIUS,
     camera_mounts=spec.CAMERA_MOUNTS,

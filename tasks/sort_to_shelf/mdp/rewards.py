@@ -24,6 +24,7 @@ from newton_lab.tasks.common.rewards import (
     posture_shaping,
     staged_rewards,
 )
+from newton_lab.tasks.common.terminations import holding
 
 from newton_lab.task_api.cfg import RewardTermCfg
 
@@ -33,7 +34,6 @@ from .terminations import (
     PLACE_START_YAW_TOL,
     at_carry,
     at_place_start,
-    grasped_object,
     in_cell,
     placed,
     released_in_cell,
@@ -42,17 +42,13 @@ from .terminations import (
 
 def pick_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:
     """SortToShelf-Pick: reach, grasp, lift, ready posture (1/4 each)."""
-    return staged_rewards(
-        *pick_to_carry_stages(
-            entity=obj.name, grasped_term=grasped_object(obj), lift_z=obj.lift_min_z, at_carry=at_carry(obj)
-        )
-    )
+    return staged_rewards(*pick_to_carry_stages(entity=obj.name, lift_z=obj.lift_min_z, at_carry=at_carry(obj)))
 
 
 def place_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:
     """SortToShelf-Place: hold, place in the cell, release, retract (1/4 each)."""
     return staged_rewards(
-        Stage("grasping", grasped_object(obj)),
+        Stage("grasping", holding(entity=obj.name)),
         Stage("placing", in_cell(obj), point_shaping(entity=obj.name, point=obj.target)),
         Stage("releasing", released_in_cell(obj), gripper_openness),
         Stage("retracting", placed(obj), carry_shaping),

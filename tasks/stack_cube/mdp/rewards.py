@@ -22,12 +22,12 @@ from newton_lab.tasks.common.rewards import (
     reach_stage,
     staged_rewards,
 )
-from newton_lab.tasks.common.terminations import all_of, negated
+from newton_lab.tasks.common.terminations import all_of, holding, negated
 
 from newton_lab.task_api.cfg import RewardTermCfg
 from newton_lab.task_api.terms import term_factory
 
-from .terminations import STACK_DZ, grasped_cube, stack_success, stacked
+from .terminations import GRIPPER_CLOSED_MIN, STACK_DZ, grasped_cube, stack_success, stacked
 
 
 def _subtask_stages(top: str, bottom: str) -> list[Stage]:
@@ -35,7 +35,7 @@ def _subtask_stages(top: str, bottom: str) -> list[Stage]:
     on = stacked(top, bottom)
     return [
         reach_stage(top, f"{top}_reaching"),
-        Stage(f"{top}_grasping", grasped_cube(top)),
+        Stage(f"{top}_grasping", holding(entity=top, gripper_min=GRIPPER_CLOSED_MIN)),
         Stage(f"{top}_placing", on, place_shaping(entity=top, target=bottom, offset=(0.0, 0.0, STACK_DZ))),
         Stage(f"{top}_releasing", all_of(terms=(on, negated(term=grasped_cube(top)))), gripper_openness),
     ]

@@ -10,7 +10,7 @@ from newton_lab.tasks.common.config.g1 import postures
 from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import Stage, lift_shaping, reach_stage, staged_rewards
-from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, lifted
+from newton_lab.tasks.common.terminations import all_of, dropped, grasped, held, holding, lifted
 from newton_lab.tasks.lift_cube.scene import CUBE_INIT, SCENE
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
@@ -39,7 +39,7 @@ def lift_cube_cfg() -> TaskCfg:
         },
         rewards=staged_rewards(
             reach_stage("cube"),
-            Stage("grasping", grasped_cube),
+            Stage("grasping", holding(entity="cube")),
             Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", min_z=LIFTED_Z)),
         ),
         signals={"grasped_cube": TermCfg(func=grasped_cube)},

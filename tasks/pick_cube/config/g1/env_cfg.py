@@ -15,7 +15,7 @@ from newton_lab.tasks.common.config.g1 import cameras, postures
 from newton_lab.tasks.common.config.g1.setup import left_arm_actions, manipulation_posture
 from newton_lab.tasks.common.events import randomize_position
 from newton_lab.tasks.common.rewards import Stage, gripper_openness, place_shaping, reach_stage, staged_rewards
-from newton_lab.tasks.common.terminations import all_of, dropped, grasped, gripper_open, resting_on
+from newton_lab.tasks.common.terminations import all_of, dropped, grasped, gripper_open, holding, resting_on
 from newton_lab.tasks.pick_cube.scene import CUBE_INIT, SCENE
 
 from newton_lab.task_api.cfg import TaskCfg, TermCfg, TerminationTermCfg
@@ -53,7 +53,7 @@ def pick_cube_cfg() -> TaskCfg:
         terminations={"cube_dropped": TerminationTermCfg(func=dropped, params={"entity": "cube", "below_z": 0.05})},
         rewards=staged_rewards(
             reach_stage("cube"),
-            Stage("grasping", grasped_cube),
+            Stage("grasping", holding(entity="cube")),
             Stage("placing", on_block, place_shaping(entity="cube", target="blue_block", offset=(0.0, 0.0, 0.035))),
             Stage("releasing", released, gripper_openness),
             Stage("success", released),

@@ -45,6 +45,7 @@ from newton_lab.tasks.common.terminations import (
     grasped,
     gripper_open,
     held,
+    holding,
     lifted,
     resting_on,
     tipped,
@@ -110,14 +111,13 @@ def _world(**fields) -> TaskCfg:
 
 def pick_rewards():
     """PickToShelf-Pick: reach, grasp, lift, carry posture (1/4 each)."""
-    return staged_rewards(*pick_to_carry_stages(entity="bar", grasped_term=grasped_bar, lift_z=CARRY_MIN_Z,
-                                                at_carry=at_carry))
+    return staged_rewards(*pick_to_carry_stages(entity="bar", lift_z=CARRY_MIN_Z, at_carry=at_carry))
 
 
 def place_rewards():
     """PickToShelf-Place: hold, place on the deck, release (1/3 each)."""
     return staged_rewards(
-        Stage("grasping", grasped_bar),
+        Stage("grasping", holding(entity="bar")),
         Stage("placing", bar_on_shelf, place_shaping(entity="bar", target="shelf_deck", offset=(0.0, 0.0, SHELF_DZ))),
         Stage("releasing", bar_released_on_shelf, gripper_openness),
     )
