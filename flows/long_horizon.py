@@ -19,7 +19,7 @@ from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .run_record import StageClock, record_run
-from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES, learned_kinds, with_inputs
+from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES, PIPELINE_DATASET_FORMAT, learned_kinds, with_inputs
 from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 
 split_task = stage_task(stages.split_stage, "split")
@@ -65,13 +65,15 @@ def long_horizon_pipeline(
     record: bool = True,
     recipe: str | None = None,
     domain_randomize: dict[str, float] | None = None,
+    dataset_format: str = PIPELINE_DATASET_FORMAT,
 ) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
     run record (``<out>/records/``; ``summary["record"]``).
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
     ``gpus`` > 1 trains each phase data-parallel; ``domain_randomize`` (axis -> level) randomises collection's rows
-    (the evaluation stays on the task's own distribution)."""
+    (the evaluation stays on the task's own distribution); ``dataset_format`` (hdf5 or zarr) is that
+    of the demos and of the phase datasets split from them."""
     runlog.quiet_console(REPORTED_ERRORS)
     runlog.restore_caller_sigterm()
     log = get_run_logger()
@@ -92,6 +94,7 @@ def long_horizon_pipeline(
         task_options=options,
         max_steps=COLLECT_MAX_STEPS,
         domain_randomize=domain_randomize,
+        dataset_format=dataset_format,
     )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
@@ -127,6 +130,7 @@ def long_horizon_pipeline(
     }
     settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
     settings.update(cameras=cameras, task_options=options, recipe=recipe, domain_randomize=domain_randomize or None)
+    settings.update(dataset_format=dataset_format)
     return record_run(summary, clock, out_dir, **settings)
 
 

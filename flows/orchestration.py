@@ -26,7 +26,7 @@ from . import runlog
 from .cluster import cluster_options, pins_gpus, quiet_shutdown
 from .long_horizon import has_phases, long_horizon_pipeline
 from .run_record import StageClock, record_run
-from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, check_api_reachable
+from .settings import DEMO_RECIPES, PIPELINE_CAMERAS, PIPELINE_DATASET_FORMAT, check_api_reachable
 from .stage_runs import (
     REPORTED_ERRORS,
     collect_task,
@@ -135,12 +135,14 @@ def pipeline(
     cameras: str = PIPELINE_CAMERAS,
     task_options: dict[str, Any] | None = None,
     recipe: str | None = None,
+    dataset_format: str = PIPELINE_DATASET_FORMAT,
 ) -> dict[str, Any]:
     """collect -> mimic -> train -> evaluate for ``task_id``, each stage a task run of this flow (one task
     runner for all); publishes one artifact per stage and a markdown summary (``runlog``), writes
     ``<out>/metrics.json`` and a run record (``<out>/records/``; ``summary["record"]``). ``workers`` > 1 shards
     collection, Mimic and evaluation. ``cameras`` are rendered and recorded by collection, Mimic and evaluation
-    (a visuomotor recipe); ``task_options`` (e.g. ``obs_mode="sensors"``) apply to every env.
+    (a visuomotor recipe); ``task_options`` (e.g. ``obs_mode="sensors"``) apply to every env; ``dataset_format``
+    (hdf5 or zarr) is that of the demos and the Mimic demos.
     Defaults are ``PipelineArgs``'s (``newton-lab pipeline``); ``train_cfg`` None is the policy's default."""
     runlog.quiet_console(REPORTED_ERRORS)
     runlog.restore_caller_sigterm()
@@ -149,11 +151,30 @@ def pipeline(
     options = dict(task_options or {})
     clock = StageClock()
     demo_art, s_collect = run_collect(
-        task_id, demos, num_envs, seed, device, out, workers, cameras=cameras, task_options=options
+        task_id,
+        demos,
+        num_envs,
+        seed,
+        device,
+        out,
+        workers,
+        cameras=cameras,
+        task_options=options,
+        dataset_format=dataset_format,
     )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
-    gen_art, s_mimic = run_mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers, cameras=cameras)
+    gen_art, s_mimic = run_mimic(
+        demo_art,
+        mimic_episodes,
+        num_envs,
+        seed + 1,
+        device,
+        out,
+        workers,
+        cameras=cameras,
+        dataset_format=dataset_format,
+    )
     clock.lap("mimic")
     log.info("mimic: %s", "/".join(s_mimic))
     ckpt_art, s_train = run_train(gen_art, train_cfg, out, gpus)
@@ -187,7 +208,8 @@ def pipeline(
         "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval},
     }
     settings = {"seed": seed, "device": (train_cfg or {}).get("device", device), "train_cfg": dict(train_cfg or {})}
-    record_run(summary, clock, out_dir, **settings, cameras=cameras, task_options=options, recipe=recipe)
+    settings.update(cameras=cameras, task_options=options, recipe=recipe, dataset_format=dataset_format)
+    record_run(summary, clock, out_dir, **settings)
     runlog.publish_summary(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir)
     return summary
 

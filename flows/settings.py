@@ -120,6 +120,10 @@ LONG_HORIZON_TASK_RECIPES: dict[str, dict[str, dict[str, Any]]] = {
 LONG_HORIZON_OPTIONS = {"obs_mode": "sensors"}
 """Task options the long-horizon pipeline always sets (policies see no privileged state)."""
 
+PIPELINE_DATASET_FORMAT = "hdf5"
+"""The format of the pipeline's datasets (``demos.*``, ``mimic.*``, the phase datasets of a split) when neither the
+recipe nor ``--dataset-format`` (hdf5 or zarr) names one."""
+
 PIPELINE_CAMERAS = "none"
 """Default ``--cameras`` of the pipeline's collect, Mimic and evaluation envs when a recipe names none: a state
 policy, so nothing is rendered or recorded (image terms would cost a render per step and ~0.9 MB per 298x224

@@ -7,6 +7,7 @@ single-task pipeline) and ``long_horizon`` (a coherent task's) both build on the
 from __future__ import annotations
 
 import functools
+import shutil
 import time
 from collections import Counter
 from dataclasses import replace
@@ -20,7 +21,7 @@ from ..commands import CollectArgs, EvaluateArgs, MimicArgs
 from ..datasets import DatasetWriteError
 from . import runlog, stages
 from .artifacts import artifact
-from .settings import PIPELINE_CAMERAS
+from .settings import PIPELINE_CAMERAS, PIPELINE_DATASET_FORMAT
 
 SEED_STRIDE = 100_000
 """Seed distance between shards: each shard draws from its own seed range."""
@@ -77,12 +78,15 @@ evaluate_task = stage_task(stages.evaluate_stage, "evaluate")
 
 @task(name="merge", cache_policy=INPUTS, persist_result=True)
 def merge_task(shards: list[dict[str, Any]], out_dir: str, name: str) -> dict[str, Any]:
-    """Merge shard dataset artifacts into ``<out_dir>/<name>.hdf5`` (ids renumbered, provenance kept)."""
+    """Merge shard dataset artifacts into ``<out_dir>/<name>`` (a file name with its format's suffix; ids
+    renumbered, provenance kept)."""
     from ..datasets.merge import merge_datasets  # deferred: the dataset package imports Warp/Newton
 
-    path = Path(out_dir) / f"{name}.hdf5"
-    if path.exists():
-        path.unlink()  # a partial merge of an interrupted run; merges are recomputed from their shards
+    path = Path(out_dir) / name
+    if path.is_dir():  # a partial merge of an interrupted run; merges are recomputed from their shards
+        shutil.rmtree(path)
+    elif path.exists():
+        path.unlink()
     ref = merge_datasets([s["path"] for s in shards], path)
     total = {
         "attempts": sum(s["metrics"].get("attempts", 0) for s in shards),  # Mimic shards keep successes only
@@ -155,11 +159,12 @@ def _suspicious(key, dask_scheduler=None) -> int:
 
 
 def run_dataset_stage(
-    stage_task, args, *, shards: int, out: str, stage: str, name: str, path_field: str, **fixed
+    stage_task, args, *, shards: int, out: str, stage: str, path_field: str, **fixed
 ) -> tuple[dict[str, Any], list[str]]:
-    """Submit a dataset stage (one run, or ``shards`` runs merged into ``<out>/<name>.hdf5``); returns
-    (artifact, state names: shards, then the merge). The artifact goes downstream unchanged (it is the next
-    stage's cache key) and is published as the stage's artifact."""
+    """Submit a dataset stage (one run, or ``shards`` runs merged into ``<out>/<the file name of args'
+    path_field>``); returns (artifact, state names: shards, then the merge). The artifact goes downstream unchanged
+    (it is the next stage's cache key) and is published as the stage's artifact."""
+    name = Path(getattr(args, path_field)).name
     if shards <= 1:
         (art,), states = results([stage_task.submit(args=args, **fixed)], stage)
     else:
@@ -188,9 +193,11 @@ def run_collect(
     task_options=None,
     max_steps=None,
     domain_randomize=None,
+    dataset_format=PIPELINE_DATASET_FORMAT,
 ):
-    """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos); with
-    ``domain_randomize`` (axis -> level) each row draws its own physics and camera offsets (collect's flag)."""
+    """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos) into
+    ``<out>/demos.<dataset_format>``; with ``domain_randomize`` (axis -> level) each row draws its own physics and
+    camera offsets (collect's flag)."""
     args = CollectArgs(
         task=task_id,
         episodes=episodes,
@@ -198,7 +205,7 @@ def run_collect(
         seed=seed,
         device=device,
         randomize=True,
-        dataset_path=str(Path(out) / "demos.hdf5"),
+        dataset_path=str(Path(out) / f"demos.{dataset_format}"),
         cameras=cameras,
         task_options=dict(task_options or {}),
         **({"max_steps": max_steps} if max_steps else {}),
@@ -208,17 +215,27 @@ def run_collect(
             else {}
         ),
     )
-    return run_dataset_stage(
-        collect_task, args, shards=shards, out=out, stage="collect", name="demos", path_field="dataset_path"
-    )
+    return run_dataset_stage(collect_task, args, shards=shards, out=out, stage="collect", path_field="dataset_path")
 
 
-def run_mimic(source, episodes, num_envs, seed, device, out, shards, *, cameras=PIPELINE_CAMERAS):
-    """Grow ``source`` to ``episodes`` Mimic demos on at most ``num_envs`` rows, rendering ``cameras`` (the
-    source's task options, ``obs_mode`` included, are kept)."""
+def run_mimic(
+    source,
+    episodes,
+    num_envs,
+    seed,
+    device,
+    out,
+    shards,
+    *,
+    cameras=PIPELINE_CAMERAS,
+    dataset_format=PIPELINE_DATASET_FORMAT,
+):
+    """Grow ``source`` to ``episodes`` Mimic demos on at most ``num_envs`` rows into
+    ``<out>/mimic.<dataset_format>``, rendering ``cameras`` (the source's task options, ``obs_mode`` included, are
+    kept)."""
     args = MimicArgs(
         dataset_path=source["path"],
-        output_path=str(Path(out) / "mimic.hdf5"),
+        output_path=str(Path(out) / f"mimic.{dataset_format}"),
         episodes=episodes,
         num_envs=min(num_envs, episodes),
         seed=seed,
@@ -226,7 +243,7 @@ def run_mimic(source, episodes, num_envs, seed, device, out, shards, *, cameras=
         cameras=cameras,
     )
     return run_dataset_stage(
-        mimic_task, args, shards=shards, out=out, stage="mimic", name="mimic", path_field="output_path", source=source
+        mimic_task, args, shards=shards, out=out, stage="mimic", path_field="output_path", source=source
     )
 
 

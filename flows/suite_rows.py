@@ -70,6 +70,8 @@ ROWS: dict[str, list[Row]] = {
     "gpu": [
         _pipeline("pickcube-demo", "GalbotG1-PickCube-v0", "gpu"),
         _pipeline("picktoshelf", "GalbotG1-PickToShelf-v0", "gpu"),
+        # the same, its datasets in zarr (the format bench-collect's two-camera figure writes)
+        _pipeline("picktoshelf-zarr", "GalbotG1-PickToShelf-v0", "gpu", "--dataset-format", "zarr"),
         # the robust recipe: the same, its collection's rows drawing physics and camera offsets (docs/robustness.md)
         _pipeline("picktoshelf-robust", "GalbotG1-PickToShelf-v0", "gpu", "--domain-randomize", ROBUST_RANDOMIZATION),
         *[

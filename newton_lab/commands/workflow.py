@@ -310,6 +310,9 @@ class PipelineArgs:
     domain_randomize: str | None = None
     """a coherent task's collection with domain randomisation, as collect's --domain-randomize (AXIS=LEVEL,...;
     axes object_mass, friction, camera_shift, camera_tilt): the robust recipe of docs/robustness.md"""
+    dataset_format: Literal["hdf5", "zarr"] | None = None
+    """format of the pipeline's datasets (the demos, Mimic's, the phase datasets of a split): hdf5 or zarr (the
+    recipe's; newton_lab.flows.settings.PIPELINE_DATASET_FORMAT when it names none)"""
     dry_run: bool = False
     """print the resolved plan (recipe, counts, cameras, task options, training) as JSON and run nothing"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
@@ -342,6 +345,8 @@ class PipelineArgs:
             "cameras": recipe.get("cameras", "none"),
             "recipe": recipe["name"],
         }
+        if self.dataset_format or recipe.get("dataset_format"):
+            extra["dataset_format"] = self.dataset_format or recipe["dataset_format"]
         if recipe.get("long_horizon"):
             extra["eval_max_steps"] = recipe["eval_max_steps"]
         if self.domain_randomize is not None:
