@@ -33,7 +33,7 @@ test: $(STAMP)
 	$(VENV)/bin/python -m compileall -q newton_lab kernels tasks flows tests examples > /dev/null
 	$(VENV)/bin/python -m pytest -q -rs -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
-# mutate: break one promise at a time (tools/mutations.py: a curated list of small patches) in a scratch copy and
+# mutate: break one promise at a time (tools/mutation_cases.py: a curated list of small patches) in a scratch copy and
 # run only the tests that cover it; every mutation must be killed (exit 1 on a survivor). Minutes on 2 CPU cores.
 # MUTATE_ARGS adds flags, e.g. make mutate MUTATE_ARGS="--only jog-clip-removed" (--list names them).
 MUTATE_ARGS ?=

@@ -42,10 +42,10 @@ def test_a_patch_that_no_longer_applies_is_an_error_naming_its_mutation(tmp_path
     problems = tool.check(tmp_path, (stale, twice))
     assert problems == [
         "mutation stale-example: its patch of mod.py no longer applies (the text to replace occurs 0 times, "
-        "expected once): update it in tools/mutations.py",
+        "expected once): update it in tools/mutation_cases.py",
         "mutation stale-example: covering test tests/test_gone.py does not exist",
         "mutation twice-example: its patch of mod.py no longer applies (the text to replace occurs 2 times, "
-        "expected once): update it in tools/mutations.py",
+        "expected once): update it in tools/mutation_cases.py",
     ]
     assert tool.main(["--check"]) == 0 and "mutations apply" in capsys.readouterr().err
     assert tool.main(["--only", "no-such-mutation"]) == 2
