@@ -82,19 +82,9 @@ def long_horizon_pipeline(
     phases = learned_phases(task_id, options)
     train_cfg = with_inputs(train_cfg, lookup(task_id).make_cfg(options).target_observations)
     clock = StageClock()
+    collect = {"max_steps": COLLECT_MAX_STEPS, "domain_randomize": domain_randomize, "dataset_format": dataset_format}
     demo_art, s_collect = run_collect(
-        task_id,
-        demos,
-        num_envs,
-        seed,
-        device,
-        out,
-        workers,
-        cameras=cameras,
-        task_options=options,
-        max_steps=COLLECT_MAX_STEPS,
-        domain_randomize=domain_randomize,
-        dataset_format=dataset_format,
+        task_id, demos, num_envs, seed, device, out, workers, cameras=cameras, task_options=options, **collect
     )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))

@@ -150,31 +150,13 @@ def pipeline(
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = dict(task_options or {})
     clock = StageClock()
+    data = {"cameras": cameras, "dataset_format": dataset_format}  # what collection and Mimic render and write
     demo_art, s_collect = run_collect(
-        task_id,
-        demos,
-        num_envs,
-        seed,
-        device,
-        out,
-        workers,
-        cameras=cameras,
-        task_options=options,
-        dataset_format=dataset_format,
+        task_id, demos, num_envs, seed, device, out, workers, task_options=options, **data
     )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
-    gen_art, s_mimic = run_mimic(
-        demo_art,
-        mimic_episodes,
-        num_envs,
-        seed + 1,
-        device,
-        out,
-        workers,
-        cameras=cameras,
-        dataset_format=dataset_format,
-    )
+    gen_art, s_mimic = run_mimic(demo_art, mimic_episodes, num_envs, seed + 1, device, out, workers, **data)
     clock.lap("mimic")
     log.info("mimic: %s", "/".join(s_mimic))
     ckpt_art, s_train = run_train(gen_art, train_cfg, out, gpus)
@@ -208,8 +190,7 @@ def pipeline(
         "stage_states": {"collect": s_collect, "mimic": s_mimic, "train": s_train, "evaluate": s_eval},
     }
     settings = {"seed": seed, "device": (train_cfg or {}).get("device", device), "train_cfg": dict(train_cfg or {})}
-    settings.update(cameras=cameras, task_options=options, recipe=recipe, dataset_format=dataset_format)
-    record_run(summary, clock, out_dir, **settings)
+    record_run(summary, clock, out_dir, **settings, **data, task_options=options, recipe=recipe)
     runlog.publish_summary(task_id, demo_art, gen_art, ckpt_art, metrics, out_dir)
     return summary
 
