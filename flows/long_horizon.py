@@ -119,8 +119,8 @@ def long_horizon_pipeline(
         "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval},
     }
     settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
-    settings.update(cameras=cameras, task_options=options, recipe=recipe, domain_randomize=domain_randomize or None)
-    settings.update(dataset_format=dataset_format)
+    settings.update(cameras=cameras, task_options=options, recipe=recipe, dataset_format=dataset_format)
+    settings["domain_randomize"] = domain_randomize or None
     return record_run(summary, clock, out_dir, **settings)
 
 

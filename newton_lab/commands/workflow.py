@@ -345,8 +345,8 @@ class PipelineArgs:
             "cameras": recipe.get("cameras", "none"),
             "recipe": recipe["name"],
         }
-        if self.dataset_format or recipe.get("dataset_format"):
-            extra["dataset_format"] = self.dataset_format or recipe["dataset_format"]
+        if dataset_format := self.dataset_format or recipe.get("dataset_format"):
+            extra["dataset_format"] = dataset_format
         if recipe.get("long_horizon"):
             extra["eval_max_steps"] = recipe["eval_max_steps"]
         if self.domain_randomize is not None:
