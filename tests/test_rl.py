@@ -80,6 +80,9 @@ def test_train_rl_writes_checkpoint_curve_resume_point_log_and_record(run):
     curve = json.loads((folder / "curve.json").read_text())
     assert [r["iteration"] for r in curve] == [1, 2] and curve[-1]["env_steps"] == 2 * 4 * 8
     assert all(r["env_steps_per_s"] > 0 for r in curve)
+    for r in curve:  # where each chunk's seconds went: env steps within the rollout, rollout and update within it
+        assert 0 < r["env_step_s"] <= r["rollout_s"] and r["update_s"] > 0
+        assert r["rollout_s"] + r["update_s"] <= r["wall_s"] - (curve[0]["wall_s"] if r is not curve[0] else 0) + 0.01
     assert (folder / "resume.pt").is_file() and list(folder.glob("events.out.tfevents.*"))  # tensorboard
     assert not list(folder.glob("model_*.pt"))  # rsl_rl's own snapshots: resume.pt holds the same
     ckpt = torch.load(folder / "checkpoint.pt", weights_only=True)
@@ -99,10 +102,13 @@ def test_its_actor_is_evaluated_on_held_out_episodes_and_recorded(run):
     assert rows and rows[0][0] == "Reach" and "/ 2** (seed 10000)" in rows[0][5]
 
 
+TIMINGS = ("wall_s", "env_steps_per_s", "env_step_s", "rollout_s", "update_s")
+
+
 def _curve(folder: Path) -> list[dict]:
     """The run's curve without its timings."""
     rows = json.loads((folder / "curve.json").read_text())
-    return [{k: v for k, v in r.items() if k not in ("wall_s", "env_steps_per_s")} for r in rows]
+    return [{k: v for k, v in r.items() if k not in TIMINGS} for r in rows]
 
 
 def test_the_same_seed_trains_the_same_actor_and_a_resumed_run_repeats_the_uninterrupted_one(tmp_path):

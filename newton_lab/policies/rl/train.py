@@ -3,7 +3,7 @@
 The run is cut into chunks of ``cfg.chunk_iterations`` PPO iterations; after each chunk the runner's state is saved
 (``resume.pt``: models, optimiser, iteration, the action map) and a row is added to ``curve.json`` (iteration,
 env steps, wall seconds, env-steps/s with the update included, success rate and mean return of the episodes that
-ended in the chunk, the mean reward of a step). Every chunk starts from rows reset with the seed ``cfg.seed +
+ended in the chunk, the mean reward of a step, and the seconds of rollout, env steps and update). Every chunk starts from rows reset with the seed ``cfg.seed +
 chunk index``, so that a run resumed after a chunk gives the curve and the actor of the uninterrupted run (the
 episodes running at a chunk's end are cut there and not counted). A killed run continues from its last chunk with
 ``resume=True``; ``cfg.time_budget_s`` ends the run after the chunk that crosses it. rsl_rl writes its tensorboard log
@@ -151,6 +151,7 @@ def train_ppo(
         vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
         vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
     runner = OnPolicyRunner(vec, cfg.runner_cfg(), log_dir=str(out), device=str(env.torch_device))
+    times = _IterationTimes(runner)
     curve: list[dict[str, Any]] = []
     elapsed = 0.0
     if saved is not None:
@@ -176,6 +177,7 @@ def train_ppo(
             "wall_s": round(elapsed, 2),
             "env_steps_per_s": n * steps_per_iteration / seconds,
             **counts,
+            **times.take(),
         }
         curve.append(row)
         _save_resume(resume_path, runner, vec, curve, elapsed)
@@ -195,6 +197,28 @@ def train_ppo(
     torch.save(_checkpoint(task_id, env, cfg, runner, vec, curve), tmp)
     tmp.replace(path)
     return path
+
+
+class _IterationTimes:
+    """Where a chunk's seconds went, as rsl_rl's runner times each iteration: ``rollout_s`` (policy and env steps;
+    the curve row's ``env_step_s`` is the env's part) and ``update_s`` (returns and the PPO update). The runner
+    hands both to its logger only, so the logger's ``log`` is wrapped to add them up."""
+
+    def __init__(self, runner) -> None:
+        self.rollout_s = self.update_s = 0.0
+        log = runner.logger.log
+
+        def log_and_add(**kwargs):
+            self.rollout_s += kwargs["collect_time"]
+            self.update_s += kwargs["learn_time"]
+            return log(**kwargs)
+
+        runner.logger.log = log_and_add
+
+    def take(self) -> dict[str, float]:
+        out = {"rollout_s": round(self.rollout_s, 3), "update_s": round(self.update_s, 3)}
+        self.rollout_s = self.update_s = 0.0
+        return out
 
 
 def _done(curve: list[dict[str, Any]]) -> int:

@@ -12,6 +12,8 @@ new episode's first), as rsl_rl expects.
 
 from __future__ import annotations
 
+import time
+
 import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
@@ -38,6 +40,8 @@ class RslRlVecEnv(VecEnv):
         self.succeeded = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
         self.reward_sum, self.reward_steps = torch.zeros((), device=self.device), 0
+        self.step_s = 0.0
+        """wall seconds spent in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``"""
 
     def restart(self, seed: int) -> None:
         """Reseed and reset every row (``env.reseed``) and forget the running episodes' returns: a chunk of PPO
@@ -60,6 +64,7 @@ class RslRlVecEnv(VecEnv):
         return self._observations()
 
     def step(self, actions: torch.Tensor):
+        t0 = time.perf_counter()
         _, reward, terminated, truncated, info = self.env.step(self.action_map.for_env(actions, self.env))
         dones = terminated | truncated
         reward = reward.clone()
@@ -79,11 +84,13 @@ class RslRlVecEnv(VecEnv):
             self.returns[ended] = 0.0
             self.succeeded[ended] = False
             self.episode_length_buf[ended] = 0
-        return self._observations(), reward, dones.long(), extras
+        obs = self._observations()
+        self.step_s += time.perf_counter() - t0
+        return obs, reward, dones.long(), extras
 
     def take_episode_counts(self) -> dict[str, float]:
-        """Episodes ended, successes, their mean return and the mean reward of a step since the last call (then
-        reset)."""
+        """Episodes ended, successes, their mean return, the mean reward of a step and the seconds spent stepping
+        since the last call (then reset)."""
         n = self.ended["episodes"]
         out = {
             "episodes": n,
@@ -91,7 +98,9 @@ class RslRlVecEnv(VecEnv):
             "success_rate": self.ended["successes"] / n if n else None,
             "mean_return": self.ended["return_sum"] / n if n else None,
             "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None,
+            "env_step_s": round(self.step_s, 3),
         }
+        self.step_s = 0.0
         self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
         self.reward_sum.zero_()
         self.reward_steps = 0
