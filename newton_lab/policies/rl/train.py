@@ -1,14 +1,14 @@
 """PPO on a task's dense reward through rsl_rl (the library mjlab and IsaacLab train with): ``train_ppo(task, cfg)``.
 
 The run is cut into chunks of ``cfg.chunk_iterations`` PPO iterations; after each chunk the runner's state is saved
-(``resume.pt``: models, optimiser, iteration, the action map) and a row is added to ``curve.json`` (iteration,
-env steps, wall seconds, env-steps/s with the update included, success rate and mean return of the episodes that
-ended in the chunk, the mean reward of a step, and the seconds of rollout, env steps and update). Every chunk starts from rows reset with the seed ``cfg.seed +
-chunk index``, so that a run resumed after a chunk gives the curve and the actor of the uninterrupted run (the
-episodes running at a chunk's end are cut there and not counted). A killed run continues from its last chunk with
-``resume=True``; ``cfg.time_budget_s`` ends the run after the chunk that crosses it. rsl_rl writes its tensorboard log
-into the same folder. The result is ``checkpoint.pt``: the deterministic actor, its observation normaliser and the
-action map, which ``RLPolicyAgent`` (and ``newton-lab evaluate --checkpoint``) runs.
+(``resume.pt``: models, optimiser, iteration, the action map) and a row is added to ``curve.json`` (iteration, env
+steps, wall seconds, env-steps/s with the update included, success rate and mean return of the episodes that ended in
+the chunk, the mean reward of a step, and the seconds of rollout, env steps and update). Every chunk starts from rows
+reset with the seed ``cfg.seed + chunk index``, so that a run resumed after a chunk gives the curve and the actor of the
+uninterrupted run (the episodes running at a chunk's end are cut there and not counted). A killed run continues from its
+last chunk with ``resume=True``; ``cfg.time_budget_s`` ends the run after the chunk that crosses it. rsl_rl writes its
+tensorboard log into the same folder. The result is ``checkpoint.pt``: the deterministic actor, its observation
+normaliser and the action map, which ``RLPolicyAgent`` (and ``newton-lab evaluate --checkpoint``) runs.
 """
 
 from __future__ import annotations

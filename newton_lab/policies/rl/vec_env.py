@@ -41,7 +41,7 @@ class RslRlVecEnv(VecEnv):
         self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
         self.reward_sum, self.reward_steps = torch.zeros((), device=self.device), 0
         self.step_s = 0.0
-        """wall seconds spent in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``"""
+        """wall seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``"""
 
     def restart(self, seed: int) -> None:
         """Reseed and reset every row (``env.reseed``) and forget the running episodes' returns: a chunk of PPO
