@@ -58,6 +58,8 @@ class TaskContext:
     """World-local coordinates of the controlled gripper's finger slides (``Arm.fingers``); length 0 without."""
     finger_travel_per_rad: float
     """Finger slide travel per radian of the gripper master, nothing between the fingers [m/rad]."""
+    fingertip_reach: float
+    """How far the finger pads reach from the TCP along its approach axis (TCP +x) [m]."""
     arm_coords: wp.array(dtype=int)
     """World-local coordinates of the controlled arm's joints (``Arm.joints``, in order)."""
     arm_home: wp.array(dtype=float)
@@ -141,6 +143,13 @@ def finger_lag(ctx: TaskContext, w: int) -> float:
         travel = wp.abs(ctx.joint_q[w * ctx.coords_per_world + ctx.finger_coords[k]])
         lag = wp.min(lag, drive - travel)
     return lag
+
+
+@wp.func
+def in_tcp_frame(ctx: TaskContext, w: int, k: int) -> wp.vec3:
+    """Centre of entity ``k`` in the TCP's frame [m]: x along the approach (palm to fingertips), y the fingers'
+    closing axis."""
+    return wp.transform_point(wp.transform_inverse(tcp_pose(ctx, w)), entity_pos(ctx, w, k))
 
 
 @wp.func

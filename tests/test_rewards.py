@@ -150,19 +150,20 @@ def test_lift_cube_reward_rises_along_the_expert_episode():
 
 
 @pytest.mark.slow
-def test_a_gripper_closed_beside_the_cube_earns_no_grasp_reward():
-    """The reward's grasp stage needs the fingers stopped by something (``holding``): closing on nothing 4.5 cm
-    beside the cube satisfies ``grasped`` (TCP near, gripper closed) but earns only the reaching stage, while the
+def test_a_gripper_closed_beside_the_cube_or_on_its_corner_earns_no_grasp_reward():
+    """The reward's grasp stage needs the fingers stopped by the cube between them (``holding``): closing on
+    nothing 4.5 cm beside the cube satisfies ``grasped`` (TCP near, gripper closed), and closing low over the cube's
+    corner stops the fingers too (on its edge and the table), but each earns only the reaching stage, while the
     same close on the cube earns the grasp stage."""
     from newton_lab.envs import make_env
     from newton_lab.task_api.motion_plan import AssetTarget, MotionPlan, MotionStep
 
-    def approach_and_close(dx: float) -> PlannerAgent:
+    def approach_and_close(dx: float, dy: float, dz: float) -> PlannerAgent:
         return PlannerAgent(
             MotionPlan(
                 steps=(
-                    MotionStep(name="approach", target=AssetTarget("cube", (dx, 0.0, 0.205))),
-                    MotionStep(name="descend", target=AssetTarget("cube", (dx, 0.0, 0.035))),
+                    MotionStep(name="approach", target=AssetTarget("cube", (dx, dy, 0.205))),
+                    MotionStep(name="descend", target=AssetTarget("cube", (dx, dy, dz))),
                     MotionStep(name="close", gripper_open=False, hold=30),
                 ),
                 max_joint_step=0.03,
@@ -172,20 +173,24 @@ def test_a_gripper_closed_beside_the_cube_earns_no_grasp_reward():
 
     env = make_env("GalbotG1-LiftCube-v0", num_envs=1, device="cpu", seed=0, randomize=True, cameras=False)
     grasped_col = env.task.signal_names.index("grasped_cube")
-    best = {}
-    for dx in (0.0, 0.045):
+    fingers = ["left_gripper_joint", "left_gripper_l_finger_joint", "left_gripper_r_finger_joint"]
+    best, lag = {}, {}
+    for name, offset in (("on", (0.0, 0.0, 0.035)), ("beside", (0.045, 0.0, 0.035)), ("corner", (0.017, 0.02, 0.02))):
         env.reseed(0)
-        agent = approach_and_close(dx)
+        agent = approach_and_close(*offset)
         agent.reset()
         rewards, grasped = [], []
         for _ in range(110):
             _, reward, *_ = env.step(agent.act(env))
             rewards.append(float(reward[0]))
             grasped.append(bool(env.info["signals"][0, grasped_col]))
-        assert any(grasped[-10:]), f"dx={dx}: the gripper never closed near the cube"
-        best[dx] = max(rewards[-10:])
-    assert best[0.0] > 2 / 3 - 1e-5, best  # reached and holding the cube
-    assert best[0.045] <= 1 / 3 + 1e-5, best  # reached; the close on nothing is not a grasp
+        assert any(grasped[-10:]), f"{name}: the gripper never closed near the cube"
+        best[name] = max(rewards[-10:])
+        master, *slides = env.joints.positions(fingers)[0].tolist()
+        lag[name] = min(master * env.robot.finger_travel_per_rad - s for s in slides)  # finger_lag [m]
+    assert best["on"] > 2 / 3 - 1e-5, best  # reached and holding the cube
+    assert best["beside"] <= 1 / 3 + 1e-5 and lag["beside"] < 0.005, (best, lag)  # closed on nothing
+    assert best["corner"] <= 1 / 3 + 1e-5 and lag["corner"] > 0.005, (best, lag)  # fingers stopped, no cube between
 
 
 @pytest.mark.slow

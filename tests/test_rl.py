@@ -136,7 +136,10 @@ def test_a_short_run_raises_the_reward_of_a_step(tmp_path):
 
 def test_episode_length_s_sets_the_time_limit_of_the_training_episodes(tmp_path):
     """Reach's own limit (12 s, 240 steps) ends no episode in 16 steps a row; a 0.5 s limit (10 steps) ends one on
-    every row, as time-outs (the curve counts them); a limit <= 0 is refused by make_env in one line."""
+    every row, as time-outs (the curve counts them, and the tensorboard log has the success rate of the iteration
+    they ended in); a limit <= 0 is refused by make_env in one line."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
     from newton_lab.envs import make_env  # deferred: Warp
     from newton_lab.policies.rl.train import PPOConfig, train_ppo  # deferred: rsl_rl, Warp
 
@@ -146,6 +149,9 @@ def test_episode_length_s_sets_the_time_limit_of_the_training_episodes(tmp_path)
         train_ppo(TASK, cfg, tmp_path / name, progress=False)
         ended[name] = sum(r["episodes"] for r in _curve(tmp_path / name))
     assert ended == {"task": 0, "short": TINY_PPO["num_envs"]}, ended
+    log = EventAccumulator(str(tmp_path / "short"))
+    log.Reload()
+    assert [s.step for s in log.Scalars("Episode/success_rate")] == [1]  # steps 9-16 are the second iteration
     with pytest.raises(ValueError, match="episode_length_s must be > 0"):
         make_env(TASK, episode_length_s=0.0)
 

@@ -98,6 +98,8 @@ class RobotBinding:
     """Gripper master target when closed [rad]."""
     finger_travel_per_rad: float
     """How far each finger slides inward per radian of the gripper master, with nothing between them [m/rad]."""
+    fingertip_reach: float
+    """How far the finger pads reach from the TCP along its approach axis (TCP +x, toward the fingertips) [m]."""
     nav_max_speed: float
     """Base speed limit of the nav agents [m/s]."""
     nav_success_radius: float

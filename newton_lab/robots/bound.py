@@ -65,6 +65,7 @@ class RobotContext:
     """The gripper master's open and closed values [rad]."""
     finger_coords: tuple[int, ...]
     finger_travel_per_rad: float
+    fingertip_reach: float
     arm_coords: tuple[int, ...]
 
     @classmethod
@@ -88,6 +89,7 @@ class RobotContext:
             gripper_closed=float(robot.gripper_closed),
             finger_coords=tuple(coord[j] for j in chosen.fingers),
             finger_travel_per_rad=float(robot.finger_travel_per_rad),
+            fingertip_reach=float(robot.fingertip_reach),
             arm_coords=tuple(coord[j] for j in chosen.joints),
         )
 
@@ -105,6 +107,7 @@ class RobotContext:
         ctx.gripper_closed = self.gripper_closed
         ctx.finger_coords = wp.array(self.finger_coords, dtype=int) if self.finger_coords else wp.zeros(0, dtype=int)
         ctx.finger_travel_per_rad = self.finger_travel_per_rad
+        ctx.fingertip_reach = self.fingertip_reach
         ctx.arm_coords = wp.array(self.arm_coords, dtype=int)
 
 

@@ -151,16 +151,8 @@ def train_ppo(
         vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
         vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
     runner = OnPolicyRunner(vec, cfg.runner_cfg(), log_dir=str(out), device=str(env.torch_device))
-    times = _IterationTimes(runner)
-    curve: list[dict[str, Any]] = []
-    elapsed = 0.0
-    if saved is not None:
-        runner.alg.load(saved["runner"], None, True)
-        runner.current_learning_iteration = saved["iteration"]
-        curve, elapsed = saved["curve"], saved["elapsed_s"]
-        torch.set_rng_state(saved["torch_rng"])
-        if saved.get("cuda_rng") is not None and env.torch_device.type == "cuda":
-            torch.cuda.set_rng_state(saved["cuda_rng"], env.torch_device)
+    times = _IterationLog(runner, vec)
+    curve, elapsed = _restore(runner, saved, env.torch_device) if saved is not None else ([], 0.0)
     steps_per_iteration = cfg.num_envs * cfg.num_steps_per_env
     while _done(curve) < cfg.iterations and not (cfg.time_budget_s and elapsed >= cfg.time_budget_s):
         n = min(cfg.chunk_iterations, cfg.iterations - _done(curve))
@@ -199,18 +191,23 @@ def train_ppo(
     return path
 
 
-class _IterationTimes:
-    """Where a chunk's seconds went, as rsl_rl's runner times each iteration: ``rollout_s`` (policy and env steps;
-    the curve row's ``env_step_s`` is the env's part) and ``update_s`` (returns and the PPO update). The runner
-    hands both to its logger only, so the logger's ``log`` is wrapped to add them up."""
+class _IterationLog:
+    """What rsl_rl's runner reports after each iteration, beside its own log: where a chunk's seconds went
+    (``rollout_s``: policy and env steps, the curve row's ``env_step_s`` being the env's host time; ``update_s``:
+    returns and the PPO update), and the success rate of the episodes that ended in the iteration
+    (``Episode/success_rate`` in the tensorboard log). The runner hands its times to its logger only, so the
+    logger's ``log`` is wrapped."""
 
-    def __init__(self, runner) -> None:
+    def __init__(self, runner, vec: RslRlVecEnv) -> None:
         self.rollout_s = self.update_s = 0.0
         log = runner.logger.log
 
         def log_and_add(**kwargs):
             self.rollout_s += kwargs["collect_time"]
             self.update_s += kwargs["learn_time"]
+            episodes, successes = vec.take_iteration_counts()
+            if runner.logger.writer is not None and episodes:
+                runner.logger.writer.add_scalar("Episode/success_rate", successes / episodes, kwargs["it"])
             return log(**kwargs)
 
         runner.logger.log = log_and_add
@@ -219,6 +216,16 @@ class _IterationTimes:
         out = {"rollout_s": round(self.rollout_s, 3), "update_s": round(self.update_s, 3)}
         self.rollout_s = self.update_s = 0.0
         return out
+
+
+def _restore(runner, saved: dict[str, Any], device: torch.device) -> tuple[list[dict[str, Any]], float]:
+    """Put the interrupted run's models, optimiser, iteration and random state back; its curve and seconds."""
+    runner.alg.load(saved["runner"], None, True)
+    runner.current_learning_iteration = saved["iteration"]
+    torch.set_rng_state(saved["torch_rng"])
+    if saved.get("cuda_rng") is not None and device.type == "cuda":
+        torch.cuda.set_rng_state(saved["cuda_rng"], device)
+    return saved["curve"], saved["elapsed_s"]
 
 
 def _done(curve: list[dict[str, Any]]) -> int:

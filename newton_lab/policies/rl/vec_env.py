@@ -4,10 +4,11 @@ Observations are a ``TensorDict`` of two groups: ``policy`` (the env's observati
 in ``obs_mode="state"``, proprioception only with ``obs_mode="sensors"``) and ``critic`` (the policy's plus the
 privileged object poses when the policy does not see them: the critic is thrown away after training, so it may
 read what the robot cannot measure). ``dones`` is terminated or truncated; ``extras["time_outs"]`` marks the
-truncated rows (PPO bootstraps their value), and ``extras["log"]`` the success rate of the episodes that ended in
-the step: an episode counts as a success when the task's success held at any of its steps (training envs may
-run on past success, ``PPOConfig.end_on_success``). Rows that end are reset inside the step (their ``obs`` is the
-new episode's first), as rsl_rl expects.
+truncated rows (PPO bootstraps their value). Rows that end are reset inside the step (their ``obs`` is the new
+episode's first), as rsl_rl expects. The ended episodes, their successes and returns are counted on the device
+(no host sync in a step) and read once an iteration (``take_iteration_counts``) and once a chunk
+(``take_episode_counts``): an episode counts as a success when the task's success held at any of its steps
+(training envs may run on past success, ``PPOConfig.end_on_success``).
 """
 
 from __future__ import annotations
@@ -38,7 +39,10 @@ class RslRlVecEnv(VecEnv):
         self.sensors = env.cfg.options.get("obs_mode") == "sensors"
         self.returns = torch.zeros(self.num_envs, device=self.device)
         self.succeeded = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
-        self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
+        self.counts = torch.zeros(3, dtype=torch.float64, device=self.device)
+        """episodes ended, their successes and their return sum since the last ``take_episode_counts``"""
+        self.iteration_counts = torch.zeros(2, dtype=torch.float64, device=self.device)
+        """episodes ended and their successes since the last ``take_iteration_counts``"""
         self.reward_sum, self.reward_steps = torch.zeros((), device=self.device), 0
         self.step_s = 0.0
         """wall seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``"""
@@ -73,35 +77,39 @@ class RslRlVecEnv(VecEnv):
         self.reward_steps += self.num_envs
         self.succeeded |= info["success"]
         self.episode_length_buf += 1
-        extras: dict = {"time_outs": truncated.clone()}
-        if bool(dones.any()):
-            ended = dones.nonzero().flatten()
-            ok = self.succeeded[ended].float()
-            self.ended["episodes"] += int(ended.numel())
-            self.ended["successes"] += int(ok.sum().item())
-            self.ended["return_sum"] += float(self.returns[ended].sum().item())
-            extras["log"] = {"/success_rate": ok.mean()}
-            self.returns[ended] = 0.0
-            self.succeeded[ended] = False
-            self.episode_length_buf[ended] = 0
+        ended = dones.to(torch.float64)
+        wins = (self.succeeded & dones).sum().to(torch.float64)
+        counts = torch.stack([ended.sum(), wins, (self.returns * ended).sum()])
+        self.counts += counts
+        self.iteration_counts += counts[:2]
+        self.returns.masked_fill_(dones, 0.0)
+        self.succeeded &= ~dones
+        self.episode_length_buf.masked_fill_(dones, 0)
         obs = self._observations()
         self.step_s += time.perf_counter() - t0
-        return obs, reward, dones.long(), extras
+        return obs, reward, dones.long(), {"time_outs": truncated.clone()}
+
+    def take_iteration_counts(self) -> tuple[int, int]:
+        """Episodes ended and their successes since the last call (then reset): one host sync."""
+        episodes, successes = self.iteration_counts.tolist()
+        self.iteration_counts.zero_()
+        return int(episodes), int(successes)
 
     def take_episode_counts(self) -> dict[str, float]:
         """Episodes ended, successes, their mean return, the mean reward of a step and the seconds spent stepping
         since the last call (then reset)."""
-        n = self.ended["episodes"]
+        episodes, successes, return_sum = self.counts.tolist()
+        n = int(episodes)
         out = {
             "episodes": n,
-            "successes": self.ended["successes"],
-            "success_rate": self.ended["successes"] / n if n else None,
-            "mean_return": self.ended["return_sum"] / n if n else None,
+            "successes": int(successes),
+            "success_rate": successes / n if n else None,
+            "mean_return": return_sum / n if n else None,
             "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None,
             "env_step_s": round(self.step_s, 3),
         }
         self.step_s = 0.0
-        self.ended = {"episodes": 0, "successes": 0, "return_sum": 0.0}
+        self.counts.zero_()
         self.reward_sum.zero_()
         self.reward_steps = 0
         return out

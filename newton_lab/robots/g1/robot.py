@@ -56,6 +56,7 @@ G1 = RobotBinding(
     gripper_open=spec.GRIPPER_OPEN,
     gripper_closed=spec.GRIPPER_CLOSED,
     finger_travel_per_rad=spec.FINGER_TRAVEL_PER_RAD,
+    fingertip_reach=spec.FINGERTIP_REACH,
     nav_max_speed=spec.NAV_MAX_SPEED,
     nav_success_radius=spec.NAV_SUCCESS_RADIUS,
     camera_mounts=spec.CAMERA_MOUNTS,

@@ -68,6 +68,9 @@ GRIPPER_VELOCITY_LIMIT = 2.0
 """Gripper master speed limit [rad/s]."""
 FINGER_TRAVEL_PER_RAD = 0.0375
 """Each finger slides this far inward per radian of the master joint [m/rad]."""
+FINGERTIP_REACH = 0.05
+"""How far the finger pads reach along the TCP's approach axis (TCP +x) [m]: each pad's centre sits 0.0179 m from
+the TCP toward the palm and is 0.0679 m long each way (MJCF), so the pads span -0.086 .. +0.050 m."""
 
 # ---------------------------------------------------------------- joint limits beyond the MJCF ranges
 JOINT_VELOCITY_LIMITS: dict[str, float] = {
