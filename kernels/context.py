@@ -146,6 +146,18 @@ def finger_lag(ctx: TaskContext, w: int) -> float:
 
 
 @wp.func
+def finger_middle(ctx: TaskContext, w: int) -> float:
+    """The middle between the two fingers along the TCP's y (their closing axis) [m]: half the first finger's travel
+    less the second's (``Arm.fingers``: the first closes toward +y); 0 for a gripper without two named fingers."""
+    middle = float(0.0)
+    if ctx.finger_coords.shape[0] == 2:
+        first = ctx.joint_q[w * ctx.coords_per_world + ctx.finger_coords[0]]
+        second = ctx.joint_q[w * ctx.coords_per_world + ctx.finger_coords[1]]
+        middle = 0.5 * (first - second)
+    return middle
+
+
+@wp.func
 def in_tcp_frame(ctx: TaskContext, w: int, k: int) -> wp.vec3:
     """Centre of entity ``k`` in the TCP's frame [m]: x along the approach (palm to fingertips), y the fingers'
     closing axis."""

@@ -55,7 +55,9 @@ class Arm:
     """The body the TCP is fixed in (``RobotBinding.tcp_offset_pos`` / ``tcp_offset_quat`` from it)."""
     fingers: tuple[str, ...] = ()
     """The finger slides the gripper's master drives (``RobotBinding.finger_travel_per_rad`` of travel per radian);
-    where they lag behind the master, something is between them (``TaskContext.finger_coords``)."""
+    where they lag behind the master, something is between them (``TaskContext.finger_coords``). Two fingers are
+    named in this order: the first closes toward the TCP's +y, the second toward -y (``kernels.context.
+    finger_middle``)."""
 
 
 @dataclass(frozen=True, kw_only=True)

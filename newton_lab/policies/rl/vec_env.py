@@ -45,7 +45,10 @@ class RslRlVecEnv(VecEnv):
         """episodes ended and their successes since the last ``take_iteration_counts``"""
         self.reward_sum, self.reward_steps = torch.zeros((), device=self.device), 0
         self.step_s = 0.0
-        """wall seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``"""
+        """seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``: wall
+        time on the CPU; on a GPU the stream's time between CUDA events around each step (``step_events``), as a
+        step no longer waits for the device"""
+        self.step_events: list[tuple[torch.cuda.Event, torch.cuda.Event]] = []
 
     def restart(self, seed: int) -> None:
         """Reseed and reset every row (``env.reseed``) and forget the running episodes' returns: a chunk of PPO
@@ -69,6 +72,7 @@ class RslRlVecEnv(VecEnv):
 
     def step(self, actions: torch.Tensor):
         t0 = time.perf_counter()
+        timed = self._timing_events()
         _, reward, terminated, truncated, info = self.env.step(self.action_map.for_env(actions, self.env))
         dones = terminated | truncated
         reward = reward.clone()
@@ -86,8 +90,20 @@ class RslRlVecEnv(VecEnv):
         self.succeeded &= ~dones
         self.episode_length_buf.masked_fill_(dones, 0)
         obs = self._observations()
-        self.step_s += time.perf_counter() - t0
+        if timed is None:
+            self.step_s += time.perf_counter() - t0
+        else:
+            timed[1].record()
+            self.step_events.append(timed)
         return obs, reward, dones.long(), {"time_outs": truncated.clone()}
+
+    def _timing_events(self) -> tuple[torch.cuda.Event, torch.cuda.Event] | None:
+        """A recorded start event and an end event for this step on a GPU, else ``None``."""
+        if self.device.type != "cuda":
+            return None
+        start, end = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
+        start.record()
+        return start, end
 
     def take_iteration_counts(self) -> tuple[int, int]:
         """Episodes ended and their successes since the last call (then reset): one host sync."""
@@ -106,9 +122,10 @@ class RslRlVecEnv(VecEnv):
             "success_rate": successes / n if n else None,
             "mean_return": return_sum / n if n else None,
             "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None,
-            "env_step_s": round(self.step_s, 3),
+            "env_step_s": round(self.step_s + sum(s.elapsed_time(e) for s, e in self.step_events) / 1e3, 3),
         }
         self.step_s = 0.0
+        self.step_events.clear()
         self.counts.zero_()
         self.reward_sum.zero_()
         self.reward_steps = 0
