@@ -231,14 +231,15 @@ def test_domain_randomization_of_the_training_rows_is_physics_only_and_recorded(
 
 def test_delta_joint_mode_steps_each_arm_target_from_the_current_one_within_its_box():
     """``joint_mode="delta"``: an action of 1 moves every absolute arm target by ``relative_scale`` from the env's
-    current target (the gripper column keeps its span), never past ``joint_scale`` from the start posture; the
-    env's reset puts the targets back at the start posture; without the current targets the map refuses."""
+    current target (the gripper column keeps its span), never past ``delta_range`` from the start posture nor, by
+    default, past the joint's range; the env's reset puts the targets back at the start posture; without the current
+    targets the map refuses."""
     from newton_lab.envs import make_env  # deferred: Warp
     from newton_lab.policies.rl.actions import ActionMap, ActionScales
 
     env = make_env("GalbotG1-LiftCube-v0", num_envs=2, device="cpu", cameras=False)  # seven arm joints, a gripper
     env.reset()
-    amap = ActionMap(env, ActionScales(joint_mode="delta", joint_scale=0.12))
+    amap = ActionMap(env, ActionScales(joint_mode="delta", delta_range=0.12))
     arm = amap.stepped
     assert arm is not None and int(arm.sum()) == 7 and not bool(arm[-1])
     ones = torch.ones(2, env.action_dim)
@@ -250,6 +251,10 @@ def test_delta_joint_mode_steps_each_arm_target_from_the_current_one_within_its_
     torch.testing.assert_close(env.current_action()[:, arm], (amap.rest + 0.12)[arm].expand(2, -1))
     env.reset()
     torch.testing.assert_close(env.current_action()[:, arm], amap.rest[arm].expand(2, -1))
+    ranged = ActionMap(env, ActionScales(joint_mode="delta"))  # no box: the joints' ranges
+    lower = env.model.joint_limit_lower.numpy()[[env.sim.layout.joints.dof[j] for j in env.action_joint_names[:7]]]
+    torch.testing.assert_close(ranged.low[arm], torch.as_tensor(lower))
+    assert bool((ranged.low[arm] < amap.rest[arm] - 1.0).any())  # wider than the old 1 rad box somewhere
     with pytest.raises(ValueError, match="current=env.current_action"):
         amap(ones)
     with pytest.raises(ValueError, match="joint_mode must be one of absolute, delta"):

@@ -329,7 +329,15 @@ MUTATIONS: tuple[Mutation, ...] = (
         "tasks/common/terminations.py",
         "        return finger_lag(ctx, w) > min_lag",
         "        return finger_lag(ctx, w) > -1.0",
-        "tests/test_rewards.py::test_a_gripper_closed_beside_the_cube_earns_no_grasp_reward",
+        "tests/test_rewards.py::test_a_gripper_closed_beside_the_cube_or_on_its_corner_earns_no_grasp_reward",
+    ),
+    one_patch(
+        "grasp-reward-for-pinching-a-corner",
+        "The reward's grasp stage pays only for the object between the fingers, not for fingers stopped on its corner",
+        "tasks/common/terminations.py",
+        "        return wp.abs(p[1] - finger_middle(ctx, w)) < max_offset and p[0] < ctx.fingertip_reach",
+        "        return p[0] < ctx.fingertip_reach",
+        "tests/test_rewards.py::test_a_gripper_closed_beside_the_cube_or_on_its_corner_earns_no_grasp_reward",
     ),
     one_patch(
         "stack-cube-colours-redrawn",
