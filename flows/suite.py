@@ -19,9 +19,9 @@ from typing import Any
 
 from prefect import flow, get_run_logger, task
 
-from ..records import read_record
+from ..records import device_slug, read_record
 from ..results import update
-from .suite_rows import Row, device_slug, rows_of
+from .suite_rows import Row, rows_of
 
 
 def _newest_record(folder: Path) -> Path | None:

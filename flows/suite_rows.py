@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 SORTING_OBJECTS = ("red_cube", "blue_cuboid", "yellow_cylinder", "green_cylinder")
 """SortToShelf's objects (the task option ``sorting_object``): one row each."""
@@ -324,11 +323,3 @@ def rows_of(recipe: str, only: list[str] | None = None) -> list[Row]:
             f"unknown suite row(s) {unknown}; rows of the {recipe} recipe: {', '.join(r.name for r in rows)}"
         )
     return [r for r in rows if not only or r.name in only]
-
-
-def device_slug(record: dict[str, Any]) -> str:
-    """``h200`` for an NVIDIA H200, ``cpu`` for the CPU: the device part of a committed record's name."""
-    device = record["device"]
-    if device["kind"] != "cuda":
-        return "cpu"
-    return device["name"].replace("NVIDIA", "").strip().split()[0].lower()

@@ -215,6 +215,15 @@ def read_record(path: str | os.PathLike) -> dict[str, Any]:
     return record
 
 
+def device_slug(record: dict[str, Any]) -> str:
+    """``h200`` for an NVIDIA H200, ``cpu`` for the CPU: the device part of a committed record's name
+    (``<row>-<device>.json``, a variant of the row's run ``<row>-<device>-<variant>.json``)."""
+    device = record["device"]
+    if device["kind"] != "cuda":
+        return "cpu"
+    return device["name"].replace("NVIDIA", "").strip().split()[0].lower()
+
+
 def is_product_command(command: str) -> bool:
     """Whether ``command`` is one a user runs as it is: ``newton-lab ...`` or ``make demo ...``."""
     return command.startswith(PRODUCT_COMMANDS)

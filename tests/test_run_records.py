@@ -132,6 +132,27 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
     assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
 
 
+def test_the_headline_shows_one_run_per_row_and_device_and_the_others_follow():
+    """``<row>-<device>.json`` is the row's headline run; ``<row>-<device>-<variant>.json`` (shared GPU, earlier, one
+    setting changed) goes to the earlier and variant runs, unless the row has no plain record: then its newest run
+    leads."""
+    rec = _record("pipeline", _pipeline_results())  # device "cpu"
+    dated = {
+        "a-cpu": "2026-11-02",
+        "a-cpu-shared": "2026-11-09",
+        "b-cpu-earlier": "2026-11-01",
+        "b-cpu-shared": "2026-11-05",
+    }
+    recs = [(Path(f"results/{name}.json"), {**rec, "date": f"{day}T00:00:00Z"}) for name, day in dated.items()]
+    main, others = results.split_variants(recs)
+    assert [p.stem for p, _ in main] == ["a-cpu", "b-cpu-shared"]
+    assert [p.stem for p, _ in others] == ["a-cpu-shared", "b-cpu-earlier"]
+    block = results.headline(recs, Path("."))
+    head, rest = block.split(f"### {results.VARIANTS_TITLE}")
+    assert "(results/a-cpu.json)" in head and "(results/b-cpu-shared.json)" in head and "a-cpu-shared" not in head
+    assert "(results/a-cpu-shared.json)" in rest and "(results/b-cpu-earlier.json)" in rest
+
+
 def test_the_stage_table_splits_a_pipelines_time_with_its_env_build_and_steps():
     """Each pipeline record's row gives its stages' wall times (a stage it did not run: a dash), collect's env build
     where recorded, and the training steps of each policy."""
