@@ -56,12 +56,8 @@ def action_bounds(env: NewtonEnv) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) float32 (action_dim,) of the actions ``env`` acts on: each column's clip, intersected with
     its joint range for absolute columns, divided by the column's scale."""
     amap = env.joints.binding.actions
-    lo, hi = amap.low.astype(np.float64), amap.high.astype(np.float64)
-    lower, upper = env.model.joint_limit_lower.numpy(), env.model.joint_limit_upper.numpy()
-    for c, (name, kind) in enumerate(zip(amap.joint_names, amap.kinds)):
-        if kind == "absolute":
-            dof = env.sim.layout.joints.dof[name]
-            lo[c], hi[c] = max(lo[c], lower[dof]), min(hi[c], upper[dof])
+    lower, upper = env.joints.absolute_column_ranges()
+    lo, hi = np.maximum(amap.low.astype(np.float64), lower), np.minimum(amap.high.astype(np.float64), upper)
     scale = amap.scale.astype(np.float64)
     a, b = lo / scale, hi / scale
     return np.minimum(a, b).astype(np.float32), np.maximum(a, b).astype(np.float32)

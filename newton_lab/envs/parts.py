@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import newton
+import numpy as np
 import torch
 import warp as wp
 
@@ -226,6 +227,18 @@ class EnvJoints:
     def robot_coords(self) -> int:
         """Coordinates of the robot at the start of each world's row of ``joint_q`` (its entities follow)."""
         return self._sim.layout.robot_coords
+
+    def absolute_column_ranges(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) float64 (action_dim,): each absolute-target column's joint range from the model [rad | m],
+        -inf .. inf for the other columns."""
+        amap, dof = self.binding.actions, self._sim.layout.joints.dof
+        model = self._sim.layout.model
+        lower, upper = model.joint_limit_lower.numpy(), model.joint_limit_upper.numpy()
+        low, high = np.full(amap.dim, -np.inf), np.full(amap.dim, np.inf)
+        for c, (name, kind) in enumerate(zip(amap.joint_names, amap.kinds)):
+            if kind == "absolute":
+                low[c], high[c] = lower[dof[name]], upper[dof[name]]
+        return low, high
 
     def coords(self, names) -> list[int]:
         """World-local coordinate of each named robot joint (its column in a row of ``joint_q`` /

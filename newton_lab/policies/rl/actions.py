@@ -91,14 +91,10 @@ class ActionMap:
 
     def _delta_bounds(self, env) -> tuple[torch.Tensor, torch.Tensor]:
         """Where a stepped target stops: the joint's range, within ``delta_range`` of the start posture if given."""
-        kinds = env.joints.binding.actions.kinds
-        lower, upper = env.model.joint_limit_lower.numpy(), env.model.joint_limit_upper.numpy()
-        dof = env.sim.layout.joints.dof
-        low = torch.full_like(self.rest, -float("inf"))
-        high = torch.full_like(self.rest, float("inf"))
-        for c, (kind, name) in enumerate(zip(kinds, env.action_joint_names)):
-            if kind == "absolute":
-                low[c], high[c] = float(lower[dof[name]]), float(upper[dof[name]])
+        low, high = (
+            torch.as_tensor(r, dtype=self.rest.dtype, device=self.rest.device)
+            for r in env.joints.absolute_column_ranges()
+        )
         if self.scales.delta_range is not None:
             low = torch.maximum(low, self.rest - self.scales.delta_range)
             high = torch.minimum(high, self.rest + self.scales.delta_range)

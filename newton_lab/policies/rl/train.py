@@ -197,7 +197,7 @@ def train_ppo(
 
 class _IterationLog:
     """What rsl_rl's runner reports after each iteration, beside its own log: where a chunk's seconds went
-    (``rollout_s``: policy and env steps, the curve row's ``env_step_s`` being the env's host time; ``update_s``:
+    (``rollout_s``: policy and env steps, the curve row's ``env_step_s`` being the env's part; ``update_s``:
     returns and the PPO update), and the success rate of the episodes that ended in the iteration
     (``Episode/success_rate`` in the tensorboard log). The runner hands its times to its logger only, so the
     logger's ``log`` is wrapped."""

@@ -39,11 +39,12 @@ class RslRlVecEnv(VecEnv):
         self.sensors = env.cfg.options.get("obs_mode") == "sensors"
         self.returns = torch.zeros(self.num_envs, device=self.device)
         self.succeeded = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
-        self.counts = torch.zeros(3, dtype=torch.float64, device=self.device)
-        """episodes ended, their successes and their return sum since the last ``take_episode_counts``"""
+        self.counts = torch.zeros(4, dtype=torch.float64, device=self.device)
+        """episodes ended, their successes, their return sum and every row's reward sum since the last
+        ``take_episode_counts``"""
         self.iteration_counts = torch.zeros(2, dtype=torch.float64, device=self.device)
         """episodes ended and their successes since the last ``take_iteration_counts``"""
-        self.reward_sum, self.reward_steps = torch.zeros((), device=self.device), 0
+        self.reward_steps = 0
         self.step_s = 0.0
         """seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``: wall
         time on the CPU; on a GPU the stream's time between CUDA events around each step (``step_events``), as a
@@ -77,13 +78,12 @@ class RslRlVecEnv(VecEnv):
         dones = terminated | truncated
         reward = reward.clone()
         self.returns += reward
-        self.reward_sum += reward.sum()
         self.reward_steps += self.num_envs
         self.succeeded |= info["success"]
         self.episode_length_buf += 1
         ended = dones.to(torch.float64)
         wins = (self.succeeded & dones).sum().to(torch.float64)
-        counts = torch.stack([ended.sum(), wins, (self.returns * ended).sum()])
+        counts = torch.stack([ended.sum(), wins, (self.returns * ended).sum(), reward.sum().to(torch.float64)])
         self.counts += counts
         self.iteration_counts += counts[:2]
         self.returns.masked_fill_(dones, 0.0)
@@ -114,19 +114,18 @@ class RslRlVecEnv(VecEnv):
     def take_episode_counts(self) -> dict[str, float]:
         """Episodes ended, successes, their mean return, the mean reward of a step and the seconds spent stepping
         since the last call (then reset)."""
-        episodes, successes, return_sum = self.counts.tolist()
+        episodes, successes, return_sum, reward_sum = self.counts.tolist()
         n = int(episodes)
         out = {
             "episodes": n,
             "successes": int(successes),
             "success_rate": successes / n if n else None,
             "mean_return": return_sum / n if n else None,
-            "mean_step_reward": float(self.reward_sum) / self.reward_steps if self.reward_steps else None,
+            "mean_step_reward": reward_sum / self.reward_steps if self.reward_steps else None,
             "env_step_s": round(self.step_s + sum(s.elapsed_time(e) for s, e in self.step_events) / 1e3, 3),
         }
         self.step_s = 0.0
         self.step_events.clear()
         self.counts.zero_()
-        self.reward_sum.zero_()
         self.reward_steps = 0
         return out
