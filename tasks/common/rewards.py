@@ -250,13 +250,19 @@ def point_shaping(*, entity: int, point: tuple[float, float, float]):
 
 
 @term_factory(entities=("entity",))
-def lift_shaping(*, entity: int, min_z: float):
-    """``1 - tanh(5 dz)``, dz = height [m] still to go for ``entity``'s centre to reach ``min_z``."""
-    min_z = float(min_z)
+def lift_shaping(*, entity: int, from_z: float, min_z: float):
+    """The fraction of the lift done: ``(z - from_z) / (min_z - from_z)`` in [0, 1], z = ``entity``'s centre
+    height, ``from_z`` its resting height, ``min_z`` the lift's goal [m]. Linear, not ``1 - tanh(5 dz)``: that
+    paid 0.54 of the stage for a cube still on the table and 3 % more per 2 cm near the goal, and PPO on LiftCube
+    (4096 envs, H200, 700 iterations) ended holding the cube 8 cm up, where it paid 0.97 of the maximum."""
+    from_z, min_z = float(from_z), float(min_z)
+    if min_z <= from_z:
+        raise ValueError(f"lift_shaping needs min_z above from_z, got from_z={from_z} m, min_z={min_z} m")
+    span = min_z - from_z
 
     @wp.func
     def lift_entity_shaping(ctx: TaskContext, w: int) -> float:
-        return closeness(wp.max(min_z - entity_pos(ctx, w, entity)[2], 0.0))
+        return wp.clamp((entity_pos(ctx, w, entity)[2] - from_z) / span, 0.0, 1.0)
 
     return lift_entity_shaping
 
@@ -284,16 +290,16 @@ def reach_stage(entity: str, name: str = "reaching") -> Stage:
     return Stage(name, tcp_near(entity=entity), reach_shaping(entity=entity))
 
 
-def pick_to_carry_stages(*, entity: str, lift_z: float, at_carry: Callable) -> list[Stage]:
-    """Reach, grasp (``holding``: the fingers closed on something), lift ``entity`` to centre height ``lift_z`` [m]
-    (shaping ``1 - tanh(5 dz)``) while grasped, bring the arm to ``ctx.arm_home`` (``at_carry``: the task's
-    stateless success predicate; shaping ``1 - tanh(|q_arm - home|)``, rad). Shared by the PickToShelf /
-    SortToShelf Pick tasks."""
+def pick_to_carry_stages(*, entity: str, rest_z: float, lift_z: float, at_carry: Callable) -> list[Stage]:
+    """Reach, grasp (``holding``: the fingers closed on something), lift ``entity`` from its resting centre height
+    ``rest_z`` to ``lift_z`` [m] (shaping: the fraction of that lift done) while grasped, bring the arm to
+    ``ctx.arm_home`` (``at_carry``: the task's stateless success predicate; shaping ``1 - tanh(|q_arm - home|)``,
+    rad). Shared by the PickToShelf / SortToShelf Pick tasks."""
     lifted_and_grasped = all_of(terms=(grasped(entity=entity), lifted(entity=entity, min_z=lift_z)))
     return [
         reach_stage(entity),
         Stage("grasping", holding(entity=entity)),
-        Stage("lifting", lifted_and_grasped, lift_shaping(entity=entity, min_z=lift_z)),
+        Stage("lifting", lifted_and_grasped, lift_shaping(entity=entity, from_z=rest_z, min_z=lift_z)),
         Stage("carrying", at_carry, carry_shaping),
     ]
 

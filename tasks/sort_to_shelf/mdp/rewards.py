@@ -1,8 +1,8 @@
 """SortToShelf dense rewards, built per sorting object (ManiSkill PickCube-v1 style, ``tasks.common.rewards``;
 each in [0, 1], 1 when the task's success condition holds).
 
-Pick: reaching (``1 - tanh(5 |TCP - object|)`` until within 6 cm), grasping, lifting (``1 - tanh(5 dz)``
-while grasped, dz = height still to go to the object's lift height [m]), carrying (``1 - tanh(|q_arm -
+Pick: reaching (``1 - tanh(5 |TCP - object|)`` until within 6 cm), grasping, lifting (the fraction of
+the lift from the object's slot height to its lift height done, while grasped), carrying (``1 - tanh(|q_arm -
 ready|)``, rad): 1/4 each. Place: grasping (object in hand), placing (``1 - tanh(5 |object - cell target|)``
 while grasped, done when it rests in its cell, upright where required), releasing (gripper openness, done
 with the gripper open), retracting (``1 - tanh(|q_arm - ready|)``, done at success): 1/4 each.
@@ -42,7 +42,9 @@ from .terminations import (
 
 def pick_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:
     """SortToShelf-Pick: reach, grasp, lift, ready posture (1/4 each)."""
-    return staged_rewards(*pick_to_carry_stages(entity=obj.name, lift_z=obj.lift_min_z, at_carry=at_carry(obj)))
+    return staged_rewards(
+        *pick_to_carry_stages(entity=obj.name, rest_z=obj.pos[2], lift_z=obj.lift_min_z, at_carry=at_carry(obj))
+    )
 
 
 def place_rewards(obj: SortingObject) -> dict[str, RewardTermCfg]:

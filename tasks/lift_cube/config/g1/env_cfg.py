@@ -26,9 +26,9 @@ DROPPED_Z = 0.05
 
 def lift_cube_cfg() -> TaskCfg:
     """The PickCube robot set-up (table-top posture, head pitched down) with one cube to lift. Dense reward:
-    reaching, grasping, lifting (``1 - tanh(5 dz)`` while grasped), success (lifted and grasped), 1/4 each
-    (``tasks.common.rewards``). The success stage is PickCube's and StackCube's: without it the reward at 8 cm
-    (0.967) was so near the maximum that PPO held the cube there and never reached 10 cm."""
+    reaching, grasping, lifting (the fraction of the 10 cm done, while grasped), success (lifted and grasped),
+    1/4 each (``tasks.common.rewards``). The success stage is PickCube's and StackCube's: with three stages and a
+    ``1 - tanh(5 dz)`` lift, holding the cube 8 cm up paid 0.967 of the maximum, and PPO held it there."""
     grasped_cube = grasped(entity="cube")
     lifted_and_grasped = all_of(terms=(lifted(entity="cube", min_z=LIFTED_Z), grasped_cube))
     return TaskCfg(
@@ -42,7 +42,7 @@ def lift_cube_cfg() -> TaskCfg:
         rewards=staged_rewards(
             reach_stage("cube"),
             Stage("grasping", holding(entity="cube")),
-            Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", min_z=LIFTED_Z)),
+            Stage("lifting", lifted_and_grasped, lift_shaping(entity="cube", from_z=CUBE_INIT[2], min_z=LIFTED_Z)),
             Stage("success", lifted_and_grasped),
         ),
         signals={"grasped_cube": TermCfg(func=grasped_cube)},

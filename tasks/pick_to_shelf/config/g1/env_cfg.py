@@ -111,7 +111,7 @@ def _world(**fields) -> TaskCfg:
 
 def pick_rewards():
     """PickToShelf-Pick: reach, grasp, lift, carry posture (1/4 each)."""
-    return staged_rewards(*pick_to_carry_stages(entity="bar", lift_z=CARRY_MIN_Z, at_carry=at_carry))
+    return staged_rewards(*pick_to_carry_stages(entity="bar", rest_z=BAR_POS[2], lift_z=CARRY_MIN_Z, at_carry=at_carry))
 
 
 def place_rewards():
