@@ -240,7 +240,7 @@ def _train_in_own_process(path: str, cfg: dict[str, Any], resume: bool) -> str:
 def rl_train_stage(*, task_id: str, ppo: dict[str, Any], out_dir: str, name: str = "ppo") -> dict[str, Any]:
     """PPO on ``task_id`` (``ppo``: ``PPOConfig`` fields) -> checkpoint artifact of kind ``rl checkpoint`` with the
     run's curve; an interrupted run (its folder holds a ``resume.pt``) continues from its last chunk."""
-    from ..policies.rl.train import RESUME_NAME, PPOConfig, train_ppo  # deferred: rsl_rl and torch are slow
+    from ..policies.rl.train import RESUME_NAME, PPOConfig, run_summary, train_ppo  # deferred: rsl_rl, torch
 
     out = Path(out_dir)
     inputs = {"stage": "train-rl", "task_id": task_id, "ppo": ppo}
@@ -252,22 +252,9 @@ def rl_train_stage(*, task_id: str, ppo: dict[str, Any], out_dir: str, name: str
         _fresh(run_dir)
     ckpt = train_ppo(task_id, PPOConfig(**ppo), run_dir, resume=resume)
     curve = json.loads((run_dir / "curve.json").read_text())
-    final = curve[-1] if curve else {}
-    return _finish(
-        out,
-        name,
-        inputs,
-        artifact(
-            ckpt,
-            "rl checkpoint",
-            iterations=final.get("iteration"),
-            env_steps=final.get("env_steps"),
-            wall_time_s=final.get("wall_s"),
-            success_rate=final.get("success_rate"),
-            env_steps_per_s=final.get("env_steps_per_s"),
-            curve=curve,
-        ),
-    )
+    summary = run_summary(curve)
+    summary["wall_time_s"] = summary.pop("wall_s")
+    return _finish(out, name, inputs, artifact(ckpt, "rl checkpoint", **summary, curve=curve))
 
 
 def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -> dict[str, dict[str, Any]]:

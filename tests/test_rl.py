@@ -94,12 +94,20 @@ def test_its_actor_is_evaluated_on_held_out_episodes_and_recorded(run):
     tmp, out = run
     ev = out["evaluation"]
     assert ev["episodes"] == 2 and ev["eval_seed"] == 10_000 and 0 <= ev["rate"] <= 1
+    assert out["env_steps_per_s"] == pytest.approx(out["env_steps"] / out["wall_s"])  # the run's mean
     record = json.loads((tmp / "a.json").read_text())
     assert record["kind"] == "train-rl" and record["command"].startswith(f"newton-lab train-rl --task {TASK}")
     from newton_lab.results import rl_rows
 
     rows = rl_rows([(tmp / "a.json", record)], tmp)
-    assert rows and rows[0][0] == "Reach" and "/ 2** (seed 10000)" in rows[0][5]
+    assert rows and rows[0][0] == "Reach" and "/ 2** (seed 10000)" in rows[0][7]
+    curve = [
+        {"iteration": 1, "env_steps": 1000, "wall_s": 10.0, "success_rate": 0.5},
+        {"iteration": 2, "env_steps": 3000, "wall_s": 20.0, "success_rate": 0.95},
+    ]
+    record["results"]["curve_rows"] = curve
+    (row,) = rl_rows([(tmp / "a.json", record)], tmp)
+    assert row[4:7] == ["0.1 k", "0:20", "0:20"]  # run-mean env-steps/s, training time, first >= 90 % row
 
 
 TIMINGS = ("wall_s", "env_steps_per_s", "env_step_s", "rollout_s", "update_s")
@@ -132,6 +140,21 @@ def test_a_short_run_raises_the_reward_of_a_step(tmp_path):
     train_ppo(TASK, cfg, tmp_path / "up", progress=False)
     rewards = [r["mean_step_reward"] for r in _curve(tmp_path / "up")]
     assert len(rewards) == 3 and rewards[-1] > rewards[0], rewards
+
+
+def test_the_time_budget_cuts_the_last_chunk_to_end_within_it():
+    """A chunk is ``chunk_iterations`` long until the budget is near; then it is cut to what fits at the pace of
+    the chunk before (seconds per iteration), and nothing runs once the budget is spent."""
+    from newton_lab.policies.rl.train import PPOConfig, _next_chunk  # deferred: rsl_rl
+
+    cfg = PPOConfig(iterations=1000, chunk_iterations=25, time_budget_s=100.0)
+    assert _next_chunk(cfg, done=0, elapsed=0.0, iteration_s=None) == 25  # the first chunk sets the pace
+    assert _next_chunk(cfg, done=50, elapsed=80.0, iteration_s=0.4) == 25  # 25 x 0.4 s fit in the 20 s left
+    assert _next_chunk(cfg, done=75, elapsed=90.0, iteration_s=0.4) == 25
+    assert _next_chunk(cfg, done=100, elapsed=95.0, iteration_s=0.4) == 12  # 5 s left: 12 x 0.4 s
+    assert _next_chunk(cfg, done=112, elapsed=99.9, iteration_s=0.4) == 0
+    assert _next_chunk(cfg, done=112, elapsed=100.5, iteration_s=0.4) == 0
+    assert _next_chunk(PPOConfig(iterations=110, chunk_iterations=25), done=100, elapsed=1e6, iteration_s=9.0) == 10
 
 
 def test_episode_length_s_sets_the_time_limit_of_the_training_episodes(tmp_path):

@@ -11,20 +11,15 @@ from ..records import write_run_record
 
 
 def train_rl(args: TrainRLArgs) -> int:
-    from ..policies.rl.train import train_ppo  # deferred: rsl_rl, torch and Warp are slow to import
+    from ..policies.rl.train import run_summary, train_ppo  # deferred: rsl_rl, torch and Warp are slow to import
 
     path = train_ppo(args.task, args.ppo_config(), args.output_dir, resume=args.resume)
     curve = json.loads((path.parent / "curve.json").read_text())
-    final = curve[-1] if curve else {}
     out = {
         "checkpoint": str(path),
         "curve": str(path.parent / "curve.json"),
-        "iterations": final.get("iteration"),
-        "env_steps": final.get("env_steps"),
-        "wall_s": final.get("wall_s"),
+        **run_summary(curve),
         "num_envs": args.num_envs,
-        "success_rate": final.get("success_rate"),
-        "env_steps_per_s": final.get("env_steps_per_s"),
     }
     if args.eval_episodes:  # the actor on held-out scenes: a seed the training never drew from
         from ..envs import make_env  # deferred: Warp/Newton are slow to import

@@ -120,10 +120,18 @@ def stage_rows(records, page_dir: Path) -> list[list[str]]:
     return rows
 
 
+def _first_at(curve: list[dict[str, Any]], min_success: float) -> str:
+    """Training seconds of the first curve row whose episodes succeeded at least ``min_success`` of the time."""
+    return _mmss(next((c["wall_s"] for c in curve if (c.get("success_rate") or 0.0) >= min_success), None))
+
+
 def rl_rows(records, page_dir: Path) -> list[list[str]]:
     rows = []
     for path, rec in _of_kind(records, "train-rl"):
         r = rec["results"]
+        curve = r.get("curve_rows") or []
+        last = curve[-1] if curve else {}
+        steps, seconds = last.get("env_steps"), last.get("wall_s", r.get("wall_s"))
         ev = r.get("evaluation")
         learned = f"**{ev['successes']} / {ev['episodes']}** (seed {ev['eval_seed']})" if ev else "–"
         rows.append(
@@ -132,7 +140,9 @@ def rl_rows(records, page_dir: Path) -> list[list[str]]:
                 rec["device"]["name"],
                 str(r.get("num_envs", "–")),
                 str(r.get("iterations")),
-                _k(r.get("env_steps_per_s")),
+                _k(steps / seconds if steps and seconds else r.get("env_steps_per_s")),  # the run's mean
+                _mmss(seconds),
+                _first_at(curve, 0.9),
                 learned,
                 _mmss(rec.get("wall_s")),
                 _link(path, page_dir),

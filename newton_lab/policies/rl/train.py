@@ -6,7 +6,8 @@ steps, wall seconds, env-steps/s with the update included, success rate and mean
 the chunk, the mean reward of a step, and the seconds of rollout, env steps and update). Every chunk starts from rows
 reset with the seed ``cfg.seed + chunk index``, so that a run resumed after a chunk gives the curve and the actor of the
 uninterrupted run (the episodes running at a chunk's end are cut there and not counted). A killed run continues from its
-last chunk with ``resume=True``; ``cfg.time_budget_s`` ends the run after the chunk that crosses it. rsl_rl writes its
+last chunk with ``resume=True``; ``cfg.time_budget_s`` ends the run within it, the last chunk cut short to fit at the
+pace of the one before (a resumed run's budget counts the seconds before the interruption). rsl_rl writes its
 tensorboard log into the same folder. The result is ``checkpoint.pt``: the deterministic actor, its observation
 normaliser and the action map, which ``RLPolicyAgent`` (and ``newton-lab evaluate --checkpoint``) runs.
 """
@@ -47,7 +48,7 @@ class PPOConfig:
     iterations: int = 1500
     """PPO iterations (each: num_steps_per_env env steps on every row, then the update)"""
     time_budget_s: float | None = None
-    """stop after the chunk that crosses this wall-clock budget [s]"""
+    """wall-clock budget of the training [s]: the last chunk is cut to end within it at the pace of the one before"""
     chunk_iterations: int = 25
     """iterations between resume points and curve rows"""
     num_steps_per_env: int = 24
@@ -158,14 +159,15 @@ def train_ppo(
     times = _IterationLog(runner, vec)
     curve, elapsed = _restore(runner, saved, env.torch_device) if saved is not None else ([], 0.0)
     steps_per_iteration = cfg.num_envs * cfg.num_steps_per_env
-    while _done(curve) < cfg.iterations and not (cfg.time_budget_s and elapsed >= cfg.time_budget_s):
-        n = min(cfg.chunk_iterations, cfg.iterations - _done(curve))
+    iteration_s = None  # the last chunk's seconds per iteration
+    while n := _next_chunk(cfg, _done(curve), elapsed, iteration_s):
         t0 = time.perf_counter()
         vec.restart(cfg.seed + len(curve))  # each chunk from freshly reset rows: a resumed run repeats the same
         runner.learn(num_learning_iterations=n, init_at_random_ep_len=False)
         runner.current_learning_iteration += 1  # rsl_rl leaves it at the last iteration run
         seconds = time.perf_counter() - t0
         elapsed += seconds
+        iteration_s = seconds / n
         counts = vec.take_episode_counts()
         row = {
             "iteration": _done(curve) + n,
@@ -193,6 +195,17 @@ def train_ppo(
     torch.save(_checkpoint(task_id, env, cfg, runner, vec, curve), tmp)
     tmp.replace(path)
     return path
+
+
+def _next_chunk(cfg: PPOConfig, done: int, elapsed: float, iteration_s: float | None) -> int:
+    """Iterations in the next chunk: up to ``cfg.chunk_iterations`` and the run's remaining iterations, and within
+    ``cfg.time_budget_s`` at the last chunk's pace (0: the run is over)."""
+    n = min(cfg.chunk_iterations, cfg.iterations - done)
+    if cfg.time_budget_s is not None and iteration_s is not None:
+        n = min(n, int((cfg.time_budget_s - elapsed) / iteration_s))
+    if cfg.time_budget_s is not None and elapsed >= cfg.time_budget_s:
+        n = 0
+    return max(n, 0)
 
 
 class _IterationLog:
@@ -230,6 +243,20 @@ def _restore(runner, saved: dict[str, Any], device: torch.device) -> tuple[list[
     if saved.get("cuda_rng") is not None and device.type == "cuda":
         torch.cuda.set_rng_state(saved["cuda_rng"], device)
     return saved["curve"], saved["elapsed_s"]
+
+
+def run_summary(curve: list[dict[str, Any]]) -> dict[str, Any]:
+    """A finished run from its curve: iterations, env steps, training seconds, the last chunk's success rate, and
+    env-steps/s over the whole run with the updates included (the mean, not the last chunk's)."""
+    final = curve[-1] if curve else {}
+    steps, seconds = final.get("env_steps"), final.get("wall_s")
+    return {
+        "iterations": final.get("iteration"),
+        "env_steps": steps,
+        "wall_s": seconds,
+        "success_rate": final.get("success_rate"),
+        "env_steps_per_s": steps / seconds if steps and seconds else None,
+    }
 
 
 def _done(curve: list[dict[str, Any]]) -> int:
