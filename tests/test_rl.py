@@ -252,6 +252,28 @@ def test_domain_randomization_of_the_training_rows_is_physics_only_and_recorded(
     assert torch.load(path, weights_only=False)["config"]["domain_randomize"] == {"friction": 0.5}
 
 
+def test_the_vec_env_counts_on_the_device_and_refuses_non_finite_actions_once_an_iteration():
+    """PPO's vec env steps without the env's per-step host check of the actions: a NaN action is counted on the
+    device and ``take_iteration_counts`` (read once an iteration) raises one line for it; the iteration's ended
+    episodes come with their mean return and length."""
+    from newton_lab.envs import make_env  # deferred: Warp
+    from newton_lab.policies.rl.vec_env import RslRlVecEnv
+
+    env = make_env(TASK, num_envs=2, device="cpu", cameras=False, episode_length_s=0.15)  # 3 steps
+    vec = RslRlVecEnv(env)
+    zeros = torch.zeros(2, env.action_dim)
+    for _ in range(3):
+        vec.step(zeros)
+    counts = vec.take_iteration_counts()
+    assert counts["episodes"] == 2 and counts["mean_length"] == 3 and counts["mean_return"] is not None, counts
+    bad = zeros.clone()
+    bad[1, 0] = float("nan")
+    vec.step(bad)
+    with pytest.raises(ValueError, match=r"^actions contain NaN or inf in 1 steps of this PPO iteration; [^\n]+$"):
+        vec.take_iteration_counts()
+    assert vec.take_iteration_counts()["episodes"] == 0  # the count was reset with the refusal
+
+
 def test_delta_joint_mode_steps_each_arm_target_from_the_current_one_within_its_box():
     """``joint_mode="delta"``: an action of 1 moves every absolute arm target by ``relative_scale`` from the env's
     current target (the gripper column keeps its span), never past ``delta_range`` from the start posture nor, by

@@ -14,11 +14,11 @@ from ..task_api.registry import lookup
 
 
 def check_actions(
-    actions, *, num_envs: int, action_dim: int, device: torch.device, columns: Sequence[str]
+    actions, *, num_envs: int, action_dim: int, device: torch.device, columns: Sequence[str], finite: bool = True
 ) -> torch.Tensor:
     """``actions`` if it is a finite float32 ``(num_envs, action_dim)`` tensor on ``device``; raises otherwise
     (``columns``: the action column names, quoted when the shape is wrong). The finiteness check reads the
-    tensor on the host (one sync per call)."""
+    tensor on the host (one sync per call); ``finite=False`` leaves it to the caller."""
     if not isinstance(actions, torch.Tensor):
         raise ValueError(
             f"actions must be a torch.Tensor, got {type(actions).__name__}; "
@@ -36,11 +36,17 @@ def check_actions(
         raise ValueError(
             f"actions are on {actions.device} but the env runs on {device}; move them with actions.to('{device}')"
         )
+    if finite:
+        check_finite_actions(actions)
+    return actions
+
+
+def check_finite_actions(actions: torch.Tensor) -> None:
+    """Raises a one-line ``ValueError`` naming the rows of ``actions`` that hold NaN or inf (one host read)."""
     finite = torch.isfinite(actions)
     if not bool(finite.all()):
         rows = torch.nonzero(~finite.all(dim=1)).flatten().tolist()
         raise ValueError(f"actions contain NaN or inf in rows {rows}; check the agent's output before stepping")
-    return actions
 
 
 def row_mask(env_ids, num_envs: int) -> np.ndarray:

@@ -234,7 +234,7 @@ class NewtonEnv:
         return self.sensors.render()
 
     # ------------------------------------------------------------------ the step
-    def step(self, actions: torch.Tensor):
+    def step(self, actions: torch.Tensor, *, check_finite: bool = True):
         """Advance every row one control step.
 
         Args:
@@ -242,6 +242,9 @@ class NewtonEnv:
                 ``action_joint_names``, each of the kind ``joints.binding.actions.kinds`` names (absolute or
                 relative joint targets [rad], wheel speeds [rad/s], gripper targets from ``robot.gripper_open`` to
                 ``robot.gripper_closed``: the G1's 0 .. 1.2).
+            check_finite: refuse NaN or inf actions, which reads them on the host (the step then waits for the
+                device). ``False`` leaves that to the caller: PPO's vec env checks on the device and reads the
+                result once an iteration.
 
         Returns:
             ``(obs, reward, terminated, truncated, info)`` as torch views of the env's Warp buffers
@@ -257,6 +260,7 @@ class NewtonEnv:
             action_dim=self.action_dim,
             device=self.torch_device,
             columns=self.action_joint_names,
+            finite=check_finite,
         )
         self.buffers.actions.copy_(checked.detach())  # a policy's graph never reaches the env's buffer
         self.sim.launch_step()

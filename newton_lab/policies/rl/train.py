@@ -213,21 +213,31 @@ class _IterationLog:
     (``rollout_s``: policy and env steps, the curve row's ``env_step_s`` being the env's part; ``update_s``:
     returns and the PPO update), and the success rate of the episodes that ended in the iteration
     (``Episode/success_rate`` in the tensorboard log). The runner hands its times to its logger only, so the
-    logger's ``log`` is wrapped."""
+    logger's ``log`` is wrapped. The logger's own step bookkeeping is replaced: it read the ended rows' returns on
+    the host at every step (a sync that kept the host from queueing the next step while the device ran this one);
+    its mean return and episode length are the iteration's, from the vec env's device counters."""
 
     def __init__(self, runner, vec: RslRlVecEnv) -> None:
         self.rollout_s = self.update_s = 0.0
-        log = runner.logger.log
+        logger = runner.logger
+        log = logger.log
 
         def log_and_add(**kwargs):
             self.rollout_s += kwargs["collect_time"]
             self.update_s += kwargs["learn_time"]
-            episodes, successes = vec.take_iteration_counts()
-            if runner.logger.writer is not None and episodes:
-                runner.logger.writer.add_scalar("Episode/success_rate", successes / episodes, kwargs["it"])
+            counts = vec.take_iteration_counts()
+            if counts["episodes"]:
+                logger.rewbuffer.clear()
+                logger.lenbuffer.clear()
+                logger.rewbuffer.append(counts["mean_return"])
+                logger.lenbuffer.append(counts["mean_length"])
+                if logger.writer is not None:
+                    rate = counts["successes"] / counts["episodes"]
+                    logger.writer.add_scalar("Episode/success_rate", rate, kwargs["it"])
             return log(**kwargs)
 
-        runner.logger.log = log_and_add
+        logger.log = log_and_add
+        logger.process_env_step = lambda *args, **kwargs: None
 
     def take(self) -> dict[str, float]:
         out = {"rollout_s": round(self.rollout_s, 3), "update_s": round(self.update_s, 3)}

@@ -8,7 +8,9 @@ truncated rows (PPO bootstraps their value). Rows that end are reset inside the 
 episode's first), as rsl_rl expects. The ended episodes, their successes and returns are counted on the device
 (no host sync in a step) and read once an iteration (``take_iteration_counts``) and once a chunk
 (``take_episode_counts``): an episode counts as a success when the task's success held at any of its steps
-(training envs may run on past success, ``PPOConfig.end_on_success``).
+(training envs may run on past success, ``PPOConfig.end_on_success``). The env's own check of the actions'
+finiteness would read them on the host every step; here it runs on the device, and ``take_iteration_counts``
+raises the env's one-line error for an iteration whose actions held NaN or inf.
 """
 
 from __future__ import annotations
@@ -42,8 +44,9 @@ class RslRlVecEnv(VecEnv):
         self.counts = torch.zeros(4, dtype=torch.float64, device=self.device)
         """episodes ended, their successes, their return sum and every row's reward sum since the last
         ``take_episode_counts``"""
-        self.iteration_counts = torch.zeros(2, dtype=torch.float64, device=self.device)
-        """episodes ended and their successes since the last ``take_iteration_counts``"""
+        self.iteration_counts = torch.zeros(5, dtype=torch.float64, device=self.device)
+        """episodes ended, their successes, return sum and length sum [steps], and the steps whose actions held NaN
+        or inf, since the last ``take_iteration_counts``"""
         self.reward_steps = 0
         self.step_s = 0.0
         """seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``: wall
@@ -74,7 +77,9 @@ class RslRlVecEnv(VecEnv):
     def step(self, actions: torch.Tensor):
         t0 = time.perf_counter()
         timed = self._timing_events()
-        _, reward, terminated, truncated, info = self.env.step(self.action_map.for_env(actions, self.env))
+        mapped = self.action_map.for_env(actions, self.env)
+        nonfinite = (~torch.isfinite(mapped).all()).to(torch.float64)
+        _, reward, terminated, truncated, info = self.env.step(mapped, check_finite=False)
         dones = terminated | truncated
         reward = reward.clone()
         self.returns += reward
@@ -83,9 +88,9 @@ class RslRlVecEnv(VecEnv):
         self.episode_length_buf += 1
         ended = dones.to(torch.float64)
         wins = (self.succeeded & dones).sum().to(torch.float64)
-        counts = torch.stack([ended.sum(), wins, (self.returns * ended).sum(), reward.sum().to(torch.float64)])
-        self.counts += counts
-        self.iteration_counts += counts[:2]
+        returns, lengths = (self.returns * ended).sum(), (self.episode_length_buf * ended).sum()
+        self.counts += torch.stack([ended.sum(), wins, returns, reward.sum().to(torch.float64)])
+        self.iteration_counts += torch.stack([ended.sum(), wins, returns, lengths, nonfinite])
         self.returns.masked_fill_(dones, 0.0)
         self.succeeded &= ~dones
         self.episode_length_buf.masked_fill_(dones, 0)
@@ -105,11 +110,23 @@ class RslRlVecEnv(VecEnv):
         start.record()
         return start, end
 
-    def take_iteration_counts(self) -> tuple[int, int]:
-        """Episodes ended and their successes since the last call (then reset): one host sync."""
-        episodes, successes = self.iteration_counts.tolist()
+    def take_iteration_counts(self) -> dict[str, float | None]:
+        """Episodes ended, their successes, mean return and mean length [steps] since the last call (then reset):
+        one host sync. Raises the env's one-line error if a step's actions held NaN or inf since the last call."""
+        episodes, successes, return_sum, length_sum, nonfinite = self.iteration_counts.tolist()
         self.iteration_counts.zero_()
-        return int(episodes), int(successes)
+        if nonfinite:
+            raise ValueError(
+                f"actions contain NaN or inf in {int(nonfinite)} steps of this PPO iteration; the actor diverged: "
+                "resume from the last chunk with a lower --learning-rate"
+            )
+        n = int(episodes)
+        return {
+            "episodes": n,
+            "successes": int(successes),
+            "mean_return": return_sum / n if n else None,
+            "mean_length": length_sum / n if n else None,
+        }
 
     def take_episode_counts(self) -> dict[str, float]:
         """Episodes ended, successes, their mean return, the mean reward of a step and the seconds spent stepping
