@@ -50,6 +50,7 @@ COUNT_FIELDS = (
     "max_attempts",
     "train_steps",
     "epochs",
+    "mini_batches",
     "checkpoint_every_steps",
     "eval_max_steps",
     "gpus",

@@ -24,7 +24,7 @@ class TrainRLArgs:
     iterations: int = 1500
     """PPO iterations (each: --steps-per-env env steps on every row, then the update)"""
     time_budget_s: float | None = None
-    """stop after the chunk of iterations that crosses this wall-clock budget [s]"""
+    """wall-clock budget of the training [s]: the last chunk of iterations is cut to end within it"""
     steps_per_env: int = 24
     """env steps per row in each iteration's rollout"""
     chunk_iterations: int = 25
@@ -33,6 +33,10 @@ class TrainRLArgs:
     """hidden layer widths of the actor and the critic (default 256 128 64)"""
     learning_rate: float = 1e-3
     """Adam's initial learning rate (adapted to the KL target)"""
+    epochs: int = 5
+    """passes over each iteration's rollout in the PPO update"""
+    mini_batches: int = 4
+    """minibatches each pass is cut into (an update is epochs x mini_batches optimiser steps)"""
     end_on_success: bool = False
     """end training episodes at the task's success (default: they run to the time limit, so that PPO is not taught
     to hover outside the success region; see PPOConfig.end_on_success)"""
@@ -49,7 +53,7 @@ class TrainRLArgs:
     """write the run record (JSON) here (default outputs/records/train-rl-<task>-<UTC time>.json)"""
     joint_mode: Literal["absolute", "delta"] = "absolute"
     """how the actor drives the arm joints: absolute (start posture + 1 rad * action) or delta (current target +
-    0.05 rad * action per step, within 1 rad of the start posture; see ActionScales.joint_mode)"""
+    0.05 rad * action per step, within the joint's range; see ActionScales.joint_mode)"""
     domain_randomize: str | None = None
     """domain randomisation: AXIS=LEVEL,... of the physics axes (object_mass, friction; LEVEL mild, strong or a
     factor): each env row draws its own value between 1/LEVEL and LEVEL, kept for the run"""
@@ -81,6 +85,8 @@ class TrainRLArgs:
             num_steps_per_env=self.steps_per_env,
             **({"hidden_dims": tuple(self.hidden_dims)} if self.hidden_dims else {}),
             learning_rate=self.learning_rate,
+            num_learning_epochs=self.epochs,
+            num_mini_batches=self.mini_batches,
             end_on_success=self.end_on_success,
             episode_length_s=self.episode_length_s,
             domain_randomize=self.domain_randomization(),
