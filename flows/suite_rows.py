@@ -105,6 +105,9 @@ ROWS: dict[str, list[Row]] = {
                 # PickCube's own time limit (3600 s) leaves a row whose cube went out of reach there for the run;
                 # its expert takes 137 steps (6.9 s), so 6 s episodes ended before a policy as slow could release
                 ("pickcube", "GalbotG1-PickCube-v0", "300", ("--episode-length-s", "12", "--joint-mode", "delta")),
+                # the experts: PushCube 72 steps (3.6 s; its limit 15 s), StackCube 275 steps (13.8 s; 3600 s)
+                ("pushcube", "GalbotG1-PushCube-v0", "300", ("--episode-length-s", "8", "--joint-mode", "delta")),
+                ("stackcube", "GalbotG1-StackCube-v0", "600", ("--episode-length-s", "28", "--joint-mode", "delta")),
             )
         ],
         _bench(
