@@ -274,6 +274,30 @@ def test_the_vec_env_counts_on_the_device_and_refuses_non_finite_actions_once_an
     assert vec.take_iteration_counts()["episodes"] == 0  # the count was reset with the refusal
 
 
+def test_joint_state_adds_the_commanded_joints_velocities_and_targets_for_training_and_evaluation(tmp_path):
+    """``joint_state``: the actor's input is the task's observation, then each action column's joint velocity and
+    current target (the env's own readings); a checkpoint trained so is evaluated with the same input."""
+    from newton_lab.envs import make_env  # deferred: Warp
+    from newton_lab.policies.rl.agent import RLPolicyAgent
+    from newton_lab.policies.rl.train import PPOConfig, train_ppo
+    from newton_lab.policies.rl.vec_env import RslRlVecEnv
+
+    env = make_env("GalbotG1-LiftCube-v0", num_envs=2, device="cpu", cameras=False)
+    vec = RslRlVecEnv(env, joint_state=True)
+    obs, *_ = vec.step(torch.full((2, env.action_dim), 0.5))
+    policy, names = obs["policy"], env.action_joint_names
+    assert policy.shape == (2, env.obs.shape[1] + 2 * env.action_dim)
+    torch.testing.assert_close(policy[:, : env.obs.shape[1]], env.obs)
+    torch.testing.assert_close(policy[:, env.obs.shape[1] : -env.action_dim], env.joints.velocities(names))
+    torch.testing.assert_close(policy[:, -env.action_dim :], env.current_action())
+    assert float(env.joints.velocities(names).abs().max()) > 0  # the arm moved: the velocities are not all 0
+
+    path = train_ppo(TASK, PPOConfig(iterations=1, joint_state=True, **TINY_PPO), tmp_path / "js", progress=False)
+    reach = make_env(TASK, num_envs=2, device="cpu", cameras=False, seed=3, randomize=True)
+    summary = reach.evaluate(agent=RLPolicyAgent.from_checkpoint(path), episodes=2, max_steps=5, progress=False)
+    assert summary["episodes"] == 2
+
+
 def test_delta_joint_mode_steps_each_arm_target_from_the_current_one_within_its_box():
     """``joint_mode="delta"``: an action of 1 moves every absolute arm target by ``relative_scale`` from the env's
     current target (the gripper column keeps its span), never past ``delta_range`` from the start posture nor, by

@@ -54,6 +54,9 @@ class TrainRLArgs:
     joint_mode: Literal["absolute", "delta"] = "absolute"
     """how the actor drives the arm joints: absolute (start posture + 1 rad * action) or delta (current target +
     0.05 rad * action per step, within the joint's range; see ActionScales.joint_mode)"""
+    joint_state: bool = False
+    """the actor also observes the commanded joints' velocities and current targets (delta targets move from the
+    target, which the task's observation does not hold)"""
     domain_randomize: str | None = None
     """domain randomisation: AXIS=LEVEL,... of the physics axes (object_mass, friction; LEVEL mild, strong or a
     factor): each env row draws its own value between 1/LEVEL and LEVEL, kept for the run"""
@@ -90,5 +93,6 @@ class TrainRLArgs:
             end_on_success=self.end_on_success,
             episode_length_s=self.episode_length_s,
             domain_randomize=self.domain_randomization(),
+            joint_state=self.joint_state,
             scales=ActionScales(joint_mode=self.joint_mode),
         )

@@ -255,6 +255,17 @@ class EnvJoints:
         q = wp.to_torch(self._sim.state.joint_q).view(self._num_envs, -1)
         return q[:, self.coords(names)]
 
+    def dofs(self, names) -> list[int]:
+        """World-local velocity index of each named robot joint (its column in a row of ``joint_qd``); raises a
+        one-line ``KeyError`` for a joint the robot lacks."""
+        self.coords(names)  # the one-line error for an unknown name
+        return [self._sim.layout.joints.dof[n] for n in names]
+
+    def velocities(self, names) -> torch.Tensor:
+        """(num_envs, len(names)) current velocities of the named robot joints [rad/s | m/s]."""
+        qd = wp.to_torch(self._sim.state.joint_qd).view(self._num_envs, -1)
+        return qd[:, self.dofs(names)]
+
     def set_positions(self, names, values, env_ids=None) -> None:
         """Place the named robot joints of rows ``env_ids`` (all when ``None``) at ``values`` [rad | m]
         ((len(names),) or (rows, len(names))): positions (velocities zeroed), targets and drive setpoints together,

@@ -13,6 +13,7 @@ import torch
 
 from ...agents.base import BaseAgent
 from .actions import ActionMap, ActionScales
+from .observations import PolicyObservation
 
 CHECKPOINT_FORMAT = "newton_lab.policies.rl"
 """``format`` tag of an RL checkpoint (``train.CHECKPOINT_FORMAT``; kept here so that running one needs no rsl_rl)."""
@@ -39,6 +40,7 @@ class RLPolicyAgent(BaseAgent):
             self.actor = torch.jit.load(script, map_location=device).eval()
         self.map_state = checkpoint["action_map"]
         self.action_map: ActionMap | None = None
+        self.observe: PolicyObservation | None = None
 
     @classmethod
     def from_checkpoint(cls, path: str | Path, *, device: str | None = None) -> RLPolicyAgent:
@@ -66,9 +68,10 @@ class RLPolicyAgent(BaseAgent):
             )
         rest = torch.tensor(self.map_state["rest"], dtype=torch.float32)
         self.action_map = ActionMap(env, ActionScales(**self.map_state["scales"]), rest=rest)
+        self.observe = PolicyObservation(env, self.info.get("joint_state", False))
 
     def act(self, env, env_ids=None) -> torch.Tensor:
         self.bind(env)
         with torch.no_grad():
-            actions = self.actor(env.obs.to(self.device)).to(env.torch_device)
+            actions = self.actor(self.observe().to(self.device)).to(env.torch_device)
         return self.action_map.for_env(actions, env)

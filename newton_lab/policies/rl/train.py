@@ -77,6 +77,9 @@ class PPOConfig:
     domain_randomize: dict[str, float] = field(default_factory=dict)
     """domain randomisation (``task_api.perturbations.parse_randomization``: physics axes, the rows render no
     cameras): each env row draws its own object mass and friction up to these levels, kept for the run"""
+    joint_state: bool = False
+    """the actor also observes the commanded joints' velocities and current targets
+    (``observations.PolicyObservation``)"""
     scales: ActionScales = field(default_factory=ActionScales)
     """what an action of 1 means per column kind, and how arm joints are driven (``ActionScales.joint_mode``); a
     dict of its fields is taken too (the Prefect flow's ``ppo`` argument)"""
@@ -148,7 +151,7 @@ def train_ppo(
     if cfg.domain_randomize:  # each row's own physics for the whole run (a resumed run draws the same)
         randomize_env(env, cfg.domain_randomize, seed=cfg.seed)
     saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
-    vec = RslRlVecEnv(env, cfg.scales)
+    vec = RslRlVecEnv(env, cfg.scales, joint_state=cfg.joint_state)
     if saved is not None:  # the action map of the interrupted run (its start posture)
         mode = saved["action_map"]["scales"].get("joint_mode", "absolute")
         if mode != cfg.scales.joint_mode:
@@ -303,6 +306,7 @@ def _checkpoint(task_id: str, env, cfg: PPOConfig, runner, vec: RslRlVecEnv, cur
             "task_id": task_id,
             "task_options": dict(env.cfg.options),
             "obs_dim": int(env.obs.shape[1]),
+            "joint_state": cfg.joint_state,
             "action_joint_names": list(env.action_joint_names),
             "image_keys": [],
             "iterations": _done(curve),

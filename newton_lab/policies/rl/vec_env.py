@@ -1,7 +1,8 @@
 """The batched env as rsl_rl's ``VecEnv``: torch tensors on the env's device, straight from the captured step.
 
 Observations are a ``TensorDict`` of two groups: ``policy`` (the env's observation vector: every term of the task
-in ``obs_mode="state"``, proprioception only with ``obs_mode="sensors"``) and ``critic`` (the policy's plus the
+in ``obs_mode="state"``, proprioception only with ``obs_mode="sensors"``; with ``joint_state`` also the commanded
+joints' velocities and targets, ``observations.PolicyObservation``) and ``critic`` (the policy's plus the
 privileged object poses when the policy does not see them: the critic is thrown away after training, so it may
 read what the robot cannot measure). ``dones`` is terminated or truncated; ``extras["time_outs"]`` marks the
 truncated rows (PPO bootstraps their value). Rows that end are reset inside the step (their ``obs`` is the new
@@ -22,13 +23,14 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from .actions import ActionMap, ActionScales
+from .observations import PolicyObservation
 
 
 class RslRlVecEnv(VecEnv):
     """``env`` (a ``NewtonEnv``) stepped by PPO actions through ``ActionMap``; ``privileged``: a second env of the
     same task and seed in state mode is not needed, the critic reads ``env.buffers.entity_poses`` directly."""
 
-    def __init__(self, env, scales: ActionScales | None = None) -> None:
+    def __init__(self, env, scales: ActionScales | None = None, *, joint_state: bool = False) -> None:
         self.env = env
         self.num_envs = env.num_envs
         self.num_actions = env.action_dim
@@ -37,6 +39,7 @@ class RslRlVecEnv(VecEnv):
         self.cfg = {"task_id": env.task_id, "task_options": dict(env.cfg.options)}
         env.reset()
         self.action_map = ActionMap(env, scales)
+        self.policy_obs = PolicyObservation(env, joint_state)
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self.sensors = env.cfg.options.get("obs_mode") == "sensors"
         self.returns = torch.zeros(self.num_envs, device=self.device)
@@ -65,7 +68,7 @@ class RslRlVecEnv(VecEnv):
         self.episode_length_buf.zero_()
 
     def _observations(self) -> TensorDict:
-        policy = self.env.obs.clone()
+        policy = self.policy_obs()
         critic = policy
         if self.sensors:  # the critic also sees where the objects are
             critic = torch.cat([policy, self.env.buffers.entity_poses.reshape(self.num_envs, -1)], dim=1)
