@@ -311,6 +311,8 @@ def check_train_rl(args: TrainRLArgs) -> None:
     """``train-rl``'s output folder: a resume point to resume from, or no finished run in it; its domain
     randomisation."""
     args.domain_randomization()
+    if not args.init_noise_std > 0:
+        raise ValueError(f"--init-noise-std must be > 0 (action units), got {args.init_noise_std}")
     out_dir = Path(args.output_dir)
     if args.resume and not (out_dir / "resume.pt").is_file():
         raise FileNotFoundError(f"nothing to resume in {out_dir} (no resume.pt); start the run without --resume")

@@ -31,6 +31,8 @@ CASES: list[tuple[str, str]] = [
         "train-rl --device cpu --domain-randomize camera_tilt=mild",
         "train-rl's rows render no cameras; randomise physics",
     ),
+    ("train-rl --device cpu --init-noise-std 0", "--init-noise-std must be > 0 (action units)"),
+    ("train-rl --device cpu --mini-batches 0", "--mini-batches must be an integer >= 1"),
     ("evaluate --perturb object_mass=0", "object_mass is a factor, a finite number > 0"),
     ("mimic --dataset-path nope.hdf5 --episodes 2", "--dataset-path nope.hdf5 does not exist"),
     ("mimic --dataset-path src.hdf5 --output-path out.csv", "unknown dataset suffix"),

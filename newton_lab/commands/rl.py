@@ -54,6 +54,8 @@ class TrainRLArgs:
     joint_mode: Literal["absolute", "delta"] = "absolute"
     """how the actor drives the arm joints: absolute (start posture + 1 rad * action) or delta (current target +
     0.05 rad * action per step, within the joint's range; see ActionScales.joint_mode)"""
+    init_noise_std: float = 0.5
+    """the policy's initial exploration noise (the Gaussian's standard deviation), in action units"""
     joint_state: bool = False
     """the actor also observes the commanded joints' velocities and current targets (delta targets move from the
     target, which the task's observation does not hold)"""
@@ -94,5 +96,6 @@ class TrainRLArgs:
             episode_length_s=self.episode_length_s,
             domain_randomize=self.domain_randomization(),
             joint_state=self.joint_state,
+            init_noise_std=self.init_noise_std,
             scales=ActionScales(joint_mode=self.joint_mode),
         )

@@ -137,27 +137,7 @@ def train_ppo(
         raise FileExistsError(f"{out} holds a finished run; choose a new --output-dir (or --resume an interrupted one)")
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
-    env = make_env(
-        task_id,
-        num_envs=cfg.num_envs,
-        device=cfg.device,
-        seed=cfg.seed,
-        randomize=True,
-        task_options=cfg.task_options,
-        cameras=False,
-        terminate_on_success=cfg.end_on_success,
-        episode_length_s=cfg.episode_length_s,
-    )
-    if cfg.domain_randomize:  # each row's own physics for the whole run (a resumed run draws the same)
-        randomize_env(env, cfg.domain_randomize, seed=cfg.seed)
-    saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume else None
-    vec = RslRlVecEnv(env, cfg.scales, joint_state=cfg.joint_state)
-    if saved is not None:  # the action map of the interrupted run (its start posture)
-        mode = saved["action_map"]["scales"].get("joint_mode", "absolute")
-        if mode != cfg.scales.joint_mode:
-            raise ValueError(f"the interrupted run drove its joints with joint_mode {mode}; resume it with that mode")
-        vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
-        vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
+    env, vec, saved = _training_rows(task_id, cfg, resume_path if resume else None)
     runner = OnPolicyRunner(vec, cfg.runner_cfg(), log_dir=str(out), device=str(env.torch_device))
     times = _IterationLog(runner, vec)
     curve, elapsed = _restore(runner, saved, env.torch_device) if saved is not None else ([], 0.0)
@@ -198,6 +178,33 @@ def train_ppo(
     torch.save(_checkpoint(task_id, env, cfg, runner, vec, curve), tmp)
     tmp.replace(path)
     return path
+
+
+def _training_rows(task_id: str, cfg: PPOConfig, resume_path: Path | None):
+    """The training env, its vec env and the interrupted run's state (``None`` for a new run): a resumed run
+    maps its actions as the interrupted one did (its start posture)."""
+    env = make_env(
+        task_id,
+        num_envs=cfg.num_envs,
+        device=cfg.device,
+        seed=cfg.seed,
+        randomize=True,
+        task_options=cfg.task_options,
+        cameras=False,
+        terminate_on_success=cfg.end_on_success,
+        episode_length_s=cfg.episode_length_s,
+    )
+    if cfg.domain_randomize:  # each row's own physics for the whole run (a resumed run draws the same)
+        randomize_env(env, cfg.domain_randomize, seed=cfg.seed)
+    saved = torch.load(resume_path, weights_only=False, map_location=str(env.torch_device)) if resume_path else None
+    vec = RslRlVecEnv(env, cfg.scales, joint_state=cfg.joint_state)
+    if saved is not None:
+        mode = saved["action_map"]["scales"].get("joint_mode", "absolute")
+        if mode != cfg.scales.joint_mode:
+            raise ValueError(f"the interrupted run drove its joints with joint_mode {mode}; resume it with that mode")
+        vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
+        vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
+    return env, vec, saved
 
 
 def _next_chunk(cfg: PPOConfig, done: int, elapsed: float, iteration_s: float | None) -> int:
