@@ -144,8 +144,9 @@ def test_a_short_run_raises_the_reward_of_a_step(tmp_path):
 
 def test_the_time_budget_cuts_the_last_chunk_to_end_within_it():
     """A chunk is ``chunk_iterations`` long until the budget is near; then it is cut to what fits at the pace of
-    the chunk before (seconds per iteration), and nothing runs once the budget is spent."""
-    from newton_lab.policies.rl.train import PPOConfig, _next_chunk  # deferred: rsl_rl
+    the chunk before (seconds per iteration; a resumed run's from its curve), and nothing runs once the budget is
+    spent."""
+    from newton_lab.policies.rl.train import PPOConfig, _next_chunk, _pace  # deferred: rsl_rl
 
     cfg = PPOConfig(iterations=1000, chunk_iterations=25, time_budget_s=100.0)
     assert _next_chunk(cfg, done=0, elapsed=0.0, iteration_s=None) == 25  # the first chunk sets the pace
@@ -155,6 +156,8 @@ def test_the_time_budget_cuts_the_last_chunk_to_end_within_it():
     assert _next_chunk(cfg, done=112, elapsed=99.9, iteration_s=0.4) == 0
     assert _next_chunk(cfg, done=112, elapsed=100.5, iteration_s=0.4) == 0
     assert _next_chunk(PPOConfig(iterations=110, chunk_iterations=25), done=100, elapsed=1e6, iteration_s=9.0) == 10
+    curve = [{"iteration": 25, "wall_s": 12.0}, {"iteration": 50, "wall_s": 22.0}]
+    assert _pace(curve) == pytest.approx(0.4) and _pace(curve[:1]) == pytest.approx(0.48) and _pace([]) is None
 
 
 def test_episode_length_s_sets_the_time_limit_of_the_training_episodes(tmp_path):

@@ -21,7 +21,8 @@ class PolicyObservation:
     def __init__(self, env, joint_state: bool = False) -> None:
         self.env = env
         self.joint_state = bool(joint_state)
-        self._dofs = torch.tensor(env.joints.dofs(env.action_joint_names), device=env.torch_device)
+        names = env.action_joint_names if self.joint_state else []
+        self._dofs = torch.tensor(env.joints.dofs(names), dtype=torch.long, device=env.torch_device)
         self.dim = int(env.obs.shape[1]) + (2 * env.action_dim if self.joint_state else 0)
 
     def __call__(self) -> torch.Tensor:

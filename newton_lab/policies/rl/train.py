@@ -142,7 +142,7 @@ def train_ppo(
     times = _IterationLog(runner, vec)
     curve, elapsed = _restore(runner, saved, env.torch_device) if saved is not None else ([], 0.0)
     steps_per_iteration = cfg.num_envs * cfg.num_steps_per_env
-    iteration_s = None  # the last chunk's seconds per iteration
+    iteration_s = _pace(curve)
     while n := _next_chunk(cfg, _done(curve), elapsed, iteration_s):
         t0 = time.perf_counter()
         vec.restart(cfg.seed + len(curve))  # each chunk from freshly reset rows: a resumed run repeats the same
@@ -205,6 +205,14 @@ def _training_rows(task_id: str, cfg: PPOConfig, resume_path: Path | None):
         vec.action_map.rest = torch.tensor(saved["action_map"]["rest"], device=env.torch_device)
         vec.action_map.__init__(env, cfg.scales, rest=vec.action_map.rest)
     return env, vec, saved
+
+
+def _pace(curve: list[dict[str, Any]]) -> float | None:
+    """Seconds per iteration of the curve's last chunk (a resumed run's pace), ``None`` for an empty curve."""
+    if not curve:
+        return None
+    a, b = curve[-2] if len(curve) > 1 else {"wall_s": 0.0, "iteration": 0}, curve[-1]
+    return (b["wall_s"] - a["wall_s"]) / max(b["iteration"] - a["iteration"], 1)
 
 
 def _next_chunk(cfg: PPOConfig, done: int, elapsed: float, iteration_s: float | None) -> int:
