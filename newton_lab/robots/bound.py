@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import newton
@@ -174,15 +175,28 @@ class ActionMap:
             base_free[p] = not ph.fixed_base
         return owned, base_free
 
+    @cached_property
+    def _held(self) -> dict[torch.device, tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
+        """Per device, ``hold``'s absolute / binary columns, their joints' coordinates and scales as tensors, made
+        once: a copy from the host's pageable memory to a GPU first waits for the GPU's queue, and PPO's delta
+        targets read ``hold`` at every step."""
+        return {}
+
     def hold(self, joint_target_q: torch.Tensor) -> torch.Tensor:
         """The action that keeps every column where it is: absolute / binary columns at their current position
         targets (``joint_target_q``: (num_envs, coords_per_world)), relative and velocity columns at 0."""
-        out = torch.zeros(joint_target_q.shape[0], self.dim, dtype=torch.float32, device=joint_target_q.device)
-        cols = [c for c, k in enumerate(self.kinds) if k in ("absolute", "binary")]
-        if cols:
-            dev = joint_target_q.device
-            coords = torch.as_tensor(self.index[cols], dtype=torch.long, device=dev)
-            out[:, cols] = joint_target_q[:, coords].to(torch.float32) / torch.as_tensor(self.scale[cols], device=dev)
+        dev = joint_target_q.device
+        if dev not in self._held:
+            cols = [c for c, k in enumerate(self.kinds) if k in ("absolute", "binary")]
+            self._held[dev] = (
+                torch.as_tensor(cols, dtype=torch.long, device=dev),
+                torch.as_tensor(self.index[cols], dtype=torch.long, device=dev),
+                torch.as_tensor(self.scale[cols], dtype=torch.float32, device=dev),
+            )
+        cols, coords, scale = self._held[dev]
+        out = torch.zeros(joint_target_q.shape[0], self.dim, dtype=torch.float32, device=dev)
+        if cols.numel():
+            out[:, cols] = joint_target_q[:, coords].to(torch.float32) / scale
         return out
 
 
