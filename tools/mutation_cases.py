@@ -271,7 +271,7 @@ MUTATIONS: tuple[Mutation, ...] = (
         "non-finite-action-accepted",
         "a NaN or inf action is refused in one line before stepping",
         "newton_lab/envs/checks.py",
-        "    if not bool(finite.all()):\n",
+        "    if finite and not bool(torch.isfinite(actions).all()):\n",
         "    if False:\n",
         "tests/test_inputs.py",
     ),

@@ -36,17 +36,10 @@ def check_actions(
         raise ValueError(
             f"actions are on {actions.device} but the env runs on {device}; move them with actions.to('{device}')"
         )
-    if finite:
-        check_finite_actions(actions)
-    return actions
-
-
-def check_finite_actions(actions: torch.Tensor) -> None:
-    """Raises a one-line ``ValueError`` naming the rows of ``actions`` that hold NaN or inf (one host read)."""
-    finite = torch.isfinite(actions)
-    if not bool(finite.all()):
-        rows = torch.nonzero(~finite.all(dim=1)).flatten().tolist()
+    if finite and not bool(torch.isfinite(actions).all()):
+        rows = torch.nonzero(~torch.isfinite(actions).all(dim=1)).flatten().tolist()
         raise ValueError(f"actions contain NaN or inf in rows {rows}; check the agent's output before stepping")
+    return actions
 
 
 def row_mask(env_ids, num_envs: int) -> np.ndarray:

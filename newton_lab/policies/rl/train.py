@@ -219,10 +219,9 @@ def _next_chunk(cfg: PPOConfig, done: int, elapsed: float, iteration_s: float | 
     """Iterations in the next chunk: up to ``cfg.chunk_iterations`` and the run's remaining iterations, and within
     ``cfg.time_budget_s`` at the last chunk's pace (0: the run is over)."""
     n = min(cfg.chunk_iterations, cfg.iterations - done)
-    if cfg.time_budget_s is not None and iteration_s is not None:
-        n = min(n, int((cfg.time_budget_s - elapsed) / iteration_s))
-    if cfg.time_budget_s is not None and elapsed >= cfg.time_budget_s:
-        n = 0
+    if cfg.time_budget_s is not None:
+        left = cfg.time_budget_s - elapsed
+        n = min(n, int(left / iteration_s)) if iteration_s else (n if left > 0 else 0)
     return max(n, 0)
 
 

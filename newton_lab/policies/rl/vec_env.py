@@ -25,6 +25,10 @@ from tensordict import TensorDict
 from .actions import ActionMap, ActionScales
 from .observations import PolicyObservation
 
+COUNTS = ("episodes", "successes", "returns", "lengths", "rewards", "nonfinite")
+"""What the vec env counts: episodes ended, their successes, return sum and length sum [steps], every row's reward
+sum, and the steps whose actions held NaN or inf."""
+
 
 class RslRlVecEnv(VecEnv):
     """``env`` (a ``NewtonEnv``) stepped by PPO actions through ``ActionMap``; ``privileged``: a second env of the
@@ -44,12 +48,12 @@ class RslRlVecEnv(VecEnv):
         self.sensors = env.cfg.options.get("obs_mode") == "sensors"
         self.returns = torch.zeros(self.num_envs, device=self.device)
         self.succeeded = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
-        self.counts = torch.zeros(4, dtype=torch.float64, device=self.device)
-        """episodes ended, their successes, their return sum and every row's reward sum since the last
-        ``take_episode_counts``"""
-        self.iteration_counts = torch.zeros(5, dtype=torch.float64, device=self.device)
-        """episodes ended, their successes, return sum and length sum [steps], and the steps whose actions held NaN
-        or inf, since the last ``take_iteration_counts``"""
+        self.pending = torch.zeros(len(COUNTS), dtype=torch.float64, device=self.device)
+        """``COUNTS`` of the steps since the last host read (``_fold``), on the device"""
+        self.iteration = dict.fromkeys(COUNTS, 0.0)
+        """``COUNTS`` since the last ``take_iteration_counts``, on the host"""
+        self.chunk = dict.fromkeys(COUNTS, 0.0)
+        """``COUNTS`` since the last ``take_episode_counts``, on the host"""
         self.reward_steps = 0
         self.step_s = 0.0
         """seconds in ``step`` (the env's step and this bookkeeping) since the last ``take_episode_counts``: wall
@@ -92,8 +96,7 @@ class RslRlVecEnv(VecEnv):
         ended = dones.to(torch.float64)
         wins = (self.succeeded & dones).sum().to(torch.float64)
         returns, lengths = (self.returns * ended).sum(), (self.episode_length_buf * ended).sum()
-        self.counts += torch.stack([ended.sum(), wins, returns, reward.sum().to(torch.float64)])
-        self.iteration_counts += torch.stack([ended.sum(), wins, returns, lengths, nonfinite])
+        self.pending += torch.stack([ended.sum(), wins, returns, lengths, reward.sum().to(torch.float64), nonfinite])
         self.returns.masked_fill_(dones, 0.0)
         self.succeeded &= ~dones
         self.episode_length_buf.masked_fill_(dones, 0)
@@ -113,39 +116,50 @@ class RslRlVecEnv(VecEnv):
         start.record()
         return start, end
 
+    def _fold(self) -> None:
+        """Add the device counts into the iteration's and the chunk's (one host sync); raises the env's one-line
+        error if a step's actions held NaN or inf."""
+        pending = dict(zip(COUNTS, self.pending.tolist()))
+        self.pending.zero_()
+        for totals in (self.iteration, self.chunk):
+            for key, value in pending.items():
+                totals[key] += value
+        if pending["nonfinite"]:
+            raise ValueError(
+                f"actions contain NaN or inf in {int(pending['nonfinite'])} steps of this PPO iteration; the actor "
+                "diverged: resume from the last chunk with a lower --learning-rate"
+            )
+
     def take_iteration_counts(self) -> dict[str, float | None]:
         """Episodes ended, their successes, mean return and mean length [steps] since the last call (then reset):
         one host sync. Raises the env's one-line error if a step's actions held NaN or inf since the last call."""
-        episodes, successes, return_sum, length_sum, nonfinite = self.iteration_counts.tolist()
-        self.iteration_counts.zero_()
-        if nonfinite:
-            raise ValueError(
-                f"actions contain NaN or inf in {int(nonfinite)} steps of this PPO iteration; the actor diverged: "
-                "resume from the last chunk with a lower --learning-rate"
-            )
-        n = int(episodes)
+        try:
+            self._fold()
+        finally:
+            counts, self.iteration = self.iteration, dict.fromkeys(COUNTS, 0.0)
+        n = int(counts["episodes"])
         return {
             "episodes": n,
-            "successes": int(successes),
-            "mean_return": return_sum / n if n else None,
-            "mean_length": length_sum / n if n else None,
+            "successes": int(counts["successes"]),
+            "mean_return": counts["returns"] / n if n else None,
+            "mean_length": counts["lengths"] / n if n else None,
         }
 
     def take_episode_counts(self) -> dict[str, float]:
         """Episodes ended, successes, their mean return, the mean reward of a step and the seconds spent stepping
         since the last call (then reset)."""
-        episodes, successes, return_sum, reward_sum = self.counts.tolist()
-        n = int(episodes)
+        self._fold()
+        counts, self.chunk = self.chunk, dict.fromkeys(COUNTS, 0.0)
+        n, successes = int(counts["episodes"]), counts["successes"]
         out = {
             "episodes": n,
             "successes": int(successes),
             "success_rate": successes / n if n else None,
-            "mean_return": return_sum / n if n else None,
-            "mean_step_reward": reward_sum / self.reward_steps if self.reward_steps else None,
+            "mean_return": counts["returns"] / n if n else None,
+            "mean_step_reward": counts["rewards"] / self.reward_steps if self.reward_steps else None,
             "env_step_s": round(self.step_s + sum(s.elapsed_time(e) for s, e in self.step_events) / 1e3, 3),
         }
         self.step_s = 0.0
         self.step_events.clear()
-        self.counts.zero_()
         self.reward_steps = 0
         return out
