@@ -100,14 +100,31 @@ ROWS: dict[str, list[Row]] = {
             for name, task, budget, extra in (
                 ("reach", "GalbotG1-Reach-v0", "120", ()),
                 # LiftCube's 20 s episodes gave a 4096-row run 4.5 k episode ends per 25 iterations: few new starts;
-                # with absolute arm targets PPO grasped the cube on the table and never lifted it (ActionScales)
-                ("liftcube", "GalbotG1-LiftCube-v0", "120", ("--episode-length-s", "6", "--joint-mode", "delta")),
+                # with absolute arm targets PPO grasped the cube on the table and never lifted it (ActionScales).
+                # Without --joint-state the same 120 s on one H200 ended 0/100 held out (record: variant
+                # no-joint-state); with it 100/100: a delta actor that sees its targets and joint velocities lifts
+                (
+                    "liftcube",
+                    "GalbotG1-LiftCube-v0",
+                    "120",
+                    ("--episode-length-s", "6", "--joint-mode", "delta", "--joint-state"),
+                ),
                 # PickCube's own time limit (3600 s) leaves a row whose cube went out of reach there for the run;
                 # its expert takes 137 steps (6.9 s), so 6 s episodes ended before a policy as slow could release
                 ("pickcube", "GalbotG1-PickCube-v0", "300", ("--episode-length-s", "12", "--joint-mode", "delta")),
                 # the experts: PushCube 72 steps (3.6 s; its limit 15 s), StackCube 275 steps (13.8 s; 3600 s)
-                ("pushcube", "GalbotG1-PushCube-v0", "300", ("--episode-length-s", "8", "--joint-mode", "delta")),
-                ("stackcube", "GalbotG1-StackCube-v0", "600", ("--episode-length-s", "28", "--joint-mode", "delta")),
+                (
+                    "pushcube",
+                    "GalbotG1-PushCube-v0",
+                    "300",
+                    ("--episode-length-s", "8", "--joint-mode", "delta", "--joint-state"),
+                ),
+                (
+                    "stackcube",
+                    "GalbotG1-StackCube-v0",
+                    "400",
+                    ("--episode-length-s", "28", "--joint-mode", "delta", "--joint-state"),
+                ),
             )
         ],
         _bench(
