@@ -34,7 +34,7 @@ def _bench(name: str, *args: str) -> Row:
     return Row(name, (*args, "--run-record", f"{{out}}/records/{name}.json"))
 
 
-ROBUST_RANDOMIZATION = "object_mass=mild,friction=mild,camera_shift=mild,camera_tilt=mild"
+ROBUST_RANDOMIZATION = "object_mass=mild,object_size=mild,friction=mild,camera_shift=mild,camera_tilt=mild"
 """The robust recipe's domain randomisation: every axis collection can draw per row, at its mild level."""
 
 HELD_OUT_EVALUATION = (

@@ -17,7 +17,7 @@ import warp as wp
 from newton_lab.agents import expert_agent, perturbation_table
 from newton_lab.agents.perturbed import usable_cells
 from newton_lab.datasets import DatasetRef
-from newton_lab.envs.perturb import MASS_ARRAYS, draw_levels, perturb_env, perturbed, randomize_env
+from newton_lab.envs.perturb import MASS_ARRAYS, SIZE_ARRAYS, draw_levels, perturb_env, perturbed, randomize_env
 from newton_lab.task_api.perturbations import AXES, LEVELS, parse_cells, parse_randomization
 
 ENV_AXES = [name for name, axis in AXES.items() if axis.acts_on != "agent"]
@@ -99,6 +99,37 @@ def test_friction_scales_every_shape_of_the_rows_but_the_ground(pick_env):
 
 def _frames(env) -> dict[str, torch.Tensor]:
     return {k: v.clone() for k, v in env.sensors.cameras.render(force=True).items()}
+
+
+def test_object_size_scales_the_objects_shapes_alone_per_row_the_solver_and_pictures_follow(camera_env):
+    env = camera_env
+    env.reseed(0)
+    pictures = _frames(env)
+    before = [_arrays(m) for m in _models(env)]
+    solver_size = env.solver.mjw_model.geom_size.numpy().copy()
+    with perturbed(env, {"object_size": [1.0, 0.7]}):
+        for model, old in zip(_models(env), before, strict=True):
+            new = _arrays(model)
+            assert _changed(old, new) == set(SIZE_ARRAYS)
+            cube = np.isin(model.shape_body.numpy(), _object_bodies(model))
+            level = np.array([1.0, 0.7])[model.shape_world.numpy()[cube]]
+            np.testing.assert_allclose(new["shape_scale"][cube], old["shape_scale"][cube] * level[:, None])
+            assert np.array_equal(new["shape_scale"][~cube], old["shape_scale"][~cube])
+        size = env.solver.mjw_model.geom_size.numpy()
+        assert np.array_equal(size[0], solver_size[0])  # row 0 at level 1
+        (changed,) = np.flatnonzero((size[1] != solver_size[1]).any(axis=1))  # row 1: the cube's one box
+        np.testing.assert_allclose(size[1, changed], solver_size[1, changed] * 0.7, rtol=1e-6)
+        env.reseed(0)
+        after = _frames(env)
+        for _ in range(25):  # the smaller cube drops onto the table
+            env.step(env.current_action())
+        cube_z = env.state.body_q.numpy()[_object_bodies(env.model), 2]
+    assert all(torch.equal(after[k][0], pictures[k][0]) for k in pictures)
+    assert not torch.equal(after["front_head_segmentation"][1], pictures["front_head_segmentation"][1])
+    assert cube_z[0] - cube_z[1] == pytest.approx(0.3 * 0.025, abs=1e-3)  # 30 % of the 2.5 cm half height
+    assert all(not _changed(old, _arrays(m)) for m, old in zip(_models(env), before, strict=True))
+    assert np.array_equal(env.solver.mjw_model.geom_size.numpy(), solver_size)
+    env.reseed(0)
 
 
 @pytest.mark.parametrize("axis", ["camera_shift", "camera_tilt", "camera_fov", "light_intensity", "light_direction"])

@@ -411,4 +411,12 @@ MUTATIONS: tuple[Mutation, ...] = (
         "actions = act(env)",
         "tests/test_phase_policies.py",
     ),
+    one_patch(
+        "object-size-never-reaches-the-solver",
+        "A perturbation axis changes what the physics simulates (the solver's copy), not only the model's arrays",
+        "newton_lab/envs/perturb.py",
+        "    env.solver.notify_model_changed(newton.ModelFlags.SHAPE_PROPERTIES)\n\n\ndef _scale_friction",
+        "\n\ndef _scale_friction",
+        "tests/test_env_perturbations.py::test_object_size_scales_the_objects_shapes_alone_per_row_the_solver_and_pictures_follow",
+    ),
 )

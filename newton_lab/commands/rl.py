@@ -60,8 +60,8 @@ class TrainRLArgs:
     """the actor also observes the commanded joints' velocities and current targets (delta targets move from the
     target, which the task's observation does not hold)"""
     domain_randomize: str | None = None
-    """domain randomisation: AXIS=LEVEL,... of the physics axes (object_mass, friction; LEVEL mild, strong or a
-    factor): each env row draws its own value between 1/LEVEL and LEVEL, kept for the run"""
+    """domain randomisation: AXIS=LEVEL,... of the physics axes (object_mass, object_size, friction; LEVEL mild,
+    strong or a factor): each env row draws its own value between 1/LEVEL and LEVEL, kept for the run"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
 
     def domain_randomization(self) -> dict[str, float]:

@@ -22,9 +22,9 @@ class CollectArgs(CameraArgs, RerunArgs, RolloutArgs):
     """who writes the episodes: a thread of this process, or a process of its own that gets each step's ended
     episodes as one shared-memory block; auto: the process from 256 rows on"""
     domain_randomize: str | None = None
-    """domain randomisation: AXIS=LEVEL,... (axes object_mass, friction, camera_shift, camera_tilt; LEVEL mild,
-    strong or a number): each env row draws its own value up to LEVEL (factors: between 1/LEVEL and LEVEL), kept for
-    the run and written into the dataset's provenance"""
+    """domain randomisation: AXIS=LEVEL,... (axes object_mass, object_size, friction, camera_shift, camera_tilt;
+    LEVEL mild, strong or a number): each env row draws its own value up to LEVEL (factors: between 1/LEVEL and
+    LEVEL), kept for the run and written into the dataset's provenance"""
 
     def domain_randomization(self) -> dict[str, float]:
         """``--domain-randomize`` as axis -> level (``task_api.perturbations.parse_randomization``; one-line
@@ -54,8 +54,8 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     without one run their component's expert"""
     perturb: str | None = None
     """evaluate under perturbations: AXIS=LEVEL,... together (LEVEL mild, strong or a number; axes action_noise,
-    action_latency, posture_noise, object_mass, friction, camera_shift, camera_tilt, camera_fov, light_intensity,
-    light_direction), or sweep: unperturbed, then each axis at each level alone (one row each)"""
+    action_latency, posture_noise, object_mass, object_size, friction, camera_shift, camera_tilt, camera_fov,
+    light_intensity, light_direction), or sweep: unperturbed, then each axis at each level alone (one row each)"""
 
     eager_policy: bool = False
     """sample a diffusion policy's actions eagerly instead of from CUDA graphs (on a GPU; the record's timing then
@@ -309,7 +309,7 @@ class PipelineArgs:
     rerun-sdk"""
     domain_randomize: str | None = None
     """a coherent task's collection with domain randomisation, as collect's --domain-randomize (AXIS=LEVEL,...;
-    axes object_mass, friction, camera_shift, camera_tilt): the robust recipe of docs/robustness.md"""
+    axes object_mass, object_size, friction, camera_shift, camera_tilt): the robust recipe of docs/robustness.md"""
     dataset_format: Literal["hdf5", "zarr"] | None = None
     """format of the pipeline's datasets (the demos, Mimic's, the phase datasets of a split): hdf5 or zarr (the
     recipe's; newton_lab.flows.settings.PIPELINE_DATASET_FORMAT when it names none)"""

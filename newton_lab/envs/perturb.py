@@ -5,6 +5,8 @@ episodes it should change (an evaluation reseeds right after), and returns what 
 What each writes (nothing else changes; the captured step and render read the same arrays, written in place):
 - ``object_mass``: ``body_mass``, ``body_inertia`` and their inverses of the dynamic entities' bodies, in the model
   and in the solver's model (its own when the task welds idle joints), then ``SolverMuJoCo.notify_model_changed``.
+- ``object_size``: ``shape_scale`` and ``shape_collision_radius`` of the dynamic entities' shapes, likewise (the
+  solver's geoms and the renderer read them; resets keep the objects' centre heights).
 - ``friction``: ``shape_material_mu`` of every shape of the row's world (the global ground's kept), likewise.
 - ``camera_shift`` / ``camera_tilt``: each view's pose in its mount body (``ViewGroup.view_offset``), moved by an
   offset drawn per camera and row from ``seed``; ``camera_fov``: the views' ray bundles (``ViewGroup.rays``).
@@ -31,6 +33,8 @@ ENV_KINDS = ("physics", "camera", "light")
 """The kinds of axis the env applies (the rest act between the agent and the env)."""
 MASS_ARRAYS = ("body_mass", "body_inertia", "body_inv_mass", "body_inv_inertia")
 """Model arrays ``object_mass`` rescales (the inverses by the reciprocal)."""
+SIZE_ARRAYS = ("shape_scale", "shape_collision_radius")
+"""Model arrays ``object_size`` rescales (a shape's size, and the bound its broad phase tests)."""
 
 
 def env_axes(values: Mapping[str, object]) -> dict[str, object]:
@@ -73,6 +77,20 @@ def _scale_masses(env, scale: np.ndarray) -> None:
             data[bodies] *= factor.reshape((-1,) + (1,) * (data.ndim - 1))
             arr.assign(data)
     env.solver.notify_model_changed(newton.ModelFlags.BODY_INERTIAL_PROPERTIES)
+
+
+def _scale_sizes(env, scale: np.ndarray) -> None:
+    names = [e.name for e in env.task.entities.values() if e.dynamic]
+    for model in _models(env):
+        bodies, _ = _object_bodies(model, names)
+        shapes = np.flatnonzero(np.isin(model.shape_body.numpy(), bodies))
+        factor = scale[model.shape_world.numpy()[shapes]]
+        for name in SIZE_ARRAYS:
+            arr = getattr(model, name)
+            data = arr.numpy()
+            data[shapes] *= factor.reshape((-1,) + (1,) * (data.ndim - 1))
+            arr.assign(data)
+    env.solver.notify_model_changed(newton.ModelFlags.SHAPE_PROPERTIES)
 
 
 def _scale_friction(env, scale: np.ndarray) -> None:
@@ -157,10 +175,13 @@ def _vision(env, levels: dict[str, np.ndarray], seed: int) -> Callable[[], None]
 
 def _physics(env, levels: dict[str, np.ndarray]) -> Callable[[], None]:
     saved = [
-        {name: getattr(m, name).numpy().copy() for name in (*MASS_ARRAYS, "shape_material_mu")} for m in _models(env)
+        {name: getattr(m, name).numpy().copy() for name in (*MASS_ARRAYS, *SIZE_ARRAYS, "shape_material_mu")}
+        for m in _models(env)
     ]
     if "object_mass" in levels:
         _scale_masses(env, levels["object_mass"])
+    if "object_size" in levels:
+        _scale_sizes(env, levels["object_size"])
     if "friction" in levels:
         _scale_friction(env, levels["friction"])
 

@@ -87,6 +87,18 @@ AXES: dict[str, Axis] = {
             scale=True,
         ),
         Axis(
+            "object_size",
+            0.85,
+            0.7,
+            "x",
+            "every shape of every movable object of the scene is scaled about its body by the level (its mass kept: "
+            "``object_mass`` is the axis for that): a smaller (< 1) or larger (> 1) object than the demos grasped. "
+            "Resets still place each object's centre at the task's height, so a smaller one drops the difference "
+            "onto the table in its first steps, and a larger one is pushed up by as much.",
+            acts_on="physics",
+            scale=True,
+        ),
+        Axis(
             "friction",
             0.7,
             0.4,
