@@ -287,6 +287,29 @@ def test_render_command_refuses_bad_input_in_one_line(argv, message, capsys, tmp
     assert not (tmp_path / "x.png").exists()
 
 
+def test_render_command_draws_the_frame_under_an_env_perturbation(tmp_path, capsys):
+    """``render --perturb surface_texture=mild``: the RGB panel of the PNG changes, its depth and segmentation
+    panels do not, and the JSON line names the perturbation."""
+    import json
+
+    import numpy as np
+    from PIL import Image
+
+    from newton_lab.cli import main
+
+    panels = {}
+    for name, extra in (("plain", []), ("textured", ["--perturb", "surface_texture=mild"])):
+        out = tmp_path / f"{name}.png"
+        argv = ["render", "--device", "cpu", "--resolution", "96", "72", "--out", str(out), *extra]
+        assert main(argv) == 0
+        line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert line["perturbation"] == ({"surface_texture": 10.0} if extra else {})
+        image = np.asarray(Image.open(out))
+        panels[name] = np.split(image, 3, axis=1)  # RGB | depth | segmentation
+    rgb, depth, seg = (not np.array_equal(a, b) for a, b in zip(panels["plain"], panels["textured"]))
+    assert rgb and not depth and not seg
+
+
 # ---------------------------------------------------------------- vision randomisation
 def _cube_colour(env, row):
     seg = env.sensors.images["front_head_segmentation"][row].numpy()

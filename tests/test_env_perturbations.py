@@ -132,7 +132,9 @@ def test_object_size_scales_the_objects_shapes_alone_per_row_the_solver_and_pict
     env.reseed(0)
 
 
-@pytest.mark.parametrize("axis", ["camera_shift", "camera_tilt", "camera_fov", "light_intensity", "light_direction"])
+@pytest.mark.parametrize(
+    "axis", ["camera_shift", "camera_tilt", "camera_fov", "surface_texture", "light_intensity", "light_direction"]
+)
 def test_camera_and_light_axes_change_the_pictures_they_say(camera_env, axis):
     env = camera_env
     env.reseed(0)
@@ -142,13 +144,29 @@ def test_camera_and_light_axes_change_the_pictures_they_say(camera_env, axis):
         assert all(not _changed(old, _arrays(m)) for m, old in zip(_models(env), models, strict=True))
     rgb, depth, seg = (f"front_head_{d}" for d in ("rgb", "depth", "segmentation"))
     assert not torch.equal(after[rgb], before[rgb])
-    if AXES[axis].acts_on == "light":  # the light changes the colours, not what the camera sees where
+    if AXES[axis].acts_on in ("light", "surface"):  # the colours change, not what the camera sees where
         assert torch.equal(after[depth], before[depth]) and torch.equal(after[seg], before[seg])
     else:
         assert not torch.equal(after[depth], before[depth])
         assert all(not torch.equal(after[depth][r], before[depth][r]) for r in range(env.num_envs))
     again = _frames(env)
     assert all(torch.equal(again[k], before[k]) for k in before)  # put back exactly
+
+
+def test_surface_texture_patterns_the_fixed_surfaces_alone(camera_env):
+    """The checkerboard changes the colour of pixels that see the ground or the table, and of no other pixel."""
+    env = camera_env
+    env.reseed(0)
+    before = _frames(env)
+    with perturbed(env, {"surface_texture": AXES["surface_texture"].mild}):
+        after = _frames(env)
+    names = env.sensors.cameras.segmentation_names
+    seg = before["front_head_segmentation"]
+    fixed = torch.zeros_like(seg, dtype=torch.bool)
+    for name in ("ground", "table", "blue_block"):
+        fixed |= seg == names.index(name)
+    changed = (after["front_head_rgb"] != before["front_head_rgb"]).any(dim=-1)
+    assert changed[fixed].any() and not changed[~fixed].any()
 
 
 def test_camera_offsets_are_drawn_per_row_and_seeded(camera_env):

@@ -93,7 +93,7 @@ def usable_cells(env, cells: list[Cell]) -> list[Cell]:
     nothing; a cell asked for by name is refused by ``envs.perturb`` instead)."""
     if env.sensors.camera_specs:
         return cells
-    blind = [c for c in cells if c.swept and any(AXES[a].acts_on in ("camera", "light") for a in c.values)]
+    blind = [c for c in cells if c.swept and any(AXES[a].acts_on in ("camera", "surface", "light") for a in c.values)]
     if blind:
         print(f"skipping {len(blind)} camera and light cells: this env renders no cameras", file=sys.stderr)
     return [c for c in cells if c not in blind]

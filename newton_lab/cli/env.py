@@ -25,11 +25,16 @@ def render(args: RenderArgs) -> int:
     from ..datasets.files.output_paths import output_path  # deferred: datasets imports h5py and zarr (~1 s)
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.cameras import picture  # deferred: Warp/Newton are slow to import
+    from ..envs.perturb import perturb_env  # deferred: Warp/Newton are slow to import
 
     view = {"data": ("rgb", "depth", "segmentation")}
     if args.resolution:
         view["resolution"] = tuple(args.resolution)
+    perturbation = args.perturbation()
     env = make_env(args.task, **args.env_kwargs(), cameras={args.camera: view})
+    if perturbation:
+        perturb_env(env, perturbation, seed=args.seed)
+        env.reseed(args.seed)  # the episode starts under it (objects resized, masses, frictions)
     if args.expert_steps:
         agent = expert_agent(env)
         for _ in range(args.expert_steps):
@@ -46,6 +51,7 @@ def render(args: RenderArgs) -> int:
                 "camera": args.camera,
                 "resolution": [cam.width, cam.height],
                 "visible": [names[i] for i in seen],
+                "perturbation": perturbation,
                 "out": args.out,
             }
         )

@@ -294,7 +294,8 @@ def check_cameras(cameras: Any, label: str = "--cameras") -> None:
 
 
 def check_render(args: RenderArgs) -> None:
-    """``render``: a camera of the robot, its resolution, the expert's steps and a PNG to write."""
+    """``render``: a camera of the robot, its resolution, the expert's steps, the env's perturbations and a PNG to
+    write."""
     from ..robots.registry import camera_facts  # deferred: numpy, only for this command
 
     mounts, _, _ = camera_facts()
@@ -305,6 +306,7 @@ def check_render(args: RenderArgs) -> None:
         raise ValueError(f"--expert-steps must be >= 0, got {args.expert_steps}")
     if Path(args.out).suffix.lower() != ".png":
         raise ValueError(f"--out {args.out}: the picture is a PNG; name it e.g. render.png")
+    args.perturbation()
 
 
 def check_train_rl(args: TrainRLArgs) -> None:

@@ -99,5 +99,22 @@ class RenderArgs(EnvArgs):
     """turn on the task's reset randomisation and the cameras' (colours, brightness, pose jitter), seeded by --seed"""
     expert_steps: int = 0
     """run the task's expert this many control steps before the frame"""
+    perturb: str | None = None
+    """draw the frame under these perturbations of the env, AXIS=LEVEL,... (LEVEL mild, strong or a number; the
+    physics, camera, surface and light axes of evaluate --perturb), applied before the episode starts"""
     out: str = "render.png"
     """PNG file to write"""
+
+    def perturbation(self) -> dict[str, float]:
+        """``--perturb`` as axis -> level (one-line errors: a sweep or an axis that acts on an agent)."""
+        from ..task_api.perturbations import AXES, parse_cells  # deferred: only --perturb needs it (plain Python)
+
+        if self.perturb is None:
+            return {}
+        cells = parse_cells(self.perturb)
+        if len(cells) > 1:
+            raise ValueError("--perturb sweep: render draws one frame; give AXIS=LEVEL,... (e.g. surface_texture=mild)")
+        agent = [a for a in cells[0].values if AXES[a].acts_on == "agent"]
+        if agent:
+            raise ValueError(f"--perturb {agent[0]}: acts on an agent's actions, and render runs none; leave it out")
+        return cells[0].values

@@ -133,9 +133,15 @@ class Cameras:
         """Set the directional light (``light``): ``direction`` a unit vector (world frame), ``intensity`` >= 0.
         Newton's renderer has one light list for all worlds, so it changes every row's pictures."""
         self.light = (tuple(float(c) for c in direction), float(intensity))
-        if self.built:  # the light's arrays are new: the captured render must read them
+        if self.built:
             with wp.ScopedDevice(self.model.device):
                 self._light()
+        self.redraw()
+
+    def redraw(self) -> None:
+        """Record the captured render again: the renderer's arrays or settings changed (a light, a texture)."""
+        if self.built:
+            with wp.ScopedDevice(self.model.device):
                 self._graph = self._capture() if self.capture else None
         self.stale = True
 

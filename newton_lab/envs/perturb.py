@@ -11,6 +11,8 @@ What each writes (nothing else changes; the captured step and render read the sa
 - ``camera_shift`` / ``camera_tilt``: each view's pose in its mount body (``ViewGroup.view_offset``), moved by an
   offset drawn per camera and row from ``seed``; ``camera_fov``: the views' ray bundles (``ViewGroup.rays``).
 - ``light_intensity`` / ``light_direction``: the cameras' one directional light (``Cameras.relight``).
+- ``surface_texture``: the renderer's checkerboard on every shape fixed to the world
+  (``SensorCamera.assign_checkerboard_material``, its render config's ``enable_textures`` on), ``Cameras.redraw``.
 
 A level is one number (every row alike) or, for the axes that allow it (``Axis.per_row``), one per row: domain
 randomisation draws those per row.
@@ -29,7 +31,7 @@ import warp as wp
 from ..task_api.perturbations import AXES, Axis
 from .cameras import Cameras
 
-ENV_KINDS = ("physics", "camera", "light")
+ENV_KINDS = ("physics", "camera", "surface", "light")
 """The kinds of axis the env applies (the rest act between the agent and the env)."""
 MASS_ARRAYS = ("body_mass", "body_inertia", "body_inv_mass", "body_inv_inertia")
 """Model arrays ``object_mass`` rescales (the inverses by the reciprocal)."""
@@ -133,6 +135,20 @@ def _widen_fov(cams: Cameras, widen_rad: float) -> None:
         g.rays.assign(rays.astype(np.float32))
 
 
+def _texture(cams: Cameras, square_m: float | None) -> None:
+    """A grey checkerboard of ``square_m`` [m] squares on every shape fixed to the world (``None``: none). Newton's
+    renderer maps a box or plane face to texture coordinates in metres of the shape's frame, one texture a metre,
+    so a texture of n x n texels, one a square, draws squares 1/n m wide."""
+    config = cams.sensor.default_render_config
+    config.enable_textures = square_m is not None
+    if square_m is not None:
+        fixed = np.flatnonzero(cams.model.shape_body.numpy() < 0)
+        cams.sensor.assign_checkerboard_material(
+            shape_indices=fixed, resolution=max(2, round(1.0 / square_m)), checker_size=1
+        )
+    cams.redraw()
+
+
 def _turned(direction, turn_rad: float) -> tuple[float, float, float]:
     """``direction`` turned by ``turn_rad`` [rad] about the vertical."""
     x, y, z = direction
@@ -160,6 +176,9 @@ def _vision(env, levels: dict[str, np.ndarray], seed: int) -> Callable[[], None]
     if "light_intensity" in levels or "light_direction" in levels:
         turn = math.radians(levels.get("light_direction", zero)[0])
         cams.relight(_turned(light[0], turn), light[1] * levels.get("light_intensity", zero + 1.0)[0])
+    textured = cams.sensor.default_render_config.enable_textures
+    if "surface_texture" in levels and levels["surface_texture"][0] > 0:
+        _texture(cams, levels["surface_texture"][0] / 100.0)
     cams.stale = True
 
     def restore() -> None:
@@ -168,6 +187,8 @@ def _vision(env, levels: dict[str, np.ndarray], seed: int) -> Callable[[], None]
             g.rays.assign(rays)
         if cams.light != light:
             cams.relight(*light)
+        if cams.sensor.default_render_config.enable_textures != textured:
+            _texture(cams, None)
         cams.stale = True
 
     return restore

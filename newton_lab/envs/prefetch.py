@@ -18,7 +18,6 @@ A cold PickToShelf env build with two 96x72 views took 110 s on an H200 host wit
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import sys
@@ -63,13 +62,10 @@ def prefetch_kernels(device: str | None) -> None:
     # Imported here, on the caller's thread: an import on the prefetch thread raced the solver's own import of
     # mujoco_warp, and Python's import-deadlock breaker then handed one thread a half-initialised module
     # ("module 'mujoco_warp' has no attribute 'OverflowType'" in a Dask worker). Importing defines kernels and
-    # compiles nothing, so the thread below still takes all the compile time. Some (Newton's MuJoCo solver
-    # kernels) would otherwise be imported only when the solver is built, too late for the thread to see them.
-    for name in PREFETCH_MODULES:
-        try:
-            importlib.import_module(name)
-        except ImportError:  # not in this Newton / mujoco_warp version: nothing to prefetch
-            log.debug("kernel prefetch: no module %s", name)
+    # compiles nothing, so the thread below still takes all the compile time. Newton's MuJoCo-solver kernels would
+    # otherwise be imported only when the solver is built, too late for the thread to see them.
+    import mujoco_warp  # noqa: F401  deferred: only an env build needs it
+    import newton._src.solvers.mujoco.kernels  # noqa: F401  deferred: only an env build needs it
 
     threading.Thread(target=_load_all, args=(key,), name="newton_lab-kernel-prefetch", daemon=True).start()
 

@@ -1,9 +1,10 @@
 """The perturbation axes of an evaluation (``newton-lab evaluate --perturb``) and of domain randomisation
 (``newton-lab collect --domain-randomize``): what each one changes, in which unit, and its two named levels.
 Task-independent: every axis acts on what every task has: the agent's actions and the robot's joints (``acts_on``
-``"agent"``, applied by ``newton_lab.agents.perturbed``), the physics of the scene's objects, the cameras and the
-light (``"physics"``, ``"camera"``, ``"light"``, applied to the env by ``newton_lab.envs.perturb``). Plain data and
-parsing (no Warp, no torch), so that a bad ``--perturb`` is refused before either loads.
+``"agent"``, applied by ``newton_lab.agents.perturbed``), the physics of the scene's objects, the cameras, the look
+of the fixed surfaces and the light (``"physics"``, ``"camera"``, ``"surface"``, ``"light"``, applied to the env by
+``newton_lab.envs.perturb``). Plain data and parsing (no Warp, no torch), so that a bad ``--perturb`` is refused
+before either loads.
 
 Grammar of ``--perturb``: ``AXIS=LEVEL[,AXIS=LEVEL...]`` (one evaluation with those perturbations together; LEVEL
 is ``mild``, ``strong`` or a number in the axis's unit), or ``sweep`` (the unperturbed evaluation, then one per
@@ -12,9 +13,8 @@ axis and level, each alone: the table of rows a robustness report shows).
 Not here: a per-row light (Newton 1.8's ``SensorCamera`` has one light list for all worlds: the light axes change
 every row alike, and domain randomisation keeps to the per-row brightness gain of ``randomize``), a per-row field of
 view (one ray bundle per resolution), unseen colours (``randomize`` already draws every object and table colour
-uniformly), textures (the only one the renderer makes at run time is its grey checkerboard, drawn only with
-``RenderConfig.enable_textures``, which the env's cameras leave off; not built yet), distractor objects (a scene's
-objects are fixed when its model is built).
+uniformly), textures of the movable objects (``surface_texture`` patterns the fixed surfaces), distractor objects
+(a scene's objects are fixed when its model is built).
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ class Axis:
     doc: str
     integer: bool = False
     acts_on: str = "agent"
-    """What applies it: ``"agent"`` (between the agent and the env), ``"physics"``, ``"camera"`` or ``"light"``
-    (the env, from the evaluation's start)."""
+    """What applies it: ``"agent"`` (between the agent and the env), ``"physics"``, ``"camera"``, ``"surface"`` (the
+    look of the fixed surfaces) or ``"light"`` (the env, from the evaluation's start)."""
     scale: bool = False
     """A multiplier: 1 leaves the evaluation as it is, and a level is a number > 0 (else 0 is the neutral level)."""
     per_row: bool = True
@@ -136,6 +136,17 @@ AXES: dict[str, Axis] = {
             "every camera's horizontal field of view widens by this angle (the G1's is 47.2 deg; the vertical one "
             "follows, square pixels): another lens. ``cameras.intrinsics`` still reports the calibrated matrix.",
             acts_on="camera",
+            per_row=False,
+        ),
+        Axis(
+            "surface_texture",
+            10.0,
+            3.0,
+            "cm",
+            "the scene's fixed surfaces (the ground, the table and the other fixed objects; not the movable objects, "
+            "not the robot) get a grey checkerboard of squares this wide, multiplied into their colours: a patterned "
+            "table cloth and floor the demos never showed. Depth and segmentation are unchanged.",
+            acts_on="surface",
             per_row=False,
         ),
         Axis(
