@@ -419,4 +419,12 @@ MUTATIONS: tuple[Mutation, ...] = (
         "\n\ndef _scale_friction",
         "tests/test_env_perturbations.py::test_object_size_scales_the_objects_shapes_alone_per_row_the_solver_and_pictures_follow",
     ),
+    one_patch(
+        "surface-texture-on-every-shape",
+        "A perturbation axis changes what it says and nothing else: the texture patterns only the fixed surfaces",
+        "newton_lab/envs/perturb.py",
+        "fixed = np.flatnonzero(cams.model.shape_body.numpy() < 0)",
+        "fixed = np.arange(cams.model.shape_count)",
+        "tests/test_env_perturbations.py::test_surface_texture_patterns_the_fixed_surfaces_alone",
+    ),
 )

@@ -51,7 +51,7 @@ def render(args: RenderArgs) -> int:
                 "camera": args.camera,
                 "resolution": [cam.width, cam.height],
                 "visible": [names[i] for i in seen],
-                "perturbation": perturbation,
+                **({"perturbation": perturbation} if perturbation else {}),
                 "out": args.out,
             }
         )
