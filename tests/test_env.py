@@ -216,8 +216,7 @@ def test_time_out_truncates_and_auto_resets(reach_env):
 def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
     """The prefetch thread once imported mujoco_warp itself; racing the solver's import on another thread, Python's
     import-deadlock breaker handed a Dask worker a half-initialised module (no ``OverflowType``). The caller's
-    thread now imports it before the thread starts (here the thread never starts), with every module of the list
-    (Newton's MuJoCo-solver kernels would otherwise arrive only with the solver, too late for the thread)."""
+    thread now imports it before the thread starts (here the thread never starts)."""
     import subprocess
     import sys
 
@@ -226,8 +225,6 @@ def test_kernel_prefetch_imports_mujoco_warp_before_its_thread_starts():
         "assert 'mujoco_warp' not in sys.modules, 'imported earlier: the test would prove nothing'\n"
         "threading.Thread.start = lambda self: None\nprefetch.prefetch_kernels('cpu')\n"
         "assert hasattr(sys.modules['mujoco_warp'], 'OverflowType')\n"
-        "missing = [n for n in prefetch.PREFETCH_MODULES if n not in sys.modules]\n"
-        "assert not missing, f'not imported before the thread: {missing}'\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]

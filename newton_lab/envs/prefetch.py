@@ -6,9 +6,7 @@ before the model is built but launched only later (solver set-up, the first step
 background ``wp.load_module`` of each runs beside the model build and its compile is done when the step needs
 it. Warp's codegen holds a lock; the C++/LLVM compile itself runs in parallel. Measured on this 2-core CPU with
 a cold kernel cache: ``make_env`` + a 4-episode PickCube collect 159 s -> 139 s with the newton / newton_lab
-modules alone; the list below adds mujoco_warp's. A cold PickToShelf env with two 96x72 views (2 rows, this CPU):
-87 s, then 82 s once Newton's geometry BVH and MuJoCo-solver kernel modules (3 s and 7 s to compile here) joined
-the list, imported before the thread starts (one run each). A module the main thread reaches first is simply compiled
+modules alone; the list below adds mujoco_warp's. A module the main thread reaches first is simply compiled
 there (the cache write is atomic either way); nothing here changes what is compiled, only when.
 
 On a CUDA device of a host with more cores (a GPU machine has 16), the modules compile side by side
@@ -28,8 +26,6 @@ import warp as wp
 PREFETCH_MODULES = (
     "mujoco_warp._src.set_const",
     "mujoco_warp._src.smooth",
-    "newton._src.geometry.bvh",
-    "newton._src.solvers.mujoco.kernels",
     "newton_lab.kernels.fuse",
     "newton_lab.kernels.actions",
     "newton._src.sim.articulation",
@@ -62,10 +58,8 @@ def prefetch_kernels(device: str | None) -> None:
     # Imported here, on the caller's thread: an import on the prefetch thread raced the solver's own import of
     # mujoco_warp, and Python's import-deadlock breaker then handed one thread a half-initialised module
     # ("module 'mujoco_warp' has no attribute 'OverflowType'" in a Dask worker). Importing defines kernels and
-    # compiles nothing, so the thread below still takes all the compile time. Newton's MuJoCo-solver kernels would
-    # otherwise be imported only when the solver is built, too late for the thread to see them.
+    # compiles nothing, so the thread below still takes all the compile time.
     import mujoco_warp  # noqa: F401  deferred: only an env build needs it
-    import newton._src.solvers.mujoco.kernels  # noqa: F401  deferred: only an env build needs it
 
     threading.Thread(target=_load_all, args=(key,), name="newton_lab-kernel-prefetch", daemon=True).start()
 
