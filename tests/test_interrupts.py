@@ -410,3 +410,15 @@ def test_ctrl_c_during_mimic_keeps_every_generated_demo_in_one_line(tmp_path):
     assert run.returncode == 130 and len(lines) == 1, err
     kept = read_dataset_info(path)["num_demos"]
     assert f"newton-lab mimic: interrupted: {kept} finished episode" in lines[0] and str(path) in lines[0]
+
+
+def test_the_process_walk_survives_processes_that_end_while_it_reads_them():
+    """The watchdog's /proc walk on a pid that is gone, and on a tree whose members keep ending while it is walked,
+    gives what it could read rather than an error (a child ending between two reads once failed the walk)."""
+    assert children(2**22 + 7) == [] and descendants(2**22 + 7) == []
+    shell = subprocess.Popen(["sh", "-c", "for i in $(seq 200); do (sleep 0.01 &) ; done; wait"])
+    try:
+        while shell.poll() is None:
+            assert all(isinstance(p, int) for p in descendants(os.getpid()))
+    finally:
+        shell.wait()

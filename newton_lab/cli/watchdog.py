@@ -27,9 +27,13 @@ GRACE_S = 0.5
 def children(pid: int) -> list[int]:
     """The pids of ``pid``'s children (``/proc/<pid>/task/*/children``); none when it is gone."""
     out: list[int] = []
-    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+    try:  # the process may end between two reads: its /proc folder is then gone
+        tasks = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return out
+    for task in tasks:
         try:
-            out += [int(c) for c in task.read_text().split()]
+            out += [int(c) for c in Path(f"/proc/{pid}/task/{task}/children").read_text().split()]
         except OSError:
             pass
     return out
