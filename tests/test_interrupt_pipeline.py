@@ -15,6 +15,8 @@ from pathlib import Path
 import pytest
 from test_interrupts import RUN, alive, descendants, wait_for
 
+pytestmark = pytest.mark.slow  # each test starts and stops CLI processes (torch, Warp): in CI, not in a plain make test
+
 ARGV = (
     "pipeline",
     "--task",

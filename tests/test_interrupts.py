@@ -19,6 +19,8 @@ from test_lerobot_export import make_dataset
 
 from newton_lab.cli.watchdog import children, descendants  # the /proc walk the watchdog itself uses
 
+pytestmark = pytest.mark.slow  # each test starts and stops CLI processes (torch, Warp): in CI, not in a plain make test
+
 TASK = "GalbotG1-PickToShelf-v0"
 RUN = "import sys; from newton_lab.cli import main; sys.exit(main(sys.argv[1:]))"
 
