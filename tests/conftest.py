@@ -50,9 +50,9 @@ MODULE_SECONDS = {
     "test_teleop.py": 16,
 }
 """Seconds each module of 15 s or more took in CI's ``make test`` (every test) on 2 CPU cores (warm Warp cache; the
-junit report of ``pytest -n 2 --dist loadfile --junitxml=...`` summed per module). Modules run longest first, so the two workers
-end together: xdist's own order (most tests first) left the four slowest modules to the end, one worker running
-them while the other idled for about three minutes."""
+junit report of ``pytest -n 2 --dist loadfile --junitxml=...`` summed per module). Modules run longest first, so the
+two workers end together: xdist's own order (most tests first) left the four slowest modules to the end, one worker
+running them while the other idled for about three minutes."""
 
 
 def pytest_collection_modifyitems(config, items):
