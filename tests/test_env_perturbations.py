@@ -188,7 +188,7 @@ def test_a_state_only_env_refuses_a_camera_axis_and_a_sweep_skips_those_cells(pi
         perturb_env(pick_env, {"camera_tilt": 2.0})
     assert "\n" not in str(err.value)
     kept = usable_cells(pick_env, parse_cells("sweep"))
-    assert {a for c in kept for a in c.values} == {a for a in AXES if AXES[a].acts_on in ("agent", "physics")}
+    assert {a for c in kept for a in c.values} == {a for a in AXES if AXES[a].acts_on in ("agent", "physics", "scene")}
     assert "skipping" in capsys.readouterr().err
 
 

@@ -427,4 +427,12 @@ MUTATIONS: tuple[Mutation, ...] = (
         "fixed = np.arange(cams.model.shape_count)",
         "tests/test_env_perturbations.py::test_surface_texture_patterns_the_fixed_surfaces_alone",
     ),
+    one_patch(
+        "distractors-anywhere-on-the-table",
+        "Distractor objects stand clear of the task's objects and of each other",
+        "tasks/common/events.py",
+        "reach = radius + wp.sqrt(other[0] * other[0] + other[1] * other[1]) + gap",
+        "reach = 0.0 * gap",
+        "tests/test_distractors.py::test_every_reset_puts_them_on_the_table_clear_of_the_rest_and_they_stay",
+    ),
 )

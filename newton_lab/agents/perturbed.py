@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..envs.perturb import ENV_KINDS, perturbed
+from ..envs.perturb import ENV_KINDS, SCENE_KINDS, built_with, perturbed, scene_axes
 from ..task_api.perturbations import AXES, Cell
 from .base import BaseAgent
 
@@ -100,18 +100,25 @@ def usable_cells(env, cells: list[Cell]) -> list[Cell]:
 
 
 def perturbation_table(
-    env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, **rollout: Any
+    env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, rebuild=None, **rollout: Any
 ) -> list[dict[str, Any]]:
     """One ``env.evaluate`` of ``agent`` per cell (``rollout``: its keywords, e.g. episodes, max_steps), each on the
     same episodes (the env perturbed, then reseeded with ``seed``; put back after): a row per cell with its label,
-    the perturbed values and the success."""
-    rows = []
+    the perturbed values and the success. A cell whose scene (``envs.perturb.SCENE_KINDS``: distractor objects)
+    differs from ``env``'s runs on ``rebuild(**scene)``'s ``(env, agent)`` (built once per scene, and not seen by
+    ``on_step``, which watches ``env``); without ``rebuild`` such a cell is refused in one line."""
+    rows, built = [], {tuple(sorted(built_with(env).items())): (env, agent)}
     for cell in usable_cells(env, cells):
-        with perturbed(env, cell.values, seed=seed):
-            env.reseed(seed)
-            on_agent = {k: v for k, v in cell.values.items() if AXES[k].acts_on not in ENV_KINDS}
-            wrapped = PerturbedAgent(agent, on_agent, seed=seed) if on_agent else agent
-            s = env.evaluate(agent=wrapped, on_step=on_step, **rollout)
+        scene = {**built_with(env), **scene_axes(cell.values)}
+        key = tuple(sorted(scene.items()))
+        if key not in built and rebuild is not None:
+            built[key] = rebuild(**scene)
+        env_c, agent_c = built.get(key, (env, agent))
+        with perturbed(env_c, cell.values, seed=seed):
+            env_c.reseed(seed)
+            on_agent = {k: v for k, v in cell.values.items() if AXES[k].acts_on not in (*ENV_KINDS, *SCENE_KINDS)}
+            wrapped = PerturbedAgent(agent_c, on_agent, seed=seed) if on_agent else agent_c
+            s = env_c.evaluate(agent=wrapped, on_step=on_step if env_c is env else None, **rollout)
         rows.append(
             {
                 "perturbation": cell.label,
@@ -127,13 +134,14 @@ def perturbation_table(
 
 
 def evaluate_perturbed(
-    env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, **rollout: Any
+    env, agent: BaseAgent, cells: list[Cell], *, seed: int = 0, on_step=None, rebuild=None, **rollout: Any
 ) -> dict[str, Any]:
     """``env.evaluate`` of ``agent`` when ``cells`` is empty; else the perturbation table's last cell's summary with
-    the table under ``"perturbations"`` (its rows without their summaries), which also prints as text."""
+    the table under ``"perturbations"`` (its rows without their summaries), which also prints as text. ``rebuild``:
+    as ``perturbation_table``'s."""
     if not cells:
         return env.evaluate(agent=agent, on_step=on_step, **rollout)
-    rows = perturbation_table(env, agent, cells, seed=seed, on_step=on_step, **rollout)
+    rows = perturbation_table(env, agent, cells, seed=seed, on_step=on_step, rebuild=rebuild, **rollout)
     for r in rows:
         print(
             f"{r['perturbation']:<24} {r['successes']:>5} / {r['episodes']:<5} {r['success_rate']:.0%}", file=sys.stderr

@@ -25,13 +25,13 @@ def render(args: RenderArgs) -> int:
     from ..datasets.files.output_paths import output_path  # deferred: datasets imports h5py and zarr (~1 s)
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
     from ..envs.cameras import picture  # deferred: Warp/Newton are slow to import
-    from ..envs.perturb import perturb_env  # deferred: Warp/Newton are slow to import
+    from ..envs.perturb import perturb_env, scene_axes  # deferred: Warp/Newton are slow to import
 
     view = {"data": ("rgb", "depth", "segmentation")}
     if args.resolution:
         view["resolution"] = tuple(args.resolution)
     perturbation = args.perturbation()
-    env = make_env(args.task, **args.env_kwargs(), cameras={args.camera: view})
+    env = make_env(args.task, **args.env_kwargs(), cameras={args.camera: view}, **scene_axes(perturbation))
     if perturbation:
         perturb_env(env, perturbation, seed=args.seed)
         env.reseed(args.seed)  # the episode starts under it (objects resized, masses, frictions)

@@ -74,6 +74,7 @@ def collect(args: CollectArgs) -> int:
 def evaluate(args: EvaluateArgs) -> int:
     from ..agents import evaluate_perturbed, expert_agent  # deferred: Warp/Newton are slow to import
     from ..envs import make_env  # deferred: Warp/Newton are slow to import
+    from ..envs.perturb import scene_axes  # deferred: Warp/Newton are slow to import
     from ..envs.rollout import EVAL_REPORT_KEYS  # deferred: Warp/Newton are slow to import
     from ..policies.agent import checkpoint_agent, phase_policy_agent  # deferred: torch is slow to import
 
@@ -81,17 +82,21 @@ def evaluate(args: EvaluateArgs) -> int:
     from_checkpoint = (
         checkpoint_agent(args.checkpoint, args.policy_device(), graphs=graphs) if args.checkpoint else None
     )
-    env = make_env(args.task, **args.env_kwargs())
     phases = args.phase_checkpoints()
-    agent = (
-        phase_policy_agent(env, phases, device=args.policy_device(), graphs=graphs)
-        if phases
-        else from_checkpoint or expert_agent(env)
-    )
+
+    def build(**scene):
+        """The env (with ``scene``: distractor objects) and the agent on it."""
+        env = make_env(args.task, **args.env_kwargs(), **scene)
+        if phases:
+            return env, phase_policy_agent(env, phases, device=args.policy_device(), graphs=graphs)
+        return env, from_checkpoint or expert_agent(env)
+
+    cells = args.perturbation_cells()
+    env, agent = build(**scene_axes(cells[0].values)) if cells else build()  # the first cell's scene
     hook, close = rerun_hook(args, env)
     try:
         summary = evaluate_perturbed(
-            env, agent, args.perturbation_cells(), seed=args.seed, on_step=hook, **args.rollout_kwargs()
+            env, agent, cells, seed=args.seed, on_step=hook, rebuild=build, **args.rollout_kwargs()
         )
     finally:
         close()

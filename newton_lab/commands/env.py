@@ -101,7 +101,7 @@ class RenderArgs(EnvArgs):
     """run the task's expert this many control steps before the frame"""
     perturb: str | None = None
     """draw the frame under these perturbations of the env, AXIS=LEVEL,... (LEVEL mild, strong or a number; the
-    physics, camera, surface and light axes of evaluate --perturb), applied before the episode starts"""
+    physics, camera, surface, light and scene axes of evaluate --perturb), applied before the episode starts"""
     out: str = "render.png"
     """PNG file to write"""
 

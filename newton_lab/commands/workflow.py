@@ -54,8 +54,9 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     without one run their component's expert"""
     perturb: str | None = None
     """evaluate under perturbations: AXIS=LEVEL,... together (LEVEL mild, strong or a number; axes action_noise,
-    action_latency, posture_noise, object_mass, object_size, friction, camera_shift, camera_tilt, camera_fov,
-    light_intensity, light_direction), or sweep: unperturbed, then each axis at each level alone (one row each)"""
+    action_latency, posture_noise, object_mass, object_size, friction, distractors, camera_shift, camera_tilt,
+    camera_fov, surface_texture, light_intensity, light_direction), or sweep: unperturbed, then each axis at each
+    level alone (one row each)"""
 
     eager_policy: bool = False
     """sample a diffusion policy's actions eagerly instead of from CUDA graphs (on a GPU; the record's timing then

@@ -5,9 +5,10 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from .. import tasks  # noqa: F401  (registers every task id: the one place the core imports the task packages)
+from .. import tasks  # noqa: F401  (registers every task id: the one place the core loads the task packages)
 from ..task_api.physics import PhysicsCfg
 from ..task_api.registry import lookup
+from ..tasks.common.distractors import with_distractors
 from .env import NewtonEnv
 from .prefetch import prefetch_kernels
 
@@ -25,6 +26,7 @@ def make_env(
     physics: PhysicsCfg | None = None,
     terminate_on_success: bool | None = None,
     episode_length_s: float | None = None,
+    distractors: int = 0,
     **options: Any,
 ) -> NewtonEnv:
     """Build the env of ``task_id`` with ``num_envs`` rows on ``device`` (Warp's default when ``None``).
@@ -43,6 +45,8 @@ def make_env(
     ``TaskCfg.terminate_on_success``); reinforcement learning trains with ``False`` (``policies.rl.train``).
     ``episode_length_s``: the episodes' time limit [s] (``None``: the task's, ``TaskCfg.episode_length_s``); a
     time-out truncates the episode.
+    ``distractors``: that many distractor objects on the table (0 to 3; ``tasks.common.distractors``), placed at
+    every reset clear of the task's objects; the ``distractors`` perturbation axis evaluates under them.
     """
     spec = lookup(task_id)
     if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
@@ -59,6 +63,7 @@ def make_env(
         if not episode_length_s > 0:
             raise ValueError(f"episode_length_s must be > 0 [s], got {episode_length_s!r}")
         cfg = dataclasses.replace(cfg, episode_length_s=float(episode_length_s))
+    cfg = with_distractors(cfg, distractors)
     prefetch_kernels(device)  # the step's large modules compile on a second thread while the model is built
     return NewtonEnv(
         cfg, num_envs=num_envs, device=device, seed=seed, randomize=randomize, capture=capture, cameras=cameras

@@ -29,10 +29,14 @@ import numpy as np
 import warp as wp
 
 from ..task_api.perturbations import AXES, Axis
+from ..tasks.common.distractors import distractor_count
 from .cameras import Cameras
 
 ENV_KINDS = ("physics", "camera", "surface", "light")
-"""The kinds of axis the env applies (the rest act between the agent and the env)."""
+"""The kinds of axis the env applies to itself once built."""
+SCENE_KINDS = ("scene",)
+"""The kinds of axis the env is built with (``make_env(..., distractors=n)``); the rest act between the agent and the
+env."""
 MASS_ARRAYS = ("body_mass", "body_inertia", "body_inv_mass", "body_inv_inertia")
 """Model arrays ``object_mass`` rescales (the inverses by the reciprocal)."""
 SIZE_ARRAYS = ("shape_scale", "shape_collision_radius")
@@ -42,6 +46,26 @@ SIZE_ARRAYS = ("shape_scale", "shape_collision_radius")
 def env_axes(values: Mapping[str, object]) -> dict[str, object]:
     """The part of ``values`` (axis -> level) the env applies."""
     return {k: v for k, v in values.items() if k in AXES and AXES[k].acts_on in ENV_KINDS}
+
+
+def scene_axes(values: Mapping[str, object]) -> dict[str, int]:
+    """The part of ``values`` (axis -> level) that the env must be built with, as whole numbers."""
+    return {k: int(v) for k, v in values.items() if k in AXES and AXES[k].acts_on in SCENE_KINDS}
+
+
+def built_with(env) -> dict[str, int]:
+    """What ``env`` was built with, per scene axis."""
+    return {"distractors": distractor_count(env.cfg)}
+
+
+def check_scene(env, values: Mapping[str, object]) -> None:
+    """One-line error when ``values`` asks for a scene ``env`` was not built with."""
+    for name, level in scene_axes(values).items():
+        if built_with(env)[name] != level:
+            raise ValueError(
+                f"{name}={level}: this env was built with {built_with(env)[name]}; build it with "
+                f"make_env(..., {name}={level}) (evaluate --perturb builds one per count)"
+            )
 
 
 def _levels(env, axis: Axis, value) -> np.ndarray:
@@ -219,7 +243,9 @@ def _physics(env, levels: dict[str, np.ndarray]) -> Callable[[], None]:
 def perturb_env(env, values: Mapping[str, object], *, seed: int = 0) -> Callable[[], None]:
     """Apply the env's axes of ``values`` (axis name -> level in its unit, or one level per row; other axes are
     ignored) to ``env``; camera offsets are drawn from ``seed``. Returns a function that puts back everything it
-    changed. The rows' current episodes keep their state: reset (``env.reseed``) before the episodes to change."""
+    changed. The rows' current episodes keep their state: reset (``env.reseed``) before the episodes to change. A
+    scene axis (``SCENE_KINDS``) is checked against what ``env`` was built with (``check_scene``)."""
+    check_scene(env, values)
     levels = {k: _levels(env, AXES[k], v) for k, v in env_axes(values).items()}
     for name, rows in levels.items():
         bad = rows <= 0 if AXES[name].scale else rows < 0

@@ -3,8 +3,8 @@
 Task-independent: every axis acts on what every task has: the agent's actions and the robot's joints (``acts_on``
 ``"agent"``, applied by ``newton_lab.agents.perturbed``), the physics of the scene's objects, the cameras, the look
 of the fixed surfaces and the light (``"physics"``, ``"camera"``, ``"surface"``, ``"light"``, applied to the env by
-``newton_lab.envs.perturb``). Plain data and parsing (no Warp, no torch), so that a bad ``--perturb`` is refused
-before either loads.
+``newton_lab.envs.perturb``), and what stands on the table (``"scene"``: the env is built with it). Plain data and
+parsing (no Warp, no torch), so that a bad ``--perturb`` is refused before either loads.
 
 Grammar of ``--perturb``: ``AXIS=LEVEL[,AXIS=LEVEL...]`` (one evaluation with those perturbations together; LEVEL
 is ``mild``, ``strong`` or a number in the axis's unit), or ``sweep`` (the unperturbed evaluation, then one per
@@ -13,8 +13,7 @@ axis and level, each alone: the table of rows a robustness report shows).
 Not here: a per-row light (Newton 1.8's ``SensorCamera`` has one light list for all worlds: the light axes change
 every row alike, and domain randomisation keeps to the per-row brightness gain of ``randomize``), a per-row field of
 view (one ray bundle per resolution), unseen colours (``randomize`` already draws every object and table colour
-uniformly), textures of the movable objects (``surface_texture`` patterns the fixed surfaces), distractor objects
-(a scene's objects are fixed when its model is built).
+uniformly), textures of the movable objects (``surface_texture`` patterns the fixed surfaces).
 """
 
 from __future__ import annotations
@@ -34,11 +33,14 @@ class Axis:
     integer: bool = False
     acts_on: str = "agent"
     """What applies it: ``"agent"`` (between the agent and the env), ``"physics"``, ``"camera"``, ``"surface"`` (the
-    look of the fixed surfaces) or ``"light"`` (the env, from the evaluation's start)."""
+    look of the fixed surfaces) or ``"light"`` (the env, from the evaluation's start), or ``"scene"`` (what the env
+    is built with: an evaluation builds an env for it)."""
     scale: bool = False
     """A multiplier: 1 leaves the evaluation as it is, and a level is a number > 0 (else 0 is the neutral level)."""
     per_row: bool = True
     """Domain randomisation can draw it per env row (else one value is every row's)."""
+    most: float = float("inf")
+    """The largest level there is."""
 
     @property
     def neutral(self) -> float:
@@ -108,6 +110,20 @@ AXES: dict[str, Axis] = {
             "touching shapes' coefficients, so scaling the objects' alone would leave the pads' (1.5) in charge.",
             acts_on="physics",
             scale=True,
+        ),
+        Axis(
+            "distractors",
+            1,
+            3,
+            "objects",
+            "this many objects that no term of the task names (a green can, a white block, a purple block; "
+            "``tasks.common.distractors``) stand on the table, each placed at every reset at a spot clear of the "
+            "task's objects and of each other. They are movable and collide, so a grasp can knock them. The env is "
+            "built with them (``make_env(..., distractors=n)``): an evaluation builds one env per count it asks for.",
+            integer=True,
+            acts_on="scene",
+            per_row=False,
+            most=3,
         ),
         Axis(
             "camera_shift",
@@ -200,6 +216,8 @@ def _value(axis: Axis, level: str, item: str, flag: str = "--perturb") -> float:
         raise ValueError(f"{flag} {item!r}: a level is a finite number >= 0 [{axis.unit}]")
     if axis.integer and value != int(value):
         raise ValueError(f"{flag} {item!r}: {axis.name} takes a whole number of {axis.unit}")
+    if value > axis.most:
+        raise ValueError(f"{flag} {item!r}: {axis.name} goes up to {axis.most:g} {axis.unit}")
     return value
 
 
