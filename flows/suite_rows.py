@@ -254,7 +254,7 @@ ROWS: dict[str, list[Row]] = {
             for name, extra in (("graphed", ()), ("eager", ("--eager-policy",)))
         ],
         # off the training distribution: the demo's and PickToShelf's policies (their pipeline rows above) on the
-        # held-out seed under every perturbation axis at each level (21 evaluations of 100 episodes each)
+        # held-out seed, unperturbed and under every perturbation axis at each level (100 episodes each)
         _bench(
             "robust-pickcube-demo",
             "evaluate",
