@@ -82,9 +82,8 @@ def test_captured_step_matches_eager(pick_env, eager_env):
     """The captured graph and eager stepping agree on every output of every step, through a row that terminates
     (its cube teleported 60 m: ``diverged``, finite) and a row that times out, and the new episodes after them."""
     env_steps = pick_env.cfg.max_episode_steps
-    for env in (pick_env, eager_env):  # same seed and episode counters -> same reset draws
-        env.buffers.episode_count.zero_()
-        env.reset()
+    for env in (pick_env, eager_env):  # seed 0, counters 0 -> the same reset draws, whatever ran on them before
+        env.reseed(0)
         # close to the time limit: row 0 is truncated inside the run, row 1 (terminated first) is not
         wp.to_torch(env.task.context.episode_step)[:] = env_steps - 8
     torch.testing.assert_close(_q(pick_env), _q(eager_env))
@@ -177,8 +176,7 @@ def test_reset_touches_only_selected_rows(pick_env):
 
 def test_randomisation_is_seeded_per_row_and_episode(pick_env, eager_env):
     for env in (pick_env, eager_env):  # same seed and episode counters -> same draws
-        env.buffers.episode_count.zero_()
-        env.reset()
+        env.reseed(0)
     cube = pick_env.task.entities["cube"].slot
     a, b = pick_env.buffers.entity_poses[:, cube, :3].clone(), eager_env.buffers.entity_poses[:, cube, :3].clone()
     torch.testing.assert_close(a, b)

@@ -255,6 +255,7 @@ def test_randomize_env_gives_each_row_its_draw(pick_env):
     before = [_arrays(m) for m in _models(env)]
     restore = perturb_env(env, {})  # nothing: the same arrays
     restore()
+    seed = env.seed
     draws = randomize_env(env, {"object_mass": 2.0, "friction": 0.5}, seed=3)
     try:
         assert set(draws) == {"object_mass", "friction"} and len(draws["object_mass"]) == env.num_envs
@@ -277,6 +278,7 @@ def test_randomize_env_gives_each_row_its_draw(pick_env):
             for name in (*MASS_ARRAYS, "shape_material_mu"):
                 getattr(model, name).assign(arrays[name])
         env.solver.notify_model_changed(newton.ModelFlags.BODY_INERTIAL_PROPERTIES | newton.ModelFlags.SHAPE_PROPERTIES)
+        env.reseed(seed)  # and its seed (randomize_env reseeded it with 3)
 
 
 def test_collect_records_the_rows_draws_in_the_dataset(tmp_path):

@@ -116,7 +116,7 @@ AXES: dict[str, Axis] = {
             1,
             3,
             "objects",
-            "this many objects that no term of the task names (a green can, a white block, a purple block; "
+            "this many objects that no term of the task names (a teal can, a white block, a purple block; "
             "``tasks.common.distractors``) stand on the table, each placed at every reset at a spot clear of the "
             "task's objects and of each other. They are movable and collide, so a grasp can knock them. The env is "
             "built with them (``make_env(..., distractors=n)``): an evaluation builds one env per count it asks for.",

@@ -7,8 +7,9 @@ before it (``events.scatter_on``). They come after the task's own objects, so ev
 was; the observations, actions and phases are the task's. ``make_env(..., distractors=n)`` builds a task with them,
 and the ``distractors`` perturbation axis (``task_api.perturbations``) evaluates under them.
 
-Their colours are none of the tasks' object colours (red, blue, yellow, the shelves' greys) and keep their hue under
-``--randomize`` (``EntityCfg.keep_hue``), so that they look alike in every episode.
+Their colours are none of the tasks' object colours (red, blue, yellow, green, the shelves' greys) and keep their hue
+under ``--randomize`` (``EntityCfg.keep_hue``), so that they look alike in every episode and never like an object a
+colour-named task asks for.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ DISTRACTORS = (
         size=(0.05, 0.05, 0.09),
         pos=(0, 0, 0),
         mass=0.06,
-        color=(0.20, 0.65, 0.30),
+        color=(0.10, 0.68, 0.75),
         keep_hue=True,
     ),
     EntityCfg(
@@ -46,7 +47,7 @@ DISTRACTORS = (
         name="distractor_2", size=(0.04, 0.04, 0.07), pos=(0, 0, 0), mass=0.05, color=(0.55, 0.30, 0.70), keep_hue=True
     ),
 )
-"""The distractors in the order they are added (green can, white block, purple block); sizes [m], masses [kg]."""
+"""The distractors in the order they are added (teal can, white block, purple block); sizes [m], masses [kg]."""
 CONTACTS_EACH = 6
 """Contacts one distractor may hold at once (a box on the table has 4; one more touch each side) [contacts]."""
 DEFAULT_ROWS = 64
