@@ -25,27 +25,19 @@ PARK_POS = (1.5, 1.5)
 """Where a distractor is built (x, y, on the ground) [m]: out of reach and of view until its reset event puts it on
 the table; a model built with distractors starts its first episode with them placed, like every later one."""
 
+
+def _distractor(k: int, size, mass: float, color, shape: str = "box") -> EntityCfg:
+    """Distractor ``k``: a movable object whose colour keeps its hue under ``--randomize`` (``with_distractors`` sets
+    its build position)."""
+    return EntityCfg(
+        name=f"distractor_{k}", shape=shape, size=size, pos=(0, 0, 0), mass=mass, color=color, keep_hue=True
+    )
+
+
 DISTRACTORS = (
-    EntityCfg(
-        name="distractor_0",
-        shape="cylinder",
-        size=(0.05, 0.05, 0.09),
-        pos=(0, 0, 0),
-        mass=0.06,
-        color=(0.10, 0.68, 0.75),
-        keep_hue=True,
-    ),
-    EntityCfg(
-        name="distractor_1",
-        size=(0.09, 0.045, 0.035),
-        pos=(0, 0, 0),
-        mass=0.05,
-        color=(0.92, 0.90, 0.84),
-        keep_hue=True,
-    ),
-    EntityCfg(
-        name="distractor_2", size=(0.04, 0.04, 0.07), pos=(0, 0, 0), mass=0.05, color=(0.55, 0.30, 0.70), keep_hue=True
-    ),
+    _distractor(0, (0.05, 0.05, 0.09), 0.06, (0.10, 0.68, 0.75), shape="cylinder"),
+    _distractor(1, (0.09, 0.045, 0.035), 0.05, (0.92, 0.90, 0.84)),
+    _distractor(2, (0.04, 0.04, 0.07), 0.05, (0.55, 0.30, 0.70)),
 )
 """The distractors in the order they are added (teal can, white block, purple block); sizes [m], masses [kg]."""
 CONTACTS_EACH = 6
