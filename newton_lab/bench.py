@@ -15,6 +15,7 @@ import warp as wp
 from newton.sensors import SensorCamera
 
 from .envs import make_env
+from .envs.cameras import RENDER_BLOCK_DIM, RENDER_ORDER, render_config
 from .task_api.physics import PhysicsCfg
 
 
@@ -40,13 +41,16 @@ def bench(
     camera_data: tuple[str, ...] = ("rgb",),
     cameras: dict[str, Any] | None = None,
     physics: PhysicsCfg | None = None,
+    render_orders: bool = False,
 ) -> dict[str, Any]:
     """Env-steps/s, bare world-steps/s and their per-step time ratio (env step / decimation solver steps).
     ``physics`` replaces the task's physics settings (``make_env``; ``tools/physics_table.py`` compares them).
     With ``camera``: also env-steps/s with that camera rendered every step (``resolution`` (w, h) [px],
     ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it; ``cameras``
     (``make_env``'s dict, e.g. ``{"front_head": {"resolution": (96, 72)}, "left_wrist": ...}``) instead: several
-    views rendered every step, the ceiling rendering each of them bare."""
+    views rendered every step, the ceiling rendering each of them bare. ``render_orders``: also the ceiling under
+    each of the renderer's traversal orders and thread-block sizes (``ceiling_by_render_order``; the env renders
+    with ``envs.cameras.RENDER_ORDER`` / ``RENDER_BLOCK_DIM``)."""
     if camera is not None:
         cameras = {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
     cams = cameras or False
@@ -77,34 +81,39 @@ def bench(
         "ratio_env_step_to_bare": t_env / t_bare,
     }
     if cams:
-        out.update(_camera_figures(env, list(env.sensors.camera_specs), steps))
+        out.update(_camera_figures(env, list(env.sensors.camera_specs), steps, render_orders))
     return out
 
 
-def _camera_figures(env, names: list[str], steps: int) -> dict[str, Any]:
+def _camera_figures(env, names: list[str], steps: int, render_orders: bool = False) -> dict[str, Any]:
     """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
     reading ``env.sensors.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of
-    each view per world at the same poses and resolution (one BVH refit, then one render per view; captured)."""
+    each view per world at the same poses, resolution and render settings (one BVH refit, then one render per view;
+    captured). ``render_orders``: the ceiling again under every traversal order x block size."""
     env.render()  # builds and captures the render graph
     cams = env.sensors.cameras
     render_graph = cams.render_graph
     if render_graph is None:
         raise RuntimeError(f"camera render capture is unavailable on {env.device}")
+    max_distance = cams.robot.camera_clipping[1]
     with wp.ScopedDevice(env.device):
-        sensor = SensorCamera(env.model)
+        sensor = SensorCamera(env.model, default_render_config=render_config(max_distance))
         sensor.create_default_light(enable_shadows=False)
         views = [_bare_view(sensor, cams, name, env.num_envs) for name in names]
 
-        def bare_render():
-            env.model.bvh_refit_shapes(env.state)
-            for poses, rays, images in views:
-                sensor.update(env.state, poses, rays, **images)
+        def ceiling_graph(config=None):
+            def bare_render():
+                env.model.bvh_refit_shapes(env.state)
+                for poses, rays, images in views:
+                    sensor.update(env.state, poses, rays, render_config=config, **images)
 
-        bare_render()  # compiles before the capture
-        with wp.ScopedCapture(device=env.device) as cap:
-            env.sim.simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
-            bare_render()
-    ceiling_graph = cap.graph
+            bare_render()  # compiles before the capture
+            with wp.ScopedCapture(device=env.device) as cap:
+                env.sim.simulate()  # the bare solver steps (a graph launch inside a capture is CUDA-only)
+                bare_render()
+            return cap.graph
+
+        ceiling = ceiling_graph()
 
     step_graph = env.sim.step_graph
 
@@ -113,22 +122,54 @@ def _camera_figures(env, names: list[str], steps: int) -> dict[str, Any]:
         wp.capture_launch(render_graph)
 
     t_cam = _time_graph(env_with_camera, steps, env.device)
-    t_ceiling = _time_graph(lambda: wp.capture_launch(ceiling_graph), steps, env.device)
+    t_ceiling = _time_graph(lambda: wp.capture_launch(ceiling), steps, env.device)
     mem = None
     if env.device.is_cuda:
         free, total = torch.cuda.mem_get_info(env.device.ordinal)
         mem = (total - free) / 2**20 / env.num_envs
     first = cams.specs[names[0]]
-    return {
+    out = {
         "camera": "+".join(names),
         "resolution": [first.width, first.height],
         "camera_data": list(first.data),
         "cameras": {n: [cams.specs[n].width, cams.specs[n].height, list(cams.specs[n].data)] for n in names},
+        "render_order": f"{RENDER_ORDER.name}/{RENDER_BLOCK_DIM}",
         "env_steps_per_s_with_camera": env.num_envs / t_cam,
         "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
         "ratio_camera_env_to_ceiling": t_ceiling / t_cam,
         "gpu_mem_used_mib_per_env": mem,
     }
+    if render_orders:
+        out["by_render_order"] = _render_order_sweep(env, ceiling_graph, max_distance, steps)
+    return out
+
+
+def _render_order_sweep(env, ceiling_graph, max_distance: float, steps: int) -> dict[str, dict[str, float]]:
+    """Env-steps/s of the env step with its camera render, and of the ceiling, under each traversal order x
+    thread-block size (``RENDER_BLOCKS``), keyed ``ORDER/BLOCK``; the env renders with its own settings after."""
+    cams, step_graph, out = env.sensors.cameras, env.sim.step_graph, {}
+    for order in SensorCamera.RenderOrder:
+        for block in RENDER_BLOCKS:
+            cams.use_render_order(order, block)
+            with wp.ScopedDevice(env.device):
+                ceiling = ceiling_graph(render_config(max_distance, order, block))
+
+            def env_with_camera(render=cams.render_graph):
+                wp.capture_launch(step_graph)
+                wp.capture_launch(render)
+
+            t_cam = _time_graph(env_with_camera, steps, env.device)
+            t_ceiling = _time_graph(lambda g=ceiling: wp.capture_launch(g), steps, env.device)
+            out[f"{order.name}/{block}"] = {
+                "env_steps_per_s_with_camera": env.num_envs / t_cam,
+                "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
+            }
+    cams.use_render_order(RENDER_ORDER, RENDER_BLOCK_DIM)
+    return out
+
+
+RENDER_BLOCKS = (64, 128, 256)
+"""Thread-block sizes ``bench --render-orders`` times under each traversal order."""
 
 
 def _bare_view(sensor, cams, name: str, num_envs: int):

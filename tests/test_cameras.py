@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 import torch
 import warp as wp
+from newton.sensors import SensorCamera
 
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
-from newton_lab.envs.cameras import resolve_cameras
+from newton_lab.envs.cameras import RENDER_BLOCK_DIM, RENDER_ORDER, resolve_cameras
 from newton_lab.robots.g1 import cameras as mounts, spec
 from newton_lab.robots.g1.model import mjcf_path
 from newton_lab.task_api.registry import lookup
@@ -126,6 +127,23 @@ def test_render_only_when_images_are_read_and_capture_matches_eager(cam_env):
     env.sensors.cameras.render(force=True, eager=True)  # the same render, eager
     for name, img in env.sensors.images.items():
         assert torch.equal(img, captured[name]), name
+
+
+def test_every_render_order_draws_the_same_pixels(cam_env):
+    """The renderer's traversal orders and block sizes (``bench --render-orders`` times them) change only the
+    speed: each draws the same images of the same state, through the recaptured render graph."""
+    env = cam_env
+    cams = env.sensors.cameras
+    reference = {k: v.clone() for k, v in cams.render(force=True).items()}
+    try:
+        for order in SensorCamera.RenderOrder:
+            cams.use_render_order(order, 128)
+            assert cams.sensor.default_render_config.render_order == order
+            for name, img in cams.render(force=True).items():
+                assert torch.equal(img, reference[name]), (order.name, name)
+    finally:
+        cams.use_render_order(RENDER_ORDER, RENDER_BLOCK_DIM)
+    assert cams.sensor.default_render_config.block_dim == RENDER_BLOCK_DIM
 
 
 def test_projection_matches_segmentation(cam_env):

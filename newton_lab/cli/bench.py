@@ -24,7 +24,11 @@ def bench(args: BenchArgs) -> int:
         }
     else:
         cam = {}
-    out = measure(args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, **cam)
+    if args.render_orders and not cam:
+        raise ValueError("--render-orders times the camera render; add --cameras (or --camera)")
+    out = measure(
+        args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, render_orders=args.render_orders, **cam
+    )
     write_run_record("bench", args.run_record, task=args.task, device=args.device, results=out)
     print(json.dumps(out))
     return 0

@@ -44,6 +44,9 @@ class BenchArgs(BenchEnvArgs):
     cameras: str | None = None
     """several views rendered every step instead of --camera, as collect's --cameras (e.g.
     front_head=96x72:rgb,left_wrist=96x72:rgb); the ceiling renders each of them bare"""
+    render_orders: bool = False
+    """with cameras: also time the ceiling under each of the renderer's traversal orders and thread-block sizes
+    (the same pixels, other speeds; the env's own: newton_lab/envs/cameras.py RENDER_ORDER)"""
 
 
 @dataclass(kw_only=True)

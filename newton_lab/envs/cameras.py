@@ -44,6 +44,7 @@ __all__ = [
     "ViewGroup",
     "image_terms",
     "picture",
+    "render_config",
     "resolve_cameras",
     "segmentation_table",
 ]
@@ -55,6 +56,21 @@ SKY_RGBA = (178, 190, 204, 0)
 RENDERED_SHAPES = newton.ShapeFlags.VISIBLE | newton.ShapeFlags.COLLIDE_SHAPES
 """Shapes the cameras see: visual and collision geometry (the G1 MJCF's collision geoms are its body; Newton
 marks them invisible because the MJCF also has visual geoms), not sites."""
+RENDER_ORDER = SensorCamera.RenderOrder.PIXEL_PRIORITY
+"""How the render's threads walk the views' pixels (Newton's ``RenderOrder``; the pixels are the same in every
+order, only the speed differs: ``newton-lab bench --cameras ... --render-orders`` times each)."""
+RENDER_BLOCK_DIM = 64
+"""Threads per block of the render's kernel launch (launch-time only; no recompilation)."""
+
+
+def render_config(max_distance: float, order=None, block_dim: int | None = None) -> SensorCamera.RenderConfig:
+    """The env's render settings: rays end at ``max_distance`` [m]; ``order`` / ``block_dim`` replace
+    ``RENDER_ORDER`` / ``RENDER_BLOCK_DIM`` (the bench's sweep)."""
+    return SensorCamera.RenderConfig(
+        max_distance=max_distance,
+        render_order=RENDER_ORDER if order is None else order,
+        block_dim=RENDER_BLOCK_DIM if block_dim is None else block_dim,
+    )
 
 
 @dataclass
@@ -224,7 +240,7 @@ class Cameras:
         self.segmentation_names  # noqa: B018  (fills the shape -> id table)
         self.model.bvh_build_shapes(self.state, shape_flags=RENDERED_SHAPES)
         clear = SensorCamera.ClearData(clear_color=int.from_bytes(bytes(SKY_RGBA), "little"), clear_depth=math.inf)
-        config = SensorCamera.RenderConfig(max_distance=self.robot.camera_clipping[1])
+        config = render_config(self.robot.camera_clipping[1])
         self.sensor = SensorCamera(
             self.model, default_clear_data=clear, default_render_config=config, load_textures=False
         )
@@ -361,6 +377,16 @@ class Cameras:
                     self._render_body()
         self.stale = False
         return self._images
+
+    def use_render_order(self, order, block_dim: int) -> None:
+        """Render from now on with this traversal order (``SensorCamera.RenderOrder``) and thread-block size: the
+        same pictures at another speed (``bench --render-orders`` times each). Builds the cameras if needed and
+        captures the render again."""
+        self.render()
+        self.sensor.default_render_config = render_config(self.robot.camera_clipping[1], order, block_dim)
+        with wp.ScopedDevice(self.model.device):
+            self._render_body()
+            self._graph = self._capture() if self.capture else None
 
     def _capture(self):
         try:
