@@ -145,31 +145,35 @@ def _camera_figures(env, names: list[str], steps: int, render_orders: bool = Fal
 
 
 def _render_order_sweep(env, ceiling_graph, max_distance: float, steps: int) -> dict[str, dict[str, float]]:
-    """Env-steps/s of the env step with its camera render, and of the ceiling, under each traversal order x
-    thread-block size (``RENDER_BLOCKS``), keyed ``ORDER/BLOCK``; the env renders with its own settings after."""
+    """Env-steps/s of the env step with its camera render, and of the ceiling, under each setting of
+    ``RENDER_SWEEP`` (keyed ``ORDER/BLOCK`` or ``TILED_WxH/BLOCK``); the env renders with its own settings after."""
     cams, step_graph, out = env.sensors.cameras, env.sim.step_graph, {}
-    for order in SensorCamera.RenderOrder:
-        for block in RENDER_BLOCKS:
-            cams.use_render_order(order, block)
-            with wp.ScopedDevice(env.device):
-                ceiling = ceiling_graph(render_config(max_distance, order, block))
+    for order, tile, block in RENDER_SWEEP:
+        cams.use_render_order(order, block, tile)
+        with wp.ScopedDevice(env.device):
+            ceiling = ceiling_graph(render_config(max_distance, order, block, tile))
 
-            def env_with_camera(render=cams.render_graph):
-                wp.capture_launch(step_graph)
-                wp.capture_launch(render)
+        def env_with_camera(render=cams.render_graph):
+            wp.capture_launch(step_graph)
+            wp.capture_launch(render)
 
-            t_cam = _time_graph(env_with_camera, steps, env.device)
-            t_ceiling = _time_graph(lambda g=ceiling: wp.capture_launch(g), steps, env.device)
-            out[f"{order.name}/{block}"] = {
-                "env_steps_per_s_with_camera": env.num_envs / t_cam,
-                "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
-            }
+        t_cam = _time_graph(env_with_camera, steps, env.device)
+        t_ceiling = _time_graph(lambda g=ceiling: wp.capture_launch(g), steps, env.device)
+        name = order.name if tile is None else f"{order.name}_{tile[0]}x{tile[1]}"
+        out[f"{name}/{block}"] = {
+            "env_steps_per_s_with_camera": env.num_envs / t_cam,
+            "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
+        }
     cams.use_render_order(RENDER_ORDER, RENDER_BLOCK_DIM)
     return out
 
 
-RENDER_BLOCKS = (64, 128, 256)
-"""Thread-block sizes ``bench --render-orders`` times under each traversal order."""
+_ORDERS = SensorCamera.RenderOrder
+RENDER_SWEEP = (
+    *[(order, None, block) for order in (_ORDERS.PIXEL_PRIORITY, _ORDERS.VIEW_PRIORITY) for block in (64, 128)],
+    *[(_ORDERS.TILED, tile, block) for tile in ((16, 8), (8, 8), (32, 4), (16, 4), (8, 4)) for block in (64, 128)],
+)
+"""(order, tile (w, h) [px] of the tiled order, threads per block) that ``bench --render-orders`` times."""
 
 
 def _bare_view(sensor, cams, name: str, num_envs: int):

@@ -37,9 +37,9 @@ def bench_train(
     side in one process on fresh policies of the same architecture. Variants, each keyed by its tags:
     ``bf16`` each also under bfloat16 autocast (``..._bf16``); ``channels_last`` each also with the network's
     weights in channels-last layout (``..._cl``: the convolutions then run channels-last); ``cudnn_benchmark`` each
-    also with cuDNN's autotuner on (``..._tuned``); ``compile`` the eager step also through ``torch.compile`` at the
-    last variant's precision and autotuning (``EagerTrainStep_compiled...``); ``bf16_norms`` the captured step (the
-    eager one off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``).
+    also with cuDNN's autotuner on (``..._tuned``); ``compile`` each step kind also through ``torch.compile`` at the
+    last variant's precision and autotuning (``..._compiled...``); ``bf16_norms`` the captured step (the eager one
+    off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``).
     ``obs_keys`` / ``image_keys`` replace the preset's (e.g. the long-horizon recipe's two views). Also where a step's
     time goes (``step_breakdown``; with ``profile`` the operators that spend the device's time, ``op_profile``),
     the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
@@ -77,7 +77,9 @@ def bench_train(
         out[f"{name}_final_loss"] = final
     if len(kinds) == 2:
         out["speedup"] = out["CudaGraphTrainStep_steps_per_s"] / out["EagerTrainStep_steps_per_s"]
-    out.update(step_breakdown(data, dataclasses.replace(cfg, bf16=bf16), steps=min(steps, 20), profile=profile))
+    measured = {"bf16": bf16, "bf16_norms": bf16 and bf16_norms}  # the breakdown and profile's precision
+    out["breakdown_config"] = measured
+    out.update(step_breakdown(data, dataclasses.replace(cfg, **measured), steps=min(steps, 20), profile=profile))
     best = max(v for k, v in out.items() if k.endswith("_samples_per_s"))
     out["achieved_tflops"] = out["flops_per_sample"] * best / 1e12  # at the fastest variant's samples/s
     if on_cuda:
@@ -95,7 +97,7 @@ def _variants(kinds, bf16: bool, channels_last: bool, cudnn_benchmark: bool, com
             both[cudnn_benchmark], both[channels_last], both[bf16], kinds
         )
     ]
-    grid += [(EagerTrainStep, cudnn_benchmark, False, bf16, True, False)] if compile else []
+    grid += [(kind, cudnn_benchmark, False, bf16, True, False) for kind in kinds] if compile else []
     grid += [(kinds[-1], cudnn_benchmark, False, True, False, True)] if bf16_norms else []
     for kind, tuned, layout_cl, precision, compiled, norms in grid:
         tags = (

@@ -106,8 +106,8 @@ class BenchTrainArgs(RunRecordArgs):
     cudnn_benchmark: bool = False
     """also time each variant with cuDNN's autotuner on (torch.backends.cudnn.benchmark: keys ..._tuned)"""
     compile: bool = False
-    """also time the eager step through torch.compile, at bf16 when --bf16 and tuned when --cudnn-benchmark
-    (key EagerTrainStep_compiled...; compiling takes a minute or more)"""
+    """also time the steps through torch.compile (the eager one, and on CUDA the captured one), at bf16 when --bf16
+    and tuned when --cudnn-benchmark (keys ..._compiled...; compiling takes a minute or more)"""
     bf16_norms: bool = False
     """also time the captured step under bf16 with its GroupNorms in bf16 too (CUDA autocast otherwise runs them in
     float32; key CudaGraphTrainStep_bf16norms_bf16...)"""

@@ -135,9 +135,10 @@ class DiffusionPolicyConfig:
     """On CUDA, let cuDNN time its convolution algorithms for the step's fixed shapes once and keep the fastest
     (``torch.backends.cudnn.benchmark``); ``bench-train --cudnn-benchmark`` measures both sides."""
     compile: bool = False
-    """The eager step (CPU, or CUDA with cuda_graph off) runs the network through ``torch.compile``: about a minute
-    of compiling on 2 CPU cores, then each step takes ~0.55x the time (the quarter-width U-Net on CPU is bound
-    by per-op overhead, which the compiled kernels fuse away). Weights, checkpoints and RNG draws are unchanged."""
+    """The network runs through ``torch.compile``: about a minute of compiling on 2 CPU cores, then each step takes
+    ~0.55x the time (the quarter-width U-Net on CPU is bound by per-op overhead, which the compiled kernels fuse
+    away). On CUDA the captured step records the compiled kernels (compiled in its warm-up steps; ``bench-train
+    --compile`` times both steps). Weights, checkpoints and RNG draws are unchanged."""
     num_workers: int = 0
     """DataLoader worker processes (data is in memory: 0 is usually fastest)."""
     seed: int = 0

@@ -144,6 +144,8 @@ class CudaGraphTrainStep(ResumableOrder):
         device = policy.device
         self._init_order()
         self.policy, self.batch_size = policy, cfg.batch_size
+        if cfg.compile:  # compiled during the warm-up steps; the capture records its fused kernels
+            policy.compile_for_training()
         self.optimizer = torch.optim.AdamW(
             policy.model.parameters(),
             lr=torch.tensor(cfg.lr, device=device),
