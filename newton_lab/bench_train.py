@@ -12,6 +12,7 @@ from typing import Any
 
 import torch
 
+from .policies import norm
 from .policies.data import SequenceDataset
 from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
 from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
@@ -31,6 +32,7 @@ def bench_train(
     cudnn_benchmark: bool = False,
     compile: bool = False,
     bf16_norms: bool = False,
+    native_norms: bool = False,
     profile: bool = False,
 ) -> dict[str, Any]:
     """Diffusion-policy optimiser steps/s on ``dataset``: the eager step and (on CUDA) the captured step, side by
@@ -39,7 +41,8 @@ def bench_train(
     weights in channels-last layout (``..._cl``: the convolutions then run channels-last); ``cudnn_benchmark`` each
     also with cuDNN's autotuner on (``..._tuned``); ``compile`` each step kind also through ``torch.compile`` at the
     last variant's precision and autotuning (``..._compiled...``); ``bf16_norms`` the captured step (the eager one
-    off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``).
+    off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``); ``native_norms`` the captured
+    step's bf16 variants again with PyTorch's own group-norm kernels (``policies.norm``; ``..._nativenorms...``).
     ``obs_keys`` / ``image_keys`` replace the preset's (e.g. the long-horizon recipe's two views). Also where a step's
     time goes (``step_breakdown``; with ``profile`` the operators that spend the device's time, ``op_profile``),
     the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
@@ -67,11 +70,16 @@ def bench_train(
         "image_shapes": {k: list(v) for k, v in data.image_shapes.items()},
     }
     for kind, name, tuned, layout_cl, overrides in _variants(
-        kinds, bf16, channels_last, cudnn_benchmark, compile, bf16_norms
+        kinds, bf16, channels_last, cudnn_benchmark, compile, bf16_norms, native_norms
     ):
         torch.backends.cudnn.benchmark = tuned
+        native = overrides.pop("native_norms")
         run_cfg = dataclasses.replace(cfg, **overrides)
-        rate, final = _time_variant(kind, data, run_cfg, layout_cl, steps)
+        norm.NATIVE_GROUP_NORM = native
+        try:
+            rate, final = _time_variant(kind, data, run_cfg, layout_cl, steps)
+        finally:
+            norm.NATIVE_GROUP_NORM = False
         out[f"{name}_steps_per_s"] = rate
         out[f"{name}_samples_per_s"] = rate * batch_size
         out[f"{name}_final_loss"] = final
@@ -87,28 +95,35 @@ def bench_train(
     return out
 
 
-def _variants(kinds, bf16: bool, channels_last: bool, cudnn_benchmark: bool, compile: bool, bf16_norms: bool):
+def _variants(
+    kinds, bf16: bool, channels_last: bool, cudnn_benchmark: bool, compile: bool, bf16_norms: bool, native_norms: bool
+):
     """``bench_train``'s variants in the order they run (the autotuner last: once on, it stays on in the process):
     (step kind, key, autotuned, channels-last, config overrides)."""
     both = {True: [False, True], False: [False]}
     grid = [
-        (kind, tuned, layout_cl, precision, False, False)
+        (kind, tuned, layout_cl, precision, False, False, False)
         for tuned, layout_cl, precision, kind in itertools.product(
             both[cudnn_benchmark], both[channels_last], both[bf16], kinds
         )
     ]
-    grid += [(kind, cudnn_benchmark, False, bf16, True, False) for kind in kinds] if compile else []
-    grid += [(kinds[-1], cudnn_benchmark, False, True, False, True)] if bf16_norms else []
-    for kind, tuned, layout_cl, precision, compiled, norms in grid:
+    grid += [(kind, cudnn_benchmark, False, bf16, True, False, False) for kind in kinds] if compile else []
+    grid += [(kinds[-1], cudnn_benchmark, False, True, False, True, False)] if bf16_norms else []
+    if native_norms:
+        grid += [(kinds[-1], cudnn_benchmark, False, bf16, False, False, True)]
+        grid += [(kinds[-1], cudnn_benchmark, False, True, False, True, True)] if bf16_norms else []
+    for kind, tuned, layout_cl, precision, compiled, norms, native in grid:
         tags = (
             ("_compiled", compiled),
+            ("_nativenorms", native),
             ("_bf16norms", norms),
             ("_bf16", precision),
             ("_cl", layout_cl),
             ("_tuned", tuned),
         )
         name = kind.__name__ + "".join(tag for tag, on in tags if on)
-        yield kind, name, tuned, layout_cl, {"bf16": precision, "compile": compiled, "bf16_norms": norms}
+        overrides = {"bf16": precision, "compile": compiled, "bf16_norms": norms, "native_norms": native}
+        yield kind, name, tuned, layout_cl, overrides
 
 
 def _time_variant(kind, data: SequenceDataset, cfg: DiffusionPolicyConfig, channels_last: bool, steps: int):

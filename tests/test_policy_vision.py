@@ -8,6 +8,7 @@ import json
 
 import pytest
 import torch
+import torch.nn.functional as F
 
 from newton_lab.policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
 from newton_lab.policies.vision import ImageEncoder, SpatialSoftmax, crop_frames
@@ -113,6 +114,29 @@ def test_bf16_training_keeps_float32_weights(image_demos, tmp_path):
     assert torch.isfinite(
         torch.tensor(__import__("json").loads((path.parent / "train_log.json").read_text())["final_loss"])
     )
+
+
+NORM_SHAPES = [((5, 32, 9, 7), 4), ((3, 64, 43, 33), 4), ((4, 512, 3, 2), 32), ((6, 64, 16), 4)]
+"""(input shape, groups): an encoder's stem and last stage, and a U-Net's 1-D norm."""
+
+
+@pytest.mark.parametrize("shape,groups", NORM_SHAPES)
+def test_group_norm_by_rows_is_group_norm_with_its_gradients(shape, groups):
+    """The CUDA path of the policies' GroupNorm (layer-norm kernels over each sample's groups, then the per-channel
+    affine) is ``F.group_norm``: the same values and the same gradients of input, weight and bias (float64, to
+    rounding), for the encoders' and the U-Net's shapes."""
+    from newton_lab.policies.norm import group_norm_by_rows
+
+    torch.manual_seed(0)
+    x = torch.randn(*shape, dtype=torch.float64, requires_grad=True)
+    w = torch.randn(shape[1], dtype=torch.float64, requires_grad=True)
+    b = torch.randn(shape[1], dtype=torch.float64, requires_grad=True)
+    native, rows = F.group_norm(x, groups, w, b, 1e-5), group_norm_by_rows(x, groups, w, b, 1e-5)
+    assert torch.allclose(rows, native, atol=1e-12)
+    upstream = torch.randn_like(native)
+    for a, r in zip(torch.autograd.grad(native, (x, w, b), upstream), torch.autograd.grad(rows, (x, w, b), upstream)):
+        assert torch.allclose(r, a, atol=1e-10)
+    assert torch.allclose(group_norm_by_rows(x, groups, None, None, 1e-5), F.group_norm(x, groups, eps=1e-5))
 
 
 def test_bf16_norms_run_the_group_norms_in_the_autocast_dtype_with_the_same_weights(image_demos, tmp_path):

@@ -78,6 +78,7 @@ def bench_train(args: BenchTrainArgs) -> int:
         channels_last=args.channels_last,
         cudnn_benchmark=args.cudnn_benchmark,
         compile=args.compile,
+        native_norms=args.native_norms,
         bf16_norms=args.bf16_norms,
         profile=args.profile,
         **args.key_overrides(),
