@@ -15,7 +15,7 @@ import warp as wp
 from newton.sensors import SensorCamera
 
 from .envs import make_env
-from .envs.cameras import RENDER_BLOCK_DIM, RENDER_ORDER, render_config
+from .envs.render_settings import RENDER_BLOCK_DIM, RENDER_ORDER, render_config
 from .task_api.physics import PhysicsCfg
 
 

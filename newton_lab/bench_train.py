@@ -12,9 +12,9 @@ from typing import Any
 
 import torch
 
-from .policies import norm
 from .policies.data import SequenceDataset
 from .policies.diffusion import PRESETS, DiffusionPolicy, DiffusionPolicyConfig
+from .policies.norm import set_native_norms
 from .policies.train_step import CudaGraphTrainStep, EagerTrainStep
 
 
@@ -75,11 +75,7 @@ def bench_train(
         torch.backends.cudnn.benchmark = tuned
         native = overrides.pop("native_norms")
         run_cfg = dataclasses.replace(cfg, **overrides)
-        norm.NATIVE_GROUP_NORM = native
-        try:
-            rate, final = _time_variant(kind, data, run_cfg, layout_cl, steps)
-        finally:
-            norm.NATIVE_GROUP_NORM = False
+        rate, final = _time_variant(kind, data, run_cfg, layout_cl, steps, native)
         out[f"{name}_steps_per_s"] = rate
         out[f"{name}_samples_per_s"] = rate * batch_size
         out[f"{name}_final_loss"] = final
@@ -126,11 +122,15 @@ def _variants(
         yield kind, name, tuned, layout_cl, overrides
 
 
-def _time_variant(kind, data: SequenceDataset, cfg: DiffusionPolicyConfig, channels_last: bool, steps: int):
+def _time_variant(
+    kind, data: SequenceDataset, cfg: DiffusionPolicyConfig, channels_last: bool, steps: int, native_norms: bool
+):
     """(steps/s, final loss) of ``steps`` optimiser steps of ``kind`` on a fresh policy (seed 0), after 10 untimed
-    ones (allocation, autotuning, capture, compilation)."""
+    ones (allocation, autotuning, capture, compilation); ``native_norms``: its GroupNorms on PyTorch's own
+    kernels."""
     torch.manual_seed(0)
     policy = DiffusionPolicy.from_dataset(data, cfg).to(cfg.device)
+    set_native_norms(policy.model, native_norms)
     if channels_last:
         policy.model.to(memory_format=torch.channels_last)
     on_cuda = torch.device(cfg.device).type == "cuda"

@@ -17,7 +17,8 @@ from newton.sensors import SensorCamera
 
 from newton_lab.agents import expert_agent
 from newton_lab.envs import make_env
-from newton_lab.envs.cameras import RENDER_BLOCK_DIM, RENDER_ORDER, resolve_cameras
+from newton_lab.envs.cameras import resolve_cameras
+from newton_lab.envs.render_settings import RENDER_BLOCK_DIM, RENDER_ORDER
 from newton_lab.robots.g1 import cameras as mounts, spec
 from newton_lab.robots.g1.model import mjcf_path
 from newton_lab.task_api.registry import lookup

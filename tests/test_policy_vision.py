@@ -253,9 +253,10 @@ def test_bench_train_profile_names_the_operators_that_spend_the_step(image_demos
     from newton_lab.cli import main
 
     argv = ["bench-train", "--dataset-path", str(image_demos), "--batch-size", "4", "--steps", "2"]
-    assert main([*argv, "--preset", "vision_cpu", "--profile", "--bf16", "--bf16-norms"]) == 0
+    assert main([*argv, "--preset", "vision_cpu", "--profile", "--bf16", "--bf16-norms", "--native-norms"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["EagerTrainStep_bf16norms_bf16_steps_per_s"] > 0  # the norms' variant beside plain bf16
+    assert out["EagerTrainStep_nativenorms_bf16norms_bf16_steps_per_s"] > 0  # and on PyTorch's own norm kernels
     prof = out["profile"]
     top = [row["ms_per_step"] for row in prof["top"]]
     assert prof["clock"] == "cpu" and top == sorted(top, reverse=True) and top[0] > 0

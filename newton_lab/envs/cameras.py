@@ -36,6 +36,7 @@ from ..robots.binding import RobotBinding
 from ..task_api.cfg import CameraCfg
 from .camera_specs import ImageTerm, image_terms, resolve_cameras, segmentation_table
 from .pictures import picture
+from .render_settings import DEFAULT_LIGHT_DIRECTION, RENDERED_SHAPES, SKY_RGBA, render_config
 
 __all__ = [
     "Cameras",
@@ -44,42 +45,9 @@ __all__ = [
     "ViewGroup",
     "image_terms",
     "picture",
-    "render_config",
     "resolve_cameras",
     "segmentation_table",
 ]
-
-DEFAULT_LIGHT_DIRECTION = (-0.5773502691896258, 0.5773502691896258, -0.5773502691896258)
-"""Direction the light shines in (world frame, unit; Newton's default for a z-up model): down, from +x and -y."""
-SKY_RGBA = (178, 190, 204, 0)
-"""Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
-RENDERED_SHAPES = newton.ShapeFlags.VISIBLE | newton.ShapeFlags.COLLIDE_SHAPES
-"""Shapes the cameras see: visual and collision geometry (the G1 MJCF's collision geoms are its body; Newton
-marks them invisible because the MJCF also has visual geoms), not sites."""
-RENDER_ORDER = SensorCamera.RenderOrder.TILED
-"""How the render's threads walk the views' pixels (Newton's ``RenderOrder``; the pixels are the same in every
-order, only the speed differs). Tiles of neighbouring pixels of one view: at 4096 worlds x two 96x72 views on one
-H200, 181.6 k env-steps/s against 165.9 k pixel by pixel across the views (Newton's default) and 163.5 k view by view
-(``newton-lab bench --cameras ... --render-orders``, docs/results)."""
-RENDER_TILE = (16, 8)
-"""Tile width and height [px] of the ``TILED`` order."""
-RENDER_BLOCK_DIM = 64
-"""Threads per block of the render's kernel launch (launch-time only; no recompilation)."""
-
-
-def render_config(
-    max_distance: float, order=None, block_dim: int | None = None, tile: tuple[int, int] | None = None
-) -> SensorCamera.RenderConfig:
-    """The env's render settings: rays end at ``max_distance`` [m]; ``order`` / ``block_dim`` / ``tile`` replace
-    ``RENDER_ORDER`` / ``RENDER_BLOCK_DIM`` / ``RENDER_TILE`` (the bench's sweep)."""
-    tile_width, tile_height = RENDER_TILE if tile is None else tile
-    return SensorCamera.RenderConfig(
-        max_distance=max_distance,
-        render_order=RENDER_ORDER if order is None else order,
-        block_dim=RENDER_BLOCK_DIM if block_dim is None else block_dim,
-        tile_width=tile_width,
-        tile_height=tile_height,
-    )
 
 
 @dataclass

@@ -5,8 +5,8 @@ Speed: on an H200 (two-view vision preset, batch 2048, bf16), PyTorch's own ``gr
 (``bench-train --profile``): they are slow for the encoders' many small groups. On CUDA this module computes the same
 norm through the layer-norm kernels instead (each sample's groups as rows, each group's channels x pixels as the
 normalised axis, the per-channel affine after), the kernels that transformer training keeps fast. The result is the
-same function of the same parameters; ``NATIVE_GROUP_NORM`` switches back (``bench-train --native-norms`` times
-both).
+same function of the same parameters; ``set_native_norms`` switches a network back (``bench-train --native-norms``
+times both).
 
 Precision: CUDA autocast runs every ``group_norm`` and ``layer_norm`` in float32 (PyTorch's autocast op table), so
 under bf16 each norm casts its bf16 input up, normalises in float32 and hands float32 to the next convolution, which
@@ -21,21 +21,20 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-NATIVE_GROUP_NORM = False
-"""True: every ``GroupNorm`` runs PyTorch's own group-norm kernels on CUDA too (the comparison's other side)."""
-
 
 class GroupNorm(nn.GroupNorm):
     """``nn.GroupNorm``; on CUDA through the layer-norm kernels; with ``low_precision`` set and autocast on,
     computed in the autocast dtype."""
 
     low_precision: bool = False
+    native: bool = False
+    """PyTorch's own group-norm kernels on CUDA too (the comparison's other side)."""
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         device = x.device.type
         autocast = torch.is_autocast_enabled(device)
         low = self.low_precision and autocast
-        if not x.is_cuda or NATIVE_GROUP_NORM:
+        if not x.is_cuda or self.native:
             if not low:
                 return super().forward(x)
             dtype = torch.get_autocast_dtype(device)
@@ -68,3 +67,11 @@ def set_low_precision_norms(module: nn.Module, on: bool) -> None:
     for m in module.modules():
         if isinstance(m, GroupNorm):
             m.low_precision = on
+
+
+def set_native_norms(module: nn.Module, on: bool) -> None:
+    """Run every ``GroupNorm`` in ``module`` through PyTorch's own group-norm kernels on CUDA too (``on``), or through
+    the layer-norm kernels (off, the default)."""
+    for m in module.modules():
+        if isinstance(m, GroupNorm):
+            m.native = on

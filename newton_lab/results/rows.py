@@ -180,13 +180,28 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
                     str(r["num_envs"]),
                     camera,
                     _k(r.get("env_steps_per_s_with_camera")),
-                    f"rate {r['ratio_camera_env_to_ceiling']:.2f}x the physics + render ceiling"
-                    if "ratio_camera_env_to_ceiling" in r
-                    else "–",
+                    (
+                        f"rate {r['ratio_camera_env_to_ceiling']:.2f}x the physics + render ceiling"
+                        if "ratio_camera_env_to_ceiling" in r
+                        else "–"
+                    )
+                    + _render_orders(r),
                     _link(path, page_dir),
                 ]
             )
     return rows
+
+
+def _render_orders(r: dict[str, Any]) -> str:
+    """``bench --render-orders``' sweep in a phrase: the env's render order, the fastest, and Newton's default."""
+    sweep = r.get("by_render_order")
+    if not sweep:
+        return f"; render order {r['render_order']}" if r.get("render_order") else ""
+    rate = {k: v["env_steps_per_s_with_camera"] for k, v in sweep.items()}
+    best = max(rate, key=rate.get)
+    default = next((k for k in rate if k.startswith("PIXEL_PRIORITY/64")), None)
+    words = f"; render order {r['render_order']}; fastest of {len(rate)} orders {best} {_k(rate[best])}"
+    return words + (f", Newton's default {default} {_k(rate[default])}" if default else "")
 
 
 def collection_rows(records, page_dir: Path) -> list[list[str]]:
@@ -213,6 +228,7 @@ VARIANT_WORDS = {
     "CudaGraphTrainStep": "graph",
     "compiled": "compiled",
     "bf16norms": "bf16 norms",
+    "nativenorms": "native norms",
     "bf16": "bf16",
     "cl": "channels-last",
     "tuned": "tuned",
