@@ -161,9 +161,7 @@ def step_breakdown(
     device = torch.device(cfg.device)
     policy = DiffusionPolicy.from_dataset(data, cfg).to(device)
     opt = torch.optim.AdamW(policy.model.parameters(), lr=cfg.lr, fused=device.type in ("cuda", "cpu"))
-    obs, actions = data.obs.to(device), data.actions.to(device)
-    images = {k: v.to(device) for k, v in data.images.items()}
-    obs_index, action_index = data.obs_index.to(device), data.action_index.to(device)
+    windows = data.windows(device)
     gen = torch.Generator(device=device).manual_seed(0)
 
     def sync() -> float:
@@ -172,12 +170,7 @@ def step_breakdown(
         return time.perf_counter()
 
     def batch() -> dict[str, Any]:
-        idx = torch.randint(len(data), (cfg.batch_size,), device=device, generator=gen)
-        frames = obs_index[idx]
-        out = {"obs": obs[frames], "actions": actions[action_index[idx]]}
-        if images:
-            out["images"] = {k: v[frames] for k, v in images.items()}
-        return out
+        return windows.batch(torch.randint(len(data), (cfg.batch_size,), device=device, generator=gen))
 
     spent = {"data": 0.0, "forward": 0.0, "backward": 0.0, "optimizer": 0.0}
     warmup = 3

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
@@ -114,6 +115,33 @@ def test_bf16_training_keeps_float32_weights(image_demos, tmp_path):
     assert torch.isfinite(
         torch.tensor(__import__("json").loads((path.parent / "train_log.json").read_text())["final_loss"])
     )
+
+
+def test_the_device_resident_windows_give_the_host_loaders_batches(image_demos):
+    """The captured step's data path (every window's arrays copied to its device once, frames kept uint8, batches
+    gathered there by ``Windows.batch``) and the eager step's DataLoader over the dataset give the same batch for the
+    same windows: the first batch of the eager step's seeded order, gathered both ways."""
+    from newton_lab.datasets import read_episode
+    from newton_lab.policies.data import SequenceDataset
+    from newton_lab.policies.train_step import EagerTrainStep
+
+    cfg = DiffusionPolicyConfig(**{**PRESETS["vision_cpu"], "batch_size": 8, "seed": 3})
+    data = SequenceDataset(image_demos, obs_keys=cfg.obs_keys, image_keys=cfg.image_keys, obs_horizon=2)
+    policy = DiffusionPolicy.from_dataset(data, cfg)
+    step = EagerTrainStep(policy, data, cfg)
+    step.generator.manual_seed(cfg.seed)
+    indices = next(iter(step.loader.batch_sampler))
+    step.generator.manual_seed(cfg.seed)  # the same order again, through the loader
+    host = next(iter(step.loader))
+    device = data.windows("cpu").batch(torch.as_tensor(indices))  # the GPU path's gather, here on the CPU
+    assert torch.equal(device["obs"], host["obs"]) and torch.equal(device["actions"], host["actions"])
+    assert device["obs"].shape == (8, 2, data.obs_dim)
+    for key, frames in host["images"].items():
+        assert device["images"][key].dtype == torch.uint8 and torch.equal(device["images"][key], frames), key
+    # and both are the recorded frames of those windows, read from the file on their own
+    recorded = np.concatenate([read_episode(file, demo)["obs"]["front_head_rgb"] for file, demo in data.demos])
+    window_frames = data.obs_index[torch.as_tensor(indices)].numpy()
+    assert np.array_equal(host["images"]["front_head_rgb"].numpy(), recorded[window_frames])
 
 
 NORM_SHAPES = [((5, 32, 9, 7), 4), ((3, 64, 43, 33), 4), ((4, 512, 3, 2), 32), ((6, 64, 16), 4)]

@@ -435,4 +435,20 @@ MUTATIONS: tuple[Mutation, ...] = (
         "reach = 0.0 * gap",
         "tests/test_distractors.py::test_every_reset_puts_them_on_the_table_clear_of_the_rest_and_they_stay",
     ),
+    one_patch(
+        "group-norm-rows-skip-the-bias",
+        "The policies' GroupNorm on CUDA (the layer-norm kernels) is the same function as PyTorch's group norm",
+        "newton_lab/policies/norm.py",
+        "return y * w if bias is None else torch.addcmul(bias.to(x.dtype).view(shape), y, w)",
+        "return y * w",
+        "tests/test_policy_vision.py::test_group_norm_by_rows_is_group_norm_with_its_gradients",
+    ),
+    one_patch(
+        "device-windows-off-by-one-frame",
+        "The captured step's device-resident windows give the host loader's batches",
+        "newton_lab/policies/data.py",
+        "frames = self.obs_index[idx]",
+        "frames = (self.obs_index[idx] + 1).clamp(max=self.obs.shape[0] - 1)",
+        "tests/test_policy_vision.py::test_the_device_resident_windows_give_the_host_loaders_batches",
+    ),
 )

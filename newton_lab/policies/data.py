@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -207,24 +208,55 @@ class SequenceDataset(Dataset):
         return self.obs_index.shape[0]
 
     def __getitem__(self, i: int) -> dict[str, Any]:
-        return self._window(torch.as_tensor(i))
+        return self.windows().batch(torch.as_tensor(i))
 
     def __getitems__(self, indices: Sequence[int]) -> dict[str, Any]:
         """A whole batch by fancy indexing (DataLoader uses it; pair with ``collate_fn=collate_batch``)."""
-        return self._window(torch.as_tensor(indices, dtype=torch.long))
+        return self.windows().batch(torch.as_tensor(indices, dtype=torch.long))
 
-    def _window(self, idx: torch.Tensor) -> dict[str, Any]:
-        frames = self.obs_index[idx]
-        out: dict[str, Any] = {"obs": self.obs[frames], "actions": self.actions[self.action_index[idx]]}
-        if self.images:
-            out["images"] = {k: v[frames] for k, v in self.images.items()}
-        return out
+    def windows(self, device: torch.device | str | None = None) -> Windows:
+        """Every window's arrays, here or copied to ``device`` (the captured training step keeps them on the GPU,
+        frames as uint8); both paths gather their batches with ``Windows.batch``."""
+        w = Windows(self.obs, self.actions, self.images, self.obs_index, self.action_index)
+        return w if device is None else w.to(device)
 
     def __repr__(self) -> str:
         return (
             f"SequenceDataset({self.source!r}, demos={len(self.demos)}, windows={len(self)}, "
             f"obs_keys={list(self.obs_keys)}, obs_dim={self.obs_dim}, action_dim={self.action_dim})"
         )
+
+
+@dataclass(frozen=True)
+class Windows:
+    """The arrays batches are gathered from: low-dim obs (frames, obs_dim), actions (frames, action_dim), uint8
+    images (frames, H, W, 3) per key, and per window its obs frames (windows, obs_horizon) and action frames
+    (windows, pred_horizon)."""
+
+    obs: torch.Tensor
+    actions: torch.Tensor
+    images: dict[str, torch.Tensor]
+    obs_index: torch.Tensor
+    action_index: torch.Tensor
+
+    def to(self, device: torch.device | str) -> Windows:
+        """The same arrays on ``device``."""
+        return Windows(
+            self.obs.to(device),
+            self.actions.to(device),
+            {k: v.to(device) for k, v in self.images.items()},
+            self.obs_index.to(device),
+            self.action_index.to(device),
+        )
+
+    def batch(self, idx: torch.Tensor) -> dict[str, Any]:
+        """The windows ``idx`` (on this device): obs (B, obs_horizon, obs_dim), actions (B, pred_horizon,
+        action_dim) and, with images, their frames (B, obs_horizon, H, W, 3) by key."""
+        frames = self.obs_index[idx]
+        out: dict[str, Any] = {"obs": self.obs[frames], "actions": self.actions[self.action_index[idx]]}
+        if self.images:
+            out["images"] = {k: v[frames] for k, v in self.images.items()}
+        return out
 
 
 def collate_batch(batch: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:

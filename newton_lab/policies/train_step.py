@@ -154,9 +154,7 @@ class CudaGraphTrainStep(ResumableOrder):
             fused=True,
             capturable=True,
         )
-        self.obs, self.actions = data.obs.to(device), data.actions.to(device)
-        self.images = {k: v.to(device) for k, v in data.images.items()}  # uint8 frames: the whole set on the GPU
-        self.obs_index, self.action_index = data.obs_index.to(device), data.action_index.to(device)
+        self.windows = data.windows(device)  # uint8 frames: the whole set on the GPU
         self.rank, self.processes = world()
         self.num_windows, self.steps = len(data), steps_per_epoch(data, cfg.batch_size * self.processes)
         self.generator = torch.Generator(device=device).manual_seed(cfg.seed)  # batch order
@@ -165,11 +163,7 @@ class CudaGraphTrainStep(ResumableOrder):
         self.calls, self.graph, self.loss = 0, None, None
 
     def _body(self) -> torch.Tensor:
-        frames = self.obs_index[self.index]
-        batch = {"obs": self.obs[frames], "actions": self.actions[self.action_index[self.index]]}
-        if self.images:
-            batch["images"] = {k: v[frames] for k, v in self.images.items()}
-        loss = self.policy.compute_loss(batch)
+        loss = self.policy.compute_loss(self.windows.batch(self.index))
         loss.backward()
         average_gradients(self.policy.model.parameters())  # an NCCL all-reduce, captured with the rest
         self.optimizer.step()
