@@ -41,8 +41,8 @@ def bench_train(
     weights in channels-last layout (``..._cl``: the convolutions then run channels-last); ``cudnn_benchmark`` each
     also with cuDNN's autotuner on (``..._tuned``); ``compile`` each step kind also through ``torch.compile`` at the
     last variant's precision and autotuning (``..._compiled...``); ``bf16_norms`` the captured step (the eager one
-    off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``); ``native_norms`` the captured
-    step's bf16 variants again with PyTorch's own group-norm kernels (``policies.norm``; ``..._nativenorms...``).
+    off CUDA) under bf16 with its GroupNorms in bf16 too (``..._bf16norms_bf16...``); ``native_norms`` (with
+    ``bf16_norms``) that variant again on PyTorch's own group-norm kernels (``policies.norm``; ``..._nativenorms...``).
     ``obs_keys`` / ``image_keys`` replace the preset's (e.g. the long-horizon recipe's two views). Also where a step's
     time goes (``step_breakdown``; with ``profile`` the operators that spend the device's time, ``op_profile``),
     the achieved TFLOP/s at the fastest variant's rate and, on CUDA, the peak GPU memory."""
@@ -105,9 +105,7 @@ def _variants(
     ]
     grid += [(kind, cudnn_benchmark, False, bf16, True, False, False) for kind in kinds] if compile else []
     grid += [(kinds[-1], cudnn_benchmark, False, True, False, True, False)] if bf16_norms else []
-    if native_norms:
-        grid += [(kinds[-1], cudnn_benchmark, False, bf16, False, False, True)]
-        grid += [(kinds[-1], cudnn_benchmark, False, True, False, True, True)] if bf16_norms else []
+    grid += [(kinds[-1], cudnn_benchmark, False, True, False, True, True)] if native_norms and bf16_norms else []
     for kind, tuned, layout_cl, precision, compiled, norms, native in grid:
         tags = (
             ("_compiled", compiled),

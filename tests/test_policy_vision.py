@@ -150,9 +150,9 @@ NORM_SHAPES = [((5, 32, 9, 7), 4), ((3, 64, 43, 33), 4), ((4, 512, 3, 2), 32), (
 
 @pytest.mark.parametrize("shape,groups", NORM_SHAPES)
 def test_group_norm_by_rows_is_group_norm_with_its_gradients(shape, groups):
-    """The CUDA path of the policies' GroupNorm (layer-norm kernels over each sample's groups, then the per-channel
-    affine) is ``F.group_norm``: the same values and the same gradients of input, weight and bias (float64, to
-    rounding), for the encoders' and the U-Net's shapes."""
+    """The CUDA path of the policies' bf16 GroupNorm (layer-norm kernels over each sample's groups, then the
+    per-channel affine) is ``F.group_norm``: the same values and the same gradients of input, weight and bias
+    (float64, to rounding), for the encoders' and the U-Net's shapes."""
     from newton_lab.policies.norm import group_norm_by_rows
 
     torch.manual_seed(0)

@@ -112,8 +112,8 @@ class BenchTrainArgs(RunRecordArgs):
     """also time the captured step under bf16 with its GroupNorms in bf16 too (CUDA autocast otherwise runs them in
     float32; key CudaGraphTrainStep_bf16norms_bf16...)"""
     native_norms: bool = False
-    """also time the captured step's bf16 variants with PyTorch's own group-norm kernels (on CUDA the policies'
-    GroupNorms run through the layer-norm kernels: newton_lab/policies/norm.py; keys ..._nativenorms...)"""
+    """with --bf16-norms: also time that variant with PyTorch's own group-norm kernels (on CUDA the bf16 GroupNorms
+    run through the layer-norm kernels: newton_lab/policies/norm.py; key ..._nativenorms_bf16norms...)"""
     profile: bool = False
     """also profile the eager step's operators (torch.profiler): device time per step by operator and by family
     (convolution, normalisation, matmul, cast and copy, optimiser, other), in the record's profile"""

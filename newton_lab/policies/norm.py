@@ -1,18 +1,18 @@
-"""GroupNorm that is fast on CUDA and can stay in the autocast dtype.
-
-Speed: on an H200 (two-view vision preset, batch 2048, bf16), PyTorch's own ``group_norm`` kernels spent 66 ms of a
-168 ms training step, its backward alone 50 ms, against about 3 ms that reading and writing the activations takes
-(``bench-train --profile``): they are slow for the encoders' many small groups. On CUDA this module computes the same
-norm through the layer-norm kernels instead (each sample's groups as rows, each group's channels x pixels as the
-normalised axis, the per-channel affine after), the kernels that transformer training keeps fast. The result is the
-same function of the same parameters; ``set_native_norms`` switches a network back (``bench-train --native-norms``
-times both).
+"""GroupNorm that can stay in the autocast dtype, and is then fast on CUDA.
 
 Precision: CUDA autocast runs every ``group_norm`` and ``layer_norm`` in float32 (PyTorch's autocast op table), so
 under bf16 each norm casts its bf16 input up, normalises in float32 and hands float32 to the next convolution, which
 casts it back down: two extra passes over every activation. With ``low_precision`` on, the norm runs in the autocast
 dtype instead (the kernel still accumulates its statistics in float32), as timm's "fast norm" does. Off, it is
-``nn.GroupNorm``'s float32; the parameters and the state dict are the same either way.
+``nn.GroupNorm``; the parameters and the state dict are the same either way.
+
+Speed: PyTorch's own ``group_norm`` kernels are slow for the image encoders' many small groups: on an H200 (two-view
+vision preset, batch 2048, bf16 norms) they spent 66 ms of a 168 ms training step, against about 3 ms that reading and
+writing the activations takes (``bench-train --profile``). So a low-precision norm on CUDA computes the same function
+through the layer-norm kernels (each sample's groups as rows, each group's channels x pixels as the normalised axis,
+then the per-channel affine): faster by more the larger the batch (``bench-train --bf16-norms --native-norms`` times
+both; docs/benchmarks.md). A float32 norm keeps PyTorch's kernels: there the layer-norm route measured no faster.
+``set_native_norms`` keeps a network on PyTorch's kernels throughout.
 """
 
 from __future__ import annotations
@@ -23,28 +23,24 @@ from torch import nn
 
 
 class GroupNorm(nn.GroupNorm):
-    """``nn.GroupNorm``; on CUDA through the layer-norm kernels; with ``low_precision`` set and autocast on,
-    computed in the autocast dtype."""
+    """``nn.GroupNorm``; with ``low_precision`` set and autocast on, computed in the autocast dtype (on CUDA through
+    the layer-norm kernels unless ``native``)."""
 
     low_precision: bool = False
     native: bool = False
-    """PyTorch's own group-norm kernels on CUDA too (the comparison's other side)."""
+    """PyTorch's own group-norm kernels for the low-precision norm on CUDA too (the comparison's other side)."""
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         device = x.device.type
-        autocast = torch.is_autocast_enabled(device)
-        low = self.low_precision and autocast
-        if not x.is_cuda or self.native:
-            if not low:
-                return super().forward(x)
-            dtype = torch.get_autocast_dtype(device)
-            with torch.autocast(device, enabled=False):
-                weight = None if self.weight is None else self.weight.to(dtype)
-                bias = None if self.bias is None else self.bias.to(dtype)
-                return F.group_norm(x.to(dtype), self.num_groups, weight, bias, self.eps)
-        dtype = torch.get_autocast_dtype(device) if low else (torch.float32 if autocast else x.dtype)
+        if not (self.low_precision and torch.is_autocast_enabled(device)):
+            return super().forward(x)
+        dtype = torch.get_autocast_dtype(device)
         with torch.autocast(device, enabled=False):
-            return group_norm_by_rows(x.to(dtype), self.num_groups, self.weight, self.bias, self.eps)
+            if x.is_cuda and not self.native:
+                return group_norm_by_rows(x.to(dtype), self.num_groups, self.weight, self.bias, self.eps)
+            weight = None if self.weight is None else self.weight.to(dtype)
+            bias = None if self.bias is None else self.bias.to(dtype)
+            return F.group_norm(x.to(dtype), self.num_groups, weight, bias, self.eps)
 
 
 def group_norm_by_rows(
@@ -70,8 +66,8 @@ def set_low_precision_norms(module: nn.Module, on: bool) -> None:
 
 
 def set_native_norms(module: nn.Module, on: bool) -> None:
-    """Run every ``GroupNorm`` in ``module`` through PyTorch's own group-norm kernels on CUDA too (``on``), or through
-    the layer-norm kernels (off, the default)."""
+    """Run every low-precision ``GroupNorm`` in ``module`` through PyTorch's own group-norm kernels on CUDA too
+    (``on``), or through the layer-norm kernels (off, the default)."""
     for m in module.modules():
         if isinstance(m, GroupNorm):
             m.native = on
