@@ -24,8 +24,6 @@ def bench(args: BenchArgs) -> int:
         }
     else:
         cam = {}
-    if args.render_orders and not cam:
-        raise ValueError("--render-orders times the camera render; add --cameras (or --camera)")
     out = measure(
         args.task, num_envs=args.num_envs, steps=args.steps, device=args.device, render_orders=args.render_orders, **cam
     )

@@ -106,6 +106,10 @@ def check_args(args: Any) -> None:
         check_cameras(camera_option(args.cameras))
     if isinstance(args, BenchArgs) and args.camera is not None and args.cameras is not None:
         raise ValueError("--camera and --cameras both given; give one (--cameras takes several views)")
+    if isinstance(args, BenchTrainArgs) and args.native_norms and not (args.bf16 and args.bf16_norms):
+        raise ValueError("--native-norms times the bf16 norms on PyTorch's kernels; add --bf16 --bf16-norms")
+    if isinstance(args, BenchArgs) and args.render_orders and args.camera is None and args.cameras is None:
+        raise ValueError("--render-orders times the camera render; add --cameras (e.g. front_head=96x72:rgb)")
     if isinstance(args, BenchArgs) and args.cameras is not None and not camera_option(args.cameras):
         raise ValueError(f"--cameras {args.cameras!r} names no view to time; name one or more (front_head=96x72:rgb)")
     if isinstance(args, BenchArgs) and args.camera is not None:
