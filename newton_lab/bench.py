@@ -48,9 +48,9 @@ def bench(
     With ``camera``: also env-steps/s with that camera rendered every step (``resolution`` (w, h) [px],
     ``camera_data`` of rgb / depth / segmentation) against the camera ceiling measured beside it; ``cameras``
     (``make_env``'s dict, e.g. ``{"front_head": {"resolution": (96, 72)}, "left_wrist": ...}``) instead: several
-    views rendered every step, the ceiling rendering each of them bare. ``render_orders``: also the ceiling under
-    each of the renderer's traversal orders and thread-block sizes (``ceiling_by_render_order``; the env renders
-    with ``envs.cameras.RENDER_ORDER`` / ``RENDER_BLOCK_DIM``)."""
+    views rendered every step, the ceiling rendering each of them bare. ``render_orders``: also both under each of
+    the renderer's traversal orders, tile and thread-block sizes (``by_render_order``, ``RENDER_SWEEP``; the env
+    renders with ``envs.render_settings``')."""
     if camera is not None:
         cameras = {camera: {"resolution": tuple(resolution), "data": tuple(camera_data)}}
     cams = cameras or False
@@ -89,7 +89,7 @@ def _camera_figures(env, names: list[str], steps: int, render_orders: bool = Fal
     """The env step plus its camera render (both captured, launched back to back, as ``env.step`` followed by
     reading ``env.sensors.images``) against the ceiling: the bare solver graph plus a bare ``SensorCamera`` render of
     each view per world at the same poses, resolution and render settings (one BVH refit, then one render per view;
-    captured). ``render_orders``: the ceiling again under every traversal order x block size."""
+    captured). ``render_orders``: both again under every setting of ``RENDER_SWEEP``."""
     env.render()  # builds and captures the render graph
     cams = env.sensors.cameras
     render_graph = cams.render_graph

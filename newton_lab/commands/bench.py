@@ -45,8 +45,8 @@ class BenchArgs(BenchEnvArgs):
     """several views rendered every step instead of --camera, as collect's --cameras (e.g.
     front_head=96x72:rgb,left_wrist=96x72:rgb); the ceiling renders each of them bare"""
     render_orders: bool = False
-    """with cameras: also time the ceiling under each of the renderer's traversal orders and thread-block sizes
-    (the same pixels, other speeds; the env's own: newton_lab/envs/cameras.py RENDER_ORDER)"""
+    """with cameras: also time the step and its ceiling under each of the renderer's traversal orders, tile and
+    thread-block sizes (the same pixels, other speeds; the env's own: newton_lab/envs/render_settings.py)"""
 
 
 @dataclass(kw_only=True)
