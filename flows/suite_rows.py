@@ -56,6 +56,19 @@ seeing what they were trained on (cameras and proprioception)."""
 ROBUST_EVALUATION = (*HELD_OUT_EVALUATION, "--perturb", "sweep")
 """How the robustness rows evaluate: held out, 100 episodes a cell, every axis and level of ``--perturb``."""
 
+PICKTOSHELF_PICK_NETWORK = (
+    "--dataset-path",
+    "{out}/picktoshelf/phases/pick.hdf5",
+    "--preset",
+    "vision",
+    "--obs-keys",
+    "robot_joint_pos,gripper_pos",
+    "--image-keys",
+    "front_head_rgb,left_wrist_rgb",
+)
+"""bench-train's data and network for the long-horizon recipe's policy: two views and proprioception, on the
+PickToShelf row's pick phase dataset."""
+
 PICKTOSHELF_EVALUATION = (
     *HELD_OUT_EVALUATION,
     "--cameras",
@@ -219,14 +232,7 @@ ROWS: dict[str, list[Row]] = {
         _bench(
             "bench-train-vision-picktoshelf-pick",
             "bench-train",
-            "--dataset-path",
-            "{out}/picktoshelf/phases/pick.hdf5",
-            "--preset",
-            "vision",
-            "--obs-keys",
-            "robot_joint_pos,gripper_pos",
-            "--image-keys",
-            "front_head_rgb,left_wrist_rgb",
+            *PICKTOSHELF_PICK_NETWORK,
             "--batch-size",
             "256",
             "--steps",
@@ -243,14 +249,7 @@ ROWS: dict[str, list[Row]] = {
         _bench(
             "bench-train-vision-picktoshelf-pick-b1024",
             "bench-train",
-            "--dataset-path",
-            "{out}/picktoshelf/phases/pick.hdf5",
-            "--preset",
-            "vision",
-            "--obs-keys",
-            "robot_joint_pos,gripper_pos",
-            "--image-keys",
-            "front_head_rgb,left_wrist_rgb",
+            *PICKTOSHELF_PICK_NETWORK,
             "--batch-size",
             "1024",
             "--steps",
