@@ -195,9 +195,9 @@ ROWS: dict[str, list[Row]] = {
                 "--task",
                 "GalbotG1-PickToShelf-v0",
                 "--num-envs",
-                "1024",
+                "2048",
                 "--episodes",
-                "1024",  # one wave: 4096 (two 96x72 views, ~1,000 frames a demo) had not ended after 330 s on an H200
+                "2048",  # one wave; at 4096 rows the episodes' frames, kept on the GPU until they end, do not fit
                 "--device",
                 "cuda:0",
                 "--prefill",

@@ -15,7 +15,8 @@ import warp as wp
 from newton.sensors import SensorCamera
 
 from .envs import make_env
-from .envs.render_settings import RENDER_BLOCK_DIM, RENDER_ORDER, render_config
+from .envs.render_settings import RENDER_BLOCK_DIM, RENDER_ORDER, RENDER_TILE, render_config
+from .records import EVERY_SHAPE
 from .task_api.physics import PhysicsCfg
 
 
@@ -134,6 +135,8 @@ def _camera_figures(env, names: list[str], steps: int, render_orders: bool = Fal
         "camera_data": list(first.data),
         "cameras": {n: [cams.specs[n].width, cams.specs[n].height, list(cams.specs[n].data)] for n in names},
         "render_order": f"{RENDER_ORDER.name}/{RENDER_BLOCK_DIM}",
+        "hidden_link_groups": list(cams.hidden_groups),
+        "rendered_shapes": int(env.model.bvh_shape_count_enabled),
         "env_steps_per_s_with_camera": env.num_envs / t_cam,
         "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
         "ratio_camera_env_to_ceiling": t_ceiling / t_cam,
@@ -146,7 +149,9 @@ def _camera_figures(env, names: list[str], steps: int, render_orders: bool = Fal
 
 def _render_order_sweep(env, ceiling_graph, max_distance: float, steps: int) -> dict[str, dict[str, float]]:
     """Env-steps/s of the env step with its camera render, and of the ceiling, under each setting of
-    ``RENDER_SWEEP`` (keyed ``ORDER/BLOCK`` or ``TILED_WxH/BLOCK``); the env renders with its own settings after."""
+    ``RENDER_SWEEP`` (keyed ``ORDER/BLOCK`` or ``TILED_WxH/BLOCK``), and under the env's own setting drawing every
+    shape (``... every shape``: the links it leaves out, ``Cameras.hidden_groups``, drawn too); the env renders with
+    its own settings after."""
     cams, step_graph, out = env.sensors.cameras, env.sim.step_graph, {}
     for order, tile, block in RENDER_SWEEP:
         cams.use_render_order(order, block, tile)
@@ -159,13 +164,35 @@ def _render_order_sweep(env, ceiling_graph, max_distance: float, steps: int) -> 
 
         t_cam = _time_graph(env_with_camera, steps, env.device)
         t_ceiling = _time_graph(lambda g=ceiling: wp.capture_launch(g), steps, env.device)
-        name = order.name if tile is None else f"{order.name}_{tile[0]}x{tile[1]}"
-        out[f"{name}/{block}"] = {
+        out[f"{_setting_name(order, tile)}/{block}"] = {
             "env_steps_per_s_with_camera": env.num_envs / t_cam,
             "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
         }
     cams.use_render_order(RENDER_ORDER, RENDER_BLOCK_DIM)
+    hidden = cams.hidden_groups
+    cams.hide(())  # the env's settings, drawing every shape: what leaving out the unseen links saves
+    try:
+        with wp.ScopedDevice(env.device):
+            ceiling = ceiling_graph()
+
+        def env_with_every_shape(render=cams.render_graph):
+            wp.capture_launch(step_graph)
+            wp.capture_launch(render)
+
+        t_cam = _time_graph(env_with_every_shape, steps, env.device)
+        t_ceiling = _time_graph(lambda: wp.capture_launch(ceiling), steps, env.device)
+        out[f"{_setting_name(RENDER_ORDER, RENDER_TILE)}/{RENDER_BLOCK_DIM}{EVERY_SHAPE}"] = {
+            "env_steps_per_s_with_camera": env.num_envs / t_cam,
+            "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
+            "rendered_shapes": int(env.model.bvh_shape_count_enabled),
+        }
+    finally:
+        cams.hide(hidden)
     return out
+
+
+def _setting_name(order, tile) -> str:
+    return order.name if tile is None else f"{order.name}_{tile[0]}x{tile[1]}"
 
 
 _ORDERS = SensorCamera.RenderOrder

@@ -27,6 +27,8 @@ KINDS = ("pipeline", "bench", "bench-collect", "bench-train", "bench-refusals", 
 ``--perturb``: its perturbation table)."""
 PRODUCT_COMMANDS = ("newton-lab ", "make demo")
 """How a record's ``command`` starts when a user can run it as it is (the CLI, or the README's main job)."""
+EVERY_SHAPE = " every shape"
+"""How a ``bench --render-orders`` record keys its run at the env's render setting with every shape drawn."""
 RECORDS_DIR = Path("outputs/records")
 """Where a command writes its run record when ``--run-record`` is not given."""
 

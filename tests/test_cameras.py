@@ -26,6 +26,8 @@ from newton_lab.task_api.registry import lookup
 W, H = 96, 72
 ALL = ("rgb", "depth", "segmentation")
 PICK = "GalbotG1-PickCube-v0"
+HIDDEN = ("robot/base", "robot/torso", "robot/head", "robot/right_arm", "robot/right_gripper")
+"""The G1 links PickCube's render leaves out (it drives the left arm only)."""
 
 
 @pytest.fixture(scope="module")
@@ -145,6 +147,67 @@ def test_every_render_order_draws_the_same_pixels(cam_env):
     finally:
         cams.use_render_order(RENDER_ORDER, RENDER_BLOCK_DIM)
     assert cams.sensor.default_render_config.block_dim == RENDER_BLOCK_DIM
+
+
+def _hidden_ids_seen(env, every: int, steps: int) -> list[tuple[int, str, str]]:
+    """(step, view, link group) wherever a group the env's render leaves out shows in a render of every shape,
+    over ``steps`` steps of the expert's episodes, every ``every`` steps."""
+    cams = env.sensors.cameras
+    hidden = cams.hidden_groups
+    ids = {cams.segmentation_names.index(g): g for g in hidden}
+    agent = expert_agent(env)
+    env.reset()
+    agent.reset()
+    seen = []
+    cams.hide(())
+    try:
+        for t in range(steps):
+            env.step(agent.act(env))
+            if t % every == 0:
+                for view in ("front_head", "left_wrist"):
+                    present = np.unique(env.sensors.images[f"{view}_segmentation"].numpy())
+                    seen += [(t, view, ids[i]) for i in present if i in ids]
+    finally:
+        cams.hide(hidden)
+    return seen
+
+
+def test_culled_links_change_no_pixel(cam_env):
+    """The render leaves out the robot's links that no view sees (``RobotBinding.hidden_link_groups``: the G1's
+    base, torso and head, and the arm no action drives): over PickCube's expert episode a render of every shape
+    never shows them, and at its end the culled render draws exactly the same RGB, depth and segmentation. The
+    model's own shape flags (the collision pipeline's) are untouched."""
+    env = cam_env
+    cams = env.sensors.cameras
+    flags = env.model.shape_flags.numpy().copy()
+    assert cams.hidden_groups == HIDDEN
+    assert _hidden_ids_seen(env, every=5, steps=150) == []
+    culled = {k: v.clone() for k, v in cams.render(force=True).items()}
+    enabled = env.model.bvh_shape_count_enabled
+    cams.hide(())
+    try:
+        assert env.model.bvh_shape_count_enabled > enabled  # the culled BVH really is smaller
+        for name, img in cams.render(force=True).items():
+            assert torch.equal(img, culled[name]), name
+    finally:
+        cams.hide(HIDDEN)
+    np.testing.assert_array_equal(env.model.shape_flags.numpy(), flags)
+
+
+def test_culled_links_stay_out_of_view_through_pick_to_shelf():
+    """PickToShelf drives the base and lifts the legs on its way to the shelf: its expert episode, rendered with
+    every shape, never shows the links its render leaves out either."""
+    view = {"resolution": (W, H), "data": ("segmentation",)}
+    env = make_env(
+        "GalbotG1-PickToShelf-v0",
+        num_envs=1,
+        device="cpu",
+        seed=2,
+        randomize=True,
+        cameras={"front_head": view, "left_wrist": view},
+    )
+    assert "robot/right_arm" in env.sensors.cameras.hidden_groups
+    assert _hidden_ids_seen(env, every=10, steps=700) == []
 
 
 def test_projection_matches_segmentation(cam_env):

@@ -198,20 +198,24 @@ def test_evaluation_and_training_tables_split_their_time_and_name_each_variant(t
 
 def test_the_camera_row_names_the_render_order_and_the_sweeps_fastest():
     """A ``bench --render-orders`` record: the camera row says the env's render order, the fastest setting of the
-    sweep and Newton's default beside it; a record without the sweep names its order alone."""
+    sweep and Newton's default beside it, and the rate drawing every shape (the robot links the env leaves out
+    too), which is not one of the orders; a record without the sweep names its order alone."""
     base = {"num_envs": 4096, "env_steps_per_s": 1e6, "ratio_env_step_to_bare": 1.03, "camera": "front_head"}
     cam = {"env_steps_per_s_with_camera": 180_000.0, "ratio_camera_env_to_ceiling": 0.98}
     sweep = {
         "PIXEL_PRIORITY/64": {"env_steps_per_s_with_camera": 165_700.0},
         "TILED_8x8/64": {"env_steps_per_s_with_camera": 184_100.0},
         "TILED_16x8/64": {"env_steps_per_s_with_camera": 180_000.0},
+        "TILED_16x8/64 every shape": {"env_steps_per_s_with_camera": 150_000.0, "rendered_shapes": 127_000},
     }
-    swept = _record("bench", {**base, **cam, "render_order": "TILED/64", "by_render_order": sweep})
+    swept = _record(
+        "bench", {**base, **cam, "render_order": "TILED/64", "rendered_shapes": 49_000, "by_render_order": sweep}
+    )
     plain = _record("bench", {**base, **cam, "render_order": "TILED/64"})
     rows = results.env_step_rows([(Path("a.json"), swept), (Path("b.json"), plain)], Path("."))
     assert rows[1][5] == (
         "rate 0.98x the physics + render ceiling; render order TILED/64; fastest of 3 orders TILED_8x8/64 184.1 k, "
-        "Newton's default PIXEL_PRIORITY/64 165.7 k"
+        "Newton's default PIXEL_PRIORITY/64 165.7 k; drawing every shape (127000 in the render, not 49000) 150.0 k"
     )
     assert rows[3][5] == "rate 0.98x the physics + render ceiling; render order TILED/64"
 

@@ -22,7 +22,7 @@ view. Newton 1.8's ``SensorCamera`` has one light list for all worlds, so the li
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Iterator, Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 import newton
@@ -35,8 +35,9 @@ from ..kernels.camera import mount_transforms, segmentation_ids, shape_colors
 from ..robots.binding import RobotBinding
 from ..task_api.cfg import CameraCfg
 from .camera_specs import ImageTerm, image_terms, resolve_cameras, segmentation_table
+from .image_views import ImageViews
 from .pictures import picture
-from .render_settings import DEFAULT_LIGHT_DIRECTION, RENDERED_SHAPES, SKY_RGBA, render_config
+from .render_settings import DEFAULT_LIGHT_DIRECTION, SKY_RGBA, build_render_bvh, render_config
 
 __all__ = [
     "Cameras",
@@ -96,6 +97,7 @@ class Cameras:
         seed=lambda: 0,
         episode: wp.array | None = None,
         keep_hue: Collection[str] = (),
+        hidden_groups: Collection[str] = (),
         robot: RobotBinding,
     ):
         self.robot = RobotBinding.required(robot, "Cameras")
@@ -106,6 +108,9 @@ class Cameras:
         self.bodies_per_world = bodies_per_world
         self.entity_names = list(entity_names)
         self.keep_hue = frozenset(keep_hue)
+        self.hidden_groups = tuple(hidden_groups)
+        """Robot link groups the render leaves out (``RobotBinding.hidden_link_groups``: out of every view, so no
+        pixel changes; ``hide`` changes them)."""
         """Objects whose colour vision randomisation only jitters (``EntityCfg.keep_hue``)."""
         self.capture = capture
         self.randomize = bool(randomize)
@@ -215,7 +220,7 @@ class Cameras:
     # ------------------------------------------------------------------ build
     def _build(self) -> None:
         self.segmentation_names  # noqa: B018  (fills the shape -> id table)
-        self.model.bvh_build_shapes(self.state, shape_flags=RENDERED_SHAPES)
+        self._build_bvh()
         clear = SensorCamera.ClearData(clear_color=int.from_bytes(bytes(SKY_RGBA), "little"), clear_depth=math.inf)
         config = render_config(self.robot.camera_clipping[1])
         self.sensor = SensorCamera(
@@ -230,6 +235,10 @@ class Cameras:
             by_res.setdefault((c.width, c.height), []).append(name)
         self._groups = [self._group(tuple(names), w, h) for (w, h), names in by_res.items()]
         self._images = self._views()
+
+    def _build_bvh(self) -> None:
+        hidden = [self.segmentation_names.index(g) for g in self.hidden_groups if g in self.segmentation_names]
+        build_render_bvh(self.model, self.state, np.isin(self._shape_ids, hidden))
 
     def _group(self, names: tuple[str, ...], width: int, height: int) -> ViewGroup:
         n, v = self.num_envs, len(names) * self.num_envs
@@ -365,6 +374,16 @@ class Cameras:
             self._render_body()
             self._graph = self._capture() if self.capture else None
 
+    def hide(self, groups: Collection[str]) -> None:
+        """Draw from now on every shape but those of these robot link groups (``()``: every shape); builds the
+        cameras if needed, rebuilds the render's BVH and captures the render again."""
+        self.render()
+        self.hidden_groups = tuple(groups)
+        with wp.ScopedDevice(self.model.device):
+            self._build_bvh()
+            self._render_body()
+            self._graph = self._capture() if self.capture else None
+
     def _capture(self):
         try:
             with wp.ScopedCapture(device=self.model.device) as cap:
@@ -372,29 +391,3 @@ class Cameras:
         except Exception:  # pragma: no cover - depends on the Warp build; eager rendering stays correct
             return None
         return cap.graph
-
-
-class ImageViews(Mapping):
-    """``env.sensors.images``: image observations by name, rendered on first read after each step or reset."""
-
-    def __init__(self, cameras: Cameras):
-        self._cameras = cameras
-
-    def __getitem__(self, name: str) -> torch.Tensor:
-        if name not in self._cameras.terms:
-            if not self._cameras.specs:
-                raise KeyError(
-                    f"image term {name!r} needs cameras, but this env renders none (a state-only task or "
-                    f"make_env(..., cameras=False)); build the env with its task's cameras"
-                )
-            raise KeyError(f"no image term {name!r}; this env's image terms are {list(self._cameras.terms)}")
-        return self._cameras.render()[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._cameras.terms)
-
-    def __len__(self) -> int:
-        return len(self._cameras.terms)
-
-    def __contains__(self, name: object) -> bool:
-        return name in self._cameras.terms

@@ -180,6 +180,7 @@ class NewtonEnv:
             seed=lambda: self.seed,
             episode=buf.episode_count,
             keep_hue=[e.name for e in cfg.entities if e.keep_hue],
+            hidden_groups=self.robot.hidden_link_groups({term.group for term in cfg.actions}),
             robot=self.robot,
         )
         self.sensors = EnvSensors(

@@ -4,6 +4,8 @@ pixels (``render_config``; ``Cameras`` renders with it, ``bench --render-orders`
 from __future__ import annotations
 
 import newton
+import numpy as np
+import warp as wp
 from newton.sensors import SensorCamera
 
 DEFAULT_LIGHT_DIRECTION = (-0.5773502691896258, 0.5773502691896258, -0.5773502691896258)
@@ -12,7 +14,8 @@ SKY_RGBA = (178, 190, 204, 0)
 """Colour where a view ray hits nothing (sRGB bytes; alpha 0: nothing there)."""
 RENDERED_SHAPES = newton.ShapeFlags.VISIBLE | newton.ShapeFlags.COLLIDE_SHAPES
 """Shapes the cameras see: visual and collision geometry (the G1 MJCF's collision geoms are its body; Newton
-marks them invisible because the MJCF also has visual geoms), not sites."""
+marks them invisible because the MJCF also has visual geoms), not sites, and not the robot links out of every
+view (``build_render_bvh``)."""
 RENDER_ORDER = SensorCamera.RenderOrder.TILED
 """How the render's threads walk the views' pixels (Newton's ``RenderOrder``; the pixels are the same in every
 order, only the speed differs). Tiles of neighbouring pixels of one view: the fastest of the orders that
@@ -38,3 +41,20 @@ def render_config(
         tile_width=tile_width,
         tile_height=tile_height,
     )
+
+
+def build_render_bvh(model: newton.Model, state: newton.State, hidden: np.ndarray) -> None:
+    """Build the model's shape BVH, which Newton's ``SensorCamera`` traces its rays through, over the
+    ``RENDERED_SHAPES`` less the shapes marked in ``hidden`` (bool per shape of the model): shapes no view sees
+    cost every ray that passes their bounds a box test, and draw nothing."""
+    # Newton's BVH build selects its shapes by flag alone. It reads ``model.shape_flags`` once, here (refits and
+    # renders use the list of shapes it made), so the build reads a copy with the hidden shapes' render flags
+    # cleared; the model's own flags, which the collision pipeline reads, are put back at once.
+    flags = model.shape_flags
+    drawn = flags.numpy().copy()  # on a CPU device numpy() is a view of the model's own flags
+    drawn[np.asarray(hidden, dtype=bool)] &= ~int(RENDERED_SHAPES)
+    model.shape_flags = wp.array(drawn, dtype=flags.dtype, device=flags.device)
+    try:
+        model.bvh_build_shapes(state, shape_flags=RENDERED_SHAPES)
+    finally:
+        model.shape_flags = flags

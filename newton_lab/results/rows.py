@@ -7,6 +7,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ..records import EVERY_SHAPE
+
 
 def _short(task: str | None) -> str:
     return (task or "–").replace("GalbotG1-", "").replace("-v0", "")
@@ -193,15 +195,21 @@ def env_step_rows(records, page_dir: Path) -> list[list[str]]:
 
 
 def _render_orders(r: dict[str, Any]) -> str:
-    """``bench --render-orders``' sweep in a phrase: the env's render order, the fastest, and Newton's default."""
+    """``bench --render-orders``' sweep in a phrase: the env's render order, the fastest, Newton's default, and the
+    env's setting drawing every shape (the robot links it leaves out too)."""
     sweep = r.get("by_render_order")
     if not sweep:
         return f"; render order {r['render_order']}" if r.get("render_order") else ""
-    rate = {k: v["env_steps_per_s_with_camera"] for k, v in sweep.items()}
+    every = {k: v for k, v in sweep.items() if k.endswith(EVERY_SHAPE)}
+    rate = {k: v["env_steps_per_s_with_camera"] for k, v in sweep.items() if k not in every}
     best = max(rate, key=rate.get)
     default = next((k for k in rate if k.startswith("PIXEL_PRIORITY/64")), None)
     words = f"; render order {r['render_order']}; fastest of {len(rate)} orders {best} {_k(rate[best])}"
-    return words + (f", Newton's default {default} {_k(rate[default])}" if default else "")
+    words += f", Newton's default {default} {_k(rate[default])}" if default else ""
+    for v in every.values():
+        words += f"; drawing every shape ({v['rendered_shapes']} in the render, not {r['rendered_shapes']}) "
+        words += _k(v["env_steps_per_s_with_camera"])
+    return words
 
 
 def collection_rows(records, page_dir: Path) -> list[list[str]]:

@@ -10,7 +10,7 @@ Units: [m], [rad], [s]; quaternions xyzw.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -121,6 +121,10 @@ class RobotBinding:
     """Segmentation names of the robot's body groups (``robot/<group>``), in id order."""
     link_group: Callable[[str], str]
     """Body name -> its segmentation group (one of ``link_groups``)."""
+    hidden_link_groups: Callable[[Collection[str]], tuple[str, ...]]
+    """Joint groups an env's actions drive -> the link groups its cameras need not draw (out of every mount's view
+    in that case; ``Cameras`` leaves their shapes out of the render, which changes no pixel and saves the rays'
+    traversal of them)."""
     build: Callable[..., JointIndex]
     """``(builder, weld=None)``: add one robot at the origin to a Newton ``ModelBuilder`` (its planar base
     coordinates are its pose), with the joints named in ``weld`` welded at those values [rad | m]

@@ -12,6 +12,7 @@ Units: [m], [rad], [px]. Quaternions xyzw.
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 
 import numpy as np
 
@@ -133,3 +134,25 @@ def link_group(body: str) -> str:
         if body.startswith(prefixes):
             return name
     raise ValueError(f"G1 body {body!r} is in no segmentation group; add its prefix to LINK_GROUPS")
+
+
+OUT_OF_VIEW_GROUPS = ("robot/base", "robot/torso", "robot/head")
+"""Link groups no G1 camera mount sees while the arms work in front of the body: the chassis, wheels, legs and torso are
+below and behind the head camera, the head's own shapes are behind its lens, and the wrist cameras look out along
+the grippers.
+Measured: a segmentation survey of the expert episodes of PickCube, StackCube-Phased, PickToShelf and
+SortToShelf-All (front head and left wrist, 96x72, randomised) hit none of their shapes
+(``tests/test_cameras.py::test_culled_links_change_no_pixel`` checks it on PickCube and PickToShelf)."""
+ARM_GROUPS = {
+    "left_arm": ("robot/left_arm", "robot/left_gripper"),
+    "right_arm": ("robot/right_arm", "robot/right_gripper"),
+}
+"""An arm's joint group -> its link groups (its gripper with it)."""
+
+
+def hidden_link_groups(driven: Collection[str]) -> tuple[str, ...]:
+    """The link groups the cameras need not draw for an env whose actions drive the joint groups ``driven``:
+    ``OUT_OF_VIEW_GROUPS`` and each arm no action moves (it holds its tucked posture beside the torso, out of every
+    view: the same survey)."""
+    idle = [g for arm, groups in ARM_GROUPS.items() if arm not in driven for g in groups]
+    return (*OUT_OF_VIEW_GROUPS, *idle)

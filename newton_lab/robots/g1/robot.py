@@ -66,6 +66,7 @@ G1 = RobotBinding(
     camera_rays=cameras.pinhole_rays,
     link_groups=tuple(name for name, _ in cameras.LINK_GROUPS),
     link_group=cameras.link_group,
+    hidden_link_groups=cameras.hidden_link_groups,
     build=build_g1,
     kinematics=TcpKinematics,
 )
