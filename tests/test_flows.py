@@ -310,3 +310,19 @@ def test_console_leaves_failures_to_the_caller():
     assert keep(record("prefect.task_runs", "train: done in 3.0 s"))
     assert keep(record("prefect.flow_runs", "mimic run 1 of 2: its Dask worker died 1 time(s)"))
     assert keep(record("distributed.nanny", "Finished in state Failed", ValueError("x")))
+
+
+def test_pipeline_without_rerun_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    """On a host without rerun-sdk, ``pipeline`` (which records its evaluation by default) is refused in one line
+    that names --no-record, before anything is collected or written; a plan (--dry-run) still prints."""
+    import sys
+
+    from newton_lab.cli import main
+
+    monkeypatch.setitem(sys.modules, "rerun", None)  # how Python marks a package it cannot import
+    out = tmp_path / "run"
+    assert main(["pipeline", "--task", "GalbotG1-PickCube-v0", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "rerun-sdk is not installed here" in err and "--no-record" in err
+    assert not out.exists()
+    assert main(["pipeline", "--task", "GalbotG1-PickCube-v0", "--out", str(out), "--dry-run"]) == 0

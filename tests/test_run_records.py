@@ -155,13 +155,23 @@ def test_the_headline_shows_one_run_per_row_and_device_and_the_others_follow():
 
 def test_the_stage_table_splits_a_pipelines_time_with_its_env_build_and_steps():
     """Each pipeline record's row gives its stages' wall times (a stage it did not run: a dash), collect's env build
-    where recorded, and the training steps of each policy."""
+    where recorded, and the training steps of each policy; stages taken from Prefect's cache say so (collect with
+    the seconds it took when it ran), a stage partly run (one of two policies cached) shows its time."""
     res = _pipeline_results()
     res["timings_s"] = {"collect": 258.8, "split": 23.4, "train": 445.4, "evaluate": 44.9}
     res["collect_seconds"] = {"env_build": 110.5}
     res["counts"]["train_steps"] = {"pick": 6221, "place": 6221}
     (row,) = results.stage_rows([(Path("p.json"), _record("pipeline", res))], Path("."))
     assert row[3:9] == ["4:19 (1:50 env build)", "–", "0:23", "7:25 (pick 6,221, place 6,221 steps)", "0:45", "2:03"]
+    res["stage_states"] = {"collect": ["Cached"], "split": ["Cached"], "train": ["Cached", "Completed"]}
+    res["collect_seconds"]["call"] = 136.5
+    (row,) = results.stage_rows([(Path("p.json"), _record("pipeline", res))], Path("."))
+    assert row[3:7] == [
+        "cached (2:16 when it ran, 1:50 of it env build)",
+        "–",
+        "cached",
+        "7:25 (pick 6,221, place 6,221 steps)",
+    ]
 
 
 def test_evaluation_and_training_tables_split_their_time_and_name_each_variant(tmp_path):

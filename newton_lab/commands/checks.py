@@ -3,6 +3,7 @@ the flag and the fix, before Warp, Newton or torch is imported and before any fi
 
 from __future__ import annotations
 
+import importlib.util
 import re
 import tempfile
 from pathlib import Path
@@ -217,6 +218,11 @@ def check_pipeline(args: PipelineArgs) -> None:
         raise ValueError(
             f"{args.task} is a coherent task: its pipeline takes more coherent demos (--demos) instead "
             "of Mimic; drop --mimic-episodes"
+        )
+    if args.record and not args.dry_run and importlib.util.find_spec("rerun") is None:
+        raise ValueError(
+            "--record writes the evaluation's first episodes to <out>/evaluation.rrd with rerun, and rerun-sdk is "
+            "not installed here; install the project's pins (pip install -e .), or pass --no-record"
         )
     if args.workers > 1 and args.runner != "dask":
         raise ValueError(

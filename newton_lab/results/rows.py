@@ -94,22 +94,32 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
 
 def stage_rows(records, page_dir: Path) -> list[list[str]]:
     """One row per pipeline record: where its time went, stage by stage (``results.timings_s``), with collect's env
-    build (kernel compiles on a cold cache) and the training steps of each policy where the record has them."""
+    build (kernel compiles on a cold cache) and the training steps of each policy where the record has them; a
+    stage the run took from Prefect's cache says ``cached`` (collect: with the seconds it took when it ran)."""
     rows = []
     for path, rec in _of_kind(records, "pipeline"):
         res = rec["results"]
-        times, built = res.get("timings_s") or {}, (res.get("collect_seconds") or {}).get("env_build")
+        times, collected = res.get("timings_s") or {}, res.get("collect_seconds") or {}
+        states, built = res.get("stage_states") or {}, collected.get("env_build")
         steps = res["counts"].get("train_steps") or {}
 
-        def stage(name: str, times=times) -> str:
+        def stage(name: str, times=times, states=states) -> str:
+            if states.get(name) and all(s == "Cached" for s in states[name]):
+                return "cached"
             return _mmss(times.get(name)) if name in times else "–"
 
+        collect = stage("collect")
+        if collect == "cached" and collected.get("call") is not None:
+            collect += f" ({_mmss(collected['call'])} when it ran"
+            collect += f", {_mmss(built)} of it env build)" if built is not None else ")"
+        elif built is not None:
+            collect += f" ({_mmss(built)} env build)"
         rows.append(
             [
                 _task(rec),
                 rec["device"]["name"],
                 res.get("recipe") or "–",
-                stage("collect") + (f" ({_mmss(built)} env build)" if built is not None else ""),
+                collect,
                 stage("mimic"),
                 stage("split"),
                 stage("train")
