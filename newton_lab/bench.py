@@ -134,7 +134,7 @@ def _camera_figures(env, names: list[str], steps: int, render_orders: bool = Fal
         "resolution": [first.width, first.height],
         "camera_data": list(first.data),
         "cameras": {n: [cams.specs[n].width, cams.specs[n].height, list(cams.specs[n].data)] for n in names},
-        "render_order": f"{RENDER_ORDER.name}/{RENDER_BLOCK_DIM}",
+        "render_order": f"{_setting_name(RENDER_ORDER, RENDER_TILE)}/{RENDER_BLOCK_DIM}",
         "hidden_link_groups": list(cams.hidden_groups),
         "rendered_shapes": int(env.model.bvh_shape_count_enabled),
         "env_steps_per_s_with_camera": env.num_envs / t_cam,
