@@ -125,6 +125,8 @@ def test_the_bench_collect_summary_names_the_stages_and_the_bound():
         "wall)" in text
     )
     assert "largest stage: physics" in text and "hand-over 1.00 s" in text
+    split = summary({**out, "hand_over_copy_s": 0.7, "hand_over_ring_wait_s": 0.25})
+    assert "hand-over 1.00 s (into the writer's ring 0.70 s, waiting for its room 0.25 s), drain" in split
 
 
 def _with_repeats(seed: int, steps: int) -> dict:

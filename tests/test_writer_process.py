@@ -163,6 +163,7 @@ def test_a_block_larger_than_a_quarter_of_the_ring_goes_in_parts_of_whole_rows(t
     with ProcessWriter(path, task_id="t", layout=LAYOUT, ring_bytes=4 * 3 * row) as writer:  # 3 rows a part
         parts = writer.put_block(block, {"cam": frames}, [(k, 6 - k % 2, True, {}) for k in range(7, -1, -1)])
         assert [f.result(timeout=60) for f in parts] == [[0, 1, 2], [3, 4, 5], [6, 7]]
+        assert writer.hand_over["copy"] > 0 and writer.hand_over["ring_wait"] >= 0  # the collector's own seconds
     for demo, k in enumerate(range(7, -1, -1)):
         ep = read_episode(path, demo)
         np.testing.assert_array_equal(ep["obs"]["x"], block[k, : 6 - k % 2, 0:3])

@@ -22,7 +22,14 @@ def summary(out: dict[str, Any]) -> str:
             if "writer_files_s" in out
             else ""
         ),
-        f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s, "
+        f"loop besides physics and agent {out['loop_s']:.2f} s: hand-over {out['hand_over_s']:.2f} s"
+        + (
+            f" (into the writer's ring {out['hand_over_copy_s']:.2f} s, waiting for its room "
+            f"{out['hand_over_ring_wait_s']:.2f} s)"
+            if "hand_over_copy_s" in out
+            else ""
+        )
+        + ", "
         f"drain after the last step {out['drain_s']:.2f} s, render and frames {out.get('record_s', 0):.2f} s; "
         f"{out['bytes_per_demo'] / 1e3:.1f} KB and "
         f"{out['inodes_per_demo']:.2f} files per demo, {out['writer_batches']} writer batches "

@@ -254,7 +254,8 @@ def _make_writer(
 
 def _collect_summary(env, records, steps: int, wall: float, task_id: str, path, saver, save_end_scenario):
     """The evaluation summary of a collection, with what was written where: the saved demo ids, the attempts, the
-    writer's batches (and a writer process's own seconds), the scenario the episode ended in when asked."""
+    writer's batches (and a writer process's own seconds, and the collecting side's in handing bursts to it), the
+    scenario the episode ended in when asked."""
     writer = saver.writer
     summary = _summary(env, records, steps, wall)
     summary.update(
@@ -267,6 +268,7 @@ def _collect_summary(env, records, steps: int, wall: float, task_id: str, path, 
     )
     if isinstance(writer, writer_process.ProcessWriter):
         summary["writer_seconds"] = dict(writer.seconds)
+        summary["hand_over_seconds"] = dict(writer.hand_over)
     if save_end_scenario is not None:
         summary["saved_end_scenario_path"] = str(capture_scenario(env, 0, terminal=True).save(save_end_scenario))
     return summary

@@ -24,6 +24,7 @@ import mmap
 import os
 import pickle
 import threading
+import time
 from collections import deque
 from concurrent.futures import Future
 from pathlib import Path
@@ -103,6 +104,9 @@ class ProcessWriter(LatchedErrors):
         self.seconds = {"write": 0.0, "files": 0.0, "sync": 0.0}
         """The writer process's batch writes so far [s]: in all, and for zarr encoding + writing files and syncing."""
         self.batches = 0
+        self.hand_over = {"ring_wait": 0.0, "copy": 0.0}
+        """The collecting side's own seconds so far in :meth:`put_block`: waiting for room in the ring (the writer
+        process has not copied earlier bursts out yet), and copying bursts into it (from the device: the transfer)."""
         self._fd = os.memfd_create("newton_lab_collect", os.MFD_CLOEXEC)
         os.ftruncate(self._fd, ring_bytes)
         self._buf = mmap.mmap(self._fd, ring_bytes)
@@ -165,6 +169,7 @@ class ProcessWriter(LatchedErrors):
     def _put_part(self, stacked, images: dict[str, Any], demos: list) -> Future:
         arrays = [("", stacked)] + list(images.items())
         sizes = [-(-math.prod(a.shape) * _itemsize(a) // _ALIGN) * _ALIGN for _, a in arrays]
+        waited = time.perf_counter()
         with self._cv:
             self._raise(always=True)
             start = self._ring.take(sum(sizes))
@@ -182,11 +187,14 @@ class ProcessWriter(LatchedErrors):
                 start = self._ring.take(sum(sizes))
             burst, self._next = self._next, self._next + 1
             future = self._pending[burst] = Future()
+        copied = time.perf_counter()
         specs, at = [], start
         for (name, arr), n in zip(arrays, sizes):
             _copy_into(self._buf, at, arr)
             specs.append((name, at, tuple(arr.shape), _dtype(arr)))
             at += n
+        self.hand_over["ring_wait"] += copied - waited
+        self.hand_over["copy"] += time.perf_counter() - copied
         self._send(("burst", burst, specs, demos))  # a failure raises at the next put, flush or close
         return future
 
