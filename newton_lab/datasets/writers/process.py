@@ -19,7 +19,6 @@ exits.
 
 from __future__ import annotations
 
-import ctypes
 import math
 import mmap
 import os
@@ -111,7 +110,6 @@ class ProcessWriter(LatchedErrors):
         self._fd = os.memfd_create("newton_lab_collect", os.MFD_CLOEXEC)
         os.ftruncate(self._fd, ring_bytes)
         self._buf = mmap.mmap(self._fd, ring_bytes)
-        self._pinned = _pin(self._buf, ring_bytes)
         self._ring = _Ring(ring_bytes)
         self._cv = threading.Condition()
         self._pending: dict[int, Future] = {}  # burst -> its ids
@@ -219,7 +217,6 @@ class ProcessWriter(LatchedErrors):
             pass  # the process is gone already: its exit code tells
         self._proc.wait()
         self._reader.join()
-        self._pinned = _unpin(self._pinned)
         self._buf.close()
         os.close(self._fd)
         with self._cv:
@@ -264,26 +261,6 @@ class ProcessWriter(LatchedErrors):
                     if burst in self._pending:
                         self._pending.pop(burst).set_exception(message[2])
                 self._cv.notify_all()
-
-
-def _pin(buf: mmap.mmap, nbytes: int):
-    """Page-lock the ring for CUDA (``cudaHostRegister``) where torch sees a GPU, so that a burst copied off the
-    device lands in it at the bus's speed instead of through the driver's pageable staging; ``None`` elsewhere (or
-    when the driver refuses: the copies stay correct, only slower). Returns what ``_unpin`` needs."""
-    if not torch.cuda.is_available():
-        return None
-    view = ctypes.c_char.from_buffer(buf)  # an export of the mapping: released by _unpin before the mapping closes
-    address = ctypes.addressof(view)
-    if int(torch.cuda.cudart().cudaHostRegister(address, nbytes, 0)) != 0:
-        return None
-    return view, address
-
-
-def _unpin(pinned) -> None:
-    """Undo ``_pin``; returns ``None`` (the writer's new ``_pinned``)."""
-    if pinned is not None:
-        torch.cuda.cudart().cudaHostUnregister(pinned[1])
-    return None  # dropping the pair releases the export of the mapping
 
 
 def _itemsize(arr) -> int:
