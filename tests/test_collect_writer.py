@@ -127,6 +127,19 @@ def test_the_bench_collect_summary_names_the_stages_and_the_bound():
     assert "largest stage: physics" in text and "hand-over 1.00 s" in text
     split = summary({**out, "hand_over_copy_s": 0.7, "hand_over_ring_wait_s": 0.25})
     assert "hand-over 1.00 s (into the writer's ring 0.70 s, waiting for its room 0.25 s), drain" in split
+    process = summary(
+        {
+            **out,
+            "hand_over_copy_s": 0.7,
+            "hand_over_ring_wait_s": 0.25,
+            "writer_copy_out_s": 0.5,
+            "writer_queue_wait_s": 0.1,
+        }
+    )
+    assert (
+        "the writer process copied bursts out of its ring 0.50 s and was blocked on its full write queue 0.10 s"
+        in process
+    )
 
 
 def _with_repeats(seed: int, steps: int) -> dict:

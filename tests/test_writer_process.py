@@ -164,6 +164,7 @@ def test_a_block_larger_than_a_quarter_of_the_ring_goes_in_parts_of_whole_rows(t
         parts = writer.put_block(block, {"cam": frames}, [(k, 6 - k % 2, True, {}) for k in range(7, -1, -1)])
         assert [f.result(timeout=60) for f in parts] == [[0, 1, 2], [3, 4, 5], [6, 7]]
         assert writer.hand_over["copy"] > 0 and writer.hand_over["ring_wait"] >= 0  # the collector's own seconds
+        assert writer.seconds["copy_out"] > 0 and writer.seconds["queue_wait"] >= 0  # the process's, reported back
     for demo, k in enumerate(range(7, -1, -1)):
         ep = read_episode(path, demo)
         np.testing.assert_array_equal(ep["obs"]["x"], block[k, : 6 - k % 2, 0:3])

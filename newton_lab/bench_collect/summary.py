@@ -29,6 +29,12 @@ def summary(out: dict[str, Any]) -> str:
             if "hand_over_copy_s" in out
             else ""
         )
+        + (
+            f"; the writer process copied bursts out of its ring {out['writer_copy_out_s']:.2f} s and was blocked on "
+            f"its full write queue {out['writer_queue_wait_s']:.2f} s"
+            if "writer_copy_out_s" in out
+            else ""
+        )
         + ", "
         f"drain after the last step {out['drain_s']:.2f} s, render and frames {out.get('record_s', 0):.2f} s; "
         f"{out['bytes_per_demo'] / 1e3:.1f} KB and "

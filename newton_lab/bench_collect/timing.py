@@ -80,11 +80,12 @@ def collect_timed(
     """One ``env.collect`` with physics (``env.step``: the device's time, ``_DeviceClock``), agent (``agent.act``) and
     writer (the background thread's ``append_prepared`` calls, or those the writer process reports, split as
     ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest
-    (``loop_s``), of which ``hand_over_s`` passes ended episodes to the writer (gather, checks, the copy off the
-    device, queueing; with a writer process also split into ``hand_over_ring_wait_s``, waiting for room in its
-    ring, and ``hand_over_copy_s``, copying bursts into it) and ``drain_s`` waits for the writer after the last
-    step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the loop; the rest of the wall
-    is the host's own work."""
+    (``loop_s``), of which ``hand_over_s`` passes ended episodes to the writer (gather, checks, the copy off the device,
+    queueing; with a writer process also split into ``hand_over_ring_wait_s``, waiting for room in its ring, and
+    ``hand_over_copy_s``, copying bursts into it; the process's own ``writer_copy_out_s``, copying them out, and
+    ``writer_queue_wait_s``, blocked on its full write queue, say why the ring has no room) and ``drain_s`` waits for
+    the writer after the last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the
+    loop; the rest of the wall is the host's own work."""
     physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")
     handing, draining = _Clock("cpu"), _Clock("cpu")
     clocks = {"physics": physics, "agent": acting, "writer": writing, "hand-over": handing, "drain": draining}
@@ -136,6 +137,7 @@ def collect_timed(
         "physics_share": physics.seconds / wall,
         "loop_s": wall - physics.seconds - acting.seconds,
         "hand_over_s": handing.seconds,
+        **{f"writer_{k}_s": spent[k] for k in ("copy_out", "queue_wait") if spent and k in spent},
         **{f"hand_over_{k}_s": v for k, v in (ref.metadata.get("hand_over_seconds") or {}).items()},
         "drain_s": draining.seconds,
         "vector_steps": ref.metadata.get("vector_steps"),

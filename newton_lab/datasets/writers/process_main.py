@@ -5,8 +5,11 @@ which writes the queued blocks in batches (``EpisodeWriter.append_block``: a zar
 joined arrays).
 
 Replies on stdout, pickled: ``("free", burst)``, ``("written", burst, ids, seconds, batches)``, ``("error", burst,
-exception)``. After a failed batch nothing more is written: every later burst gets the same error. The process ends
-at ``close`` or at the end of its stdin (the collector is gone), after writing what it holds.
+exception)``; ``seconds`` are the process's own so far: ``write`` (the batch writes), ``copy_out`` (bursts copied out of
+the ring, the ring's room held meanwhile), ``queue_wait`` (the main thread blocked on a full write queue, reading no
+burst meanwhile) and the zarr store's split of the writes. After a failed batch nothing more is written: every later
+burst gets the same error. The process ends at ``close`` or at the end of its stdin (the collector is gone), after
+writing what it holds.
 """
 
 from __future__ import annotations
@@ -57,7 +60,7 @@ def serve(fd: int, inbox, outbox) -> None:
     _, path, task_id, fsync, ring_bytes, layout, settings, zarr_settings, profile_to = pickle.load(inbox)
     buf = mmap.mmap(fd, ring_bytes)
     store = EpisodeWriter.open(path, task_id=task_id, env_args={}, fsync=fsync, zarr_settings=zarr_settings)
-    spent = {"write": 0.0}
+    spent = {"write": 0.0, "copy_out": 0.0, "queue_wait": 0.0}
     profile = cProfile.Profile() if profile_to else None
     store.append_block = _timed(store.append_block, spent, profile)  # the batch writes' clock, reported back
     writer = BackgroundWriter(store, **settings)
@@ -77,6 +80,7 @@ def serve(fd: int, inbox, outbox) -> None:
             if message[0] == "close":
                 break
             _, burst, specs, demos = message
+            t0 = time.perf_counter()
             try:
                 arrays: dict[str, Any] = {
                     name: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape)), offset=at).reshape(shape)
@@ -89,11 +93,15 @@ def serve(fd: int, inbox, outbox) -> None:
                 reply(("error", burst, _portable(e)))
                 continue
             reply(("free", burst))
+            t1 = time.perf_counter()
+            spent["copy_out"] += t1 - t0
             try:
                 future = writer.put_block(block)
             except Exception as e:  # noqa: BLE001 - a failed batch before: nothing more is written
                 reply(("error", burst, _portable(e)))
                 continue
+            finally:
+                spent["queue_wait"] += time.perf_counter() - t1
             future.add_done_callback(lambda f, b=burst: done(b, f))
     finally:
         try:
