@@ -108,10 +108,10 @@ class Cameras:
         self.bodies_per_world = bodies_per_world
         self.entity_names = list(entity_names)
         self.keep_hue = frozenset(keep_hue)
+        """Objects whose colour vision randomisation only jitters (``EntityCfg.keep_hue``)."""
         self.hidden_groups = tuple(hidden_groups)
         """Robot link groups the render leaves out (``RobotBinding.hidden_link_groups``: out of every view, so no
         pixel changes; ``hide`` changes them)."""
-        """Objects whose colour vision randomisation only jitters (``EntityCfg.keep_hue``)."""
         self.capture = capture
         self.randomize = bool(randomize)
         """Vision randomisation on (switchable at any time; the render graph reads it from ``_params``)."""
@@ -383,6 +383,7 @@ class Cameras:
             self._build_bvh()
             self._render_body()
             self._graph = self._capture() if self.capture else None
+        self.stale = True
 
     def _capture(self):
         try:

@@ -142,7 +142,7 @@ below and behind the head camera, the head's own shapes are behind its lens, and
 the grippers.
 Measured: a segmentation survey of the expert episodes of PickCube, StackCube-Phased, PickToShelf and
 SortToShelf-All (front head and left wrist, 96x72, randomised) hit none of their shapes
-(``tests/test_cameras.py::test_culled_links_change_no_pixel`` checks it on PickCube and PickToShelf)."""
+(``tests/test_cameras.py`` checks it on PickCube's and PickToShelf's expert episodes)."""
 ARM_GROUPS = {
     "left_arm": ("robot/left_arm", "robot/left_gripper"),
     "right_arm": ("robot/right_arm", "robot/right_gripper"),
