@@ -152,43 +152,39 @@ def _render_order_sweep(env, ceiling_graph, max_distance: float, steps: int) -> 
     ``RENDER_SWEEP`` (keyed ``ORDER/BLOCK`` or ``TILED_WxH/BLOCK``), and under the env's own setting drawing every
     shape (``... every shape``: the links it leaves out, ``Cameras.hidden_groups``, drawn too); the env renders with
     its own settings after."""
-    cams, step_graph, out = env.sensors.cameras, env.sim.step_graph, {}
+    cams, out = env.sensors.cameras, {}
     for order, tile, block in RENDER_SWEEP:
         cams.use_render_order(order, block, tile)
-        with wp.ScopedDevice(env.device):
-            ceiling = ceiling_graph(render_config(max_distance, order, block, tile))
-
-        def env_with_camera(render=cams.render_graph):
-            wp.capture_launch(step_graph)
-            wp.capture_launch(render)
-
-        t_cam = _time_graph(env_with_camera, steps, env.device)
-        t_ceiling = _time_graph(lambda g=ceiling: wp.capture_launch(g), steps, env.device)
-        out[f"{_setting_name(order, tile)}/{block}"] = {
-            "env_steps_per_s_with_camera": env.num_envs / t_cam,
-            "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
-        }
+        config = render_config(max_distance, order, block, tile)
+        out[f"{_setting_name(order, tile)}/{block}"] = _rates(env, ceiling_graph, config, steps)
     cams.use_render_order(RENDER_ORDER, RENDER_BLOCK_DIM)
     hidden = cams.hidden_groups
     cams.hide(())  # the env's settings, drawing every shape: what leaving out the unseen links saves
     try:
-        with wp.ScopedDevice(env.device):
-            ceiling = ceiling_graph()
-
-        def env_with_every_shape(render=cams.render_graph):
-            wp.capture_launch(step_graph)
-            wp.capture_launch(render)
-
-        t_cam = _time_graph(env_with_every_shape, steps, env.device)
-        t_ceiling = _time_graph(lambda: wp.capture_launch(ceiling), steps, env.device)
+        every = _rates(env, ceiling_graph, None, steps)
         out[f"{_setting_name(RENDER_ORDER, RENDER_TILE)}/{RENDER_BLOCK_DIM}{EVERY_SHAPE}"] = {
-            "env_steps_per_s_with_camera": env.num_envs / t_cam,
-            "ceiling_env_steps_per_s": env.num_envs / t_ceiling,
+            **every,
             "rendered_shapes": int(env.model.bvh_shape_count_enabled),
         }
     finally:
         cams.hide(hidden)
     return out
+
+
+def _rates(env, ceiling_graph, config, steps: int) -> dict[str, float]:
+    """Env-steps/s of the env step with the cameras' render as captured now, and of the ceiling rendered with
+    ``config`` (``None``: the env's settings)."""
+    step_graph, render_graph = env.sim.step_graph, env.sensors.cameras.render_graph
+    with wp.ScopedDevice(env.device):
+        ceiling = ceiling_graph(config)
+
+    def env_with_camera():
+        wp.capture_launch(step_graph)
+        wp.capture_launch(render_graph)
+
+    t_cam = _time_graph(env_with_camera, steps, env.device)
+    t_ceiling = _time_graph(lambda: wp.capture_launch(ceiling), steps, env.device)
+    return {"env_steps_per_s_with_camera": env.num_envs / t_cam, "ceiling_env_steps_per_s": env.num_envs / t_ceiling}
 
 
 def _setting_name(order, tile) -> str:

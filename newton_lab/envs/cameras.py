@@ -370,9 +370,7 @@ class Cameras:
         times each). Builds the cameras if needed and captures the render again."""
         self.render()
         self.sensor.default_render_config = render_config(self.robot.camera_clipping[1], order, block_dim, tile)
-        with wp.ScopedDevice(self.model.device):
-            self._render_body()
-            self._graph = self._capture() if self.capture else None
+        self._rerender()
 
     def hide(self, groups: Collection[str]) -> None:
         """Draw from now on every shape but those of these robot link groups (``()``: every shape); builds the
@@ -381,9 +379,14 @@ class Cameras:
         self.hidden_groups = tuple(groups)
         with wp.ScopedDevice(self.model.device):
             self._build_bvh()
+        self._rerender()
+        self.stale = True
+
+    def _rerender(self) -> None:
+        """Render once eagerly (compiles what a new setting needs) and capture the render again."""
+        with wp.ScopedDevice(self.model.device):
             self._render_body()
             self._graph = self._capture() if self.capture else None
-        self.stale = True
 
     def _capture(self):
         try:
