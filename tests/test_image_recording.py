@@ -122,12 +122,15 @@ class Capture(BaseAgent):
         return self.inner.act(env)
 
 
-def test_recorded_frames_equal_env_images(cam_env, tmp_path):
+@pytest.mark.parametrize(("suffix", "writer"), [(".hdf5", "thread"), (".zarr", "process")])
+def test_recorded_frames_equal_env_images(cam_env, tmp_path, suffix, writer):
+    """Both writers: the writer process writes the frames straight from its ring (``RowPieces``)."""
     from newton_lab.agents import ZeroAgent
 
-    path = tmp_path / "eq.hdf5"
+    path = tmp_path / f"eq{suffix}"
     agent = Capture(ZeroAgent())
-    ref = cam_env.collect(agent=agent, episodes=2, path=path, max_steps=5, progress=False)
+    ref = cam_env.collect(agent=agent, episodes=2, path=path, max_steps=5, progress=False, writer=writer)
+    assert ref.metadata["writer"] == {"thread": "BackgroundWriter", "process": "ProcessWriter"}[writer]
     assert ref["episodes"] == 2 and ref["diverged"] == 0  # depth's inf (sky) is not taken for a divergence
     for demo in read_dataset_info(path)["demo_ids"]:
         ep = read_episode(path, demo)
@@ -143,7 +146,8 @@ def test_recorded_frames_equal_env_images(cam_env, tmp_path):
         assert (depth[np.isfinite(depth)] > 0.05).all() and np.isfinite(depth).any()  # [m], past the near plane
         assert len(np.unique(ep["obs"]["front_head_segmentation"])) >= 3
     for key in ("obs/front_head_depth", "obs/front_head_segmentation"):
-        assert image_chunks(path, key) == ((1, 72, 96), "gzip")
+        expected = ((1, 72, 96), "gzip") if suffix == ".hdf5" else ((5, 72, 96), "zstd")  # zarr: ~1 MB time chunks
+        assert image_chunks(path, key) == expected
 
 
 def test_state_only_env_records_and_renders_nothing(pick_env, tmp_path):

@@ -206,3 +206,39 @@ def _state(pid: int) -> str:
             return f.read().rsplit(")", 1)[1].split()[0]
     except FileNotFoundError:
         return "gone"
+
+
+@pytest.mark.parametrize(("ring_mib", "packs"), [(256, 1), (8, 0)])
+def test_frames_are_written_from_the_ring_frame_for_frame(tmp_path, ring_mib, packs):
+    """The process writes image frames straight from its ring (``RowPieces``), and a burst's room comes back only
+    once it is written: with room for all, one pack whose time chunks span demos and bursts; with a ring of ~13
+    demos, that wraps many times, batches of a few demos written group by group. Every demo reads back frame for
+    frame, as the writer thread writes them from copies."""
+    frames = np.random.default_rng(3).integers(0, 255, (40, 30, 72, 96, 3), dtype=np.uint8)  # 50 frames a chunk
+    block = _block(40, 30, 4)
+    lengths = [17 + k % 13 for k in range(40)]
+    path = tmp_path / "f.zarr"
+    open_writer(path, task_id="t", env_args={})
+    with ProcessWriter(path, task_id="t", layout=LAYOUT, min_batch=40, ring_bytes=ring_mib << 20) as writer:
+        done = []
+        for first in (0, 16, 32):  # three bursts
+            rows = range(first, min(first + 16, 40))
+            done += writer.put_block(
+                block[first : first + 16],
+                {"cam": frames[first : first + 16]},
+                [(k - first, lengths[k], True, {}) for k in rows],
+            )
+        assert [i for f in done for i in f.result(timeout=60)] == list(range(40))
+        assert (writer.batches == 1) == (packs == 1)
+    found = [p for p in (path / "data").iterdir() if p.name.startswith("pack_")]
+    assert len(found) == packs and all(read_index(p) is not None for p in found)
+    for k in range(40):
+        ep = read_episode(path, k)
+        np.testing.assert_array_equal(ep["obs"]["cam"], frames[k, : lengths[k]])
+        np.testing.assert_array_equal(ep["obs"]["x"], block[k, : lengths[k], 0:3])
+    thread_path = tmp_path / "t.zarr"
+    w = open_writer(thread_path, task_id="t", env_args={})
+    w.append_block(DemoBlock.from_rows(LAYOUT, block, {"cam": frames}, [(k, lengths[k], True, {}) for k in range(40)]))
+    w.close()
+    for k in range(40):
+        np.testing.assert_array_equal(read_episode(thread_path, k)["obs"]["cam"], read_episode(path, k)["obs"]["cam"])

@@ -82,8 +82,9 @@ def collect_timed(
     ``ZARR_WRITER_PARTS`` says for zarr) seconds measured (the rollout's ``Timers``); the loop's own time is the rest
     (``loop_s``), of which ``hand_over_s`` passes ended episodes to the writer (gather, checks, the copy off the device,
     queueing; with a writer process also split into ``hand_over_ring_wait_s``, waiting for room in its ring, and
-    ``hand_over_copy_s``, copying bursts into it; the process's own ``writer_copy_out_s``, copying them out, and
-    ``writer_queue_wait_s``, blocked on its full write queue, say why the ring has no room) and ``drain_s`` waits for
+    ``hand_over_copy_s``, copying bursts into it; the process's own ``writer_copy_out_s``, copying their low-dim arrays
+    out (the frames are written from the ring), and ``writer_queue_wait_s``, blocked on its full write queue, say why
+    the ring has no room) and ``drain_s`` waits for
     the writer after the last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the
     loop; the rest of the wall is the host's own work."""
     physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")

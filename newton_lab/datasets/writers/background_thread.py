@@ -136,7 +136,7 @@ class BackgroundWriter(LatchedErrors):
         if self._closed:
             raise RuntimeError(f"BackgroundWriter for {self.path} is closed")
         item = (block, Future(), len(block))
-        self._enqueue([item], sum(arr.nbytes for arr in block.columns.values()))
+        self._enqueue([item], block.nbytes)
         return item[1]
 
     def _enqueue(self, items: list[tuple[Any, Future, int]], size: int) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..files.layout import put
+from ..files.row_pieces import RowPieces
 
 STATES = ("states/joint_q", "states/joint_qd")
 """Frame arrays joined side by side into a demo's flat ``states`` (joint_q then joint_qd)."""
@@ -59,11 +60,15 @@ class DemoBlock:
         stacked: np.ndarray,
         images: dict[str, np.ndarray],
         demos: list[tuple[int, int, bool | None, dict[str, Any]]],
+        *,
+        image_views: bool = False,
     ) -> DemoBlock:
         """The demos ``(row, length, success, attrs)`` of a ``(rows, steps, width)`` block and its image terms
         ``(rows, steps, ...)``, copied out (one gather per array: the block may be reused at once) and split into
         their arrays here, while the burst is small: splitting a joined batch of thousands of demos instead reads
-        all of it once per array, out of cache (the writer's largest cost at 4096 rows)."""
+        all of it once per array, out of cache (the writer's largest cost at 4096 rows). With ``image_views`` the
+        image terms are not copied: each is a ``RowPieces`` of every demo's rows of ``images`` (the caller keeps
+        ``images`` as they are until the block is written)."""
         rows = np.asarray([row for row, _, _, _ in demos], dtype=np.int64)
         lengths = [int(length) for _, length, _, _ in demos]
         span = stacked.shape[1]
@@ -87,7 +92,15 @@ class DemoBlock:
         for key in [k for k in out if k.startswith("datagen/subtask_signals/")]:
             out[key] = out[key][:, 0].astype(bool)
         out["datagen/phase"] = out["datagen/phase"][:, 0].astype(np.int32)
-        out.update({f"obs/{name}": gather(img) for name, img in images.items()})
+        if image_views:
+            out.update(
+                {
+                    f"obs/{name}": RowPieces([img[row, :length] for row, length in zip(rows.tolist(), lengths)])
+                    for name, img in images.items()
+                }
+            )
+        else:
+            out.update({f"obs/{name}": gather(img) for name, img in images.items()})
         return cls(out, lengths, [s for _, _, s, _ in demos], [dict(a) for _, _, _, a in demos])
 
     @classmethod
@@ -96,7 +109,7 @@ class DemoBlock:
         if len(blocks) == 1:
             return blocks[0]
         return cls(
-            {key: np.concatenate([b.columns[key] for b in blocks]) for key in blocks[0].columns},
+            {key: _join([b.columns[key] for b in blocks]) for key in blocks[0].columns},
             [n for b in blocks for n in b.lengths],
             [s for b in blocks for s in b.successes],
             [a for b in blocks for a in b.attrs],
@@ -104,6 +117,11 @@ class DemoBlock:
 
     def __len__(self) -> int:
         return len(self.lengths)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of every column (image frames held as views too)."""
+        return sum(arr.nbytes for arr in self.columns.values())
 
     @property
     def starts(self) -> np.ndarray:
@@ -152,3 +170,10 @@ class DemoBlock:
             return None
         every_step = all(n == 1 for n in self.lengths)  # then initial_state has as many rows as the demo has steps
         return {key: (None if key != "initial_state" or every_step else 1) for key in arrays}
+
+
+def _join(arrays: list) -> np.ndarray | RowPieces:
+    """Arrays joined along time: image views stay views (``RowPieces``), numpy arrays are concatenated."""
+    if isinstance(arrays[0], RowPieces):
+        return RowPieces.join(arrays)
+    return np.concatenate(arrays)

@@ -7,10 +7,10 @@ the per-demo Python of a burst (splitting the copy by array, each demo's tree, t
 encoding) waits for the same lock as the simulation loop; bench-collect on a GPU spent more of each step on that
 than on physics. Here the collecting process copies a burst once, from the device straight into a shared ring
 (``os.memfd_create``: anonymous, freed when both processes let go of it, nothing left in ``/dev/shm`` after a
-kill), and sends one small message; the writer process copies the burst out of the ring at once (the ring's room
-comes back within milliseconds) and does the rest on its own interpreter. Pipes carry pickled messages: the
-standard library's ``multiprocessing`` would start the child by re-importing the caller's main module (the whole
-simulator) and refuses to start one from a Dask worker (a daemonic process).
+kill), and sends one small message; the writer process does the rest on its own interpreter, writing image frames
+straight from the ring (``datasets.writers.process_main``); a burst's room comes back once it is written. Pipes
+carry pickled messages: the standard library's ``multiprocessing`` would start the child by re-importing the
+caller's main module (the whole simulator) and refuses to start one from a Dask worker (a daemonic process).
 
 Crash window: as ``datasets.writers.background_thread`` (an episode is durable once its future is done). If the
 collecting process is killed, the writer process reads the end of its pipe, writes what it has already received and
@@ -38,8 +38,10 @@ from .background_thread import LatchedErrors
 from .child_process import start_child
 from .columns import ColumnLayout
 
-RING_BYTES = 1 << 30
-"""Bytes of the shared ring (virtual: pages are backed only once a burst is copied into them)."""
+RING_BYTES = 4 << 30
+"""Bytes of the shared ring (virtual: pages are backed only once a burst is copied into them, so a collection backs
+at most what its bursts pass through). Image frames are written from the ring, half of which holds the write queue:
+4 GiB queues ~120 two-camera PickToShelf demos, enough for a zarr pack (``ZarrWriteSettings.pack_min_batch``)."""
 _ALIGN = 64
 
 
@@ -91,14 +93,15 @@ class ProcessWriter(LatchedErrors):
         layout: ColumnLayout,
         fsync: bool = True,
         max_queued: int = 256,
-        max_queued_bytes: int = 1 << 30,
+        max_queued_bytes: int | None = None,
         min_batch: int = 1,
         max_wait_s: float = 1.0,
         ring_bytes: int = RING_BYTES,
         zarr_settings: ZarrWriteSettings | None = None,
         profile_to: str | Path | None = None,
     ) -> None:
-        """``zarr_settings``: how the process writes zarr batches (default ``DEFAULT_ZARR_SETTINGS``);
+        """``max_queued_bytes``: the process's write queue, at most (and by default) half the ring;
+        ``zarr_settings``: how the process writes zarr batches (default ``DEFAULT_ZARR_SETTINGS``);
         ``profile_to``: a path where the process saves a cProfile of its batch writes when it ends."""
         self.path, self.layout = Path(path), layout
         self.seconds = {"write": 0.0, "files": 0.0, "sync": 0.0}
@@ -106,7 +109,7 @@ class ProcessWriter(LatchedErrors):
         self.batches = 0
         self.hand_over = {"ring_wait": 0.0, "copy": 0.0}
         """The collecting side's own seconds so far in :meth:`put_block`: waiting for room in the ring (the writer
-        process has not copied earlier bursts out yet), and copying bursts into it (from the device: the transfer)."""
+        process has not written earlier bursts yet), and copying bursts into it (from the device: the transfer)."""
         self._fd = os.memfd_create("newton_lab_collect", os.MFD_CLOEXEC)
         os.ftruncate(self._fd, ring_bytes)
         self._buf = mmap.mmap(self._fd, ring_bytes)
@@ -129,7 +132,7 @@ class ProcessWriter(LatchedErrors):
                 layout,
                 {
                     "max_queued": max_queued,
-                    "max_queued_bytes": max_queued_bytes,
+                    "max_queued_bytes": ring_bytes // 2 if max_queued_bytes is None else max_queued_bytes,
                     "min_batch": min_batch,
                     "max_wait_s": max_wait_s,
                 },

@@ -1,15 +1,18 @@
 """The writer process of ``datasets.writers.process`` (:func:`main`, started with the shared ring's descriptor as its
-argument): it copies each burst of ended episodes out of the ring as a ``columns.DemoBlock`` (one gather per
-array), answers ``free`` at once, and queues the block on a ``datasets.writers.background_thread.BackgroundWriter``,
-which writes the queued blocks in batches (``EpisodeWriter.append_block``: a zarr batch is packed straight from the
-joined arrays).
+argument): it turns each burst of ended episodes into a ``columns.DemoBlock`` (the low-dim arrays copied out of the
+ring, one gather per array; the image frames left in the ring as views, ``files.row_pieces.RowPieces``) and queues the
+block on a ``datasets.writers.background_thread.BackgroundWriter``, which writes the queued blocks in batches
+(``EpisodeWriter.append_block``: a zarr batch is packed straight from the joined arrays, each chunk of frames
+gathered from the ring on the thread that encodes it). A burst's room in the ring goes back (``free``) once its
+batch is written; the write queue holds at most half the ring, so a batch is written while the collector fills the
+other half.
 
 Replies on stdout, pickled: ``("free", burst)``, ``("written", burst, ids, seconds, batches)``, ``("error", burst,
-exception)``; ``seconds`` are the process's own so far: ``write`` (the batch writes), ``copy_out`` (bursts copied out of
-the ring, the ring's room held meanwhile), ``queue_wait`` (the main thread blocked on a full write queue, reading no
-burst meanwhile) and the zarr store's split of the writes. After a failed batch nothing more is written: every later
-burst gets the same error. The process ends at ``close`` or at the end of its stdin (the collector is gone), after
-writing what it holds.
+exception)``; ``seconds`` are the process's own so far: ``write`` (the batch writes), ``copy_out`` (the bursts' low-dim
+arrays copied out of the ring), ``queue_wait`` (the main thread blocked on a full write queue, reading no burst
+meanwhile) and the zarr store's split of the writes. After a failed batch nothing more is written: every later burst
+gets the same error. The process ends at ``close`` or at the end of its stdin (the collector is gone), after writing
+what it holds (the ring stays mapped here until then).
 """
 
 from __future__ import annotations
@@ -63,9 +66,15 @@ def serve(fd: int, inbox, outbox) -> None:
     spent = {"write": 0.0, "copy_out": 0.0, "queue_wait": 0.0}
     profile = cProfile.Profile() if profile_to else None
     store.append_block = _timed(store.append_block, spent, profile)  # the batch writes' clock, reported back
-    writer = BackgroundWriter(store, **settings)
+    # the queue holds at most half the ring: a put past it has the queue written at once (the frames of queued
+    # bursts hold their ring room until written, so a fuller queue would leave the collector waiting for room while
+    # the queue waits for its batch to fill)
+    writer = BackgroundWriter(
+        store, **{**settings, "max_queued_bytes": min(settings["max_queued_bytes"], ring_bytes // 2)}
+    )
 
     def done(burst: int, future) -> None:
+        reply(("free", burst))  # its frames were written from the ring: its room goes back now
         if future.exception() is not None:
             reply(("error", burst, _portable(future.exception())))
         else:
@@ -86,18 +95,19 @@ def serve(fd: int, inbox, outbox) -> None:
                     name: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape)), offset=at).reshape(shape)
                     for name, at, shape, dtype in specs
                 }
-                block = DemoBlock.from_rows(layout, arrays.pop(""), arrays, demos)  # copies out of the ring
+                # the low-dim columns are copied out; the frames stay in the ring, written from there
+                block = DemoBlock.from_rows(layout, arrays.pop(""), arrays, demos, image_views=True)
                 del arrays
             except Exception as e:  # noqa: BLE001 - handed to the collector
                 reply(("free", burst))
                 reply(("error", burst, _portable(e)))
                 continue
-            reply(("free", burst))
             t1 = time.perf_counter()
             spent["copy_out"] += t1 - t0
             try:
                 future = writer.put_block(block)
             except Exception as e:  # noqa: BLE001 - a failed batch before: nothing more is written
+                reply(("free", burst))
                 reply(("error", burst, _portable(e)))
                 continue
             finally:

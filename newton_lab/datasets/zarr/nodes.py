@@ -31,6 +31,7 @@ from zarr.codecs import ZstdCodec
 from zarr.storage import LocalStore
 
 from ..files.layout import StoredDemo, demo_name, nest, time_chunks
+from ..files.row_pieces import RowPieces
 from ..files.write_faults import write_fault_point
 
 IMAGE_ZSTD_LEVEL = 3
@@ -140,8 +141,20 @@ def write_array(node: str, value: np.ndarray, tasks: list[Callable[[], None]] | 
     meta, compressor, chunks = found
     os.mkdir(node)
     write_file(f"{node}/zarr.json", meta)
-    value = np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("<"))
     run = (lambda f, *a: f(*a)) if tasks is None else (lambda f, *a: tasks.append(functools.partial(f, *a)))
+    if isinstance(value, RowPieces) and value.dtype.byteorder in "<|=" and chunks[1:] == value.shape[1:]:
+        for t in range(chunk_grid(value.shape, chunks)[0]):  # each chunk's rows are gathered where it is encoded
+            rows = (t * chunks[0], (t + 1) * chunks[0])
+            run(
+                _write_rows_chunk,
+                f"{node}/c.{'.'.join([str(t)] + ['0'] * (value.ndim - 1))}",
+                compressor,
+                value,
+                rows,
+                chunks,
+            )
+        return True
+    value = np.ascontiguousarray(value, dtype=value.dtype.newbyteorder("<"))
     if chunks == value.shape:  # one chunk (most arrays of a demo)
         run(_write_chunk, f"{node}/c.{'.'.join(['0'] * value.ndim)}", compressor, value)
         return True
@@ -149,6 +162,13 @@ def write_array(node: str, value: np.ndarray, tasks: list[Callable[[], None]] | 
         block = value[tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, chunks))]
         run(_write_chunk, f"{node}/c.{'.'.join(map(str, index))}", compressor, block, chunks)
     return True
+
+
+def _write_rows_chunk(
+    path: str, compressor: Zstd, value: RowPieces, rows: tuple[int, int], chunks: tuple[int, ...]
+) -> None:
+    """The chunk of ``value``'s ``rows`` (a time chunk), built from its pieces here."""
+    _write_chunk(path, compressor, value.rows(*rows), chunks)
 
 
 def _write_chunk(path: str, compressor: Zstd, block: np.ndarray, chunks: tuple[int, ...] | None = None) -> None:

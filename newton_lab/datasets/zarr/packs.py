@@ -159,7 +159,7 @@ def write_pack(job: PackJob, fallback: Callable[[str, np.ndarray], None], tasks:
     for key, entry in arrays.items():
         value = stored_value(entry, values.pop(key) if key in values else joined(key), counts)
         if value is not None and not write_array(f"{job.node}/{key}", value, tasks):
-            fallback(key, value)
+            fallback(key, np.asarray(value))  # image frames held as views (``RowPieces``) joined for zarr-python
 
 
 def write_job(
