@@ -236,3 +236,17 @@ def _plain(value: Any) -> Any:
     if hasattr(value, "item"):
         return value.item()
     return str(value)
+
+
+def stage_seconds(out: dict[str, Any]) -> dict[str, float]:
+    """A ``bench-collect`` result's stages [s]: the env step with its render (``physics + render`` with cameras:
+    ``physics_s`` + ``record_s``, the render and frames), the agent's ``act``, the loop's hand-over of ended episodes
+    to the writer, and the writer's batch writes (a writer process writes beside the loop: the loop waits for it only
+    through the hand-over)."""
+    render = out.get("record_s", 0.0) if out.get("cameras") else 0.0
+    return {
+        "physics + render" if out.get("cameras") else "physics": out["physics_s"] + render,
+        "agent": out["agent_s"],
+        "hand-over": out["hand_over_s"],
+        "writer": out["writer_s"],
+    }

@@ -124,7 +124,9 @@ def test_the_bench_collect_summary_names_the_stages_and_the_bound():
         "physics-bound (agent + writer <= physics per step): yes (4.50 vs 5.00 ms/step; the step is 50 % of the "
         "wall)" in text
     )
-    assert "largest stage: physics" in text and "hand-over 1.00 s" in text
+    assert "largest stage: physics 5.00 s (writer 2.50 s, agent 2.00 s, hand-over 1.00 s)" in text
+    cameras = {**out, "cameras": {"front_head": [96, 72, ["rgb"]]}, "record_s": 1.5, "writer_s": 6.0}
+    assert "largest stage: physics + render 6.50 s (writer 6.00 s, agent 2.00 s, hand-over 1.00 s)" in summary(cameras)
     split = summary({**out, "hand_over_copy_s": 0.7, "hand_over_ring_wait_s": 0.25})
     assert "hand-over 1.00 s (into the writer's ring 0.70 s, waiting for its room 0.25 s), drain" in split
     process = summary(
@@ -137,8 +139,8 @@ def test_the_bench_collect_summary_names_the_stages_and_the_bound():
         }
     )
     assert (
-        "the writer process copied bursts out of its ring 0.50 s and was blocked on its full write queue 0.10 s"
-        in process
+        "the writer process copied the bursts' low-dim arrays out of its ring 0.50 s and was blocked on its full "
+        "write queue 0.10 s" in process
     )
 
 

@@ -110,6 +110,19 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
         _record("bench-collect", {"num_envs": 4096, "successful_demos": 16384, "demos_per_hour": 7.19e6}),
         recs / "collect-gpu.json",
     )
+    records.write_record(
+        _record(
+            "bench-collect",
+            {
+                "num_envs": 2048,
+                "successful_demos": 2048,
+                "demos_per_hour": 4.54e5,
+                "cameras": {"front_head": [96, 72, ["rgb"]]},
+                **{"physics_s": 2.7, "record_s": 3.9, "agent_s": 5.0, "hand_over_s": 3.8, "writer_s": 5.3},
+            },
+        ),
+        recs / "collect-cameras-gpu.json",
+    )
     page = tmp_path / "benchmarks.md"
     page.write_text(f"# Benchmarks\n\nintro\n\n{results.BEGIN}\nold\n{results.END}\n\n## Methods\n")
     assert results.update(page, recs, check=True) is False  # stale: compare only, nothing written
@@ -129,7 +142,13 @@ def test_tables_are_generated_from_records_with_a_link_each(tmp_path):
         assert part in row, (part, row)
     assert "| 1.05 M | step time 1.03x the bare solver's | [bench-gpu](results/bench-gpu.json) |" in text
     assert "front_head 96x72 rgb | 258.8 k | rate 0.98x the physics + render ceiling" in text
-    assert "| 4096 | none | 16384 | 7.19 M | [collect-gpu](results/collect-gpu.json) |" in text
+    assert (
+        "| 4096 | none | 16384 | 7.19 M | – | [collect-gpu](results/collect-gpu.json) |" in text
+    )  # no stages recorded
+    assert (
+        "| 2048 | front_head 96x72 | 2048 | 454.0 k | physics + render 6.6 s, writer 5.3 s, agent 5.0 s, "
+        "hand-over 3.8 s |" in text
+    )
 
 
 def test_the_headline_shows_one_run_per_row_and_device_and_the_others_follow():

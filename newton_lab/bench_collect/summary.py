@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..records import stage_seconds
+
 
 def summary(out: dict[str, Any]) -> str:
     """``bench_collect``'s result in a few lines: demos/s and per GPU-hour, the three stages in seconds and per vector
@@ -30,8 +32,8 @@ def summary(out: dict[str, Any]) -> str:
             else ""
         )
         + (
-            f"; the writer process copied bursts out of its ring {out['writer_copy_out_s']:.2f} s and was blocked on "
-            f"its full write queue {out['writer_queue_wait_s']:.2f} s"
+            f"; the writer process copied the bursts' low-dim arrays out of its ring {out['writer_copy_out_s']:.2f} s "
+            f"and was blocked on its full write queue {out['writer_queue_wait_s']:.2f} s"
             if "writer_copy_out_s" in out
             else ""
         )
@@ -42,7 +44,12 @@ def summary(out: dict[str, Any]) -> str:
         f"({out.get('writer') or 'BackgroundWriter'})",
         f"physics-bound (agent + writer <= physics per step): {'yes' if out['physics_bound'] else 'no'} "
         f"({1e3 * (stage['agent'] + stage['writer']) / steps:.2f} vs {1e3 * stage['physics'] / steps:.2f} "
-        f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: "
-        f"{max({**stage, 'render and frames': out.get('record_s', 0.0)}.items(), key=lambda kv: kv[1])[0]}",
+        f"ms/step; the step is {100 * out['physics_share']:.0f} % of the wall); largest stage: {_largest(out)}",
     ]
     return "\n".join(lines)
+
+
+def _largest(out: dict[str, Any]) -> str:
+    """The largest of :func:`stage_seconds`, then the others, in seconds."""
+    ranked = sorted(stage_seconds(out).items(), key=lambda kv: -kv[1])
+    return f"{ranked[0][0]} {ranked[0][1]:.2f} s (" + ", ".join(f"{k} {v:.2f} s" for k, v in ranked[1:]) + ")"

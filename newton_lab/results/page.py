@@ -81,7 +81,7 @@ SECTIONS = [
     ("Env step", ["task", "device", "envs", "camera", "env-steps/s", "against", "record"], rows.env_step_rows),
     (
         "Expert collection",
-        ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "record"],
+        ["task", "device", "envs", "cameras", "demos", "demos per device-hour", "stages, largest first", "record"],
         rows.collection_rows,
     ),
     (

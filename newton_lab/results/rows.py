@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..records import EVERY_SHAPE
+from ..records import EVERY_SHAPE, stage_seconds
 
 
 def _short(task: str | None) -> str:
@@ -235,10 +235,19 @@ def collection_rows(records, page_dir: Path) -> list[list[str]]:
                 cams,
                 str(r.get("successful_demos", r.get("episodes", "–"))),
                 _k(r.get("demos_per_hour")),
+                _stages(r),
                 _link(path, page_dir),
             ]
         )
     return rows
+
+
+def _stages(r: dict[str, Any]) -> str:
+    """A collection's stages (``records.stage_seconds``), largest first, in seconds."""
+    if "hand_over_s" not in r:
+        return "–"
+    ranked = sorted(stage_seconds(r).items(), key=lambda kv: -kv[1])
+    return ", ".join(f"{name} {s:.1f} s" for name, s in ranked)
 
 
 VARIANT_WORDS = {
