@@ -242,3 +242,9 @@ def test_frames_are_written_from_the_ring_frame_for_frame(tmp_path, ring_mib, pa
     w.close()
     for k in range(40):
         np.testing.assert_array_equal(read_episode(thread_path, k)["obs"]["cam"], read_episode(path, k)["obs"]["cam"])
+    if packs:  # a damaged chunk of frames is refused in one line, as any damaged dataset is, and left as it is
+        chunk = found[0] / "obs" / "cam" / "c.3.0.0.0"  # rows 150..199: demo 8's frames
+        chunk.write_bytes(chunk.read_bytes()[:100])
+        with pytest.raises(ValueError, match=r"is not a newton_lab dataset or is damaged \(pack_0 \(demo 8\)") as e:
+            read_episode(path, 8)
+        assert "\n" not in str(e.value) and len(chunk.read_bytes()) == 100
