@@ -198,6 +198,23 @@ MUTATIONS: tuple[Mutation, ...] = (
         '            reply(("written", burst, [], dict(spent), writer.batches))\n',
         "tests/test_writer_process.py",
     ),
+    Mutation(
+        "ring-room-given-back-before-the-write",
+        "a writer process keeps a burst's frames in its ring until they are written",
+        (
+            (
+                "newton_lab/datasets/writers/process_main.py",
+                '        reply(("free", burst))  # its frames were written from the ring: its room goes back now\n',
+                "",
+            ),
+            (
+                "newton_lab/datasets/writers/process_main.py",
+                "            t1 = time.perf_counter()\n",
+                '            reply(("free", burst))\n            t1 = time.perf_counter()\n',
+            ),
+        ),
+        ("tests/test_writer_process.py::test_frames_are_written_from_the_ring_frame_for_frame",),
+    ),
     one_patch(
         "contained-check-skipped",
         "no path read from a file reaches outside its folder",
