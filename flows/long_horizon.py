@@ -66,14 +66,15 @@ def long_horizon_pipeline(
     recipe: str | None = None,
     domain_randomize: dict[str, float] | None = None,
     dataset_format: str = PIPELINE_DATASET_FORMAT,
+    distractors: int = 0,
 ) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
     run record (``<out>/records/``; ``summary["record"]``).
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
     ``gpus`` > 1 trains each phase data-parallel; ``domain_randomize`` (axis -> level) randomises collection's rows
-    (the evaluation stays on the task's own distribution); ``dataset_format`` (hdf5 or zarr) is that
-    of the demos and of the phase datasets split from them."""
+    (the evaluation stays on the task's own distribution), and ``distractors`` objects stand on its table;
+    ``dataset_format`` (hdf5 or zarr) is that of the demos and of the phase datasets split from them."""
     runlog.quiet_console(REPORTED_ERRORS)
     runlog.restore_caller_sigterm()
     log = get_run_logger()
@@ -83,6 +84,7 @@ def long_horizon_pipeline(
     train_cfg = with_inputs(train_cfg, lookup(task_id).make_cfg(options).target_observations)
     clock = StageClock()
     collect = {"max_steps": COLLECT_MAX_STEPS, "domain_randomize": domain_randomize, "dataset_format": dataset_format}
+    collect["distractors"] = distractors
     demo_art, s_collect = run_collect(
         task_id, demos, num_envs, seed, device, out, workers, cameras=cameras, task_options=options, **collect
     )
@@ -121,6 +123,7 @@ def long_horizon_pipeline(
     settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
     settings.update(cameras=cameras, task_options=options, recipe=recipe, dataset_format=dataset_format)
     settings["domain_randomize"] = domain_randomize or None
+    settings["distractors"] = distractors
     return record_run(summary, clock, out_dir, **settings)
 
 

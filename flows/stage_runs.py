@@ -194,10 +194,11 @@ def run_collect(
     max_steps=None,
     domain_randomize=None,
     dataset_format=PIPELINE_DATASET_FORMAT,
+    distractors=0,
 ):
     """Collect ``episodes`` expert demos on at most ``num_envs`` rows (no more rows than demos) into
     ``<out>/demos.<dataset_format>``; with ``domain_randomize`` (axis -> level) each row draws its own physics and
-    camera offsets (collect's flag)."""
+    camera offsets (collect's flag); ``distractors`` objects stand on the table."""
     args = CollectArgs(
         task=task_id,
         episodes=episodes,
@@ -208,6 +209,7 @@ def run_collect(
         dataset_path=str(Path(out) / f"demos.{dataset_format}"),
         cameras=cameras,
         task_options=dict(task_options or {}),
+        distractors=distractors,
         **({"max_steps": max_steps} if max_steps else {}),
         **(
             {"domain_randomize": ",".join(f"{k}={v:g}" for k, v in domain_randomize.items())}

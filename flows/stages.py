@@ -71,6 +71,7 @@ def collect_stage(*, args: CollectArgs, name: str = "demos") -> dict[str, Any]:
         "num_envs": args.num_envs,
         "seed": args.seed,
         **({"domain_randomize": args.domain_randomization()} if args.domain_randomize else {}),
+        **({"distractors": args.distractors} if args.distractors else {}),
     }
     if (done := _guard(out, name, inputs)) is not None:
         return done

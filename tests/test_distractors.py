@@ -114,3 +114,35 @@ def test_an_evaluation_builds_an_env_per_count_and_refuses_a_count_it_was_not_bu
     with pytest.raises(ValueError, match="built with 0; build it with") as err:
         perturbation_table(pick_env, expert_agent(pick_env), cells[:1], episodes=2, max_steps=5, progress=False)
     assert "\n" not in str(err.value)
+
+
+def test_demos_collected_among_distractors_record_them_and_replay_in_their_scene(cluttered, tmp_path):
+    """``collect --distractors N`` builds its env with them; the dataset records the count (``env_args``), and a
+    replay (like Mimic) rebuilds that scene: the states hold the distractors' coordinates, and they replay."""
+    from newton_lab.commands import CollectArgs
+    from newton_lab.datasets import read_dataset_info, read_episode, state_tree
+    from newton_lab.envs.recorder import recorded_scene
+    from newton_lab.mimic import mimic
+    from newton_lab.viz.rerun_log import replay_episode
+
+    assert CollectArgs(distractors=2).env_kwargs()["distractors"] == 2
+    assert CollectArgs().env_kwargs()["distractors"] == 0
+    cluttered.reseed(0)
+    ref = cluttered.collect(
+        agent=expert_agent(cluttered), episodes=1, path=tmp_path / "d.hdf5", max_steps=400, only_successes=True
+    )
+    env_args = read_dataset_info(ref.path)["env_args"]
+    assert env_args["env_kwargs"]["distractors"] == 3 and recorded_scene(env_args) == {"distractors": 3}
+    assert recorded_scene({"env_kwargs": {}}) == {"distractors": 0}  # a dataset recorded before the count was
+    ep = read_episode(ref.path, 0)
+    poses = replay_episode(ref.path, 0, save=tmp_path / "replay.rrd")
+    states = state_tree(ep["states"], env_args)
+    for d in DISTRACTORS:
+        body = cluttered.task.entities[d.name].body
+        np.testing.assert_allclose(poses[:, body], states["rigid_object"][d.name]["root_pose"], atol=1e-5)
+    generated = mimic(ref, episodes=1, num_envs=2, device="cpu", progress=False, max_attempts=6)
+    assert generated.metadata["successes"] == 1  # Mimic's env stood among the same objects: its states hold theirs
+    gen_args = read_dataset_info(generated.path)["env_args"]
+    assert recorded_scene(gen_args) == {"distractors": 3}
+    gen = read_episode(generated.path, read_dataset_info(generated.path)["demo_ids"][0])
+    assert {d.name for d in DISTRACTORS} <= set(state_tree(gen["states"], gen_args)["rigid_object"])

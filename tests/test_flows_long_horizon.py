@@ -39,12 +39,15 @@ COMMAND = [
     "--no-record",
     "--domain-randomize",
     "friction=mild,camera_shift=mild",
+    "--distractors",
+    "1",
     "--dataset-format",
     "zarr",
 ]
 """The smallest size: 5 training steps make a policy that may wander until the step limit, so the limit is 300
 steps (an expert coherent episode is ~470). Collection is domain-randomised (the robust recipe's flag): each row
-draws its own friction and camera offset. The datasets are zarr (the single-task pipeline's tests run HDF5)."""
+draws its own friction and camera offset, and a distractor object stands on the table. The datasets are zarr (the
+single-task pipeline's tests run HDF5)."""
 
 
 def run_pipeline(out: Path) -> subprocess.CompletedProcess:
@@ -93,10 +96,12 @@ def test_every_stage_ran_and_the_composed_task_was_evaluated(first_run):
         p for p in DatasetRef.open(summary["artifacts"]["demos"]["path"]).provenance if p.operation == "collect"
     ]
     assert {k: len(v) for k, v in entry.config["domain_randomization"].items()} == {"friction": 2, "camera_shift": 2}
-    # the phase datasets carry the component task and only the phase's columns; each policy trained on its own
-    phases = summary["artifacts"]["phases"]
+    assert record["results"]["distractors"] == 1  # the demos stood among one; the evaluation on the task's own scene
     from newton_lab.datasets import read_dataset_info, read_episode
 
+    assert read_dataset_info(summary["artifacts"]["demos"]["path"])["env_args"]["env_kwargs"]["distractors"] == 1
+    # the phase datasets carry the component task and only the phase's columns; each policy trained on its own
+    phases = summary["artifacts"]["phases"]
     assert (
         summary["artifacts"]["demos"]["path"].endswith("demos.zarr") and record["results"]["dataset_format"] == "zarr"
     )

@@ -348,3 +348,14 @@ def test_recipe_choice_without_a_gpu_is_the_cpu_one_and_the_gpu_one_sees_pixels(
     assert json.loads(robust.stdout)["plan"]["domain_randomize"] == {"camera_shift": 2.0}
     refused = subprocess.run([*run, "--domain-randomize", "friction=mild"], capture_output=True, text=True, cwd=ROOT)
     assert refused.returncode == 2 and "Mimic" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1
+    cluttered = subprocess.run(
+        [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--distractors", "2"],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+    )
+    assert json.loads(cluttered.stdout)["plan"]["distractors"] == 2
+    refused = subprocess.run([*run, "--distractors", "1"], capture_output=True, text=True, cwd=ROOT)
+    assert refused.returncode == 2 and "collect --distractors N" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1

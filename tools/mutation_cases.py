@@ -216,6 +216,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         ("tests/test_writer_process.py::test_frames_are_written_from_the_ring_frame_for_frame",),
     ),
     one_patch(
+        "mimic-forgets-the-distractors",
+        "Mimic and replays rebuild a dataset's env among the distractor objects it was collected among",
+        "newton_lab/mimic/generate.py",
+        "        **recorded_scene(src.info()[\"env_args\"]),  # the source's distractors: Mimic's demos stand among them too\n",
+        "",
+        "tests/test_distractors.py::test_demos_collected_among_distractors_record_them_and_replay_in_their_scene",
+    ),
+    one_patch(
         "contained-check-skipped",
         "no path read from a file reaches outside its folder",
         "newton_lab/datasets/files/inside_root.py",

@@ -15,20 +15,10 @@ from __future__ import annotations
 from .bench import BenchArgs, BenchCollectArgs, BenchRefusalsArgs, BenchTrainArgs, ResultsArgs, SuiteArgs
 from .env import CameraArgs, EnvArgs, RenderArgs, RerunArgs, RolloutArgs, TasksArgs, camera_option
 from .perception import YoloExportArgs, YoloPredictArgs, YoloTrainArgs
+from .pipeline import RECIPE_FIELDS, PipelineArgs
 from .rl import TrainRLArgs
 from .teleop import TeleopArgs
-from .workflow import (
-    RECIPE_FIELDS,
-    TRAIN_OVERRIDES,
-    CollectArgs,
-    EvaluateArgs,
-    ExportArgs,
-    MimicArgs,
-    PipelineArgs,
-    SplitArgs,
-    TrainArgs,
-    ViewArgs,
-)
+from .workflow import TRAIN_OVERRIDES, CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
 
 __all__ = [
     "BenchArgs",

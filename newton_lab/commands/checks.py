@@ -32,9 +32,10 @@ from .perception import (
     check_yolo_predict,
     check_yolo_train,
 )
+from .pipeline import PipelineArgs
 from .rl import TrainRLArgs
 from .teleop import TeleopArgs, check_teleop
-from .workflow import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, PipelineArgs, SplitArgs, TrainArgs, ViewArgs
+from .workflow import CollectArgs, EvaluateArgs, ExportArgs, MimicArgs, SplitArgs, TrainArgs, ViewArgs
 
 COUNT_FIELDS = (
     "num_envs",
@@ -133,6 +134,10 @@ def check_args(args: Any) -> None:
         args.perturbation_cells()
     if isinstance(args, CollectArgs):
         args.domain_randomization()
+        if not 0 <= args.distractors <= 3:
+            raise ValueError(
+                f"--distractors {args.distractors}: there are 0 to 3 distractor objects; give 0, 1, 2 or 3"
+            )
     if isinstance(args, SplitArgs):
         check_split_out(args)
     for name in EXISTING_FIELDS.get(type(args), ()):

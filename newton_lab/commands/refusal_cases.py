@@ -35,6 +35,7 @@ CASES: list[tuple[str, str]] = [
     ("train-rl --device cpu --mini-batches 0", "--mini-batches must be an integer >= 1"),
     ("evaluate --perturb object_mass=0", "object_mass is a factor, a finite number > 0"),
     ("evaluate --perturb distractors=4", "distractors goes up to 3 objects"),
+    ("collect --distractors 4", "--distractors 4: there are 0 to 3 distractor objects"),
     ("bench --render-orders", "--render-orders times the camera render; add --cameras"),
     ("bench-train --dataset-path src.hdf5 --native-norms", "--native-norms times the bf16 norms"),
     ("render --perturb sweep", "render draws one frame; give AXIS=LEVEL"),

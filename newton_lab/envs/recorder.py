@@ -20,6 +20,7 @@ import warp as wp
 
 from ..datasets.states import state_layout
 from ..datasets.writers.columns import ColumnLayout, DemoBlock
+from ..tasks.common.distractors import distractor_count
 
 IMAGE_CHUNK_STEPS = 64
 """Steps by which the per-row image buffers grow (their time capacity is a multiple of it, capped at
@@ -191,6 +192,12 @@ def camera_args(env) -> dict[str, Any]:
     }
 
 
+def recorded_scene(env_args: dict[str, Any]) -> dict[str, int]:
+    """What the env that made a dataset was built with besides its task (``env_args(env)``): ``make_env`` keywords,
+    ``{"distractors": n}`` (0 for a dataset recorded before the count was)."""
+    return {"distractors": int((env_args.get("env_kwargs") or {}).get("distractors") or 0)}
+
+
 def env_args(env) -> dict[str, Any]:
     """The ``data.attrs['env_args']`` record: enough to rebuild the env that made a dataset."""
     lay, n = env.sim.layout, env.num_envs
@@ -203,6 +210,7 @@ def env_args(env) -> dict[str, Any]:
             "seed": env.seed,
             "randomize": env.task.randomize,
             "task_options": env.cfg.options,
+            "distractors": distractor_count(env.cfg),
         },
         "newton_lab": {
             "robot": env.robot.name,

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from ..datasets.ref import DatasetRef
 from ..envs import make_env
+from ..envs.recorder import recorded_scene
 from ..task_api.registry import mimic_variant_of
 from .agent import MimicAgent
 from .source import load_sources
@@ -53,7 +54,14 @@ def mimic(
     recorded_options = src.info()["env_args"].get("env_kwargs", {}).get("task_options") or {}
     options = {k: v for k, v in recorded_options.items() if k in variant.option_names}
     env = make_env(
-        mimic_id, num_envs=num_envs, device=device, seed=seed, randomize=True, cameras=cameras, task_options=options
+        mimic_id,
+        num_envs=num_envs,
+        device=device,
+        seed=seed,
+        randomize=True,
+        cameras=cameras,
+        task_options=options,
+        **recorded_scene(src.info()["env_args"]),  # the source's distractors: Mimic's demos stand among them too
     )
     sources = load_sources(
         path, cfg, env.robot.kinematics(256, device=env.device, arm=cfg.arm), task_id=task_id, robot=env.robot

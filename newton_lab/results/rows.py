@@ -71,6 +71,8 @@ def policy_rows(records, page_dir: Path) -> list[list[str]]:
         )
         if res.get("domain_randomize"):  # the robust recipe: collection's rows drew these axes
             data += ", randomised " + ", ".join(f"{k}={v:g}" for k, v in res["domain_randomize"].items())
+        if res.get("distractors"):  # collected among distractor objects
+            data += f", among {res['distractors']} distractors"
         phases = res.get("phases") or {}
         per_phase = (
             ", ".join(f"{k} {v['passed']}/{v['reached']}" for k, v in phases.items()) if len(phases) > 1 else "–"

@@ -22,6 +22,7 @@ import warp as wp
 from ..datasets import read_dataset_info, read_episode, state_tree
 from ..datasets.files.output_paths import output_path
 from ..envs import make_env
+from ..envs.recorder import recorded_scene
 from .blueprint import default_blueprint, eye_for
 from .camera_log import CameraStream, dataset_streams, env_streams, log_camera_frame, log_camera_statics, mount_poses
 from .shapes import entity_name, log_model_shapes, row_offsets
@@ -261,7 +262,9 @@ def replay_episode(
             f"({len(ids)} episodes)"
         )
     ep = read_episode(path, episode)
-    env = make_env(info["task_id"], num_envs=1, device=device, capture=False, cameras=False)  # images are recorded
+    env = make_env(  # images are recorded; the states hold the distractors' coordinates when there were any
+        info["task_id"], num_envs=1, device=device, capture=False, cameras=False, **recorded_scene(info["env_args"])
+    )
     obs = ep.get("obs", {})
     streams = dataset_streams(obs, info["env_args"], env.robot)
     cam_poses = ep.get("datagen", {}).get("camera_poses", {})
