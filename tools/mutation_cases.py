@@ -219,7 +219,8 @@ MUTATIONS: tuple[Mutation, ...] = (
         "mimic-forgets-the-distractors",
         "Mimic and replays rebuild a dataset's env among the distractor objects it was collected among",
         "newton_lab/mimic/generate.py",
-        "        **recorded_scene(src.info()[\"env_args\"]),  # the source's distractors: Mimic's demos stand among them too\n",
+        "        **recorded_scene(src.info()[\"env_args\"]),  # the source's distractors: Mimic's demos stand "
+        "among them too\n",
         "",
         "tests/test_distractors.py::test_demos_collected_among_distractors_record_them_and_replay_in_their_scene",
     ),
