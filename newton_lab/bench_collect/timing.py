@@ -84,9 +84,8 @@ def collect_timed(
     queueing; with a writer process also split into ``hand_over_ring_wait_s``, waiting for room in its ring, and
     ``hand_over_copy_s``, copying bursts into it; the process's own ``writer_copy_out_s``, copying their low-dim arrays
     out (the frames are written from the ring), and ``writer_queue_wait_s``, blocked on its full write queue, say why
-    the ring has no room) and ``drain_s`` waits for
-    the writer after the last step. ``physics_share`` (physics over wall) near 1 means the device's step bounds the
-    loop; the rest of the wall is the host's own work."""
+    the ring has no room) and ``drain_s`` waits for the writer after the last step. ``physics_share`` (physics over
+    wall) near 1 means the device's step bounds the loop; the rest of the wall is the host's own work."""
     physics, acting, writing = _DeviceClock(env.device), _Clock(env.device), _Clock("cpu")
     handing, draining = _Clock("cpu"), _Clock("cpu")
     clocks = {"physics": physics, "agent": acting, "writer": writing, "hand-over": handing, "drain": draining}

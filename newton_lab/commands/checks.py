@@ -134,10 +134,8 @@ def check_args(args: Any) -> None:
         args.perturbation_cells()
     if isinstance(args, CollectArgs):
         args.domain_randomization()
-        if not 0 <= args.distractors <= 3:
-            raise ValueError(
-                f"--distractors {args.distractors}: there are 0 to 3 distractor objects; give 0, 1, 2 or 3"
-            )
+    if isinstance(args, (CollectArgs, PipelineArgs)) and not 0 <= args.distractors <= 3:
+        raise ValueError(f"--distractors {args.distractors}: there are 0 to 3 distractor objects; give 0, 1, 2 or 3")
     if isinstance(args, SplitArgs):
         check_split_out(args)
     for name in EXISTING_FIELDS.get(type(args), ()):

@@ -36,6 +36,7 @@ CASES: list[tuple[str, str]] = [
     ("evaluate --perturb object_mass=0", "object_mass is a factor, a finite number > 0"),
     ("evaluate --perturb distractors=4", "distractors goes up to 3 objects"),
     ("collect --distractors 4", "--distractors 4: there are 0 to 3 distractor objects"),
+    ("pipeline --task GalbotG1-PickToShelf-v0 --distractors -1", "--distractors -1: there are 0 to 3"),
     ("bench --render-orders", "--render-orders times the camera render; add --cameras"),
     ("bench-train --dataset-path src.hdf5 --native-norms", "--native-norms times the bf16 norms"),
     ("render --perturb sweep", "render draws one frame; give AXIS=LEVEL"),
