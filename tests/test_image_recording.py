@@ -256,14 +256,12 @@ def test_image_buffers_too_large_for_the_device_end_in_one_line():
     a one-line MemoryError naming the fixes, not an allocator traceback."""
     import torch
 
-    from newton_lab.envs.recorder import EpisodeRecorder
+    from newton_lab.envs.frame_chunks import FrameChunks
 
-    rec = EpisodeRecorder.__new__(EpisodeRecorder)  # only the image buffers: no env needed
-    rec.max_steps = 1000
-    rec._images = {"front_head_rgb": torch.zeros((10**9, 0, 224, 298, 3), dtype=torch.uint8)}
+    frames = FrameChunks("front_head_rgb", 10**9, (224, 298, 3), torch.uint8, "cpu")  # no env needed
     with pytest.raises(
         MemoryError,
         match=r"front_head_rgb of 1000000000 rows for 64 steps needs 11936187\.7 GiB "
         r"on cpu, .*--cameras none",
     ):
-        rec._grow_images(0)
+        frames.grow(0)

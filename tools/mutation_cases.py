@@ -225,6 +225,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         "tests/test_distractors.py::test_demos_collected_among_distractors_record_them_and_replay_in_their_scene",
     ),
     one_patch(
+        "frames-written-into-every-chunk",
+        "each row's frame is recorded at its own episode step, whichever chunk of frames holds it",
+        "newton_lab/envs/frame_chunks.py",
+        "            self.chunks[k][torch.where(chunk == k, rows, self._spare), step] = frames\n",
+        "            self.chunks[k][rows, step] = frames\n",
+        "tests/test_frame_chunks.py",
+    ),
+    one_patch(
         "contained-check-skipped",
         "no path read from a file reaches outside its folder",
         "newton_lab/datasets/files/inside_root.py",

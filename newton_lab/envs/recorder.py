@@ -2,17 +2,16 @@
 
 Image terms (``env.sensors.image_terms``) are recorded only when the env has them: each recorded step reads
 ``env.sensors.images`` (which renders, once, through the captured render) and copies every term into per-row device
-buffers that grow along time in chunks of ``IMAGE_CHUNK_STEPS`` steps. A full-length buffer would be
-(N, max_steps, H, W, 3): at 298x224 RGB and max_steps 1000 that is 200 MB per row, 800 GB at 4096 rows; grown
-by chunks it holds N x (longest running episode, rounded up to a chunk) frames, e.g. 38 MB per row (192 steps) for
-PickCube's ~170-step expert episodes at 298x224. Staging frames on the host instead would add a device->host
-copy of every row's images to every step (the simulation would wait for it); the chunked device buffers keep
-the step on the device and copy only finished episodes (``episodes``), together with their other arrays.
+frames that grow along time in chunks (``envs.frame_chunks``). A full-length buffer would be (N, max_steps, H, W,
+3): at 298x224 RGB and max_steps 1000 that is 200 MB per row, 800 GB at 4096 rows; in chunks it holds N x (longest
+running episode, rounded up to a chunk) frames, e.g. 38 MB per row (192 steps) for PickCube's ~170-step expert
+episodes at 298x224. Staging frames on the host instead would add a device->host copy of every row's images to
+every step (the simulation would wait for it); the device chunks keep the step on the device and copy only finished
+episodes (``episodes``), together with their other arrays.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any, NamedTuple
 
 import torch
@@ -21,10 +20,7 @@ import warp as wp
 from ..datasets.states import state_layout
 from ..datasets.writers.columns import ColumnLayout, DemoBlock
 from ..tasks.common.distractors import distractor_count
-
-IMAGE_CHUNK_STEPS = 64
-"""Steps by which the per-row image buffers grow (their time capacity is a multiple of it, capped at
-``max_steps``)."""
+from .frame_chunks import FrameChunks
 
 
 class EpisodeRecorder:
@@ -69,39 +65,19 @@ class EpisodeRecorder:
         self._next_obs = torch.zeros(n, max_steps, env.buffers.final_obs.shape[1], device=env.torch_device)
         self._rows = torch.arange(n, device=env.torch_device)
         self._images = {
-            name: torch.zeros((n, 0, *term.shape), dtype=term.dtype, device=env.torch_device)
+            name: FrameChunks(name, n, term.shape, term.dtype, env.torch_device)
             for name, term in self.image_terms.items()
         }
-
-    def _grow_images(self, last: int) -> None:
-        """Make the image buffers hold step ``last`` (grown by whole ``IMAGE_CHUNK_STEPS`` chunks)."""
-        cap = next(iter(self._images.values())).shape[1]
-        if last < cap:
-            return
-        new_cap = min(self.max_steps, (last // IMAGE_CHUNK_STEPS + 1) * IMAGE_CHUNK_STEPS)
-        for name, buf in self._images.items():
-            try:
-                grown = torch.zeros((buf.shape[0], new_cap, *buf.shape[2:]), dtype=buf.dtype, device=buf.device)
-            except (torch.OutOfMemoryError, RuntimeError) as e:  # CUDA: OutOfMemoryError; CPU: RuntimeError
-                if not isinstance(e, torch.OutOfMemoryError) and "allocate" not in str(e):
-                    raise
-                need = buf.shape[0] * new_cap * math.prod(buf.shape[2:]) * buf.element_size() / 2**30
-                raise MemoryError(
-                    f"recording {name} of {buf.shape[0]} rows for {new_cap} steps needs {need:.1f} GiB on "
-                    f"{buf.device}, more than is free; record fewer rows (--num-envs), smaller frames "
-                    f"(--cameras name=WxH) or no images (--cameras none)"
-                ) from None
-            grown[:, :cap] = buf
-            self._images[name] = grown
 
     def record(self, t: torch.Tensor, actions: torch.Tensor) -> None:
         """Store the pre-step frame of every row at its episode step ``t`` (N,)."""
         t = t.clamp(max=self.max_steps - 1)
         if self._images:
             images = self.env.render()  # first: the camera poses in the frame are those of this render
-            self._grow_images(int(t.max()))
-            for name, buf in self._images.items():
-                buf[self._rows, t] = images[name]
+            first, last = torch.stack((t.min(), t.max())).tolist()  # one sync: the chunks the rows are in
+            for name, frames in self._images.items():
+                frames.grow(last)
+                frames.write(t, images[name], first, last)
         frame = torch.cat([v.float() for v in self._views.values()] + [actions], dim=1)
         self._frames[self._rows, t] = frame
 
@@ -122,7 +98,7 @@ class EpisodeRecorder:
         steps = torch.arange(span, device=idx.device)
         past_end = steps[None, :] >= torch.as_tensor(lengths, device=idx.device)[:, None]  # after each episode's end
         ok = (torch.isfinite(stacked).all(dim=2) | past_end).all(dim=1)
-        images = {name: _padded(buf[idx, :span], span) for name, buf in self._images.items()}
+        images = {name: frames.gather(idx, span) for name, frames in self._images.items()}
         return FetchedRows(rows, lengths, stacked, images, dict(zip(rows, ok.tolist())))
 
     def episodes(self, rows, lengths) -> tuple[dict[int, dict[str, Any]], dict[int, bool]]:
@@ -150,13 +126,6 @@ class EpisodeRecorder:
         (``datasets.writers.columns.DemoBlock.trees`` says what it holds); copies, never views of the live buffers (the
         row's next episode reuses them)."""
         return self.episodes([row], [length])[0][row]
-
-
-def _padded(images: torch.Tensor, span: int) -> torch.Tensor:
-    """``images`` (rows, steps, ...) with zero frames up to ``span`` steps (buffers not grown yet: nothing recorded)."""
-    if images.shape[1] >= span:
-        return images
-    return torch.cat([images, images.new_zeros((images.shape[0], span - images.shape[1], *images.shape[2:]))], dim=1)
 
 
 class FetchedRows(NamedTuple):
