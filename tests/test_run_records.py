@@ -328,34 +328,24 @@ def test_recipe_choice_without_a_gpu_is_the_cpu_one_and_the_gpu_one_sees_pixels(
     train = gpu["train_cfg"]
     assert train["device"] == "cuda" and train["bf16"] and train["image_keys"] == ["front_head_rgb"]
     assert "object_pose" not in train["obs_keys"] and "cube_pose" not in train["obs_keys"]
-    coherent = json.loads(
-        subprocess.run(
-            [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--recipe", "gpu"],
+
+    def shelf_plan(*flags: str) -> dict:
+        """The dry-run plan of the PickToShelf pipeline with ``flags``."""
+        done = subprocess.run(
+            [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", *flags],
             capture_output=True,
             text=True,
             check=True,
             cwd=ROOT,
-        ).stdout
-    )["plan"]
+        )
+        return json.loads(done.stdout)["plan"]
+
+    coherent = shelf_plan("--recipe", "gpu")
     assert coherent["long_horizon"] and coherent["stages"][1] == "split" and coherent["demos"] >= 600
-    robust = subprocess.run(
-        [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--domain-randomize", "camera_shift=mild"],
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=ROOT,
-    )
-    assert json.loads(robust.stdout)["plan"]["domain_randomize"] == {"camera_shift": 2.0}
+    assert shelf_plan("--domain-randomize", "camera_shift=mild")["domain_randomize"] == {"camera_shift": 2.0}
     refused = subprocess.run([*run, "--domain-randomize", "friction=mild"], capture_output=True, text=True, cwd=ROOT)
     assert refused.returncode == 2 and "Mimic" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1
-    cluttered = subprocess.run(
-        [*run[:4], "--task", "GalbotG1-PickToShelf-v0", "--dry-run", "--distractors", "2"],
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=ROOT,
-    )
-    assert json.loads(cluttered.stdout)["plan"]["distractors"] == 2
+    assert shelf_plan("--distractors", "2")["distractors"] == 2
     refused = subprocess.run([*run, "--distractors", "1"], capture_output=True, text=True, cwd=ROOT)
     assert refused.returncode == 2 and "collect --distractors N" in refused.stderr
     assert len(refused.stderr.strip().splitlines()) == 1

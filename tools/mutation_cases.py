@@ -228,8 +228,8 @@ MUTATIONS: tuple[Mutation, ...] = (
         "frames-written-into-every-chunk",
         "each row's frame is recorded at its own episode step, whichever chunk of frames holds it",
         "newton_lab/envs/frame_chunks.py",
-        "            self.chunks[k][torch.where(chunk == k, rows, self._spare), step] = frames\n",
-        "            self.chunks[k][rows, step] = frames\n",
+        "            self.chunks[k][torch.where(chunk == k, self._rows, self._spare), step] = frames\n",
+        "            self.chunks[k][self._rows, step] = frames\n",
         "tests/test_frame_chunks.py",
     ),
     one_patch(

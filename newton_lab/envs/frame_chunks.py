@@ -28,6 +28,7 @@ class FrameChunks:
         self.chunks: list[torch.Tensor] = []
         """Each ``(rows + 1, IMAGE_CHUNK_STEPS, *shape)``: steps ``k * IMAGE_CHUNK_STEPS ..`` of chunk ``k``; the
         last row is the spare one."""
+        self._rows = torch.arange(rows, device=device)
         self._spare = torch.full((rows,), rows, device=device)
 
     @property
@@ -59,10 +60,9 @@ class FrameChunks:
     def write(self, t: torch.Tensor, frames: torch.Tensor, first: int, last: int) -> None:
         """Store ``frames`` (rows, ...) of every row at its episode step ``t`` (rows,), whose least and greatest are
         ``first`` and ``last`` (held: :meth:`grow`)."""
-        rows = torch.arange(self.rows, device=t.device)
         chunk, step = t // IMAGE_CHUNK_STEPS, t % IMAGE_CHUNK_STEPS
         for k in range(first // IMAGE_CHUNK_STEPS, last // IMAGE_CHUNK_STEPS + 1):
-            self.chunks[k][torch.where(chunk == k, rows, self._spare), step] = frames
+            self.chunks[k][torch.where(chunk == k, self._rows, self._spare), step] = frames
 
     def gather(self, idx: torch.Tensor, span: int) -> torch.Tensor:
         """``(len(idx), span, *shape)``: the first ``span`` steps of the rows ``idx`` (zero frames past what was
