@@ -72,8 +72,9 @@ def test_every_manipulation_task_declares_a_normalised_dense_reward():
         cfg = lookup(task_id).cfg()
         weights = [t.weight for t in cfg.rewards.values()]
         assert weights and min(weights) > 0, f"{task_id}: no dense reward ({list(cfg.rewards)})"
-        if cfg.phases:  # (phase + r_phase) / n: the phase term plus each phase's terms, 1/n each
-            assert sum(weights) == pytest.approx(DENSE_REWARD_MAX * (1 + 1 / len(cfg.phases))), task_id
+        if cfg.phases:  # (phase + r_phase) / n: the phase term and each group of phases sharing terms, 1/n each
+            groups = {name.split("/")[0] for name in cfg.rewards if "/" in name}  # phases sharing terms: one
+            assert sum(weights) == pytest.approx(DENSE_REWARD_MAX * (1 + len(groups)) / len(cfg.phases)), task_id
         else:
             assert sum(weights) == pytest.approx(DENSE_REWARD_MAX), task_id
 

@@ -159,14 +159,19 @@ def gated(after: Callable, stages: list[Stage]) -> list[Stage]:
 
 
 @term_factory()
-def phase_gated(*, phase: int, term: Callable):
-    """``term``'s value while the row is in phase ``phase``, else 0."""
-    phase = int(phase)
+def phase_gated(*, phase: int | tuple[int, ...], term: Callable):
+    """``term``'s value while the row is in phase ``phase`` (or in any of a tuple of phases), else 0."""
+    phases = (int(phase),) if isinstance(phase, int) else tuple(int(p) for p in phase)
+    n = len(phases)
 
     @wp.func
     def in_phase(ctx: TaskContext, w: int) -> float:
+        hit = bool(False)
+        for i in range(wp.static(n)):
+            if ctx.phase[w] == wp.static(phases[i]):
+                hit = True
         r = float(0.0)
-        if ctx.phase[w] == wp.static(phase):
+        if hit:
             r = wp.static(term)(ctx, w)
         return r
 
@@ -182,7 +187,9 @@ def phase_index(ctx: TaskContext, w: int) -> float:
 def phased_rewards(phases: list[tuple[str, dict[str, RewardTermCfg]]]) -> dict[str, RewardTermCfg]:
     """A coherent task's dense reward from its phases' dense rewards (each in [0, 1]):
     ``(phase + r_phase) / n_phases``, so it stays in [0, 1], rises across phase boundaries and is 1 when the
-    last phase's reward is. ``phases`` are ``(phase name, its reward terms)``; terms become ``<phase>/<term>``."""
+    last phase's reward is. ``phases`` are ``(phase name, its reward terms)``; terms become ``<phase>/<term>``.
+    Phases given under one name with the same terms (the same dict: SortToShelf-All's four picks, each
+    ``("pick", ...)``) share each term, gated on all of them, so the task kernel inlines it once."""
     n = len(phases)
     for name, terms in phases:
         total = sum(t.weight for t in terms.values())
@@ -191,11 +198,17 @@ def phased_rewards(phases: list[tuple[str, dict[str, RewardTermCfg]]]) -> dict[s
                 f"phase {name!r}: phased_rewards needs a dense reward with weights >= 0 summing to "
                 f"{DENSE_REWARD_MAX}, got {total}; build it with staged_rewards"
             )
-    out = {"phase": RewardTermCfg(func=phase_index, weight=DENSE_REWARD_MAX / n)}
+    groups: dict[str, tuple[dict[str, RewardTermCfg], list[int]]] = {}
     for i, (name, terms) in enumerate(phases):
+        if name in groups and groups[name][0] is not terms:
+            raise ValueError(f"phases named {name!r} must share one reward dict; name the phases apart")
+        groups.setdefault(name, (terms, []))[1].append(i)
+    out = {"phase": RewardTermCfg(func=phase_index, weight=DENSE_REWARD_MAX / n)}
+    for name, (terms, indices) in groups.items():
+        gate = indices[0] if len(indices) == 1 else tuple(indices)
         for term_name, t in terms.items():
             out[f"{name}/{term_name}"] = RewardTermCfg(
-                func=phase_gated(phase=i, term=bind(t.func, t.params)), weight=t.weight / n
+                func=phase_gated(phase=gate, term=bind(t.func, t.params)), weight=t.weight / n
             )
     return out
 

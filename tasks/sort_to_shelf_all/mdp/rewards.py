@@ -60,7 +60,7 @@ def return_rewards(table_xy: tuple[float, float], arm: tuple[float, ...], legs: 
 
 def all_rewards(phases: list[tuple[str, str]], returning: dict[str, RewardTermCfg]) -> dict[str, RewardTermCfg]:
     """SortToShelf-All: ``(phase + r_phase) / 15`` over ``phases`` (name, kind), ``r_phase`` the kind's reward of
-    the row's target (``returning`` for the return kind)."""
+    the row's target (``returning`` for the return kind); terms are named by kind (``pick/<term>``)."""
     objects = list(OBJECTS.values())
     by_kind = {
         "pick": _for_target([one.pick_rewards(o) for o in objects]),
@@ -68,4 +68,4 @@ def all_rewards(phases: list[tuple[str, str]], returning: dict[str, RewardTermCf
         "place": _for_target([one.place_rewards(o) for o in objects]),
         "return": returning,
     }
-    return phased_rewards([(name, by_kind[kind]) for name, kind in phases])
+    return phased_rewards([(kind, by_kind[kind]) for _, kind in phases])  # one term per kind: inlined once

@@ -124,6 +124,7 @@ def all_cfg() -> TaskCfg:
     ]
     if [(p.name, p.kind) for p in phases] != phase_layout():
         raise ValueError(f"SortToShelf-All's phases must follow order.phase_layout(): {phase_layout()}")
+    success = {kind: _phase_success(kind) for kind in KINDS}  # one predicate per kind: the kernel inlines it once
     signals = {
         "grasped_object": TermCfg(func=terms.grasped_target()),
         "released_in_cell": TermCfg(func=terms.released_target()),
@@ -137,7 +138,7 @@ def all_cfg() -> TaskCfg:
         observations=obs.manipulation_observations(
             object_pose=all_obs.TARGET_POSE, **{TARGET_OPTION: all_obs.TARGET_ONE_HOT}
         ),
-        phase_success=[_phase_success(p.kind) for p in phases],
+        phase_success=[success[p.kind] for p in phases],
         phases=phases,
         terminations={
             "object_dropped": TerminationTermCfg(func=terms.any_dropped()),
