@@ -98,11 +98,14 @@ every policy input is what the robot measures: its cameras (``cameras``: the ``-
 evaluation) and proprioception (``obs_mode="sensors"``: no object or target pose)."""
 LONG_HORIZON_TASK_RECIPES: dict[str, dict[str, dict[str, Any]]] = {
     # SortToShelf-All: an expert episode takes ~2350 steps (PickToShelf's ~470), and each episode gives every
-    # learned phase kind four segments (one policy per kind: pick_1 .. pick_4 train one pick policy), so 160 demos
-    # give each policy 640 segments, as many as PickToShelf's 600 demos; policies move slower than the expert,
-    # so evaluation runs to 5000 steps.
+    # learned phase kind four segments (one policy per kind: pick_1 .. pick_4 train one pick policy). 160 demos
+    # (640 segments a kind, 160 of each object) gave 0 of 100 on one H200: the pick policy, told its object by the
+    # one-hot in the U-Net's condition alone, lifted whichever object it saw (pick_1 passed 22 of 100). Its camera
+    # trunks now follow the one-hot too (``instruction_keys``), and 300 demos (one round of the 300 rows: the
+    # collection takes as long as 160) give 300 segments of each object. Policies move slower than the expert, so
+    # evaluation runs to 5000 steps.
     "GalbotG1-SortToShelf-All-v0": {
-        "gpu": {"demos": 160, "eval_max_steps": 5000},
+        "gpu": {"demos": 300, "eval_max_steps": 5000},
         "cpu": {"demos": 2, "eval_episodes": 2, "eval_max_steps": 3000},
     },
     # PickToShelf: two runs alone on one H200 with 360 s a phase (~5.3 k steps) scored 97 and 92 of 100, the misses
@@ -182,11 +185,18 @@ def learned_kinds(cfg) -> list[str]:
 
 def with_inputs(train_cfg: dict[str, Any], obs_keys: list[str]) -> dict[str, Any]:
     """``train_cfg`` whose policy also observes ``obs_keys`` (a coherent task's per-row targets,
-    ``TaskCfg.target_observations``), where it names its observation terms (none named: it sees them all)."""
-    named = train_cfg.get("obs_keys")
-    if not obs_keys or named is None:
+    ``TaskCfg.target_observations``), where it names its observation terms (none named: it sees them all); a
+    policy from cameras takes them as its instruction as well (``instruction_keys``: they condition its image
+    trunks, so the keypoints follow the object the phase acts on)."""
+    if not obs_keys:
         return train_cfg
-    return {**train_cfg, "obs_keys": [*named, *(k for k in obs_keys if k not in named)]}
+    named = train_cfg.get("obs_keys")
+    out = dict(train_cfg)
+    if named is not None:
+        out["obs_keys"] = [*named, *(k for k in obs_keys if k not in named)]
+    if train_cfg.get("image_keys"):
+        out["instruction_keys"] = list(obs_keys)
+    return out
 
 
 DEFAULTS = {

@@ -69,6 +69,7 @@ ARCHITECTURE_FIELDS = (
     "crop",
     "image_feature_dim",
     "encoder_width",
+    "instruction_keys",
 )
 """Config fields a checkpoint fixes: fine-tuning from it keeps them."""
 
@@ -162,6 +163,11 @@ class DiffusionPolicyConfig:
     """Features per camera (after the spatial-softmax keypoints)."""
     encoder_width: int = 64
     """Base width of the ResNet-18 trunk (64 = ResNet-18; 16 for CPU training)."""
+    instruction_keys: tuple[str, ...] | None = None
+    """Low-dim terms among the observed ones that are the task's instruction (e.g. SortToShelf-All's
+    ``sorting_object`` one-hot, the object a phase acts on): besides the U-Net's condition they FiLM-condition every
+    residual block of the image trunks (``vision``), so what the cameras report depends on which object is meant.
+    None = trunks see images alone (checkpoints before this field)."""
     success_only: bool = True
     """Train only on demos marked successful."""
     output_dir: str = "outputs/policies/diffusion"
@@ -183,6 +189,9 @@ class DiffusionPolicyConfig:
         if isinstance(self.image_keys, str):
             self.image_keys = (self.image_keys,)
         self.image_keys = tuple(self.image_keys) if self.image_keys else None
+        if isinstance(self.instruction_keys, str):
+            self.instruction_keys = (self.instruction_keys,)
+        self.instruction_keys = tuple(self.instruction_keys) if self.instruction_keys else None
         self.output_dir = str(self.output_dir)
         levels = len(self.down_dims)
         checks = [
@@ -217,6 +226,16 @@ class DiffusionPolicyConfig:
             ),
             (len(self.betas) == 2, f"betas must be a pair, got {self.betas}"),
             (0.0 < self.crop <= 1.0, f"crop must be in (0, 1], got {self.crop}"),
+            (
+                not self.instruction_keys or bool(self.image_keys),
+                f"instruction_keys {list(self.instruction_keys or ())} condition the image trunks; give image_keys "
+                "too, or leave them to obs_keys alone",
+            ),
+            (
+                not self.instruction_keys or self.obs_keys is None or set(self.instruction_keys) <= set(self.obs_keys),
+                f"instruction_keys {list(self.instruction_keys or ())} must be among obs_keys "
+                f"{list(self.obs_keys or ())}",
+            ),
             (self.obs_min_range >= 0.0, f"obs_min_range must be >= 0, got {self.obs_min_range}"),
             (
                 self.image_feature_dim >= 1 and self.encoder_width >= 16,

@@ -102,6 +102,7 @@ class DiffusionPolicy(nn.Module):
         self.obs_dim, self.action_dim = obs_normalizer.dim, action_normalizer.dim
         self.info: dict[str, Any] = dict(info or {})
         encoder = None
+        self.instruction_spans = self._instruction_spans()
         if cfg.image_keys:
             shapes = self.info.get("image_shapes") or {}
             missing = [k for k in cfg.image_keys if k not in shapes]
@@ -112,6 +113,7 @@ class DiffusionPolicy(nn.Module):
                 crop=cfg.crop,
                 feature_dim=cfg.image_feature_dim,
                 width=cfg.encoder_width,
+                instruction_dim=sum(b - a for a, b in self.instruction_spans),
             )
         cond_dim = (self.obs_dim + (encoder.feature_dim if encoder else 0)) * cfg.obs_horizon
         unet = ConditionalUnet1D(
@@ -127,6 +129,22 @@ class DiffusionPolicy(nn.Module):
         set_low_precision_norms(self.model, cfg.bf16_norms)  # before the EMA copy: its norms follow the model's
         self.ema = EMA(self.model, power=cfg.ema_power)
         self.scheduler = NoiseScheduler(cfg.num_train_timesteps, clip_sample=True)
+
+    def _instruction_spans(self) -> list[tuple[int, int]]:
+        """(start, stop) columns of the obs vector (``info`` obs_keys / obs_dims order) of each of
+        ``cfg.instruction_keys`` (slices, not an index list: a CUDA graph captures them without a host copy)."""
+        keys = list(self.info.get("obs_keys", []))
+        dims = self.info.get("obs_dims", {})
+        missing = [k for k in self.cfg.instruction_keys or () if k not in keys]
+        if missing:
+            raise ValueError(f"instruction_keys {missing} are not observed; the policy sees obs_keys {keys}")
+        spans, start = [], 0
+        for k in keys:
+            width = int(dims.get(k, 0))
+            if k in (self.cfg.instruction_keys or ()):
+                spans.append((start, start + width))
+            start += width
+        return spans
 
     @property
     def train_net(self) -> nn.Module:
@@ -194,7 +212,9 @@ class DiffusionPolicy(nn.Module):
                     f"{self.cfg.obs_horizon}, H, W, 3) uint8}}"
                 )
             net.encoder.check(images)
-            cond = torch.cat([cond, net.encoder(images)], dim=-1)
+            spans = self.instruction_spans
+            instruction = torch.cat([cond[..., a:b] for a, b in spans], dim=-1) if spans else None
+            cond = torch.cat([cond, net.encoder(images, instruction)], dim=-1)
         return cond.flatten(1)
 
     def compute_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:

@@ -6,6 +6,12 @@ basic blocks) with a configurable base width.
 
 Frames arrive as uint8 (B, T, H, W, 3); training crops each frame at a random position (``crop`` of each side),
 evaluation at the centre.
+
+An instruction (a task's per-row target, e.g. which object to pick) can condition the trunks too: each residual
+block's output is scaled and shifted per channel by a linear map of it (FiLM, Perez et al. 2018; RT-1 conditions its
+image trunk on the instruction this way), so the keypoints can follow the object the instruction names rather than
+every object the scene holds. The maps start at zero: a fresh conditioned trunk computes what an unconditioned one
+does.
 """
 
 from __future__ import annotations
@@ -25,9 +31,11 @@ def _norm(channels: int) -> GroupNorm:
 
 
 class BasicBlock(nn.Module):
-    """Two 3x3 conv + GroupNorm layers with a residual (1x1 conv when the stride or width changes)."""
+    """Two 3x3 conv + GroupNorm layers with a residual (1x1 conv when the stride or width changes); with
+    ``instruction_dim`` > 0 the second norm's output is FiLM-modulated by the instruction, ``h * (1 + scale) +
+    shift`` per channel (zero-initialised)."""
 
-    def __init__(self, c_in: int, c_out: int, stride: int = 1) -> None:
+    def __init__(self, c_in: int, c_out: int, stride: int = 1, instruction_dim: int = 0) -> None:
         super().__init__()
         self.conv1 = nn.Conv2d(c_in, c_out, 3, stride, 1, bias=False)
         self.norm1 = _norm(c_out)
@@ -38,29 +46,42 @@ class BasicBlock(nn.Module):
             if stride == 1 and c_in == c_out
             else nn.Sequential(nn.Conv2d(c_in, c_out, 1, stride, bias=False), _norm(c_out))
         )
+        self.film = nn.Linear(instruction_dim, 2 * c_out) if instruction_dim > 0 else None
+        if self.film is not None:
+            nn.init.zeros_(self.film.weight)
+            nn.init.zeros_(self.film.bias)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, instruction: torch.Tensor | None = None) -> torch.Tensor:
         h = F.relu(self.norm1(self.conv1(x)))
-        return F.relu(self.norm2(self.conv2(h)) + self.shortcut(x))
+        h = self.norm2(self.conv2(h))
+        if self.film is not None:
+            scale, shift = self.film(instruction)[:, :, None, None].chunk(2, dim=1)
+            h = h * (1.0 + scale) + shift
+        return F.relu(h + self.shortcut(x))
 
 
 class ResNetGN(nn.Module):
-    """ResNet-18 trunk (no pooling head): 7x7/2 stem, 3x3/2 max-pool, stages of widths w, 2w, 4w, 8w."""
+    """ResNet-18 trunk (no pooling head): 7x7/2 stem, 3x3/2 max-pool, stages of widths w, 2w, 4w, 8w; every block
+    FiLM-conditioned on an ``instruction_dim`` vector when that is > 0."""
 
-    def __init__(self, width: int = 64, in_channels: int = 3) -> None:
+    def __init__(self, width: int = 64, in_channels: int = 3, instruction_dim: int = 0) -> None:
         super().__init__()
         self.stem = nn.Sequential(
             nn.Conv2d(in_channels, width, 7, 2, 3, bias=False), _norm(width), nn.ReLU(), nn.MaxPool2d(3, 2, 1)
         )
         widths, layers, c = (width, 2 * width, 4 * width, 8 * width), [], width
         for i, w in enumerate(widths):
-            layers += [BasicBlock(c, w, 1 if i == 0 else 2), BasicBlock(w, w)]
+            stride = 1 if i == 0 else 2
+            layers += [BasicBlock(c, w, stride, instruction_dim), BasicBlock(w, w, 1, instruction_dim)]
             c = w
         self.stages = nn.Sequential(*layers)
         self.out_channels = c
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.stages(self.stem(x))
+    def forward(self, x: torch.Tensor, instruction: torch.Tensor | None = None) -> torch.Tensor:
+        h = self.stem(x)
+        for block in self.stages:
+            h = block(h, instruction)
+        return h
 
 
 class SpatialSoftmax(nn.Module):
@@ -96,16 +117,17 @@ def crop_frames(x: torch.Tensor, size: tuple[int, int], random: bool) -> torch.T
 
 
 class CameraEncoder(nn.Module):
-    """One camera: trunk -> spatial softmax -> linear -> ``feature_dim`` features."""
+    """One camera: trunk (instruction-conditioned with ``instruction_dim`` > 0) -> spatial softmax -> linear ->
+    ``feature_dim`` features."""
 
-    def __init__(self, width: int, feature_dim: int, keypoints: int = 32) -> None:
+    def __init__(self, width: int, feature_dim: int, keypoints: int = 32, instruction_dim: int = 0) -> None:
         super().__init__()
-        self.trunk = ResNetGN(width)
+        self.trunk = ResNetGN(width, instruction_dim=instruction_dim)
         self.pool = SpatialSoftmax(self.trunk.out_channels, keypoints)
         self.out = nn.Linear(2 * keypoints, feature_dim)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.out(self.pool(self.trunk(x)))
+    def forward(self, x: torch.Tensor, instruction: torch.Tensor | None = None) -> torch.Tensor:
+        return self.out(self.pool(self.trunk(x, instruction)))
 
 
 def crop_size(shape: Sequence[int], crop: float) -> tuple[int, int]:
@@ -114,16 +136,26 @@ def crop_size(shape: Sequence[int], crop: float) -> tuple[int, int]:
 
 
 class ImageEncoder(nn.Module):
-    """Every image key's frames -> concatenated features: (B, T, H, W, C) uint8 per key -> (B, T, n * feature_dim)."""
+    """Every image key's frames -> concatenated features: (B, T, H, W, C) uint8 per key -> (B, T, n * feature_dim);
+    with ``instruction_dim`` > 0 every trunk is conditioned on a (B, T, instruction_dim) instruction."""
 
     def __init__(
-        self, shapes: Mapping[str, Sequence[int]], *, crop: float = 0.9, feature_dim: int = 64, width: int = 64
+        self,
+        shapes: Mapping[str, Sequence[int]],
+        *,
+        crop: float = 0.9,
+        feature_dim: int = 64,
+        width: int = 64,
+        instruction_dim: int = 0,
     ) -> None:
         super().__init__()
         self.keys = list(shapes)
         self.shapes = {k: tuple(int(v) for v in s) for k, s in shapes.items()}
         self.crops = {k: crop_size(s, crop) for k, s in self.shapes.items()}
-        self.cameras = nn.ModuleDict({k: CameraEncoder(width, feature_dim) for k in self.keys})
+        self.instruction_dim = int(instruction_dim)
+        self.cameras = nn.ModuleDict(
+            {k: CameraEncoder(width, feature_dim, instruction_dim=self.instruction_dim) for k in self.keys}
+        )
         self.feature_dim = feature_dim * len(self.keys)
 
     def check(self, images: Mapping[str, torch.Tensor]) -> None:
@@ -138,13 +170,16 @@ class ImageEncoder(nn.Module):
                     f"{self.shapes[k]} (H, W, C); render the env's camera at that size"
                 )
 
-    def forward(self, images: Mapping[str, torch.Tensor]) -> torch.Tensor:
+    def forward(self, images: Mapping[str, torch.Tensor], instruction: torch.Tensor | None = None) -> torch.Tensor:
         feats = []
         device = next(self.parameters()).device
+        if self.instruction_dim and instruction is None:
+            raise ValueError(f"this image encoder is conditioned on a {self.instruction_dim}-wide instruction; pass it")
         for k in self.keys:
             x = images[k].to(device)
             b, t = x.shape[:2]
             x = crop_frames(x.reshape(b * t, *x.shape[2:]), self.crops[k], random=self.training)
             x = x.permute(0, 3, 1, 2).float().div_(127.5).sub_(1.0)  # uint8 -> [-1, 1]
-            feats.append(self.cameras[k](x).reshape(b, t, -1))
+            per_frame = None if not self.instruction_dim else instruction.to(device).reshape(b * t, -1)
+            feats.append(self.cameras[k](x, per_frame).reshape(b, t, -1))
         return torch.cat(feats, dim=-1)
