@@ -164,15 +164,27 @@ def _cameras_text(cameras: dict[str, tuple]) -> str:
 
 
 @functools.cache
-def train_presets() -> tuple[str, ...]:
-    """The names of ``newton_lab.policies.config.PRESETS``, read from its source (importing it imports torch)."""
+def train_preset_fields() -> dict[str, tuple[str, ...]]:
+    """The names of ``newton_lab.policies.config.PRESETS`` and the fields each sets, read from its source
+    (importing it imports torch)."""
     spec = importlib.util.find_spec("newton_lab.policies")
     for root in (spec.submodule_search_locations or []) if spec else []:
         for node in ast.walk(ast.parse((Path(root) / "config.py").read_text())):
             target = node.target if isinstance(node, ast.AnnAssign) else None
             if isinstance(target, ast.Name) and target.id == "PRESETS" and isinstance(node.value, ast.Dict):
-                return tuple(k.value for k in node.value.keys if isinstance(k, ast.Constant))
-    return ()
+                return {
+                    k.value: tuple(f.value for f in v.keys if isinstance(f, ast.Constant))
+                    if isinstance(v, ast.Dict)
+                    else ()
+                    for k, v in zip(node.value.keys, node.value.values)
+                    if isinstance(k, ast.Constant)
+                }
+    return {}
+
+
+def train_presets() -> tuple[str, ...]:
+    """The names of ``newton_lab.policies.config.PRESETS`` (``train_preset_fields``)."""
+    return tuple(train_preset_fields())
 
 
 def check_train(args: TrainArgs) -> None:
@@ -186,6 +198,11 @@ def check_train(args: TrainArgs) -> None:
         raise ValueError(
             f"--preset: unknown training preset {args.preset!r}{did_you_mean(args.preset, presets)}; "
             f"valid presets: {', '.join(presets)}"
+        )
+    if args.instruction_keys and not args.image_keys and "image_keys" not in train_preset_fields().get(args.preset, ()):
+        raise ValueError(
+            f"--instruction-keys {args.instruction_keys} condition the image trunks; give image_keys too "
+            "(--image-keys, or a vision preset), or leave them to --obs-keys alone"
         )
     for name in ("lr", "obs_min_range", "weight_decay"):
         value = getattr(args, name)
@@ -205,12 +222,13 @@ def check_train(args: TrainArgs) -> None:
     output_path(Path(args.output_dir) / "checkpoint.pt", create=False)  # --output-dir (or a folder above) a file
     newton = info["env_args"].get("newton_lab", {})
     terms = newton.get("obs_terms")
-    for key in (args.obs_keys or "").split(","):
-        if key.strip() and terms is not None and key.strip() not in terms:
-            raise ValueError(
-                f"--obs-keys: {args.dataset_path[0]} records no observation {key.strip()!r}"
-                f"{did_you_mean(key.strip(), terms)}; its terms: {', '.join(sorted(terms))}"
-            )
+    for flag, keys in (("--obs-keys", args.obs_keys), ("--instruction-keys", args.instruction_keys)):
+        for key in (keys or "").split(","):
+            if key.strip() and terms is not None and key.strip() not in terms:
+                raise ValueError(
+                    f"{flag}: {args.dataset_path[0]} records no observation {key.strip()!r}"
+                    f"{did_you_mean(key.strip(), terms)}; its terms: {', '.join(sorted(terms))}"
+                )
     cameras = newton.get("cameras")
     if args.image_keys and cameras is not None:
         images = [f"{c}_{d}" for c, spec in cameras.items() for d in spec.get("data", ())]

@@ -221,6 +221,14 @@ CASES: list[tuple[str, str]] = [
     ("train --dataset-path src.hdf5 --preset cpuu", "unknown training preset 'cpuu' (did you mean cpu?); valid"),
     ("train --dataset-path src.hdf5 --obs-keys cube_pose,cube_poze", "records no observation 'cube_poze' (did you"),
     ("train --dataset-path cam.hdf5 --image-keys front_head_rgb", "records no image 'front_head_rgb'"),
+    (
+        "train --dataset-path src.hdf5 --preset vision --instruction-keys cube_poze",
+        "--instruction-keys: src.hdf5 records no observation 'cube_poze'",
+    ),
+    (
+        "train --dataset-path src.hdf5 --instruction-keys cube_pose",
+        "--instruction-keys cube_pose condition the image trunks; give image_keys too",
+    ),
     ("train --dataset-path src.hdf5 --resume", "no resume file outputs/policy/resume.pt: nothing to resume there"),
     ("train --dataset-path src.hdf5 --lr 0", "--lr must be > 0, got 0.0"),
     (

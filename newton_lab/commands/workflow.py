@@ -182,6 +182,9 @@ class TrainArgs:
     """comma-separated obs terms to condition on (default: every low-dim term but actions)"""
     image_keys: str | None = None
     """comma-separated camera terms the policy sees (e.g. front_head_rgb,left_wrist_rgb; default: the preset's)"""
+    instruction_keys: str | None = None
+    """comma-separated low-dim terms that are the task's instruction (e.g. sorting_object): with --image-keys
+    they condition the camera trunks too (FiLM)"""
     prediction_type: Literal["epsilon", "sample"] | None = None
     """what the U-Net predicts: epsilon (the noise; presets' default) or sample (the clean actions; learns
     PickCube in fewer steps, the demo's choice)"""
@@ -225,7 +228,7 @@ class TrainArgs:
         cfg = dict(presets[self.preset], device=self.device, seed=self.seed, output_dir=self.output_dir)
         given = (*TRAIN_OVERRIDES, "checkpoint_every_steps", "checkpoint_every_s")
         cfg.update({k: getattr(self, k) for k in given if getattr(self, k) is not None})
-        for key in ("obs_keys", "image_keys"):
+        for key in ("obs_keys", "image_keys", "instruction_keys"):
             if getattr(self, key):
                 cfg[key] = tuple(k.strip() for k in getattr(self, key).split(",") if k.strip())
         return cfg
