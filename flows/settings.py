@@ -102,10 +102,14 @@ LONG_HORIZON_TASK_RECIPES: dict[str, dict[str, dict[str, Any]]] = {
     # (640 segments a kind, 160 of each object) gave 0 of 100 on one H200: the pick policy, told its object by the
     # one-hot in the U-Net's condition alone, lifted whichever object it saw (pick_1 passed 22 of 100). Its camera
     # trunks now follow the one-hot too (``instruction_keys``), and 300 demos (one round of the 300 rows: the
-    # collection takes as long as 160) give 300 segments of each object. Policies move slower than the expert, so
-    # evaluation runs to 5000 steps.
+    # collection takes as long as 160) give 300 segments of each object, and each policy trains 600 s (the run
+    # still ends within 30 minutes). Policies move slower than the expert, so evaluation runs to 5000 steps.
     "GalbotG1-SortToShelf-All-v0": {
-        "gpu": {"demos": 300, "eval_max_steps": 5000},
+        "gpu": {
+            "demos": 300,
+            "eval_max_steps": 5000,
+            "train": {**LONG_HORIZON_RECIPES["gpu"]["train"], "time_budget_s": 600},
+        },
         "cpu": {"demos": 2, "eval_episodes": 2, "eval_max_steps": 3000},
     },
     # PickToShelf: two runs alone on one H200 with 360 s a phase (~5.3 k steps) scored 97 and 92 of 100, the misses

@@ -210,7 +210,7 @@ def test_the_gpu_pipeline_plan_and_its_suite_row(capsys):
     assert main(["pipeline", "--task", TASK, "--recipe", "gpu", "--dry-run"]) == 0
     plan = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["plan"]
     assert plan["long_horizon"] and plan["learned_phases"] == ["pick", "place"]
-    assert plan["demos"] == 300 and plan["eval_max_steps"] == 5000
+    assert plan["demos"] == 300 and plan["eval_max_steps"] == 5000 and plan["train_cfg"]["time_budget_s"] == 600
     keys = plan["train_cfg"]["obs_keys"]
     assert keys[-1] == "sorting_object" and not any("pose" in k for k in keys), "the one-hot, and no object pose"
     assert plan["train_cfg"]["instruction_keys"] == ["sorting_object"], "the one-hot conditions the image trunks"
