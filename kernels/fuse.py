@@ -34,6 +34,34 @@ REASON_DIVERGED = 3
 FIRST_FAILURE_REASON = 4
 
 
+def _phase_passed(phase_fns: tuple):
+    """``func(ctx, w, phase) -> bool``: the success predicate of ``phase`` (one per phase in ``phase_fns``).
+
+    A predicate several phases share (SortToShelf-All runs its four kinds' predicates in 15 phases) is inlined
+    once: the row's phase picks its slot among the distinct ones. Inlining it per phase made SortToShelf-All's
+    kernel a 570 kB source that NVRTC compiled for 7 minutes."""
+    distinct: list = []
+    for f in phase_fns:
+        if not any(f is g for g in distinct):
+            distinct.append(f)
+    slots = tuple(next(i for i, g in enumerate(distinct) if g is f) for f in phase_fns)
+    fns, n_phase, n_distinct = tuple(distinct), len(phase_fns), len(distinct)
+
+    @wp.func
+    def phase_passed(ctx: TaskContext, w: int, ph: int) -> bool:
+        slot = int(-1)
+        for p in range(wp.static(n_phase)):
+            if ph == p:
+                slot = wp.static(slots[p])
+        passed = bool(False)
+        for d in range(wp.static(n_distinct)):
+            if slot == d:
+                passed = wp.static(fns[d])(ctx, w)
+        return passed
+
+    return phase_passed
+
+
 def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_success=True):
     """Return the fused per-step task kernel.
 
@@ -46,15 +74,7 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
         terminate_on_success: end the episode when the last phase succeeds.
     """
     phase_fns, end_on_success = tuple(phase_success), bool(terminate_on_success)
-    # A predicate several phases share (SortToShelf-All runs its four kinds' predicates in 15 phases) is inlined
-    # once: the row's phase picks its slot among the distinct ones. Inlining it per phase made SortToShelf-All's
-    # kernel a 570 kB source that NVRTC compiled for 7 minutes.
-    distinct: list = []
-    for f in phase_fns:
-        if not any(f is g for g in distinct):
-            distinct.append(f)
-    phase_slot = tuple(next(i for i, g in enumerate(distinct) if g is f) for f in phase_fns)
-    distinct_fns, n_distinct = tuple(distinct), len(distinct)
+    phase_passed = _phase_passed(phase_fns)
     term_fns, term_phase = tuple(f for f, _ in terminations), tuple(int(p) for _, p in terminations)
     reward_fns, reward_w = tuple(f for f, _ in rewards), tuple(float(w) for _, w in rewards)
     n_phase, n_term, n_reward = len(phase_fns), len(term_fns), len(reward_fns)
@@ -77,16 +97,8 @@ def build_task_kernel(*, phase_success, terminations, rewards, terminate_on_succ
         step = ctx.episode_step[w] + 1
         ctx.episode_step[w] = step
         ph = ctx.phase[w]
-        slot = int(-1)
-        for p in range(wp.static(n_phase)):
-            if ph == p:
-                slot = wp.static(phase_slot[p])
-        passed = bool(False)
-        for d in range(wp.static(n_distinct)):
-            if slot == d:
-                passed = wp.static(distinct_fns[d])(ctx, w)
         succ = bool(False)
-        if passed:
+        if wp.static(phase_passed)(ctx, w, ph):
             if ph == wp.static(n_phase - 1):
                 succ = True
             else:

@@ -45,7 +45,7 @@ MUTATIONS: tuple[Mutation, ...] = (
         "shared-phase-predicate-runs-the-first-one",
         "a predicate several phases share is inlined once, and each phase still runs its own",
         "kernels/fuse.py",
-        "                slot = wp.static(phase_slot[p])",
+        "                slot = wp.static(slots[p])",
         "                slot = 0",
         "tests/test_sort_to_shelf_all.py::test_expert_sorts_all_four_objects_in_the_drawn_order",
     ),

@@ -193,8 +193,14 @@ class DiffusionPolicyConfig:
             self.instruction_keys = (self.instruction_keys,)
         self.instruction_keys = tuple(self.instruction_keys) if self.instruction_keys else None
         self.output_dir = str(self.output_dir)
+        for ok, message in self._checks():
+            if not ok:
+                raise ValueError(f"DiffusionPolicyConfig: {message}")
+
+    def _checks(self) -> list[tuple[bool, str]]:
+        """(holds, what is wrong otherwise) for every constraint between the fields."""
         levels = len(self.down_dims)
-        checks = [
+        return [
             (self.obs_horizon >= 1, f"obs_horizon must be >= 1, got {self.obs_horizon}"),
             (
                 1 <= self.action_horizon <= self.pred_horizon - self.obs_horizon + 1,
@@ -264,9 +270,6 @@ class DiffusionPolicyConfig:
                 f"warmup_steps and num_workers must be >= 0, got {self.warmup_steps} and {self.num_workers}",
             ),
         ]
-        for ok, message in checks:
-            if not ok:
-                raise ValueError(f"DiffusionPolicyConfig: {message}")
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> DiffusionPolicyConfig:
