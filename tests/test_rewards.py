@@ -90,6 +90,11 @@ def test_bad_reward_declarations_fail_in_one_line():
         from newton_lab.task_api.cfg import RewardTermCfg
 
         phased_rewards([("pick", {"x": RewardTermCfg(func=grasped_cube, weight=2.0)})])
+    one, other = ({"x": RewardTermCfg(func=grasped_cube, weight=1.0)} for _ in range(2))
+    shared = phased_rewards([("pick", one), ("place", other), ("pick", one)])  # two picks share their terms
+    assert list(shared) == ["phase", "pick/x", "place/x"] and shared["pick/x"].weight == pytest.approx(1 / 3)
+    with pytest.raises(ValueError, match="phases named 'pick' must share one reward dict; name the phases apart"):
+        phased_rewards([("pick", one), ("pick", other)])
 
 
 # ---------------------------------------------------------------- PickCube
