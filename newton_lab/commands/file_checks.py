@@ -182,24 +182,20 @@ def train_preset_fields() -> dict[str, tuple[str, ...]]:
     return {}
 
 
-def train_presets() -> tuple[str, ...]:
-    """The names of ``newton_lab.policies.config.PRESETS`` (``train_preset_fields``)."""
-    return tuple(train_preset_fields())
-
-
 def check_train(args: TrainArgs) -> None:
     """``train``'s slips that its run would find only after torch is imported: the preset, the observation and
     camera keys against the dataset, the numbers, the resume file, the init checkpoint."""
     from ..datasets import read_dataset_info  # deferred: the datasets package imports h5py and zarr (~1 s)
     from ..datasets.files.output_paths import output_path  # deferred: as above
 
-    presets = train_presets()
+    preset_fields = train_preset_fields()
+    presets = tuple(preset_fields)
     if presets and args.preset not in presets:
         raise ValueError(
             f"--preset: unknown training preset {args.preset!r}{did_you_mean(args.preset, presets)}; "
             f"valid presets: {', '.join(presets)}"
         )
-    if args.instruction_keys and not args.image_keys and "image_keys" not in train_preset_fields().get(args.preset, ()):
+    if args.instruction_keys and not args.image_keys and "image_keys" not in preset_fields.get(args.preset, ()):
         raise ValueError(
             f"--instruction-keys {args.instruction_keys} condition the image trunks; give image_keys too "
             "(--image-keys, or a vision preset), or leave them to --obs-keys alone"

@@ -74,6 +74,13 @@ ARCHITECTURE_FIELDS = (
 """Config fields a checkpoint fixes: fine-tuning from it keeps them."""
 
 
+def _names(value: str | tuple[str, ...] | list[str] | None) -> tuple[str, ...] | None:
+    """A name or names as a tuple; None for none."""
+    if isinstance(value, str):
+        value = (value,)
+    return tuple(value) if value else None
+
+
 @dataclass(kw_only=True)
 class DiffusionPolicyConfig:
     """Architecture, diffusion and training settings (defaults: ManiSkill / Chi et al. state-based DP)."""
@@ -186,12 +193,7 @@ class DiffusionPolicyConfig:
         if isinstance(self.obs_keys, str):
             self.obs_keys = (self.obs_keys,)
         self.obs_keys = None if self.obs_keys is None else tuple(self.obs_keys)
-        if isinstance(self.image_keys, str):
-            self.image_keys = (self.image_keys,)
-        self.image_keys = tuple(self.image_keys) if self.image_keys else None
-        if isinstance(self.instruction_keys, str):
-            self.instruction_keys = (self.instruction_keys,)
-        self.instruction_keys = tuple(self.instruction_keys) if self.instruction_keys else None
+        self.image_keys, self.instruction_keys = _names(self.image_keys), _names(self.instruction_keys)
         self.output_dir = str(self.output_dir)
         for ok, message in self._checks():
             if not ok:
