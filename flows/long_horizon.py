@@ -19,7 +19,14 @@ from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .run_record import StageClock, record_run
-from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES, PIPELINE_DATASET_FORMAT, learned_kinds, with_inputs
+from .settings import (
+    LONG_HORIZON_OPTIONS,
+    LONG_HORIZON_RECIPES,
+    PIPELINE_DATASET_FORMAT,
+    learned_kinds,
+    phase_trainings,
+    with_inputs,
+)
 from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 
 split_task = stage_task(stages.split_stage, "split")
@@ -67,6 +74,7 @@ def long_horizon_pipeline(
     domain_randomize: dict[str, float] | None = None,
     dataset_format: str = PIPELINE_DATASET_FORMAT,
     distractors: int = 0,
+    per_target: list[str] | None = None,
 ) -> dict[str, Any]:
     """collect (coherent) -> split -> train per learned phase -> evaluate composed, each stage a task run of this
     flow; writes ``<out>/metrics.json`` (per-phase reached / passed / stalled included), a markdown summary and a
@@ -74,14 +82,18 @@ def long_horizon_pipeline(
     ``workers`` > 1 shards collection and evaluation and runs the phase trainings side by side (Dask);
     ``gpus`` > 1 trains each phase data-parallel; ``domain_randomize`` (axis -> level) randomises collection's rows
     (the evaluation stays on the task's own distribution), and ``distractors`` objects stand on its table;
-    ``dataset_format`` (hdf5 or zarr) is that of the demos and of the phase datasets split from them."""
+    ``dataset_format`` (hdf5 or zarr) is that of the demos and of the phase datasets split from them;
+    the kinds of ``per_target`` train one policy per value of their target, switched per row by the composed agent
+    (``settings.phase_trainings``)."""
     runlog.quiet_console(REPORTED_ERRORS)
     runlog.restore_caller_sigterm()
     log = get_run_logger()
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
-    phases = learned_phases(task_id, options)
-    train_cfg = with_inputs(train_cfg, lookup(task_id).make_cfg(options).target_observations)
+    per_target = list(per_target or [])
+    cfg = lookup(task_id).make_cfg(options)
+    trainings = phase_trainings(cfg, train_cfg, per_target)
+    train_cfg = with_inputs(train_cfg, cfg.target_observations)  # the record's: a policy per kind
     clock = StageClock()
     collect = {"max_steps": COLLECT_MAX_STEPS, "domain_randomize": domain_randomize, "dataset_format": dataset_format}
     collect["distractors"] = distractors
@@ -90,12 +102,8 @@ def long_horizon_pipeline(
     )
     clock.lap("collect")
     log.info("collect: %s", "/".join(s_collect))
-    (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out)], "split")
-    clock.lap("split")
-    log.info(
-        "split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items())
-    )
-    checkpoints, s_train = _train_phases(split, phases, train_cfg, out, gpus, clock)
+    split, s_split = _split(demo_art, out, per_target, clock)
+    checkpoints, s_train = _train_phases(split, trainings, out, gpus, clock)
     metrics, s_eval = run_evaluate(
         None,
         task_id,
@@ -116,27 +124,38 @@ def long_horizon_pipeline(
         "task": task_id,
         "success_rate": metrics["success_rate"],
         "evaluation": metrics,
-        "learned_phases": phases,
+        "learned_phases": list(trainings),
         "artifacts": {"demos": demo_art, "phases": split, "checkpoints": checkpoints},
         "stage_states": {"collect": s_collect, "split": s_split, "train": s_train, "evaluate": s_eval},
     }
     settings = {"seed": seed, "device": train_cfg.get("device", device), "train_cfg": dict(train_cfg)}
     settings.update(cameras=cameras, task_options=options, recipe=recipe, dataset_format=dataset_format)
-    settings["domain_randomize"] = domain_randomize or None
-    settings["distractors"] = distractors
+    settings.update(domain_randomize=domain_randomize or None, distractors=distractors, per_target=per_target)
     return record_run(summary, clock, out_dir, **settings)
 
 
-def _train_phases(split: dict, phases: list[str], train_cfg: dict[str, Any], out: str, gpus: int, clock):
-    """One training per learned phase on its split dataset (side by side where the runner allows), each loss curve
-    published; returns the checkpoints by phase and the trainings' states."""
+def _split(demo_art: dict, out: str, per_target: list[str], clock):
+    """The split stage (``per_target``'s kinds one dataset per target value), logged; returns the phase datasets
+    and the stage's states."""
+    (split,), s_split = results([split_task.submit(source=demo_art, out_dir=out, by_target=per_target)], "split")
+    clock.lap("split")
+    get_run_logger().info(
+        "split: %s -> %s", "/".join(s_split), ", ".join(f"{p} {a['metrics']['episodes']}" for p, a in split.items())
+    )
+    return split, s_split
+
+
+def _train_phases(split: dict, trainings: dict[str, dict[str, Any]], out: str, gpus: int, clock):
+    """One training per learned phase (or phase and target) on its split dataset (side by side where the runner
+    allows), each loss curve published; returns the checkpoints by phase and the trainings' states."""
     log = get_run_logger()
+    phases = list(trainings)
     arts, s_train = results(
         train_task.map(
             dataset=[split[p] for p in phases],
-            train_cfg=unmapped(dict(train_cfg)),
+            train_cfg=[dict(c) for c in trainings.values()],
             out_dir=unmapped(out),
-            name=[f"policy_{p}" for p in phases],
+            name=[f"policy_{p.replace('/', '-')}" for p in phases],
             gpus=unmapped(gpus),
         ),
         "train",
@@ -159,6 +178,7 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
         f"{head}:",
         f"  expert demos    {demos.get('episodes')} collected, {demos.get('success_rate', 0):.0%} success",
     ]
+    width = max(9, *(len(p) for p in arts["phases"]))  # pick/yellow_cylinder: a policy per target
     for phase, art in arts["phases"].items():
         ckpt = arts["checkpoints"].get(phase)
         trained = (
@@ -166,7 +186,7 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
             if ckpt
             else "; expert"
         )
-        lines.append(f"  phase {phase:<9} {art['metrics']['episodes']} segments{trained}")
+        lines.append(f"  phase {phase:<{width}} {art['metrics']['episodes']} segments{trained}")
     lines.append(
         f"  composed        {ev['success_rate']:.1%} success over {ev['episodes']} held-out randomised episodes"
     )

@@ -47,10 +47,11 @@ def pipeline_record(
     domain_randomize: dict[str, float] | None = None,
     dataset_format: str | None = None,
     distractors: int = 0,
+    per_target: list[str] | None = None,
 ) -> dict[str, Any]:
     """The record of a finished pipeline run (single-task or long-horizon) from its summary (``domain_randomize``:
-    the levels its collection drew, and ``distractors``: the objects it stood among, each recorded only when given;
-    ``dataset_format``: its datasets' format)."""
+    the levels its collection drew, ``distractors``: the objects it stood among, and ``per_target``: the phase kinds
+    trained one policy per target, each recorded only when given; ``dataset_format``: its datasets' format)."""
     arts, ev = summary["artifacts"], summary["evaluation"]
     demos = arts["demos"]["metrics"]
     counts: dict[str, Any] = {"expert_demos": demos.get("episodes"), "expert_success_rate": demos.get("success_rate")}
@@ -66,6 +67,7 @@ def pipeline_record(
         "task_options": task_options,
         **({"domain_randomize": domain_randomize} if domain_randomize else {}),
         **({"distractors": distractors} if distractors else {}),
+        **({"per_target": per_target} if per_target else {}),
         "dataset_format": dataset_format,
         "train": {k: v for k, v in train_cfg.items() if k not in ("output_dir",)},
         "learned_phases": summary.get("learned_phases"),

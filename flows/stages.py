@@ -258,17 +258,21 @@ def rl_train_stage(*, task_id: str, ppo: dict[str, Any], out_dir: str, name: str
     return _finish(out, name, inputs, artifact(ckpt, "rl checkpoint", **summary, curve=curve))
 
 
-def split_stage(*, source: dict[str, Any], out_dir: str, name: str = "phases") -> dict[str, dict[str, Any]]:
+def split_stage(
+    *, source: dict[str, Any], out_dir: str, name: str = "phases", by_target: list[str] | None = None
+) -> dict[str, dict[str, Any]]:
     """A coherent task's dataset artifact split by phase -> {phase name: dataset artifact} in ``<out_dir>/<name>/``
-    (``newton_lab.datasets.split_by_phase``)."""
+    (``newton_lab.datasets.split_by_phase``; the kinds of ``by_target`` one dataset per target value)."""
     from ..datasets import split_by_phase  # deferred: the dataset package imports Warp/Newton
 
     out = output_path(Path(out_dir) / f"{name}.manifest.json").parent
     inputs = {"stage": "split", "source": source["sha256"]}
+    if by_target:
+        inputs["by_target"] = list(by_target)
     if (done := _guard(out, name, inputs)) is not None:
         return done["phases"]
     folder = _fresh(out / name)
-    refs = split_by_phase(source["path"], folder)
+    refs = split_by_phase(source["path"], folder, by_target=by_target or ())
     phases = {
         p: artifact(ref.path, "dataset", episodes=ref.metadata["episodes"], samples=dataset_samples(ref.path))
         for p, ref in refs.items()

@@ -63,6 +63,23 @@ def test_a_record_names_command_commit_date_and_device(tmp_path):
         records.make_record("benchh", task=None, device="cpu", results={})
 
 
+def test_a_pipeline_record_names_the_kinds_trained_per_target_only_when_given():
+    from newton_lab.flows.run_record import StageClock, pipeline_record
+
+    ckpt = {"metrics": {"steps": 5}}
+    summary = {
+        "task": "GalbotG1-SortToShelf-All-v0",
+        "artifacts": {"demos": {"metrics": {"episodes": 2}}, "checkpoints": {"pick/red_cube": ckpt, "place": ckpt}},
+        "evaluation": {"episodes": 2, "successes": 0, "success_rate": 0.0},
+        "learned_phases": ["pick/red_cube", "place"],
+        "stage_states": {},
+    }
+    settings = {"seed": 0, "device": "cpu", "train_cfg": {}, "cameras": "none", "task_options": {}, "recipe": "cpu"}
+    rec = pipeline_record(summary, StageClock(), **settings, per_target=["pick"])["results"]
+    assert rec["per_target"] == ["pick"] and rec["counts"]["train_steps"] == {"pick/red_cube": 5, "place": 5}
+    assert "per_target" not in pipeline_record(summary, StageClock(), **settings, per_target=[])["results"]
+
+
 def test_the_cli_command_line_is_what_the_record_names(monkeypatch):
     monkeypatch.delenv("NEWTON_LAB_COMMAND", raising=False)
     records.set_invocation(["bench", "--task", "GalbotG1-PickCube-v0", "--resolution", "96 72"])

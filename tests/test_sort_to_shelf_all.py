@@ -157,6 +157,31 @@ def test_split_writes_one_dataset_per_phase_kind(expert_run, tmp_path):
         split_by_phase(expert_run.ref.path, tmp_path / "none", phases=["pick_1"])
 
 
+def test_split_by_target_writes_one_dataset_per_object(expert_run, tmp_path):
+    from newton_lab.datasets import list_demos, read_dataset_info, read_episode
+    from newton_lab.datasets.split import split_by_phase
+
+    parts = split_by_phase(expert_run.ref.path, tmp_path / "t", phases=["pick", "place"], by_target=["pick"], workers=1)
+    assert list(parts) == [f"pick/{o}" for o in OBJECTS] + ["place"]
+    for i, name in enumerate(OBJECTS):
+        ref = parts[f"pick/{name}"]
+        assert ref.path.name == f"pick-{name}.hdf5"
+        info = read_dataset_info(ref.path)
+        assert info["task_id"] == "GalbotG1-SortToShelf-Pick-v0"
+        assert info["env_args"]["env_kwargs"]["task_options"]["sorting_object"] == name, "recorded for its object"
+        demos = list_demos(ref.path)
+        assert len(demos) == 2, "each episode picks every object once"
+        for d in demos:
+            ep = read_episode(ref.path, d)
+            assert (ep["obs"]["sorting_object"].argmax(axis=1) == i).all() and info["demos"][d]["success"]
+            assert ep["actions"].shape[1] == 8
+    assert len(list_demos(parts["place"].path)) == 8, "the kinds not split by target stay whole"
+    with pytest.raises(ValueError, match=r"phase kind 'return' of .* acts on no per-row target, .* kinds with one: "):
+        split_by_phase(expert_run.ref.path, tmp_path / "r", by_target=["return"])
+    with pytest.raises(ValueError, match=r"has no phase 'lift'"):
+        split_by_phase(expert_run.ref.path, tmp_path / "l", by_target=["lift"])
+
+
 @pytest.fixture(scope="module")
 def phase_policies(expert_run, tmp_path_factory):
     """A tiny state policy per learned kind (pick, place), trained a few steps on the split demos, conditioned on
@@ -200,6 +225,61 @@ def test_composed_evaluation_with_one_policy_per_kind(phase_policies):
         phase_policy_agent(env, {"lift": str(phase_policies["pick"])})
 
 
+@pytest.fixture(scope="module")
+def pick_per_object(expert_run, tmp_path_factory):
+    """A tiny state pick policy per object, trained a few steps on that object's pick segments (the flow's
+    per-target trainings: no target input)."""
+    from newton_lab.flows.settings import phase_trainings
+
+    from newton_lab.datasets.split import split_by_phase
+    from newton_lab.policies import Policy
+
+    root = tmp_path_factory.mktemp("sort_all_per_object")
+    parts = split_by_phase(expert_run.ref.path, root / "phases", phases=["pick"], by_target=["pick"], workers=1)
+    cfg = lookup(TASK).make_cfg({"obs_mode": "sensors"})
+    base = {"obs_keys": ["robot_joint_pos", "gripper_pos"], "down_dims": (16, 32, 64), "diffusion_step_embed_dim": 32}
+    trainings = phase_trainings(cfg, {**base, "max_steps": 3, "batch_size": 8, "progress": False}, ["pick"])
+    assert list(trainings) == [f"pick/{o}" for o in OBJECTS] + ["place"]
+    assert trainings["place"]["obs_keys"][-1] == "sorting_object", "the place policy stays conditioned"
+    return {
+        name: Policy.from_backend("diffusion").train(parts[name], {**train, "output_dir": str(root / name)})
+        for name, train in trainings.items()
+        if name.startswith("pick/")
+    }
+
+
+def test_composed_evaluation_with_one_pick_policy_per_object(pick_per_object, phase_policies):
+    from newton_lab.agents import TargetSwitchAgent
+    from newton_lab.policies.agent import PolicyAgent, phase_policy_agent
+
+    env = make_env(
+        TASK, num_envs=2, device="cpu", seed=8, randomize=True, cameras=False, task_options={"obs_mode": "sensors"}
+    )
+    named = {**{k: str(v) for k, v in pick_per_object.items()}, "place": str(phase_policies["place"])}
+    agent = phase_policy_agent(env, named)
+    switch = agent.phase_agents[0]
+    assert isinstance(switch, TargetSwitchAgent) and list(switch.agents) == list(OBJECTS)
+    assert all(agent.phase_agents[4 * k] is switch for k in range(4)), "one switch runs pick_1 .. pick_4"
+    assert all(isinstance(a, PolicyAgent) and "sorting_object" not in a.policy.obs_keys for a in switch.agents.values())
+    env.reset()
+    agent.act(env)
+    first = [int(env.obs[r, env.task.obs_terms["sorting_object"]].argmax()) for r in range(2)]
+    assert first[0] != first[1], "seed 8 starts the rows on different objects"
+    for i, sub in enumerate(switch.agents.values()):  # a row's action comes from its own object's policy alone
+        planned = set(np.nonzero(sub._cursor == 1)[0].tolist())
+        assert planned == {r for r in range(2) if first[r] == i}, OBJECTS[i]
+    summary = env.evaluate(agent=agent, episodes=2, max_steps=40, progress=False)
+    assert summary["phases"]["pick_1"]["reached"] == 2 and summary["phases"]["pick_1"]["passed"] == 0
+    for bad, match in (
+        ({k: v for k, v in named.items() if k != "pick/green_cylinder"}, r"one policy per target .* missing: green_"),
+        ({**named, "pick/purple_cone": named["place"]}, r"phase kind 'pick' has no target 'purple_cone'; its targ"),
+        ({**named, "pick": named["place"]}, r"'pick' was given both ways"),
+        ({"return/red_cube": named["place"]}, r"phase kind 'return' of .* acts on no per-row target"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            phase_policy_agent(env, bad)
+
+
 def test_the_gpu_pipeline_plan_and_its_suite_row(capsys):
     import json
 
@@ -209,10 +289,18 @@ def test_the_gpu_pipeline_plan_and_its_suite_row(capsys):
 
     assert main(["pipeline", "--task", TASK, "--recipe", "gpu", "--dry-run"]) == 0
     plan = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["plan"]
-    assert plan["long_horizon"] and plan["learned_phases"] == ["pick", "place"]
+    assert plan["long_horizon"] and plan["per_target"] == ["pick"]
+    assert plan["learned_phases"] == [f"pick/{o}" for o in OBJECTS] + ["place"], "a pick policy per object"
     assert plan["demos"] == 300 and plan["eval_max_steps"] == 5000 and plan["train_cfg"]["time_budget_s"] == 600
     keys = plan["train_cfg"]["obs_keys"]
     assert keys[-1] == "sorting_object" and not any("pose" in k for k in keys), "the one-hot, and no object pose"
     assert plan["train_cfg"]["instruction_keys"] == ["sorting_object"], "the one-hot conditions the image trunks"
+    assert main(["pipeline", "--task", TASK, "--recipe", "gpu", "--per-target", "none", "--dry-run"]) == 0
+    plan = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["plan"]
+    assert plan["learned_phases"] == ["pick", "place"] and "per_target" not in plan
+    assert main(["pipeline", "--task", TASK, "--recipe", "gpu", "--per-target", "nav", "--dry-run"]) == 2
+    assert "per-target policies for 'nav': GalbotG1-SortToShelf-All-v0 learns the phase kinds pick, place" in (
+        capsys.readouterr().err
+    )
     (row,) = rows_of("gpu", ["sorttoshelf-all"])
     assert row.is_pipeline and row.args[:3] == ("pipeline", "--task", TASK) and "gpu" in row.args

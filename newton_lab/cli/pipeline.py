@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..commands import PipelineArgs
 from ..flows.report import summary_lines
-from ..flows.settings import configure, demo_recipe, learned_kinds, with_inputs
+from ..flows.settings import configure, demo_recipe, phase_trainings, with_inputs
 from ..task_api.registry import lookup
 from .pipeline_ends import ends_in_one_line
 
@@ -30,7 +30,7 @@ def pipeline(args: PipelineArgs) -> int:
         )
         plan = {**kwargs, "long_horizon": long_horizon, "stages": stages}
         if long_horizon:
-            plan["learned_phases"] = learned_kinds(cfg)
+            plan["learned_phases"] = list(phase_trainings(cfg, kwargs["train_cfg"], kwargs.get("per_target", ())))
         print(json.dumps({"plan": plan}, default=str))
         return 0
     with ends_in_one_line(args.out):  # Ctrl-C: one line, exit 130; SIGKILL: no server or worker left running

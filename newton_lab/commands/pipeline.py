@@ -65,9 +65,17 @@ class PipelineArgs:
     dataset_format: Literal["hdf5", "zarr"] | None = None
     """format of the pipeline's datasets (the demos, Mimic's, the phase datasets of a split): hdf5 or zarr (the
     recipe's; newton_lab.flows.settings.PIPELINE_DATASET_FORMAT when it names none)"""
+    per_target: str | None = None
+    """a coherent task's phase kinds that train one policy per value of their per-row target instead of one
+    conditioned on it, comma-separated (e.g. pick; 'none': none; default: the recipe's)"""
     dry_run: bool = False
     """print the resolved plan (recipe, counts, cameras, task options, training) as JSON and run nothing"""
     task_options: dict[str, Any] = field(default_factory=dict, metadata={"task_options": True})
+
+    def _per_target_kinds(self) -> list[str]:
+        """``--per-target`` as a list of kinds ('none': none)."""
+        kinds = [k.strip() for k in (self.per_target or "").split(",") if k.strip()]
+        return [] if kinds == ["none"] else kinds
 
     def train_cfg(self, recipe: dict[str, Any]) -> dict[str, Any]:
         """The resolved ``recipe``'s training config on its training device, with ``train_steps`` when given (a
@@ -120,6 +128,11 @@ class PipelineArgs:
             extra["distractors"] = self.distractors
         if self.eval_max_steps is not None:
             extra["eval_max_steps"] = self.eval_max_steps
+        per_target = recipe.get("per_target", ()) if self.per_target is None else self._per_target_kinds()
+        if per_target:
+            if not recipe.get("long_horizon"):
+                raise ValueError("--per-target names phase kinds of a coherent task; this task has no phases")
+            extra["per_target"] = list(per_target)
         return {
             "runner": self.runner,
             "workers": self.workers,

@@ -57,8 +57,9 @@ class EvaluateArgs(CameraArgs, RerunArgs, RolloutArgs):
     checkpoint: str | None = None
     """policy checkpoint; the expert planner when omitted"""
     phase_checkpoint: list[str] | None = None
-    """a coherent task's phase policies, PHASE=CHECKPOINT each (e.g. pick=pick.pt place=place.pt); the phases
-    without one run their component's expert"""
+    """a coherent task's phase policies, PHASE=CHECKPOINT each (e.g. pick=pick.pt place=place.pt), or one per target
+    of a kind, KIND/TARGET=CHECKPOINT (e.g. pick/red_cube=red.pt, one for each target); the phases without one run
+    their component's expert"""
     perturb: str | None = None
     """evaluate under perturbations: AXIS=LEVEL,... together (LEVEL mild, strong or a number; axes action_noise,
     action_latency, posture_noise, object_mass, object_size, friction, distractors, camera_shift, camera_tilt,

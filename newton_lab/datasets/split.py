@@ -6,6 +6,11 @@ kind is the phase's name unless several phases share one, as SortToShelf-All's `
 them is one segment there), labelled with the component task id; the actions keep only the component's columns (by
 joint name) and the segment's ``initial_state`` is the recorded state at its first step. A segment is successful
 when the row moved on to the next phase (the last phase: when the episode succeeded).
+
+Per target (``by_target``): a kind whose phases act on a per-row target (``PhaseCfg.target_option``, e.g.
+SortToShelf-All's ``sorting_object``) is written as one dataset per value instead, ``<kind>-<value>``, keyed
+``<kind>/<value>``: the segments whose target (the argmax of that observation's one-hot at the segment's first step)
+is that value, recorded with the option set to it, so each is a dataset of the component task for one object.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 
 from ..robots.registry import robot_binding
 from ..task_api.catalog import did_you_mean
+from ..task_api.compose import TARGET_SEPARATOR, target_choices
 from ..task_api.registry import lookup
 from .files.errors import DatasetWriteError
 from .files.output_paths import output_path
@@ -68,6 +74,8 @@ class _PhaseJob:
     task_id: str
     cols: list[int]
     env_args: dict[str, Any]
+    target: tuple[str, int] | None = None
+    """Only the segments whose target is this: (observation key of the one-hot, value index)."""
 
 
 def _write_phase(job: _PhaseJob) -> list[int]:
@@ -82,7 +90,7 @@ def _write_phase(job: _PhaseJob) -> list[int]:
             phase = np.asarray(ep["datagen"]["phase"]).reshape(-1)
             for index, name in zip(job.indices, job.phase_names):
                 sel = np.nonzero(phase == index)[0]
-                if sel.size == 0:
+                if sel.size == 0 or not _on_target(ep, sel[0], job.target):
                     continue
                 success = bool(attrs.get("success", False)) if index == job.last else bool((phase > index).any())
                 seg = _segment(ep, sel, phase.shape[0], job.cols, success)
@@ -92,6 +100,14 @@ def _write_phase(job: _PhaseJob) -> list[int]:
                 batch = []
         saved += writer.append_episodes(batch)
     return saved
+
+
+def _on_target(ep: dict, step: int, target: tuple[str, int] | None) -> bool:
+    """Whether the segment starting at ``step`` acts on ``target`` (always, when ``None``)."""
+    if target is None:
+        return True
+    key, index = target
+    return int(np.asarray(ep["obs"][key][step]).argmax()) == index
 
 
 def _episodes(source: Path, ids: list[int]):
@@ -131,10 +147,16 @@ def check_phase_names(path: str | Path, task_id: str, names: Sequence[str], want
 
 
 def split_by_phase(
-    path: str | Path, out_dir: str | Path, *, phases: Sequence[str] | None = None, workers: int | None = None
+    path: str | Path,
+    out_dir: str | Path,
+    *,
+    phases: Sequence[str] | None = None,
+    workers: int | None = None,
+    by_target: Sequence[str] = (),
 ) -> dict[str, DatasetRef]:
     """Write one dataset per phase kind of the coherent task that recorded ``path`` (only ``phases``, by kind, when
-    given); returns them by kind. Each phase is written by its own process (at most ``workers``, default
+    given), and for the kinds in ``by_target`` one per value of their target (module docstring); returns them by
+    kind (``kind/value`` for those). Each phase is written by its own process (at most ``workers``, default
     one per phase up to the CPU count): a phase's writer spends its time compressing frames, and the phases are
     independent. Existing output files are never replaced."""
     path, out_dir = Path(path), Path(out_dir)
@@ -146,11 +168,18 @@ def split_by_phase(
 
     cfg = lookup(task_id).make_cfg(options)
     kinds = cfg.phase_kinds if cfg.phases else {}
-    check_phase_names(path, task_id, list(kinds), phases or ())
-    chosen = [
-        (kind, [(i, cfg.phases[i]) for i in ix]) for kind, ix in kinds.items() if phases is None or kind in phases
-    ]
-    outs = {kind: out_dir / f"{kind}{path.suffix}" for kind, _ in chosen}
+    check_phase_names(path, task_id, list(kinds), [*(phases or ()), *by_target])
+    chosen = []
+    for kind, ix in kinds.items():
+        if phases is not None and kind not in phases:
+            continue
+        members = [(i, cfg.phases[i]) for i in ix]
+        if kind not in by_target:
+            chosen.append((kind, members, None))
+            continue
+        option, values = target_choices(cfg, kind)
+        chosen += [(f"{kind}{TARGET_SEPARATOR}{v}", members, (option, i, v)) for i, v in enumerate(values)]
+    outs = {name: out_dir / f"{name.replace(TARGET_SEPARATOR, '-')}{path.suffix}" for name, _, _ in chosen}
     taken = [str(o) for o in outs.values() if o.exists()]
     if taken:
         raise FileExistsError(f"{taken} already exist; split into a new folder")
@@ -172,16 +201,17 @@ def split_by_phase(
 
 
 def _phase_jobs(path: Path, stage: Path, outs: dict, chosen: list, n_phases: int, options: dict, env_args: dict):
-    """One ``_PhaseJob`` per chosen phase kind: its component task's action columns picked out of the coherent
-    task's, written into the stage folder."""
+    """One ``_PhaseJob`` per chosen phase kind (per kind and target value, for ``by_target``'s kinds): its component
+    task's action columns picked out of the coherent task's, written into the stage folder."""
     columns = env_args["newton_lab"]["action_joint_names"]
     jobs = []
-    for kind, members in chosen:
+    for kind, members, target in chosen:
         ph = members[0][1]
         if {m.task_id for _, m in members} != {ph.task_id}:
             raise ValueError(f"the phases of kind {kind!r} run different components; give each its own kind")
+        own = options if target is None else {**options, target[0]: target[2]}
         comp = lookup(ph.task_id)
-        comp = comp.cfg(**comp.accepted(options))
+        comp = comp.cfg(**comp.accepted(own))
         groups = robot_binding(comp.robot).joint_groups
         joints = [j for t in comp.actions for j in groups[t.group]]
         args = {
@@ -189,6 +219,8 @@ def _phase_jobs(path: Path, stage: Path, outs: dict, chosen: list, n_phases: int
             "env_name": ph.task_id,
             "newton_lab": {**env_args["newton_lab"], "action_joint_names": joints, "phases": []},
         }
+        if target is not None:  # recorded as the component with its option set to this value
+            args["env_kwargs"] = {**env_args.get("env_kwargs", {}), "task_options": own}
         jobs.append(
             _PhaseJob(
                 path,
@@ -200,6 +232,7 @@ def _phase_jobs(path: Path, stage: Path, outs: dict, chosen: list, n_phases: int
                 ph.task_id,
                 [columns.index(j) for j in joints],
                 args,
+                None if target is None else target[:2],
             )
         )
     return jobs

@@ -13,7 +13,8 @@ import numpy as np
 import torch
 
 from ..agents.base import BaseAgent, as_rows
-from ..agents.experts import TaskFlowAgent
+from ..agents.experts import TargetSwitchAgent, TaskFlowAgent
+from ..task_api.compose import TARGET_SEPARATOR, target_choices
 from ..task_api.registry import lookup
 from .diffusion import DiffusionPolicy
 from .graphed import GraphedSampler
@@ -34,7 +35,8 @@ def _trained_for_phase(policy_task: str | None, component: str) -> bool:
 
 def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0, graphs: bool = True) -> TaskFlowAgent:
     """A coherent task's agent: the trained policy of ``checkpoints`` (phase name or kind -> checkpoint path; a kind's
-    policy runs every phase of that kind) in its phase,
+    policy runs every phase of that kind; ``kind/value`` -> one per value of the kind's target, switched per row on
+    its one-hot, ``TargetSwitchAgent``) in its phase,
     the component's expert in the others (e.g. a learned pick and place with the nav expert between them). Each
     checkpoint is loaded and checked against its phase and the env at once: one line names a phase the task does
     not have, a checkpoint trained for another phase's task, or observation terms / cameras the env lacks."""
@@ -50,16 +52,42 @@ def phase_policy_agent(env, checkpoints, *, device=None, seed: int = 0, graphs: 
 
 
 def _check_phases(env, named) -> dict:
-    """The phases by name and by kind (the first phase of each kind: a kind's phases share their component)."""
+    """The phases by name and by kind (the first phase of each kind: a kind's phases share their component), and
+    ``kind/value`` for the per-target names of ``named``; one line for a name the task lacks, or a kind given per
+    target without every value, or also as a whole."""
     phases = {p.name: p for p in env.cfg.phases}
     if not phases:
         raise ValueError(f"{env.task_id} has no phases; give one --checkpoint for it instead of phase checkpoints")
     kinds = {kind: env.cfg.phases[ix[0]] for kind, ix in env.cfg.phase_kinds.items()}
-    unknown = sorted(set(named) - set(phases) - set(kinds))
+    unknown = sorted({n.split(TARGET_SEPARATOR)[0] for n in named} - set(phases) - set(kinds))
     if unknown:
         listed = ", ".join(kinds) if len(kinds) < len(phases) else ", ".join(phases)
         raise ValueError(f"{env.task_id} has no phase {unknown[0]!r}; its phases: {listed}")
-    return {**phases, **kinds}
+    out = {**phases, **kinds}
+    for kind, given in _per_target(named).items():
+        _, values = target_choices(env.cfg, kind)
+        wrong = sorted(set(given) - set(values))
+        if wrong:
+            raise ValueError(f"phase kind {kind!r} has no target {wrong[0]!r}; its targets: {', '.join(values)}")
+        if set(given) != set(values) or kind in named:
+            missing = [v for v in values if v not in given]
+            raise ValueError(
+                f"phase kind {kind!r} takes one policy per target ({kind}/<target>) for all of "
+                f"{', '.join(values)}, or one for the kind alone; "
+                + (f"missing: {', '.join(missing)}" if missing else f"{kind!r} was given both ways")
+            )
+        out.update({f"{kind}{TARGET_SEPARATOR}{v}": kinds[kind] for v in values})
+    return out
+
+
+def _per_target(named) -> dict[str, list[str]]:
+    """The target values given per kind among the names ``kind/value`` of ``named``."""
+    out: dict[str, list[str]] = {}
+    for name in named:
+        if TARGET_SEPARATOR in name:
+            kind, value = name.split(TARGET_SEPARATOR, 1)
+            out.setdefault(kind, []).append(value)
+    return out
 
 
 def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None) -> TaskFlowAgent:
@@ -78,7 +106,11 @@ def compose_phase_policies(env, agents: dict[str, PolicyAgent], *, sources=None)
             agent.bind(env)  # the observation, camera and action checks, now rather than at the first step
         except ValueError as exc:
             raise ValueError(f"phase {name!r} ({where}): {exc}") from None
-    return TaskFlowAgent.from_env(env, agents=dict(agents))
+    composed = {name: agent for name, agent in agents.items() if TARGET_SEPARATOR not in name}
+    for kind in _per_target(agents):  # one agent per value, in the order of the target's one-hot
+        option, values = target_choices(env.cfg, kind)
+        composed[kind] = TargetSwitchAgent(option, {v: agents[f"{kind}{TARGET_SEPARATOR}{v}"] for v in values})
+    return TaskFlowAgent.from_env(env, agents=composed)
 
 
 class PolicyAgent(BaseAgent):

@@ -50,6 +50,32 @@ def task_sequence(*phases: PhaseCfg) -> tuple[PhaseCfg, ...]:
     return tuple(phases)
 
 
+TARGET_SEPARATOR = "/"
+"""Joins a phase kind and a value of its target option into the name of a per-target policy (``pick/red_cube``)."""
+
+
+def target_choices(cfg: TaskCfg, kind: str) -> tuple[str, tuple[str, ...]]:
+    """The target option of a coherent task's phase ``kind`` (``PhaseCfg.target_option``) and its values, in the
+    order of its one-hot (the component's declared choices); one line when the kind has no per-row target."""
+    ix = cfg.phase_kinds.get(kind)
+    if ix is None:
+        raise ValueError(f"{cfg.task_id} has no phase kind {kind!r}; its kinds: {', '.join(cfg.phase_kinds)}")
+    ph = cfg.phases[ix[0]]
+    declared = {o.name: o for o in lookup(ph.task_id).options}
+    if not ph.target_option or not getattr(declared.get(ph.target_option), "choices", None):
+        with_target = [k for k, i in cfg.phase_kinds.items() if cfg.phases[i[0]].target_option]
+        raise ValueError(
+            f"phase kind {kind!r} of {cfg.task_id} acts on no per-row target, so it has no policy per target; "
+            f"kinds with one: {', '.join(with_target) or 'none'}"
+        )
+    return ph.target_option, tuple(declared[ph.target_option].choices)
+
+
+def per_target_names(cfg: TaskCfg, kinds) -> list[str]:
+    """``kind/value`` for every value of each of ``kinds``' target option (``target_choices``)."""
+    return [f"{kind}{TARGET_SEPARATOR}{value}" for kind in kinds for value in target_choices(cfg, kind)[1]]
+
+
 def _component(task_id: str, options: dict[str, Any]) -> TaskCfg:
     spec_ = lookup(task_id)
     return dataclasses.replace(spec_.cfg(**spec_.accepted(options)), task_id=task_id)
