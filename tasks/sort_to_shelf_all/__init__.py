@@ -6,12 +6,11 @@ per object the phases are pick, nav, place and, but after the last, return: 15 p
 (``order.phase_layout``). The pick, nav and place phases run SortToShelf's components for the row's target object;
 return drives back to the table, where every pick starts.
 
-How a phase policy knows its object: one policy per phase, conditioned on a one-hot of the target object in the
-observation (``sorting_object``, 4 columns; not privileged, so ``obs_mode="sensors"`` keeps it, while every object
-pose is dropped). The task-flow agent switches the experts per row on the same one-hot. Why not per-object policies:
-a pick policy for one object would see only its own episodes (a quarter of the demos), four times the trainings, and
-a policy composed per object would need the same per-row switch anyway; the objects differ mostly in their table
-slot and cell, which the one-hot and the camera carry.
+How a phase policy knows its object: the observation ``sorting_object`` is a one-hot of the row's target (4
+columns; not privileged, so ``obs_mode="sensors"`` keeps it, while every object pose is dropped). A phase kind is
+learned either as one policy conditioned on it, or as one policy per object (the split's ``by_target``, the
+pipeline's ``--per-target``), switched per row on it as the task-flow agent switches the experts. The pipeline's gpu
+recipe trains the pick per object (a conditioned pick policy lifted the wrong objects) and the place conditioned.
 
 Where episodes stall: the evaluation's ``phases`` (each of the 15) and, per object, the signals ``picked_<object>``
 (lifted to the ready posture) and ``sorted_<object>`` (let go in its cell). Its dense reward is SortToShelf's staged
