@@ -193,6 +193,9 @@ def summary_lines(summary: dict[str, Any], out_dir: str | Path, recipe: str | No
     for phase, p in ev["phases"].items():
         stalled = ", ".join(f"{k} {v}" for k, v in p["stalled"].items()) or "none"
         lines.append(f"    {phase:<13} passed {p['passed']}/{p['reached']} (stopped: {stalled})")
+    for kind, by_value in (ev.get("phase_targets") or {}).items():  # SortToShelf-All: each kind per object
+        cells = ", ".join(f"{v} {c['passed']}/{c['reached']}" for v, c in by_value.items())
+        lines.append(f"    {kind + ' by target':<13} {cells}")
     if ev.get("subtask_signals"):  # e.g. SortToShelf-All's sorted_<object>: episodes that sorted each object
         signals = ", ".join(f"{k} {v}/{ev['episodes']}" for k, v in ev["subtask_signals"].items())
         lines.append(f"    signals       {signals}")

@@ -84,6 +84,7 @@ def pipeline_record(
         },
         "phases": ev.get("phases"),
         "subtask_signals": ev.get("subtask_signals"),  # episodes each fired in (SortToShelf-All: per object)
+        **({"phase_targets": ev["phase_targets"]} if ev.get("phase_targets") else {}),  # per kind and target
         "stage_states": summary["stage_states"],
     }
     wall = command_wall_s()

@@ -313,11 +313,25 @@ def run_evaluate(
         },
         "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1),
     }
+    if any("phase_targets" in p for p in parts):  # per phase kind and target (SortToShelf-All: per object)
+        metrics["phase_targets"] = summed_by_target(p.get("phase_targets", {}) for p in parts)
     recorded = [p["recording"] for p in parts if p.get("recording")]
     if recorded:
         metrics["recording"] = recorded[0]
     runlog.publish_evaluation(metrics)
     return metrics, states
+
+
+def summed_by_target(tables) -> dict[str, dict[str, dict[str, int]]]:
+    """Evaluations' ``phase_targets`` (kind -> target -> reached / passed) added up."""
+    out: dict[str, dict[str, dict[str, int]]] = {}
+    for table in tables:
+        for kind, by_value in table.items():
+            for value, cell in by_value.items():
+                into = out.setdefault(kind, {}).setdefault(value, {"reached": 0, "passed": 0})
+                into["reached"] += cell["reached"]
+                into["passed"] += cell["passed"]
+    return out
 
 
 def summed(counts) -> dict[str, int]:

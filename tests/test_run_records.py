@@ -78,6 +78,19 @@ def test_a_pipeline_record_names_the_kinds_trained_per_target_only_when_given():
     rec = pipeline_record(summary, StageClock(), **settings, per_target=["pick"])["results"]
     assert rec["per_target"] == ["pick"] and rec["counts"]["train_steps"] == {"pick/red_cube": 5, "place": 5}
     assert "per_target" not in pipeline_record(summary, StageClock(), **settings, per_target=[])["results"]
+    assert "phase_targets" not in rec, "recorded where the evaluation has it"
+    from newton_lab.flows.long_horizon import summary_lines
+
+    by_target = {"pick": {"red_cube": {"reached": 2, "passed": 1}, "blue_cuboid": {"reached": 1, "passed": 0}}}
+    summary["evaluation"].update(phases={}, phase_targets=by_target)
+    assert pipeline_record(summary, StageClock(), **settings)["results"]["phase_targets"] == by_target
+    ckpt.update(path="policy_pick-red_cube/checkpoint.pt", metrics={"steps": 5, "final_loss": 0.5})
+    segments = {"pick/red_cube": 3, "nav": 4}
+    summary["artifacts"]["phases"] = {k: {"metrics": {"episodes": n}} for k, n in segments.items()}
+    lines = summary_lines(summary, "out")
+    assert "  phase pick/red_cube 3 segments; policy 5 steps, final loss 0.5000" in lines
+    assert "  phase nav           4 segments; expert" in lines
+    assert "    pick by target red_cube 1/2, blue_cuboid 0/1" in lines
 
 
 def test_the_cli_command_line_is_what_the_record_names(monkeypatch):

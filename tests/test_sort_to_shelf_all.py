@@ -268,8 +268,15 @@ def test_composed_evaluation_with_one_pick_policy_per_object(pick_per_object, ph
     for i, sub in enumerate(switch.agents.values()):  # a row's action comes from its own object's policy alone
         planned = set(np.nonzero(sub._cursor == 1)[0].tolist())
         assert planned == {r for r in range(2) if first[r] == i}, OBJECTS[i]
-    summary = env.evaluate(agent=agent, episodes=2, max_steps=40, progress=False)
+    seen: list[list[str]] = []  # each row's target at every step (its first episode's at the first step)
+    hot = env.task.obs_terms["sorting_object"]
+    on_step = lambda *_: seen.append([OBJECTS[int(v)] for v in env.obs[:, hot].argmax(dim=1)])  # noqa: E731
+    summary = env.evaluate(agent=agent, episodes=2, max_steps=40, progress=False, on_step=on_step)
     assert summary["phases"]["pick_1"]["reached"] == 2 and summary["phases"]["pick_1"]["passed"] == 0
+    expected: dict[str, dict[str, int]] = {}
+    for name in seen[0]:  # per object, the picks that episodes reached and passed
+        expected.setdefault(name, {"reached": 0, "passed": 0})["reached"] += 1
+    assert summary["phase_targets"] == {"pick": expected}
     for bad, match in (
         ({k: v for k, v in named.items() if k != "pick/green_cylinder"}, r"one policy per target .* missing: green_"),
         ({**named, "pick/purple_cone": named["place"]}, r"phase kind 'pick' has no target 'purple_cone'; its targ"),
@@ -278,6 +285,30 @@ def test_composed_evaluation_with_one_pick_policy_per_object(pick_per_object, ph
     ):
         with pytest.raises(ValueError, match=match):
             phase_policy_agent(env, bad)
+
+
+def test_the_phase_table_per_object_counts_each_kind_on_each_target():
+    from newton_lab.envs.rollout import phase_target_summary
+
+    cfg = lookup(TASK).make_cfg({})
+    order = {"pick_1": "red_cube", "nav_1": "red_cube", "place_1": "red_cube", "pick_2": "green_cylinder"}
+    records = [
+        {"phase": "pick_2", "success": False, "targets": order},  # sorted the red cube, stalled picking the cylinder
+        {"phase": "place_1", "success": False, "targets": {k: order[k] for k in ("pick_1", "nav_1", "place_1")}},
+        {"phase": "pick_1", "success": False, "targets": {"pick_1": "blue_cuboid"}},
+    ]
+    table = phase_target_summary(cfg, records)
+    assert table == {
+        "pick": {
+            "red_cube": {"reached": 2, "passed": 2},
+            "green_cylinder": {"reached": 1, "passed": 0},
+            "blue_cuboid": {"reached": 1, "passed": 0},
+        },
+        "nav": {"red_cube": {"reached": 2, "passed": 2}},
+        "place": {"red_cube": {"reached": 2, "passed": 1}},
+    }
+    won = {"phase": "place_4", "success": True, "targets": {"place_4": "red_cube"}}
+    assert phase_target_summary(cfg, [won]) == {"place": {"red_cube": {"reached": 1, "passed": 1}}}
 
 
 def test_the_gpu_pipeline_plan_and_its_suite_row(capsys):

@@ -44,6 +44,7 @@ EVAL_REPORT_KEYS = (
     "diverged",
     "subtask_signals",
     "phases",
+    "phase_targets",
 )
 """The evaluation summary fields the CLI, examples and the Prefect evaluate stage report."""
 
@@ -69,6 +70,22 @@ def phase_summary(names: list[str], records: list[dict[str, Any]]) -> dict[str, 
     return out
 
 
+def phase_target_summary(cfg, records: list[dict[str, Any]]) -> dict[str, dict[str, dict[str, int]]]:
+    """Per phase kind acting on a per-row target (SortToShelf-All's pick, nav, place: one per object), per target:
+    the phases of that kind on it that episodes ``reached`` and ``passed``, summed over the kind's phases (where a
+    composed policy stalls, per object)."""
+    names = cfg.phase_names
+    kind_of = {p.name: p.kind or p.name for p in cfg.phases}
+    out: dict[str, dict[str, dict[str, int]]] = {}
+    for r in records:
+        end = names.index(r["phase"])
+        for name, value in r.get("targets", {}).items():
+            cell = out.setdefault(kind_of[name], {}).setdefault(value, {"reached": 0, "passed": 0})
+            cell["reached"] += 1
+            cell["passed"] += int(names.index(name) < end or r["success"])
+    return out
+
+
 def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
     successes = sum(r["success"] for r in records)
     reasons: dict[str, int] = {}
@@ -90,6 +107,8 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.task.signal_names},
         # per phase (one, "task", for a single-phase task): episodes that reached / passed it, why others stopped
         "phases": phase_summary(env.cfg.phase_names, records),
+        # per phase kind and target (a task whose phases act on a per-row target): reached / passed
+        **({"phase_targets": phase_target_summary(env.cfg, records)} if any("targets" in r for r in records) else {}),
         "vector_steps": vector_steps,
         # worlds whose mujoco_warp overflow bitmask is set (buffer overflow or line-search cap; prints are off)
         "solver_overflow_worlds": _overflow_worlds(env),

@@ -15,6 +15,7 @@ import torch
 from tqdm import tqdm
 
 from ..task_api.cfg import DIVERGED
+from ..task_api.registry import lookup
 from .checks import check_counts
 
 REASON_MAX_STEPS = "max_steps"
@@ -95,6 +96,9 @@ class RowEpisodes:
         self.reached = torch.zeros((n, len(env.task.signal_names)), dtype=torch.bool, device=dev)
         self.phase = torch.zeros(n, dtype=torch.long, device=dev)
         """The furthest phase each row's episode has reached (a coherent task's rows reset to phase 0)."""
+        self.target_values, self._target_cols = phase_targets(env)
+        self.targets = torch.full((n, max(len(env.cfg.phases), 1)), -1, dtype=torch.long, device=dev)
+        """Per row and phase, the index of the target the row's phase acted on (-1: none, or not reached)."""
         self.records: list[dict[str, Any]] = []
         self.successes = 0
         self.host: dict[str, np.ndarray] = {}
@@ -118,6 +122,11 @@ class RowEpisodes:
         self.latched |= info["success"].cpu().numpy()
         self.reached |= info["step_signals"] > 0.5
         self.phase = torch.where(ended, self.phase, torch.maximum(self.phase, info["phase"].long()))
+        if self._target_cols is not None:  # the obs of a row that ended is its next episode's
+            now = info["phase"].long()
+            rows = torch.arange(len(now), device=now.device)
+            value = self.env.obs[:, self._target_cols].argmax(dim=1)
+            self.targets[rows, now] = torch.where(ended, self.targets[rows, now], value)
 
     def snapshot(self) -> None:
         """Host copies of the per-row counters, read by :meth:`record` (call once per step, before it)."""
@@ -126,6 +135,7 @@ class RowEpisodes:
             "reward": self.reward_total.cpu().numpy(),
             "reached": self.reached.cpu().numpy(),
             "phase": self.phase.cpu().numpy(),
+            "targets": self.targets.cpu().numpy(),
         }
 
     def record(self, row: int, reason: str) -> dict[str, Any]:
@@ -142,6 +152,12 @@ class RowEpisodes:
             ],
             "phase": self.env.cfg.phase_names[int(h["phase"][row])],
         }
+        if self._target_cols is not None:  # phase -> the target it acted on, for the phases the episode reached
+            rec["targets"] = {
+                name: self.target_values[i][v]
+                for i, (name, v) in enumerate(zip(self.env.cfg.phase_names, h["targets"][row].tolist()))
+                if v >= 0 and self.target_values[i]
+            }
         if self.quota is None or self.launched < self.quota:
             self.launched += 1
         else:
@@ -165,6 +181,23 @@ class RowEpisodes:
             self.latched[finished] = False
             self.reached[idx] = False
             self.phase[idx] = 0
+            self.targets[idx] = -1
+
+
+def phase_targets(env) -> tuple[list[tuple[str, ...]], slice | None]:
+    """Per phase of a coherent task, the values of its per-row target (``PhaseCfg.target_option``; ``()`` for a
+    phase without one), and the observation columns of that target's one-hot (``None`` when no phase has one, or
+    the phases' targets are not one option)."""
+    phases = env.cfg.phases
+    options = {p.target_option for p in phases if p.target_option}
+    if len(options) != 1 or next(iter(options)) not in env.task.obs_terms:
+        return [() for _ in phases], None
+    values = []
+    for p in phases:
+        declared = {o.name: o.choices for o in lookup(p.task_id).options} if p.target_option else {}
+        values.append(tuple(declared.get(p.target_option) or ()))
+    term = env.task.obs_terms[next(iter(options))]
+    return values, slice(term.start, term.stop)
 
 
 class _Progress:
