@@ -22,6 +22,8 @@ def pipeline(args: PipelineArgs) -> int:
     recipe = demo_recipe(args.recipe, args.device, long_horizon=long_horizon, task=args.task)
     kwargs = args.pipeline_kwargs(recipe)
     kwargs["train_cfg"] = with_inputs(kwargs["train_cfg"], cfg.target_observations)
+    # the policies to train, now: a kind that cannot be learned per target is refused before Prefect starts
+    trainings = phase_trainings(cfg, kwargs["train_cfg"], kwargs.get("per_target", ())) if long_horizon else {}
     if args.dry_run:  # the plan only: nothing is collected, trained or written, Prefect is not started
         stages = (
             ["collect", "split", "train per learned phase", "evaluate composed"]
@@ -30,7 +32,7 @@ def pipeline(args: PipelineArgs) -> int:
         )
         plan = {**kwargs, "long_horizon": long_horizon, "stages": stages}
         if long_horizon:
-            plan["learned_phases"] = list(phase_trainings(cfg, kwargs["train_cfg"], kwargs.get("per_target", ())))
+            plan["learned_phases"] = list(trainings)
         print(json.dumps({"plan": plan}, default=str))
         return 0
     with ends_in_one_line(args.out):  # Ctrl-C: one line, exit 130; SIGKILL: no server or worker left running

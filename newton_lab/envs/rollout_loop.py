@@ -15,7 +15,7 @@ import torch
 from tqdm import tqdm
 
 from ..task_api.cfg import DIVERGED
-from ..task_api.registry import lookup
+from ..task_api.compose import target_values
 from .checks import check_counts
 
 REASON_MAX_STEPS = "max_steps"
@@ -192,12 +192,8 @@ def phase_targets(env) -> tuple[list[tuple[str, ...]], slice | None]:
     options = {p.target_option for p in phases if p.target_option}
     if len(options) != 1 or next(iter(options)) not in env.task.obs_terms:
         return [() for _ in phases], None
-    values = []
-    for p in phases:
-        declared = {o.name: o.choices for o in lookup(p.task_id).options} if p.target_option else {}
-        values.append(tuple(declared.get(p.target_option) or ()))
     term = env.task.obs_terms[next(iter(options))]
-    return values, slice(term.start, term.stop)
+    return [target_values(p) for p in phases], slice(term.start, term.stop)
 
 
 class _Progress:

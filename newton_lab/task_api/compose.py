@@ -54,21 +54,30 @@ TARGET_SEPARATOR = "/"
 """Joins a phase kind and a value of its target option into the name of a per-target policy (``pick/red_cube``)."""
 
 
+def target_values(phase: PhaseCfg) -> tuple[str, ...]:
+    """The values of ``phase``'s per-row target (``PhaseCfg.target_option``), in the order of its one-hot (the
+    component's declared choices); ``()`` for a phase without one."""
+    if not phase.target_option:
+        return ()
+    declared = {o.name: o.choices for o in lookup(phase.task_id).options}
+    return tuple(declared.get(phase.target_option) or ())
+
+
 def target_choices(cfg: TaskCfg, kind: str) -> tuple[str, tuple[str, ...]]:
-    """The target option of a coherent task's phase ``kind`` (``PhaseCfg.target_option``) and its values, in the
-    order of its one-hot (the component's declared choices); one line when the kind has no per-row target."""
+    """The target option of a coherent task's phase ``kind`` and its values (``target_values``); one line when the
+    kind has no per-row target."""
     ix = cfg.phase_kinds.get(kind)
     if ix is None:
         raise ValueError(f"{cfg.task_id} has no phase kind {kind!r}; its kinds: {', '.join(cfg.phase_kinds)}")
     ph = cfg.phases[ix[0]]
-    declared = {o.name: o for o in lookup(ph.task_id).options}
-    if not ph.target_option or not getattr(declared.get(ph.target_option), "choices", None):
+    values = target_values(ph)
+    if not values:
         with_target = [k for k, i in cfg.phase_kinds.items() if cfg.phases[i[0]].target_option]
         raise ValueError(
             f"phase kind {kind!r} of {cfg.task_id} acts on no per-row target, so it has no policy per target; "
             f"kinds with one: {', '.join(with_target) or 'none'}"
         )
-    return ph.target_option, tuple(declared[ph.target_option].choices)
+    return ph.target_option, values
 
 
 def per_target_names(cfg: TaskCfg, kinds) -> list[str]:
