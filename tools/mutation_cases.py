@@ -24,6 +24,7 @@ def one_patch(name: str, promise: str, path: str, old: str, new: str, *tests: st
 
 DIV = "tests/test_divergence.py"
 STORE, WRITERS, DURABLE = "tests/test_storage.py", "tests/test_writers.py", "tests/test_mutations_durability.py"
+SORT_ALL = "tests/test_sort_to_shelf_all.py::"
 MUTATIONS: tuple[Mutation, ...] = (
     one_patch(
         "divergence-bounds-inf",
@@ -516,5 +517,37 @@ MUTATIONS: tuple[Mutation, ...] = (
         "frames = self.obs_index[idx]",
         "frames = (self.obs_index[idx] + 1).clamp(max=self.obs.shape[0] - 1)",
         "tests/test_policy_vision.py::test_the_device_resident_windows_give_the_host_loaders_batches",
+    ),
+    one_patch(
+        "split-by-target-keeps-every-segment",
+        "A kind split by target holds, per target, only the segments acting on it",
+        "newton_lab/datasets/split.py",
+        "if sel.size == 0 or not _on_target(ep, sel[0], job.target):",
+        "if sel.size == 0:",
+        f"{SORT_ALL}test_split_by_target_writes_one_dataset_per_object",
+    ),
+    one_patch(
+        "per-target-policies-switched-in-the-wrong-order",
+        "Each row's phase runs the policy of its own target",
+        "newton_lab/policies/agent.py",
+        'composed[kind] = TargetSwitchAgent(option, {v: agents[f"{kind}{TARGET_SEPARATOR}{v}"] for v in values})',
+        'composed[kind] = TargetSwitchAgent(option, {v: agents[f"{kind}{TARGET_SEPARATOR}{v}"] for v in values[::-1]})',
+        f"{SORT_ALL}test_composed_evaluation_with_one_pick_policy_per_object",
+    ),
+    one_patch(
+        "per-target-policies-see-the-one-hot",
+        "A policy per target takes no target input",
+        "flows/settings.py",
+        "out.update(dict.fromkeys(per_target_names(cfg, [kind]), without_inputs(train_cfg, targets)))",
+        "out.update(dict.fromkeys(per_target_names(cfg, [kind]), with_inputs(train_cfg, targets)))",
+        f"{SORT_ALL}test_composed_evaluation_with_one_pick_policy_per_object",
+    ),
+    one_patch(
+        "phase-table-passes-the-phase-an-episode-stalled-in",
+        "The per-target phase table counts a phase passed only when the episode went beyond it",
+        "newton_lab/envs/rollout.py",
+        'cell["passed"] += int(names.index(name) < end or r["success"])',
+        'cell["passed"] += int(names.index(name) <= end or r["success"])',
+        f"{SORT_ALL}test_the_phase_table_per_object_counts_each_kind_on_each_target",
     ),
 )
