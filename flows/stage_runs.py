@@ -313,7 +313,7 @@ def run_evaluate(
         },
         "average_length": sum(p["average_length"] * p["episodes"] for p in parts) / max(n, 1),
     }
-    if any("phase_targets" in p for p in parts):  # per phase kind and target (SortToShelf-All: per object)
+    if any(p.get("phase_targets") for p in parts):  # per phase kind and target (SortToShelf-All: per object)
         metrics["phase_targets"] = summed_by_target(p.get("phase_targets", {}) for p in parts)
     recorded = [p["recording"] for p in parts if p.get("recording")]
     if recorded:

@@ -328,7 +328,7 @@ def _evaluate(
     finally:
         if logger is not None:
             logger.close()
-    report = {k: s[k] for k in EVAL_REPORT_KEYS if k != "task" and k in s}
+    report = {k: s[k] for k in EVAL_REPORT_KEYS if k != "task"}
     if logger is not None:
         report["recording"] = str(logger.path)
     return report

@@ -73,7 +73,7 @@ def phase_summary(names: list[str], records: list[dict[str, Any]]) -> dict[str, 
 def phase_target_summary(cfg, records: list[dict[str, Any]]) -> dict[str, dict[str, dict[str, int]]]:
     """Per phase kind acting on a per-row target (SortToShelf-All's pick, nav, place: one per object), per target:
     the phases of that kind on it that episodes ``reached`` and ``passed``, summed over the kind's phases (where a
-    composed policy stalls, per object)."""
+    composed policy stalls, per object); empty for a task without such phases."""
     names = cfg.phase_names
     kind_of = {p.name: p.kind or p.name for p in cfg.phases}
     out: dict[str, dict[str, dict[str, int]]] = {}
@@ -107,8 +107,8 @@ def _summary(env, records, vector_steps, wall) -> dict[str, Any]:
         "subtask_signals": {name: sum(name in r["signals_reached"] for r in records) for name in env.task.signal_names},
         # per phase (one, "task", for a single-phase task): episodes that reached / passed it, why others stopped
         "phases": phase_summary(env.cfg.phase_names, records),
-        # per phase kind and target (a task whose phases act on a per-row target): reached / passed
-        **({"phase_targets": phase_target_summary(env.cfg, records)} if any("targets" in r for r in records) else {}),
+        # per phase kind and target (a task whose phases act on a per-row target; else empty): reached / passed
+        "phase_targets": phase_target_summary(env.cfg, records),
         "vector_steps": vector_steps,
         # worlds whose mujoco_warp overflow bitmask is set (buffer overflow or line-search cap; prints are off)
         "solver_overflow_worlds": _overflow_worlds(env),
