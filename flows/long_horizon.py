@@ -19,14 +19,7 @@ from ..datasets.files.output_paths import output_path
 from ..task_api.registry import lookup
 from . import runlog, stages
 from .run_record import StageClock, record_run
-from .settings import (
-    LONG_HORIZON_OPTIONS,
-    LONG_HORIZON_RECIPES,
-    PIPELINE_DATASET_FORMAT,
-    learned_kinds,
-    phase_trainings,
-    with_inputs,
-)
+from .settings import LONG_HORIZON_OPTIONS, LONG_HORIZON_RECIPES, PIPELINE_DATASET_FORMAT, phase_trainings, with_inputs
 from .stage_runs import REPORTED_ERRORS, results, run_collect, run_evaluate, stage_task, train_task
 
 split_task = stage_task(stages.split_stage, "split")
@@ -35,16 +28,6 @@ COLLECT_MAX_STEPS = 3000
 """Step limit of an expert coherent episode in the collect stage (PickToShelf's take ~470, SortToShelf's ~440,
 SortToShelf-All's ~2350);
 ``eval_max_steps`` bounds the evaluation alone."""
-
-
-def learned_phases(task_id: str, task_options: dict[str, Any] | None = None) -> list[str]:
-    """The phase kinds of a coherent task that the pipeline trains a policy for (``settings.learned_kinds``)."""
-    from .. import tasks  # noqa: F401  deferred: registering the task ids imports Warp
-
-    cfg = lookup(task_id).make_cfg(dict(task_options or {}))
-    if not cfg.phases:
-        raise ValueError(f"{task_id} has no phases; run the single-task pipeline on it (no long-horizon recipe)")
-    return learned_kinds(cfg)
 
 
 def has_phases(task_id: str) -> bool:
@@ -91,6 +74,8 @@ def long_horizon_pipeline(
     out_dir = output_path(Path(out) / "metrics.json").parent
     options = {**LONG_HORIZON_OPTIONS, **(task_options or {})}
     per_target = list(per_target or [])
+    from .. import tasks  # noqa: F401  deferred: registering the task ids imports Warp
+
     cfg = lookup(task_id).make_cfg(options)
     trainings = phase_trainings(cfg, train_cfg, per_target)
     train_cfg = with_inputs(train_cfg, cfg.target_observations)  # the record's: a policy per kind

@@ -98,6 +98,7 @@ class RowEpisodes:
         """The furthest phase each row's episode has reached (a coherent task's rows reset to phase 0)."""
         self.target_values, self._target_cols = phase_targets(env)
         self.targets = torch.full((n, max(len(env.cfg.phases), 1)), -1, dtype=torch.long, device=dev)
+        self._rows = torch.arange(n, device=dev)
         """Per row and phase, the index of the target the row's phase acted on (-1: none, or not reached)."""
         self.records: list[dict[str, Any]] = []
         self.successes = 0
@@ -123,8 +124,7 @@ class RowEpisodes:
         self.reached |= info["step_signals"] > 0.5
         self.phase = torch.where(ended, self.phase, torch.maximum(self.phase, info["phase"].long()))
         if self._target_cols is not None:  # the obs of a row that ended is its next episode's
-            now = info["phase"].long()
-            rows = torch.arange(len(now), device=now.device)
+            now, rows = info["phase"].long(), self._rows
             value = self.env.obs[:, self._target_cols].argmax(dim=1)
             self.targets[rows, now] = torch.where(ended, self.targets[rows, now], value)
 
