@@ -59,3 +59,30 @@ def test_frames_stored_otherwise_are_read_as_arrays(tmp_path):
         (tree,) = list(items)
     assert isinstance(tree["obs"]["front_head_rgb"], np.ndarray)
     np.testing.assert_array_equal(tree["obs"]["front_head_rgb"], frames)
+
+
+def test_new_frames_are_deflated_on_threads_as_hdf5_would(tmp_path):
+    """A written episode's frames are one zlib stream a chunk at ``FRAME_DEFLATE_LEVEL`` (the bytes HDF5's deflate
+    filter writes), and a frame deflate cannot shrink (noise) is stored raw with the filter skipped: h5py reads
+    both back as they were."""
+    import zlib
+
+    from newton_lab.datasets.hdf5.frames import FRAME_DEFLATE_LEVEL
+
+    path = tmp_path / "a.hdf5"
+    ep = _episode(steps=70)  # more frames than one deflate task holds
+    noise = np.random.default_rng(1).integers(0, 255, (72, 96, 3), dtype=np.uint8)
+    ep["obs"]["front_head_rgb"][5] = noise
+    with open_writer(path, task_id="GalbotG1-PickCube-v0", env_args={}) as w:
+        w.append_episode(ep, success=True)
+    frames = ep["obs"]["front_head_rgb"]
+    for i in (0, 69):
+        mask, data = _chunk(path, "obs/front_head_rgb", i)
+        assert mask == 0 and data == zlib.compress(frames[i].tobytes(), FRAME_DEFLATE_LEVEL)
+    assert _chunk(path, "obs/front_head_rgb", 5) == (1, noise.tobytes())
+    with h5py.File(path, "r") as f:
+        dset = f["data/demo_0/obs/front_head_rgb"]
+        assert dset.chunks == (1, 72, 96, 3) and dset.compression == "gzip"
+        assert dset.compression_opts == FRAME_DEFLATE_LEVEL
+        np.testing.assert_array_equal(dset[()], frames)
+    np.testing.assert_array_equal(read_episode(path, 0)["actions"], ep["actions"])

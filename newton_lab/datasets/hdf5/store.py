@@ -20,7 +20,7 @@ from ..files.errors import damaged
 from ..files.layout import NEXT_ID, PARTIAL_PREFIX, StoredDemo, demo_id_of, demo_name, from_stored, nest
 from ..files.locking import locked_error
 from . import journal
-from .frames import StoredFrames
+from .frames import FRAME_DEFLATE_LEVEL, StoredFrames
 
 # Superblock v0 (no "file open for write" flag to clear after a crash); objects readable by HDF5 >= 1.10.
 LIBVER = ("earliest", "v110")
@@ -116,14 +116,30 @@ def _write_tree(g: h5py.Group, tree: dict[str, Any]) -> None:
             value.write(g, key)
         elif value.ndim == 0 or value.size == 0:
             g.create_dataset(key, data=value)
-        elif value.ndim >= 3:  # image frames (T, H, W[, 3]): one frame per chunk, gzip 4 (docs/data.md: Image datasets)
-            g.create_dataset(key, data=value, chunks=(1, *value.shape[1:]), compression="gzip", compression_opts=4)
+        elif value.ndim >= 3:  # image frames of another type than _deflated's: h5py deflates them
+            g.create_dataset(
+                key, data=value, chunks=(1, *value.shape[1:]), compression="gzip", compression_opts=FRAME_DEFLATE_LEVEL
+            )
         elif value.dtype.kind in _PLAIN_KINDS and key.isascii():  # state arrays: contiguous and uncompressed.
             # Physics floats barely compress (a PickCube demo: 162 KB raw, 183 KB as gzip-4 chunks, 176 KB
             # contiguous) and gzip doubled the append time (19 vs 9 ms/demo)
             _write_plain(g, key, value)
         else:  # other types and names: h5py's own conversions
             g.create_dataset(key, data=value)
+
+
+def _deflated(tree: dict[str, Any]) -> dict[str, Any]:
+    """``tree`` with its numeric image frames (T, H, W[, C]) deflated one frame a chunk (``StoredFrames.deflate``,
+    on threads; docs/data.md: Image datasets), to be written as stored."""
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            out[key] = _deflated(value)
+        elif isinstance(value, np.ndarray) and value.ndim >= 3 and value.size and value.dtype.kind in _PLAIN_KINDS:
+            out[key] = StoredFrames.deflate(value)
+        else:
+            out[key] = value
+    return out
 
 
 def _read_array(dset: h5py.h5d.DatasetID) -> np.ndarray:
@@ -220,7 +236,9 @@ def append(path: Path, items: list[tuple[dict[str, Any], dict[str, Any], int]], 
     """Write ``items`` ((tree, attrs, num_samples), ...) as ``data/demo_<i>`` and advance the ``data`` attrs
     ``next_demo_id`` / ``total`` / ``num_demos``, all in one journaled session: every demo lands or none. A
     ``StoredDemo`` tree (a demo of another HDF5 dataset) is copied with its attrs, then ``attrs`` update them.
-    The cost does not depend on how many demos the dataset holds (no walk over them)."""
+    The cost does not depend on how many demos the dataset holds (no walk over them); image frames are deflated
+    before the file is opened (``_deflated``)."""
+    items = [(tree if isinstance(tree, StoredDemo) else _deflated(tree), attrs, n) for tree, attrs, n in items]
     with _open_write(path, fsync) as f, ExitStack() as sources:
         data = _data(f, path)
         next_id, total, count = _counters(data)
