@@ -104,13 +104,15 @@ LONG_HORIZON_TASK_RECIPES: dict[str, dict[str, dict[str, Any]]] = {
     # pick_1 passed 33) -- both lifted other objects than their target far more often than it. So the pick trains
     # one policy per object (``per_target``: each sees that object's 300 segments and always picks it, as the
     # single-object SortToShelf policies that pick 94-100 % of theirs do), switched per row on the one-hot; the
-    # place policy, which placed 45 of the 46 objects it was handed, stays one conditioned policy. 300 demos (one
-    # round of the 300 rows) and 600 s a policy, all side by side, keep the run within 30 minutes (24 on one H200:
-    # 55 of 100 sorted all four, the per-object picks passing 286 of 325). Policies move slower than the expert, so
-    # evaluation runs to 5000 steps.
+    # place policy, which placed 45 of the 46 objects it was handed, stays one conditioned policy. With 300 demos
+    # (300 segments an object) and 600 s a policy, all side by side, 55 of 100 sorted all four on one H200 in 24
+    # minutes, the per-object picks passing 286 of 325 (the single-object SortToShelf picks, 94-100 %, learned from
+    # 600). Collection was bound by the HDF5 writer's deflate (the 300 rows stepped 2350 steps in ~90 s, then
+    # handed over 1.6 episodes/s); with frames deflated on every core, 600 demos (two rounds of the 300 rows) are
+    # expected to fit the 30 minutes. Policies move slower than the expert, so evaluation runs to 5000 steps.
     "GalbotG1-SortToShelf-All-v0": {
         "gpu": {
-            "demos": 300,
+            "demos": 600,
             "eval_max_steps": 5000,
             "train": {**LONG_HORIZON_RECIPES["gpu"]["train"], "time_budget_s": 600},
             "per_target": ("pick",),

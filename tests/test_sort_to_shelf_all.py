@@ -322,7 +322,7 @@ def test_the_gpu_pipeline_plan_and_its_suite_row(capsys):
     plan = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["plan"]
     assert plan["long_horizon"] and plan["per_target"] == ["pick"]
     assert plan["learned_phases"] == [f"pick/{o}" for o in OBJECTS] + ["place"], "a pick policy per object"
-    assert plan["demos"] == 300 and plan["eval_max_steps"] == 5000 and plan["train_cfg"]["time_budget_s"] == 600
+    assert plan["demos"] == 600 and plan["eval_max_steps"] == 5000 and plan["train_cfg"]["time_budget_s"] == 600
     keys = plan["train_cfg"]["obs_keys"]
     assert keys[-1] == "sorting_object" and not any("pose" in k for k in keys), "the one-hot, and no object pose"
     assert plan["train_cfg"]["instruction_keys"] == ["sorting_object"], "the one-hot conditions the image trunks"
