@@ -28,7 +28,7 @@ FRAME_DEFLATE_LEVEL = 3
 """zlib level of new frames. Measured on PickToShelf's 96x72 frames (one core): level 3 deflates 240 MB/s of head
 and 530 MB/s of wrist frames, level 4 125 and 167 MB/s (4 and up switch to zlib's slower matcher); the files are
 about the same size (head 15.0 vs 15.9 : 1, wrist 56.8 vs 53.4 : 1)."""
-_FRAMES_PER_TASK = 64  # frames one thread deflates per task: few enough tasks that Python's overhead stays small
+_FRAMES_PER_TASK = 32  # frames one thread deflates per task: few enough tasks that Python's overhead stays small
 
 
 @functools.cache
